@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Installs carmba's build and run dependencies from Debian 12 packages.
+# Idempotent: packages already installed are skipped; nothing is downloaded if all are present.
+# Run as root (or with sudo available) on a bare Debian 12 machine.
+set -euo pipefail
+
+PKGS=(
+  build-essential cmake pkg-config
+  libceres-dev libeigen3-dev libgoogle-glog-dev libgflags-dev
+  libopencv-dev
+  libmrcal-dev mrcal python3-mrcal
+  libgdcm-dev libgdcm-tools
+  libyaml-cpp-dev nlohmann-json3-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  python3-numpy python3-matplotlib python3-opencv python3-pydicom
+  libgdcm3.0
+)
+if [[ "${CARMBA_WITH_DOCS_DATA:-1}" == 1 ]]; then
+  PKGS+=(opencv-doc)
+fi
+if [[ "${CARMBA_WITH_BROWSER:-0}" == 1 ]]; then
+  PKGS+=(chromium)
+fi
+
+missing=()
+for p in "${PKGS[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "setup: all ${#PKGS[@]} packages already installed"
+  exit 0
+fi
+
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+echo "setup: installing ${#missing[@]} packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "setup: done"

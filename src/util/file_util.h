@@ -1,0 +1,33 @@
+// File helpers that never leave partial output behind.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "util/status.h"
+
+namespace carmba {
+
+// Writes `contents` to `path` atomically: to `path.tmp.<pid>` first, then rename(2). A crash or an
+// error leaves either the old file or no file, never half a file.
+Status WriteFileAtomic(const std::string& path, const std::string& contents);
+
+// Reads a whole file. Error names the path.
+StatusOr<std::string> ReadFile(const std::string& path);
+
+// Creates a directory and its parents (like mkdir -p).
+Status MakeDirs(const std::string& path);
+
+bool FileExists(const std::string& path);
+bool IsDirectory(const std::string& path);
+
+// Joins path components with '/'; an absolute `b` replaces `a`.
+std::string JoinPath(const std::string& a, const std::string& b);
+// Directory part of a path ("." when there is none).
+std::string DirName(const std::string& path);
+
+// Expands a directory (all regular files, sorted by name) or a glob pattern (sorted matches).
+// Error when nothing matches.
+StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob);
+
+}  // namespace carmba

@@ -1,0 +1,274 @@
+#include "util/yaml_reader.h"
+
+#include <cmath>
+
+#include "util/csv.h"
+
+namespace carmba {
+
+YamlMap::YamlMap(const YAML::Node& node, std::string file, std::string prefix)
+    : node_(node), file_(std::move(file)), prefix_(std::move(prefix)) {
+  if (node_ && !node_.IsNull() && !node_.IsMap()) {
+    status_ = Status::Error(file_ + ":" + std::to_string(node_.Mark().line + 1) + ": " +
+                            (prefix_.empty() ? std::string("top level")
+                                             : "key '" + prefix_ + "'") +
+                            ": expected a mapping of keys to values");
+  }
+}
+
+YamlMap YamlMap::Load(const std::string& path) {
+  YAML::Node root;
+  std::string error;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    error = path + ": cannot open file";
+  } catch (const YAML::Exception& e) {
+    error = path + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax error: " + e.msg;
+  }
+  YamlMap m(root, path);
+  if (!error.empty()) {
+    m.status_ = Status::Error(error);
+  } else if (!root || root.IsNull()) {
+    m.status_ = Status::Error(path + ": empty file, expected a YAML mapping");
+  }
+  return m;
+}
+
+std::string YamlMap::KeyPath(const std::string& key) const {
+  return prefix_.empty() ? key : prefix_ + "." + key;
+}
+
+std::string YamlMap::Where(const std::string& key) const {
+  int line = -1;
+  if (node_ && node_.IsMap() && node_[key]) line = node_[key].Mark().line + 1;
+  if (line < 0 && node_) line = node_.Mark().line + 1;
+  std::string w = file_;
+  if (line > 0) w += ":" + std::to_string(line);
+  return w + ": key '" + KeyPath(key) + "'";
+}
+
+void YamlMap::Fail(const std::string& key, const std::string& what) {
+  if (status_.ok()) status_ = Status::Error(Where(key) + ": " + what);
+}
+
+bool YamlMap::Has(const std::string& key) const {
+  return node_ && node_.IsMap() && node_[key] && !node_[key].IsNull();
+}
+
+YAML::Node YamlMap::Node(const std::string& key, bool required, const char* expected) {
+  known_.insert(key);
+  if (!Has(key)) {
+    if (required) Fail(key, std::string("missing, expected ") + expected);
+    return YAML::Node();
+  }
+  return node_[key];
+}
+
+namespace {
+std::string Show(const YAML::Node& n) {
+  if (n.IsScalar()) return "'" + n.Scalar() + "'";
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a mapping";
+  return "nothing";
+}
+}  // namespace
+
+void YamlMap::Get(const std::string& key, double* out, bool required) {
+  YAML::Node n = Node(key, required, "a number");
+  if (!n) return;
+  double v;
+  if (!n.IsScalar() || !ParseFiniteDouble(n.Scalar(), &v)) {
+    Fail(key, "expected a finite number, got " + Show(n));
+    return;
+  }
+  *out = v;
+}
+
+void YamlMap::Get(const std::string& key, int* out, bool required) {
+  YAML::Node n = Node(key, required, "an integer");
+  if (!n) return;
+  double v;
+  if (!n.IsScalar() || !ParseFiniteDouble(n.Scalar(), &v) || v != std::floor(v) ||
+      std::fabs(v) > 2e9) {
+    Fail(key, "expected an integer, got " + Show(n));
+    return;
+  }
+  *out = static_cast<int>(v);
+}
+
+void YamlMap::Get(const std::string& key, bool* out, bool required) {
+  YAML::Node n = Node(key, required, "true or false");
+  if (!n) return;
+  if (n.IsScalar()) {
+    const std::string& s = n.Scalar();
+    if (s == "true" || s == "True" || s == "yes") {
+      *out = true;
+      return;
+    }
+    if (s == "false" || s == "False" || s == "no") {
+      *out = false;
+      return;
+    }
+  }
+  Fail(key, "expected true or false, got " + Show(n));
+}
+
+void YamlMap::Get(const std::string& key, std::string* out, bool required) {
+  YAML::Node n = Node(key, required, "a string");
+  if (!n) return;
+  if (!n.IsScalar()) {
+    Fail(key, "expected a string, got " + Show(n));
+    return;
+  }
+  *out = n.Scalar();
+}
+
+void YamlMap::Get(const std::string& key, std::vector<double>* out, bool required) {
+  YAML::Node n = Node(key, required, "a list of numbers");
+  if (!n) return;
+  if (!n.IsSequence()) {
+    Fail(key, "expected a list of numbers, got " + Show(n));
+    return;
+  }
+  std::vector<double> v;
+  for (size_t i = 0; i < n.size(); ++i) {
+    double x;
+    if (!n[i].IsScalar() || !ParseFiniteDouble(n[i].Scalar(), &x)) {
+      Fail(key, "element " + std::to_string(i) + ": expected a finite number, got " + Show(n[i]));
+      return;
+    }
+    v.push_back(x);
+  }
+  *out = v;
+}
+
+void YamlMap::Get(const std::string& key, std::vector<int>* out, bool required) {
+  std::vector<double> v;
+  const bool had = Has(key);
+  Get(key, &v, required);
+  if (!had || !status_.ok()) return;
+  std::vector<int> r;
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (v[i] != std::floor(v[i])) {
+      Fail(key, "element " + std::to_string(i) + ": expected an integer");
+      return;
+    }
+    r.push_back(static_cast<int>(v[i]));
+  }
+  *out = r;
+}
+
+void YamlMap::Get(const std::string& key, std::vector<std::string>* out, bool required) {
+  YAML::Node n = Node(key, required, "a list of strings");
+  if (!n) return;
+  std::vector<std::string> v;
+  if (n.IsScalar()) {
+    v.push_back(n.Scalar());
+  } else if (n.IsSequence()) {
+    for (size_t i = 0; i < n.size(); ++i) {
+      if (!n[i].IsScalar()) {
+        Fail(key, "element " + std::to_string(i) + ": expected a string, got " + Show(n[i]));
+        return;
+      }
+      v.push_back(n[i].Scalar());
+    }
+  } else {
+    Fail(key, "expected a list of strings, got " + Show(n));
+    return;
+  }
+  *out = v;
+}
+
+void YamlMap::GetEnum(const std::string& key,
+                      const std::vector<std::string>& choices,
+                      std::string* out,
+                      bool required) {
+  std::string s = *out;
+  const bool had = Has(key);
+  Get(key, &s, required);
+  if (!had || !status_.ok()) return;
+  for (const auto& c : choices) {
+    if (s == c) {
+      *out = s;
+      return;
+    }
+  }
+  std::string list;
+  for (const auto& c : choices) list += (list.empty() ? "" : "|") + c;
+  Fail(key, "expected one of " + list + ", got '" + s + "'");
+}
+
+void YamlMap::GetPositive(const std::string& key, double* out, bool required) {
+  double v = *out;
+  const bool had = Has(key);
+  Get(key, &v, required);
+  if (!had || !status_.ok()) return;
+  if (!(v > 0)) {
+    Fail(key, "expected a positive number, got " + node_[key].Scalar());
+    return;
+  }
+  *out = v;
+}
+
+void YamlMap::GetNonNegative(const std::string& key, double* out, bool required) {
+  double v = *out;
+  const bool had = Has(key);
+  Get(key, &v, required);
+  if (!had || !status_.ok()) return;
+  if (!(v >= 0)) {
+    Fail(key, "expected a non-negative number, got " + node_[key].Scalar());
+    return;
+  }
+  *out = v;
+}
+
+YamlMap& YamlMap::Map(const std::string& key, bool required) {
+  YAML::Node n = Node(key, required, "a mapping");
+  children_.push_back(std::make_unique<YamlMap>(n ? n : YAML::Node(), file_, KeyPath(key)));
+  return *children_.back();
+}
+
+std::vector<YamlMap*> YamlMap::MapList(const std::string& key, bool required) {
+  std::vector<YamlMap*> out;
+  YAML::Node n = Node(key, required, "a list of mappings");
+  if (!n) return out;
+  if (!n.IsSequence()) {
+    Fail(key, "expected a list of mappings, got " + Show(n));
+    return out;
+  }
+  for (size_t i = 0; i < n.size(); ++i) {
+    children_.push_back(
+        std::make_unique<YamlMap>(n[i], file_, KeyPath(key) + "[" + std::to_string(i) + "]"));
+    out.push_back(children_.back().get());
+  }
+  return out;
+}
+
+YAML::Node YamlMap::Raw(const std::string& key) {
+  known_.insert(key);
+  return Has(key) ? node_[key] : YAML::Node();
+}
+
+Status YamlMap::Finish() {
+  if (!status_.ok()) return status_;
+  for (auto& c : children_) {
+    Status s = c->Finish();
+    if (!s.ok()) return status_ = s;
+  }
+  if (node_ && node_.IsMap()) {
+    for (const auto& kv : node_) {
+      const std::string k = kv.first.as<std::string>();
+      if (!known_.count(k)) {
+        std::string list;
+        for (const auto& kk : known_) list += (list.empty() ? "" : ", ") + kk;
+        return status_ = Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
+                                       ": unknown key '" + KeyPath(k) + "' (known keys: " + list +
+                                       ")");
+      }
+    }
+  }
+  return status_;
+}
+
+}  // namespace carmba

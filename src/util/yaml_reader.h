@@ -1,0 +1,80 @@
+// Strict reading of YAML mappings for problem, config, scene and study files.
+//
+// Every key read is recorded; Finish() reports the first unknown key. Wrong types, missing
+// required keys and non-finite numbers are errors naming the file, the line and the dotted key
+// path, and what was expected, e.g.
+//   configs/x.yaml:7: key 'solver.max_iterations': expected an integer, got 'many'
+//
+//   YamlMap m(root, path);
+//   m.Get("max_iterations", &options.max_iterations);
+//   YamlMap solver = m.Map("solver");
+//   ...
+//   CARMBA_RETURN_IF_ERROR(m.Finish());
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "util/status.h"
+
+namespace carmba {
+
+class YamlMap {
+ public:
+  // `node` must be a map (or null/absent: then every key is absent). `file` names the source.
+  YamlMap(const YAML::Node& node, std::string file, std::string prefix = "");
+
+  // Loads a file; the error (missing file, YAML syntax) goes into status().
+  static YamlMap Load(const std::string& path);
+
+  bool Has(const std::string& key) const;
+  // Optional values: left untouched when absent. Required ones record an error when absent.
+  void Get(const std::string& key, double* out, bool required = false);
+  void Get(const std::string& key, int* out, bool required = false);
+  void Get(const std::string& key, bool* out, bool required = false);
+  void Get(const std::string& key, std::string* out, bool required = false);
+  void Get(const std::string& key, std::vector<double>* out, bool required = false);
+  void Get(const std::string& key, std::vector<int>* out, bool required = false);
+  void Get(const std::string& key, std::vector<std::string>* out, bool required = false);
+  // A string that must be one of `choices`.
+  void GetEnum(const std::string& key,
+               const std::vector<std::string>& choices,
+               std::string* out,
+               bool required = false);
+  // A positive / non-negative number (after Get).
+  void GetPositive(const std::string& key, double* out, bool required = false);
+  void GetNonNegative(const std::string& key, double* out, bool required = false);
+
+  // A nested map (absent -> an empty map). Its errors and unknown keys are reported by this
+  // map's Finish().
+  YamlMap& Map(const std::string& key, bool required = false);
+  // A sequence of maps.
+  std::vector<YamlMap*> MapList(const std::string& key, bool required = false);
+  // The raw node (marks the key as known).
+  YAML::Node Raw(const std::string& key);
+
+  // Records an error at `key` (for checks done by the caller).
+  void Fail(const std::string& key, const std::string& what);
+  // The first error so far, including nested maps and unknown keys.
+  Status Finish();
+  const Status& status() const { return status_; }
+  const std::string& file() const { return file_; }
+  std::string KeyPath(const std::string& key) const;
+
+ private:
+  std::string Where(const std::string& key) const;
+  YAML::Node Node(const std::string& key, bool required, const char* expected);
+
+  YAML::Node node_;
+  std::string file_;
+  std::string prefix_;
+  std::set<std::string> known_;
+  std::vector<std::unique_ptr<YamlMap>> children_;
+  Status status_;
+};
+
+}  // namespace carmba
