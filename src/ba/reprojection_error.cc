@@ -1,0 +1,62 @@
+#include "ba/reprojection_error.h"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+
+namespace carmba {
+
+bool ReprojectionError::Evaluate(double const* const* parameters,
+                                 double* residuals,
+                                 double** jacobians) const {
+  double* J_pose = jacobians ? jacobians[0] : nullptr;
+  double* J_point = jacobians ? jacobians[1] : nullptr;
+  double* J_intr = jacobians ? jacobians[2] : nullptr;
+  double uv[2];
+  if (!ProjectPointWithJac(parameters[2], parameters[0], parameters[1], uv, J_intr, J_pose,
+                           J_point)) {
+    return false;
+  }
+  residuals[0] = (uv[0] - u_) * inv_sigma_;
+  residuals[1] = (uv[1] - v_) * inv_sigma_;
+  if (!std::isfinite(residuals[0]) || !std::isfinite(residuals[1])) return false;
+  if (J_pose) for (int i = 0; i < 12; ++i) J_pose[i] *= inv_sigma_;
+  if (J_point) for (int i = 0; i < 6; ++i) J_point[i] *= inv_sigma_;
+  if (J_intr) for (int i = 0; i < 18; ++i) J_intr[i] *= inv_sigma_;
+  return true;
+}
+
+bool SqrtInformation(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* S) {
+  if (!covariance.allFinite() || (covariance - covariance.transpose()).norm() >
+                                     1e-9 * (1.0 + covariance.norm())) {
+    return false;
+  }
+  Eigen::LLT<Eigen::Matrix3d> llt(covariance.inverse());
+  if (!covariance.inverse().allFinite() || llt.info() != Eigen::Success) return false;
+  // information = L L^T  =>  S = L^T satisfies S^T S = information.
+  *S = llt.matrixL().transpose();
+  return S->allFinite();
+}
+
+PointPriorError::PointPriorError(const Eigen::Vector3d& p_measured,
+                                 const Eigen::Matrix3d& covariance_mm2)
+    : p_measured_(p_measured) {
+  if (!SqrtInformation(covariance_mm2, &sqrt_information_)) {
+    sqrt_information_.setConstant(std::numeric_limits<double>::quiet_NaN());
+  }
+}
+
+bool PointPriorError::Evaluate(double const* const* parameters,
+                               double* residuals,
+                               double** jacobians) const {
+  const Eigen::Map<const Eigen::Vector3d> p(parameters[0]);
+  Eigen::Map<Eigen::Vector3d> r(residuals);
+  r = sqrt_information_ * (p - p_measured_);
+  if (!r.allFinite()) return false;
+  if (jacobians && jacobians[0]) {
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> J(jacobians[0]);
+    J = sqrt_information_;
+  }
+  return true;
+}
+
+}  // namespace carmba

@@ -1,0 +1,86 @@
+// Residuals of carmba's bundle adjustments.
+//
+// ReprojectionError: one observed pixel of one point in one view.
+//   parameter blocks: pose   cam_from_object [rx, ry, rz (rad), tx, ty, tz (mm)]   (6)
+//                     point  p_in_object [x, y, z] (mm)                              (3)
+//                     intrinsics [fx, fy, cx, cy, k1, k2, p1, p2, k3]                 (9)
+//   residual (2): (project(intrinsics, pose, point) - uv_observed) / sigma_px
+// Whitening by sigma_px makes ceres::Covariance come out in physical units (ceres/covariance.h
+// leaves that to the user). Evaluate() returns false for non-finite input or a point behind the
+// source, so Ceres rejects the step instead of using a meaningless residual.
+//
+// The Jacobians are the analytic ones of camera/camera_model.h (ProjectPointWithJac), divided by
+// sigma_px. ReprojectionErrorAutoDiff is the autodiff twin, used by the `autodiff` configuration
+// and by the tests to check the analytic derivatives.
+//
+// PointPriorError: a 3-D point tied to a measured position (a CT fiducial) with covariance C:
+//   residual (3): L^T (p - p_measured),  with L L^T = C^-1  (L^T is the square-root information)
+//   so that |r|^2 = (p - p_m)^T C^-1 (p - p_m).  Jacobian: L^T (constant).
+#pragma once
+
+#include <ceres/autodiff_cost_function.h>
+#include <ceres/sized_cost_function.h>
+
+#include <Eigen/Core>
+
+#include "camera/camera_model.h"
+
+namespace carmba {
+
+class ReprojectionError final : public ceres::SizedCostFunction<2, 6, 3, 9> {
+ public:
+  ReprojectionError(double u_px, double v_px, double sigma_px)
+      : u_(u_px), v_(v_px), inv_sigma_(1.0 / sigma_px) {}
+
+  bool Evaluate(double const* const* parameters,
+                double* residuals,
+                double** jacobians) const override;
+
+  static ceres::CostFunction* Create(double u_px, double v_px, double sigma_px) {
+    return new ReprojectionError(u_px, v_px, sigma_px);
+  }
+
+ private:
+  double u_, v_, inv_sigma_;
+};
+
+struct ReprojectionErrorAutoDiff {
+  ReprojectionErrorAutoDiff(double u_px, double v_px, double sigma_px)
+      : u(u_px), v(v_px), inv_sigma(1.0 / sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* pose, const T* point, const T* intrinsics, T* residuals) const {
+    T uv[2];
+    if (!ProjectPoint(intrinsics, pose, point, uv)) return false;
+    residuals[0] = (uv[0] - T(u)) * T(inv_sigma);
+    residuals[1] = (uv[1] - T(v)) * T(inv_sigma);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double u_px, double v_px, double sigma_px) {
+    return new ceres::AutoDiffCostFunction<ReprojectionErrorAutoDiff, 2, 6, 3, 9>(
+        new ReprojectionErrorAutoDiff(u_px, v_px, sigma_px));
+  }
+
+  double u, v, inv_sigma;
+};
+
+class PointPriorError final : public ceres::SizedCostFunction<3, 3> {
+ public:
+  // `covariance_mm2` must be symmetric positive definite (checked by the caller).
+  PointPriorError(const Eigen::Vector3d& p_measured, const Eigen::Matrix3d& covariance_mm2);
+
+  bool Evaluate(double const* const* parameters,
+                double* residuals,
+                double** jacobians) const override;
+
+ private:
+  Eigen::Vector3d p_measured_;
+  Eigen::Matrix3d sqrt_information_;  // L^T, upper triangular
+};
+
+// Returns the upper-triangular square-root information S with S^T S = covariance^-1, or false if
+// the covariance is not symmetric positive definite.
+bool SqrtInformation(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* S);
+
+}  // namespace carmba
