@@ -1,0 +1,162 @@
+// Intrinsic calibration of a C-arm (or any OPENCV5 camera) from views of a planar grid, as one
+// bundle adjustment: shared intrinsics [fx, fy, cx, cy, k1, k2, p1, p2, k3] and one plate pose
+// cam_from_plate = (rvec, t) per view.
+//
+//   residual of point j in view i:  r_ij = (project(intrinsics, pose_i, P_j) - q_ij) / sigma_px
+//
+// The Jacobians are the analytic ones of camera/camera_model.h (ProjectPointWithJac). Without a
+// robust loss all points of a view form one residual block (PlateViewCost, 2n residuals), which is
+// several times faster than one block per point; with a robust loss each point is its own block so
+// that the loss acts per point.
+//
+// Initialisation (closed form, no OpenCV calibrateCamera): Zhang's homography method with the
+// principal point held at the image centre (or the given one) and zero skew. Each view's
+// homography H (plate mm -> pixel relative to the principal point, normalised DLT) gives two linear
+// constraints on B = K^-T K^-1 = diag(1/fx^2, 1/fy^2, 1):
+//   h1^T B h2 = 0,   h1^T B h1 - h2^T B h2 = 0
+// solved for (b11, b22, b33) by SVD; then the poses follow from K^-1 H = lambda [r1 r2 t].
+// Distortion starts at 0. If the views do not determine the focal lengths (e.g. all
+// fronto-parallel: the b33 column vanishes) the initialisation fails with a clear error.
+//
+// Constraints (the thesis's OpenCV flags): fixed parameters, a fixed aspect ratio fy = r fx, zero
+// tangential distortion, a fixed principal point and fixed k3 are expressed as an affine
+// parametrisation intrinsics = x0 + A delta (a ceres::Manifold), so the covariance of the free
+// parameters delta maps to the 9x9 covariance A Cov(delta) A^T (zero rows for fixed parameters).
+//
+// Covariance: Cov(theta) = sigma^2 (J^T J)^-1 with J the unwhitened Jacobian at the solution and
+// sigma the pixel noise (given, or estimated as sqrt(SSR / (2N - n_free))). The intrinsics block
+// is marginal over the plate poses: the poses are eliminated by the Schur complement
+//   S = H_cc - sum_i H_ci H_ii^-1 H_ic.
+// Projection uncertainty at a pixel and a distance follows mrcal's definition: the point
+// p_cam = d * unproject(q) is fixed in the frame averaged over the plate poses,
+//   q(theta) = project(intrinsics, mean_i T_i(theta) T_i0^-1 p_cam),
+// and Cov(q) = J_q Cov(theta) J_q^T, evaluated through the same Schur blocks.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "detect/observations.h"
+#include "util/status.h"
+
+namespace carmba {
+
+struct CalibrationOptions {
+  // Intrinsics held at their initial values, by name (fx fy cx cy k1 k2 p1 p2 k3).
+  std::vector<std::string> fix;
+  // fy = aspect_ratio_fy_over_fx * fx. The ratio: the given one, or (when 0) the closed-form
+  // initial estimate's.
+  bool fix_aspect_ratio = false;
+  double aspect_ratio_fy_over_fx = 0;
+  // p1 = p2 = 0, held.
+  bool zero_tangential = false;
+  // cx, cy held at principal_point_px, or at the image centre ((w-1)/2, (h-1)/2) when empty.
+  bool fix_principal_point = false;
+  std::vector<double> principal_point_px;
+  // k3 = 0, held.
+  bool fix_k3 = false;
+  // Optional full initial intrinsics (9 values), replacing the closed-form initialisation of the
+  // intrinsics (poses are still initialised from homographies).
+  std::vector<double> initial_intrinsics;
+
+  // "none", "huber" or "cauchy" on each point's whitened residual norm; scale in px.
+  std::string robust_loss = "none";
+  double robust_loss_scale_px = 1.0;
+  // Points whose residual norm exceeds this many sigmas are listed as outliers in the report.
+  double outlier_threshold_sigma = 4.0;
+
+  // Pixel noise sigma used to whiten and for the covariance; 0 = estimate from the residuals.
+  double pixel_sigma_px = 0;
+  // Calibration fails if fewer views remain.
+  int min_views = 3;
+  int max_iterations = 100;
+  // Distance (mm, along the ray) for the projection uncertainty; 0 = the median plate distance.
+  double uncertainty_distance_mm = 0;
+  // Threads for Ceres.
+  int num_threads = 1;
+
+  bool Check(std::string* error) const;
+};
+
+// Reads a calibration config (YAML, top-level keys = the field names above). Unknown keys are
+// errors. `detection` and other top-level maps are left to their readers via `other_keys`.
+Status LoadCalibrationOptions(const std::string& path,
+                              CalibrationOptions* options,
+                              const std::vector<std::string>& other_keys = {});
+
+struct ViewStats {
+  std::string image;
+  int num_points = 0;
+  double rms_px = 0;  // per coordinate
+  double max_px = 0;  // largest residual norm
+  double tilt_deg = 0;    // angle between the plate normal and the optical axis
+  double distance_mm = 0; // |t|
+};
+
+struct PointStats {
+  int point_id = 0;
+  int num_views = 0;
+  double rms_px = 0;  // per coordinate
+};
+
+struct PointResidual {
+  int view = 0;
+  int point_id = 0;
+  double du_px = 0, dv_px = 0;  // projection - observed
+  double norm_px = 0;
+};
+
+struct ProjectionSigma {
+  std::string where;         // "centre", "top-left", ...
+  double u_px = 0, v_px = 0; // the pixel
+  double sigma_u_px = 0, sigma_v_px = 0;
+  double worst_px = 0;       // sqrt of the largest eigenvalue of Cov(q) (mrcal's worstdirection)
+};
+
+struct CalibrationResult {
+  Camera camera;  // estimate with covariance (names = all 9; fixed ones have zero rows)
+  std::array<double, kNumIntrinsics> initial_intrinsics{};
+  std::vector<std::array<double, 6>> cam_from_plate;  // rvec (rad), t (mm) per view
+  Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics> covariance;  // marginal over poses
+  std::array<double, kNumIntrinsics> sigma{};  // sqrt(diag(covariance))
+  std::vector<bool> free;                      // per intrinsic: estimated (not held)
+  int num_free_intrinsics = 0;
+  Eigen::MatrixXd intrinsics_from_free;        // A (9 x k): intrinsics = x0 + A delta
+  std::string robust_loss = "none";            // as solved (the covariance weights by it)
+  double robust_loss_scale_px = 1.0;
+
+  double sigma_px = 0;          // the pixel sigma used for whitening and covariance
+  bool sigma_estimated = false; // true if estimated from the residuals
+  int num_points = 0;           // observed points (2 residuals each)
+  int dof = 0;                  // 2N - free parameters
+  double rms_px = 0;            // per-coordinate RMS, sqrt(SSR / 2N) (mrcal's figure)
+  double rms_opencv_px = 0;     // sqrt(SSR / N) = sqrt(2) rms_px (OpenCV's returned figure)
+  std::vector<ViewStats> views;
+  std::vector<PointStats> points;
+  std::vector<PointResidual> worst;     // up to 10 largest residuals
+  std::vector<PointResidual> outliers;  // norm > outlier_threshold_sigma * sigma_px
+  double uncertainty_distance_mm = 0;
+  std::vector<ProjectionSigma> projection_sigma;  // centre and the four corners
+
+  int iterations = 0;
+  std::string termination;
+  double solve_seconds = 0, covariance_seconds = 0;
+};
+
+// Calibrates. Errors: too few views, a view with < 4 points, initialisation failure (degenerate
+// views), solver failure, a singular covariance (parameters not determined by the views).
+StatusOr<CalibrationResult> Calibrate(const ObservationSet& observations,
+                                      const CalibrationOptions& options);
+
+// Projection uncertainty (mrcal definition, see above) of pixel `uv_px` at `distance_mm` for a
+// solved problem. Exposed for tests.
+StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& observations,
+                                                const CalibrationResult& result,
+                                                double u_px,
+                                                double v_px,
+                                                double distance_mm);
+
+}  // namespace carmba

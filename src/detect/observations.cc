@@ -1,0 +1,176 @@
+#include "detect/observations.h"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+#include "util/csv.h"
+#include "util/file_util.h"
+
+namespace carmba {
+
+const char* GridPatternName(GridPattern pattern) {
+  switch (pattern) {
+    case GridPattern::kCircles:
+      return "circles";
+    case GridPattern::kAsymmetricCircles:
+      return "acircles";
+    case GridPattern::kChessboard:
+      return "chessboard";
+  }
+  return "?";
+}
+
+StatusOr<GridPattern> ParseGridPattern(const std::string& name) {
+  if (name == "circles") return GridPattern::kCircles;
+  if (name == "acircles") return GridPattern::kAsymmetricCircles;
+  if (name == "chessboard") return GridPattern::kChessboard;
+  return Status::Error("pattern '" + name + "': expected circles, acircles or chessboard");
+}
+
+bool GridSpec::Check(std::string* error) const {
+  if (rows < 2 || cols < 2 || rows * cols < 4) {
+    *error = "grid: expected rows >= 2 and cols >= 2, got " + std::to_string(rows) + " x " +
+             std::to_string(cols);
+    return false;
+  }
+  if (!(spacing_mm > 0) || !std::isfinite(spacing_mm)) {
+    *error = "grid: expected a positive finite spacing_mm";
+    return false;
+  }
+  return true;
+}
+
+Eigen::Vector3d GridSpec::PointInPlate(int id) const {
+  const int r = id / cols, c = id % cols;
+  if (pattern == GridPattern::kAsymmetricCircles) {
+    return Eigen::Vector3d((2 * c + r % 2) * spacing_mm, r * spacing_mm, 0.0);
+  }
+  return Eigen::Vector3d(c * spacing_mm, r * spacing_mm, 0.0);
+}
+
+int ObservationSet::NumPoints() const {
+  int n = 0;
+  for (const auto& v : views) n += static_cast<int>(v.uv_px.size());
+  return n;
+}
+
+namespace {
+std::string Fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+}  // namespace
+
+Status WriteObservationsCsv(const ObservationSet& obs, const std::string& path) {
+  std::ostringstream o;
+  o << "# carmba observations\n";
+  o << "# grid: " << GridPatternName(obs.grid.pattern) << " " << obs.grid.rows << " "
+    << obs.grid.cols << " " << Fmt(obs.grid.spacing_mm) << "\n";
+  o << "# image_size: " << obs.width << " " << obs.height << "\n";
+  o << "view,image,point,u_px,v_px\n";
+  for (size_t v = 0; v < obs.views.size(); ++v) {
+    const auto& view = obs.views[v];
+    for (size_t i = 0; i < view.uv_px.size(); ++i) {
+      o << v << "," << view.image << "," << view.point_ids[i] << "," << Fmt(view.uv_px[i].x())
+        << "," << Fmt(view.uv_px[i].y()) << "\n";
+    }
+  }
+  return WriteFileAtomic(path, o.str());
+}
+
+StatusOr<ObservationSet> ReadObservationsCsv(const std::string& path) {
+  auto table_or = ReadCsv(path);
+  if (!table_or.ok()) return table_or.status();
+  const CsvTable& t = *table_or;
+  ObservationSet obs;
+  bool have_grid = false, have_size = false;
+  for (const auto& c : t.comments) {
+    std::istringstream is(c);
+    std::string key;
+    is >> key;
+    if (key == "grid:") {
+      std::string pattern;
+      if (!(is >> pattern >> obs.grid.rows >> obs.grid.cols >> obs.grid.spacing_mm)) {
+        return Status::Error(path + ": comment '# grid:': expected 'pattern rows cols spacing_mm'");
+      }
+      auto p = ParseGridPattern(pattern);
+      if (!p.ok()) return p.status().WithContext(path + ": '# grid:'");
+      obs.grid.pattern = *p;
+      have_grid = true;
+    } else if (key == "image_size:") {
+      if (!(is >> obs.width >> obs.height) || obs.width <= 0 || obs.height <= 0) {
+        return Status::Error(path + ": comment '# image_size:': expected 'width height' > 0");
+      }
+      have_size = true;
+    }
+  }
+  if (!have_grid) return Status::Error(path + ": missing comment '# grid: pattern rows cols spacing_mm'");
+  if (!have_size) return Status::Error(path + ": missing comment '# image_size: width height'");
+  std::string err;
+  if (!obs.grid.Check(&err)) return Status::Error(path + ": " + err);
+  auto image_col = t.Column("image");
+  if (!image_col.ok()) return image_col.status();
+  std::map<int, int> view_index;  // file view number -> index
+  std::vector<std::vector<bool>> seen;
+  for (size_t r = 0; r < t.rows.size(); ++r) {
+    const std::string where = path + ":" + std::to_string(t.line_numbers[r]);
+    auto view = t.Integer(r, "view");
+    if (!view.ok()) return view.status();
+    auto point = t.Integer(r, "point");
+    if (!point.ok()) return point.status();
+    auto u = t.Number(r, "u_px");
+    if (!u.ok()) return u.status();
+    auto v = t.Number(r, "v_px");
+    if (!v.ok()) return v.status();
+    if (*point < 0 || *point >= obs.grid.NumPoints()) {
+      return Status::Error(where + ": column 'point': expected 0.." +
+                           std::to_string(obs.grid.NumPoints() - 1) + ", got " +
+                           std::to_string(*point));
+    }
+    auto it = view_index.find(*view);
+    if (it == view_index.end()) {
+      it = view_index.emplace(*view, static_cast<int>(obs.views.size())).first;
+      obs.views.emplace_back();
+      obs.views.back().image = t.rows[r][*image_col];
+      seen.emplace_back(obs.grid.NumPoints(), false);
+    }
+    auto& vo = obs.views[it->second];
+    if (seen[it->second][*point]) {
+      return Status::Error(where + ": point " + std::to_string(*point) + " of view " +
+                           std::to_string(*view) + " appears twice");
+    }
+    seen[it->second][*point] = true;
+    vo.point_ids.push_back(*point);
+    vo.uv_px.emplace_back(*u, *v);
+  }
+  if (obs.views.empty()) return Status::Error(path + ": no observations");
+  return obs;
+}
+
+std::string CornersVnl(const ObservationSet& obs) {
+  std::ostringstream o;
+  o << "# filename x y level\n";
+  const int n = obs.grid.NumPoints();
+  for (const auto& view : obs.views) {
+    std::vector<int> where(n, -1);
+    for (size_t i = 0; i < view.point_ids.size(); ++i) where[view.point_ids[i]] = i;
+    std::string name = view.image;
+    for (char& ch : name) {
+      if (ch == ' ') ch = '_';
+    }
+    for (int id = 0; id < n; ++id) {
+      if (where[id] < 0) {
+        o << name << " nan nan -\n";
+      } else {
+        o << name << " " << Fmt(view.uv_px[where[id]].x()) << " " << Fmt(view.uv_px[where[id]].y())
+          << " 0\n";
+      }
+    }
+  }
+  return o.str();
+}
+
+}  // namespace carmba

@@ -1,0 +1,69 @@
+// Calibration grids and their detected image points ("observations").
+//
+// Grid frame (the plate frame, "object" of cam_from_object): the plate lies in z = 0, x along the
+// columns, y along the rows, in mm. Point id = row * cols + col (row-major, as mrcal and OpenCV
+// order them).
+//   circles    (symmetric circle grid, the thesis's 5x5 sphere plate): (col s, row s, 0)
+//   acircles   (OpenCV's asymmetric circle grid): ((2 col + row % 2) s, row s, 0)
+//   chessboard (inner corners): (col s, row s, 0)
+//
+// observations.csv (written by `carmba detect` and `carmba calibrate`, read by `calibrate
+// --observations`):
+//   # carmba observations
+//   # grid: circles 5 5 20            (pattern rows cols spacing_mm)
+//   # image_size: 408 408             (width height, px)
+//   view,image,point,u_px,v_px
+//   0,calib/0001.pgm,0,101.25,88.5
+// One row per detected point; pixel (0,0) is the centre of the top-left pixel.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "util/status.h"
+
+namespace carmba {
+
+enum class GridPattern { kCircles, kAsymmetricCircles, kChessboard };
+
+// "circles", "acircles", "chessboard".
+const char* GridPatternName(GridPattern pattern);
+StatusOr<GridPattern> ParseGridPattern(const std::string& name);
+
+struct GridSpec {
+  GridPattern pattern = GridPattern::kCircles;
+  int rows = 5;             // points per column
+  int cols = 5;             // points per row
+  double spacing_mm = 20;   // pitch between neighbouring points of a row
+
+  int NumPoints() const { return rows * cols; }
+  // rows, cols >= 2 (acircles: rows >= 3 ... OpenCV needs >= 2), spacing > 0 and finite.
+  bool Check(std::string* error) const;
+  // Plate-frame coordinates of point `id` (mm).
+  Eigen::Vector3d PointInPlate(int id) const;
+};
+
+struct ViewObservations {
+  std::string image;                 // source image path (or a label)
+  std::vector<int> point_ids;        // into the grid, each at most once
+  std::vector<Eigen::Vector2d> uv_px;
+};
+
+struct ObservationSet {
+  GridSpec grid;
+  int width = 0, height = 0;  // image size, px
+  std::vector<ViewObservations> views;
+
+  int NumPoints() const;
+};
+
+// Writes observations.csv (atomically).
+Status WriteObservationsCsv(const ObservationSet& obs, const std::string& path);
+// Reads observations.csv. Errors name file:line and what was expected.
+StatusOr<ObservationSet> ReadObservationsCsv(const std::string& path);
+// mrcal's corners.vnl: "# filename x y level", rows*cols rows per view in row-major order,
+// missing points as "filename nan nan -" (level 0 = weight 1).
+std::string CornersVnl(const ObservationSet& obs);
+
+}  // namespace carmba

@@ -1,0 +1,103 @@
+#include "sim/carm_geometry.h"
+
+#include <cmath>
+
+namespace carmba::sim {
+
+namespace {
+constexpr double kDegToRad = M_PI / 180.0;
+}  // namespace
+
+Eigen::Vector3d Rigid3::Rvec() const {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+std::array<double, 6> Rigid3::PoseParams() const {
+  const Eigen::Vector3d r = Rvec();
+  return {r.x(), r.y(), r.z(), t.x(), t.y(), t.z()};
+}
+
+Rigid3 Rigid3::FromRvec(const Eigen::Vector3d& rvec_rad, const Eigen::Vector3d& t_mm) {
+  Rigid3 p;
+  const double angle = rvec_rad.norm();
+  if (angle > 0) p.R = Eigen::AngleAxisd(angle, rvec_rad / angle).toRotationMatrix();
+  p.t = t_mm;
+  return p;
+}
+
+nlohmann::json RigidToJson(const Rigid3& pose) {
+  nlohmann::json R = nlohmann::json::array();
+  for (int i = 0; i < 3; ++i) R.push_back({pose.R(i, 0), pose.R(i, 1), pose.R(i, 2)});
+  const Eigen::Vector3d r = pose.Rvec();
+  return {{"R", R}, {"rvec", {r.x(), r.y(), r.z()}}, {"t_mm", {pose.t.x(), pose.t.y(), pose.t.z()}}};
+}
+
+bool CarmGeometry::Check(std::string* error) const {
+  const double v[] = {sid_mm,
+                      sod_mm,
+                      primary_angle_deg,
+                      secondary_angle_deg,
+                      detector_rotation_deg,
+                      isocenter_mm.x(),
+                      isocenter_mm.y(),
+                      isocenter_mm.z(),
+                      axis_offset_mm.x(),
+                      axis_offset_mm.y()};
+  for (double x : v) {
+    if (!std::isfinite(x)) return *error = "C-arm geometry: non-finite value", false;
+  }
+  if (!(sid_mm > 0)) return *error = "sid_mm must be positive", false;
+  if (!(sod_mm > 0 && sod_mm < sid_mm)) {
+    return *error = "sod_mm must be positive and smaller than sid_mm", false;
+  }
+  if (std::fabs(secondary_angle_deg) > 90.0) {
+    return *error = "secondary angle must lie in [-90, 90] degrees", false;
+  }
+  return true;
+}
+
+Rigid3 CamFromWorld(const CarmGeometry& g) {
+  const double a = g.primary_angle_deg * kDegToRad;
+  const double b = g.secondary_angle_deg * kDegToRad;
+  const double gamma = g.detector_rotation_deg * kDegToRad;
+  Eigen::Matrix3d R0;
+  R0.col(0) << -1, 0, 0;  // camera x = patient right
+  R0.col(1) << 0, 0, -1;  // camera y = feet
+  R0.col(2) << 0, -1, 0;  // beam = anterior
+  const Eigen::Matrix3d world_from_cam_R =
+      Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R0 *
+      Eigen::AngleAxisd(b, Eigen::Vector3d::UnitX()).toRotationMatrix() *
+      Eigen::AngleAxisd(gamma, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Vector3d source_in_world =
+      g.isocenter_mm +
+      world_from_cam_R * Eigen::Vector3d(g.axis_offset_mm.x(), g.axis_offset_mm.y(), -g.sod_mm);
+  Rigid3 cam_from_world;
+  cam_from_world.R = world_from_cam_R.transpose();
+  cam_from_world.t = -(cam_from_world.R * source_in_world);
+  return cam_from_world;
+}
+
+bool DetectorSpec::Check(std::string* error) const {
+  if (width_px <= 0 || height_px <= 0) return *error = "detector size must be positive", false;
+  if (!(pitch_x_mm > 0) || !(pitch_y_mm > 0) || !std::isfinite(pitch_x_mm) ||
+      !std::isfinite(pitch_y_mm)) {
+    return *error = "pixel pitch must be positive", false;
+  }
+  if (!principal_offset_px.allFinite()) return *error = "principal offset not finite", false;
+  return true;
+}
+
+Camera CameraFromDetector(const DetectorSpec& d, double sid_mm) {
+  Camera c;
+  c.width = d.width_px;
+  c.height = d.height_px;
+  c.params.fill(0.0);
+  c.params[kFx] = sid_mm / d.pitch_x_mm;
+  c.params[kFy] = sid_mm / d.pitch_y_mm;
+  c.params[kCx] = 0.5 * (d.width_px - 1) + d.principal_offset_px.x();
+  c.params[kCy] = 0.5 * (d.height_px - 1) + d.principal_offset_px.y();
+  return c;
+}
+
+}  // namespace carmba::sim

@@ -1,0 +1,86 @@
+// Summaries of a study's runs per problem x config x sweep point: DIR/summary.csv,
+// DIR/summary.md and DIR/timing.csv.
+//
+// Reproducibility contract: summary.csv and summary.md up to the line "## Timing" depend only on
+// the set of run records (sorted by enumeration index, aggregated in that order, numbers printed
+// with %.6g), so they are byte-identical for any --jobs, for a resumed study and for merged
+// shards. Wall-clock times vary from run to run; they are kept out of summary.csv (they go to
+// timing.csv) and sit in the last section of summary.md, "## Timing", which the equality tests
+// cut off.
+//
+// summary.csv is long-format, one row per group and metric:
+//   problem,config,<one column per swept variable>,runs,failed,kind,metric,n,mean,median,rms,
+//   p95,max,pred_sigma,emp_sigma,consistency
+// kind = error  : magnitudes against the truth ("errors" of a result): mean, median, rms, p95, max
+//        signed : estimate - truth per parameter ("signed_errors"): mean = bias, median, rms,
+//                 p95 and max of |e|, emp_sigma = sample standard deviation over the trials,
+//                 pred_sigma = RMS of the reported sigmas ("sigmas"), consistency =
+//                 emp_sigma / pred_sigma (1 = the reported uncertainty is honest, > 1 = it is
+//                 overconfident)
+//        value  : other numbers ("values", e.g. rms_px, iterations; "converged" as 0/1)
+//        runs   : a group whose runs all failed has this one row (metric "-", n = 0)
+// Empty fields are statistics that do not apply; "nan" where too few samples exist.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "study/run_store.h"
+
+namespace carmba {
+
+struct MetricStats {
+  std::string kind;  // error | signed | value
+  std::string name;
+  int n = 0;
+  double mean = 0, median = 0, rms = 0, p95 = 0, max = 0;
+  bool has_sigma = false;  // signed with reported sigmas
+  double pred_sigma = 0, emp_sigma = 0, consistency = 0;
+};
+
+struct FailureGroup {
+  std::string error;
+  int count = 0;
+  std::string first_key;
+};
+
+struct GroupSummary {
+  std::string problem;
+  std::string config;
+  SweepPoint sweep;
+  int first_index = 0;
+  int runs = 0;
+  int failed = 0;
+  std::vector<MetricStats> metrics;   // sorted by kind, then name
+  std::vector<FailureGroup> failures; // by first occurrence
+  double time_mean_s = 0, time_max_s = 0, time_total_s = 0, cpu_total_s = 0;
+  // Pooled "residuals_px" of the ok runs, and mean "budget" contributions, for the report.
+  std::vector<double> residuals;
+  std::vector<std::pair<std::string, double>> budget;
+
+  const MetricStats* Find(const std::string& kind, const std::string& name) const;
+};
+
+// Groups the records (any order) and computes the statistics, deterministically.
+std::vector<GroupSummary> Summarize(std::vector<RunRecord> records);
+
+// The names of the swept variables, in the order of the first record that has them.
+std::vector<std::string> SweepNames(const std::vector<GroupSummary>& groups);
+
+std::string SummaryCsv(const std::vector<GroupSummary>& groups);
+std::string TimingCsv(const std::vector<GroupSummary>& groups);
+// `info` is DIR/study.json (name, runs_total, shard, fingerprint).
+std::string SummaryMarkdown(const nlohmann::json& info,
+                            const std::vector<GroupSummary>& groups,
+                            double wall_s,
+                            int jobs);
+
+// The part of summary.md before "## Timing" (what equality tests compare).
+std::string MarkdownWithoutTiming(const std::string& markdown);
+
+// %.6g, "nan"/"inf" spelled out.
+std::string FormatNumber(double v);
+
+}  // namespace carmba
