@@ -1,0 +1,103 @@
+// result.json for pose problems.
+#include <cmath>
+
+#include "geometry/rotation.h"
+#include "problem/pose_problem.h"
+
+namespace carmba {
+namespace {
+
+nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+nlohmann::json Vec(const Eigen::VectorXd& v) {
+  nlohmann::json a = nlohmann::json::array();
+  for (int i = 0; i < v.size(); ++i) a.push_back(Num(v[i]));
+  return a;
+}
+
+nlohmann::json MatRows(const Eigen::MatrixXd& m) {
+  nlohmann::json a = nlohmann::json::array();
+  for (int i = 0; i < m.rows(); ++i) a.push_back(Vec(m.row(i).transpose()));
+  return a;
+}
+
+nlohmann::json PoseJson(const Pose6& p) {
+  const Eigen::Matrix3d R = RotationFromRvec(p.head<3>());
+  nlohmann::json Rj = nlohmann::json::array();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) Rj.push_back(R(i, j));
+  }
+  return {{"R", Rj}, {"rvec", Vec(p.head<3>())}, {"t_mm", Vec(p.tail<3>())}};
+}
+
+}  // namespace
+
+nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& s) {
+  nlohmann::json j;
+  j["problem"] = {{"name", problem.name},
+                  {"file", problem.path},
+                  {"sigma_px", problem.sigma_px},
+                  {"handedness",
+                   problem.handedness == Handedness::kMirrored ? "mirrored" : "as_given"},
+                  {"camera", CameraToJson(problem.camera)}};
+  nlohmann::json views = nlohmann::json::array();
+  for (const auto& v : s.views) {
+    nlohmann::json vj;
+    vj["id"] = v.id;
+    vj["cam_from_object"] = PoseJson(v.cam_from_object);
+    vj["covariance_6x6"] = s.has_covariance ? MatRows(v.covariance) : nlohmann::json();
+    vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
+    vj["sigma_rotation_deg"] = Vec(v.sigma_rotation_deg);
+    vj["sigma_translation_mm"] = Vec(v.sigma_translation_mm);
+    vj["rms_px"] = Num(v.rms_px);
+    vj["num_observations"] = v.num_observations;
+    vj["initial"] = PoseJson(v.initial);
+    vj["initial_rms_px"] = Num(v.initial_rms_px);
+    if (problem.truth_poses.count(v.id)) {
+      const Pose6& t = problem.truth_poses.at(v.id);
+      vj["truth"] = PoseJson(t);
+      vj["rotation_error_deg"] =
+          AngleBetweenRotations(RotationFromRvec(v.cam_from_object.head<3>()),
+                                RotationFromRvec(t.head<3>())) *
+          kRadToDeg;
+      vj["translation_error_mm"] = (v.cam_from_object.tail<3>() - t.tail<3>()).norm();
+    }
+    views.push_back(vj);
+  }
+  j["views"] = views;
+  nlohmann::json val = nlohmann::json::array();
+  for (const auto& p : s.validation) {
+    val.push_back({{"a", p.a},
+                   {"b", p.b},
+                   {"angle_view_dirs_deg", Num(p.angle_view_dirs_deg)},
+                   {"sigma_view_dirs_deg", Num(p.sigma_view_dirs_deg)},
+                   {"relative_rotation_deg", Num(p.relative_rotation_deg)},
+                   {"sigma_relative_rotation_deg", Num(p.sigma_relative_rotation_deg)},
+                   {"expected_deg", p.expected_deg ? nlohmann::json(*p.expected_deg)
+                                                   : nlohmann::json()}});
+  }
+  j["validation"] = val;
+  nlohmann::json markers = nlohmann::json::array();
+  for (const auto& [id, p] : s.markers) {
+    markers.push_back({{"id", id}, {"p_in_object_mm", Vec(p)}});
+  }
+  j["markers"] = markers;
+  j["statistics"] = {{"rms_px", Num(s.rms_px)},
+                     {"sigma_aposteriori_px", Num(s.sigma_aposteriori_px)},
+                     {"sigma0", Num(s.sigma0)},
+                     {"chi2", Num(s.chi2)},
+                     {"dof", s.dof},
+                     {"chi2_p_value", Num(s.chi2_p_value)},
+                     {"num_residuals", s.num_residuals},
+                     {"num_parameters", s.num_parameters}};
+  j["solver"] = {{"config", s.config_name},
+                 {"iterations", s.iterations},
+                 {"termination", s.termination},
+                 {"initial_cost", Num(s.initial_cost)},
+                 {"final_cost", Num(s.final_cost)},
+                 {"time_s", s.time_s}};
+  if (s.has_covariance) j["joint_covariance"] = MatRows(s.joint_covariance);
+  return j;
+}
+
+}  // namespace carmba

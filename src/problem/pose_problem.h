@@ -1,0 +1,219 @@
+// A pose problem (WHAT is estimated from WHICH data) and a solver configuration (HOW), both read
+// from YAML, and the bundle adjustment that solves one with the other.
+//
+// The bundle adjustment (one Ceres problem over all views):
+//   * per view v a pose cam_from_object_v = [rx, ry, rz (rad), tx, ty, tz (mm)];
+//   * per marker m its position p_m in the object frame, a parameter block shared by all views,
+//     tied to its CT measurement by a PointPriorError whitened by the CT covariance. The prior fixes
+//     the object frame (the gauge), and CT error enters the covariance and correlates the views;
+//   * per observation a ReprojectionError whitened by sigma_px (analytic Jacobians, or the autodiff
+//     twin); the intrinsics are read from the camera file and held constant here.
+// Initial poses come from the configured initialiser (legacy_posit, posit, epnp, sqpnp).
+// The covariance of all poses is computed jointly with ceres::Covariance; per view it is reported
+// as (rvec, t) and as small rotations about the camera axes (deg) and translations (mm).
+//
+// PROBLEM FILE (problems/*.yaml); paths are relative to the problem file:
+//   name: thesis_pose
+//   camera: ../data/thesis/camera.json         # camera.json (camera/camera.h)
+//   sigma_px: 1.0                               # pixel noise, 1 sigma per coordinate
+//   markers:                                    # the fiducials, object frame (mm)
+//     file: ../data/thesis/projections_table_5_2.csv
+//     id_column: marker                         # default: id
+//     columns: [x, y, z]                        # default: [x_mm, y_mm, z_mm]
+//     sigma_mm: 0.3                             # isotropic CT sigma; or covariance columns
+//                                               # cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz (mm^2)
+//                                               # in the file (as `carmba ct-fiducials` writes)
+//   observations:
+//     file: ../data/thesis/projections_table_5_2.csv
+//     format: wide         # wide: a row per marker, columns u_<view>, v_<view>;
+//                          # long: columns view, marker, u_px, v_px
+//   views: [0, 10, 30, 50, 90]                  # view ids to use (default: all in the file)
+//   handedness: as_given                        # or mirrored (object y negated)
+//   validation:                                 # pairs of views to compare
+//     - {a: 0, b: 10, expected_deg: 10}
+//   reference:                                  # optional, shown in the report
+//     legacy_posit: {focal_px: 2158.0175, cx_px: 205.155, cy_px: 206.617, y_up: true}
+//     rotations: ../data/thesis/posit_rotations_tables_5_3_to_5_5.csv
+//     validation: ../data/thesis/validation_table_5_6.csv
+//   truth: truth.json      # optional: per view cam_from_object {"views":[{"id","rvec","t_mm"}]}
+//
+// CONFIG FILE (configs/*.yaml):
+//   name: posit_ba_analytic
+//   initializer: posit            # legacy_posit | posit | epnp | sqpnp
+//   refine: true                  # false: report the initialiser's poses (no bundle adjustment)
+//   jacobians: analytic           # analytic | autodiff
+//   loss: {type: trivial, scale_px: 1.0}   # trivial | huber | cauchy | soft_l1
+//   linear_solver: dense_schur    # dense_qr | dense_schur | sparse_schur | sparse_normal_cholesky
+//   max_iterations: 100
+//   function_tolerance: 1e-12
+//   gradient_tolerance: 1e-12
+//   parameter_tolerance: 1e-12
+//   covariance: {algorithm: dense_svd, scale: apriori}   # sparse_qr; aposteriori scales by s0^2
+//   num_threads: 1
+#pragma once
+
+#include <Eigen/Dense>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "util/status.h"
+
+namespace carmba {
+
+using Pose6 = Eigen::Matrix<double, 6, 1>;  // [rx, ry, rz, tx, ty, tz]
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+enum class Handedness { kAsGiven, kMirrored };
+
+struct Marker {
+  int id = 0;
+  Eigen::Vector3d p_in_object;   // as measured (CT), mm; before any mirroring
+  Eigen::Matrix3d covariance;    // mm^2
+};
+
+struct Observation {
+  int marker_id = 0;
+  Eigen::Vector2d uv_px;
+};
+
+struct PoseView {
+  std::string id;
+  std::vector<Observation> observations;
+};
+
+struct ValidationPair {
+  std::string a, b;
+  std::optional<double> expected_deg;
+};
+
+struct LegacyPositReference {
+  double focal_px = 0, cx_px = 0, cy_px = 0;
+  bool y_up = true;
+};
+
+struct PoseProblem {
+  std::string name;
+  std::string path;  // the problem file, for messages
+  Camera camera;
+  double sigma_px = 1.0;
+  std::vector<Marker> markers;
+  std::vector<PoseView> views;
+  Handedness handedness = Handedness::kAsGiven;
+  std::vector<ValidationPair> validation;
+  // Reference values for the report (thesis).
+  std::optional<LegacyPositReference> legacy_reference;
+  std::map<std::string, Eigen::Matrix3d> reference_rotations;     // by view id
+  std::map<std::pair<std::string, std::string>, double> reference_angles_deg;
+  // Ground truth, when known (simulated problems): cam_from_object of the markers' true frame.
+  std::map<std::string, Pose6> truth_poses;
+  std::map<int, Eigen::Vector3d> truth_markers;
+
+  // Consistency: ids unique, every observation names a marker, >= 4 observations per view,
+  // validation pairs name views. Error names the problem file.
+  Status Check() const;
+};
+
+enum class Initializer { kLegacyPosit, kPosit, kEpnp, kSqpnp };
+
+struct SolverConfig {
+  std::string name = "default";
+  std::string path;
+  Initializer initializer = Initializer::kPosit;
+  bool refine = true;               // run the bundle adjustment
+  bool analytic_jacobians = true;   // false: autodiff twin
+  std::string loss = "trivial";     // trivial | huber | cauchy | soft_l1
+  double loss_scale_px = 1.0;
+  std::string linear_solver = "dense_schur";
+  int max_iterations = 100;
+  double function_tolerance = 1e-12;
+  double gradient_tolerance = 1e-12;
+  double parameter_tolerance = 1e-12;
+  std::string covariance_algorithm = "dense_svd";  // dense_svd | sparse_qr
+  bool covariance_aposteriori = false;  // scale covariance by the a-posteriori variance factor
+  int num_threads = 1;
+
+  bool Check(std::string* error) const;
+};
+
+StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path);
+StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path);
+const char* InitializerName(Initializer i);
+
+struct ViewSolution {
+  std::string id;
+  Pose6 cam_from_object;              // in the problem's handedness
+  Matrix6 covariance;                 // of [rvec (rad), t (mm)]
+  Eigen::Vector3d sigma_rotation_deg; // small rotations about the camera axes, 1 sigma
+  Eigen::Vector3d sigma_translation_mm;
+  double rms_px = 0;                  // per-coordinate RMS of this view's reprojection residuals
+  int num_observations = 0;
+  Pose6 initial;                      // the initialiser's pose
+  double initial_rms_px = 0;
+};
+
+struct PairSolution {
+  std::string a, b;
+  double angle_view_dirs_deg = 0, sigma_view_dirs_deg = 0;
+  double relative_rotation_deg = 0, sigma_relative_rotation_deg = 0;
+  std::optional<double> expected_deg;
+};
+
+struct PoseSolution {
+  std::vector<ViewSolution> views;
+  std::vector<PairSolution> validation;
+  Eigen::MatrixXd joint_covariance;   // 6V x 6V, views in order
+  std::map<int, Eigen::Vector3d> markers;  // refined marker positions (problem's handedness)
+  bool has_covariance = false;
+  // Statistics
+  double rms_px = 0;                  // per-coordinate RMS over all reprojection residuals
+  double chi2 = 0;                    // sum of squared whitened residuals (incl. priors)
+  int num_residuals = 0;              // scalar residuals
+  int num_parameters = 0;             // free scalar parameters
+  int dof = 0;
+  double sigma0 = 0;                  // sqrt(chi2 / dof), the a-posteriori factor
+  double sigma_aposteriori_px = 0;    // sigma0 * sigma_px
+  double chi2_p_value = 0;            // P(X > chi2) for X ~ chi2(dof)
+  // Solver
+  std::string config_name;
+  int iterations = 0;
+  std::string termination;
+  double initial_cost = 0, final_cost = 0;
+  double time_s = 0;                  // wall time of initialisation + solve + covariance
+};
+
+// Solves a pose problem. Errors: a view whose initialiser fails, a non-finite initial cost,
+// a rank-deficient covariance.
+StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const SolverConfig& config);
+
+// The problem's marker positions in its handedness (mirrored: y negated).
+Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m);
+
+// result.json (the schema in the foundation issue: views[], validation[], statistics, solver).
+nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& solution);
+
+// A synthetic problem with ground truth, for Monte Carlo tests and studies: the markers of
+// `spec.markers` (object frame, mm), views at C-arm angles rotating about the object's axis,
+// observations projected through `spec.camera` with Gaussian pixel noise sigma_px, marker
+// measurements with Gaussian CT noise sigma_ct_mm. Deterministic for a seed.
+struct SyntheticPoseSpec {
+  Camera camera;
+  std::vector<Eigen::Vector3d> markers;          // true positions, object frame
+  std::vector<double> view_angles_deg = {0, 10, 30, 50, 90};
+  double source_to_object_mm = 700;              // distance of the object centre from the source
+  Eigen::Vector3d rotation_axis = Eigen::Vector3d(0, 1, 0);  // C-arm axis in the first camera
+  Eigen::Vector3d base_rvec = Eigen::Vector3d(0.3, -0.4, 0.2);
+  std::vector<std::pair<int, int>> pairs = {{0, 1}, {0, 4}, {2, 3}};  // view indices
+};
+PoseProblem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
+                                     double sigma_px,
+                                     double sigma_ct_mm,
+                                     uint64_t seed);
+
+// The 9 markers of the thesis's object (Table 5.1, object frame), for synthetic problems.
+std::vector<Eigen::Vector3d> ThesisMarkers();
+
+}  // namespace carmba

@@ -1,0 +1,383 @@
+// Reading problem and config YAML files (formats in pose_problem.h).
+#include <cmath>
+#include <set>
+
+#include "problem/pose_problem.h"
+#include "util/csv.h"
+#include "util/file_util.h"
+#include "util/yaml_reader.h"
+
+namespace carmba {
+namespace {
+
+std::string FormatId(double v) {
+  if (v == std::floor(v)) return std::to_string(static_cast<long long>(v));
+  std::string s = std::to_string(v);
+  return s;
+}
+
+// Reads `key` as a view id: a number or a string.
+std::string ViewIdFrom(const YAML::Node& n) { return n.IsScalar() ? n.Scalar() : std::string(); }
+
+Status ReadMarkers(YamlMap& m, const std::string& base, PoseProblem* p) {
+  std::string file, id_column = "id";
+  std::vector<std::string> columns = {"x_mm", "y_mm", "z_mm"};
+  double sigma_mm = -1;
+  m.Get("file", &file, true);
+  m.Get("id_column", &id_column);
+  m.Get("columns", &columns);
+  m.GetPositive("sigma_mm", &sigma_mm);
+  if (!m.status().ok()) return m.status();
+  if (columns.size() != 3) {
+    m.Fail("columns", "expected three column names (x, y, z)");
+    return m.status();
+  }
+  const std::string path = JoinPath(base, file);
+  auto t = ReadCsv(path);
+  if (!t.ok()) return t.status();
+  const char* cov_cols[6] = {"cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"};
+  const bool has_cov = t->Column("cov_xx").ok();
+  if (!has_cov && sigma_mm < 0) {
+    m.Fail("sigma_mm", "missing: give the CT sigma or covariance columns cov_xx..cov_zz in " + path);
+    return m.status();
+  }
+  std::set<int> ids;
+  for (size_t r = 0; r < t->rows.size(); ++r) {
+    Marker mk;
+    auto id = t->Integer(r, id_column);
+    if (!id.ok()) return id.status();
+    mk.id = *id;
+    if (!ids.insert(mk.id).second) {
+      return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) + ": marker id " +
+                           std::to_string(mk.id) + " appears twice");
+    }
+    for (int c = 0; c < 3; ++c) {
+      auto v = t->Number(r, columns[c]);
+      if (!v.ok()) return v.status();
+      mk.p_in_object[c] = *v;
+    }
+    if (sigma_mm > 0) {
+      mk.covariance = Eigen::Matrix3d::Identity() * sigma_mm * sigma_mm;
+    } else {
+      double c6[6];
+      for (int k = 0; k < 6; ++k) {
+        auto v = t->Number(r, cov_cols[k]);
+        if (!v.ok()) return v.status();
+        c6[k] = *v;
+      }
+      mk.covariance << c6[0], c6[1], c6[2], c6[1], c6[3], c6[4], c6[2], c6[4], c6[5];
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(mk.covariance);
+      if (!(es.eigenvalues().minCoeff() > 0)) {
+        return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
+                             ": marker covariance is not positive definite");
+      }
+    }
+    p->markers.push_back(mk);
+  }
+  if (p->markers.empty()) return Status::Error(path + ": no markers");
+  return Status::Ok();
+}
+
+Status ReadObservations(YamlMap& m,
+                        const std::string& base,
+                        const std::vector<std::string>& wanted_views,
+                        PoseProblem* p) {
+  std::string file, format = "long", id_column = "marker";
+  m.Get("file", &file, true);
+  m.GetEnum("format", {"wide", "long"}, &format);
+  m.Get("marker_column", &id_column);
+  if (!m.status().ok()) return m.status();
+  const std::string path = JoinPath(base, file);
+  auto t = ReadCsv(path);
+  if (!t.ok()) return t.status();
+  std::map<std::string, PoseView> views;
+  std::vector<std::string> order;
+  if (format == "wide") {
+    // Columns u_<id>, v_<id>.
+    std::vector<std::string> ids;
+    for (const auto& h : t->header) {
+      if (h.rfind("u_", 0) == 0) ids.push_back(h.substr(2));
+    }
+    for (const auto& id : ids) {
+      auto vc = t->Column("v_" + id);
+      if (!vc.ok()) return vc.status();
+    }
+    for (const auto& id : ids) {
+      PoseView v;
+      v.id = id;
+      for (size_t r = 0; r < t->rows.size(); ++r) {
+        Observation o;
+        auto mid = t->Integer(r, id_column);
+        if (!mid.ok()) return mid.status();
+        o.marker_id = *mid;
+        auto u = t->Number(r, "u_" + id);
+        if (!u.ok()) return u.status();
+        auto vv = t->Number(r, "v_" + id);
+        if (!vv.ok()) return vv.status();
+        o.uv_px = Eigen::Vector2d(*u, *vv);
+        v.observations.push_back(o);
+      }
+      views[id] = v;
+      order.push_back(id);
+    }
+  } else {
+    auto vc = t->Column("view");
+    if (!vc.ok()) return vc.status();
+    for (size_t r = 0; r < t->rows.size(); ++r) {
+      const std::string id = t->rows[r][*vc];
+      if (id.empty()) {
+        return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
+                             ": column 'view': expected a view id, got an empty field");
+      }
+      Observation o;
+      auto mid = t->Integer(r, id_column);
+      if (!mid.ok()) return mid.status();
+      o.marker_id = *mid;
+      auto u = t->Number(r, "u_px");
+      if (!u.ok()) return u.status();
+      auto vv = t->Number(r, "v_px");
+      if (!vv.ok()) return vv.status();
+      o.uv_px = Eigen::Vector2d(*u, *vv);
+      if (!views.count(id)) {
+        order.push_back(id);
+        views[id].id = id;
+      }
+      views[id].observations.push_back(o);
+    }
+  }
+  if (!wanted_views.empty()) order = wanted_views;
+  for (const auto& id : order) {
+    if (!views.count(id)) {
+      return Status::Error(p->path + ": view '" + id + "' has no observations in " + path);
+    }
+    p->views.push_back(views[id]);
+  }
+  if (p->views.empty()) return Status::Error(path + ": no views");
+  return Status::Ok();
+}
+
+Status ReadReference(YamlMap& m, const std::string& base, PoseProblem* p) {
+  if (m.Has("legacy_posit")) {
+    YamlMap& l = m.Map("legacy_posit");
+    LegacyPositReference r;
+    l.GetPositive("focal_px", &r.focal_px, true);
+    l.Get("cx_px", &r.cx_px, true);
+    l.Get("cy_px", &r.cy_px, true);
+    l.Get("y_up", &r.y_up);
+    p->legacy_reference = r;
+  } else {
+    m.Map("legacy_posit");
+  }
+  std::string rot_file, val_file;
+  m.Get("rotations", &rot_file);
+  m.Get("validation", &val_file);
+  if (!m.status().ok()) return m.status();
+  if (!rot_file.empty()) {
+    auto t = ReadCsv(JoinPath(base, rot_file));
+    if (!t.ok()) return t.status();
+    const char* names[9] = {"r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33"};
+    for (size_t r = 0; r < t->rows.size(); ++r) {
+      Eigen::Matrix3d R;
+      for (int k = 0; k < 9; ++k) {
+        auto v = t->Number(r, names[k]);
+        if (!v.ok()) return v.status();
+        R(k / 3, k % 3) = *v;
+      }
+      auto c = t->Column("orientation_deg");
+      if (!c.ok()) return c.status();
+      p->reference_rotations[t->rows[r][*c]] = R;
+    }
+  }
+  if (!val_file.empty()) {
+    auto t = ReadCsv(JoinPath(base, val_file));
+    if (!t.ok()) return t.status();
+    for (size_t r = 0; r < t->rows.size(); ++r) {
+      auto a = t->Column("orientation_a_deg");
+      auto b = t->Column("orientation_b_deg");
+      if (!a.ok()) return a.status();
+      if (!b.ok()) return b.status();
+      auto v = t->Number(r, "achieved_deg");
+      if (!v.ok()) return v.status();
+      p->reference_angles_deg[{t->rows[r][*a], t->rows[r][*b]}] = *v;
+    }
+  }
+  return Status::Ok();
+}
+
+Status ReadTruth(const std::string& path, PoseProblem* p) {
+  auto text = ReadFile(path);
+  if (!text.ok()) return text.status();
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(*text);
+    for (const auto& v : j.at("views")) {
+      Pose6 pose;
+      const auto& cfo = v.contains("cam_from_object") ? v.at("cam_from_object") : v;
+      for (int k = 0; k < 3; ++k) pose[k] = cfo.at("rvec").at(k).get<double>();
+      for (int k = 0; k < 3; ++k) pose[3 + k] = cfo.at("t_mm").at(k).get<double>();
+      std::string id = v.at("id").is_string() ? v.at("id").get<std::string>()
+                                              : FormatId(v.at("id").get<double>());
+      p->truth_poses[id] = pose;
+    }
+  } catch (const std::exception& e) {
+    return Status::Error(path + ": expected {\"views\": [{\"id\", \"rvec\", \"t_mm\"}]}: " +
+                         e.what());
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status PoseProblem::Check() const {
+  if (!(sigma_px > 0)) return Status::Error(path + ": sigma_px must be positive");
+  std::set<int> ids;
+  for (const auto& m : markers) ids.insert(m.id);
+  std::set<std::string> vids;
+  for (const auto& v : views) {
+    if (!vids.insert(v.id).second) return Status::Error(path + ": view '" + v.id + "' twice");
+    std::set<int> seen;
+    for (const auto& o : v.observations) {
+      if (!ids.count(o.marker_id)) {
+        return Status::Error(path + ": view '" + v.id + "' observes marker " +
+                             std::to_string(o.marker_id) + " which is not among the markers");
+      }
+      if (!seen.insert(o.marker_id).second) {
+        return Status::Error(path + ": view '" + v.id + "' observes marker " +
+                             std::to_string(o.marker_id) + " twice");
+      }
+      if (!o.uv_px.allFinite()) {
+        return Status::Error(path + ": view '" + v.id + "': non-finite pixel of marker " +
+                             std::to_string(o.marker_id));
+      }
+    }
+    if (v.observations.size() < 4) {
+      return Status::Error(path + ": view '" + v.id + "' has " +
+                           std::to_string(v.observations.size()) +
+                           " observed markers; a pose needs at least 4");
+    }
+  }
+  for (const auto& pr : validation) {
+    if (!vids.count(pr.a) || !vids.count(pr.b)) {
+      return Status::Error(path + ": validation pair " + pr.a + "-" + pr.b +
+                           " names a view that is not in the problem");
+    }
+  }
+  return Status::Ok();
+}
+
+StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path) {
+  YamlMap root = YamlMap::Load(yaml_path);
+  if (!root.status().ok()) return root.status();
+  PoseProblem p;
+  p.path = yaml_path;
+  const std::string base = DirName(yaml_path);
+  std::string camera_file, handedness = "as_given", truth_file, description;
+  root.Get("name", &p.name, true);
+  root.Get("description", &description);
+  root.Get("camera", &camera_file, true);
+  root.GetPositive("sigma_px", &p.sigma_px, true);
+  root.GetEnum("handedness", {"as_given", "mirrored"}, &handedness);
+  root.Get("truth", &truth_file);
+  std::vector<std::string> views;
+  {
+    YAML::Node vn = root.Raw("views");
+    if (vn) {
+      if (!vn.IsSequence()) {
+        root.Fail("views", "expected a list of view ids");
+      } else {
+        for (const auto& v : vn) views.push_back(ViewIdFrom(v));
+      }
+    }
+  }
+  YamlMap& markers = root.Map("markers", true);
+  YamlMap& observations = root.Map("observations", true);
+  YamlMap& reference = root.Map("reference");
+  auto pairs = root.MapList("validation");
+  for (YamlMap* pm : pairs) {
+    ValidationPair vp;
+    YAML::Node a = pm->Raw("a"), b = pm->Raw("b");
+    if (!a || !b || !a.IsScalar() || !b.IsScalar()) {
+      pm->Fail("a", "expected view ids a and b");
+    } else {
+      vp.a = a.Scalar();
+      vp.b = b.Scalar();
+    }
+    double e = NAN;
+    pm->Get("expected_deg", &e);
+    if (std::isfinite(e)) vp.expected_deg = e;
+    p.validation.push_back(vp);
+  }
+  if (!root.status().ok()) return root.status();
+  p.handedness = handedness == "mirrored" ? Handedness::kMirrored : Handedness::kAsGiven;
+  CARMBA_RETURN_IF_ERROR(ReadMarkers(markers, base, &p));
+  CARMBA_RETURN_IF_ERROR(ReadObservations(observations, base, views, &p));
+  CARMBA_RETURN_IF_ERROR(ReadReference(reference, base, &p));
+  CARMBA_RETURN_IF_ERROR(root.Finish());
+  auto cam = ReadCameraJson(JoinPath(base, camera_file));
+  if (!cam.ok()) return cam.status();
+  p.camera = *cam;
+  if (!truth_file.empty()) CARMBA_RETURN_IF_ERROR(ReadTruth(JoinPath(base, truth_file), &p));
+  CARMBA_RETURN_IF_ERROR(p.Check());
+  return p;
+}
+
+const char* InitializerName(Initializer i) {
+  switch (i) {
+    case Initializer::kLegacyPosit: return "legacy_posit";
+    case Initializer::kPosit: return "posit";
+    case Initializer::kEpnp: return "epnp";
+    case Initializer::kSqpnp: return "sqpnp";
+  }
+  return "?";
+}
+
+bool SolverConfig::Check(std::string* error) const {
+  if (max_iterations < 0) return *error = "max_iterations must be >= 0", false;
+  if (!(function_tolerance > 0 && gradient_tolerance > 0 && parameter_tolerance > 0)) {
+    return *error = "tolerances must be positive", false;
+  }
+  if (!(loss_scale_px > 0)) return *error = "loss.scale_px must be positive", false;
+  if (num_threads < 1) return *error = "num_threads must be >= 1", false;
+  return true;
+}
+
+StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
+  YamlMap root = YamlMap::Load(yaml_path);
+  if (!root.status().ok()) return root.status();
+  SolverConfig c;
+  c.path = yaml_path;
+  std::string init = "posit", jac = "analytic", description;
+  root.Get("name", &c.name, true);
+  root.Get("description", &description);
+  root.GetEnum("initializer", {"legacy_posit", "posit", "epnp", "sqpnp"}, &init);
+  root.Get("refine", &c.refine);
+  root.GetEnum("jacobians", {"analytic", "autodiff"}, &jac);
+  YamlMap& loss = root.Map("loss");
+  loss.GetEnum("type", {"trivial", "huber", "cauchy", "soft_l1"}, &c.loss);
+  loss.GetPositive("scale_px", &c.loss_scale_px);
+  root.GetEnum("linear_solver",
+               {"dense_qr", "dense_schur", "sparse_schur", "sparse_normal_cholesky",
+                "iterative_schur"},
+               &c.linear_solver);
+  root.Get("max_iterations", &c.max_iterations);
+  root.GetPositive("function_tolerance", &c.function_tolerance);
+  root.GetPositive("gradient_tolerance", &c.gradient_tolerance);
+  root.GetPositive("parameter_tolerance", &c.parameter_tolerance);
+  YamlMap& cov = root.Map("covariance");
+  std::string scale = "apriori";
+  cov.GetEnum("algorithm", {"dense_svd", "sparse_qr"}, &c.covariance_algorithm);
+  cov.GetEnum("scale", {"apriori", "aposteriori"}, &scale);
+  root.Get("num_threads", &c.num_threads);
+  CARMBA_RETURN_IF_ERROR(root.Finish());
+  c.covariance_aposteriori = scale == "aposteriori";
+  c.analytic_jacobians = jac == "analytic";
+  c.initializer = init == "legacy_posit" ? Initializer::kLegacyPosit
+                  : init == "epnp"       ? Initializer::kEpnp
+                  : init == "sqpnp"      ? Initializer::kSqpnp
+                                         : Initializer::kPosit;
+  std::string err;
+  if (!c.Check(&err)) return Status::Error(yaml_path + ": " + err);
+  return c;
+}
+
+}  // namespace carmba
