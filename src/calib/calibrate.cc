@@ -1,0 +1,739 @@
+#include "calib/calibrate.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include "util/yaml_reader.h"
+
+namespace carmba {
+
+namespace {
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+int IntrinsicIndexOf(const std::string& name) {
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (name == kIntrinsicNames[i]) return i;
+  }
+  return -1;
+}
+
+// All points of one view in one residual block: 2n whitened residuals, blocks pose (6) and
+// intrinsics (9). Jacobians from ProjectPointWithJac, scaled by 1/sigma.
+class PlateViewCost final : public ceres::CostFunction {
+ public:
+  PlateViewCost(std::vector<Eigen::Vector3d> p_in_plate,
+                std::vector<Eigen::Vector2d> uv_px,
+                double inv_sigma)
+      : p_(std::move(p_in_plate)), uv_(std::move(uv_px)), inv_sigma_(inv_sigma) {
+    set_num_residuals(2 * static_cast<int>(p_.size()));
+    mutable_parameter_block_sizes()->push_back(kNumPoseParams);
+    mutable_parameter_block_sizes()->push_back(kNumIntrinsics);
+  }
+
+  bool Evaluate(double const* const* parameters,
+                double* residuals,
+                double** jacobians) const override {
+    const double* pose = parameters[0];
+    const double* intrinsics = parameters[1];
+    double* J_pose = jacobians ? jacobians[0] : nullptr;
+    double* J_intr = jacobians ? jacobians[1] : nullptr;
+    for (size_t i = 0; i < p_.size(); ++i) {
+      double uv[2];
+      double* Jp = J_pose ? J_pose + 2 * i * kNumPoseParams : nullptr;
+      double* Ji = J_intr ? J_intr + 2 * i * kNumIntrinsics : nullptr;
+      if (!ProjectPointWithJac(intrinsics, pose, p_[i].data(), uv, Ji, Jp, nullptr)) return false;
+      residuals[2 * i] = (uv[0] - uv_[i].x()) * inv_sigma_;
+      residuals[2 * i + 1] = (uv[1] - uv_[i].y()) * inv_sigma_;
+      if (Jp) {
+        for (int k = 0; k < 2 * kNumPoseParams; ++k) Jp[k] *= inv_sigma_;
+      }
+      if (Ji) {
+        for (int k = 0; k < 2 * kNumIntrinsics; ++k) Ji[k] *= inv_sigma_;
+      }
+    }
+    return true;
+  }
+
+ private:
+  std::vector<Eigen::Vector3d> p_;
+  std::vector<Eigen::Vector2d> uv_;
+  double inv_sigma_;
+};
+
+// x = x0 + A delta: an affine subspace of the 9 intrinsics (fixed parameters, fy = r fx).
+class AffineSubspaceManifold final : public ceres::Manifold {
+ public:
+  explicit AffineSubspaceManifold(const Eigen::MatrixXd& A)
+      : A_(A), pinv_((A.transpose() * A).inverse() * A.transpose()) {}
+  int AmbientSize() const override { return static_cast<int>(A_.rows()); }
+  int TangentSize() const override { return static_cast<int>(A_.cols()); }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    Eigen::Map<Eigen::VectorXd>(x_plus_delta, A_.rows()) =
+        Eigen::Map<const Eigen::VectorXd>(x, A_.rows()) +
+        A_ * Eigen::Map<const Eigen::VectorXd>(delta, A_.cols());
+    return true;
+  }
+  bool PlusJacobian(const double*, double* jacobian) const override {
+    Eigen::Map<RowMat>(jacobian, A_.rows(), A_.cols()) = A_;
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    Eigen::Map<Eigen::VectorXd>(y_minus_x, A_.cols()) =
+        pinv_ * (Eigen::Map<const Eigen::VectorXd>(y, A_.rows()) -
+                 Eigen::Map<const Eigen::VectorXd>(x, A_.rows()));
+    return true;
+  }
+  bool MinusJacobian(const double*, double* jacobian) const override {
+    Eigen::Map<RowMat>(jacobian, A_.cols(), A_.rows()) = pinv_;
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd A_, pinv_;
+};
+
+// Normalised DLT homography: plate (x, y) mm -> pixel.
+bool FitHomography(const std::vector<Eigen::Vector2d>& src,
+                   const std::vector<Eigen::Vector2d>& dst,
+                   Eigen::Matrix3d* H) {
+  const int n = static_cast<int>(src.size());
+  auto normaliser = [n](const std::vector<Eigen::Vector2d>& p) {
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& q : p) mean += q;
+    mean /= n;
+    double d = 0;
+    for (const auto& q : p) d += (q - mean).norm();
+    d /= n;
+    const double s = d > 0 ? std::sqrt(2.0) / d : 1.0;
+    Eigen::Matrix3d T;
+    T << s, 0, -s * mean.x(), 0, s, -s * mean.y(), 0, 0, 1;
+    return T;
+  };
+  const Eigen::Matrix3d Ts = normaliser(src), Td = normaliser(dst);
+  Eigen::Matrix<double, 9, 9> AtA = Eigen::Matrix<double, 9, 9>::Zero();
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d s = Ts * src[i].homogeneous();
+    const Eigen::Vector3d d = Td * dst[i].homogeneous();
+    Eigen::Matrix<double, 9, 1> r1, r2;
+    r1 << s.x(), s.y(), 1, 0, 0, 0, -d.x() * s.x(), -d.x() * s.y(), -d.x();
+    r2 << 0, 0, 0, s.x(), s.y(), 1, -d.y() * s.x(), -d.y() * s.y(), -d.y();
+    AtA.noalias() += r1 * r1.transpose() + r2 * r2.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 9, 9>> es(AtA);
+  if (es.info() != Eigen::Success) return false;
+  const Eigen::Matrix<double, 9, 1> h = es.eigenvectors().col(0);
+  Eigen::Matrix3d Hn;
+  Hn << h(0), h(1), h(2), h(3), h(4), h(5), h(6), h(7), h(8);
+  *H = Td.inverse() * Hn * Ts;
+  if (!H->allFinite() || std::abs((*H)(2, 2)) < 1e-300) return false;
+  *H /= (*H)(2, 2);
+  return true;
+}
+
+// Pose from a homography and K: K^-1 H = lambda [r1 r2 t].
+void PoseFromHomography(const Eigen::Matrix3d& H, const double* intr, std::array<double, 6>* pose) {
+  Eigen::Matrix3d K;
+  K << intr[kFx], 0, intr[kCx], 0, intr[kFy], intr[kCy], 0, 0, 1;
+  const Eigen::Matrix3d M = K.inverse() * H;
+  double lambda = 2.0 / (M.col(0).norm() + M.col(1).norm());
+  if (M(2, 2) * lambda < 0) lambda = -lambda;
+  Eigen::Matrix3d R;
+  R.col(0) = lambda * M.col(0);
+  R.col(1) = lambda * M.col(1);
+  R.col(2) = R.col(0).cross(R.col(1));
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d Ro = svd.matrixU() * svd.matrixV().transpose();
+  if (Ro.determinant() < 0) {
+    Eigen::Matrix3d U = svd.matrixU();
+    U.col(2) *= -1;
+    Ro = U * svd.matrixV().transpose();
+  }
+  const Eigen::Vector3d t = lambda * M.col(2);
+  double Rc[9];
+  Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::ColMajor>> Rc_map(Rc);
+  Rc_map = Ro;
+  ceres::RotationMatrixToAngleAxis(Rc, pose->data());
+  (*pose)[3] = t.x(), (*pose)[4] = t.y(), (*pose)[5] = t.z();
+}
+
+// Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2).
+double RobustWeight(const std::string& loss, double scale_whitened, double s) {
+  if (loss == "huber") {
+    ceres::HuberLoss l(scale_whitened);
+    double rho[3];
+    l.Evaluate(s, rho);
+    return rho[1];
+  }
+  if (loss == "cauchy") {
+    ceres::CauchyLoss l(scale_whitened);
+    double rho[3];
+    l.Evaluate(s, rho);
+    return rho[1];
+  }
+  return 1.0;
+}
+
+// The normal-equation blocks of the solved problem (unwhitened pixel units, robust-weighted).
+struct NormalBlocks {
+  Eigen::MatrixXd Hcc;                     // k x k
+  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 6>> Hci;  // k x 6 per view
+  std::vector<Mat6> Hii_inv;
+  Eigen::MatrixXd S_inv;                   // (Schur complement)^-1, k x k
+};
+
+Status ComputeNormalBlocks(const ObservationSet& obs,
+                           const CalibrationResult& r,
+                           double sigma_solve_px,
+                           NormalBlocks* b) {
+  const Eigen::MatrixXd& A = r.intrinsics_from_free;
+  const int k = static_cast<int>(A.cols());
+  const double* intr = r.camera.params.data();
+  b->Hcc = Eigen::MatrixXd::Zero(k, k);
+  b->Hci.assign(obs.views.size(), Eigen::Matrix<double, Eigen::Dynamic, 6>::Zero(k, 6));
+  b->Hii_inv.resize(obs.views.size());
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(k, k);
+  const double scale_w = r.robust_loss_scale_px / sigma_solve_px;
+  for (size_t v = 0; v < obs.views.size(); ++v) {
+    const auto& view = obs.views[v];
+    Mat6 Hii = Mat6::Zero();
+    Eigen::Matrix<double, Eigen::Dynamic, 6> Hci = Eigen::Matrix<double, Eigen::Dynamic, 6>::Zero(k, 6);
+    for (size_t j = 0; j < view.uv_px.size(); ++j) {
+      const Eigen::Vector3d P = obs.grid.PointInPlate(view.point_ids[j]);
+      double uv[2];
+      Eigen::Matrix<double, 2, 9, Eigen::RowMajor> Ji;
+      Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
+      if (!ProjectPointWithJac(intr, r.cam_from_plate[v].data(), P.data(), uv, Ji.data(), Jp.data(),
+                               nullptr)) {
+        return Status::Error("view " + std::to_string(v) + " (" + view.image +
+                             "): a grid point projects behind the source at the solution");
+      }
+      double w = 1.0;
+      if (r.robust_loss != "none") {
+        const double du = (uv[0] - view.uv_px[j].x()) / sigma_solve_px;
+        const double dv = (uv[1] - view.uv_px[j].y()) / sigma_solve_px;
+        w = RobustWeight(r.robust_loss, scale_w, du * du + dv * dv);
+      }
+      const Eigen::Matrix<double, 2, Eigen::Dynamic> Jc = Ji * A;
+      Hii.noalias() += w * Jp.transpose() * Jp;
+      Hci.noalias() += w * Jc.transpose() * Jp;
+      b->Hcc.noalias() += w * Jc.transpose() * Jc;
+    }
+    Eigen::LDLT<Mat6> ldlt(Hii);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff())) {
+      return Status::Error("view " + std::to_string(v) + " (" + view.image +
+                           "): its plate pose is not determined by its points");
+    }
+    b->Hii_inv[v] = ldlt.solve(Mat6::Identity());
+    b->Hci[v] = Hci;
+    S.noalias() -= Hci * b->Hii_inv[v] * Hci.transpose();
+  }
+  S += b->Hcc;
+  if (k == 0) {
+    b->S_inv = Eigen::MatrixXd::Zero(0, 0);
+    return Status::Ok();
+  }
+  // Invert with a unit-diagonal scaling; a tiny eigenvalue means a parameter combination the views
+  // do not determine.
+  const Eigen::VectorXd d = S.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd Sn = d.asDiagonal() * S * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Sn);
+  const double lmin = es.eigenvalues()(0), lmax = es.eigenvalues()(k - 1);
+  if (es.info() != Eigen::Success || !(lmin > 1e-13 * lmax)) {
+    // Name the free parameter that dominates the undetermined direction.
+    Eigen::VectorXd null9 = A * (d.asDiagonal() * es.eigenvectors().col(0));
+    int worst = 0;
+    for (int i = 0; i < kNumIntrinsics; ++i) {
+      if (std::abs(null9(i)) * std::abs(r.camera.params[i] + 1) >
+          std::abs(null9(worst)) * std::abs(r.camera.params[worst] + 1)) {
+        worst = i;
+      }
+    }
+    return Status::Error(std::string("the views do not determine the intrinsics (singular ") +
+                         "information matrix, weakest: " + kIntrinsicNames[worst] +
+                         "); degenerate views, e.g. all fronto-parallel or too few tilts");
+  }
+  b->S_inv = d.asDiagonal() *
+             (es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() *
+              es.eigenvectors().transpose()) *
+             d.asDiagonal();
+  return Status::Ok();
+}
+
+ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
+                                      const CalibrationResult& r,
+                                      const NormalBlocks& b,
+                                      double u,
+                                      double v,
+                                      double distance_mm,
+                                      bool* ok) {
+  ProjectionSigma ps;
+  ps.u_px = u, ps.v_px = v;
+  *ok = false;
+  const double* intr = r.camera.params.data();
+  const double q[2] = {u, v};
+  double xy[2];
+  if (!UnprojectToNormalized(intr, q, xy)) return ps;
+  Eigen::Vector3d p_cam(xy[0], xy[1], 1.0);
+  p_cam *= distance_mm / p_cam.norm();
+  double uv[2];
+  Eigen::Matrix<double, 2, 9, Eigen::RowMajor> Ji;
+  if (!ProjectCamPointWithJac(intr, p_cam.data(), uv, Ji.data(), nullptr)) return ps;
+  const int k = static_cast<int>(r.intrinsics_from_free.cols());
+  Eigen::MatrixXd w = Ji * r.intrinsics_from_free;  // 2 x k
+  Eigen::Matrix2d cov_poses = Eigen::Matrix2d::Zero();
+  const double inv_n = 1.0 / obs.views.size();
+  for (size_t i = 0; i < obs.views.size(); ++i) {
+    const auto& pose = r.cam_from_plate[i];
+    double R[9];
+    ceres::AngleAxisToRotationMatrix(pose.data(), ceres::RowMajorAdapter3x3(R));
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Rm(R);
+    const Eigen::Vector3d p_frame =
+        Rm.transpose() * (p_cam - Eigen::Vector3d(pose[3], pose[4], pose[5]));
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
+    double uvi[2];
+    if (!ProjectPointWithJac(intr, pose.data(), p_frame.data(), uvi, nullptr, Jp.data(), nullptr)) {
+      return ps;
+    }
+    const Eigen::Matrix<double, 2, 6> a = Jp * inv_n;
+    const Eigen::Matrix<double, 2, 6> g = a * b.Hii_inv[i];
+    if (k > 0) w.noalias() -= g * b.Hci[i].transpose();
+    cov_poses.noalias() += g * a.transpose();
+  }
+  Eigen::Matrix2d cov = cov_poses;
+  if (k > 0) cov += w * b.S_inv * w.transpose();
+  cov *= r.sigma_px * r.sigma_px;
+  ps.sigma_u_px = std::sqrt(std::max(0.0, cov(0, 0)));
+  ps.sigma_v_px = std::sqrt(std::max(0.0, cov(1, 1)));
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
+  ps.worst_px = std::sqrt(std::max(0.0, es.eigenvalues()(1)));
+  *ok = true;
+  return ps;
+}
+
+}  // namespace
+
+bool CalibrationOptions::Check(std::string* error) const {
+  for (const auto& n : fix) {
+    if (IntrinsicIndexOf(n) < 0) {
+      *error = "fix: unknown intrinsic '" + n + "' (expected fx fy cx cy k1 k2 p1 p2 k3)";
+      return false;
+    }
+  }
+  if (!(aspect_ratio_fy_over_fx >= 0) || !std::isfinite(aspect_ratio_fy_over_fx)) {
+    *error = "aspect_ratio_fy_over_fx: expected >= 0 (0 = from the initial estimate)";
+    return false;
+  }
+  if (!principal_point_px.empty() && principal_point_px.size() != 2) {
+    *error = "principal_point_px: expected [cx, cy] or []";
+    return false;
+  }
+  if (!initial_intrinsics.empty() &&
+      (initial_intrinsics.size() != kNumIntrinsics || !(initial_intrinsics[0] > 0) ||
+       !(initial_intrinsics[1] > 0))) {
+    *error = "initial_intrinsics: expected 9 values [fx, fy, cx, cy, k1, k2, p1, p2, k3], fx, fy > 0";
+    return false;
+  }
+  if (robust_loss != "none" && robust_loss != "huber" && robust_loss != "cauchy") {
+    *error = "robust_loss: expected none, huber or cauchy, got '" + robust_loss + "'";
+    return false;
+  }
+  if (!(robust_loss_scale_px > 0)) {
+    *error = "robust_loss_scale_px: expected > 0";
+    return false;
+  }
+  if (!(outlier_threshold_sigma > 0)) {
+    *error = "outlier_threshold_sigma: expected > 0";
+    return false;
+  }
+  if (!(pixel_sigma_px >= 0) || !std::isfinite(pixel_sigma_px)) {
+    *error = "pixel_sigma_px: expected >= 0 (0 = estimate)";
+    return false;
+  }
+  if (min_views < 1) {
+    *error = "min_views: expected >= 1";
+    return false;
+  }
+  if (max_iterations < 1) {
+    *error = "max_iterations: expected >= 1";
+    return false;
+  }
+  if (!(uncertainty_distance_mm >= 0)) {
+    *error = "uncertainty_distance_mm: expected >= 0 (0 = median plate distance)";
+    return false;
+  }
+  if (num_threads < 1) {
+    *error = "num_threads: expected >= 1";
+    return false;
+  }
+  return true;
+}
+
+Status LoadCalibrationOptions(const std::string& path,
+                              CalibrationOptions* o,
+                              const std::vector<std::string>& other_keys) {
+  YamlMap m = YamlMap::Load(path);
+  CARMBA_RETURN_IF_ERROR(m.status());
+  m.Get("fix", &o->fix);
+  m.Get("fix_aspect_ratio", &o->fix_aspect_ratio);
+  m.Get("aspect_ratio_fy_over_fx", &o->aspect_ratio_fy_over_fx);
+  m.Get("zero_tangential", &o->zero_tangential);
+  m.Get("fix_principal_point", &o->fix_principal_point);
+  m.Get("principal_point_px", &o->principal_point_px);
+  m.Get("fix_k3", &o->fix_k3);
+  m.Get("initial_intrinsics", &o->initial_intrinsics);
+  m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &o->robust_loss);
+  m.GetPositive("robust_loss_scale_px", &o->robust_loss_scale_px);
+  m.GetPositive("outlier_threshold_sigma", &o->outlier_threshold_sigma);
+  m.GetNonNegative("pixel_sigma_px", &o->pixel_sigma_px);
+  m.Get("min_views", &o->min_views);
+  m.Get("max_iterations", &o->max_iterations);
+  m.GetNonNegative("uncertainty_distance_mm", &o->uncertainty_distance_mm);
+  m.Get("num_threads", &o->num_threads);
+  for (const auto& k : other_keys) {
+    if (m.Has(k)) m.Raw(k);
+  }
+  CARMBA_RETURN_IF_ERROR(m.Finish());
+  std::string err;
+  if (!o->Check(&err)) return Status::Error(path + ": " + err);
+  return Status::Ok();
+}
+
+StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const CalibrationOptions& opt) {
+  std::string err;
+  if (!opt.Check(&err)) return Status::Error("calibration options: " + err);
+  if (!obs.grid.Check(&err)) return Status::Error(err);
+  if (obs.width <= 0 || obs.height <= 0) return Status::Error("image size unknown (expected > 0)");
+  const int num_views = static_cast<int>(obs.views.size());
+  if (num_views < opt.min_views) {
+    return Status::Error("only " + std::to_string(num_views) + " usable view(s), min_views is " +
+                         std::to_string(opt.min_views));
+  }
+  std::vector<std::vector<Eigen::Vector3d>> plate(num_views);
+  for (int v = 0; v < num_views; ++v) {
+    const auto& view = obs.views[v];
+    if (view.uv_px.size() < 4 || view.uv_px.size() != view.point_ids.size()) {
+      return Status::Error("view " + std::to_string(v) + " (" + view.image +
+                           "): expected at least 4 points, got " +
+                           std::to_string(view.uv_px.size()));
+    }
+    for (size_t j = 0; j < view.uv_px.size(); ++j) {
+      if (!view.uv_px[j].allFinite()) {
+        return Status::Error("view " + std::to_string(v) + " (" + view.image + "): point " +
+                             std::to_string(view.point_ids[j]) + " is not finite");
+      }
+      plate[v].push_back(obs.grid.PointInPlate(view.point_ids[j]));
+    }
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+
+  // --- Closed-form initialisation.
+  CalibrationResult r;
+  double cx = (obs.width - 1) * 0.5, cy = (obs.height - 1) * 0.5;
+  if (!opt.principal_point_px.empty()) {
+    cx = opt.principal_point_px[0];
+    cy = opt.principal_point_px[1];
+  }
+  std::vector<Eigen::Matrix3d> H(num_views);
+  for (int v = 0; v < num_views; ++v) {
+    std::vector<Eigen::Vector2d> src;
+    for (const auto& p : plate[v]) src.emplace_back(p.x(), p.y());
+    if (!FitHomography(src, obs.views[v].uv_px, &H[v])) {
+      return Status::Error("view " + std::to_string(v) + " (" + obs.views[v].image +
+                           "): no homography (collinear points?)");
+    }
+  }
+  std::array<double, kNumIntrinsics> x0{};
+  if (!opt.initial_intrinsics.empty()) {
+    std::copy(opt.initial_intrinsics.begin(), opt.initial_intrinsics.end(), x0.begin());
+  } else {
+    // Zhang with known principal point and zero skew, in units of s = max(w, h) px.
+    const double s = std::max(obs.width, obs.height);
+    Eigen::Matrix3d N;
+    N << 1 / s, 0, -cx / s, 0, 1 / s, -cy / s, 0, 0, 1;
+    Eigen::MatrixXd V(2 * num_views, 3);
+    for (int v = 0; v < num_views; ++v) {
+      Eigen::Matrix3d Hn = N * H[v];
+      Hn /= Hn.col(0).norm() + Hn.col(1).norm();
+      const Eigen::Vector3d h1 = Hn.col(0), h2 = Hn.col(1);
+      V.row(2 * v) << h1(0) * h2(0), h1(1) * h2(1), h1(2) * h2(2);
+      V.row(2 * v + 1) << h1(0) * h1(0) - h2(0) * h2(0), h1(1) * h1(1) - h2(1) * h2(1),
+          h1(2) * h1(2) - h2(2) * h2(2);
+    }
+    double b1, b2, b3;
+    const double ratio = opt.fix_aspect_ratio ? opt.aspect_ratio_fy_over_fx : 0.0;
+    if (ratio > 0) {
+      // b2 = b1 / r^2: unknowns (b1, b3).
+      Eigen::MatrixXd V2(V.rows(), 2);
+      V2.col(0) = V.col(0) + V.col(1) / (ratio * ratio);
+      V2.col(1) = V.col(2);
+      Eigen::JacobiSVD<Eigen::MatrixXd> svd(V2, Eigen::ComputeFullV);
+      const Eigen::Vector2d b = svd.matrixV().col(1);
+      b1 = b(0), b2 = b(0) / (ratio * ratio), b3 = b(1);
+    } else {
+      Eigen::JacobiSVD<Eigen::MatrixXd> svd(V, Eigen::ComputeFullV);
+      const Eigen::Vector3d b = svd.matrixV().col(2);
+      b1 = b(0), b2 = b(1), b3 = b(2);
+    }
+    if (!(b1 / b3 > 0) || !(b2 / b3 > 0) || !std::isfinite(b1 / b3) || !std::isfinite(b2 / b3)) {
+      return Status::Error("closed-form initialisation failed: the views do not determine the "
+                           "focal length (degenerate views, e.g. all fronto-parallel; tilt the "
+                           "plate in several views)");
+    }
+    x0[kFx] = s * std::sqrt(b3 / b1);
+    x0[kFy] = s * std::sqrt(b3 / b2);
+    x0[kCx] = cx, x0[kCy] = cy;
+    if (!(x0[kFx] < 1e4 * s) || !(x0[kFy] < 1e4 * s)) {
+      return Status::Error("closed-form initialisation failed: focal length " +
+                           std::to_string(x0[kFx]) +
+                           " px is not determined (degenerate views, e.g. all fronto-parallel)");
+    }
+  }
+  if (opt.fix_principal_point) x0[kCx] = cx, x0[kCy] = cy;
+  if (opt.zero_tangential) x0[kP1] = x0[kP2] = 0;
+  if (opt.fix_k3) x0[kK3] = 0;
+  double ratio = opt.aspect_ratio_fy_over_fx;
+  if (opt.fix_aspect_ratio) {
+    if (ratio == 0) ratio = x0[kFy] / x0[kFx];
+    const double f = std::sqrt(x0[kFx] * x0[kFy] / ratio);
+    x0[kFx] = f, x0[kFy] = ratio * f;
+  }
+  r.initial_intrinsics = x0;
+  r.cam_from_plate.resize(num_views);
+  for (int v = 0; v < num_views; ++v) PoseFromHomography(H[v], x0.data(), &r.cam_from_plate[v]);
+
+  // --- Parametrisation intrinsics = x0 + A delta.
+  r.free.assign(kNumIntrinsics, true);
+  for (const auto& n : opt.fix) r.free[IntrinsicIndexOf(n)] = false;
+  if (opt.fix_principal_point) r.free[kCx] = r.free[kCy] = false;
+  if (opt.zero_tangential) r.free[kP1] = r.free[kP2] = false;
+  if (opt.fix_k3) r.free[kK3] = false;
+  if (opt.fix_aspect_ratio && !r.free[kFx]) r.free[kFy] = false;
+  std::vector<Eigen::VectorXd> cols;
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (!r.free[i]) continue;
+    if (opt.fix_aspect_ratio && i == kFy) continue;  // follows fx
+    Eigen::VectorXd c = Eigen::VectorXd::Zero(kNumIntrinsics);
+    c(i) = 1;
+    if (opt.fix_aspect_ratio && i == kFx) c(kFy) = ratio;
+    cols.push_back(c);
+  }
+  const int k = static_cast<int>(cols.size());
+  r.intrinsics_from_free = Eigen::MatrixXd::Zero(kNumIntrinsics, k);
+  for (int c = 0; c < k; ++c) r.intrinsics_from_free.col(c) = cols[c];
+  r.num_free_intrinsics = k;
+  r.robust_loss = opt.robust_loss;
+  r.robust_loss_scale_px = opt.robust_loss_scale_px;
+
+  // --- Bundle adjustment.
+  const double sigma_solve = opt.pixel_sigma_px > 0 ? opt.pixel_sigma_px : 1.0;
+  std::array<double, kNumIntrinsics> x = x0;
+  ceres::Problem::Options popt;
+  ceres::Problem problem(popt);
+  for (int v = 0; v < num_views; ++v) {
+    if (opt.robust_loss == "none") {
+      problem.AddResidualBlock(
+          new PlateViewCost(plate[v], obs.views[v].uv_px, 1.0 / sigma_solve), nullptr,
+          r.cam_from_plate[v].data(), x.data());
+    } else {
+      for (size_t j = 0; j < plate[v].size(); ++j) {
+        const double a = opt.robust_loss_scale_px / sigma_solve;
+        ceres::LossFunction* loss = opt.robust_loss == "huber"
+                                        ? static_cast<ceres::LossFunction*>(new ceres::HuberLoss(a))
+                                        : new ceres::CauchyLoss(a);
+        problem.AddResidualBlock(
+            new PlateViewCost({plate[v][j]}, {obs.views[v].uv_px[j]}, 1.0 / sigma_solve), loss,
+            r.cam_from_plate[v].data(), x.data());
+      }
+    }
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_SCHUR;
+  so.max_num_iterations = opt.max_iterations;
+  so.function_tolerance = 1e-12;
+  so.gradient_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-12;
+  so.num_threads = opt.num_threads;
+  so.logging_type = ceres::SILENT;
+  if (k == 0) {
+    problem.SetParameterBlockConstant(x.data());
+  } else {
+    if (k < kNumIntrinsics) {
+      problem.SetManifold(x.data(), new AffineSubspaceManifold(r.intrinsics_from_free));
+    }
+    auto* ordering = new ceres::ParameterBlockOrdering;
+    for (auto& p : r.cam_from_plate) ordering->AddElementToGroup(p.data(), 0);
+    ordering->AddElementToGroup(x.data(), 1);
+    so.linear_solver_ordering.reset(ordering);
+  }
+  ceres::Solver::Summary summary;
+  {
+    // The initial state must be valid (every point in front of the source).
+    double cost = 0;
+    if (!problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr) ||
+        !std::isfinite(cost)) {
+      return Status::Error("initialisation puts grid points behind the source (bad detections?)");
+    }
+  }
+  ceres::Solve(so, &problem, &summary);
+  if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
+    return Status::Error("bundle adjustment failed: " + summary.message);
+  }
+  r.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  r.termination = ceres::TerminationTypeToString(summary.termination_type);
+  std::copy(x.begin(), x.end(), r.camera.params.begin());
+  r.camera.width = obs.width;
+  r.camera.height = obs.height;
+  const auto t1 = std::chrono::steady_clock::now();
+  r.solve_seconds = Seconds(t0, t1);
+
+  // --- Residual statistics.
+  double ssr = 0, ssr_weighted = 0;
+  std::vector<PointResidual> all;
+  r.points.resize(obs.grid.NumPoints());
+  std::vector<double> point_ssr(obs.grid.NumPoints(), 0.0);
+  for (int v = 0; v < num_views; ++v) {
+    const auto& view = obs.views[v];
+    ViewStats vs;
+    vs.image = view.image;
+    vs.num_points = static_cast<int>(view.uv_px.size());
+    double vssr = 0;
+    for (size_t j = 0; j < view.uv_px.size(); ++j) {
+      double uv[2];
+      ProjectPoint(x.data(), r.cam_from_plate[v].data(), plate[v][j].data(), uv);
+      PointResidual pr;
+      pr.view = v;
+      pr.point_id = view.point_ids[j];
+      pr.du_px = uv[0] - view.uv_px[j].x();
+      pr.dv_px = uv[1] - view.uv_px[j].y();
+      const double e2 = pr.du_px * pr.du_px + pr.dv_px * pr.dv_px;
+      pr.norm_px = std::sqrt(e2);
+      vssr += e2;
+      vs.max_px = std::max(vs.max_px, pr.norm_px);
+      point_ssr[pr.point_id] += e2;
+      r.points[pr.point_id].num_views++;
+      const double w = opt.robust_loss == "none"
+                           ? 1.0
+                           : RobustWeight(opt.robust_loss, opt.robust_loss_scale_px / sigma_solve,
+                                          e2 / (sigma_solve * sigma_solve));
+      ssr_weighted += w * e2;
+      all.push_back(pr);
+    }
+    ssr += vssr;
+    vs.rms_px = std::sqrt(vssr / (2.0 * vs.num_points));
+    double R[9];
+    ceres::AngleAxisToRotationMatrix(r.cam_from_plate[v].data(), ceres::RowMajorAdapter3x3(R));
+    vs.tilt_deg = std::acos(std::min(1.0, std::abs(R[8]))) * 180.0 / M_PI;
+    vs.distance_mm = Eigen::Vector3d(r.cam_from_plate[v][3], r.cam_from_plate[v][4],
+                                     r.cam_from_plate[v][5])
+                         .norm();
+    r.views.push_back(vs);
+  }
+  for (int id = 0; id < obs.grid.NumPoints(); ++id) {
+    r.points[id].point_id = id;
+    if (r.points[id].num_views > 0) {
+      r.points[id].rms_px = std::sqrt(point_ssr[id] / (2.0 * r.points[id].num_views));
+    }
+  }
+  r.num_points = static_cast<int>(all.size());
+  r.dof = 2 * r.num_points - (6 * num_views + k);
+  r.rms_px = std::sqrt(ssr / (2.0 * r.num_points));
+  r.rms_opencv_px = std::sqrt(ssr / r.num_points);
+  if (opt.pixel_sigma_px > 0) {
+    r.sigma_px = opt.pixel_sigma_px;
+  } else {
+    if (r.dof <= 0) {
+      return Status::Error("cannot estimate the pixel sigma: " + std::to_string(2 * r.num_points) +
+                           " residuals for " + std::to_string(6 * num_views + k) +
+                           " parameters (give pixel_sigma_px or more points)");
+    }
+    r.sigma_px = std::sqrt(ssr_weighted / r.dof);
+    r.sigma_estimated = true;
+  }
+  std::sort(all.begin(), all.end(),
+            [](const PointResidual& a, const PointResidual& b) { return a.norm_px > b.norm_px; });
+  for (const auto& pr : all) {
+    if (pr.norm_px > opt.outlier_threshold_sigma * r.sigma_px) r.outliers.push_back(pr);
+  }
+  all.resize(std::min<size_t>(all.size(), 10));
+  r.worst = all;
+
+  // --- Covariance of the intrinsics, marginal over the poses.
+  NormalBlocks blocks;
+  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(obs, r, sigma_solve, &blocks));
+  r.covariance.setZero();
+  if (k > 0) {
+    r.covariance = r.intrinsics_from_free * blocks.S_inv * r.intrinsics_from_free.transpose() *
+                   (r.sigma_px * r.sigma_px);
+  }
+  for (int i = 0; i < kNumIntrinsics; ++i) r.sigma[i] = std::sqrt(std::max(0.0, r.covariance(i, i)));
+  // A focal length known to worse than 10 % means the views do not constrain it (a fronto-parallel
+  // set is exactly singular without noise, nearly singular with it).
+  constexpr double kMaxRelativeFocalSigma = 0.1;
+  for (int i : {kFx, kFy}) {
+    if (r.free[i] && !(r.sigma[i] < kMaxRelativeFocalSigma * r.camera.params[i])) {
+      return Status::Error(std::string("the views do not determine ") + kIntrinsicNames[i] +
+                           " (sigma " + std::to_string(r.sigma[i]) + " px for " +
+                           std::to_string(r.camera.params[i]) +
+                           " px); degenerate views, e.g. all fronto-parallel");
+    }
+  }
+  r.camera.covariance_names.assign(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics);
+  r.camera.covariance.assign(kNumIntrinsics, std::vector<double>(kNumIntrinsics));
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    for (int j = 0; j < kNumIntrinsics; ++j) r.camera.covariance[i][j] = r.covariance(i, j);
+  }
+
+  // --- Projection uncertainty at the centre and the corners.
+  if (opt.uncertainty_distance_mm > 0) {
+    r.uncertainty_distance_mm = opt.uncertainty_distance_mm;
+  } else {
+    std::vector<double> d;
+    for (const auto& vs : r.views) d.push_back(vs.distance_mm);
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    r.uncertainty_distance_mm = d[d.size() / 2];
+  }
+  const double W = obs.width - 1, Hh = obs.height - 1;
+  const std::pair<const char*, Eigen::Vector2d> where[] = {
+      {"centre", {W / 2, Hh / 2}}, {"top-left", {0, 0}},      {"top-right", {W, 0}},
+      {"bottom-left", {0, Hh}},    {"bottom-right", {W, Hh}}};
+  for (const auto& [name, q] : where) {
+    bool ok = false;
+    ProjectionSigma ps =
+        UncertaintyFromBlocks(obs, r, blocks, q.x(), q.y(), r.uncertainty_distance_mm, &ok);
+    if (!ok) continue;
+    ps.where = name;
+    r.projection_sigma.push_back(ps);
+  }
+  r.covariance_seconds = Seconds(t1, std::chrono::steady_clock::now());
+  Status s = r.camera.Check();
+  if (!s.ok()) return s.WithContext("calibrated camera");
+  return r;
+}
+
+StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& obs,
+                                                const CalibrationResult& result,
+                                                double u_px,
+                                                double v_px,
+                                                double distance_mm) {
+  NormalBlocks blocks;
+  const double sigma_solve = result.sigma_estimated ? 1.0 : result.sigma_px;
+  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(obs, result, sigma_solve, &blocks));
+  bool ok = false;
+  ProjectionSigma ps = UncertaintyFromBlocks(obs, result, blocks, u_px, v_px, distance_mm, &ok);
+  if (!ok) return Status::Error("pixel cannot be unprojected with the calibrated distortion");
+  return ps;
+}
+
+}  // namespace carmba
