@@ -116,10 +116,12 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
   StudySpec spec;
   spec.path = path;
   spec.name = BaseNameNoExt(path);
-  m.Get("name", &spec.name);
+  // Optional keys are read only when present (YamlMap::Get of an absent optional key reports
+  // "got nothing" with the yaml-cpp in use).
+  if (m.Has("name")) m.Get("name", &spec.name);
   m.Get("trials", &spec.trials, /*required=*/true);
   int base_seed = 0;
-  m.Get("base_seed", &base_seed);
+  if (m.Has("base_seed")) m.Get("base_seed", &base_seed);
   if (base_seed < 0) m.Fail("base_seed", "expected a non-negative integer");
   spec.base_seed = static_cast<uint64_t>(base_seed);
   const std::string dir = DirName(path);
@@ -127,7 +129,7 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
     StudyProblem problem;
     p->Get("name", &problem.name, /*required=*/true);
     std::string file;
-    p->Get("file", &file);
+    if (p->Has("file")) p->Get("file", &file);
     if (!file.empty()) problem.file = JoinPath(dir, file);
     if (p->Has("synthetic")) {
       problem.synthetic = YamlToJson(p->Raw("synthetic"));

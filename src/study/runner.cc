@@ -1,0 +1,332 @@
+#include "study/runner.h"
+
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "study/report_html.h"
+#include "study/summary.h"
+#include "util/file_util.h"
+
+namespace carmba {
+namespace {
+
+double ThreadCpuSeconds() {
+  timespec ts;
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0) return 0;
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+std::string FormatDuration(double s) {
+  char buf[32];
+  if (s < 0 || s > 1e7) return "?";
+  const int total = static_cast<int>(s + 0.5);
+  if (total >= 3600) {
+    std::snprintf(buf, sizeof(buf), "%dh%02dm", total / 3600, (total / 60) % 60);
+  } else {
+    std::snprintf(buf, sizeof(buf), "%dm%02ds", total / 60, total % 60);
+  }
+  return buf;
+}
+
+RunRecord Execute(const RunFunction& run, const RunSpec& spec) {
+  RunRecord r;
+  r.index = spec.index;
+  r.key = spec.key;
+  r.problem = spec.problem->name;
+  r.config = spec.config->name;
+  r.sweep = spec.sweep;
+  r.trial = spec.trial;
+  r.seed = spec.seed;
+  const auto t0 = std::chrono::steady_clock::now();
+  const double c0 = ThreadCpuSeconds();
+  try {
+    StatusOr<nlohmann::json> result = run(spec);
+    if (result.ok()) {
+      r.ok = true;
+      r.result = std::move(result).value();
+    } else {
+      r.error = result.status().message();
+      if (r.error.empty()) r.error = "run failed without a message";
+    }
+  } catch (const std::exception& e) {
+    r.error = std::string("exception: ") + e.what();
+  } catch (...) {
+    r.error = "exception of unknown type";
+  }
+  r.cpu_s = ThreadCpuSeconds() - c0;
+  r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // A one-line reason, always.
+  std::replace(r.error.begin(), r.error.end(), '\n', ' ');
+  return r;
+}
+
+// Rewrites `path` keeping only `records` (atomically).
+Status RewriteRunLog(const std::string& path, const std::vector<RunRecord>& records) {
+  std::string text;
+  for (const auto& r : records) text += RunRecordToJson(r).dump() + "\n";
+  return WriteFileAtomic(path, text);
+}
+
+StatusOr<nlohmann::json> ReadStudyInfo(const std::string& dir) {
+  const std::string path = JoinPath(dir, "study.json");
+  StatusOr<std::string> text = ReadFile(path);
+  if (!text.ok()) return text.status();
+  nlohmann::json j = nlohmann::json::parse(*text, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || !j.contains("fingerprint") ||
+      !j["fingerprint"].is_string()) {
+    return Status::Error(path + ": malformed, expected a JSON object with a 'fingerprint'");
+  }
+  return j;
+}
+
+}  // namespace
+
+bool StudyRunOptions::Check(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (out_dir.empty()) return fail("output directory: expected a path, got nothing");
+  if (jobs < 0) return fail("jobs: expected >= 0 (0 = all cores), got " + std::to_string(jobs));
+  if (shard_n < 1 || shard_k < 1 || shard_k > shard_n) {
+    return fail("shard: expected 1 <= K <= N, got " + std::to_string(shard_k) + "/" +
+                std::to_string(shard_n));
+  }
+  return true;
+}
+
+double StudyRunStats::Overhead() const {
+  if (wall_s <= 0 || jobs <= 0) return 0;
+  return 1.0 - runs_time_s / (wall_s * jobs);
+}
+
+Status RunStudy(const StudySpec& spec,
+                const RunFunction& run,
+                const StudyRunOptions& options,
+                StudyRunStats* stats) {
+  StudyRunStats local;
+  StudyRunStats& st = stats ? *stats : local;
+  st = StudyRunStats();
+  std::string error;
+  if (!spec.Check(&error)) return Status::Error(error);
+  if (!options.Check(&error)) return Status::Error(error);
+
+  const std::vector<RunSpec> all_runs = EnumerateRuns(spec);
+  const std::vector<RunSpec> runs = ShardRuns(all_runs, options.shard_k, options.shard_n);
+  st.runs_in_shard = static_cast<int>(runs.size());
+  const nlohmann::json info = StudyInfoJson(spec, all_runs, options.shard_k, options.shard_n);
+  const std::string& dir = options.out_dir;
+  const std::string log_path = JoinPath(dir, "runs.jsonl");
+  const std::string info_path = JoinPath(dir, "study.json");
+
+  CARMBA_RETURN_IF_ERROR(MakeDirs(dir));
+  int bad = 0, dup = 0;
+  StatusOr<std::vector<RunRecord>> existing = ReadRunLog(log_path, &bad, &dup);
+  if (!existing.ok()) return existing.status();
+  if (!options.resume && (!existing->empty() || bad > 0)) {
+    return Status::Error(log_path + ": already holds " + std::to_string(existing->size()) +
+                         " runs; pass --resume to continue that study or choose a new --out");
+  }
+  if (options.resume && FileExists(info_path)) {
+    StatusOr<nlohmann::json> old = ReadStudyInfo(dir);
+    if (!old.ok()) return old.status();
+    if ((*old)["fingerprint"] != info["fingerprint"] ||
+        old->value("shard", std::string()) != info["shard"].get<std::string>()) {
+      return Status::Error(info_path + ": the directory holds study '" +
+                           old->value("name", std::string("?")) + "' fingerprint " +
+                           (*old)["fingerprint"].get<std::string>() + " shard " +
+                           old->value("shard", std::string("?")) + ", not '" + spec.name +
+                           "' fingerprint " + info["fingerprint"].get<std::string>() + " shard " +
+                           info["shard"].get<std::string>() + "; expected the same study");
+    }
+  }
+  // Keep only records of this shard's runs; anything else means a different study.
+  std::set<std::string> shard_keys;
+  for (const auto& r : runs) shard_keys.insert(r.key);
+  std::set<std::string> done;
+  for (const auto& r : *existing) {
+    if (!shard_keys.count(r.key)) {
+      return Status::Error(log_path + ": holds run '" + r.key + "' which is not a run of shard " +
+                           info["shard"].get<std::string>() + " of study '" + spec.name + "'");
+    }
+    done.insert(r.key);
+  }
+  st.dropped_lines = bad + dup;
+  if (bad + dup > 0) CARMBA_RETURN_IF_ERROR(RewriteRunLog(log_path, *existing));
+  CARMBA_RETURN_IF_ERROR(WriteFileAtomic(info_path, info.dump(2) + "\n"));
+
+  std::vector<const RunSpec*> todo;
+  for (const auto& r : runs) {
+    if (!done.count(r.key)) todo.push_back(&r);
+  }
+  st.skipped = static_cast<int>(runs.size() - todo.size());
+
+  RunLogWriter writer;
+  CARMBA_RETURN_IF_ERROR(writer.Open(log_path));
+  int jobs = options.jobs > 0 ? options.jobs
+                              : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  jobs = std::max(1, std::min<int>(jobs, static_cast<int>(std::max<size_t>(1, todo.size()))));
+  st.jobs = jobs;
+
+  std::atomic<size_t> next{0};
+  std::mutex mutex;  // guards the counters below, the progress line and the first write error
+  int executed = 0, failed = 0;
+  double runs_time = 0;
+  Status write_error;
+  const auto start = std::chrono::steady_clock::now();
+  auto last_print = start - std::chrono::seconds(10);
+  auto print_progress = [&](bool final) {
+    const auto now = std::chrono::steady_clock::now();
+    if (!final && now - last_print < std::chrono::milliseconds(250)) return;
+    last_print = now;
+    const double elapsed = std::chrono::duration<double>(now - start).count();
+    const double rate = executed > 0 ? executed / std::max(elapsed, 1e-9) : 0;
+    const int left = static_cast<int>(todo.size()) - executed;
+    std::fprintf(stderr, "\r[study %s] %d/%zu runs done, %d failed, %s elapsed, ETA %s   ",
+                 spec.name.c_str(), executed + st.skipped, runs.size(), failed,
+                 FormatDuration(elapsed).c_str(),
+                 rate > 0 ? FormatDuration(left / rate).c_str() : "?");
+    if (final) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+  };
+
+  auto worker = [&]() {
+    for (;;) {
+      const size_t i = next.fetch_add(1);
+      if (i >= todo.size()) return;
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!write_error.ok()) return;
+      }
+      RunRecord record = Execute(run, *todo[i]);
+      const Status appended = writer.Append(record);
+      std::lock_guard<std::mutex> lock(mutex);
+      if (!appended.ok()) {
+        if (write_error.ok()) write_error = appended;
+        return;
+      }
+      ++executed;
+      failed += record.ok ? 0 : 1;
+      runs_time += record.time_s;
+      if (options.progress) print_progress(false);
+    }
+  };
+  if (jobs == 1) {
+    worker();
+  } else {
+    std::vector<std::thread> threads;
+    for (int t = 0; t < jobs; ++t) threads.emplace_back(worker);
+    for (auto& t : threads) t.join();
+  }
+  writer.Close();
+  st.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  st.executed = executed;
+  st.failed = failed;
+  st.runs_time_s = runs_time;
+  if (options.progress && !todo.empty()) print_progress(true);
+  CARMBA_RETURN_IF_ERROR(write_error);
+
+  CARMBA_RETURN_IF_ERROR(WriteStudyOutputs(dir, options.write_report, st.wall_s, jobs));
+  StatusOr<std::vector<RunRecord>> final_records = ReadRunLog(log_path, nullptr, nullptr);
+  if (final_records.ok()) {
+    for (const auto& r : *final_records) st.failed_total += r.ok ? 0 : 1;
+  }
+  return Status::Ok();
+}
+
+Status WriteStudyOutputs(const std::string& dir, bool write_report, double wall_s, int jobs) {
+  StatusOr<nlohmann::json> info = ReadStudyInfo(dir);
+  if (!info.ok()) return info.status();
+  int bad = 0, dup = 0;
+  StatusOr<std::vector<RunRecord>> records =
+      ReadRunLog(JoinPath(dir, "runs.jsonl"), &bad, &dup);
+  if (!records.ok()) return records.status();
+  const std::vector<GroupSummary> groups = Summarize(std::move(records).value());
+  // Build everything first, then write: an error leaves no new file behind.
+  const std::string csv = SummaryCsv(groups);
+  const std::string md = SummaryMarkdown(*info, groups, wall_s, jobs);
+  const std::string timing = TimingCsv(groups);
+  std::string html;
+  if (write_report) html = StudyReportHtml(*info, groups);
+  CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(dir, "summary.csv"), csv));
+  CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(dir, "summary.md"), md));
+  CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(dir, "timing.csv"), timing));
+  if (write_report) {
+    CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(dir, "report.html"), html));
+  }
+  return Status::Ok();
+}
+
+Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
+                        const std::string& out_dir,
+                        bool write_report,
+                        int* runs_merged,
+                        int* runs_missing) {
+  if (shard_dirs.empty()) return Status::Error("no shard directories given");
+  nlohmann::json info;
+  std::map<std::string, RunRecord> by_key;
+  auto strip_timing = [](const RunRecord& r) {
+    nlohmann::json j = RunRecordToJson(r);
+    j.erase("time_s");
+    j.erase("cpu_s");
+    return j;
+  };
+  for (const auto& dir : shard_dirs) {
+    StatusOr<nlohmann::json> shard_info = ReadStudyInfo(dir);
+    if (!shard_info.ok()) return shard_info.status();
+    if (info.is_null()) {
+      info = *shard_info;
+    } else if ((*shard_info)["fingerprint"] != info["fingerprint"]) {
+      return Status::Error(JoinPath(dir, "study.json") + ": fingerprint " +
+                           (*shard_info)["fingerprint"].get<std::string>() + " of study '" +
+                           shard_info->value("name", std::string("?")) + "' differs from " +
+                           info["fingerprint"].get<std::string>() + " of " + shard_dirs[0] +
+                           "; expected shards of one study");
+    }
+    int bad = 0, dup = 0;
+    StatusOr<std::vector<RunRecord>> records =
+        ReadRunLog(JoinPath(dir, "runs.jsonl"), &bad, &dup);
+    if (!records.ok()) return records.status();
+    for (auto& r : *records) {
+      auto it = by_key.find(r.key);
+      if (it == by_key.end()) {
+        by_key.emplace(r.key, std::move(r));
+      } else if (strip_timing(it->second) != strip_timing(r)) {
+        return Status::Error(JoinPath(dir, "runs.jsonl") + ": run '" + r.key +
+                             "' differs from the same run in another shard; expected one result "
+                             "per run");
+      }
+    }
+  }
+  std::vector<RunRecord> records;
+  for (auto& kv : by_key) records.push_back(std::move(kv.second));
+  SortRecords(&records);
+  const int total = info.value("runs_total", 0);
+  if (runs_merged) *runs_merged = static_cast<int>(records.size());
+  if (runs_missing) *runs_missing = std::max(0, total - static_cast<int>(records.size()));
+
+  CARMBA_RETURN_IF_ERROR(MakeDirs(out_dir));
+  const std::string log_path = JoinPath(out_dir, "runs.jsonl");
+  int bad = 0, dup = 0;
+  StatusOr<std::vector<RunRecord>> existing = ReadRunLog(log_path, &bad, &dup);
+  if (!existing.ok()) return existing.status();
+  if (!existing->empty()) {
+    return Status::Error(log_path + ": already holds runs; expected an empty or new directory");
+  }
+  info["shard"] = "merged from " + std::to_string(shard_dirs.size()) + " directories";
+  CARMBA_RETURN_IF_ERROR(RewriteRunLog(log_path, records));
+  CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(out_dir, "study.json"), info.dump(2) + "\n"));
+  return WriteStudyOutputs(out_dir, write_report, 0, 0);
+}
+
+}  // namespace carmba

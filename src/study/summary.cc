@@ -1,0 +1,406 @@
+#include "study/summary.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <sstream>
+
+namespace carmba {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Nearest-rank percentile of sorted data.
+double Percentile(const std::vector<double>& sorted, double q) {
+  if (sorted.empty()) return kNaN;
+  size_t rank = static_cast<size_t>(std::ceil(q * static_cast<double>(sorted.size())));
+  rank = std::max<size_t>(rank, 1);
+  return sorted[std::min(rank, sorted.size()) - 1];
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Samples {
+  std::vector<double> values;
+  std::vector<double> sigmas;  // signed only; may be shorter when some runs had no sigma
+};
+
+MetricStats Stats(const std::string& kind, const std::string& name, const Samples& s) {
+  MetricStats m;
+  m.kind = kind;
+  m.name = name;
+  m.n = static_cast<int>(s.values.size());
+  if (s.values.empty()) return m;
+  const double n = static_cast<double>(s.values.size());
+  double sum = 0, sum2 = 0;
+  for (double v : s.values) {
+    sum += v;
+    sum2 += v * v;
+  }
+  m.mean = sum / n;
+  m.rms = std::sqrt(sum2 / n);
+  m.median = Median(s.values);
+  std::vector<double> mag = s.values;
+  for (double& v : mag) v = std::fabs(v);
+  std::sort(mag.begin(), mag.end());
+  m.p95 = Percentile(mag, 0.95);
+  m.max = mag.back();
+  if (kind == "signed") {
+    double ss = 0;
+    for (double v : s.values) ss += (v - m.mean) * (v - m.mean);
+    m.emp_sigma = s.values.size() > 1 ? std::sqrt(ss / (n - 1)) : kNaN;
+    if (!s.sigmas.empty() && s.sigmas.size() == s.values.size()) {
+      double sig2 = 0;
+      for (double v : s.sigmas) sig2 += v * v;
+      m.has_sigma = true;
+      m.pred_sigma = std::sqrt(sig2 / static_cast<double>(s.sigmas.size()));
+      m.consistency = m.pred_sigma > 0 ? m.emp_sigma / m.pred_sigma : kNaN;
+    }
+  }
+  return m;
+}
+
+bool IsNumber(const nlohmann::json& j) { return j.is_number() && std::isfinite(j.get<double>()); }
+
+std::string Csv(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) {
+    if (c == '"') q += '"';
+    q += c == '\n' ? ' ' : c;
+  }
+  return q + "\"";
+}
+
+std::string Md(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '|') {
+      out += "\\|";
+    } else if (c == '\n') {
+      out += ' ';
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string FormatNumber(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return std::string(buf) == "-0" ? "0" : buf;
+}
+
+const MetricStats* GroupSummary::Find(const std::string& kind, const std::string& name) const {
+  for (const auto& m : metrics) {
+    if (m.kind == kind && m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+std::vector<GroupSummary> Summarize(std::vector<RunRecord> records) {
+  SortRecords(&records);
+  std::vector<GroupSummary> groups;
+  std::map<std::string, size_t> group_of;
+  // Per group: (kind, name) -> samples. std::map keeps names sorted.
+  std::vector<std::map<std::pair<int, std::string>, Samples>> samples;
+  std::vector<std::map<std::string, std::pair<double, int>>> budgets;
+  for (const RunRecord& r : records) {
+    const std::string gkey = r.problem + "|" + r.config + "|" + SweepPointLabel(r.sweep);
+    auto it = group_of.find(gkey);
+    if (it == group_of.end()) {
+      GroupSummary g;
+      g.problem = r.problem;
+      g.config = r.config;
+      g.sweep = r.sweep;
+      g.first_index = r.index;
+      it = group_of.emplace(gkey, groups.size()).first;
+      groups.push_back(std::move(g));
+      samples.emplace_back();
+      budgets.emplace_back();
+    }
+    GroupSummary& g = groups[it->second];
+    auto& gs = samples[it->second];
+    ++g.runs;
+    g.time_total_s += r.time_s;
+    g.cpu_total_s += r.cpu_s;
+    g.time_max_s = std::max(g.time_max_s, r.time_s);
+    if (!r.ok) {
+      ++g.failed;
+      auto f = std::find_if(g.failures.begin(), g.failures.end(),
+                            [&](const FailureGroup& x) { return x.error == r.error; });
+      if (f == g.failures.end()) {
+        g.failures.push_back(FailureGroup{r.error, 1, r.key});
+      } else {
+        ++f->count;
+      }
+      continue;
+    }
+    const nlohmann::json& res = r.result;
+    if (!res.is_object()) continue;
+    auto take = [&](const char* member, int kind) {
+      if (!res.contains(member) || !res[member].is_object()) return;
+      for (const auto& kv : res[member].items()) {
+        if (IsNumber(kv.value())) gs[{kind, kv.key()}].values.push_back(kv.value().get<double>());
+      }
+    };
+    take("errors", 0);
+    take("signed_errors", 1);
+    take("values", 2);
+    if (res.contains("sigmas") && res["sigmas"].is_object() && res.contains("signed_errors")) {
+      for (const auto& kv : res["sigmas"].items()) {
+        if (IsNumber(kv.value()) && res["signed_errors"].contains(kv.key())) {
+          gs[{1, kv.key()}].sigmas.push_back(kv.value().get<double>());
+        }
+      }
+    }
+    if (res.contains("converged") && res["converged"].is_boolean()) {
+      gs[{2, "converged"}].values.push_back(res["converged"].get<bool>() ? 1.0 : 0.0);
+    }
+    if (res.contains("residuals_px") && res["residuals_px"].is_array()) {
+      for (const auto& v : res["residuals_px"]) {
+        if (IsNumber(v)) g.residuals.push_back(v.get<double>());
+      }
+    }
+    if (res.contains("budget") && res["budget"].is_object()) {
+      for (const auto& kv : res["budget"].items()) {
+        if (!IsNumber(kv.value())) continue;
+        auto& b = budgets[it->second][kv.key()];
+        b.first += kv.value().get<double>();
+        ++b.second;
+      }
+    }
+  }
+  static const char* const kKinds[] = {"error", "signed", "value"};
+  for (size_t i = 0; i < groups.size(); ++i) {
+    GroupSummary& g = groups[i];
+    for (const auto& kv : samples[i]) {
+      g.metrics.push_back(Stats(kKinds[kv.first.first], kv.first.second, kv.second));
+    }
+    for (const auto& kv : budgets[i]) {
+      g.budget.emplace_back(kv.first, kv.second.first / kv.second.second);
+    }
+    g.time_mean_s = g.runs ? g.time_total_s / g.runs : 0;
+  }
+  std::sort(groups.begin(), groups.end(), [](const GroupSummary& a, const GroupSummary& b) {
+    return a.first_index < b.first_index;
+  });
+  return groups;
+}
+
+std::vector<std::string> SweepNames(const std::vector<GroupSummary>& groups) {
+  std::vector<std::string> names;
+  for (const auto& g : groups) {
+    for (const auto& kv : g.sweep) {
+      if (std::find(names.begin(), names.end(), kv.first) == names.end()) {
+        names.push_back(kv.first);
+      }
+    }
+  }
+  return names;
+}
+
+namespace {
+std::string SweepCells(const GroupSummary& g, const std::vector<std::string>& names,
+                       const char* sep) {
+  std::string s;
+  for (const auto& name : names) {
+    std::string cell;
+    for (const auto& kv : g.sweep) {
+      if (kv.first == name) cell = FormatNumber(kv.second);
+    }
+    s += cell + sep;
+  }
+  return s;
+}
+}  // namespace
+
+std::string SummaryCsv(const std::vector<GroupSummary>& groups) {
+  const std::vector<std::string> sweeps = SweepNames(groups);
+  std::ostringstream out;
+  out << "problem,config,";
+  for (const auto& s : sweeps) out << Csv(s) << ",";
+  out << "runs,failed,kind,metric,n,mean,median,rms,p95,max,pred_sigma,emp_sigma,consistency\n";
+  for (const auto& g : groups) {
+    const std::string prefix = Csv(g.problem) + "," + Csv(g.config) + "," +
+                               SweepCells(g, sweeps, ",") + std::to_string(g.runs) + "," +
+                               std::to_string(g.failed) + ",";
+    if (g.metrics.empty()) out << prefix << "runs,-,0,,,,,,,,\n";
+    for (const auto& m : g.metrics) {
+      out << prefix << m.kind << "," << Csv(m.name) << "," << m.n << "," << FormatNumber(m.mean)
+          << "," << FormatNumber(m.median) << "," << FormatNumber(m.rms) << ","
+          << FormatNumber(m.p95) << "," << FormatNumber(m.max) << ",";
+      if (m.kind == "signed") {
+        if (m.has_sigma) out << FormatNumber(m.pred_sigma);
+        out << "," << FormatNumber(m.emp_sigma) << ",";
+        if (m.has_sigma) out << FormatNumber(m.consistency);
+      } else {
+        out << ",,";
+      }
+      out << "\n";
+    }
+  }
+  return out.str();
+}
+
+std::string TimingCsv(const std::vector<GroupSummary>& groups) {
+  const std::vector<std::string> sweeps = SweepNames(groups);
+  std::ostringstream out;
+  out << "problem,config,";
+  for (const auto& s : sweeps) out << Csv(s) << ",";
+  out << "runs,time_mean_s,time_max_s,time_total_s,cpu_total_s\n";
+  for (const auto& g : groups) {
+    out << Csv(g.problem) << "," << Csv(g.config) << "," << SweepCells(g, sweeps, ",") << g.runs
+        << "," << FormatNumber(g.time_mean_s) << "," << FormatNumber(g.time_max_s) << ","
+        << FormatNumber(g.time_total_s) << "," << FormatNumber(g.cpu_total_s) << "\n";
+  }
+  return out.str();
+}
+
+std::string SummaryMarkdown(const nlohmann::json& info,
+                            const std::vector<GroupSummary>& groups,
+                            double wall_s,
+                            int jobs) {
+  const std::vector<std::string> sweeps = SweepNames(groups);
+  int runs = 0, failed = 0;
+  for (const auto& g : groups) {
+    runs += g.runs;
+    failed += g.failed;
+  }
+  std::ostringstream out;
+  out << "# Study " << Md(info.value("name", std::string("?"))) << "\n\n";
+  out << "Runs recorded: " << runs << " of " << info.value("runs_total", 0)
+      << ", failed: " << failed << ". Study fingerprint `"
+      << info.value("fingerprint", std::string("?")) << "`.\n\n";
+  out << "Errors are against the truth; each cell is median / p95 over the trials. "
+         "Consistency = empirical spread / reported sigma (1 is honest, > 1 overconfident).\n\n";
+
+  // Column sets: error metrics (median / p95) and value metrics (mean), union over groups.
+  std::vector<std::string> errors, values;
+  for (const auto& g : groups) {
+    for (const auto& m : g.metrics) {
+      auto& list = m.kind == "error" ? errors : m.kind == "value" ? values : errors;
+      if (m.kind == "signed") continue;
+      if (std::find(list.begin(), list.end(), m.name) == list.end()) list.push_back(m.name);
+    }
+  }
+  std::sort(errors.begin(), errors.end());
+  std::sort(values.begin(), values.end());
+  out << "## Accuracy\n\n| problem | config |";
+  for (const auto& s : sweeps) out << " " << Md(s) << " |";
+  out << " runs | failed |";
+  for (const auto& e : errors) out << " " << Md(e) << " |";
+  for (const auto& v : values) out << " " << Md(v) << " (mean) |";
+  out << "\n|---|---|";
+  for (size_t i = 0; i < sweeps.size() + 2 + errors.size() + values.size(); ++i) out << "---|";
+  out << "\n";
+  for (const auto& g : groups) {
+    out << "| " << Md(g.problem) << " | " << Md(g.config) << " | " << SweepCells(g, sweeps, " | ")
+        << g.runs << " | " << g.failed << " |";
+    for (const auto& e : errors) {
+      const MetricStats* m = g.Find("error", e);
+      out << " " << (m ? FormatNumber(m->median) + " / " + FormatNumber(m->p95) : "") << " |";
+    }
+    for (const auto& v : values) {
+      const MetricStats* m = g.Find("value", v);
+      out << " " << (m ? FormatNumber(m->mean) : "") << " |";
+    }
+    out << "\n";
+  }
+
+  bool any_signed = false;
+  for (const auto& g : groups) {
+    for (const auto& m : g.metrics) any_signed |= m.kind == "signed";
+  }
+  if (any_signed) {
+    out << "\n## Reported sigma vs empirical spread\n\n| problem | config |";
+    for (const auto& s : sweeps) out << " " << Md(s) << " |";
+    out << " parameter | n | bias | empirical sigma | reported sigma | consistency |\n|---|---|";
+    for (size_t i = 0; i < sweeps.size() + 6; ++i) out << "---|";
+    out << "\n";
+    for (const auto& g : groups) {
+      for (const auto& m : g.metrics) {
+        if (m.kind != "signed") continue;
+        out << "| " << Md(g.problem) << " | " << Md(g.config) << " | "
+            << SweepCells(g, sweeps, " | ") << Md(m.name) << " | " << m.n << " | "
+            << FormatNumber(m.mean) << " | " << FormatNumber(m.emp_sigma) << " | "
+            << (m.has_sigma ? FormatNumber(m.pred_sigma) : "") << " | "
+            << (m.has_sigma ? FormatNumber(m.consistency) : "") << " |\n";
+      }
+    }
+  }
+
+  out << "\n## Failures\n\n";
+  if (failed == 0) {
+    out << "None.\n";
+  } else {
+    out << "| problem | config | runs failed | first run | error |\n|---|---|---|---|---|\n";
+    // One line per (problem, config, message) over all sweep points.
+    struct Row {
+      std::string problem, config, error, first_key;
+      int count;
+    };
+    std::vector<Row> rows;
+    for (const auto& g : groups) {
+      for (const auto& f : g.failures) {
+        auto it = std::find_if(rows.begin(), rows.end(), [&](const Row& r) {
+          return r.problem == g.problem && r.config == g.config && r.error == f.error;
+        });
+        if (it == rows.end()) {
+          rows.push_back(Row{g.problem, g.config, f.error, f.first_key, f.count});
+        } else {
+          it->count += f.count;
+        }
+      }
+    }
+    for (const auto& r : rows) {
+      out << "| " << Md(r.problem) << " | " << Md(r.config) << " | " << r.count << " | `"
+          << Md(r.first_key) << "` | " << Md(r.error) << " |\n";
+    }
+  }
+
+  out << "\n## Timing\n\n";
+  out << "Wall-clock numbers vary between runs and machines; they are excluded from the "
+         "reproducibility checks (timing.csv has them per group).\n\n";
+  double total = 0, cpu = 0;
+  for (const auto& g : groups) {
+    total += g.time_total_s;
+    cpu += g.cpu_total_s;
+  }
+  out << "- runs from: shard " << info.value("shard", std::string("1/1")) << "\n";
+  out << "- sum of the runs' own times: " << FormatNumber(total) << " s (CPU " << FormatNumber(cpu)
+      << " s)\n";
+  if (wall_s > 0 && jobs > 0) {
+    out << "- wall time of this invocation: " << FormatNumber(wall_s) << " s with " << jobs
+        << " jobs\n";
+  }
+  out << "\n| problem | config |";
+  for (const auto& s : sweeps) out << " " << Md(s) << " |";
+  out << " mean s/run | max s/run |\n|---|---|";
+  for (size_t i = 0; i < sweeps.size() + 2; ++i) out << "---|";
+  out << "\n";
+  for (const auto& g : groups) {
+    out << "| " << Md(g.problem) << " | " << Md(g.config) << " | " << SweepCells(g, sweeps, " | ")
+        << FormatNumber(g.time_mean_s) << " | " << FormatNumber(g.time_max_s) << " |\n";
+  }
+  return out.str();
+}
+
+std::string MarkdownWithoutTiming(const std::string& markdown) {
+  const auto pos = markdown.find("\n## Timing");
+  return pos == std::string::npos ? markdown : markdown.substr(0, pos);
+}
+
+}  // namespace carmba
