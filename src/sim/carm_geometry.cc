@@ -30,7 +30,8 @@ nlohmann::json RigidToJson(const Rigid3& pose) {
   nlohmann::json R = nlohmann::json::array();
   for (int i = 0; i < 3; ++i) R.push_back({pose.R(i, 0), pose.R(i, 1), pose.R(i, 2)});
   const Eigen::Vector3d r = pose.Rvec();
-  return {{"R", R}, {"rvec", {r.x(), r.y(), r.z()}}, {"t_mm", {pose.t.x(), pose.t.y(), pose.t.z()}}};
+  return {
+      {"R", R}, {"rvec", {r.x(), r.y(), r.z()}}, {"t_mm", {pose.t.x(), pose.t.y(), pose.t.z()}}};
 }
 
 bool CarmGeometry::Check(std::string* error) const {

@@ -44,9 +44,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "camera/camera.h"
 #include "util/status.h"
@@ -77,7 +76,7 @@ struct CarmGeometry {
   double primary_angle_deg = 0.0;      // LAO +, RAO - (DICOM 0018,1510)
   double secondary_angle_deg = 0.0;    // cranial +, caudal - (DICOM 0018,1511)
   double detector_rotation_deg = 0.0;  // in-plane rotation about the beam
-  Eigen::Vector3d isocenter_mm = Eigen::Vector3d::Zero();  // isocentre in world (LPS)
+  Eigen::Vector3d isocenter_mm = Eigen::Vector3d::Zero();    // isocentre in world (LPS)
   Eigen::Vector2d axis_offset_mm = Eigen::Vector2d::Zero();  // central ray offset (camera x, y)
 
   // Finite values, 0 < sod_mm < sid_mm, |secondary| <= 90.

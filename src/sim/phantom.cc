@@ -33,7 +33,8 @@ bool PlateSpec::Check(std::string* error) const {
   if (rows < 1 || cols < 1 || rows * cols < 2) {
     return *error = "plate: rows and cols must be >= 1 with at least 2 spheres", false;
   }
-  if (!(pitch_mm > 0) || !std::isfinite(pitch_mm)) return *error = "plate: pitch_mm must be > 0", false;
+  if (!(pitch_mm > 0) || !std::isfinite(pitch_mm))
+    return *error = "plate: pitch_mm must be > 0", false;
   if (!(sphere_diameter_mm > 0) || !(sphere_diameter_mm < pitch_mm)) {
     return *error = "plate: sphere_diameter_mm must be > 0 and smaller than pitch_mm", false;
   }
@@ -83,9 +84,8 @@ StatusOr<Phantom> MakePlatePhantom(const PlateSpec& spec,
   int host = -1;
   if (spec.thickness_mm > 0) {
     BoxPrimitive box;
-    box.phantom_from_box.t = Eigen::Vector3d(0.5 * (spec.cols - 1) * spec.pitch_mm,
-                                             0.5 * (spec.rows - 1) * spec.pitch_mm,
-                                             0.0);
+    box.phantom_from_box.t = Eigen::Vector3d(
+        0.5 * (spec.cols - 1) * spec.pitch_mm, 0.5 * (spec.rows - 1) * spec.pitch_mm, 0.0);
     box.half_size_mm = Eigen::Vector3d(0.5 * (spec.cols - 1) * spec.pitch_mm + spec.margin_mm,
                                        0.5 * (spec.rows - 1) * spec.pitch_mm + spec.margin_mm,
                                        0.5 * spec.thickness_mm);

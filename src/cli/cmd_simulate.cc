@@ -1,0 +1,101 @@
+// `carmba simulate --scene configs/scenes/NAME.yaml --out DIR`: renders a simulated X-ray scene
+// (sim/xray_scene.h) or CT scene (ct/ct_simulate.h) into DIR with DIR/truth.json.
+//
+// Everything is written into a temporary directory beside DIR and renamed to DIR at the end, so
+// an error leaves no partial output. An existing non-empty DIR is an error unless --overwrite.
+#include <gflags/gflags.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <iostream>
+#include <system_error>
+
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "ct/ct_simulate.h"
+#include "sim/xray_scene.h"
+#include "util/file_util.h"
+#include "util/yaml_reader.h"
+
+DEFINE_string(scene, "", "Scene YAML file (configs/scenes/*.yaml), kind xray or ct.");
+// --out (output directory: images or the ct/ DICOM series, and truth.json) is shared:
+// cli/common_flags.h.
+DEFINE_bool(overwrite, false, "Replace an existing non-empty output directory.");
+
+namespace {
+
+namespace fs = std::filesystem;
+
+carmba::Status Simulate(const std::string& scene_path, const std::string& tmp_dir) {
+  using carmba::Status;
+  carmba::YamlMap scene = carmba::YamlMap::Load(scene_path);
+  if (!scene.status().ok()) return scene.status();
+  std::string kind;
+  scene.GetEnum("kind", {"xray", "ct"}, &kind, true);
+  if (!scene.status().ok()) return scene.status();
+  CARMBA_RETURN_IF_ERROR(carmba::MakeDirs(tmp_dir));
+  nlohmann::json truth;
+  truth["scene"] = scene_path;
+  if (kind == "ct") {
+    CARMBA_RETURN_IF_ERROR(carmba::SimulateCtScene(scene, tmp_dir, &truth));
+    truth["kind"] = "ct";
+  } else {
+    carmba::sim::XrayScene xray;
+    CARMBA_RETURN_IF_ERROR(carmba::sim::ParseXrayScene(scene, &xray));
+    CARMBA_RETURN_IF_ERROR(carmba::sim::SimulateXrayScene(xray, tmp_dir, &truth));
+  }
+  return carmba::WriteFileAtomic(carmba::JoinPath(tmp_dir, "truth.json"), truth.dump(2) + "\n");
+}
+
+int RunSimulate() {
+  const std::string cmd = "simulate";
+  if (FLAGS_scene.empty()) return carmba::cli::Fail(cmd, "--scene is required");
+  if (FLAGS_out.empty()) return carmba::cli::Fail(cmd, "--out is required");
+  fs::path out = fs::path(FLAGS_out).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();  // trailing '/'
+  std::error_code ec;
+  const bool exists = fs::exists(out, ec);
+  if (exists && !fs::is_directory(out, ec)) {
+    return carmba::cli::Fail(cmd, out.string() + ": exists and is not a directory");
+  }
+  const bool non_empty = exists && !fs::is_empty(out, ec);
+  if (non_empty && !FLAGS_overwrite) {
+    return carmba::cli::Fail(cmd,
+                             out.string() +
+                                 ": output directory exists and is not empty "
+                                 "(use --overwrite to replace it)");
+  }
+  const std::string suffix = "." + std::to_string(::getpid());
+  const fs::path tmp = out.string() + ".tmp" + suffix;
+  fs::remove_all(tmp, ec);
+  carmba::Status status = Simulate(FLAGS_scene, tmp.string());
+  if (status.ok()) {
+    const fs::path old = out.string() + ".old" + suffix;
+    if (exists) fs::rename(out, old, ec);
+    if (!ec) fs::rename(tmp, out, ec);
+    if (ec) {
+      status = carmba::Status::Error(out.string() +
+                                     ": cannot move the result into place: " + ec.message());
+      if (exists) {
+        std::error_code ec2;
+        fs::rename(old, out, ec2);
+      }
+    } else if (exists) {
+      fs::remove_all(old, ec);
+    }
+  }
+  if (!status.ok()) {
+    std::error_code ec2;
+    fs::remove_all(tmp, ec2);
+    return carmba::cli::Fail(cmd, status);
+  }
+  std::cout << "wrote " << out.string() << " (truth.json)\n";
+  return 0;
+}
+
+}  // namespace
+
+CARMBA_COMMAND_FLAGS(simulate, "out");
+CARMBA_REGISTER_COMMAND(simulate,
+                        "Simulate C-arm X-ray images or a CT series with ground truth.",
+                        RunSimulate);

@@ -1,0 +1,441 @@
+#include "sim/xray_scene.h"
+
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include "camera/camera_model.h"
+#include "util/file_util.h"
+
+namespace carmba::sim {
+
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+uint64_t SplitMix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// A fixed-size vector key; records an error when the size is wrong.
+bool GetVec(YamlMap& m, const std::string& key, int n, double* out, bool required = false) {
+  std::vector<double> v;
+  const bool had = m.Has(key);
+  m.Get(key, &v, required);
+  if (!had || !m.status().ok()) return false;
+  if (static_cast<int>(v.size()) != n) {
+    m.Fail(key,
+           "expected a list of " + std::to_string(n) + " numbers, got " + std::to_string(v.size()));
+    return false;
+  }
+  for (int i = 0; i < n; ++i) out[i] = v[i];
+  return true;
+}
+
+bool ValidName(const std::string& s) {
+  if (s.empty()) return false;
+  for (char c : s) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-')) return false;
+  }
+  return true;
+}
+
+std::string Fmt(double x) {
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.1f", x);
+  return b;
+}
+
+Rigid3 ObjectPlacement(const Eigen::Vector3d& centroid,
+                       const Eigen::Vector3d& rotation_deg,
+                       const Eigen::Vector3d& center_mm) {
+  // world_from_object = T(center) * R(rotation) * T(-centroid)
+  const Rigid3 rot = Rigid3::FromRvec(rotation_deg * kDegToRad, Eigen::Vector3d::Zero());
+  Rigid3 p;
+  p.R = rot.R;
+  p.t = center_mm - rot.R * centroid;
+  return p;
+}
+
+nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
+  XrayScene s;
+  s.path = scene.file();
+  const std::string dir = DirName(scene.file());
+  std::string kind;
+  scene.GetEnum("kind", {"xray"}, &kind, true);
+  scene.Get("description", &s.description);
+  int seed = 1;
+  scene.Get("seed", &seed);
+  if (seed < 0) scene.Fail("seed", "expected a non-negative integer");
+  s.seed = static_cast<uint64_t>(seed);
+
+  YamlMap& output = scene.Map("output");
+  output.GetEnum("format", {"png", "pgm"}, &s.format);
+  output.Get("bit_depth", &s.bit_depth);
+  if (output.Has("bit_depth") && s.bit_depth != 8 && s.bit_depth != 16) {
+    output.Fail("bit_depth", "expected 8 or 16");
+  }
+
+  // C-arm first: the detector pitch needs the SID.
+  CarmGeometry carm;
+  YamlMap& cm = scene.Map("carm");
+  cm.GetPositive("sid_mm", &carm.sid_mm);
+  cm.GetPositive("sod_mm", &carm.sod_mm);
+  GetVec(cm, "isocenter_mm", 3, carm.isocenter_mm.data());
+  GetVec(cm, "axis_offset_mm", 2, carm.axis_offset_mm.data());
+  if (cm.status().ok() && !(carm.sod_mm < carm.sid_mm)) {
+    cm.Fail("sod_mm",
+            "expected the source-to-isocentre distance to be smaller than sid_mm (" +
+                Fmt(carm.sid_mm) + ")");
+  }
+
+  YamlMap& cam = scene.Map("camera", true);
+  std::vector<int> size;
+  cam.Get("image_size", &size, true);
+  if (cam.status().ok() &&
+      (size.size() != 2 || size[0] < 8 || size[1] < 8 || size[0] > 16384 || size[1] > 16384)) {
+    cam.Fail("image_size", "expected [width, height] in px, each in 8..16384");
+  }
+  const bool has_f = cam.Has("fx") || cam.Has("fy") || cam.Has("cx") || cam.Has("cy");
+  const bool has_pitch = cam.Has("pixel_pitch_mm");
+  if (has_f && has_pitch) {
+    cam.Fail("pixel_pitch_mm", "give either fx, fy, cx, cy or pixel_pitch_mm, not both");
+  } else if (!has_f && !has_pitch) {
+    cam.Fail("fx", "missing, expected fx, fy, cx, cy (px) or pixel_pitch_mm");
+  }
+  if (cam.status().ok() && size.size() == 2) {
+    s.camera.width = size[0];
+    s.camera.height = size[1];
+    s.camera.params.fill(0.0);
+    if (has_f) {
+      cam.GetPositive("fx", &s.camera.params[kFx], true);
+      cam.GetPositive("fy", &s.camera.params[kFy], true);
+      cam.Get("cx", &s.camera.params[kCx], true);
+      cam.Get("cy", &s.camera.params[kCy], true);
+    } else {
+      DetectorSpec det;
+      det.width_px = size[0];
+      det.height_px = size[1];
+      std::vector<double> pitch;
+      cam.Get("pixel_pitch_mm", &pitch);
+      if (cam.status().ok()) {
+        if (pitch.size() == 1) pitch.push_back(pitch[0]);
+        if (pitch.size() != 2 || !(pitch[0] > 0) || !(pitch[1] > 0)) {
+          cam.Fail("pixel_pitch_mm", "expected a positive number or [x, y] (mm)");
+        } else {
+          det.pitch_x_mm = pitch[0];
+          det.pitch_y_mm = pitch[1];
+        }
+      }
+      GetVec(cam, "principal_offset_px", 2, det.principal_offset_px.data());
+      if (cam.status().ok()) s.camera = CameraFromDetector(det, carm.sid_mm);
+    }
+    GetVec(cam, "distortion", 5, &s.camera.params[kK1]);
+  }
+
+  YamlMap& im = scene.Map("imaging");
+  RenderOptions& r = s.render;
+  im.Get("supersampling", &r.supersampling);
+  im.GetPositive("white_level", &r.white_level);
+  im.GetNonNegative("photons_per_pixel", &r.photons_per_pixel);
+  im.GetNonNegative("read_noise_gray", &r.read_noise_gray);
+  im.GetNonNegative("blur_sigma_px", &r.blur_sigma_px);
+  im.GetNonNegative("vignetting", &r.vignetting);
+  im.GetNonNegative("outside_fov_gray", &r.outside_fov_gray);
+  if (im.status().ok() && (r.supersampling < 1 || r.supersampling > 16)) {
+    im.Fail("supersampling", "expected an integer in 1..16");
+  }
+  if (im.status().ok() && r.vignetting >= 1) im.Fail("vignetting", "expected a value in [0, 1)");
+  YamlMap& fov = im.Map("fov");
+  fov.Get("circular", &r.circular_fov);
+  fov.GetPositive("radius_px", &r.fov_radius_px);
+  double fov_c[2];
+  if (GetVec(fov, "center_px", 2, fov_c)) {
+    if (fov_c[0] < 0 || fov_c[1] < 0) {
+      fov.Fail("center_px", "expected non-negative pixel coordinates");
+    }
+    r.fov_center_u_px = fov_c[0];
+    r.fov_center_v_px = fov_c[1];
+  }
+  std::string bg_file;
+  double bg_strength = 0.3, bg_crop = 1.0;
+  YamlMap& bg = im.Map("background");
+  bg.Get("file", &bg_file, im.Has("background"));
+  bg.GetNonNegative("strength", &bg_strength);
+  bg.GetPositive("crop", &bg_crop);
+  if (bg.status().ok() && bg_strength > 1) bg.Fail("strength", "expected a value in [0, 1]");
+  if (bg.status().ok() && bg_crop > 1) bg.Fail("crop", "expected a fraction in (0, 1]");
+
+  std::map<std::string, double> materials = DefaultMaterials();
+  if (scene.Has("materials")) {
+    YAML::Node mats = scene.Raw("materials");
+    if (!mats.IsMap()) {
+      scene.Fail("materials", "expected a mapping of material name to mu (1/mm)");
+    } else {
+      YamlMap& mm = scene.Map("materials");
+      for (const auto& kv : mats) {
+        const std::string name = kv.first.as<std::string>();
+        double mu = 0;
+        mm.GetNonNegative(name, &mu, true);
+        materials[name] = mu;
+      }
+    }
+  }
+
+  const bool has_plate = scene.Has("plate"), has_markers = scene.Has("markers");
+  if (has_plate == has_markers) {
+    scene.Fail(has_plate ? "markers" : "plate",
+               "expected exactly one of 'plate' (calibration plate) or 'markers' (marker object)");
+  }
+  if (has_plate) {
+    s.object_kind = "plate";
+    YamlMap& pl = scene.Map("plate");
+    pl.Get("rows", &s.plate.rows);
+    pl.Get("cols", &s.plate.cols);
+    pl.GetPositive("pitch_mm", &s.plate.pitch_mm);
+    pl.GetPositive("sphere_diameter_mm", &s.plate.sphere_diameter_mm);
+    pl.GetNonNegative("thickness_mm", &s.plate.thickness_mm);
+    pl.GetNonNegative("margin_mm", &s.plate.margin_mm);
+    pl.Get("sphere_material", &s.plate.sphere_material);
+    pl.Get("plate_material", &s.plate.plate_material);
+    std::string error;
+    if (pl.status().ok() && !s.plate.Check(&error)) pl.Fail("rows", error);
+    if (pl.status().ok()) {
+      auto ph = MakePlatePhantom(s.plate, materials);
+      if (!ph.ok()) {
+        pl.Fail("sphere_material", ph.status().message());
+      } else {
+        s.phantom = *ph;
+      }
+    }
+  }
+  if (has_markers) {
+    s.object_kind = "markers";
+    YamlMap& mk = scene.Map("markers");
+    std::string csv, id_col;
+    std::vector<std::string> cols;
+    mk.Get("csv", &csv, true);
+    mk.Get("id_column", &id_col);
+    mk.Get("columns", &cols, true);
+    mk.GetPositive("diameter_mm", &s.markers.sphere_diameter_mm);
+    mk.Get("material", &s.markers.sphere_material);
+    if (mk.status().ok() && cols.size() != 3) {
+      mk.Fail("columns", "expected three column names [x, y, z]");
+    }
+    YamlMap& bl = scene.Map("block");
+    bl.Get("enabled", &s.markers.block);
+    bl.GetNonNegative("padding_mm", &s.markers.block_margin_mm);
+    bl.Get("material", &s.markers.block_material);
+    if (mk.status().ok() && bl.status().ok()) {
+      Status st = ReadMarkerCsv(JoinPath(dir, csv), id_col, cols[0], cols[1], cols[2], &s.markers);
+      if (!st.ok()) {
+        mk.Fail("csv", st.message());
+      } else {
+        auto ph = MakeMarkerPhantom(s.markers, materials);
+        if (!ph.ok()) {
+          mk.Fail("csv", ph.status().message());
+        } else {
+          s.phantom = *ph;
+        }
+      }
+    }
+  } else if (scene.Has("block")) {
+    scene.Fail("block", "only valid with 'markers'");
+  }
+
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& sp : s.phantom.spheres) centroid += sp.center_mm;
+  if (!s.phantom.spheres.empty()) centroid /= static_cast<double>(s.phantom.spheres.size());
+  Eigen::Vector3d rotation_deg = Eigen::Vector3d::Zero(), center_mm = Eigen::Vector3d::Zero();
+  YamlMap& op = scene.Map("object_pose");
+  GetVec(op, "rotation_deg", 3, rotation_deg.data());
+  GetVec(op, "center_mm", 3, center_mm.data());
+
+  std::vector<YamlMap*> views = scene.MapList("views", true);
+  if (scene.status().ok() && views.empty()) scene.Fail("views", "expected at least one view");
+  std::set<std::string> names;
+  for (size_t i = 0; i < views.size(); ++i) {
+    YamlMap& vm = *views[i];
+    XrayView v;
+    char def[32];
+    std::snprintf(def, sizeof(def), "view_%03zu", i);
+    v.name = def;
+    vm.Get("name", &v.name);
+    if (vm.status().ok() && !ValidName(v.name)) {
+      vm.Fail("name", "expected letters, digits, '_' or '-', got '" + v.name + "'");
+    }
+    if (vm.status().ok() && !names.insert(v.name).second) {
+      vm.Fail("name", "duplicate view name '" + v.name + "'");
+    }
+    v.carm = carm;
+    vm.Get("primary_deg", &v.carm.primary_angle_deg);
+    vm.Get("secondary_deg", &v.carm.secondary_angle_deg);
+    vm.Get("detector_rotation_deg", &v.carm.detector_rotation_deg);
+    if (vm.status().ok() && std::fabs(v.carm.secondary_angle_deg) > 90) {
+      vm.Fail("secondary_deg", "expected an angle in [-90, 90] degrees");
+    }
+    Eigen::Vector3d rot = rotation_deg, ctr = center_mm;
+    GetVec(vm, "object_rotation_deg", 3, rot.data());
+    GetVec(vm, "object_center_mm", 3, ctr.data());
+    v.world_from_object = ObjectPlacement(centroid, rot, ctr);
+    v.seed = SplitMix64(s.seed * 0x100000001B3ull + i);
+    s.views.push_back(v);
+  }
+
+  CARMBA_RETURN_IF_ERROR(scene.Finish());
+  if (!bg_file.empty()) {
+    auto gain = LoadBackgroundGain(
+        JoinPath(dir, bg_file), s.camera.width, s.camera.height, bg_strength, bg_crop);
+    if (!gain.ok()) {
+      return gain.status().WithContext(scene.file() + ": key 'imaging.background.file'");
+    }
+    s.render.background_gain = *gain;
+  }
+  Status cs = s.camera.Check();
+  if (!cs.ok()) return cs.WithContext(scene.file() + ": key 'camera'");
+  std::string error;
+  if (!s.render.Check(&error)) return Status::Error(scene.file() + ": key 'imaging': " + error);
+  for (const auto& v : s.views) {
+    if (!v.carm.Check(&error)) {
+      return Status::Error(scene.file() + ": view '" + v.name + "': " + error);
+    }
+  }
+  CARMBA_RETURN_IF_ERROR(CheckViewsInsideFov(s));
+  *out = std::move(s);
+  return Status::Ok();
+}
+
+StatusOr<XrayScene> LoadXrayScene(const std::string& path) {
+  YamlMap m = YamlMap::Load(path);
+  if (!m.status().ok()) return m.status();
+  XrayScene s;
+  CARMBA_RETURN_IF_ERROR(ParseXrayScene(m, &s));
+  return s;
+}
+
+Status CheckViewsInsideFov(const XrayScene& s) {
+  const double W = s.camera.width, H = s.camera.height;
+  const double fu = s.render.fov_center_u_px >= 0 ? s.render.fov_center_u_px : 0.5 * (W - 1);
+  const double fv = s.render.fov_center_v_px >= 0 ? s.render.fov_center_v_px : 0.5 * (H - 1);
+  const double fr = s.render.fov_radius_px > 0 ? s.render.fov_radius_px : 0.5 * std::min(W, H);
+  for (int i = 0; i < static_cast<int>(s.views.size()); ++i) {
+    const Rigid3 cam_from_object = s.CamFromObject(i);
+    const std::string where = s.path + ": view '" + s.views[i].name + "'";
+    for (const auto& sp : s.phantom.spheres) {
+      const Eigen::Vector3d c = cam_from_object * sp.center_mm;
+      double uv[2];
+      if (!(c.z() > sp.radius_mm) || !ProjectCamPoint(s.camera.params.data(), c.data(), uv)) {
+        return Status::Error(where + ": sphere " + std::to_string(sp.id) +
+                             " is not in front of the X-ray source");
+      }
+      const double r = SphereImageRadius(s.camera, c, sp.radius_mm, {uv[0], uv[1]});
+      const std::string at = "sphere " + std::to_string(sp.id) + " projects to (" + Fmt(uv[0]) +
+                             ", " + Fmt(uv[1]) + ") px with radius " + Fmt(r) + " px, ";
+      if (!(uv[0] - r >= 0 && uv[0] + r <= W - 1 && uv[1] - r >= 0 && uv[1] + r <= H - 1)) {
+        return Status::Error(where + ": " + at + "outside the " + std::to_string(s.camera.width) +
+                             "x" + std::to_string(s.camera.height) +
+                             " image (the pattern is larger than the field of view?)");
+      }
+      if (s.render.circular_fov && !(std::hypot(uv[0] - fu, uv[1] - fv) + r <= fr - 1.0)) {
+        return Status::Error(where + ": " + at + "outside the circular field of view (centre (" +
+                             Fmt(fu) + ", " + Fmt(fv) + "), radius " + Fmt(fr) +
+                             " px; the pattern is larger than the field of view?)");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const RayGrid* grid) {
+  if (index < 0 || index >= static_cast<int>(scene.views.size())) {
+    return Status::Error("view index " + std::to_string(index) + " out of range");
+  }
+  const XrayView& v = scene.views[index];
+  RenderedView out;
+  out.cam_from_object = scene.CamFromObject(index);
+  RenderOptions options = scene.render;
+  options.seed = v.seed;
+  const PlacedPhantom placed{&scene.phantom, out.cam_from_object};
+  auto gray = RenderXray(scene.camera, {placed}, options, grid);
+  if (!gray.ok()) return gray.status().WithContext("view '" + v.name + "'");
+  out.gray = *gray;
+  out.image = ToOutputImage(out.gray, scene.bit_depth);
+  auto uv = ProjectSphereCenters(scene.camera, placed);
+  if (!uv.ok()) return uv.status().WithContext("view '" + v.name + "'");
+  out.centers_px = *uv;
+
+  nlohmann::json& j = out.truth;
+  j["name"] = v.name;
+  j["file"] = v.name + "." + scene.format;
+  j["primary_deg"] = v.carm.primary_angle_deg;
+  j["secondary_deg"] = v.carm.secondary_angle_deg;
+  j["detector_rotation_deg"] = v.carm.detector_rotation_deg;
+  j["seed"] = v.seed;
+  j["cam_from_world"] = RigidToJson(CamFromWorld(v.carm));
+  j["world_from_object"] = RigidToJson(v.world_from_object);
+  j[scene.phantom.frame == "plate" ? "cam_from_plate" : "cam_from_object"] =
+      RigidToJson(out.cam_from_object);
+  nlohmann::json px = nlohmann::json::array(), cam = nlohmann::json::array();
+  for (size_t k = 0; k < out.centers_px.size(); ++k) {
+    px.push_back({out.centers_px[k].x(), out.centers_px[k].y()});
+    cam.push_back(Vec(out.cam_from_object * scene.phantom.spheres[k].center_mm));
+  }
+  j["centers_px"] = px;
+  j["centers_in_cam_mm"] = cam;
+  return out;
+}
+
+Status SimulateXrayScene(const XrayScene& scene,
+                         const std::string& out_dir,
+                         nlohmann::json* truth) {
+  auto grid = RayGrid::Build(scene.camera, scene.render);
+  if (!grid.ok()) return grid.status().WithContext(scene.path);
+  nlohmann::json& t = *truth;
+  t["kind"] = "xray";
+  t["description"] = scene.description;
+  t["seed"] = scene.seed;
+  t["camera"] = CameraToJson(scene.camera);
+  const CarmGeometry& c = scene.views[0].carm;
+  t["carm"] = {{"sid_mm", c.sid_mm},
+               {"sod_mm", c.sod_mm},
+               {"isocenter_mm", Vec(c.isocenter_mm)},
+               {"axis_offset_mm", {c.axis_offset_mm.x(), c.axis_offset_mm.y()}}};
+  nlohmann::json obj;
+  obj["kind"] = scene.object_kind;
+  obj["frame"] = scene.phantom.frame;
+  nlohmann::json ids = nlohmann::json::array(), centers = nlohmann::json::array();
+  for (const auto& sp : scene.phantom.spheres) {
+    ids.push_back(sp.id);
+    centers.push_back(Vec(sp.center_mm));
+  }
+  obj["sphere_ids"] = ids;
+  obj["centers_mm"] = centers;
+  if (scene.object_kind == "plate") {
+    obj["rows"] = scene.plate.rows;
+    obj["cols"] = scene.plate.cols;
+    obj["pitch_mm"] = scene.plate.pitch_mm;
+    obj["thickness_mm"] = scene.plate.thickness_mm;
+    obj["sphere_diameter_mm"] = scene.plate.sphere_diameter_mm;
+  } else {
+    obj["sphere_diameter_mm"] = scene.markers.sphere_diameter_mm;
+  }
+  t["object"] = obj;
+  t["views"] = nlohmann::json::array();
+  for (int i = 0; i < static_cast<int>(scene.views.size()); ++i) {
+    auto view = RenderXrayView(scene, i, grid->get());
+    if (!view.ok()) return view.status().WithContext(scene.path);
+    const std::string file = JoinPath(out_dir, view->truth["file"].get<std::string>());
+    CARMBA_RETURN_IF_ERROR(WriteImage(file, view->image));
+    t["views"].push_back(view->truth);
+  }
+  return Status::Ok();
+}
+
+}  // namespace carmba::sim
