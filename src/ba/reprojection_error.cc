@@ -1,6 +1,6 @@
 #include "ba/reprojection_error.h"
 
-#include <Eigen/Cholesky>
+#include <Eigen/Dense>
 #include <cmath>
 #include <limits>
 

@@ -7,8 +7,12 @@
 //   static int RunSolve() { ... return 0; }
 //   CARMBA_REGISTER_COMMAND(solve, "Solve a pose problem ...", RunSolve);
 //
-// `carmba <cmd> --help` lists exactly the flags defined in that command's file. A flag that
-// belongs to another subcommand is rejected. Library code never reads FLAGS_*.
+// `carmba <cmd> --help` lists the flags defined in that command's file plus the shared flags
+// (cli/common_flags.h) it declares with CARMBA_COMMAND_FLAGS(name, "out,config"). A flag DEFINEd
+// in two files breaks the link (gflags flags are global): shared names (--out, --config,
+// --problem, --images, --pattern, --rows, --cols, --seed, --jobs) come from common_flags.h.
+// A flag that belongs to another subcommand, or a shared flag the command does not list, is
+// rejected. Library code never reads FLAGS_*.
 #pragma once
 
 #include <string>
@@ -27,6 +31,9 @@ struct Command {
 
 bool RegisterCommand(const char* name, const char* summary, const char* file, int (*run)());
 const std::vector<Command>& Commands();
+bool RegisterCommandFlags(const char* name, const char* shared_flags_csv);
+// The shared flags a command declared it uses (empty if it declared none).
+std::vector<std::string> CommandSharedFlags(const std::string& name);
 
 // Prints "carmba <command>: error: <message>" as one line on stderr and returns exit code 1.
 int Fail(const std::string& command, const Status& status);
@@ -37,3 +44,7 @@ int Fail(const std::string& command, const std::string& message);
 #define CARMBA_REGISTER_COMMAND(name, summary, fn)                     \
   static const bool carmba_registered_##name [[maybe_unused]] =        \
       ::carmba::cli::RegisterCommand(#name, summary, __FILE__, fn)
+
+#define CARMBA_COMMAND_FLAGS(name, shared_flags_csv)                  \
+  static const bool carmba_flags_##name [[maybe_unused]] =            \
+      ::carmba::cli::RegisterCommandFlags(#name, shared_flags_csv)

@@ -22,6 +22,15 @@ std::vector<Command>& Registry() {
   return r;
 }
 
+std::map<std::string, std::vector<std::string>>& SharedFlags() {
+  static std::map<std::string, std::vector<std::string>> r;
+  return r;
+}
+
+bool IsSharedFlagFile(const std::string& filename) {
+  return filename.find("common_flags.cc") != std::string::npos;
+}
+
 std::string BaseName(const std::string& p) {
   const auto pos = p.find_last_of('/');
   return pos == std::string::npos ? p : p.substr(pos + 1);
@@ -46,7 +55,10 @@ void PrintCommandHelp(const Command& cmd) {
   std::vector<gflags::CommandLineFlagInfo> flags;
   gflags::GetAllFlags(&flags);
   for (const auto& f : flags) {
-    if (BaseName(f.filename) != BaseName(cmd.file) && f.name != "verbose") continue;
+    const auto shared = CommandSharedFlags(cmd.name);
+    const bool listed = IsSharedFlagFile(f.filename) &&
+                        std::find(shared.begin(), shared.end(), f.name) != shared.end();
+    if (BaseName(f.filename) != BaseName(cmd.file) && f.name != "verbose" && !listed) continue;
     std::cout << "  --" << f.name << " (" << f.type << ", default '" << f.default_value
               << "')\n      " << f.description << "\n";
   }
@@ -60,6 +72,25 @@ bool RegisterCommand(const char* name, const char* summary, const char* file, in
 }
 
 const std::vector<Command>& Commands() { return Registry(); }
+
+bool RegisterCommandFlags(const char* name, const char* shared_flags_csv) {
+  std::vector<std::string>& v = SharedFlags()[name];
+  std::string s = shared_flags_csv, item;
+  for (char ch : s + ",") {
+    if (ch == ',') {
+      if (!item.empty()) v.push_back(item);
+      item.clear();
+    } else if (ch != ' ') {
+      item += ch;
+    }
+  }
+  return true;
+}
+
+std::vector<std::string> CommandSharedFlags(const std::string& name) {
+  auto it = SharedFlags().find(name);
+  return it == SharedFlags().end() ? std::vector<std::string>() : it->second;
+}
 
 int Fail(const std::string& command, const std::string& message) {
   std::cerr << "carmba " << command << ": error: " << message << std::endl;
@@ -115,7 +146,11 @@ int main(int argc, char** argv) {
     if (f.is_default || f.name == "verbose") continue;
     const bool other_cmd = f.filename.find("/cli/cmd_") != std::string::npos &&
                            carmba::cli::BaseName(f.filename) != carmba::cli::BaseName(cmd->file);
-    if (other_cmd) {
+    const auto shared = carmba::cli::CommandSharedFlags(name);
+    const bool unlisted_shared =
+        carmba::cli::IsSharedFlagFile(f.filename) &&
+        std::find(shared.begin(), shared.end(), f.name) == shared.end();
+    if (other_cmd || unlisted_shared) {
       return carmba::cli::Fail(name, "flag --" + f.name + " is not a flag of '" + name +
                                          "' (see 'carmba " + name + " --help')");
     }

@@ -56,11 +56,13 @@ bool YamlMap::Has(const std::string& key) const {
   return node_ && node_.IsMap() && node_[key] && !node_[key].IsNull();
 }
 
-YAML::Node YamlMap::Node(const std::string& key, bool required, const char* expected) {
+std::optional<YAML::Node> YamlMap::Node(const std::string& key,
+                                        bool required,
+                                        const char* expected) {
   known_.insert(key);
   if (!Has(key)) {
     if (required) Fail(key, std::string("missing, expected ") + expected);
-    return YAML::Node();
+    return std::nullopt;
   }
   return node_[key];
 }
@@ -75,8 +77,9 @@ std::string Show(const YAML::Node& n) {
 }  // namespace
 
 void YamlMap::Get(const std::string& key, double* out, bool required) {
-  YAML::Node n = Node(key, required, "a number");
-  if (!n) return;
+  const auto on = Node(key, required, "a number");
+  if (!on) return;
+  const YAML::Node& n = *on;
   double v;
   if (!n.IsScalar() || !ParseFiniteDouble(n.Scalar(), &v)) {
     Fail(key, "expected a finite number, got " + Show(n));
@@ -86,8 +89,9 @@ void YamlMap::Get(const std::string& key, double* out, bool required) {
 }
 
 void YamlMap::Get(const std::string& key, int* out, bool required) {
-  YAML::Node n = Node(key, required, "an integer");
-  if (!n) return;
+  const auto on = Node(key, required, "an integer");
+  if (!on) return;
+  const YAML::Node& n = *on;
   double v;
   if (!n.IsScalar() || !ParseFiniteDouble(n.Scalar(), &v) || v != std::floor(v) ||
       std::fabs(v) > 2e9) {
@@ -98,8 +102,9 @@ void YamlMap::Get(const std::string& key, int* out, bool required) {
 }
 
 void YamlMap::Get(const std::string& key, bool* out, bool required) {
-  YAML::Node n = Node(key, required, "true or false");
-  if (!n) return;
+  const auto on = Node(key, required, "true or false");
+  if (!on) return;
+  const YAML::Node& n = *on;
   if (n.IsScalar()) {
     const std::string& s = n.Scalar();
     if (s == "true" || s == "True" || s == "yes") {
@@ -115,8 +120,9 @@ void YamlMap::Get(const std::string& key, bool* out, bool required) {
 }
 
 void YamlMap::Get(const std::string& key, std::string* out, bool required) {
-  YAML::Node n = Node(key, required, "a string");
-  if (!n) return;
+  const auto on = Node(key, required, "a string");
+  if (!on) return;
+  const YAML::Node& n = *on;
   if (!n.IsScalar()) {
     Fail(key, "expected a string, got " + Show(n));
     return;
@@ -125,8 +131,9 @@ void YamlMap::Get(const std::string& key, std::string* out, bool required) {
 }
 
 void YamlMap::Get(const std::string& key, std::vector<double>* out, bool required) {
-  YAML::Node n = Node(key, required, "a list of numbers");
-  if (!n) return;
+  const auto on = Node(key, required, "a list of numbers");
+  if (!on) return;
+  const YAML::Node& n = *on;
   if (!n.IsSequence()) {
     Fail(key, "expected a list of numbers, got " + Show(n));
     return;
@@ -160,8 +167,9 @@ void YamlMap::Get(const std::string& key, std::vector<int>* out, bool required) 
 }
 
 void YamlMap::Get(const std::string& key, std::vector<std::string>* out, bool required) {
-  YAML::Node n = Node(key, required, "a list of strings");
-  if (!n) return;
+  const auto on = Node(key, required, "a list of strings");
+  if (!on) return;
+  const YAML::Node& n = *on;
   std::vector<std::string> v;
   if (n.IsScalar()) {
     v.push_back(n.Scalar());
@@ -224,15 +232,16 @@ void YamlMap::GetNonNegative(const std::string& key, double* out, bool required)
 }
 
 YamlMap& YamlMap::Map(const std::string& key, bool required) {
-  YAML::Node n = Node(key, required, "a mapping");
-  children_.push_back(std::make_unique<YamlMap>(n ? n : YAML::Node(), file_, KeyPath(key)));
+  const auto n = Node(key, required, "a mapping");
+  children_.push_back(std::make_unique<YamlMap>(n ? *n : YAML::Node(), file_, KeyPath(key)));
   return *children_.back();
 }
 
 std::vector<YamlMap*> YamlMap::MapList(const std::string& key, bool required) {
   std::vector<YamlMap*> out;
-  YAML::Node n = Node(key, required, "a list of mappings");
-  if (!n) return out;
+  const auto on = Node(key, required, "a list of mappings");
+  if (!on) return out;
+  const YAML::Node& n = *on;
   if (!n.IsSequence()) {
     Fail(key, "expected a list of mappings, got " + Show(n));
     return out;

@@ -15,6 +15,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -67,7 +68,7 @@ class YamlMap {
 
  private:
   std::string Where(const std::string& key) const;
-  YAML::Node Node(const std::string& key, bool required, const char* expected);
+  std::optional<YAML::Node> Node(const std::string& key, bool required, const char* expected);
 
   YAML::Node node_;
   std::string file_;

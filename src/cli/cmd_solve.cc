@@ -1,0 +1,51 @@
+// `carmba solve`: solve a pose problem with a solver configuration; writes result.json and
+// report.md into --out (created if needed). On any error nothing is written.
+#include <gflags/gflags.h>
+
+#include <iostream>
+
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "problem/pose_problem.h"
+#include "report/pose_report.h"
+#include "util/file_util.h"
+
+
+namespace {
+
+int RunSolve() {
+  using namespace carmba;
+  if (FLAGS_problem.empty()) return cli::Fail("solve", "--problem is required");
+  if (FLAGS_config.empty()) return cli::Fail("solve", "--config is required");
+  if (FLAGS_out.empty()) return cli::Fail("solve", "--out is required");
+  auto problem = LoadPoseProblem(FLAGS_problem);
+  if (!problem.ok()) return cli::Fail("solve", problem.status());
+  auto config = LoadSolverConfig(FLAGS_config);
+  if (!config.ok()) return cli::Fail("solve", config.status());
+  auto solution = SolvePoseProblem(*problem, *config);
+  if (!solution.ok()) return cli::Fail("solve", solution.status());
+  const PoseComparison comparison = ComparePoseMethods(*problem, *config, *solution);
+  nlohmann::json j = PoseSolutionToJson(*problem, *solution);
+  j["comparison"] = PoseComparisonToJson(*problem, comparison);
+  const std::string report = PoseReportMarkdown(*problem, *config, *solution, comparison);
+
+  Status s = MakeDirs(FLAGS_out);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "result.json"), j.dump(2) + "\n");
+  if (!s.ok()) return cli::Fail("solve", s);
+  if (!comparison.handedness_warning.empty()) {
+    std::cerr << "carmba solve: warning: " << comparison.handedness_warning << std::endl;
+  }
+  std::cout << "solved " << problem->name << " with " << config->name << ": "
+            << solution->views.size() << " views, RMS " << solution->rms_px << " px, "
+            << solution->iterations << " iterations; wrote " << FLAGS_out << "/result.json and "
+            << FLAGS_out << "/report.md" << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+CARMBA_COMMAND_FLAGS(solve, "problem,config,out");
+CARMBA_REGISTER_COMMAND(solve,
+                        "Solve a pose problem (POSIT + bundle adjustment + covariance).",
+                        RunSolve);

@@ -1,0 +1,18 @@
+// Flags shared by several subcommands. gflags flags are process-global, so a flag name may be
+// DEFINEd only once in the whole `carmba` binary: a subcommand that needs one of these includes
+// this header (DECLARE) instead of DEFINE-ing it again, and lists the shared flags it uses with
+// CARMBA_COMMAND_FLAGS(name, "out,config") so that its --help shows them and other commands'
+// use of them is rejected. Flags used by one command only are DEFINEd in that command's file.
+#pragma once
+
+#include <gflags/gflags.h>
+
+DECLARE_string(out);      // output directory or file
+DECLARE_string(config);   // solver/calibration configuration YAML
+DECLARE_string(problem);  // problem YAML
+DECLARE_string(images);   // directory or glob of images
+DECLARE_string(pattern);  // calibration pattern: circles | acircles | chessboard
+DECLARE_int32(rows);      // pattern rows
+DECLARE_int32(cols);      // pattern columns
+DECLARE_uint64(seed);     // random seed
+DECLARE_int32(jobs);      // parallel jobs (0 = all cores)

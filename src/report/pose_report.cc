@@ -1,0 +1,239 @@
+#include "report/pose_report.h"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "geometry/rotation.h"
+#include "pose/posit.h"
+
+namespace carmba {
+namespace {
+
+std::string Fmt(const char* f, double v) {
+  if (!std::isfinite(v)) return "n/a";
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), f, v);
+  return buf;
+}
+
+const char* HandName(Handedness h) { return h == Handedness::kMirrored ? "mirrored" : "as_given"; }
+
+}  // namespace
+
+PoseComparison ComparePoseMethods(const PoseProblem& problem,
+                                  const SolverConfig& config,
+                                  const PoseSolution& solution) {
+  PoseComparison c;
+  LegacyPositReference ref;
+  if (problem.legacy_reference) {
+    ref = *problem.legacy_reference;
+  } else {
+    ref.focal_px = 0.5 * (problem.camera.params[kFx] + problem.camera.params[kFy]);
+    ref.cx_px = problem.camera.params[kCx];
+    ref.cy_px = problem.camera.params[kCy];
+    ref.y_up = false;
+  }
+  c.legacy_settings = "cvPOSIT (float32, non-orthonormal), focal " + Fmt("%.4f", ref.focal_px) +
+                      " px, centre (" + Fmt("%.3f", ref.cx_px) + ", " + Fmt("%.3f", ref.cy_px) +
+                      ") px, image y axis " + (ref.y_up ? "up (thesis)" : "down") +
+                      ", object frame as given, no distortion";
+  std::map<int, Eigen::Vector3d> as_given;
+  for (const auto& m : problem.markers) as_given[m.id] = m.p_in_object;
+  std::map<std::string, Eigen::Matrix3d> legacy_R;
+  for (const auto& v : problem.views) {
+    std::vector<Eigen::Vector3d> pts;
+    std::vector<Eigen::Vector2d> img;
+    for (const auto& o : v.observations) {
+      pts.push_back(as_given.at(o.marker_id));
+      img.emplace_back(o.uv_px.x() - ref.cx_px,
+                       ref.y_up ? ref.cy_px - o.uv_px.y() : o.uv_px.y() - ref.cy_px);
+    }
+    PositOptions po;
+    po.mode = PositMode::kLegacy;
+    auto r = Posit(pts, img, ref.focal_px, po);
+    if (!r.ok()) {
+      c.legacy_error = "view '" + v.id + "': " + r.status().message();
+      c.legacy.clear();
+      break;
+    }
+    LegacyPositView lv;
+    lv.id = v.id;
+    lv.R = r->R;
+    lv.t = r->t;
+    double ss = 0;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      const Eigen::Vector3d q = r->R * (pts[i] - pts[0]) + r->t;
+      const Eigen::Vector2d e(ref.focal_px * q.x() / q.z() - img[i].x(),
+                              ref.focal_px * q.y() / q.z() - img[i].y());
+      ss += e.squaredNorm();
+    }
+    lv.rms_px = std::sqrt(ss / (2.0 * pts.size()));
+    if (problem.reference_rotations.count(v.id)) {
+      lv.max_diff_to_reference =
+          (r->R - problem.reference_rotations.at(v.id)).cwiseAbs().maxCoeff();
+    }
+    legacy_R[v.id] = r->R;
+    c.legacy.push_back(lv);
+  }
+  if (c.legacy_error.empty()) {
+    for (const auto& p : problem.validation) {
+      c.legacy_view_dirs_deg[{p.a, p.b}] =
+          ViewDirectionAngleOfMatrices(legacy_R.at(p.a), legacy_R.at(p.b)) * kRadToDeg;
+    }
+  }
+  // The other handedness.
+  PoseProblem other = problem;
+  other.handedness =
+      problem.handedness == Handedness::kMirrored ? Handedness::kAsGiven : Handedness::kMirrored;
+  SolverConfig oc = config;
+  oc.refine = true;
+  auto os = SolvePoseProblem(other, oc);
+  if (os.ok()) {
+    c.other_handedness = *os;
+    if (os->rms_px * kHandednessWarnRatio < solution.rms_px) {
+      c.handedness_warning = std::string("the ") + HandName(other.handedness) +
+                             " object frame fits markedly better (RMS " +
+                             Fmt("%.3f", os->rms_px) + " px vs " + Fmt("%.3f", solution.rms_px) +
+                             " px with " + HandName(problem.handedness) +
+                             "): check the object frame's handedness";
+    }
+  } else {
+    c.other_handedness_error = os.status().message();
+  }
+  return c;
+}
+
+nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseComparison& c) {
+  nlohmann::json j;
+  nlohmann::json lv = nlohmann::json::array();
+  for (const auto& v : c.legacy) {
+    nlohmann::json R = nlohmann::json::array();
+    for (int i = 0; i < 3; ++i) {
+      for (int k = 0; k < 3; ++k) R.push_back(v.R(i, k));
+    }
+    nlohmann::json e = {{"id", v.id}, {"R", R}, {"t_mm", {v.t.x(), v.t.y(), v.t.z()}},
+                        {"rms_px", v.rms_px}};
+    if (v.max_diff_to_reference) e["max_abs_diff_to_printed"] = *v.max_diff_to_reference;
+    lv.push_back(e);
+  }
+  nlohmann::json pairs = nlohmann::json::array();
+  for (const auto& [k, v] : c.legacy_view_dirs_deg) {
+    pairs.push_back({{"a", k.first}, {"b", k.second}, {"angle_view_dirs_deg", v}});
+  }
+  j["legacy_posit"] = {{"settings", c.legacy_settings},
+                       {"views", lv},
+                       {"validation", pairs},
+                       {"error", c.legacy_error}};
+  const Handedness oh =
+      problem.handedness == Handedness::kMirrored ? Handedness::kAsGiven : Handedness::kMirrored;
+  if (c.other_handedness) {
+    j["other_handedness"] = {{"handedness", HandName(oh)},
+                             {"rms_px", c.other_handedness->rms_px},
+                             {"warning", c.handedness_warning}};
+  } else {
+    j["other_handedness"] = {{"handedness", HandName(oh)}, {"error", c.other_handedness_error}};
+  }
+  return j;
+}
+
+std::string PoseReportMarkdown(const PoseProblem& problem,
+                               const SolverConfig& config,
+                               const PoseSolution& s,
+                               const PoseComparison& c) {
+  std::ostringstream o;
+  o << "# carmba pose report: " << problem.name << "\n\n";
+  o << "- Problem: `" << problem.path << "`; config: `" << config.name << "` (initializer "
+    << InitializerName(config.initializer) << ", "
+    << (config.analytic_jacobians ? "analytic" : "autodiff") << " Jacobians, loss " << config.loss
+    << ", " << config.linear_solver << ")\n";
+  o << "- Camera: fx " << Fmt("%.3f", problem.camera.params[kFx]) << ", fy "
+    << Fmt("%.3f", problem.camera.params[kFy]) << ", cx " << Fmt("%.3f", problem.camera.params[kCx])
+    << ", cy " << Fmt("%.3f", problem.camera.params[kCy]) << " px (held fixed); pixel sigma "
+    << Fmt("%.3g", problem.sigma_px) << " px; object frame " << HandName(problem.handedness)
+    << "\n";
+  o << "- Solver: " << s.termination << " after " << s.iterations << " iterations, "
+    << Fmt("%.2f", s.time_s * 1e3) << " ms; cost " << Fmt("%.4g", s.initial_cost) << " -> "
+    << Fmt("%.4g", s.final_cost) << "\n\n";
+  if (!c.handedness_warning.empty()) o << "> **Warning:** " << c.handedness_warning << ".\n\n";
+
+  o << "## Validation: angles between views (deg)\n\n";
+  o << "Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) and "
+       "inv(R_b)(0,0,1)); relative rotation is the angle of R_a^T R_b. Bundle-adjustment values "
+       "+- 1 sigma propagated from the joint covariance.\n\n";
+  o << "| pair | expected | thesis | legacy POSIT | bundle adjustment (view dirs) | within 2 sigma "
+       "| relative rotation |\n|---|---|---|---|---|---|---|\n";
+  for (const auto& p : s.validation) {
+    const auto key = std::make_pair(p.a, p.b);
+    const double thesis = problem.reference_angles_deg.count(key)
+                              ? problem.reference_angles_deg.at(key)
+                              : std::nan("");
+    const double legacy =
+        c.legacy_view_dirs_deg.count(key) ? c.legacy_view_dirs_deg.at(key) : std::nan("");
+    std::string within = "n/a";
+    if (p.expected_deg && std::isfinite(p.sigma_view_dirs_deg)) {
+      within = std::fabs(p.angle_view_dirs_deg - *p.expected_deg) <= 2 * p.sigma_view_dirs_deg
+                   ? "yes"
+                   : "no";
+    }
+    o << "| " << p.a << "-" << p.b << " | "
+      << (p.expected_deg ? Fmt("%.1f", *p.expected_deg) : "n/a") << " | " << Fmt("%.4f", thesis)
+      << " | " << Fmt("%.4f", legacy) << " | " << Fmt("%.3f", p.angle_view_dirs_deg) << " +- "
+      << Fmt("%.3f", p.sigma_view_dirs_deg) << " | " << within << " | "
+      << Fmt("%.3f", p.relative_rotation_deg) << " +- " << Fmt("%.3f", p.sigma_relative_rotation_deg)
+      << " |\n";
+  }
+  o << "\n## Reprojection RMS per view (px, per coordinate)\n\n";
+  o << "| view | markers | legacy POSIT | initializer (" << InitializerName(config.initializer)
+    << ") | bundle adjustment | other handedness BA |\n|---|---|---|---|---|---|\n";
+  for (size_t v = 0; v < s.views.size(); ++v) {
+    const auto& vs = s.views[v];
+    const double legacy = v < c.legacy.size() ? c.legacy[v].rms_px : std::nan("");
+    const double other = c.other_handedness ? c.other_handedness->views[v].rms_px : std::nan("");
+    o << "| " << vs.id << " | " << vs.num_observations << " | " << Fmt("%.3f", legacy) << " | "
+      << Fmt("%.3f", vs.initial_rms_px) << " | " << Fmt("%.3f", vs.rms_px) << " | "
+      << Fmt("%.3f", other) << " |\n";
+  }
+  o << "| all | | | | " << Fmt("%.3f", s.rms_px) << " | "
+    << (c.other_handedness ? Fmt("%.3f", c.other_handedness->rms_px) : "n/a") << " |\n\n";
+  o << "Legacy POSIT: " << c.legacy_settings << ".";
+  if (!c.legacy_error.empty()) o << " Could not run: " << c.legacy_error << ".";
+  o << "\n\n## Poses (cam_from_object) with 1-sigma uncertainty\n\n";
+  o << "| view | t (mm) | sigma t (mm) | sigma rotation about camera x, y, z (deg) |\n"
+       "|---|---|---|---|\n";
+  for (const auto& vs : s.views) {
+    const auto& t = vs.cam_from_object;
+    o << "| " << vs.id << " | " << Fmt("%.2f", t[3]) << ", " << Fmt("%.2f", t[4]) << ", "
+      << Fmt("%.2f", t[5]) << " | " << Fmt("%.3f", vs.sigma_translation_mm[0]) << ", "
+      << Fmt("%.3f", vs.sigma_translation_mm[1]) << ", " << Fmt("%.3f", vs.sigma_translation_mm[2])
+      << " | " << Fmt("%.3f", vs.sigma_rotation_deg[0]) << ", "
+      << Fmt("%.3f", vs.sigma_rotation_deg[1]) << ", " << Fmt("%.3f", vs.sigma_rotation_deg[2])
+      << " |\n";
+  }
+  if (!c.legacy.empty() && c.legacy.front().max_diff_to_reference) {
+    o << "\n## Legacy POSIT against the printed matrices\n\n| view | max abs element difference "
+         "|\n|---|---|\n";
+    for (const auto& l : c.legacy) {
+      o << "| " << l.id << " | "
+        << (l.max_diff_to_reference ? Fmt("%.2e", *l.max_diff_to_reference) : "n/a") << " |\n";
+    }
+  }
+  o << "\n## Statistics\n\n";
+  o << "- Residuals: " << s.num_residuals << " (reprojection and CT prior), free parameters "
+    << s.num_parameters << ", degrees of freedom " << s.dof << "\n";
+  o << "- Reprojection RMS " << Fmt("%.3f", s.rms_px) << " px per coordinate; a-posteriori sigma "
+    << Fmt("%.3f", s.sigma_aposteriori_px) << " px (a-priori " << Fmt("%.3f", problem.sigma_px)
+    << " px, factor s0 = " << Fmt("%.3f", s.sigma0) << ")\n";
+  o << "- Chi-square " << Fmt("%.2f", s.chi2) << " on " << s.dof << " dof, P(X > chi2) = "
+    << Fmt("%.3f", s.chi2_p_value)
+    << (s.chi2_p_value < 0.01 ? " (residuals larger than the stated sigmas explain)"
+        : s.chi2_p_value > 0.99 ? " (residuals smaller than the stated sigmas: sigmas too large?)"
+                                : " (consistent with the stated sigmas)")
+    << "\n";
+  o << "- Covariance: " << config.covariance_algorithm << ", "
+    << (config.covariance_aposteriori ? "scaled by s0^2 (a-posteriori)" : "a-priori sigmas")
+    << "\n";
+  return o.str();
+}
+
+}  // namespace carmba
