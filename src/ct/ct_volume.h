@@ -20,6 +20,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/LU>
 #include <cstdint>
 #include <string>
 #include <vector>

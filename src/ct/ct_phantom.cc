@@ -1,0 +1,175 @@
+#include "ct/ct_phantom.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace carmba {
+
+bool CtPhantom::Check(std::string* error) const {
+  if (!(marker_diameter_mm > 0) || !std::isfinite(marker_diameter_mm)) {
+    *error = "marker diameter must be > 0 mm";
+    return false;
+  }
+  for (const auto& m : markers) {
+    if (!m.centre_mm.allFinite()) {
+      *error = "marker " + std::to_string(m.id) + " has a non-finite centre";
+      return false;
+    }
+  }
+  if (!std::isfinite(marker_hu) || !std::isfinite(block_hu) || !std::isfinite(air_hu)) {
+    *error = "HU values must be finite";
+    return false;
+  }
+  if (has_block && !(block_max_mm.array() > block_min_mm.array()).all()) {
+    *error = "the block must have a positive size along x, y and z";
+    return false;
+  }
+  return true;
+}
+
+bool CtVoxeliseOptions::Check(std::string* error) const {
+  if (marker_supersampling < 1 || marker_supersampling > 32 || block_supersampling < 1 ||
+      block_supersampling > 32) {
+    *error = "supersampling must be between 1 and 32";
+    return false;
+  }
+  if (!(noise_hu >= 0) || !std::isfinite(noise_hu)) {
+    *error = "noise must be >= 0 HU";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+// Signed distance from p to the surface of an axis-aligned box (negative inside).
+double BoxSignedDistance(const Eigen::Vector3d& p,
+                         const Eigen::Vector3d& centre,
+                         const Eigen::Vector3d& half) {
+  const Eigen::Vector3d q = (p - centre).cwiseAbs() - half;
+  const double outside = q.cwiseMax(0.0).norm();
+  const double inside = std::min(q.maxCoeff(), 0.0);
+  return outside + inside;
+}
+
+}  // namespace
+
+Status VoxelisePhantom(const CtPhantom& phantom,
+                       const CtVoxeliseOptions& options,
+                       CtVolume* volume) {
+  std::string error;
+  if (!phantom.Check(&error)) return Status::Error("CT phantom: " + error);
+  if (!options.Check(&error)) return Status::Error("CT voxelisation: " + error);
+  CtVolume& v = *volume;
+  if (v.columns <= 0 || v.rows <= 0 || v.slices <= 0 || !(v.spacing_mm.array() > 0).all()) {
+    return Status::Error("CT voxelisation: empty volume or non-positive spacing");
+  }
+  const Eigen::Matrix3d A = v.PatientFromIndexLinear();
+  if (std::abs(A.determinant()) < 1e-12) {
+    return Status::Error("CT voxelisation: degenerate volume axes");
+  }
+  const Eigen::Matrix3d A_inv = A.inverse();
+  const double thickness = v.slice_thickness_mm > 0 ? v.slice_thickness_mm : v.spacing_mm.z();
+  // The voxel's extent along its axes (the k extent is the slice thickness).
+  const Eigen::Vector3d extent(v.spacing_mm.x(), v.spacing_mm.y(), thickness);
+  const double half_diag = 0.5 * extent.norm();
+  const double radius = 0.5 * phantom.marker_diameter_mm;
+  const Eigen::Vector3d block_centre = 0.5 * (phantom.block_min_mm + phantom.block_max_mm);
+  const Eigen::Vector3d block_half = 0.5 * (phantom.block_max_mm - phantom.block_min_mm);
+
+  // Index-space bounds of each marker's influence (conservative for sheared axes).
+  struct Bound {
+    Eigen::Vector3d c;
+    int lo[3], hi[3];
+  };
+  std::vector<Bound> bounds;
+  for (const auto& m : phantom.markers) {
+    Bound b;
+    b.c = m.centre_mm;
+    const Eigen::Vector3d idx = A_inv * (m.centre_mm - v.origin_mm);
+    for (int a = 0; a < 3; ++a) {
+      const double r = A_inv.row(a).norm() * (radius + half_diag) + 1;
+      b.lo[a] = static_cast<int>(std::floor(idx[a] - r));
+      b.hi[a] = static_cast<int>(std::ceil(idx[a] + r));
+    }
+    bounds.push_back(b);
+  }
+
+  const Eigen::Vector3d X = v.axes.col(0), Y = v.axes.col(1), Z = v.axes.col(2);
+  auto material_at = [&](const Eigen::Vector3d& p, const std::vector<const Bound*>& near) {
+    for (const Bound* b : near) {
+      if ((p - b->c).squaredNorm() <= radius * radius) return phantom.marker_hu;
+    }
+    if (phantom.has_block && BoxSignedDistance(p, block_centre, block_half) <= 0) {
+      return phantom.block_hu;
+    }
+    return phantom.air_hu;
+  };
+  auto supersample = [&](const Eigen::Vector3d& p, int S, const std::vector<const Bound*>& near) {
+    double sum = 0;
+    for (int a = 0; a < S; ++a) {
+      const double oa = ((a + 0.5) / S - 0.5) * extent.x();
+      for (int b = 0; b < S; ++b) {
+        const double ob = ((b + 0.5) / S - 0.5) * extent.y();
+        for (int c = 0; c < S; ++c) {
+          const double oc = ((c + 0.5) / S - 0.5) * extent.z();
+          sum += material_at(p + oa * X + ob * Y + oc * Z, near);
+        }
+      }
+    }
+    return sum / (S * S * S);
+  };
+
+  v.hu.assign(static_cast<size_t>(v.columns) * v.rows * v.slices, 0.0f);
+  std::vector<const Bound*> in_slice, in_row, near;
+  for (int k = 0; k < v.slices; ++k) {
+    in_slice.clear();
+    for (const auto& b : bounds) {
+      if (k >= b.lo[2] && k <= b.hi[2]) in_slice.push_back(&b);
+    }
+    std::mt19937_64 rng(options.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(k));
+    std::normal_distribution<float> noise(0.0f, static_cast<float>(options.noise_hu));
+    for (int j = 0; j < v.rows; ++j) {
+      in_row.clear();
+      for (const Bound* b : in_slice) {
+        if (j >= b->lo[1] && j <= b->hi[1]) in_row.push_back(b);
+      }
+      const Eigen::Vector3d row_start = v.PatientFromIndex(Eigen::Vector3d(0, j, k));
+      const Eigen::Vector3d di = v.spacing_mm.x() * X;
+      float* out = v.hu.data() + v.Index(0, j, k);
+      for (int i = 0; i < v.columns; ++i) {
+        const Eigen::Vector3d p = row_start + i * di;
+        near.clear();
+        bool sphere_edge = false, inside_sphere = false;
+        for (const Bound* b : in_row) {
+          if (i < b->lo[0] || i > b->hi[0]) continue;
+          near.push_back(b);
+          const double d = (p - b->c).norm();
+          if (d < radius - half_diag) inside_sphere = true;
+          else if (d <= radius + half_diag) sphere_edge = true;
+        }
+        double value;
+        if (inside_sphere) {
+          value = phantom.marker_hu;
+        } else if (sphere_edge) {
+          value = supersample(p, options.marker_supersampling, near);
+        } else {
+          const double sd = phantom.has_block ? BoxSignedDistance(p, block_centre, block_half)
+                                              : 1e30;
+          if (std::abs(sd) <= half_diag) {
+            value = supersample(p, options.block_supersampling, near);
+          } else {
+            value = sd < 0 ? phantom.block_hu : phantom.air_hu;
+          }
+        }
+        out[i] = static_cast<float>(value);
+        if (options.noise_hu > 0) out[i] += noise(rng);
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace carmba

@@ -1,0 +1,58 @@
+// A voxelised CT phantom: spherical metal markers in a rectangular block, in air.
+//
+// Model. Each voxel's value is the mean over the voxel's extent (a box of spacing_mm[0] x
+// spacing_mm[1] x slice thickness along the volume's axes, centred at the voxel centre) of the
+// material HU at each point: marker_hu inside any sphere, else block_hu inside the block, else
+// air_hu (partial volume). The mean is exact for voxels that lie wholly in one material
+// (decided from the distance of the voxel centre to every surface against the voxel's
+// half-diagonal) and is estimated by S x S x S supersampling (regular sub-grid of sample
+// centres) for voxels cut by a surface. Then independent Gaussian noise of sigma noise_hu is
+// added to every voxel (white noise: real CT noise is correlated between neighbours and has
+// streaks near metal; neither is modelled). The random stream of slice k is seeded from
+// (seed, k), so a volume is the same for the same seed whatever the slice count.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ct/ct_volume.h"
+#include "util/status.h"
+
+namespace carmba {
+
+struct CtMarker {
+  int id = 0;
+  Eigen::Vector3d centre_mm = Eigen::Vector3d::Zero();  // patient coordinates
+};
+
+struct CtPhantom {
+  std::vector<CtMarker> markers;
+  double marker_diameter_mm = 2.0;
+  double marker_hu = 3000;  // steel within a 12-bit scanner's range (max 3071)
+  bool has_block = true;
+  Eigen::Vector3d block_min_mm = Eigen::Vector3d::Zero();  // axis-aligned in patient coordinates
+  Eigen::Vector3d block_max_mm = Eigen::Vector3d::Zero();
+  double block_hu = 100;   // a plastic such as PMMA is ~ +120 HU
+  double air_hu = -1000;
+
+  bool Check(std::string* error) const;
+};
+
+struct CtVoxeliseOptions {
+  int marker_supersampling = 8;  // S for voxels cut by a sphere surface
+  int block_supersampling = 4;   // S for voxels cut only by a block face
+  double noise_hu = 20;          // sigma of the white Gaussian noise, HU (0: noiseless)
+  uint64_t seed = 1;
+
+  bool Check(std::string* error) const;
+};
+
+// Fills volume->hu for the geometry already set in *volume (columns, rows, slices, origin_mm,
+// axes, spacing_mm, slice_thickness_mm; thickness 0 means equal to the slice spacing).
+Status VoxelisePhantom(const CtPhantom& phantom,
+                       const CtVoxeliseOptions& options,
+                       CtVolume* volume);
+
+}  // namespace carmba

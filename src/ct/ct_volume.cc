@@ -1,0 +1,555 @@
+#include "ct/ct_volume.h"
+
+#include <gdcmAttribute.h>
+#include <gdcmFileMetaInformation.h>
+#include <gdcmImage.h>
+#include <gdcmImageReader.h>
+#include <gdcmReader.h>
+#include <gdcmTrace.h>
+#include <gdcmTransferSyntax.h>
+#include <gdcmWriter.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <system_error>
+#include <unistd.h>
+
+#include "util/file_util.h"
+
+namespace carmba {
+namespace fs = std::filesystem;
+
+namespace {
+
+// Quiet GDCM: its warnings go to stderr; ours are Status messages.
+void SilenceGdcm() {
+  static const bool done = [] {
+    gdcm::Trace::SetDebug(false);
+    gdcm::Trace::SetWarning(false);
+    gdcm::Trace::SetError(false);
+    return true;
+  }();
+  (void)done;
+}
+
+std::string Fmt(double v, int precision = 6) {
+  char b[64];
+  std::snprintf(b, sizeof(b), "%.*f", precision, v);
+  return b;
+}
+
+std::string Trim(std::string s) {
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  size_t b = 0;
+  while (b < s.size() && s[b] == ' ') ++b;
+  return s.substr(b);
+}
+
+// The string value of an element, or "" when absent or empty.
+std::string GetString(const gdcm::DataSet& ds, uint16_t group, uint16_t element) {
+  const gdcm::Tag tag(group, element);
+  if (!ds.FindDataElement(tag)) return "";
+  const gdcm::DataElement& de = ds.GetDataElement(tag);
+  const gdcm::ByteValue* bv = de.GetByteValue();
+  if (!bv || bv->GetLength() == 0) return "";
+  return Trim(std::string(bv->GetPointer(), bv->GetLength()));
+}
+
+// A backslash-separated list of decimal numbers (DS/IS); false when absent, malformed or of the
+// wrong count.
+bool GetNumbers(const gdcm::DataSet& ds,
+                uint16_t group,
+                uint16_t element,
+                size_t count,
+                std::vector<double>* out) {
+  const std::string s = GetString(ds, group, element);
+  if (s.empty()) return false;
+  out->clear();
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, '\\')) {
+    item = Trim(item);
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(v)) return false;
+    out->push_back(v);
+  }
+  return out->size() == count;
+}
+
+bool HasDicmMarker(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  char buf[132];
+  if (!f.read(buf, 132)) return false;
+  return std::memcmp(buf + 128, "DICM", 4) == 0;
+}
+
+struct Slice {
+  std::string file;
+  std::string series_uid;
+  int rows = 0, columns = 0;
+  Eigen::Vector3d ipp, row_dir, col_dir;
+  double row_spacing = 0, col_spacing = 0;  // PixelSpacing[0], PixelSpacing[1]
+  double slope = 1, intercept = 0;
+  double thickness = 0;
+  double position = 0;  // along the normal
+  std::vector<float> values;  // rescaled to HU
+};
+
+template <typename T>
+void Rescale(const char* raw, size_t n, double slope, double intercept, float* out) {
+  const T* p = reinterpret_cast<const T*>(raw);
+  for (size_t i = 0; i < n; ++i) out[i] = static_cast<float>(slope * p[i] + intercept);
+}
+
+// Reads one file. Returns ok with *is_image false for files to skip (not DICOM, no pixel data).
+Status ReadSlice(const std::string& path, Slice* slice, bool* is_image) {
+  *is_image = false;
+  gdcm::ImageReader reader;
+  reader.SetFileName(path.c_str());
+  if (!reader.Read()) {
+    gdcm::Reader plain;
+    plain.SetFileName(path.c_str());
+    const bool parsed = plain.Read();
+    if (parsed) {
+      const gdcm::DataSet& ds = plain.GetFile().GetDataSet();
+      if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) return Status::Ok();  // no image
+      const gdcm::TransferSyntax& ts = plain.GetFile().GetHeader().GetDataSetTransferSyntax();
+      return Status::Error(path + ": GDCM cannot decode this image (transfer syntax " +
+                           std::string(gdcm::TransferSyntax::GetTSString(ts)) + ")");
+    }
+    if (HasDicmMarker(path)) {
+      return Status::Error(path + ": corrupt DICOM file (has the DICM marker but GDCM cannot "
+                                  "parse it)");
+    }
+    return Status::Ok();  // not DICOM: skipped
+  }
+  const gdcm::File& file = reader.GetFile();
+  const gdcm::DataSet& ds = file.GetDataSet();
+  const gdcm::Image& image = reader.GetImage();
+  if (image.GetNumberOfDimensions() == 3 && image.GetDimension(2) > 1) {
+    return Status::Error(path + ": multi-frame image (" + std::to_string(image.GetDimension(2)) +
+                         " frames), expected one slice per file");
+  }
+  const gdcm::PixelFormat& pf = image.GetPixelFormat();
+  if (pf.GetSamplesPerPixel() != 1) {
+    return Status::Error(path + ": " + std::to_string(pf.GetSamplesPerPixel()) +
+                         " samples per pixel, expected a grayscale CT image (1)");
+  }
+  slice->file = path;
+  slice->columns = static_cast<int>(image.GetDimension(0));
+  slice->rows = static_cast<int>(image.GetDimension(1));
+  slice->series_uid = GetString(ds, 0x0020, 0x000e);
+  std::vector<double> v;
+  if (!GetNumbers(ds, 0x0020, 0x0032, 3, &v)) {
+    return Status::Error(path + ": missing or malformed ImagePositionPatient (0020,0032), "
+                                "expected 3 numbers");
+  }
+  slice->ipp = Eigen::Vector3d(v[0], v[1], v[2]);
+  if (!GetNumbers(ds, 0x0020, 0x0037, 6, &v)) {
+    return Status::Error(path + ": missing or malformed ImageOrientationPatient (0020,0037), "
+                                "expected 6 numbers");
+  }
+  slice->row_dir = Eigen::Vector3d(v[0], v[1], v[2]);
+  slice->col_dir = Eigen::Vector3d(v[3], v[4], v[5]);
+  if (std::abs(slice->row_dir.norm() - 1) > 1e-3 || std::abs(slice->col_dir.norm() - 1) > 1e-3 ||
+      std::abs(slice->row_dir.dot(slice->col_dir)) > 1e-3) {
+    return Status::Error(path + ": ImageOrientationPatient (0020,0037) is not two orthogonal "
+                                "unit vectors");
+  }
+  if (!GetNumbers(ds, 0x0028, 0x0030, 2, &v) || !(v[0] > 0) || !(v[1] > 0)) {
+    return Status::Error(path + ": missing or malformed PixelSpacing (0028,0030), expected two "
+                                "positive numbers");
+  }
+  slice->row_spacing = v[0];
+  slice->col_spacing = v[1];
+  if (GetNumbers(ds, 0x0028, 0x1053, 1, &v)) slice->slope = v[0];
+  if (GetNumbers(ds, 0x0028, 0x1052, 1, &v)) slice->intercept = v[0];
+  if (!(slice->slope != 0)) {
+    return Status::Error(path + ": RescaleSlope (0028,1053) is 0");
+  }
+  if (GetNumbers(ds, 0x0018, 0x0050, 1, &v) && v[0] > 0) slice->thickness = v[0];
+
+  const size_t n = static_cast<size_t>(slice->rows) * slice->columns;
+  std::vector<char> raw(image.GetBufferLength());
+  if (!image.GetBuffer(raw.data())) {
+    const gdcm::TransferSyntax& ts = file.GetHeader().GetDataSetTransferSyntax();
+    return Status::Error(path + ": GDCM cannot decode the pixel data (transfer syntax " +
+                         std::string(gdcm::TransferSyntax::GetTSString(ts)) + ")");
+  }
+  slice->values.resize(n);
+  float* out = slice->values.data();
+  size_t bytes = 0;
+  switch (pf.GetScalarType()) {
+    case gdcm::PixelFormat::UINT8: bytes = 1; break;
+    case gdcm::PixelFormat::INT8: bytes = 1; break;
+    case gdcm::PixelFormat::UINT16: bytes = 2; break;
+    case gdcm::PixelFormat::INT16: bytes = 2; break;
+    case gdcm::PixelFormat::UINT32: bytes = 4; break;
+    case gdcm::PixelFormat::INT32: bytes = 4; break;
+    default:
+      return Status::Error(path + ": unsupported pixel format " +
+                           std::string(pf.GetScalarTypeAsString()) +
+                           ", expected 8, 16 or 32-bit integers");
+  }
+  if (raw.size() < n * bytes) {
+    return Status::Error(path + ": pixel data holds " + std::to_string(raw.size()) +
+                         " bytes, expected " + std::to_string(n * bytes) + " for " +
+                         std::to_string(slice->columns) + "x" + std::to_string(slice->rows));
+  }
+  const double s = slice->slope, b = slice->intercept;
+  switch (pf.GetScalarType()) {
+    case gdcm::PixelFormat::UINT8: Rescale<uint8_t>(raw.data(), n, s, b, out); break;
+    case gdcm::PixelFormat::INT8: Rescale<int8_t>(raw.data(), n, s, b, out); break;
+    case gdcm::PixelFormat::UINT16: Rescale<uint16_t>(raw.data(), n, s, b, out); break;
+    case gdcm::PixelFormat::INT16: Rescale<int16_t>(raw.data(), n, s, b, out); break;
+    case gdcm::PixelFormat::UINT32: Rescale<uint32_t>(raw.data(), n, s, b, out); break;
+    case gdcm::PixelFormat::INT32: Rescale<int32_t>(raw.data(), n, s, b, out); break;
+    default: break;
+  }
+  *is_image = true;
+  return Status::Ok();
+}
+
+std::string BaseName(const std::string& p) {
+  const auto pos = p.find_last_of('/');
+  return pos == std::string::npos ? p : p.substr(pos + 1);
+}
+
+}  // namespace
+
+bool CtReadOptions::Check(std::string* error) const {
+  if (!(spacing_tolerance_mm > 0)) {
+    *error = "spacing_tolerance_mm must be > 0";
+    return false;
+  }
+  if (!(orientation_tolerance > 0)) {
+    *error = "orientation_tolerance must be > 0";
+    return false;
+  }
+  return true;
+}
+
+StatusOr<CtVolume> ReadCtSeries(const std::string& dir,
+                                const CtReadOptions& options,
+                                std::vector<std::string>* skipped_files) {
+  SilenceGdcm();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error("CT read options: " + error);
+  if (!IsDirectory(dir)) return Status::Error(dir + ": not a directory");
+  std::vector<std::string> paths;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (e.is_regular_file()) paths.push_back(e.path().string());
+  }
+  if (ec) return Status::Error(dir + ": cannot list directory: " + ec.message());
+  std::sort(paths.begin(), paths.end());
+
+  std::map<std::string, std::vector<Slice>> by_series;
+  std::vector<std::string> skipped;
+  for (const auto& p : paths) {
+    Slice s;
+    bool is_image = false;
+    CARMBA_RETURN_IF_ERROR(ReadSlice(p, &s, &is_image));
+    if (!is_image) {
+      skipped.push_back(p);
+      continue;
+    }
+    by_series[s.series_uid].push_back(std::move(s));
+  }
+  if (skipped_files) *skipped_files = skipped;
+  if (by_series.empty()) {
+    return Status::Error(dir + ": no DICOM image files (" + std::to_string(paths.size()) +
+                         " files looked at)");
+  }
+  std::vector<Slice> slices;
+  if (!options.series_uid.empty()) {
+    auto it = by_series.find(options.series_uid);
+    if (it == by_series.end()) {
+      std::string list;
+      for (const auto& [uid, v] : by_series) list += (list.empty() ? "" : ", ") + uid;
+      return Status::Error(dir + ": no series with SeriesInstanceUID '" + options.series_uid +
+                           "' (found: " + list + ")");
+    }
+    slices = std::move(it->second);
+  } else if (by_series.size() > 1) {
+    std::string list;
+    for (const auto& [uid, v] : by_series) {
+      list += (list.empty() ? "" : ", ") + (uid.empty() ? std::string("<none>") : uid) + " (" +
+              std::to_string(v.size()) + " files)";
+    }
+    return Status::Error(dir + ": " + std::to_string(by_series.size()) +
+                         " series mixed in one directory, select one by SeriesInstanceUID: " +
+                         list);
+  } else {
+    slices = std::move(by_series.begin()->second);
+  }
+
+  // Consistency of size, orientation and pixel spacing with the first file.
+  const Slice& ref = slices.front();
+  for (const auto& s : slices) {
+    if (s.rows != ref.rows || s.columns != ref.columns) {
+      return Status::Error(s.file + ": " + std::to_string(s.columns) + "x" +
+                           std::to_string(s.rows) + " pixels, but " + ref.file + " has " +
+                           std::to_string(ref.columns) + "x" + std::to_string(ref.rows));
+    }
+    if ((s.row_dir - ref.row_dir).cwiseAbs().maxCoeff() > options.orientation_tolerance ||
+        (s.col_dir - ref.col_dir).cwiseAbs().maxCoeff() > options.orientation_tolerance) {
+      return Status::Error(s.file + ": ImageOrientationPatient differs from that of " + ref.file +
+                           " (inconsistent orientation within the series)");
+    }
+    if (std::abs(s.row_spacing - ref.row_spacing) > 1e-6 ||
+        std::abs(s.col_spacing - ref.col_spacing) > 1e-6) {
+      return Status::Error(s.file + ": PixelSpacing differs from that of " + ref.file);
+    }
+  }
+  // Orthonormalised in-plane axes and the normal.
+  Eigen::Vector3d x = ref.row_dir.normalized();
+  Eigen::Vector3d y = (ref.col_dir - x.dot(ref.col_dir) * x).normalized();
+  const Eigen::Vector3d normal = x.cross(y);
+  for (auto& s : slices) s.position = s.ipp.dot(normal);
+  std::sort(slices.begin(), slices.end(),
+            [](const Slice& a, const Slice& b) { return a.position < b.position; });
+
+  CtVolume vol;
+  vol.columns = ref.columns;
+  vol.rows = ref.rows;
+  vol.slices = static_cast<int>(slices.size());
+  vol.series_uid = ref.series_uid;
+  vol.slice_thickness_mm = ref.thickness;
+  vol.spacing_mm = Eigen::Vector3d(ref.col_spacing, ref.row_spacing, 0);
+  vol.origin_mm = slices.front().ipp;
+  Eigen::Vector3d step;
+  const int n = vol.slices;
+  if (n == 1) {
+    if (!(ref.thickness > 0)) {
+      return Status::Error(ref.file + ": a single-slice series without SliceThickness "
+                                      "(0018,0050): the slice spacing is unknown");
+    }
+    step = ref.thickness * normal;
+  } else {
+    std::vector<double> steps;
+    for (int k = 0; k + 1 < n; ++k) {
+      const double d = slices[k + 1].position - slices[k].position;
+      if (d < 1e-3) {
+        return Status::Error(dir + ": two slices at the same position " +
+                             Fmt(slices[k].position, 3) + " mm along the normal: " +
+                             BaseName(slices[k].file) + " and " + BaseName(slices[k + 1].file));
+      }
+      steps.push_back(d);
+    }
+    std::vector<double> sorted = steps;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double expected = sorted[sorted.size() / 2];
+    for (int k = 0; k + 1 < n; ++k) {
+      if (std::abs(steps[k] - expected) > options.spacing_tolerance_mm) {
+        const double missing = steps[k] / expected - 1;
+        return Status::Error(
+            dir + ": unevenly spaced or missing slices: gap of " + Fmt(steps[k], 3) +
+            " mm between " + BaseName(slices[k].file) + " (at " + Fmt(slices[k].position, 3) +
+            " mm along the slice normal) and " + BaseName(slices[k + 1].file) + " (at " +
+            Fmt(slices[k + 1].position, 3) + " mm), expected " + Fmt(expected, 3) +
+            " mm like the other slices" +
+            (missing > 0.5 ? " (about " + std::to_string(static_cast<int>(std::lround(missing))) +
+                                 " slices missing)"
+                           : ""));
+      }
+    }
+    step = (slices.back().ipp - slices.front().ipp) / (n - 1);
+    for (int k = 0; k + 1 < n; ++k) {
+      const Eigen::Vector3d d = slices[k + 1].ipp - slices[k].ipp;
+      if ((d - step).norm() > options.spacing_tolerance_mm + 1e-6 * step.norm()) {
+        return Status::Error(dir + ": inconsistent in-plane offset between " +
+                             BaseName(slices[k].file) + " and " + BaseName(slices[k + 1].file) +
+                             ": ImagePositionPatient moves by (" + Fmt(d.x(), 3) + ", " +
+                             Fmt(d.y(), 3) + ", " + Fmt(d.z(), 3) + ") mm, expected (" +
+                             Fmt(step.x(), 3) + ", " + Fmt(step.y(), 3) + ", " +
+                             Fmt(step.z(), 3) + ")");
+      }
+    }
+  }
+  vol.spacing_mm.z() = step.norm();
+  vol.axes.col(0) = x;
+  vol.axes.col(1) = y;
+  vol.axes.col(2) = step.normalized();
+  const size_t per_slice = static_cast<size_t>(vol.rows) * vol.columns;
+  vol.hu.resize(per_slice * n);
+  for (int k = 0; k < n; ++k) {
+    std::copy(slices[k].values.begin(), slices[k].values.end(), vol.hu.begin() + per_slice * k);
+    vol.files.push_back(slices[k].file);
+  }
+  return vol;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writing.
+
+std::string FormatDicomDecimal(double value) {
+  if (value == 0) return "0";
+  for (int precision = 12; precision >= 1; --precision) {
+    char b[64];
+    std::snprintf(b, sizeof(b), "%.*g", precision, value);
+    if (std::strlen(b) <= 16) return b;
+  }
+  return "0";
+}
+
+namespace {
+
+bool ValidUid(const std::string& uid) {
+  if (uid.empty() || uid.size() > 64) return false;
+  for (char c : uid) {
+    if (!(c == '.' || (c >= '0' && c <= '9'))) return false;
+  }
+  return uid.front() != '.' && uid.back() != '.';
+}
+
+void PutString(gdcm::DataSet* ds, uint16_t g, uint16_t e, gdcm::VR vr, std::string value) {
+  if (value.size() % 2) value.push_back(vr == gdcm::VR::UI ? '\0' : ' ');
+  gdcm::DataElement de(gdcm::Tag(g, e));
+  de.SetVR(vr);
+  de.SetByteValue(value.data(), static_cast<uint32_t>(value.size()));
+  ds->Replace(de);
+}
+
+template <uint16_t G, uint16_t E>
+void PutUS(gdcm::DataSet* ds, uint16_t v) {
+  gdcm::Attribute<G, E> a = {v};
+  ds->Replace(a.GetAsDataElement());
+}
+
+}  // namespace
+
+bool CtWriteOptions::Check(std::string* error) const {
+  if (!std::isfinite(rescale_slope) || rescale_slope <= 0) {
+    *error = "rescale_slope must be a finite number > 0";
+    return false;
+  }
+  if (!std::isfinite(rescale_intercept)) {
+    *error = "rescale_intercept must be finite";
+    return false;
+  }
+  if (!ValidUid(study_uid) || !ValidUid(series_uid) || !ValidUid(frame_of_reference_uid) ||
+      series_uid.size() > 58) {
+    *error = "study/series/frame-of-reference UIDs must be digits and dots of at most 64 "
+             "characters (series at most 58)";
+    return false;
+  }
+  return true;
+}
+
+Status WriteCtSeries(const CtVolume& volume,
+                     const std::string& dir,
+                     const CtWriteOptions& options,
+                     int64_t* clamped_voxels) {
+  SilenceGdcm();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error("CT write options: " + error);
+  const size_t per_slice = static_cast<size_t>(volume.rows) * volume.columns;
+  if (volume.rows <= 0 || volume.columns <= 0 || volume.slices <= 0 ||
+      volume.hu.size() != per_slice * volume.slices) {
+    return Status::Error("CT volume: inconsistent size");
+  }
+  if (volume.rows > 65535 || volume.columns > 65535) {
+    return Status::Error("CT volume: more than 65535 rows or columns");
+  }
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
+    return Status::Error(dir + ": exists and is not empty, refusing to write a CT series into it");
+  }
+  const std::string tmp = dir + ".tmp." + std::to_string(::getpid());
+  fs::remove_all(tmp, ec);
+  CARMBA_RETURN_IF_ERROR(MakeDirs(tmp));
+  auto fail = [&](const std::string& m) {
+    std::error_code ec2;
+    fs::remove_all(tmp, ec2);
+    return Status::Error(m);
+  };
+
+  const Eigen::Vector3d row_dir = volume.axes.col(0), col_dir = volume.axes.col(1);
+  std::string iop;
+  for (int a = 0; a < 3; ++a) iop += (a ? "\\" : "") + FormatDicomDecimal(row_dir[a]);
+  for (int a = 0; a < 3; ++a) iop += "\\" + FormatDicomDecimal(col_dir[a]);
+  const std::string pixel_spacing = FormatDicomDecimal(volume.spacing_mm.y()) + "\\" +
+                                    FormatDicomDecimal(volume.spacing_mm.x());
+  const double thickness =
+      volume.slice_thickness_mm > 0 ? volume.slice_thickness_mm : volume.spacing_mm.z();
+  const Eigen::Vector3d normal = row_dir.cross(col_dir);
+  int64_t clamped = 0;
+  std::vector<int16_t> stored(per_slice);
+  for (int k = 0; k < volume.slices; ++k) {
+    const float* hu = volume.hu.data() + per_slice * k;
+    for (size_t p = 0; p < per_slice; ++p) {
+      double s = std::round((hu[p] - options.rescale_intercept) / options.rescale_slope);
+      if (!(s >= -32768)) {
+        s = -32768;
+        ++clamped;
+      } else if (s > 32767) {
+        s = 32767;
+        ++clamped;
+      }
+      stored[p] = static_cast<int16_t>(s);
+    }
+    gdcm::Writer writer;
+    gdcm::File& file = writer.GetFile();
+    gdcm::DataSet& ds = file.GetDataSet();
+    const std::string sop_uid = options.series_uid + "." + std::to_string(k + 1);
+    PutString(&ds, 0x0008, 0x0008, gdcm::VR::CS, "DERIVED\\SECONDARY\\AXIAL");
+    PutString(&ds, 0x0008, 0x0016, gdcm::VR::UI, "1.2.840.10008.5.1.4.1.1.2");
+    PutString(&ds, 0x0008, 0x0018, gdcm::VR::UI, sop_uid);
+    PutString(&ds, 0x0008, 0x0060, gdcm::VR::CS, "CT");
+    PutString(&ds, 0x0008, 0x0070, gdcm::VR::LO, "carmba");
+    PutString(&ds, 0x0008, 0x103e, gdcm::VR::LO, options.series_description);
+    PutString(&ds, 0x0010, 0x0010, gdcm::VR::PN, options.patient_name);
+    PutString(&ds, 0x0010, 0x0020, gdcm::VR::LO, "CARMBA0001");
+    PutString(&ds, 0x0018, 0x0050, gdcm::VR::DS, FormatDicomDecimal(thickness));
+    PutString(&ds, 0x0020, 0x000d, gdcm::VR::UI, options.study_uid);
+    PutString(&ds, 0x0020, 0x000e, gdcm::VR::UI, options.series_uid);
+    PutString(&ds, 0x0020, 0x0011, gdcm::VR::IS, "1");
+    PutString(&ds, 0x0020, 0x0013, gdcm::VR::IS, std::to_string(k + 1));
+    const Eigen::Vector3d ipp = volume.PatientFromIndex(Eigen::Vector3d(0, 0, k));
+    PutString(&ds, 0x0020, 0x0032, gdcm::VR::DS,
+              FormatDicomDecimal(ipp.x()) + "\\" + FormatDicomDecimal(ipp.y()) + "\\" +
+                  FormatDicomDecimal(ipp.z()));
+    PutString(&ds, 0x0020, 0x0037, gdcm::VR::DS, iop);
+    PutString(&ds, 0x0020, 0x0052, gdcm::VR::UI, options.frame_of_reference_uid);
+    PutString(&ds, 0x0020, 0x1041, gdcm::VR::DS, FormatDicomDecimal(ipp.dot(normal)));
+    PutUS<0x0028, 0x0002>(&ds, 1);
+    PutString(&ds, 0x0028, 0x0004, gdcm::VR::CS, "MONOCHROME2");
+    PutUS<0x0028, 0x0010>(&ds, static_cast<uint16_t>(volume.rows));
+    PutUS<0x0028, 0x0011>(&ds, static_cast<uint16_t>(volume.columns));
+    PutString(&ds, 0x0028, 0x0030, gdcm::VR::DS, pixel_spacing);
+    PutUS<0x0028, 0x0100>(&ds, 16);
+    PutUS<0x0028, 0x0101>(&ds, 16);
+    PutUS<0x0028, 0x0102>(&ds, 15);
+    PutUS<0x0028, 0x0103>(&ds, 1);
+    PutString(&ds, 0x0028, 0x1052, gdcm::VR::DS, FormatDicomDecimal(options.rescale_intercept));
+    PutString(&ds, 0x0028, 0x1053, gdcm::VR::DS, FormatDicomDecimal(options.rescale_slope));
+    PutString(&ds, 0x0028, 0x1054, gdcm::VR::LO, "HU");
+    gdcm::DataElement pixels(gdcm::Tag(0x7fe0, 0x0010));
+    pixels.SetVR(gdcm::VR::OW);
+    pixels.SetByteValue(reinterpret_cast<const char*>(stored.data()),
+                        static_cast<uint32_t>(per_slice * sizeof(int16_t)));
+    ds.Replace(pixels);
+    file.GetHeader().SetDataSetTransferSyntax(gdcm::TransferSyntax::ExplicitVRLittleEndian);
+    char name[32];
+    std::snprintf(name, sizeof(name), "slice_%04d.dcm", k + 1);
+    const std::string path = tmp + "/" + name;
+    writer.SetFileName(path.c_str());
+    if (!writer.Write()) return fail(path + ": GDCM could not write the file");
+  }
+  if (fs::exists(dir, ec)) fs::remove(dir, ec);  // empty (checked above)
+  fs::rename(tmp, dir, ec);
+  if (ec) return fail(dir + ": cannot rename the written series into place: " + ec.message());
+  if (clamped_voxels) *clamped_voxels = clamped;
+  return Status::Ok();
+}
+
+}  // namespace carmba
