@@ -14,6 +14,7 @@ std::map<std::string, double> DefaultMaterials() {
           {"pmma", 0.023},
           {"water", 0.0206},
           {"bone", 0.057},
+          {"wood", 0.010},
           {"air", 0.0}};
 }
 

@@ -22,7 +22,8 @@ namespace carmba::sim {
 // Linear attenuation coefficients (1/mm) at an effective energy of about 60 keV (a fluoroscopy
 // beam of 70-80 kVp), from NIST XCOM mass attenuation coefficients times density:
 //   steel/iron 0.94, tungsten 7.0 (not resolved: it is black anyway), aluminium 0.074,
-//   pmma (acrylic) 0.023, water / soft tissue 0.0206, bone (cortical) 0.057, air 0.
+//   pmma (acrylic) 0.023, water / soft tissue 0.0206, bone (cortical) 0.057, wood (dry, about
+//   0.5 g/cm^3) 0.010, air 0.
 // Scenes may override or add materials.
 std::map<std::string, double> DefaultMaterials();
 

@@ -124,7 +124,12 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       det.width_px = size[0];
       det.height_px = size[1];
       std::vector<double> pitch;
-      cam.Get("pixel_pitch_mm", &pitch);
+      if (cam.Raw("pixel_pitch_mm").IsScalar()) {
+        pitch.push_back(0.0);
+        cam.Get("pixel_pitch_mm", &pitch[0]);
+      } else {
+        cam.Get("pixel_pitch_mm", &pitch);
+      }
       if (cam.status().ok()) {
         if (pitch.size() == 1) pitch.push_back(pitch[0]);
         if (pitch.size() != 2 || !(pitch[0] > 0) || !(pitch[1] > 0)) {
@@ -285,7 +290,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     GetVec(vm, "object_rotation_deg", 3, rot.data());
     GetVec(vm, "object_center_mm", 3, ctr.data());
     v.world_from_object = ObjectPlacement(centroid, rot, ctr);
-    v.seed = SplitMix64(s.seed * 0x100000001B3ull + i);
+    v.seed = SplitMix64(s.seed * 0x100000001B3ull + i) >> 11;  // 53 bits: exact in JSON doubles
     s.views.push_back(v);
   }
 
