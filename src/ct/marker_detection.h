@@ -1,0 +1,100 @@
+// Spherical metal markers in a CT volume: segmentation, sub-voxel centres, covariance.
+//
+// 1. Threshold: voxels with HU >= threshold_hu form the markers' cores (default 1000 HU, as in
+//    the thesis: above soft tissue and plastics, below steel and titanium; raise it when dense
+//    bone surrounds the markers).
+// 2. 3-D connected components of the core voxels (26-connectivity, union-find; no ITK).
+// 3. Size filter: a component is a marker when its core volume (voxel count x voxel volume) is
+//    within [min_volume_fraction, max_volume_fraction] x the nominal sphere volume pi d^3 / 6 and
+//    it does not touch the volume's border. Rejected components are kept with the reason.
+// 4. Centre: the intensity-weighted centroid c = sum_i w_i p_i / W, W = sum_i w_i,
+//    w_i = HU_i - b, over the region of interest of voxels whose box (voxel extent along the
+//    volume axes) comes within R_roi = max(d/2, r_core) + roi_margin_mm of the current centre,
+//    where r_core is the radius of a sphere of the core's volume. b is the local background: the
+//    median HU of a shell of voxels beyond the ROI (0.5 .. 0.5 + shell_mm mm outside it); sigma_b, the
+//    local noise, is 1.4826 x the shell's median absolute deviation. Started at the core's
+//    centroid, the ROI is re-centred and the centroid recomputed `iterations` times. Because
+//    every voxel is a box average of the object (partial volume), the weighted centroid is the
+//    object's centre up to the sampling (aliasing) error below; the thesis's bounding-box centre
+//    of the core voxels is computed too (for the report).
+// 5. Covariance (3x3, mm^2, patient frame) = noise term + background term + sampling term, in
+//    the volume's axis frame, rotated to patient coordinates:
+//    - noise: sigma_b^2 sum_i (p_i - c)(p_i - c)^T / W^2 (independent voxel noise);
+//    - background: sigma_b^2 / N_shell g g^T, g = sum_i (p_i - c) / W (error of b);
+//    - sampling: along each volume axis a, the centroid error of a ball of the nominal diameter
+//      box-filtered over the voxel extent (pixel spacing, or the slice thickness along k) and
+//      sampled at the spacing is a periodic function of the ball's sub-voxel phase (separable:
+//      it depends only on the 1-D projection of the ball, pi (R^2 - x^2)). Treating the phase
+//      as uniform, its variance is computed numerically over 64 phases. This is the error over
+//      "where the marker happens to sit in the voxel grid"; it dominates with thick slices.
+//    The model neglects correlated noise, beam hardening and streaks near metal, and marker
+//    diameters different from the nominal one.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "ct/ct_volume.h"
+#include "util/status.h"
+
+namespace carmba {
+
+struct MarkerDetectionOptions {
+  double threshold_hu = 1000;        // core threshold, HU (the thesis kept > 1000 HU)
+  double diameter_mm = 2.0;          // nominal marker diameter
+  int expected_count = 0;            // markers expected; 0: any number >= 1
+  double min_volume_fraction = 0.1;  // accepted core volume, x nominal sphere volume
+  double max_volume_fraction = 3.0;
+  double roi_margin_mm = 0.3;        // ROI beyond the marker radius (after the first pass)
+  double shell_mm = 1.5;             // thickness of the background shell
+  int iterations = 3;                // re-centrings of the ROI
+  // Refuse when more than this fraction of all voxels is above the threshold (wrong threshold).
+  double max_core_fraction = 0.01;
+
+  bool Check(std::string* error) const;
+};
+
+struct DetectedMarker {
+  int id = 0;                          // 1-based; detection order until labelled
+  Eigen::Vector3d centre_mm;           // weighted centroid, patient coordinates
+  Eigen::Matrix3d covariance_mm2;      // of centre_mm, patient coordinates
+  Eigen::Vector3d bbox_centre_mm;      // centre of the core's bounding box (thesis method)
+  Eigen::Vector3d core_centroid_mm;    // unweighted centroid of the core voxels
+  Eigen::Vector3d centre_index;        // weighted centroid in continuous voxel indices (i, j, k)
+  double volume_mm3 = 0;               // core volume (voxels >= threshold x voxel volume)
+  double peak_hu = 0;                  // maximum HU in the core
+  double background_hu = 0;            // b
+  double noise_hu = 0;                 // sigma_b
+  double weight_volume_mm3 = 0;        // W x voxel volume / (peak - b): partial-volume volume
+  int core_voxels = 0;
+  int roi_voxels = 0;
+  Eigen::Matrix3d covariance_noise_mm2;     // the noise + background part
+  Eigen::Matrix3d covariance_sampling_mm2;  // the sampling part
+};
+
+struct RejectedComponent {
+  Eigen::Vector3d centroid_mm;
+  double volume_mm3 = 0;
+  double peak_hu = 0;
+  int voxels = 0;
+  std::string reason;
+};
+
+struct MarkerDetection {
+  std::vector<DetectedMarker> markers;      // in detection order (by first voxel index)
+  std::vector<RejectedComponent> rejected;  // components that failed the size/border filter
+  int core_voxels = 0;                      // voxels >= threshold
+};
+
+// Runs steps 1-5. Errors: no marker found, a count different from options.expected_count (the
+// message lists what was found and rejected), or too many voxels above the threshold.
+StatusOr<MarkerDetection> DetectMarkers(const CtVolume& volume,
+                                        const MarkerDetectionOptions& options);
+
+// The sampling-error variance (mm^2) of the centroid along one axis for a ball of radius
+// `radius_mm`, box-filtered over `extent_mm` and sampled every `spacing_mm`, over uniformly
+// distributed sub-voxel phases (see 5. above).
+double SamplingVarianceMm2(double radius_mm, double spacing_mm, double extent_mm);
+
+}  // namespace carmba
