@@ -270,6 +270,7 @@ Status WriteStudyOutputs(const std::string& dir, bool write_report, double wall_
 Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
                         const std::string& out_dir,
                         bool write_report,
+                        bool allow_missing,
                         int* runs_merged,
                         int* runs_missing) {
   if (shard_dirs.empty()) return Status::Error("no shard directories given");
@@ -313,7 +314,14 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
   SortRecords(&records);
   const int total = info.value("runs_total", 0);
   if (runs_merged) *runs_merged = static_cast<int>(records.size());
-  if (runs_missing) *runs_missing = std::max(0, total - static_cast<int>(records.size()));
+  const int missing = std::max(0, total - static_cast<int>(records.size()));
+  if (runs_missing) *runs_missing = missing;
+  if (missing > 0 && !allow_missing) {
+    return Status::Error(std::to_string(missing) + " of the " + std::to_string(total) +
+                         " runs of study '" + info.value("name", std::string("?")) +
+                         "' are in none of the " + std::to_string(shard_dirs.size()) +
+                         " shard directories; expected all shards (or allow missing runs)");
+  }
 
   CARMBA_RETURN_IF_ERROR(MakeDirs(out_dir));
   const std::string log_path = JoinPath(out_dir, "runs.jsonl");

@@ -73,10 +73,12 @@ Status WriteStudyOutputs(const std::string& dir, bool write_report, double wall_
 // Combines shard directories (each with study.json and runs.jsonl of the same study fingerprint)
 // into `out_dir`: runs.jsonl sorted by enumeration index, study.json, summaries and report.
 // Errors: no shards, a directory without study.json, differing fingerprints, a run recorded
-// with different contents in two shards, out_dir holding runs already.
+// with different contents in two shards, out_dir holding runs already, and runs of the study
+// missing from all shards unless `allow_missing`. Nothing is written on error.
 Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
                         const std::string& out_dir,
                         bool write_report,
+                        bool allow_missing,
                         int* runs_merged,
                         int* runs_missing);
 

@@ -135,6 +135,15 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
       problem.synthetic = YamlToJson(p->Raw("synthetic"));
       if (!problem.synthetic.is_object()) p->Fail("synthetic", "expected a mapping");
     }
+    if (p->Has("options")) {
+      problem.options = YamlToJson(p->Raw("options"));
+      if (!problem.options.is_object()) p->Fail("options", "expected a mapping");
+    }
+    problem.base_dir = dir;
+    if (p->Has("trials")) {
+      p->Get("trials", &problem.trials);
+      if (p->status().ok() && problem.trials < 1) p->Fail("trials", "expected an integer >= 1");
+    }
     spec.problems.push_back(std::move(problem));
   }
   for (YamlMap* c : m.MapList("configs", /*required=*/true)) {
@@ -218,7 +227,8 @@ std::vector<RunSpec> EnumerateRuns(const StudySpec& spec) {
     for (size_t c = 0; c < spec.configs.size(); ++c) {
       for (size_t s = 0; s < points.size(); ++s) {
         const std::string label = SweepPointLabel(points[s]);
-        for (int t = 0; t < spec.trials; ++t) {
+        const int trials = spec.problems[p].trials > 0 ? spec.problems[p].trials : spec.trials;
+        for (int t = 0; t < trials; ++t) {
           RunSpec r;
           r.index = static_cast<int>(runs.size());
           r.problem_index = static_cast<int>(p);

@@ -11,6 +11,7 @@
 //       file: ../../problems/thesis_table_5_2.yaml    # relative to the study file
 //     - name: sim_block
 //       synthetic: { ... }           # a mapping handed to the run function (e.g. a simulator spec)
+//       trials: 5                    # optional: overrides the study's trials for this problem
 //   configs:                         # >= 1 entries, unique names
 //     - name: sqpnp_ba
 //       file: ../solvers/sqpnp_ba.yaml
@@ -18,8 +19,9 @@
 //     pixel_noise_px: [0.1, 0.3, 1]  # in the order the keys are written
 //     ct_noise_mm: [0.05, 0.5]
 //
-// A problem has a `file` or a `synthetic` mapping (exactly one); a config has a `file` and an
-// optional `options` mapping. Files are NOT read here: a missing or malformed problem or config
+// A problem has a `file` or a `synthetic` mapping (exactly one) and an optional `options`
+// mapping; a config has a `file` and an optional `options` mapping. The run function interprets
+// `synthetic` and `options` (and rejects what it does not understand, as a run error). Files are NOT read here: a missing or malformed problem or config
 // file is an error of the runs that use it (recorded, the study goes on), not of the study.
 //
 // Runs are enumerated problem-major: for each problem, each config, each sweep point, each trial.
@@ -45,6 +47,10 @@ struct StudyProblem {
   std::string name;
   std::string file;           // resolved path (relative to the study file's directory), or empty
   nlohmann::json synthetic;   // the `synthetic` mapping as JSON, or null
+  nlohmann::json options;     // the optional `options` mapping as JSON, or null
+  std::string base_dir;       // the study file's directory (for paths inside `synthetic`)
+  int trials = 0;             // optional per-problem trial count (0: the study's `trials`), e.g.
+                              // 1 for measured data solved as they are
 };
 
 struct StudyConfig {

@@ -232,25 +232,29 @@ TEST(StudyRunnerTest, MergedShardsEqualTheWholeStudy) {
   ASSERT_TRUE(RunMean(spec, f.dir + "/s2", 2, false, 2, 2).ok());
   EXPECT_EQ(CountLines(f.dir + "/s1/runs.jsonl") + CountLines(f.dir + "/s2/runs.jsonl"), 40);
   int merged = 0, missing = -1;
-  ASSERT_TRUE(MergeStudyShards({f.dir + "/s2", f.dir + "/s1"}, f.dir + "/merged", true, &merged,
+  ASSERT_TRUE(MergeStudyShards({f.dir + "/s2", f.dir + "/s1"}, f.dir + "/merged", true, false, &merged,
                                &missing)
                   .ok());
   EXPECT_EQ(merged, 40);
   EXPECT_EQ(missing, 0);
   EXPECT_EQ(Summaries(f.dir + "/merged"), Summaries(f.dir + "/whole"));
   EXPECT_EQ(Keys(f.dir + "/merged"), Keys(f.dir + "/whole"));
-  // A shard alone is reported as incomplete.
-  ASSERT_TRUE(MergeStudyShards({f.dir + "/s1"}, f.dir + "/half", false, &merged, &missing).ok());
+  // A shard alone is incomplete: refused, or merged when missing runs are allowed.
+  Status s = MergeStudyShards({f.dir + "/s1"}, f.dir + "/half", false, false, &merged, &missing);
+  EXPECT_NE(s.message().find("20 of the 40 runs"), std::string::npos) << s.message();
+  EXPECT_FALSE(FileExists(f.dir + "/half/runs.jsonl"));
+  ASSERT_TRUE(
+      MergeStudyShards({f.dir + "/s1"}, f.dir + "/half", false, true, &merged, &missing).ok());
   EXPECT_EQ(missing, 20);
   // Shards of different studies are refused.
   Fixture g(4);
   ASSERT_TRUE(RunMean(g.Spec(), g.dir + "/other", 2).ok());
-  Status s = MergeStudyShards({f.dir + "/s1", g.dir + "/other"}, f.dir + "/bad", false, &merged,
-                              &missing);
+  s = MergeStudyShards({f.dir + "/s1", g.dir + "/other"}, f.dir + "/bad", false, true, &merged,
+                       &missing);
   EXPECT_NE(s.message().find("expected shards of one study"), std::string::npos) << s.message();
   EXPECT_FALSE(FileExists(f.dir + "/bad/runs.jsonl"));
   // Merging into a directory that already holds runs is refused.
-  s = MergeStudyShards({f.dir + "/s1"}, f.dir + "/whole", false, &merged, &missing);
+  s = MergeStudyShards({f.dir + "/s1"}, f.dir + "/whole", false, true, &merged, &missing);
   EXPECT_NE(s.message().find("already holds runs"), std::string::npos) << s.message();
 }
 

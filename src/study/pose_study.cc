@@ -1,0 +1,468 @@
+#include "study/pose_study.h"
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <random>
+#include <set>
+
+#include "camera/camera_model.h"
+#include "geometry/rotation.h"
+#include "problem/pose_problem.h"
+#include "util/file_util.h"
+
+namespace carmba {
+namespace {
+
+// Gaussian draws (Box-Muller on a 64-bit Mersenne twister: the same numbers on every standard
+// library, unlike std::normal_distribution).
+double Gaussian(std::mt19937_64* rng) {
+  const double u1 = (static_cast<double>((*rng)() >> 11) + 0.5) * 0x1.0p-53;
+  const double u2 = (static_cast<double>((*rng)() >> 11) + 0.5) * 0x1.0p-53;
+  return std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2);
+}
+
+const std::set<std::string>& KnownSweeps() {
+  static const std::set<std::string> k = {"pixel_noise_px", "ct_noise_mm", "num_views", "k1"};
+  return k;
+}
+
+// Strict reading of a JSON mapping (the `synthetic` and `options` entries of a study file).
+class JsonMap {
+ public:
+  JsonMap(const nlohmann::json& j, std::string where) : j_(j), where_(std::move(where)) {}
+  const nlohmann::json* Find(const std::string& key) {
+    known_.insert(key);
+    if (!j_.is_object() || !j_.contains(key) || j_[key].is_null()) return nullptr;
+    return &j_[key];
+  }
+  void Fail(const std::string& key, const std::string& what) {
+    if (status_.ok()) status_ = Status::Error(where_ + "." + key + ": " + what);
+  }
+  void Number(const std::string& key, double* out) {
+    const nlohmann::json* v = Find(key);
+    if (!v) return;
+    if (!v->is_number() || !std::isfinite(v->get<double>())) return Fail(key, "expected a number");
+    *out = v->get<double>();
+  }
+  void Vector3(const std::string& key, Eigen::Vector3d* out) {
+    const nlohmann::json* v = Find(key);
+    if (!v) return;
+    if (!v->is_array() || v->size() != 3) return Fail(key, "expected a list of 3 numbers");
+    for (int i = 0; i < 3; ++i) {
+      if (!(*v)[i].is_number()) return Fail(key, "expected a list of 3 numbers");
+      (*out)[i] = (*v)[i].get<double>();
+    }
+  }
+  void Numbers(const std::string& key, std::vector<double>* out) {
+    const nlohmann::json* v = Find(key);
+    if (!v) return;
+    if (!v->is_array() || v->empty()) return Fail(key, "expected a non-empty list of numbers");
+    out->clear();
+    for (const auto& e : *v) {
+      if (!e.is_number()) return Fail(key, "expected a non-empty list of numbers");
+      out->push_back(e.get<double>());
+    }
+  }
+  void String(const std::string& key, std::string* out) {
+    const nlohmann::json* v = Find(key);
+    if (!v) return;
+    if (!v->is_string()) return Fail(key, "expected a string");
+    *out = v->get<std::string>();
+  }
+  Status Finish() {
+    if (!status_.ok()) return status_;
+    if (j_.is_object()) {
+      for (const auto& kv : j_.items()) {
+        if (!known_.count(kv.key())) {
+          std::string list;
+          for (const auto& k : known_) list += (list.empty() ? "" : ", ") + k;
+          return Status::Error(where_ + ": unknown key '" + kv.key() + "' (known keys: " + list +
+                               ")");
+        }
+      }
+    }
+    return status_;
+  }
+
+ private:
+  const nlohmann::json& j_;
+  std::string where_;
+  std::set<std::string> known_;
+  Status status_;
+};
+
+struct SyntheticEntry {
+  SyntheticPoseSpec spec;
+  double sigma_px = 0.5;
+  double sigma_ct_mm = 0.1;
+};
+
+StatusOr<SyntheticEntry> ParseSynthetic(const StudyProblem& p) {
+  const std::string where = "problem '" + p.name + "': synthetic";
+  SyntheticEntry e;
+  JsonMap m(p.synthetic, where);
+  std::string camera_file;
+  m.String("camera", &camera_file);
+  if (camera_file.empty()) m.Fail("camera", "missing, expected the path of a camera.json");
+  if (const nlohmann::json* mk = m.Find("markers")) {
+    if (mk->is_string() && mk->get<std::string>() == "thesis") {
+      e.spec.markers = ThesisMarkers();
+    } else if (mk->is_array()) {
+      for (const auto& x : *mk) {
+        if (!x.is_array() || x.size() != 3 || !x[0].is_number() || !x[1].is_number() ||
+            !x[2].is_number()) {
+          m.Fail("markers", "expected 'thesis' or a list of [x, y, z] (mm)");
+          break;
+        }
+        e.spec.markers.emplace_back(x[0].get<double>(), x[1].get<double>(), x[2].get<double>());
+      }
+    } else {
+      m.Fail("markers", "expected 'thesis' or a list of [x, y, z] (mm)");
+    }
+  } else {
+    m.Fail("markers", "missing, expected 'thesis' or a list of [x, y, z] (mm)");
+  }
+  m.Numbers("view_angles_deg", &e.spec.view_angles_deg);
+  m.Number("source_to_object_mm", &e.spec.source_to_object_mm);
+  m.Vector3("rotation_axis", &e.spec.rotation_axis);
+  m.Vector3("base_rvec", &e.spec.base_rvec);
+  if (const nlohmann::json* pairs = m.Find("pairs")) {
+    e.spec.pairs.clear();
+    for (const auto& x : *pairs) {
+      if (!x.is_array() || x.size() != 2 || !x[0].is_number_integer() ||
+          !x[1].is_number_integer()) {
+        m.Fail("pairs", "expected a list of [view index, view index]");
+        break;
+      }
+      e.spec.pairs.emplace_back(x[0].get<int>(), x[1].get<int>());
+    }
+  }
+  m.Number("sigma_px", &e.sigma_px);
+  m.Number("sigma_ct_mm", &e.sigma_ct_mm);
+  CARMBA_RETURN_IF_ERROR(m.Finish());
+  if (e.spec.markers.size() < 4) return Status::Error(where + ".markers: expected >= 4 markers");
+  if (!(e.spec.source_to_object_mm > 0)) {
+    return Status::Error(where + ".source_to_object_mm: expected > 0");
+  }
+  if (!(e.spec.rotation_axis.norm() > 0)) {
+    return Status::Error(where + ".rotation_axis: expected a non-zero vector");
+  }
+  const int nv = static_cast<int>(e.spec.view_angles_deg.size());
+  for (const auto& [a, b] : e.spec.pairs) {
+    if (a < 0 || b < 0 || a >= nv || b >= nv || a == b) {
+      return Status::Error(where + ".pairs: expected two different view indices in [0, " +
+                           std::to_string(nv) + ")");
+    }
+  }
+  StatusOr<Camera> camera = ReadCameraJson(JoinPath(p.base_dir, camera_file));
+  if (!camera.ok()) return camera.status().WithContext(where + ".camera");
+  e.spec.camera = *camera;
+  return e;
+}
+
+enum class MonteCarlo { kNone, kResimulate };
+
+StatusOr<MonteCarlo> ParseProblemOptions(const StudyProblem& p) {
+  MonteCarlo mc = MonteCarlo::kNone;
+  if (p.options.is_null()) return mc;
+  JsonMap m(p.options, "problem '" + p.name + "': options");
+  std::string s = "none";
+  m.String("monte_carlo", &s);
+  CARMBA_RETURN_IF_ERROR(m.Finish());
+  if (s == "resimulate") return MonteCarlo::kResimulate;
+  if (s != "none") {
+    return Status::Error("problem '" + p.name + "': options.monte_carlo: expected none or "
+                         "resimulate, got '" + s + "'");
+  }
+  return mc;
+}
+
+// The reference solver for `resimulate`: SQPnP + bundle adjustment, analytic, dense.
+SolverConfig ReferenceConfig() {
+  SolverConfig c;
+  c.name = "reference_sqpnp_ba";
+  c.path = "<reference solver of carmba study>";
+  c.initializer = Initializer::kSqpnp;
+  c.num_threads = 1;
+  return c;
+}
+
+// The truth of a resimulated problem: the reference solution of the measured data, markers in
+// the problem frame (handedness as given), exact projections as observations.
+StatusOr<PoseProblem> MakeResimulationTruth(const PoseProblem& measured) {
+  StatusOr<PoseSolution> ref = SolvePoseProblem(measured, ReferenceConfig());
+  if (!ref.ok()) return ref.status().WithContext("reference solve for resimulation");
+  PoseProblem p = measured;
+  p.handedness = Handedness::kAsGiven;
+  p.truth_markers.clear();
+  p.truth_poses.clear();
+  for (auto& m : p.markers) {
+    m.p_in_object = MarkerInProblemFrame(measured, m);
+    p.truth_markers[m.id] = m.p_in_object;
+  }
+  for (size_t v = 0; v < p.views.size(); ++v) {
+    const Pose6& pose = ref->views[v].cam_from_object;
+    p.truth_poses[p.views[v].id] = pose;
+    for (auto& o : p.views[v].observations) {
+      const Eigen::Vector3d& x = p.truth_markers.at(o.marker_id);
+      if (!ProjectPoint(p.camera.params.data(), pose.data(), x.data(), o.uv_px.data())) {
+        return Status::Error(measured.path + ": marker " + std::to_string(o.marker_id) +
+                             " projects behind the source in the reference solution of view '" +
+                             p.views[v].id + "'");
+      }
+    }
+  }
+  return p;
+}
+
+// Keeps the first `n` views and the validation pairs among them.
+Status KeepViews(int n, PoseProblem* p) {
+  if (n < 1) return Status::Error("sweep num_views: expected an integer >= 1, got " +
+                                  std::to_string(n));
+  if (n > static_cast<int>(p->views.size())) {
+    return Status::Error("sweep num_views = " + std::to_string(n) + ": the problem has only " +
+                         std::to_string(p->views.size()) + " views");
+  }
+  p->views.resize(static_cast<size_t>(n));
+  std::set<std::string> ids;
+  for (const auto& v : p->views) ids.insert(v.id);
+  std::vector<ValidationPair> kept;
+  for (const auto& vp : p->validation) {
+    if (ids.count(vp.a) && ids.count(vp.b)) kept.push_back(vp);
+  }
+  p->validation = kept;
+  return Status::Ok();
+}
+
+template <typename T>
+class OnceCache {
+ public:
+  template <typename F>
+  std::shared_ptr<const StatusOr<T>> Get(const std::string& key, F make) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = map_.find(key);
+    if (it != map_.end()) return it->second;
+    auto v = std::make_shared<const StatusOr<T>>(make());
+    map_.emplace(key, v);
+    return v;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::map<std::string, std::shared_ptr<const StatusOr<T>>> map_;
+};
+
+struct PoseStudyState {
+  OnceCache<PoseProblem> problems;        // measured problems, by file
+  OnceCache<PoseProblem> truths;          // resimulation truths, by file
+  OnceCache<SolverConfig> configs;        // by file
+  OnceCache<SyntheticEntry> synthetic;    // by base_dir|name
+};
+
+double Rms(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x * x;
+  return v.empty() ? std::nan("") : std::sqrt(s / static_cast<double>(v.size()));
+}
+
+nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+nlohmann::json MakeResult(const PoseProblem& problem, const PoseSolution& sol) {
+  nlohmann::json errors = nlohmann::json::object(), signed_errors = nlohmann::json::object(),
+                 sigmas = nlohmann::json::object(), values = nlohmann::json::object();
+  std::map<std::string, size_t> view_index;
+  for (size_t v = 0; v < sol.views.size(); ++v) view_index[sol.views[v].id] = v;
+  // Accuracy against the truth.
+  std::vector<double> rot, trans, tre;
+  for (size_t v = 0; v < sol.views.size(); ++v) {
+    const ViewSolution& vs = sol.views[v];
+    auto t = problem.truth_poses.find(vs.id);
+    if (t == problem.truth_poses.end()) continue;
+    const Eigen::Matrix3d R_est = RotationFromRvec(vs.cam_from_object.head<3>());
+    const Eigen::Matrix3d R_true = RotationFromRvec(t->second.head<3>());
+    const Eigen::Vector3d t_est = vs.cam_from_object.tail<3>(), t_true = t->second.tail<3>();
+    rot.push_back(AngleBetweenRotations(R_est, R_true) * kRadToDeg);
+    trans.push_back((t_est - t_true).norm());
+    for (const auto& m : problem.markers) {
+      const auto tm = problem.truth_markers.find(m.id);
+      const Eigen::Vector3d x =
+          tm != problem.truth_markers.end() ? tm->second : MarkerInProblemFrame(problem, m);
+      tre.push_back(((R_est * x + t_est) - (R_true * x + t_true)).norm());
+    }
+    if (v == 0) {
+      // Small rotation about the camera axes, R_est = exp(d) R_true (the solver's sigma of the
+      // rotation is for this left perturbation), and the translation error.
+      const Eigen::Vector3d d = RvecFromRotation(R_est * R_true.transpose()) * kRadToDeg;
+      const Eigen::Vector3d dt = t_est - t_true;
+      const char* const kRot[] = {"v0_rx_deg", "v0_ry_deg", "v0_rz_deg"};
+      const char* const kTrans[] = {"v0_tx_mm", "v0_ty_mm", "v0_tz_mm"};
+      for (int i = 0; i < 3; ++i) {
+        signed_errors[kRot[i]] = d[i];
+        signed_errors[kTrans[i]] = dt[i];
+        if (sol.has_covariance) {
+          sigmas[kRot[i]] = Num(vs.sigma_rotation_deg[i]);
+          sigmas[kTrans[i]] = Num(vs.sigma_translation_mm[i]);
+        }
+      }
+    }
+  }
+  if (!rot.empty()) {
+    errors["rotation_deg"] = Rms(rot);
+    errors["translation_mm"] = Rms(trans);
+    errors["tre_mm"] = Rms(tre);
+  }
+  std::vector<double> validation;
+  for (const auto& ps : sol.validation) {
+    const auto ta = problem.truth_poses.find(ps.a), tb = problem.truth_poses.find(ps.b);
+    if (ta != problem.truth_poses.end() && tb != problem.truth_poses.end()) {
+      const double truth = RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
+      const std::string name = "pair_" + ps.a + "_" + ps.b + "_deg";
+      signed_errors[name] = ps.relative_rotation_deg - truth;
+      if (sol.has_covariance) sigmas[name] = Num(ps.sigma_relative_rotation_deg);
+      validation.push_back(ps.relative_rotation_deg - truth);
+    } else if (ps.expected_deg) {
+      validation.push_back(ps.relative_rotation_deg - *ps.expected_deg);
+    }
+  }
+  if (!validation.empty()) errors["validation_deg"] = Rms(validation);
+  values["rms_px"] = Num(sol.rms_px);
+  values["iterations"] = sol.iterations;
+  values["sigma0"] = Num(sol.sigma0);
+  values["chi2_p_value"] = Num(sol.chi2_p_value);
+  // Reprojection residuals of the final state, px.
+  nlohmann::json residuals = nlohmann::json::array();
+  for (size_t v = 0; v < problem.views.size() && v < sol.views.size(); ++v) {
+    for (const auto& o : problem.views[v].observations) {
+      const auto m = sol.markers.find(o.marker_id);
+      if (m == sol.markers.end()) continue;
+      double uv[2];
+      if (!ProjectPoint(problem.camera.params.data(), sol.views[v].cam_from_object.data(),
+                        m->second.data(), uv)) {
+        continue;
+      }
+      residuals.push_back(uv[0] - o.uv_px.x());
+      residuals.push_back(uv[1] - o.uv_px.y());
+    }
+  }
+  nlohmann::json r;
+  r["converged"] = sol.termination == "CONVERGENCE" || sol.termination == "NOT_REFINED";
+  r["termination"] = sol.termination;
+  r["errors"] = errors;
+  r["signed_errors"] = signed_errors;
+  r["sigmas"] = sigmas;
+  r["values"] = values;
+  r["residuals_px"] = residuals;
+  return r;
+}
+
+StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
+  for (const auto& kv : run.sweep) {
+    if (!KnownSweeps().count(kv.first)) {
+      return Status::Error("sweep variable '" + kv.first +
+                           "' is not understood by pose studies (known: ct_noise_mm, k1, "
+                           "num_views, pixel_noise_px)");
+    }
+  }
+  const StudyConfig& sc = *run.config;
+  if (!sc.options.is_null()) {
+    return Status::Error("config '" + sc.name + "': key 'options' is not supported by pose "
+                         "studies; put the settings in " + sc.file);
+  }
+  auto config = state->configs.Get(sc.file, [&] { return LoadSolverConfig(sc.file); });
+  if (!config->ok()) return config->status();
+  SolverConfig cfg = config->value();
+  cfg.num_threads = 1;  // one run per core
+
+  const StudyProblem& sp = *run.problem;
+  const double nan = std::nan("");
+  const double pixel_noise = run.SweepValue("pixel_noise_px", nan);
+  const double ct_noise = run.SweepValue("ct_noise_mm", nan);
+  const double num_views = run.SweepValue("num_views", nan);
+  const double k1 = run.SweepValue("k1", nan);
+  if (!std::isnan(num_views) && num_views != std::floor(num_views)) {
+    return Status::Error("sweep num_views: expected integers");
+  }
+  PoseProblem problem;
+  if (!sp.synthetic.is_null()) {
+    if (!sp.options.is_null()) {
+      return Status::Error("problem '" + sp.name + "': key 'options' applies to problem files");
+    }
+    auto entry = state->synthetic.Get(sp.base_dir + "|" + sp.name,
+                                      [&] { return ParseSynthetic(sp); });
+    if (!entry->ok()) return entry->status();
+    SyntheticPoseSpec spec = entry->value().spec;
+    const double sigma_px = std::isnan(pixel_noise) ? entry->value().sigma_px : pixel_noise;
+    const double sigma_ct = std::isnan(ct_noise) ? entry->value().sigma_ct_mm : ct_noise;
+    if (!(sigma_px > 0) || !(sigma_ct > 0)) {
+      return Status::Error("problem '" + sp.name + "': pixel and CT noise must be > 0 (they "
+                           "whiten the residuals), got " + std::to_string(sigma_px) + " px, " +
+                           std::to_string(sigma_ct) + " mm");
+    }
+    if (!std::isnan(k1)) spec.camera.params[4] = k1;
+    if (!std::isnan(num_views)) {
+      const int n = static_cast<int>(num_views);
+      if (n < 1 || n > static_cast<int>(spec.view_angles_deg.size())) {
+        return Status::Error("sweep num_views = " + std::to_string(n) + ": expected 1.." +
+                             std::to_string(spec.view_angles_deg.size()));
+      }
+      spec.view_angles_deg.resize(static_cast<size_t>(n));
+      std::vector<std::pair<int, int>> pairs;
+      for (const auto& pr : spec.pairs) {
+        if (pr.first < n && pr.second < n) pairs.push_back(pr);
+      }
+      spec.pairs = pairs;
+    }
+    problem = MakeSyntheticPoseProblem(spec, sigma_px, sigma_ct, run.seed);
+    problem.name = sp.name;
+  } else {
+    StatusOr<MonteCarlo> mc = ParseProblemOptions(sp);
+    if (!mc.ok()) return mc.status();
+    if (!std::isnan(k1)) return Status::Error("sweep k1 applies to synthetic problems only");
+    auto measured = state->problems.Get(sp.file, [&] { return LoadPoseProblem(sp.file); });
+    if (!measured->ok()) return measured->status();
+    if (*mc == MonteCarlo::kNone) {
+      if (!std::isnan(pixel_noise) || !std::isnan(ct_noise)) {
+        return Status::Error("problem '" + sp.name + "': sweeping pixel_noise_px or ct_noise_mm "
+                             "needs options: {monte_carlo: resimulate} for a problem file");
+      }
+      problem = measured->value();
+    } else {
+      auto truth = state->truths.Get(sp.file, [&] { return MakeResimulationTruth(**measured); });
+      if (!truth->ok()) return truth->status().WithContext(sp.file);
+      problem = truth->value();
+      const double sigma_px = std::isnan(pixel_noise) ? problem.sigma_px : pixel_noise;
+      if (!(sigma_px > 0)) return Status::Error("pixel_noise_px: expected > 0");
+      std::mt19937_64 rng(run.seed);
+      for (auto& m : problem.markers) {
+        double sigma_ct = ct_noise;
+        if (std::isnan(sigma_ct)) sigma_ct = std::sqrt(m.covariance.trace() / 3);
+        if (!(sigma_ct > 0)) return Status::Error("ct_noise_mm: expected > 0");
+        m.p_in_object += sigma_ct * Eigen::Vector3d(Gaussian(&rng), Gaussian(&rng),
+                                                    Gaussian(&rng));
+        m.covariance = Eigen::Matrix3d::Identity() * sigma_ct * sigma_ct;
+      }
+      for (auto& v : problem.views) {
+        for (auto& o : v.observations) {
+          o.uv_px += sigma_px * Eigen::Vector2d(Gaussian(&rng), Gaussian(&rng));
+        }
+      }
+      problem.sigma_px = sigma_px;
+    }
+    if (!std::isnan(num_views)) CARMBA_RETURN_IF_ERROR(KeepViews(static_cast<int>(num_views),
+                                                                 &problem));
+  }
+  StatusOr<PoseSolution> sol = SolvePoseProblem(problem, cfg);
+  if (!sol.ok()) return sol.status();
+  return MakeResult(problem, *sol);
+}
+
+}  // namespace
+
+RunFunction PoseStudyRunFunction() {
+  auto state = std::make_shared<PoseStudyState>();
+  return [state](const RunSpec& run) { return RunPose(state.get(), run); };
+}
+
+}  // namespace carmba

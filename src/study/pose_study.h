@@ -1,0 +1,58 @@
+// The production run function of `carmba study`: pose problems (problem/pose_problem.h) solved
+// with solver configurations, with Monte Carlo noise and accuracy against the truth.
+//
+// Problem entries of a study file:
+//   - name: thesis_tables
+//     file: ../../problems/thesis_pose.yaml     # a pose problem file
+//     options: {monte_carlo: resimulate}        # optional, see below
+//   - name: sim_thesis_object
+//     synthetic:                                # MakeSyntheticPoseProblem with ground truth
+//       camera: ../../data/thesis/camera.json   # relative to the study file
+//       markers: thesis                         # or a list of [x, y, z] (mm, object frame)
+//       view_angles_deg: [0, 10, 30, 50, 90]    # optional (these are the defaults)
+//       source_to_object_mm: 700
+//       rotation_axis: [0, 1, 0]
+//       base_rvec: [0.3, -0.4, 0.2]
+//       pairs: [[0, 1], [0, 4], [2, 3]]         # view-index pairs compared (validation)
+//       sigma_px: 0.5                           # defaults when the study does not sweep them
+//       sigma_ct_mm: 0.1
+//
+// Problem-file Monte Carlo (`options.monte_carlo`):
+//   none (default)  the measured data are solved as they are (every trial is the same solve);
+//                   accuracy is against the problem's truth when it has one, and against the
+//                   validation pairs' expected angles (e.g. the thesis's nominal C-arm angles).
+//   resimulate      the measured data are solved once with the reference solver (SQPnP + bundle
+//                   adjustment); those poses and the measured marker positions become the truth
+//                   of a semi-synthetic problem with the real geometry, whose observations and
+//                   markers are re-drawn per trial with Gaussian noise (pixel_noise_px, default
+//                   the problem's sigma_px; ct_noise_mm, default 0.3 mm or the markers' own
+//                   sigma).
+//
+// Swept variables understood (others are an error of the run, naming them):
+//   pixel_noise_px  pixel noise sigma (synthetic / resimulate; also the whitening sigma_px)
+//   ct_noise_mm     CT marker noise sigma (synthetic / resimulate)
+//   num_views       use the first N views (>= 1)
+//   k1              radial distortion k1 of the camera (synthetic only)
+//
+// The result of a run (the members the summary reads, study/run_store.h):
+//   errors:        rotation_deg, translation_mm (RMS over views of the angle of R_est R_true^T
+//                  and of |t_est - t_true|), tre_mm (RMS over views and markers of the true marker
+//                  positions mapped by the estimated vs the true pose, in the camera frame),
+//                  validation_deg (RMS over pairs of relative-rotation angle - expected)
+//   signed_errors: v0_rx_deg, v0_ry_deg, v0_rz_deg (first view, small rotation about the camera
+//                  axes, log(R_est R_true^T)), v0_tx_mm, v0_ty_mm, v0_tz_mm, and per validation
+//                  pair pair_<a>_<b>_deg (relative rotation angle estimated - true)
+//   sigmas:        the solver's 1-sigma for the same names (when it computed a covariance)
+//   values:        rms_px, iterations, sigma0, chi2_p_value
+//   converged, residuals_px (reprojection residuals, px, per coordinate)
+#pragma once
+
+#include "study/runner.h"
+
+namespace carmba {
+
+// A run function for pose studies. Problems, configs and reference solutions are loaded once
+// and cached (thread-safe); the solver runs single-threaded (num_threads forced to 1).
+RunFunction PoseStudyRunFunction();
+
+}  // namespace carmba
