@@ -536,60 +536,72 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   r.robust_loss = opt.robust_loss;
   r.robust_loss_scale_px = opt.robust_loss_scale_px;
 
-  // --- Bundle adjustment.
+  // --- Bundle adjustment, in two stages when distortion is estimated: first the pinhole core
+  // with the distortion held at its initial value (mrcal seeds the same way), then everything.
   const double sigma_solve = opt.pixel_sigma_px > 0 ? opt.pixel_sigma_px : 1.0;
   std::array<double, kNumIntrinsics> x = x0;
-  ceres::Problem::Options popt;
-  ceres::Problem problem(popt);
-  for (int v = 0; v < num_views; ++v) {
-    if (opt.robust_loss == "none") {
-      problem.AddResidualBlock(
-          new PlateViewCost(plate[v], obs.views[v].uv_px, 1.0 / sigma_solve), nullptr,
-          r.cam_from_plate[v].data(), x.data());
-    } else {
-      for (size_t j = 0; j < plate[v].size(); ++j) {
-        const double a = opt.robust_loss_scale_px / sigma_solve;
-        ceres::LossFunction* loss = opt.robust_loss == "huber"
-                                        ? static_cast<ceres::LossFunction*>(new ceres::HuberLoss(a))
-                                        : new ceres::CauchyLoss(a);
+  auto solve = [&](const Eigen::MatrixXd& A, ceres::Solver::Summary* summary) -> Status {
+    const int kk = static_cast<int>(A.cols());
+    ceres::Problem problem;
+    for (int v = 0; v < num_views; ++v) {
+      if (opt.robust_loss == "none") {
         problem.AddResidualBlock(
-            new PlateViewCost({plate[v][j]}, {obs.views[v].uv_px[j]}, 1.0 / sigma_solve), loss,
+            new PlateViewCost(plate[v], obs.views[v].uv_px, 1.0 / sigma_solve), nullptr,
             r.cam_from_plate[v].data(), x.data());
+      } else {
+        for (size_t j = 0; j < plate[v].size(); ++j) {
+          const double a = opt.robust_loss_scale_px / sigma_solve;
+          ceres::LossFunction* loss =
+              opt.robust_loss == "huber" ? static_cast<ceres::LossFunction*>(new ceres::HuberLoss(a))
+                                         : new ceres::CauchyLoss(a);
+          problem.AddResidualBlock(
+              new PlateViewCost({plate[v][j]}, {obs.views[v].uv_px[j]}, 1.0 / sigma_solve), loss,
+              r.cam_from_plate[v].data(), x.data());
+        }
       }
     }
-  }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_SCHUR;
-  so.max_num_iterations = opt.max_iterations;
-  so.function_tolerance = 1e-12;
-  so.gradient_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-12;
-  so.num_threads = opt.num_threads;
-  so.logging_type = ceres::SILENT;
-  if (k == 0) {
-    problem.SetParameterBlockConstant(x.data());
-  } else {
-    if (k < kNumIntrinsics) {
-      problem.SetManifold(x.data(), new AffineSubspaceManifold(r.intrinsics_from_free));
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_SCHUR;
+    so.max_num_iterations = opt.max_iterations;
+    so.function_tolerance = 1e-12;
+    so.gradient_tolerance = 1e-14;
+    so.parameter_tolerance = 1e-12;
+    so.num_threads = opt.num_threads;
+    so.logging_type = ceres::SILENT;
+    if (kk == 0) {
+      problem.SetParameterBlockConstant(x.data());
+    } else {
+      if (kk < kNumIntrinsics) problem.SetManifold(x.data(), new AffineSubspaceManifold(A));
+      auto* ordering = new ceres::ParameterBlockOrdering;
+      for (auto& p : r.cam_from_plate) ordering->AddElementToGroup(p.data(), 0);
+      ordering->AddElementToGroup(x.data(), 1);
+      so.linear_solver_ordering.reset(ordering);
     }
-    auto* ordering = new ceres::ParameterBlockOrdering;
-    for (auto& p : r.cam_from_plate) ordering->AddElementToGroup(p.data(), 0);
-    ordering->AddElementToGroup(x.data(), 1);
-    so.linear_solver_ordering.reset(ordering);
-  }
-  ceres::Solver::Summary summary;
-  {
     // The initial state must be valid (every point in front of the source).
     double cost = 0;
     if (!problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr) ||
         !std::isfinite(cost)) {
       return Status::Error("initialisation puts grid points behind the source (bad detections?)");
     }
+    ceres::Solve(so, &problem, summary);
+    if (!summary->IsSolutionUsable() || !std::isfinite(summary->final_cost)) {
+      return Status::Error("bundle adjustment failed: " + summary->message);
+    }
+    return Status::Ok();
+  };
+  ceres::Solver::Summary summary;
+  {
+    std::vector<int> core_cols;
+    for (int c = 0; c < k; ++c) {
+      if (r.intrinsics_from_free.col(c).tail(5).isZero()) core_cols.push_back(c);
+    }
+    if (static_cast<int>(core_cols.size()) < k) {
+      Eigen::MatrixXd A1(kNumIntrinsics, core_cols.size());
+      for (size_t c = 0; c < core_cols.size(); ++c) A1.col(c) = r.intrinsics_from_free.col(core_cols[c]);
+      CARMBA_RETURN_IF_ERROR(solve(A1, &summary));
+    }
   }
-  ceres::Solve(so, &problem, &summary);
-  if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
-    return Status::Error("bundle adjustment failed: " + summary.message);
-  }
+  CARMBA_RETURN_IF_ERROR(solve(r.intrinsics_from_free, &summary));
   r.iterations = static_cast<int>(summary.iterations.size()) - 1;
   r.termination = ceres::TerminationTypeToString(summary.termination_type);
   std::copy(x.begin(), x.end(), r.camera.params.begin());

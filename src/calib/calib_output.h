@@ -1,0 +1,54 @@
+// The files `carmba calibrate` writes into its output directory:
+//   camera.json          camera/camera.h's format plus: sigmas, rms_px (per coordinate),
+//                        rms_opencv_px (sqrt(2) x), sigma_px, views [{image, num_points, rms_px,
+//                        max_px, tilt_deg, distance_mm}], projection_uncertainty, options
+//   camera.cameramodel   mrcal's format (a Python dict literal, LENSMODEL_OPENCV5, full precision)
+//   camera_opencv.yml    cv::FileStorage as OpenCV's calibration sample writes it: camera_matrix,
+//                        distortion_coefficients, avg_reprojection_error (OpenCV's sqrt(2) figure)
+//   observations.csv     detect/observations.h
+//   corners.vnl          mrcal's corners format
+//   report.md            the calibration, its statistics and the mrcal / OpenCV cross-checks
+// All are written into a temporary directory first and moved into place only when every file has
+// been written, so an error leaves no partial output.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/calibrate.h"
+#include "calib/crosscheck.h"
+
+namespace carmba {
+
+struct CalibrationRun {
+  ObservationSet observations;
+  CalibrationOptions options;
+  CalibrationResult result;
+  std::vector<std::string> skipped;  // "image: reason", images without a usable grid
+  std::optional<OpenCvReference> opencv;
+  std::string opencv_error;          // why OpenCV did not run (if it did not)
+  std::optional<nlohmann::json> mrcal;
+  std::string mrcal_error;
+  std::string command_line;
+};
+
+nlohmann::json CalibrationCameraJson(const CalibrationRun& run);
+std::string MrcalCameraModelText(const CalibrationResult& result);
+std::string OpenCvCalibrationYaml(const CalibrationRun& run);
+std::string CalibrationReportMarkdown(const CalibrationRun& run);
+
+// Acceptance thresholds of the mrcal cross-check, stated in the report.
+constexpr double kMrcalRmsRelTol = 0.01;         // RMS equal within 1 %
+constexpr double kMrcalProjectionDiffPx = 0.05;  // projection difference RMS over the image
+constexpr double kMrcalSigmaRelTol = 0.10;       // sigmas of fx fy cx cy within 10 %
+
+// Writes all files to `out_dir` (see above). `mrcal_work_dir`, if not empty, is copied as
+// out_dir/mrcal/ (script, input and output of the cross-check).
+Status WriteCalibrationOutputs(const CalibrationRun& run,
+                               const std::string& out_dir,
+                               const std::string& mrcal_work_dir = "");
+
+}  // namespace carmba

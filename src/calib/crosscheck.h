@@ -1,0 +1,56 @@
+// Cross-checks of a carmba calibration, run on the same observations in the same run:
+//   * mrcal (python3-mrcal through /usr/bin/python3, script scripts/mrcal_crosscheck.py, embedded
+//     in the binary): LENSMODEL_OPENCV5, no board warp, no regularization, no outlier rejection,
+//     seeded by mrcal itself. Yields mrcal's intrinsics, RMS, covariance (same pixel sigma),
+//     projection uncertainty and mrcal.projection_diff against carmba's solution.
+//   * OpenCV: cv::calibrateCamera with the flags equivalent to carmba's options.
+// mrcal cannot fix single parameters and OpenCV cannot fix every subset: then the comparison is
+// marked "not equivalent" and its numbers are for information only.
+#pragma once
+
+#include <array>
+#include <map>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/calibrate.h"
+
+namespace carmba {
+
+struct OpenCvReference {
+  std::array<double, kNumIntrinsics> intrinsics{};
+  std::array<double, kNumIntrinsics> sigma{};  // stdDeviationsIntrinsics (OpenCV's own estimate)
+  double rms_returned_px = 0;  // what calibrateCamera returns: sqrt(SSR / N) (the sqrt(2) figure)
+  double rms_px = 0;           // per coordinate, rms_returned_px / sqrt(2)
+  int flags = 0;
+  std::string flags_text;
+  bool equivalent = true;      // the flags express carmba's options exactly
+  std::string note;
+  double seconds = 0;
+};
+
+// cv::calibrateCamera on the same observations (plate points, same ids). OpenCV's own
+// initialisation unless the principal point is given (then CALIB_USE_INTRINSIC_GUESS with
+// carmba's initial intrinsics).
+StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& observations,
+                                               const CalibrationOptions& options,
+                                               const CalibrationResult& result);
+
+struct MrcalCrossCheckOptions {
+  std::string python = "/usr/bin/python3";
+  std::string work_dir;  // where the script, its input and output go (created if needed)
+};
+
+// Runs the mrcal script. `others` are extra intrinsics to diff against carmba's (e.g. "opencv",
+// "truth"). Returns the script's JSON (see scripts/mrcal_crosscheck.py for the keys).
+StatusOr<nlohmann::json> RunMrcalCrossCheck(
+    const ObservationSet& observations,
+    const CalibrationResult& result,
+    const std::map<std::string, std::array<double, kNumIntrinsics>>& others,
+    const MrcalCrossCheckOptions& options);
+
+// The embedded script text.
+const char* MrcalCrossCheckScript();
+
+}  // namespace carmba

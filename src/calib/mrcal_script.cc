@@ -1,0 +1,154 @@
+// The mrcal cross-check script, embedded so that `carmba calibrate` runs it from any directory.
+// The same text is scripts/mrcal_crosscheck.py (kept identical by the test
+// CrossCheckTest.EmbeddedScriptMatchesFile).
+#include "calib/crosscheck.h"
+
+namespace carmba {
+
+const char* MrcalCrossCheckScript() {
+  return R"PY(#!/usr/bin/python3
+# carmba's mrcal cross-check (run with Debian's /usr/bin/python3, which has python3-mrcal).
+#
+#   /usr/bin/python3 scripts/mrcal_crosscheck.py IN.json OUT.json
+#
+# IN.json (written by `carmba calibrate`): image_size, grid {rows, cols, spacing_mm}, views
+# [[ [point_id, u, v], ... ], ...], carmba {intrinsics[9], poses[[rx ry rz tx ty tz]...],
+# sigma_px, distance_mm}, others {name: intrinsics[9]} (e.g. OpenCV, truth).
+# Solves the same observations with mrcal (LENSMODEL_OPENCV5, no board warp, no regularization,
+# no outlier rejection), seeded by mrcal's own seed_stereographic (falling back to carmba's
+# solution if that fails, reported), and writes OUT.json: mrcal's intrinsics, RMS (per
+# coordinate, mrcal's rms_reproj_error__pixels), the 9x9 covariance of the intrinsics
+# (sigma^2 (J^T J)^-1 unpacked, the same sigma as carmba), projection uncertainty at the image
+# centre and corners at distance_mm (mrcal.projection_uncertainty, worst direction) for mrcal's
+# solution and for carmba's solution, and projection differences (mrcal.projection_diff, which fits
+# the small rotation) between carmba and mrcal and the others.
+import json
+import sys
+import time
+
+import numpy as np
+import mrcal
+
+
+def main():
+    inp = json.load(open(sys.argv[1]))
+    W, H = inp['image_size']
+    rows, cols = inp['grid']['rows'], inp['grid']['cols']
+    spacing = inp['grid']['spacing_mm']
+    sigma = inp['carmba']['sigma_px']
+    distance = inp['carmba']['distance_mm']
+    views = inp['views']
+    nv = len(views)
+    obs = np.zeros((nv, rows, cols, 3))
+    obs[..., 2] = -1.0
+    for i, v in enumerate(views):
+        for pid, u, vv in v:
+            obs[i, pid // cols, pid % cols] = (u, vv, 1.0)
+    imagersizes = np.array([[W, H]], dtype=np.int32)
+    indices = np.array([[i, 0, -1] for i in range(nv)], dtype=np.int32)
+    lens = 'LENSMODEL_OPENCV5'
+    t0 = time.time()
+    seed = 'seed_stereographic'
+    try:
+        ifc = np.array([[i, 0] for i in range(nv)], dtype=np.int32)
+        core, _, frames = mrcal.seed_stereographic(
+            imagersizes=imagersizes, focal_estimate=inp['carmba']['intrinsics'][0],
+            indices_frame_camera=ifc, observations=obs, object_spacing=spacing)
+        intr = np.zeros((1, 9))
+        intr[0, :4] = core[0, :4]
+        stages = [(False, True), (True, True)]
+    except Exception as e:  # noqa: BLE001 (report any seeding failure)
+        seed = 'carmba solution (seed_stereographic failed: %s)' % str(e).splitlines()[0]
+        intr = np.array([inp['carmba']['intrinsics']], dtype=float)
+        frames = np.array(inp['carmba']['poses'], dtype=float)
+        stages = [(True, True)]
+    inputs = dict(intrinsics=intr, extrinsics_rt_fromref=np.zeros((0, 6)),
+                  frames_rt_toref=np.array(frames, dtype=float), points=None,
+                  observations_board=obs.copy(), indices_frame_camintrinsics_camextrinsics=indices,
+                  observations_point=None, indices_point_camintrinsics_camextrinsics=None,
+                  lensmodel=lens, imagersizes=imagersizes, calobject_warp=None,
+                  do_optimize_intrinsics_core=True, do_optimize_intrinsics_distortions=False,
+                  do_optimize_extrinsics=False, do_optimize_frames=True,
+                  do_optimize_calobject_warp=False, do_apply_regularization=False,
+                  do_apply_outlier_rejection=False, calibration_object_spacing=spacing,
+                  verbose=False)
+    stats = None
+    for core_only_first, _ in stages:
+        inputs['do_optimize_intrinsics_distortions'] = core_only_first
+        stats = mrcal.optimize(**inputs)
+    t_solve = time.time() - t0
+    model_mrcal = mrcal.cameramodel(optimization_inputs=inputs, icam_intrinsics=0)
+
+    def covariance(inputs_):
+        _, _, J, _ = mrcal.optimizer_callback(**inputs_, no_factorization=True)
+        J = J.toarray()
+        scale = np.ones(J.shape[1])
+        mrcal.unpack_state(scale, **inputs_)
+        C = np.linalg.inv(J.T @ J) * sigma * sigma
+        C = C * scale[:, None] * scale[None, :]
+        i0 = mrcal.state_index_intrinsics(0, **inputs_)
+        return C[i0:i0 + 9, i0:i0 + 9]
+
+    cov = covariance(inputs)
+
+    # carmba's solution inside mrcal's machinery (for mrcal's uncertainty formula at our solution).
+    ours = dict(inputs)
+    ours['intrinsics'] = np.array([inp['carmba']['intrinsics']], dtype=float)
+    ours['frames_rt_toref'] = np.array(inp['carmba']['poses'], dtype=float)
+    ours['do_optimize_intrinsics_distortions'] = True
+    model_ours = mrcal.cameramodel(optimization_inputs=ours, icam_intrinsics=0)
+
+    pixels = [('centre', ((W - 1) / 2, (H - 1) / 2)), ('top-left', (0, 0)),
+              ('top-right', (W - 1, 0)), ('bottom-left', (0, H - 1)),
+              ('bottom-right', (W - 1, H - 1))]
+
+    def uncertainty(model):
+        out = []
+        for name, q in pixels:
+            p = mrcal.unproject(np.array(q, dtype=float), *model.intrinsics(), normalize=True)
+            s = mrcal.projection_uncertainty(p * distance, model=model, atinfinity=False,
+                                             what='worstdirection-stdev',
+                                             observed_pixel_uncertainty=sigma)
+            out.append({'where': name, 'worst_px': float(s)})
+        return out
+
+    def diff(intrinsics):
+        m = mrcal.cameramodel(intrinsics=(lens, np.array(intrinsics, dtype=float)),
+                              imagersize=(W, H))
+        d, _, _, _ = mrcal.projection_diff((model_ours, m), gridn_width=40, distance=distance,
+                                           use_uncertainties=False)
+        d = d[np.isfinite(d)]
+        return {'rms_px': float(np.sqrt(np.mean(d * d))), 'max_px': float(np.max(d))}
+
+    x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
+    diffs = {'mrcal': diff(model_mrcal.intrinsics()[1])}
+    for name, intrinsics in inp.get('others', {}).items():
+        diffs[name] = diff(intrinsics)
+    out = {
+        'seed': seed,
+        'solve_seconds': t_solve,
+        'intrinsics': model_mrcal.intrinsics()[1].tolist(),
+        'rms_px': float(stats['rms_reproj_error__pixels']),
+        'rms_px_of_carmba_solution': float(np.sqrt(np.mean(x * x))),
+        'noutliers': int(stats['Noutliers']),
+        'covariance': cov.tolist(),
+        'sigma': np.sqrt(np.diag(cov)).tolist(),
+        'projection_uncertainty_mrcal': uncertainty(model_mrcal),
+        'projection_uncertainty_carmba_solution': uncertainty(model_ours),
+        'projection_diff': diffs,
+        'mrcal_version': getattr(mrcal, '__version__', '2.2'),
+    }
+    json.dump(out, open(sys.argv[2], 'w'), indent=1)
+
+
+if __name__ == '__main__':
+    try:
+        main()
+    except Exception as e:  # noqa: BLE001 (one line on stderr, non-zero exit)
+        print('mrcal_crosscheck: %s: %s' % (type(e).__name__, str(e).splitlines()[0] if str(e) else ''),
+              file=sys.stderr)
+        sys.exit(1)
+)PY";
+}
+
+}  // namespace carmba

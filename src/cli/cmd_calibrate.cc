@@ -1,0 +1,228 @@
+// `carmba calibrate`: intrinsic calibration from images of a grid (or pre-detected observations)
+// as a bundle adjustment with covariance, cross-checked with mrcal and OpenCV in the same run.
+// Writes camera.json, camera.cameramodel, camera_opencv.yml, observations.csv, corners.vnl,
+// report.md (and mrcal/ with the cross-check's script, input and output) into --out; on any
+// error nothing is written.
+//
+// Problem file (problems/calib_*.yaml; relative paths are relative to the file):
+//   name: ...                    description: ...
+//   images: DIR_OR_GLOB          # or
+//   observations: observations.csv
+//   pattern: circles | acircles | chessboard      rows: 5    cols: 5    spacing_mm: 20
+//   config: ../configs/calib_thesis.yaml          # optional; --config overrides
+//   truth: truth.json            # optional: simulator truth (or a camera.json) to compare with
+// Config file (configs/calib_*.yaml): calib/calibrate.h CalibrationOptions keys at top level, plus
+//   detection: {polarity, roi_px, fov_circle_px, auto_fov_mask, fov_margin_px, min_blob_area_px,
+//               max_blob_area_px, refine}
+//   crosscheck: {mrcal: true, opencv: true, opencv_max_views: 60, python: /usr/bin/python3}
+#include <gflags/gflags.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <unistd.h>
+
+#include "calib/calib_output.h"
+#include "calib/calibrate.h"
+#include "calib/crosscheck.h"
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "detect/grid_detector.h"
+#include "util/file_util.h"
+#include "util/yaml_reader.h"
+
+DEFINE_double(spacing_mm, 0, "Grid pitch in mm (default: the problem's, the observations', or 20).");
+DEFINE_string(observations, "", "Pre-detected observations.csv (instead of --images).");
+DEFINE_string(truth, "", "Ground truth (simulator truth.json or a camera.json) to compare with.");
+DEFINE_bool(mrcal, true, "Cross-check with mrcal (python3-mrcal).");
+DEFINE_bool(opencv, true, "Cross-check with cv::calibrateCamera.");
+
+namespace {
+
+using namespace carmba;
+
+struct CrossCheckConfig {
+  bool mrcal = true;
+  bool opencv = true;
+  int opencv_max_views = 60;  // calibrateCamera takes minutes beyond a few hundred views
+  std::string python = "/usr/bin/python3";
+};
+
+Status LoadConfig(const std::string& path,
+                  CalibrationOptions* calib,
+                  DetectionOptions* detect,
+                  CrossCheckConfig* cross) {
+  CARMBA_RETURN_IF_ERROR(LoadCalibrationOptions(path, calib, {"detection", "crosscheck"}));
+  YAML::Node root = YAML::LoadFile(path);
+  YamlMap d(root["detection"], path, "detection.");
+  ReadDetectionOptions(d, detect);
+  CARMBA_RETURN_IF_ERROR(d.Finish());
+  std::string err;
+  if (!detect->Check(&err)) return Status::Error(path + ": detection." + err);
+  YamlMap c(root["crosscheck"], path, "crosscheck.");
+  c.Get("mrcal", &cross->mrcal);
+  c.Get("opencv", &cross->opencv);
+  c.Get("opencv_max_views", &cross->opencv_max_views);
+  c.Get("python", &cross->python);
+  return c.Finish();
+}
+
+int RunCalibrate() {
+  const char* kCmd = "calibrate";
+  std::string images = FLAGS_images, observations = FLAGS_observations, config = FLAGS_config;
+  std::string truth = FLAGS_truth, pattern = FLAGS_pattern;
+  int rows = FLAGS_rows, cols = FLAGS_cols;
+  double spacing = FLAGS_spacing_mm;
+  if (!FLAGS_problem.empty()) {
+    YamlMap p = YamlMap::Load(FLAGS_problem);
+    if (!p.status().ok()) return cli::Fail(kCmd, p.status());
+    const std::string dir = DirName(FLAGS_problem);
+    std::string name, description, p_images, p_obs, p_config, p_truth;
+    p.Get("name", &name);
+    p.Get("description", &description);
+    p.Get("images", &p_images);
+    p.Get("observations", &p_obs);
+    p.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &pattern);
+    p.Get("rows", &rows);
+    p.Get("cols", &cols);
+    double p_spacing = 0;
+    p.GetPositive("spacing_mm", &p_spacing);
+    p.Get("config", &p_config);
+    p.Get("truth", &p_truth);
+    Status s = p.Finish();
+    if (!s.ok()) return cli::Fail(kCmd, s);
+    if (images.empty() && !p_images.empty()) images = JoinPath(dir, p_images);
+    if (observations.empty() && !p_obs.empty()) observations = JoinPath(dir, p_obs);
+    if (config.empty() && !p_config.empty()) config = JoinPath(dir, p_config);
+    if (truth.empty() && !p_truth.empty()) truth = JoinPath(dir, p_truth);
+    if (spacing == 0) spacing = p_spacing;
+  }
+  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
+  if (images.empty() == observations.empty()) {
+    return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
+  }
+  CalibrationOptions options;
+  DetectionOptions detect;
+  CrossCheckConfig cross;
+  if (!config.empty()) {
+    Status s = LoadConfig(config, &options, &detect, &cross);
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
+  if (!FLAGS_mrcal) cross.mrcal = false;
+  if (!FLAGS_opencv) cross.opencv = false;
+
+  CalibrationRun run;
+  run.options = options;
+  auto pat = ParseGridPattern(pattern);
+  if (!pat.ok()) return cli::Fail(kCmd, pat.status().WithContext("--pattern"));
+  if (!observations.empty()) {
+    auto obs = ReadObservationsCsv(observations);
+    if (!obs.ok()) return cli::Fail(kCmd, obs.status());
+    run.observations = *obs;
+    if (spacing > 0) run.observations.grid.spacing_mm = spacing;
+  } else {
+    GridSpec grid;
+    grid.pattern = *pat;
+    grid.rows = rows;
+    grid.cols = cols;
+    grid.spacing_mm = spacing > 0 ? spacing : 20.0;
+    std::string err;
+    if (!grid.Check(&err)) return cli::Fail(kCmd, err);
+    auto files = ListFiles(images);
+    if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
+    double per_image = 0;
+    auto obs = DetectGridInFiles(*files, grid, detect, &run.skipped, &per_image);
+    if (!obs.ok()) return cli::Fail(kCmd, obs.status());
+    run.observations = *obs;
+    for (const auto& s : run.skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";
+    if (static_cast<int>(run.observations.views.size()) < options.min_views) {
+      return cli::Fail(kCmd, "the grid (" + pattern + " " + std::to_string(rows) + " x " +
+                                 std::to_string(cols) + ") was found in " +
+                                 std::to_string(run.observations.views.size()) + " of " +
+                                 std::to_string(files->size()) + " images, min_views is " +
+                                 std::to_string(options.min_views) +
+                                 (run.skipped.empty() ? "" : "; first skipped: " + run.skipped[0]));
+    }
+  }
+  auto result = Calibrate(run.observations, options);
+  if (!result.ok()) return cli::Fail(kCmd, result.status());
+  run.result = *result;
+
+  std::map<std::string, std::array<double, kNumIntrinsics>> others;
+  std::optional<Camera> truth_camera;
+  if (!truth.empty()) {
+    auto text = ReadFile(truth);
+    if (!text.ok()) return cli::Fail(kCmd, text.status().WithContext("--truth"));
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(*text);
+    } catch (const std::exception& e) {
+      return cli::Fail(kCmd, truth + ": invalid JSON: " + e.what());
+    }
+    auto cam = CameraFromJson(j.contains("camera") ? j["camera"] : j, truth);
+    if (!cam.ok()) return cli::Fail(kCmd, cam.status());
+    truth_camera = *cam;
+    others["truth"] = cam->params;
+  }
+  if (cross.opencv) {
+    if (static_cast<int>(run.observations.views.size()) > cross.opencv_max_views) {
+      run.opencv_error = std::to_string(run.observations.views.size()) +
+                         " views > crosscheck.opencv_max_views (" +
+                         std::to_string(cross.opencv_max_views) + "): calibrateCamera too slow";
+    } else {
+      auto ref = RunOpenCvCalibration(run.observations, options, run.result);
+      if (ref.ok()) {
+        run.opencv = *ref;
+        others["opencv"] = ref->intrinsics;
+      } else {
+        run.opencv_error = ref.status().message();
+      }
+    }
+  } else {
+    run.opencv_error = "disabled";
+  }
+  const std::string work = FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid());
+  if (cross.mrcal) {
+    MrcalCrossCheckOptions mo;
+    mo.python = cross.python;
+    mo.work_dir = work;
+    auto m = RunMrcalCrossCheck(run.observations, run.result, others, mo);
+    if (m.ok()) {
+      run.mrcal = *m;
+    } else {
+      run.mrcal_error = m.status().message();
+      std::cerr << "carmba calibrate: warning: " << run.mrcal_error << "\n";
+    }
+  } else {
+    run.mrcal_error = "disabled";
+  }
+  run.command_line = "carmba calibrate" +
+                     (FLAGS_problem.empty() ? "" : " --problem " + FLAGS_problem) +
+                     (images.empty() ? "" : " --images " + images) +
+                     (observations.empty() ? "" : " --observations " + observations) +
+                     (config.empty() ? "" : " --config " + config) + " --out " + FLAGS_out;
+  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "");
+  std::error_code ec;
+  std::filesystem::remove_all(work, ec);
+  if (!s.ok()) return cli::Fail(kCmd, s);
+  const auto& r = run.result;
+  std::cout << "calibrated " << r.views.size() << " views (" << run.skipped.size()
+            << " skipped): fx " << r.camera.params[kFx] << " +- " << r.sigma[kFx] << ", fy "
+            << r.camera.params[kFy] << " +- " << r.sigma[kFy] << ", cx " << r.camera.params[kCx]
+            << " +- " << r.sigma[kCx] << ", cy " << r.camera.params[kCy] << " +- " << r.sigma[kCy]
+            << " px; RMS " << r.rms_px << " px per coordinate (OpenCV figure " << r.rms_opencv_px
+            << ")";
+  if (run.mrcal) std::cout << "; mrcal RMS " << (*run.mrcal)["rms_px"].get<double>();
+  std::cout << "; wrote " << FLAGS_out << "/{camera.json, camera.cameramodel, camera_opencv.yml, "
+            << "observations.csv, corners.vnl, report.md}" << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+CARMBA_COMMAND_FLAGS(calibrate, "images,pattern,rows,cols,config,problem,out");
+CARMBA_REGISTER_COMMAND(calibrate,
+                        "Calibrate the C-arm's intrinsics from grid images (bundle adjustment, "
+                        "covariance, mrcal and OpenCV cross-checks).",
+                        RunCalibrate);

@@ -1,0 +1,70 @@
+// `carmba detect`: finds a calibration grid in every image and writes observations.csv
+// (detect/observations.h); images without the grid are listed on stderr with the reason.
+#include <gflags/gflags.h>
+#include <yaml-cpp/yaml.h>
+
+#include <iostream>
+
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "detect/grid_detector.h"
+#include "util/file_util.h"
+#include "util/yaml_reader.h"
+
+DEFINE_double(grid_spacing_mm, 20, "Grid pitch in mm (recorded in observations.csv).");
+
+namespace {
+
+using namespace carmba;
+
+int RunDetect() {
+  const char* kCmd = "detect";
+  if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
+  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (observations.csv) is required");
+  auto pat = ParseGridPattern(FLAGS_pattern);
+  if (!pat.ok()) return cli::Fail(kCmd, pat.status().WithContext("--pattern"));
+  GridSpec grid;
+  grid.pattern = *pat;
+  grid.rows = FLAGS_rows;
+  grid.cols = FLAGS_cols;
+  grid.spacing_mm = FLAGS_grid_spacing_mm;
+  std::string err;
+  if (!grid.Check(&err)) return cli::Fail(kCmd, err);
+  DetectionOptions options;
+  if (!FLAGS_config.empty()) {
+    // The `detection:` map of a calibration config.
+    YAML::Node root;
+    try {
+      root = YAML::LoadFile(FLAGS_config);
+    } catch (const std::exception& e) {
+      return cli::Fail(kCmd, FLAGS_config + ": " + e.what());
+    }
+    YamlMap d(root["detection"], FLAGS_config, "detection.");
+    ReadDetectionOptions(d, &options);
+    Status s = d.Finish();
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
+  auto files = ListFiles(FLAGS_images);
+  if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
+  std::vector<std::string> skipped;
+  double per_image = 0;
+  auto obs = DetectGridInFiles(*files, grid, options, &skipped, &per_image);
+  if (!obs.ok()) return cli::Fail(kCmd, obs.status());
+  for (const auto& s : skipped) std::cerr << "carmba detect: not found: " << s << "\n";
+  if (obs->views.empty()) {
+    return cli::Fail(kCmd, "the grid was found in none of the " + std::to_string(files->size()) +
+                               " images (first: " + skipped[0] + ")");
+  }
+  Status s = WriteObservationsCsv(*obs, FLAGS_out);
+  if (!s.ok()) return cli::Fail(kCmd, s);
+  std::cout << "found the grid in " << obs->views.size() << " of " << files->size()
+            << " images (" << per_image * 1e3 << " ms per image); wrote " << FLAGS_out
+            << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+CARMBA_COMMAND_FLAGS(detect, "images,pattern,rows,cols,config,out");
+CARMBA_REGISTER_COMMAND(detect, "Detect a calibration grid in images; write observations.csv.",
+                        RunDetect);

@@ -1,0 +1,397 @@
+#include "detect/grid_detector.h"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "util/yaml_reader.h"
+
+namespace carmba {
+
+bool DetectionOptions::Check(std::string* error) const {
+  if (polarity != "dark" && polarity != "bright" && polarity != "auto") {
+    *error = "polarity: expected dark, bright or auto, got '" + polarity + "'";
+    return false;
+  }
+  if (!roi_px.empty() && (roi_px.size() != 4 || roi_px[2] <= 0 || roi_px[3] <= 0)) {
+    *error = "roi_px: expected [x, y, w, h] with w, h > 0";
+    return false;
+  }
+  if (!fov_circle_px.empty() && (fov_circle_px.size() != 3 || !(fov_circle_px[2] > 0))) {
+    *error = "fov_circle_px: expected [cx, cy, r] with r > 0";
+    return false;
+  }
+  if (!(min_blob_area_px > 0) || !(max_blob_area_px > min_blob_area_px)) {
+    *error = "blob area: expected 0 < min_blob_area_px < max_blob_area_px";
+    return false;
+  }
+  if (!(fov_margin_px >= 0)) {
+    *error = "fov_margin_px: expected >= 0";
+    return false;
+  }
+  return true;
+}
+
+void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
+  m.GetEnum("polarity", {"dark", "bright", "auto"}, &o->polarity);
+  m.Get("roi_px", &o->roi_px);
+  m.Get("fov_circle_px", &o->fov_circle_px);
+  m.Get("auto_fov_mask", &o->auto_fov_mask);
+  m.GetNonNegative("fov_margin_px", &o->fov_margin_px);
+  m.GetPositive("min_blob_area_px", &o->min_blob_area_px);
+  m.GetPositive("max_blob_area_px", &o->max_blob_area_px);
+  m.Get("refine", &o->refine);
+}
+
+namespace {
+
+// Intensity-weighted centroid of a blob around `c` (float image). The background is a plane
+// fitted to the border of a window of `radius` (removes vignetting and heel-effect gradients);
+// the blob's size is measured as the area above half its peak contrast; the centroid is then taken
+// over a disc of 1.5 x the blob radius + 1.5 px with weights (contrast - 10 % of the peak), so
+// the background's noise and gradient do not pull the centre. `dark`: contrast = plane - I.
+bool RefineCentroid(const cv::Mat& f, bool dark, double radius, cv::Point2d* c) {
+  const int r = std::max(3, static_cast<int>(std::ceil(radius)));
+  double rw = -1;
+  for (int it = 0; it < 4; ++it) {
+    const int cx = static_cast<int>(std::lround(c->x)), cy = static_cast<int>(std::lround(c->y));
+    const int x0 = cx - r, y0 = cy - r;
+    if (x0 < 0 || y0 < 0 || x0 + 2 * r >= f.cols || y0 + 2 * r >= f.rows) return false;
+    // Plane fit to the window border: I = a + b (x - cx) + c (y - cy).
+    cv::Matx33d AtA = cv::Matx33d::zeros();
+    cv::Vec3d Atb(0, 0, 0);
+    auto add = [&](int x, int y) {
+      const cv::Vec3d row(1.0, x - cx, y - cy);
+      AtA += row * row.t();
+      Atb += row * static_cast<double>(f.at<float>(y, x));
+    };
+    for (int k = 0; k <= 2 * r; ++k) {
+      add(x0 + k, y0), add(x0 + k, y0 + 2 * r);
+      if (k > 0 && k < 2 * r) add(x0, y0 + k), add(x0 + 2 * r, y0 + k);
+    }
+    cv::Vec3d plane;
+    if (!cv::solve(AtA, Atb, plane, cv::DECOMP_CHOLESKY)) return false;
+    auto contrast = [&](int x, int y) {
+      const double bg = plane[0] + plane[1] * (x - cx) + plane[2] * (y - cy);
+      const double v = f.at<float>(y, x);
+      return dark ? bg - v : v - bg;
+    };
+    double peak = 0;
+    for (int y = y0; y <= y0 + 2 * r; ++y) {
+      for (int x = x0; x <= x0 + 2 * r; ++x) peak = std::max(peak, contrast(x, y));
+    }
+    if (!(peak > 0)) return false;
+    if (rw < 0) {
+      int area = 0;
+      for (int y = y0; y <= y0 + 2 * r; ++y) {
+        for (int x = x0; x <= x0 + 2 * r; ++x) area += contrast(x, y) > 0.5 * peak;
+      }
+      rw = std::min<double>(r, 1.5 * std::sqrt(area / M_PI) + 1.5);
+    }
+    double sw = 0, sx = 0, sy = 0;
+    const double r2 = rw * rw;
+    for (int y = y0; y <= y0 + 2 * r; ++y) {
+      for (int x = x0; x <= x0 + 2 * r; ++x) {
+        const double dx = x - c->x, dy = y - c->y;
+        if (dx * dx + dy * dy > r2) continue;
+        const double w = contrast(x, y) - 0.1 * peak;
+        if (w <= 0) continue;
+        sw += w, sx += w * x, sy += w * y;
+      }
+    }
+    if (!(sw > 0)) return false;
+    const cv::Point2d n(sx / sw, sy / sw);
+    const double move = std::hypot(n.x - c->x, n.y - c->y);
+    *c = n;
+    if (move < 1e-3) break;
+  }
+  return true;
+}
+
+}  // namespace
+
+GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& o) {
+  GridDetection det;
+  std::string err;
+  if (!o.Check(&err) || !grid.Check(&err)) {
+    det.reason = err;
+    return det;
+  }
+  if (image.empty()) {
+    det.reason = "empty image";
+    return det;
+  }
+  cv::Mat grey;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
+  } else {
+    grey = image;
+  }
+  cv::Mat f;
+  grey.convertTo(f, CV_32F);
+  cv::Point offset(0, 0);
+  if (!o.roi_px.empty()) {
+    cv::Rect roi(o.roi_px[0], o.roi_px[1], o.roi_px[2], o.roi_px[3]);
+    if ((roi & cv::Rect(0, 0, f.cols, f.rows)) != roi) {
+      det.reason = "roi_px outside the image";
+      return det;
+    }
+    f = f(roi).clone();
+    offset = roi.tl();
+  }
+  // Field-of-view mask.
+  cv::Mat mask(f.size(), CV_8U, cv::Scalar(255));
+  double lo, hi;
+  cv::minMaxLoc(f, &lo, &hi);
+  if (!(hi > lo)) {
+    det.reason = "image has no contrast";
+    return det;
+  }
+  if (!o.fov_circle_px.empty()) {
+    mask.setTo(0);
+    cv::circle(mask,
+               cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y),
+               static_cast<int>(o.fov_circle_px[2] - o.fov_margin_px), cv::Scalar(255), cv::FILLED);
+  } else if (o.auto_fov_mask) {
+    // The intensifier's field: pixels above 15 % of the range; if a sizeable dark border exists,
+    // take the largest bright component's enclosing circle.
+    cv::Mat bright = f > (lo + 0.15 * (hi - lo));
+    const double inside = cv::countNonZero(bright) / static_cast<double>(f.total());
+    if (inside < 0.9 && inside > 0.2) {
+      std::vector<std::vector<cv::Point>> contours;
+      cv::findContours(bright, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+      size_t best = 0;
+      for (size_t i = 1; i < contours.size(); ++i) {
+        if (cv::contourArea(contours[i]) > cv::contourArea(contours[best])) best = i;
+      }
+      if (!contours.empty()) {
+        std::vector<cv::Point> hull;
+        cv::convexHull(contours[best], hull);
+        cv::Point2f c;
+        float rad;
+        cv::minEnclosingCircle(hull, c, rad);
+        // An intensifier field clipped by the image edge: the enclosing circle still bounds it;
+        // intersect with the hull so corners outside the field stay masked.
+        mask.setTo(0);
+        cv::fillConvexPoly(mask, hull, cv::Scalar(255));
+        cv::Mat circle_mask(f.size(), CV_8U, cv::Scalar(0));
+        cv::circle(circle_mask, c, static_cast<int>(rad - o.fov_margin_px), cv::Scalar(255),
+                   cv::FILLED);
+        cv::bitwise_and(mask, circle_mask, mask);
+        if (o.fov_margin_px > 0) {
+          const int k = 2 * static_cast<int>(o.fov_margin_px) + 1;
+          cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
+        }
+      }
+    }
+  }
+  // 8-bit working image stretched over the 1..99 % range inside the mask; outside = median.
+  std::vector<float> vals;
+  vals.reserve(f.total());
+  for (int y = 0; y < f.rows; ++y) {
+    const float* fr = f.ptr<float>(y);
+    const uint8_t* mr = mask.ptr<uint8_t>(y);
+    for (int x = 0; x < f.cols; ++x) {
+      if (mr[x]) vals.push_back(fr[x]);
+    }
+  }
+  if (vals.size() < 100) {
+    det.reason = "field of view / region of interest is (almost) empty";
+    return det;
+  }
+  auto pct = [&vals](double q) {
+    const size_t k = std::min(vals.size() - 1, static_cast<size_t>(q * vals.size()));
+    std::nth_element(vals.begin(), vals.begin() + k, vals.end());
+    return vals[k];
+  };
+  const double p01 = pct(0.01), p99 = pct(0.99), med = pct(0.5);
+  if (!(p99 > p01)) {
+    det.reason = "no contrast inside the field of view";
+    return det;
+  }
+  cv::Mat work;
+  f.convertTo(work, CV_8U, 255.0 / (p99 - p01), -255.0 * p01 / (p99 - p01));
+  const uint8_t fill =
+      static_cast<uint8_t>(std::clamp(255.0 * (med - p01) / (p99 - p01), 0.0, 255.0));
+  work.setTo(cv::Scalar(fill), ~mask);
+
+  std::vector<cv::Point2f> centres;
+  bool dark = true;
+  const bool circles = grid.pattern != GridPattern::kChessboard;
+  const cv::Size size(grid.cols, grid.rows);
+  if (circles) {
+    std::vector<bool> tries;
+    if (o.polarity != "bright") tries.push_back(true);
+    if (o.polarity != "dark") tries.push_back(false);
+    int most_blobs = 0;
+    for (bool d : tries) {
+      cv::SimpleBlobDetector::Params p;
+      p.blobColor = d ? 0 : 255;
+      p.filterByArea = true;
+      p.minArea = static_cast<float>(o.min_blob_area_px);
+      p.maxArea = static_cast<float>(o.max_blob_area_px);
+      p.filterByConvexity = true;
+      p.minConvexity = 0.8f;
+      p.filterByInertia = true;
+      p.minInertiaRatio = 0.3f;
+      p.minThreshold = 10;
+      p.maxThreshold = 245;
+      p.thresholdStep = 10;
+      p.minDistBetweenBlobs = 3;
+      auto detector = cv::SimpleBlobDetector::create(p);
+      std::vector<cv::KeyPoint> kps;
+      detector->detect(work, kps);
+      most_blobs = std::max(most_blobs, static_cast<int>(kps.size()));
+      if (static_cast<int>(kps.size()) < grid.NumPoints()) continue;
+      const int flags = grid.pattern == GridPattern::kAsymmetricCircles
+                            ? cv::CALIB_CB_ASYMMETRIC_GRID
+                            : cv::CALIB_CB_SYMMETRIC_GRID;
+      std::vector<cv::Point2f> found;
+      if (cv::findCirclesGrid(work, size, found, flags, detector) &&
+          static_cast<int>(found.size()) == grid.NumPoints()) {
+        centres = found;
+        dark = d;
+        det.polarity = d ? "dark" : "bright";
+        break;
+      }
+      if (grid.pattern == GridPattern::kCircles &&
+          cv::findCirclesGrid(work, size, found, flags | cv::CALIB_CB_CLUSTERING, detector) &&
+          static_cast<int>(found.size()) == grid.NumPoints()) {
+        centres = found;
+        dark = d;
+        det.polarity = d ? "dark" : "bright";
+        break;
+      }
+    }
+    det.num_blobs = most_blobs;
+    if (centres.empty()) {
+      if (most_blobs < grid.NumPoints()) {
+        det.reason = "too few blobs: " + std::to_string(most_blobs) + " found, " +
+                     std::to_string(grid.NumPoints()) +
+                     " needed (grid partly outside the field of view, wrong polarity or size?)";
+      } else {
+        det.reason = std::to_string(most_blobs) + " blobs but no " + std::to_string(grid.rows) +
+                     " x " + std::to_string(grid.cols) +
+                     " grid ordering among them (ambiguous ordering, extra blobs or grid partly "
+                     "outside the field of view)";
+      }
+      return det;
+    }
+  } else {
+    std::vector<cv::Point2f> found;
+    if (!cv::findChessboardCorners(work, size, found,
+                                   cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE) ||
+        static_cast<int>(found.size()) != grid.NumPoints()) {
+      det.reason = "no " + std::to_string(grid.rows) + " x " + std::to_string(grid.cols) +
+                   " chessboard (inner corners) found";
+      return det;
+    }
+    cv::cornerSubPix(work, found, cv::Size(5, 5), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 0.001));
+    centres = found;
+  }
+
+  // Every point well inside the field of view.
+  for (const auto& c : centres) {
+    const int x = static_cast<int>(std::lround(c.x)), y = static_cast<int>(std::lround(c.y));
+    if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows || !mask.at<uint8_t>(y, x)) {
+      det.reason = "grid partly outside the field of view (a point on the mask border)";
+      return det;
+    }
+  }
+  // Sub-pixel centroids (circles) on the float image.
+  std::vector<cv::Point2d> pts(centres.begin(), centres.end());
+  if (circles && o.refine) {
+    double pitch = 1e30;
+    for (int r = 0; r < grid.rows; ++r) {
+      for (int c = 0; c + 1 < grid.cols; ++c) {
+        pitch = std::min(pitch, cv::norm(centres[r * grid.cols + c + 1] - centres[r * grid.cols + c]));
+      }
+    }
+    if (grid.pattern == GridPattern::kAsymmetricCircles) pitch *= 0.5;
+    cv::Mat fm = f.clone();
+    for (auto& p : pts) {
+      cv::Point2d q = p;
+      if (RefineCentroid(fm, dark, 0.35 * pitch, &q) && cv::norm(q - p) < 0.2 * pitch) p = q;
+    }
+  }
+  // Right-handed ordering in the image for symmetric patterns.
+  if (grid.pattern != GridPattern::kAsymmetricCircles) {
+    const cv::Point2d a = pts[1] - pts[0];
+    const cv::Point2d b = pts[grid.cols] - pts[0];
+    if (a.x * b.y - a.y * b.x < 0) {
+      std::vector<cv::Point2d> flipped(pts.size());
+      for (int r = 0; r < grid.rows; ++r) {
+        for (int c = 0; c < grid.cols; ++c) {
+          flipped[r * grid.cols + c] = pts[r * grid.cols + (grid.cols - 1 - c)];
+        }
+      }
+      pts = flipped;
+    }
+  }
+  for (int id = 0; id < grid.NumPoints(); ++id) {
+    det.view.point_ids.push_back(id);
+    det.view.uv_px.emplace_back(pts[id].x + offset.x, pts[id].y + offset.y);
+  }
+  det.found = true;
+  return det;
+}
+
+StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
+  cv::Mat m;
+  try {
+    m = cv::imread(path, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    return Status::Error(path + ": unreadable image (" + e.what() + ")");
+  }
+  if (m.empty()) return Status::Error(path + ": unreadable image (not an image OpenCV can decode)");
+  if (m.depth() != CV_8U && m.depth() != CV_16U && m.depth() != CV_32F) {
+    return Status::Error(path + ": unsupported pixel depth (expected 8 or 16 bit)");
+  }
+  return m;
+}
+
+StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
+                                           const GridSpec& grid,
+                                           const DetectionOptions& options,
+                                           std::vector<std::string>* skipped,
+                                           double* seconds_per_image) {
+  std::string err;
+  if (!options.Check(&err)) return Status::Error("detection options: " + err);
+  if (!grid.Check(&err)) return Status::Error(err);
+  ObservationSet obs;
+  obs.grid = grid;
+  double total = 0;
+  for (const auto& file : files) {
+    auto img = ReadImageFile(file);
+    if (!img.ok()) return img.status();
+    if (obs.width == 0) {
+      obs.width = img->cols;
+      obs.height = img->rows;
+    } else if (img->cols != obs.width || img->rows != obs.height) {
+      return Status::Error(file + ": image size " + std::to_string(img->cols) + "x" +
+                           std::to_string(img->rows) + " differs from the first image's " +
+                           std::to_string(obs.width) + "x" + std::to_string(obs.height));
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    GridDetection d = DetectGrid(*img, grid, options);
+    total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!d.found) {
+      skipped->push_back(file + ": " + d.reason);
+      continue;
+    }
+    d.view.image = file;
+    obs.views.push_back(d.view);
+  }
+  if (seconds_per_image && !files.empty()) *seconds_per_image = total / files.size();
+  return obs;
+}
+
+}  // namespace carmba

@@ -1,0 +1,80 @@
+// Detection of calibration grids in X-ray images (and photographs).
+//
+// Pipeline per image:
+//   1. To a float grey image (8- or 16-bit, grey or colour), then an 8-bit working copy stretched
+//      between the 1st and 99th percentile of the pixels inside the field of view.
+//   2. Region of interest: an optional crop [x, y, w, h] and a circular mask. The image
+//      intensifier's circular field of view is found automatically (the largest bright region,
+//      its enclosing circle shrunk by a margin) or given as [cx, cy, r]; outside it the image is
+//      filled with the median inside value so the dark border does not look like a blob.
+//   3. circles / acircles: cv::findCirclesGrid with a SimpleBlobDetector tuned for small dark
+//      (metal on bright, X-ray) or bright blobs; polarity "auto" tries dark first, then bright.
+//      chessboard: cv::findChessboardCorners + cornerSubPix.
+//   4. Sub-pixel centres of circles: intensity-weighted centroid of the background-subtracted
+//      blob in a window of 0.4 x the grid pitch (in px), iterated from the blob centre.
+//   5. Ids: row-major in the grid (detect/observations.h). For symmetric grids and chessboards,
+//      whose ordering is only defined up to the grid's symmetry, the ordering is made right-handed
+//      in the image (row direction x column direction > 0): an X-ray sees the plate from either
+//      side, and a consistent handedness is what lets all views share one rigid plate.
+// A not-found result carries why: too few blobs (with the count), no grid ordering among the
+// blobs (ambiguous, or grid partly outside the field of view), points on the mask border.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <string>
+#include <vector>
+
+#include "detect/observations.h"
+#include "util/status.h"
+
+namespace carmba {
+
+struct DetectionOptions {
+  // "dark" (metal on bright background, X-ray), "bright", or "auto" (dark, then bright).
+  std::string polarity = "auto";
+  // Crop [x, y, w, h] in px; empty = whole image.
+  std::vector<int> roi_px;
+  // Circular mask [cx, cy, r] in px (full-image coordinates); empty = auto_fov_mask decides.
+  std::vector<double> fov_circle_px;
+  // Find the image intensifier's circular field of view and mask outside it.
+  bool auto_fov_mask = true;
+  // Shrink the field-of-view circle by this many px (its rim is blurred).
+  double fov_margin_px = 4;
+  // Blob area limits (px^2) for circle grids.
+  double min_blob_area_px = 6;
+  double max_blob_area_px = 20000;
+  // Sub-pixel refinement of circle centres.
+  bool refine = true;
+
+  bool Check(std::string* error) const;
+};
+
+// Reads detection options from a YAML map (keys = field names), e.g. the `detection:` map of a
+// calibration config.
+class YamlMap;
+void ReadDetectionOptions(YamlMap& map, DetectionOptions* options);
+
+struct GridDetection {
+  bool found = false;
+  std::string reason;   // why not found (empty when found)
+  int num_blobs = -1;   // candidate blobs seen (circle grids)
+  std::string polarity; // the polarity that worked
+  ViewObservations view;
+};
+
+// Detects `grid` in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
+GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& options);
+
+// Reads an image unchanged (8/16 bit); error naming the file if unreadable or empty.
+StatusOr<cv::Mat> ReadImageFile(const std::string& path);
+
+// Detects the grid in every file. Views where it is found go into the set; the others are listed
+// as "file: reason" in `skipped`. Errors: unreadable image, images of different sizes.
+StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
+                                           const GridSpec& grid,
+                                           const DetectionOptions& options,
+                                           std::vector<std::string>* skipped,
+                                           double* seconds_per_image = nullptr);
+
+}  // namespace carmba
