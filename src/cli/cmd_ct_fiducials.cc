@@ -1,0 +1,70 @@
+// `carmba ct-fiducials --dicom DIR [--model markers.csv] [--diameter_mm 2] [--expected 9]
+//  [--frame patient|model|marker:K] --out fiducials.csv`: marker centres with covariance from a
+// DICOM CT series (ct/ct_fiducials.h). Writes the CSV, a markdown report beside it (<stem>.md)
+// and, with an object frame, <stem>.object_from_ct.json. Nothing is written on error.
+#include <gflags/gflags.h>
+
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "ct/ct_fiducials.h"
+
+DEFINE_string(dicom, "", "Directory of the DICOM CT series (files in any order, any names).");
+DEFINE_string(series_uid, "", "SeriesInstanceUID to read when the directory mixes several series.");
+DEFINE_string(model, "", "Model CSV of nominal marker positions (id or marker column, x/y/z "
+                         "columns): labels the markers by pairwise distances.");
+DEFINE_string(model_columns, "", "Model coordinate columns, e.g. 'x_o,y_o,z_o' (default: the "
+                                 "first of x_mm.., x.., x_o.., x_ct.. present).");
+DEFINE_double(diameter_mm, 2.0, "Nominal marker diameter, mm.");
+DEFINE_int32(expected, 0, "Number of markers expected (0: the model's count, or any).");
+DEFINE_double(threshold_hu, 1000, "HU threshold of the marker cores.");
+DEFINE_double(label_tolerance_mm, 1.5, "Pairwise distance tolerance of the labelling, mm.");
+DEFINE_string(frame, "patient", "Output frame: patient | model (rigid fit to --model) | "
+                                "marker:K (origin at marker K, patient axes).");
+// --out (the fiducials CSV) is shared: cli/common_flags.h.
+
+namespace {
+
+int RunCtFiducials() {
+  const std::string cmd = "ct-fiducials";
+  if (FLAGS_dicom.empty()) return carmba::cli::Fail(cmd, "--dicom DIR is required");
+  if (FLAGS_out.empty()) return carmba::cli::Fail(cmd, "--out fiducials.csv is required");
+  carmba::CtFiducialsOptions options;
+  options.read.series_uid = FLAGS_series_uid;
+  options.model_csv = FLAGS_model;
+  if (!FLAGS_model_columns.empty()) {
+    std::stringstream ss(FLAGS_model_columns);
+    std::string c;
+    while (std::getline(ss, c, ',')) options.model_columns.push_back(c);
+  }
+  options.detect.diameter_mm = FLAGS_diameter_mm;
+  options.detect.expected_count = FLAGS_expected;
+  options.detect.threshold_hu = FLAGS_threshold_hu;
+  options.label_tolerance_mm = FLAGS_label_tolerance_mm;
+  options.frame = FLAGS_frame;
+  std::string error;
+  if (!options.Check(&error)) return carmba::cli::Fail(cmd, error);
+  auto result = carmba::ComputeCtFiducials(FLAGS_dicom, options);
+  if (!result.ok()) return carmba::cli::Fail(cmd, result.status());
+  const carmba::Status s = carmba::WriteCtFiducials(*result, FLAGS_out);
+  if (!s.ok()) return carmba::cli::Fail(cmd, s);
+  std::cout << "ct-fiducials: " << result->detection.markers.size() << " markers -> "
+            << FLAGS_out;
+  if (result->labelled) {
+    char b[80];
+    std::snprintf(b, sizeof(b), " (labelled, model fit RMS %.4f mm)", result->labelling.rms_mm);
+    std::cout << b;
+  }
+  std::cout << std::endl;
+  return 0;
+}
+
+const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
+    "ct-fiducials", "Marker centres with covariance from a DICOM CT series.", __FILE__,
+    RunCtFiducials);
+const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out");
+
+}  // namespace
