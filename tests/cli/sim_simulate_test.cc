@@ -1,0 +1,128 @@
+// End-to-end: `carmba simulate` writes images and truth.json atomically, deterministically, and
+// leaves nothing behind on a bad scene.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct SimRun {
+  int code;
+  std::string err;
+};
+
+SimRun Simulate(const std::string& args) {
+  const std::string err_file = testing::TempDir() + "/carmba_sim_cli_stderr.txt";
+  const std::string cmd =
+      std::string(CARMBA_BIN) + " simulate " + args + " >/dev/null 2>" + err_file;
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(err_file);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return {WEXITSTATUS(status), ss.str()};
+}
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+const std::string kScenes = std::string(CARMBA_SOURCE_DIR) + "/configs/scenes/";
+
+TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
+  const fs::path out = fs::path(testing::TempDir()) / "carmba_sim_cli_pose";
+  fs::remove_all(out);
+  const SimRun r = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  nlohmann::json truth = nlohmann::json::parse(Slurp(out / "truth.json"));
+  EXPECT_EQ(truth["kind"], "xray");
+  EXPECT_EQ(truth["camera"]["fx"].get<double>(), 2061.389);
+  ASSERT_EQ(truth["views"].size(), 7u);
+  EXPECT_EQ(truth["object"]["sphere_ids"].size(), 9u);
+  for (const auto& v : truth["views"]) {
+    const cv::Mat img =
+        cv::imread((out / v["file"].get<std::string>()).string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(img.empty()) << v["file"];
+    EXPECT_EQ(img.cols, 408);
+    EXPECT_EQ(img.type(), CV_8U);
+    ASSERT_TRUE(v.contains("cam_from_object"));
+    EXPECT_EQ(v["cam_from_object"]["R"].size(), 3u);
+    EXPECT_EQ(v["centers_px"].size(), 9u);
+    // Metal is dark: the pixel at every projected marker centre is darker than the image median.
+    cv::Mat sorted = img.reshape(1, 1).clone();
+    cv::sort(sorted, sorted, cv::SORT_ASCENDING);
+    const int median = sorted.at<uint8_t>(sorted.cols / 2);
+    for (const auto& uv : v["centers_px"]) {
+      const int u = static_cast<int>(std::lround(uv[0].get<double>()));
+      const int vv = static_cast<int>(std::lround(uv[1].get<double>()));
+      EXPECT_LT(img.at<uint8_t>(vv, u), median) << v["file"] << " " << uv;
+    }
+  }
+  EXPECT_EQ(truth["views"][4]["primary_deg"].get<double>(), 90.0);
+  // No temporary directories left beside the output.
+  for (const auto& e : fs::directory_iterator(out.parent_path())) {
+    EXPECT_EQ(e.path().filename().string().find("carmba_sim_cli_pose.tmp"), std::string::npos);
+  }
+
+  // Deterministic: a second run gives byte-identical files.
+  const fs::path out2 = fs::path(testing::TempDir()) / "carmba_sim_cli_pose2";
+  fs::remove_all(out2);
+  ASSERT_EQ(Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out2.string()).code, 0);
+  for (const auto& e : fs::directory_iterator(out)) {
+    EXPECT_EQ(Slurp(e.path()).size(), Slurp(out2 / e.path().filename()).size());
+    if (e.path().filename() != "truth.json") {
+      EXPECT_TRUE(Slurp(e.path()) == Slurp(out2 / e.path().filename())) << e.path();
+    }
+  }
+
+  // An existing non-empty output is not overwritten without --overwrite ...
+  const SimRun again = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
+  EXPECT_NE(again.code, 0);
+  EXPECT_NE(again.err.find("--overwrite"), std::string::npos) << again.err;
+  // ... and is replaced with it.
+  EXPECT_EQ(
+      Simulate("--scene=" + kScenes + "thesis_pose.yaml --overwrite --out=" + out.string()).code,
+      0);
+  EXPECT_TRUE(fs::exists(out / "truth.json"));
+}
+
+TEST(SimulateCli, BadSceneLeavesNoOutput) {
+  const fs::path dir = fs::path(testing::TempDir()) / "carmba_sim_cli_bad";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // The shipped scene plus a last view that puts the plate outside the field of view.
+  std::string text = Slurp(kScenes + "thesis_calibration.yaml");
+  text +=
+      "  - {name: too_far, primary_deg: 0, object_rotation_deg: [90, 0, 0], "
+      "object_center_mm: [80, 0, 0]}\n";
+  const fs::path scene = dir / "scene.yaml";
+  std::ofstream(scene) << text;
+  const fs::path out = dir / "out";
+  const SimRun r = Simulate("--scene=" + scene.string() + " --out=" + out.string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("view 'too_far'"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;  // one line
+  EXPECT_FALSE(fs::exists(out));
+  int entries = 0;
+  for (const auto& e : fs::directory_iterator(dir)) entries += e.path() != scene;
+  EXPECT_EQ(entries, 0);  // no temporary directory left
+
+  const SimRun missing = Simulate("--scene=/no/such.yaml --out=" + out.string());
+  EXPECT_NE(missing.code, 0);
+  EXPECT_NE(missing.err.find("/no/such.yaml"), std::string::npos);
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_NE(Simulate("--out=" + out.string()).code, 0);
+}
+
+}  // namespace

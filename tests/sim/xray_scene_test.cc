@@ -1,0 +1,211 @@
+// Scene files: the shipped scenes load, the ground truth agrees with the camera model, bad scene
+// files are rejected one corruption at a time with a one-line error naming file, line and key.
+#include "sim/xray_scene.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "camera/camera_model.h"
+
+namespace carmba::sim {
+namespace {
+
+// Projection of a JSON pose re-done with camera_model.h: agreement to rounding of ~1000 mm.
+constexpr double kTolPx = 1e-9;
+
+const std::string kSource = CARMBA_SOURCE_DIR;
+
+// A small valid scene; corruptions replace one substring of it.
+const char* kBase = R"(kind: xray
+description: test
+seed: 4
+output: {format: png, bit_depth: 8}
+camera:
+  image_size: [128, 128]
+  fx: 600
+  fy: 620
+  cx: 63.5
+  cy: 64.0
+  distortion: [-1.0, 0.0, 0.0, 0.0, 0.0]
+carm:
+  sid_mm: 900
+  sod_mm: 500
+imaging:
+  supersampling: 2
+  photons_per_pixel: 1000
+  fov: {circular: true}
+plate:
+  rows: 3
+  cols: 3
+  pitch_mm: 10
+  sphere_diameter_mm: 2.5
+object_pose: {rotation_deg: [90, 0, 0]}
+views:
+  - {name: a, primary_deg: 10, secondary_deg: -5}
+  - {name: b, primary_deg: -15, secondary_deg: 12, detector_rotation_deg: 30}
+)";
+
+std::string WriteScene(const std::string& text, const std::string& name) {
+  const std::string dir = testing::TempDir() + "/carmba_sim_scenes";
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/" + name + ".yaml";
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string Corrupt(const std::string& from, const std::string& to) {
+  std::string s = kBase;
+  const auto pos = s.find(from);
+  EXPECT_NE(pos, std::string::npos) << from;
+  if (pos != std::string::npos) s.replace(pos, from.size(), to);
+  return s;
+}
+
+TEST(XrayScene, BaseSceneParsesAndTruthMatchesCameraModel) {
+  auto scene = LoadXrayScene(WriteScene(kBase, "base"));
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  ASSERT_EQ(scene->views.size(), 2u);
+  ASSERT_EQ(scene->phantom.spheres.size(), 9u);
+  for (int i = 0; i < 2; ++i) {
+    auto view = RenderXrayView(*scene, i);
+    ASSERT_TRUE(view.ok()) << view.status().message();
+    EXPECT_EQ(view->image.type(), CV_8U);
+    // Re-project every sphere with the pose as written to truth.json.
+    const auto& j = view->truth["cam_from_plate"];
+    const double pose[6] = {
+        j["rvec"][0], j["rvec"][1], j["rvec"][2], j["t_mm"][0], j["t_mm"][1], j["t_mm"][2]};
+    for (size_t k = 0; k < scene->phantom.spheres.size(); ++k) {
+      double uv[2];
+      ASSERT_TRUE(ProjectPoint(
+          scene->camera.params.data(), pose, scene->phantom.spheres[k].center_mm.data(), uv));
+      EXPECT_NEAR(uv[0], view->truth["centers_px"][k][0].get<double>(), kTolPx);
+      EXPECT_NEAR(uv[1], view->truth["centers_px"][k][1].get<double>(), kTolPx);
+    }
+    // cam_from_plate = cam_from_world * world_from_object.
+    const Rigid3 composed = CamFromWorld(scene->views[i].carm) * scene->views[i].world_from_object;
+    EXPECT_NEAR((composed.R - view->cam_from_object.R).norm(), 0, 1e-12);
+  }
+  // Deterministic per seed, different views get different noise.
+  auto a = RenderXrayView(*scene, 0), b = RenderXrayView(*scene, 0);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(cv::norm(a->image, b->image, cv::NORM_INF), 0.0);
+  EXPECT_NE(scene->views[0].seed, scene->views[1].seed);
+}
+
+TEST(XrayScene, ShippedScenesLoadWithEveryViewInsideTheFieldOfView) {
+  struct Expect {
+    const char* name;
+    size_t views, spheres;
+  };
+  for (const Expect& e : {Expect{"thesis_calibration", 20, 25},
+                          Expect{"calib_7x6_pincushion", 24, 42},
+                          Expect{"thesis_pose", 7, 9}}) {
+    auto scene = LoadXrayScene(kSource + "/configs/scenes/" + e.name + ".yaml");
+    ASSERT_TRUE(scene.ok()) << scene.status().message();
+    EXPECT_EQ(scene->views.size(), e.views) << e.name;
+    EXPECT_EQ(scene->phantom.spheres.size(), e.spheres) << e.name;
+    EXPECT_TRUE(CheckViewsInsideFov(*scene).ok());
+  }
+  auto thesis = LoadXrayScene(kSource + "/configs/scenes/thesis_calibration.yaml");
+  ASSERT_TRUE(thesis.ok());
+  EXPECT_DOUBLE_EQ(thesis->camera.params[kFx], 2061.389);
+  EXPECT_DOUBLE_EQ(thesis->camera.params[kFy], 2254.646);
+  EXPECT_DOUBLE_EQ(thesis->camera.params[kCx], 203.655);
+  EXPECT_DOUBLE_EQ(thesis->camera.params[kCy], 205.117);
+  EXPECT_LT(thesis->camera.params[kK1], 0);  // barrel
+  auto pin = LoadXrayScene(kSource + "/configs/scenes/calib_7x6_pincushion.yaml");
+  ASSERT_TRUE(pin.ok());
+  EXPECT_GT(pin->camera.params[kK1], 0);  // pincushion
+  EXPECT_DOUBLE_EQ(pin->camera.params[kFx], 1100 / 0.4);
+  auto pose = LoadXrayScene(kSource + "/configs/scenes/thesis_pose.yaml");
+  ASSERT_TRUE(pose.ok());
+  // Marker 3 of Table 5.1 in the object frame.
+  EXPECT_EQ(pose->phantom.spheres[2].id, 3);
+  EXPECT_DOUBLE_EQ(pose->phantom.spheres[2].center_mm.x(), 13.35);
+}
+
+TEST(XrayScene, BadScenesAreRejectedWithOneLineErrors) {
+  struct Case {
+    std::string from, to, expected;
+  };
+  const std::vector<Case> cases = {
+      {"  sod_mm: 500", "  sod_mm: 500\n  focus: 1", "unknown key 'carm.focus'"},
+      {"seed: 4", "seed: 4\ncolour: red", "unknown key 'colour'"},
+      {"sid_mm: 900", "sid_mm: -900", "key 'carm.sid_mm': expected a positive number"},
+      {"sod_mm: 500", "sod_mm: -5", "key 'carm.sod_mm': expected a positive number"},
+      {"sod_mm: 500", "sod_mm: 950", "smaller than sid_mm"},
+      {"sid_mm: 900", "sid_mm: .nan", "key 'carm.sid_mm': expected a finite number"},
+      {"rows: 3", "rows: 12", "larger than the field of view"},
+      {"fov: {circular: true}",
+       "fov: {circular: true, radius_px: 12}",
+       "outside the circular field of view"},
+      {"fov: {circular: true}", "fov: {circular: false}\nplate_x: 1", "unknown key 'plate_x'"},
+      {"  rows: 3\n  cols: 3", "  rows: 3\n  cols: 14", "larger than the field of view"},
+      {"pitch_mm: 10", "pitch_mm: -10", "key 'plate.pitch_mm': expected a positive number"},
+      {"sphere_diameter_mm: 2.5", "sphere_diameter_mm: 12", "smaller than pitch_mm"},
+      {"distortion: [-1.0, 0.0, 0.0, 0.0, 0.0]",
+       "distortion: [-1.0, 0.0]",
+       "key 'camera.distortion': expected a list of 5 numbers"},
+      {"image_size: [128, 128]", "image_size: [128]", "key 'camera.image_size'"},
+      {"  fx: 600\n", "", "give either|missing"},
+      {"format: png", "format: jpg", "key 'output.format': expected one of png|pgm"},
+      {"bit_depth: 8", "bit_depth: 12", "key 'output.bit_depth': expected 8 or 16"},
+      {"kind: xray\n", "", "key 'kind': missing"},
+      {"secondary_deg: -5", "secondary_deg: -120", "secondary_deg': expected an angle"},
+      {"name: b,", "name: a,", "duplicate view name 'a'"},
+      {"name: b,", "name: 'b/../x',", "expected letters, digits"},
+      {"supersampling: 2", "supersampling: 0", "key 'imaging.supersampling'"},
+      {"plate:\n", "markers: {csv: nothing.csv, columns: [x, y, z]}\nplate:\n", "exactly one of"},
+      {"plate:\n  rows: 3",
+       "plate:\n  sphere_material: unobtainium\n  rows: 3",
+       "unknown material 'unobtainium'"},
+      {"views:\n  - {name: a, primary_deg: 10, secondary_deg: -5}\n  - {name: b, primary_deg: "
+       "-15, secondary_deg: 12, detector_rotation_deg: 30}\n",
+       "views: []\n",
+       "expected at least one view"},
+      {"object_pose: {rotation_deg: [90, 0, 0]}",
+       "object_pose: {rotation_deg: [90, 0]}",
+       "key 'object_pose.rotation_deg': expected a list of 3 numbers"},
+      {"object_pose: {rotation_deg: [90, 0, 0]}",
+       "object_pose: {rotation_deg: [90, 0, 0], center_mm: [0, 600, 0]}",
+       "not in front of the X-ray source"},
+      {"photons_per_pixel: 1000", "photons_per_pixel: -3", "key 'imaging.photons_per_pixel'"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  background: {file: /no/such.png}",
+       "/no/such.png: no such file"},
+  };
+  int i = 0;
+  for (const auto& c : cases) {
+    const std::string path = WriteScene(Corrupt(c.from, c.to), "bad" + std::to_string(i++));
+    auto scene = LoadXrayScene(path);
+    ASSERT_FALSE(scene.ok()) << "accepted: " << c.to;
+    const std::string& msg = scene.status().message();
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+    EXPECT_EQ(msg.rfind(path, 0), 0u) << "does not start with the file: " << msg;
+    bool found = false;
+    std::string alternatives = c.expected;
+    size_t start = 0;
+    while (true) {
+      const size_t bar = alternatives.find('|', start);
+      const std::string alt = alternatives.substr(start, bar - start);
+      if (msg.find(alt) != std::string::npos) found = true;
+      if (bar == std::string::npos) break;
+      start = bar + 1;
+    }
+    EXPECT_TRUE(found) << "expected '" << c.expected << "' in: " << msg;
+  }
+}
+
+TEST(XrayScene, MissingFileAndSyntaxError) {
+  auto missing = LoadXrayScene("/nonexistent/scene.yaml");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.status().message().find("cannot open"), std::string::npos);
+  auto bad = LoadXrayScene(WriteScene("kind: [xray\n", "syntax"));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("YAML syntax error"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace carmba::sim
