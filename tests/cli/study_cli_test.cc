@@ -1,0 +1,246 @@
+// End-to-end tests of `carmba study` and `carmba study-merge` with the pose solver: a study killed
+// by a signal and resumed, --jobs 1 vs --jobs 2, shards merged, failures that do not stop a
+// study, bad study files, and the shipped studies parse and run.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdlib.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "util/file_util.h"
+
+extern char** environ;
+
+namespace carmba {
+namespace {
+
+const std::string kSrc = CARMBA_SOURCE_DIR;
+const std::string kBin = CARMBA_BIN;
+
+std::string MakeTempDir() {
+  std::string tmpl = ::testing::TempDir() + "/carmba_study_cli_XXXXXX";
+  EXPECT_NE(::mkdtemp(tmpl.data()), nullptr);
+  return tmpl;
+}
+
+std::string Read(const std::string& path) {
+  StatusOr<std::string> s = ReadFile(path);
+  return s.ok() ? *s : "<missing " + path + ">";
+}
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+// Runs `carmba args...` and captures its exit code, stdout and stderr.
+Result Carmba(const std::string& args, const std::string& dir) {
+  const std::string cmd = "'" + kBin + "' " + args + " > '" + dir + "/cmd.out' 2> '" + dir +
+                          "/cmd.err'";
+  Result r;
+  const int status = std::system(cmd.c_str());
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = Read(dir + "/cmd.out");
+  r.err = Read(dir + "/cmd.err");
+  return r;
+}
+
+// A study of the simulated thesis object: 2 configs x 2 pixel noises x `trials`.
+std::string WriteStudy(const std::string& dir, int trials, const std::string& extra_problems = "",
+                       const std::string& extra_configs = "") {
+  const std::string path = dir + "/study.yaml";
+  std::ofstream(path) << "name: cli_study\ntrials: " << trials
+                      << "\nbase_seed: 3\nproblems:\n"
+                         "  - name: sim\n    synthetic:\n      camera: "
+                      << kSrc << "/data/thesis/camera.json\n      markers: thesis\n"
+                      << extra_problems << "configs:\n  - {name: posit_ba, file: " << kSrc
+                      << "/configs/posit_ba_analytic.yaml}\n  - {name: sqpnp_ba, file: " << kSrc
+                      << "/configs/sqpnp_ba_analytic.yaml}\n"
+                      << extra_configs << "sweeps:\n  pixel_noise_px: [0.2, 1.0]\n";
+  return path;
+}
+
+std::string Summaries(const std::string& out) {
+  const std::string md = Read(out + "/summary.md");
+  return Read(out + "/summary.csv") + "\n----\n" + md.substr(0, md.find("\n## Timing"));
+}
+
+std::vector<std::string> Keys(const std::string& out) {
+  std::vector<std::string> keys;
+  std::istringstream in(Read(out + "/runs.jsonl"));
+  std::string line;
+  while (std::getline(in, line)) {
+    nlohmann::json j = nlohmann::json::parse(line, nullptr, false);
+    keys.push_back(j.is_discarded() ? "<bad line>" : j.value("key", "<no key>"));
+  }
+  std::sort(keys.begin(), keys.end());
+  return keys;
+}
+
+int CountLines(const std::string& path) {
+  const std::string s = Read(path);
+  return static_cast<int>(std::count(s.begin(), s.end(), '\n'));
+}
+
+TEST(StudyCliTest, KilledStudyResumesWithEveryRunOnce) {
+  const std::string dir = MakeTempDir();
+  const std::string study = WriteStudy(dir, 150);  // 600 runs of a few ms
+  const std::string out = dir + "/killed";
+  std::vector<std::string> args = {kBin, "study", "--study=" + study, "--out=" + out, "--jobs=2"};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  ASSERT_EQ(::posix_spawn(&pid, kBin.c_str(), nullptr, nullptr, argv.data(), environ), 0);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (CountLines(out + "/runs.jsonl") < 150 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, WNOHANG), 0) << "the study ended before it was killed";
+  ASSERT_EQ(::kill(pid, SIGTERM), 0);
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFSIGNALED(status));
+  const int done = CountLines(out + "/runs.jsonl");
+  EXPECT_GE(done, 150);
+  EXPECT_LT(done, 600);
+  EXPECT_FALSE(FileExists(out + "/summary.md"));
+
+  // Without --resume the directory is refused; with it the study completes.
+  Result r = Carmba("study --study=" + study + " --out=" + out + " --jobs=2", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("pass --resume"), std::string::npos) << r.err;
+  r = Carmba("study --study=" + study + " --out=" + out + " --jobs=2 --resume", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::vector<std::string> keys = Keys(out);
+  ASSERT_EQ(keys.size(), 600u);
+  EXPECT_EQ(std::set<std::string>(keys.begin(), keys.end()).size(), 600u);
+
+  r = Carmba("study --study=" + study + " --out=" + dir + "/clean --jobs=2", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(Summaries(out), Summaries(dir + "/clean"));
+  EXPECT_EQ(Keys(out), Keys(dir + "/clean"));
+}
+
+TEST(StudyCliTest, JobsAndMergedShardsGiveIdenticalSummaries) {
+  const std::string dir = MakeTempDir();
+  const std::string study = WriteStudy(dir, 15);
+  const std::string s = "study --study=" + study + " --out=" + dir;
+  for (const std::string& a : {s + "/j1 --jobs=1", s + "/j2 --jobs=2",
+                               s + "/shard1 --jobs=2 --shard=1/2", s + "/shard2 --jobs=1 --shard=2/2"}) {
+    const Result r = Carmba(a, dir);
+    ASSERT_EQ(r.code, 0) << a << "\n" << r.err;
+  }
+  EXPECT_EQ(Summaries(dir + "/j1"), Summaries(dir + "/j2"));
+  EXPECT_EQ(Keys(dir + "/j1"), Keys(dir + "/j2"));
+  EXPECT_EQ(CountLines(dir + "/shard1/runs.jsonl"), 30);
+  Result r = Carmba("study-merge --out=" + dir + "/merged --shards='" + dir + "/shard*'", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("merged 60 runs from 2 shard directories"), std::string::npos) << r.out;
+  EXPECT_EQ(Summaries(dir + "/merged"), Summaries(dir + "/j1"));
+  EXPECT_EQ(Keys(dir + "/merged"), Keys(dir + "/j1"));
+  EXPECT_TRUE(FileExists(dir + "/merged/report.html"));
+  // The summaries carry real pose statistics: errors and reported vs empirical sigma.
+  const std::string csv = Read(dir + "/j1/summary.csv");
+  EXPECT_NE(csv.find(",error,rotation_deg,15,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find(",signed,v0_rx_deg,15,"), std::string::npos) << csv;
+  // One shard alone is incomplete: refused unless asked for.
+  r = Carmba("study-merge --out=" + dir + "/half --shards=" + dir + "/shard1", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("30 of the 60 runs"), std::string::npos) << r.err;
+  EXPECT_FALSE(FileExists(dir + "/half/summary.md"));
+  r = Carmba("study-merge --out=" + dir + "/half --shards=" + dir + "/nowhere*", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("matches no directory"), std::string::npos) << r.err;
+}
+
+TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
+  const std::string dir = MakeTempDir();
+  std::ofstream(dir + "/typo.yaml") << "name: typo\ninitializer: posit\nmax_iteration: 10\n";
+  const std::string study =
+      WriteStudy(dir, 3, "  - {name: lost, file: no_such_problem.yaml}\n",
+                 "  - {name: typo, file: typo.yaml}\n");
+  const Result r = Carmba("study --study=" + study + " --out=" + dir + "/out --jobs=2", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  // 2 problems x 3 configs x 2 noises x 3 trials = 36 runs; lost: 18 fail, typo on sim: 6 fail.
+  EXPECT_NE(r.out.find("36 runs"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("24 runs failed"), std::string::npos) << r.err;
+  const std::string md = Read(dir + "/out/summary.md");
+  EXPECT_NE(md.find("no_such_problem.yaml"), std::string::npos) << md;
+  EXPECT_NE(md.find("max_iteration"), std::string::npos) << md;
+  const std::string csv = Read(dir + "/out/summary.csv");
+  EXPECT_NE(csv.find("sim,posit_ba,0.2,3,0,error,rotation_deg,3,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("sim,typo,0.2,3,3,runs,-,0"), std::string::npos) << csv;
+}
+
+TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
+  const std::string dir = MakeTempDir();
+  std::ofstream(dir + "/bad.yaml") << "trials: 2\nproblems: []\nconfigs:\n  - {name: c, file: c}\n";
+  Result r = Carmba("study --study=" + dir + "/bad.yaml --out=" + dir + "/out", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("bad.yaml: key 'problems': expected at least one problem"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+  EXPECT_FALSE(FileExists(dir + "/out"));
+  r = Carmba("study --study=" + WriteStudy(dir, 1) + " --out=" + dir + "/out --shard=3/2", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("expected K/N"), std::string::npos) << r.err;
+  r = Carmba("study --out=" + dir + "/out", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--study is required"), std::string::npos) << r.err;
+  // A sweep the pose runs do not understand fails every run, naming it.
+  std::ofstream(dir + "/sweep.yaml")
+      << "trials: 1\nproblems:\n  - name: sim\n    synthetic: {camera: " << kSrc
+      << "/data/thesis/camera.json, markers: thesis}\nconfigs:\n  - {name: c, file: " << kSrc
+      << "/configs/posit_ba_analytic.yaml}\nsweeps:\n  exposure_ms: [1, 2]\n";
+  r = Carmba("study --study=" + dir + "/sweep.yaml --out=" + dir + "/sweep", dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(Read(dir + "/sweep/summary.md").find("sweep variable 'exposure_ms' is not understood"),
+            std::string::npos);
+}
+
+// The shipped studies parse, and one trial of each runs without failures.
+TEST(StudyCliTest, ShippedStudiesRun) {
+  for (const char* name : {"thesis_solvers", "noise_sweep"}) {
+    const std::string path = kSrc + "/configs/studies/" + name + ".yaml";
+    // A copy with one trial per problem, in a temporary directory: its relative paths (relative
+    // to configs/studies/) are made absolute.
+    const std::string dir = MakeTempDir();
+    std::string one;
+    std::istringstream in(Read(path));
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("trials:", 0) == 0) line = "trials: 1";
+      if (line.find("    trials:") == 0) continue;
+      for (const auto& [rel, abs] : {std::pair<std::string, std::string>{"../../", kSrc + "/"},
+                                     {"../", kSrc + "/configs/"}}) {
+        for (size_t pos; (pos = line.find(" " + rel)) != std::string::npos;) {
+          line.replace(pos + 1, rel.size(), abs);
+        }
+      }
+      one += line + "\n";
+    }
+    const std::string copy = dir + "/" + name + ".yaml";
+    std::ofstream(copy) << one;
+    const Result r = Carmba("study --study=" + copy + " --out=" + dir + "/out --jobs=2", dir);
+    ASSERT_EQ(r.code, 0) << r.err << "\n" << one;
+    EXPECT_NE(r.out.find(", 0 failed in total"), std::string::npos) << r.out << r.err;
+    EXPECT_TRUE(FileExists(dir + "/out/report.html"));
+  }
+}
+
+}  // namespace
+}  // namespace carmba
