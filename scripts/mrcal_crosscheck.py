@@ -101,7 +101,8 @@ def main():
             s = mrcal.projection_uncertainty(p * distance, model=model, atinfinity=False,
                                              what='worstdirection-stdev',
                                              observed_pixel_uncertainty=sigma)
-            out.append({'where': name, 'worst_px': float(s)})
+            s = float(s)
+            out.append({'where': name, 'worst_px': s if np.isfinite(s) else None})
         return out
 
     def diff(intrinsics):
@@ -111,6 +112,46 @@ def main():
                                            use_uncertainties=False)
         d = d[np.isfinite(d)]
         return {'rms_px': float(np.sqrt(np.mean(d * d))), 'max_px': float(np.max(d))}
+
+    def hull_mask(q):
+        # Pixels inside the convex hull of all observed points (the calibrated region).
+        pts = np.array([[u, vv] for v in views for _, u, vv in v])
+        pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+
+        def half(points):
+            h = []
+            for p in points:
+                while len(h) >= 2 and np.cross(h[-1] - h[-2], p - h[-2]) <= 0:
+                    h.pop()
+                h.append(p)
+            return h
+        hull = np.array(half(pts)[:-1] + half(pts[::-1])[:-1])
+        inside = np.ones(q.shape[:-1], dtype=bool)
+        for i in range(len(hull)):
+            a, b = hull[i], hull[(i + 1) % len(hull)]
+            inside &= ((b[0] - a[0]) * (q[..., 1] - a[1]) - (b[1] - a[1]) * (q[..., 0] - a[0])) >= 0
+        return inside
+
+    def versus_truth(intrinsics):
+        # Projection difference to the truth (after mrcal's fitted rotation) divided by carmba's
+        # projection uncertainty (worst direction), on a 20-column grid at the distance.
+        m = mrcal.cameramodel(intrinsics=(lens, np.array(intrinsics, dtype=float)),
+                              imagersize=(W, H))
+        d, _, q0, _ = mrcal.projection_diff((model_ours, m), gridn_width=20, distance=distance,
+                                            use_uncertainties=False)
+        p = mrcal.unproject(q0, *model_ours.intrinsics(), normalize=True) * distance
+        s = mrcal.projection_uncertainty(p, model=model_ours, atinfinity=False,
+                                         what='worstdirection-stdev',
+                                         observed_pixel_uncertainty=sigma)
+        ratio = d / s
+        ok = np.isfinite(ratio)
+        inside = hull_mask(q0) & ok
+        return {'max_ratio': float(np.max(ratio[ok])) if ok.any() else None,
+                'fraction_within_3sigma': float(np.mean(ratio[ok] <= 3)) if ok.any() else None,
+                'max_ratio_observed_region': float(np.max(ratio[inside])) if inside.any() else None,
+                'fraction_within_3sigma_observed_region':
+                    float(np.mean(ratio[inside] <= 3)) if inside.any() else None,
+                'max_diff_px': float(np.max(d[ok])) if ok.any() else None}
 
     x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
     diffs = {'mrcal': diff(model_mrcal.intrinsics()[1])}
@@ -128,6 +169,7 @@ def main():
         'projection_uncertainty_mrcal': uncertainty(model_mrcal),
         'projection_uncertainty_carmba_solution': uncertainty(model_ours),
         'projection_diff': diffs,
+        'versus_truth': versus_truth(inp['others']['truth']) if 'truth' in inp.get('others', {}) else None,
         'mrcal_version': getattr(mrcal, '__version__', '2.2'),
     }
     json.dump(out, open(sys.argv[2], 'w'), indent=1)

@@ -256,6 +256,18 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
     o << "\n## Against the truth\n\nProjection difference carmba vs truth: rms "
       << F((*m)["projection_diff"]["truth"]["rms_px"].get<double>()) << " px, max "
       << F((*m)["projection_diff"]["truth"]["max_px"].get<double>()) << " px\n";
+    const auto& vt = (*m)["versus_truth"];
+    if (vt.is_object() && !vt["max_ratio"].is_null()) {
+      o << "\nDifference / carmba's projection sigma (worst direction) on a 20-column grid at the "
+           "distance above:\n\n| region | max ratio | fraction within 3 sigma |\n|---|---|---|\n";
+      o << "| whole image | " << F(vt["max_ratio"].get<double>(), 2) << " | "
+        << F(vt["fraction_within_3sigma"].get<double>(), 3) << " |\n";
+      if (!vt["max_ratio_observed_region"].is_null()) {
+        o << "| observed region (convex hull of the detections) | "
+          << F(vt["max_ratio_observed_region"].get<double>(), 2) << " | "
+          << F(vt["fraction_within_3sigma_observed_region"].get<double>(), 3) << " |\n";
+      }
+    }
   }
 
   o << "\n## Per view\n\n| view | image | points | rms px | max px | tilt deg | distance mm |\n"

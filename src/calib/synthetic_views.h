@@ -19,7 +19,7 @@ struct SyntheticViewsOptions {
   double min_tilt_deg = 5;
   double distance_min_mm = 650;    // plate centre distance from the source
   double distance_max_mm = 850;
-  double max_offset_fraction = 0.25;  // plate centre offset from the axis, fraction of the FOV
+  double max_offset_fraction = 0.6;  // plate centre offset from the axis, fraction of the half FOV
   uint64_t seed = 1;
 };
 
