@@ -48,7 +48,8 @@
 //   function_tolerance: 1e-12
 //   gradient_tolerance: 1e-12
 //   parameter_tolerance: 1e-12
-//   covariance: {algorithm: dense_svd, scale: apriori}   # sparse_qr; aposteriori scales by s0^2
+//   covariance: {algorithm: eigen_sparse_qr, scale: apriori}  # or dense_svd, sparse_qr;
+//                                                 # aposteriori scales by s0^2
 //   num_threads: 1
 #pragma once
 
@@ -132,7 +133,8 @@ struct SolverConfig {
   double function_tolerance = 1e-12;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-12;
-  std::string covariance_algorithm = "dense_svd";  // dense_svd | sparse_qr
+  // dense_svd | sparse_qr (SuiteSparse) | eigen_sparse_qr (fastest on small problems)
+  std::string covariance_algorithm = "eigen_sparse_qr";
   bool covariance_aposteriori = false;  // scale covariance by the a-posteriori variance factor
   int num_threads = 1;
 

@@ -280,8 +280,9 @@ StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path) {
   root.Get("truth", &truth_file);
   std::vector<std::string> views;
   {
+    const bool has_views = root.Has("views");
     YAML::Node vn = root.Raw("views");
-    if (vn) {
+    if (has_views) {
       if (!vn.IsSequence()) {
         root.Fail("views", "expected a list of view ids");
       } else {
@@ -296,7 +297,7 @@ StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path) {
   for (YamlMap* pm : pairs) {
     ValidationPair vp;
     YAML::Node a = pm->Raw("a"), b = pm->Raw("b");
-    if (!a || !b || !a.IsScalar() || !b.IsScalar()) {
+    if (!a.IsScalar() || !b.IsScalar()) {
       pm->Fail("a", "expected view ids a and b");
     } else {
       vp.a = a.Scalar();
@@ -365,7 +366,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   root.GetPositive("parameter_tolerance", &c.parameter_tolerance);
   YamlMap& cov = root.Map("covariance");
   std::string scale = "apriori";
-  cov.GetEnum("algorithm", {"dense_svd", "sparse_qr"}, &c.covariance_algorithm);
+  cov.GetEnum("algorithm", {"dense_svd", "sparse_qr", "eigen_sparse_qr"}, &c.covariance_algorithm);
   cov.GetEnum("scale", {"apriori", "aposteriori"}, &scale);
   root.Get("num_threads", &c.num_threads);
   CARMBA_RETURN_IF_ERROR(root.Finish());

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
+#include <limits>
 #include <set>
 
 #include "ba/reprojection_error.h"
@@ -114,6 +115,31 @@ double ViewRms(const PoseProblem& problem,
   return std::sqrt(ss / n);
 }
 
+// Sum of squared whitened residuals (reprojection and CT priors), without any robust loss.
+double WhitenedChi2(const PoseProblem& problem,
+                    const std::vector<Pose6>& poses,
+                    const std::map<int, Eigen::Vector3d>& markers,
+                    const std::map<int, const Marker*>& marker_by_id) {
+  double chi2 = 0;
+  const double w = 1.0 / (problem.sigma_px * problem.sigma_px);
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    for (const auto& o : problem.views[v].observations) {
+      Eigen::Vector2d q;
+      if (!ProjectPoint(problem.camera.params.data(), poses[v].data(),
+                        markers.at(o.marker_id).data(), q.data())) {
+        return std::numeric_limits<double>::infinity();
+      }
+      chi2 += (q - o.uv_px).squaredNorm() * w;
+    }
+  }
+  for (const auto& [id, p] : markers) {
+    const Marker& m = *marker_by_id.at(id);
+    const Eigen::Vector3d d = p - MarkerInProblemFrame(problem, m);
+    chi2 += d.dot(MarkerCovarianceInProblemFrame(problem, m).ldlt().solve(d));
+  }
+  return chi2;
+}
+
 ceres::LossFunction* MakeLoss(const SolverConfig& c, double sigma_px) {
   const double s = c.loss_scale_px / sigma_px;  // residuals are whitened
   if (c.loss == "huber") return new ceres::HuberLoss(s);
@@ -217,14 +243,14 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     cp.AddResidualBlock(new PointPriorError(MarkerInProblemFrame(problem, m), cov), nullptr,
                         p.data());
   }
+  // Initial cost, evaluated directly (Problem::Evaluate rebuilds Ceres's program each call).
   {
-    double cost0 = 0;
-    if (!cp.Evaluate(ceres::Problem::EvaluateOptions(), &cost0, nullptr, nullptr, nullptr) ||
-        !std::isfinite(cost0)) {
+    const double chi2_0 = WhitenedChi2(problem, poses, markers, marker_by_id);
+    if (!std::isfinite(chi2_0)) {
       return Status::Error(problem.path + ": the initial poses give a non-finite cost (a marker "
                                           "behind the source?)");
     }
-    sol.initial_cost = cost0;
+    sol.initial_cost = 0.5 * chi2_0;
   }
 
   if (config.refine) {
@@ -252,16 +278,10 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
   }
 
   // Statistics from the raw (loss-free) whitened residuals.
-  {
-    ceres::Problem::EvaluateOptions eo;
-    eo.apply_loss_function = false;
-    std::vector<double> res;
-    cp.Evaluate(eo, nullptr, &res, nullptr, nullptr);
-    sol.num_residuals = static_cast<int>(res.size());
-    double chi2 = 0;
-    for (double r : res) chi2 += r * r;
-    sol.chi2 = chi2;
-  }
+  sol.chi2 = WhitenedChi2(problem, poses, markers, marker_by_id);
+  sol.num_residuals = 0;
+  for (const auto& v : problem.views) sol.num_residuals += 2 * static_cast<int>(v.observations.size());
+  sol.num_residuals += 3 * static_cast<int>(markers.size());
   double ss = 0;
   int n = 0;
   for (size_t v = 0; v < V; ++v) {
@@ -282,7 +302,10 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
   if (config.refine) {
     ceres::Covariance::Options co;
     co.algorithm_type =
-        config.covariance_algorithm == "sparse_qr" ? ceres::SPARSE_QR : ceres::DENSE_SVD;
+        config.covariance_algorithm == "dense_svd" ? ceres::DENSE_SVD : ceres::SPARSE_QR;
+    if (config.covariance_algorithm == "eigen_sparse_qr") {
+      co.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+    }
     co.num_threads = config.num_threads;
     co.null_space_rank = 0;
     co.min_reciprocal_condition_number = 1e-14;

@@ -55,7 +55,7 @@ class YamlMap {
   YamlMap& Map(const std::string& key, bool required = false);
   // A sequence of maps.
   std::vector<YamlMap*> MapList(const std::string& key, bool required = false);
-  // The raw node (marks the key as known).
+  // The raw node (marks the key as known); a Null node when absent -- test with Has().
   YAML::Node Raw(const std::string& key);
 
   // Records an error at `key` (for checks done by the caller).

@@ -175,3 +175,29 @@ TEST(Stats, ChiSquareUpperTail) {
 
 }  // namespace
 }  // namespace carmba
+
+namespace carmba {
+namespace {
+
+// The three covariance back-ends compute the same matrix.
+TEST(PoseSolver, CovarianceAlgorithmsAgree) {
+  SyntheticPoseSpec spec;
+  spec.camera = ThesisCamera();
+  spec.markers = ThesisMarkers();
+  const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
+  SolverConfig c = DefaultConfig();
+  c.covariance_algorithm = "dense_svd";
+  auto ref = SolvePoseProblem(p, c);
+  ASSERT_TRUE(ref.ok());
+  for (const char* algo : {"sparse_qr", "eigen_sparse_qr"}) {
+    c.covariance_algorithm = algo;
+    auto s = SolvePoseProblem(p, c);
+    ASSERT_TRUE(s.ok()) << algo;
+    const double rel = (s->joint_covariance - ref->joint_covariance).norm() /
+                       ref->joint_covariance.norm();
+    EXPECT_LT(rel, 1e-8) << algo;
+  }
+}
+
+}  // namespace
+}  // namespace carmba
