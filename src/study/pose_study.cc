@@ -7,6 +7,8 @@
 #include <random>
 #include <set>
 
+#include "calib/calibrate.h"
+#include "calib/synthetic_views.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
@@ -103,6 +105,8 @@ StatusOr<SyntheticEntry> ParseSynthetic(const StudyProblem& p) {
   const std::string where = "problem '" + p.name + "': synthetic";
   SyntheticEntry e;
   JsonMap m(p.synthetic, where);
+  std::string kind = "pose";
+  m.String("kind", &kind);
   std::string camera_file;
   m.String("camera", &camera_file);
   if (camera_file.empty()) m.Fail("camera", "missing, expected the path of a camera.json");
@@ -142,6 +146,9 @@ StatusOr<SyntheticEntry> ParseSynthetic(const StudyProblem& p) {
   m.Number("sigma_px", &e.sigma_px);
   m.Number("sigma_ct_mm", &e.sigma_ct_mm);
   CARMBA_RETURN_IF_ERROR(m.Finish());
+  if (kind != "pose") {
+    return Status::Error(where + ".kind: expected pose or calibration, got '" + kind + "'");
+  }
   if (e.spec.markers.size() < 4) return Status::Error(where + ".markers: expected >= 4 markers");
   if (!(e.spec.source_to_object_mm > 0)) {
     return Status::Error(where + ".source_to_object_mm: expected > 0");
@@ -254,13 +261,6 @@ class OnceCache {
   std::map<std::string, std::shared_ptr<const StatusOr<T>>> map_;
 };
 
-struct PoseStudyState {
-  OnceCache<PoseProblem> problems;        // measured problems, by file
-  OnceCache<PoseProblem> truths;          // resimulation truths, by file
-  OnceCache<SolverConfig> configs;        // by file
-  OnceCache<SyntheticEntry> synthetic;    // by base_dir|name
-};
-
 double Rms(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x * x;
@@ -268,6 +268,140 @@ double Rms(const std::vector<double>& v) {
 }
 
 nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+// A synthetic calibration problem: a grid seen by a known camera from seeded random poses.
+struct CalibrationEntry {
+  Camera camera;  // the truth
+  GridSpec grid;
+  SyntheticViewsOptions views;
+};
+
+StatusOr<CalibrationEntry> ParseCalibrationSynthetic(const StudyProblem& p) {
+  const std::string where = "problem '" + p.name + "': synthetic";
+  CalibrationEntry e;
+  JsonMap m(p.synthetic, where);
+  std::string kind, camera_file, pattern = "circles";
+  m.String("kind", &kind);
+  m.String("camera", &camera_file);
+  if (camera_file.empty()) m.Fail("camera", "missing, expected the path of a camera.json");
+  double rows = e.grid.rows, cols = e.grid.cols, num_views = e.views.num_views;
+  m.String("pattern", &pattern);
+  m.Number("rows", &rows);
+  m.Number("cols", &cols);
+  m.Number("spacing_mm", &e.grid.spacing_mm);
+  m.Number("num_views", &num_views);
+  m.Number("noise_px", &e.views.noise_sigma_px);
+  m.Number("min_tilt_deg", &e.views.min_tilt_deg);
+  m.Number("max_tilt_deg", &e.views.max_tilt_deg);
+  m.Number("distance_min_mm", &e.views.distance_min_mm);
+  m.Number("distance_max_mm", &e.views.distance_max_mm);
+  m.Number("max_offset_fraction", &e.views.max_offset_fraction);
+  CARMBA_RETURN_IF_ERROR(m.Finish());
+  StatusOr<GridPattern> gp = ParseGridPattern(pattern);
+  if (!gp.ok()) return gp.status().WithContext(where + ".pattern");
+  e.grid.pattern = *gp;
+  e.grid.rows = static_cast<int>(rows);
+  e.grid.cols = static_cast<int>(cols);
+  e.views.num_views = static_cast<int>(num_views);
+  std::string error;
+  if (rows != e.grid.rows || cols != e.grid.cols || !e.grid.Check(&error)) {
+    return Status::Error(where + ": grid: " + (error.empty() ? "rows, cols: expected integers"
+                                                             : error));
+  }
+  if (num_views != e.views.num_views || e.views.num_views < 1) {
+    return Status::Error(where + ".num_views: expected an integer >= 1");
+  }
+  StatusOr<Camera> camera = ReadCameraJson(JoinPath(p.base_dir, camera_file));
+  if (!camera.ok()) return camera.status().WithContext(where + ".camera");
+  e.camera = *camera;
+  return e;
+}
+
+struct PoseStudyState {
+  OnceCache<PoseProblem> problems;        // measured problems, by file
+  OnceCache<PoseProblem> truths;          // resimulation truths, by file
+  OnceCache<SolverConfig> configs;        // by file
+  OnceCache<SyntheticEntry> synthetic;    // by base_dir|name
+  OnceCache<CalibrationEntry> calibrations;      // by base_dir|name
+  OnceCache<CalibrationOptions> calib_configs;   // by file
+};
+
+bool IsCalibration(const StudyProblem& p) {
+  return p.synthetic.is_object() && p.synthetic.contains("kind") &&
+         p.synthetic["kind"] == "calibration";
+}
+
+// One calibration of seeded synthetic views; accuracy of the intrinsics against the truth.
+StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& run) {
+  const StudyProblem& sp = *run.problem;
+  const StudyConfig& sc = *run.config;
+  for (const auto& kv : run.sweep) {
+    if (kv.first != "pixel_noise_px" && kv.first != "num_views" && kv.first != "k1") {
+      return Status::Error("sweep variable '" + kv.first + "' is not understood by calibration "
+                           "studies (known: k1, num_views, pixel_noise_px)");
+    }
+  }
+  if (!sc.options.is_null()) {
+    return Status::Error("config '" + sc.name + "': key 'options' is not supported; put the "
+                         "settings in " + sc.file);
+  }
+  auto entry = state->calibrations.Get(sp.base_dir + "|" + sp.name,
+                                       [&] { return ParseCalibrationSynthetic(sp); });
+  if (!entry->ok()) return entry->status();
+  auto options = state->calib_configs.Get(sc.file, [&]() -> StatusOr<CalibrationOptions> {
+    CalibrationOptions o;
+    CARMBA_RETURN_IF_ERROR(LoadCalibrationOptions(sc.file, &o, {"detection", "crosscheck"}));
+    return o;
+  });
+  if (!options->ok()) return options->status();
+  CalibrationOptions opt = options->value();
+  opt.num_threads = 1;
+  CalibrationEntry e = entry->value();
+  const double nan = std::nan("");
+  const double noise = run.SweepValue("pixel_noise_px", nan);
+  const double views = run.SweepValue("num_views", nan);
+  const double k1 = run.SweepValue("k1", nan);
+  if (!std::isnan(noise)) e.views.noise_sigma_px = noise;
+  if (!std::isnan(views)) {
+    if (views != std::floor(views) || views < 1) {
+      return Status::Error("sweep num_views: expected integers >= 1");
+    }
+    e.views.num_views = static_cast<int>(views);
+  }
+  if (!std::isnan(k1)) e.camera.params[4] = k1;
+  e.views.seed = run.seed;
+  const ObservationSet obs =
+      MakeSyntheticViews(e.camera.params, e.camera.width, e.camera.height, e.grid, e.views);
+  StatusOr<CalibrationResult> result = Calibrate(obs, opt);
+  if (!result.ok()) return result.status();
+  const auto& est = result->camera.params;
+  const auto& truth = e.camera.params;
+  nlohmann::json errors = nlohmann::json::object(), signed_errors = nlohmann::json::object(),
+                 sigmas = nlohmann::json::object(), values = nlohmann::json::object();
+  errors["focal_px"] = std::sqrt(0.5 * (std::pow(est[0] - truth[0], 2) +
+                                        std::pow(est[1] - truth[1], 2)));
+  errors["principal_point_px"] = std::hypot(est[2] - truth[2], est[3] - truth[3]);
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (!result->free.empty() && !result->free[i]) continue;  // held: no error to speak of
+    const std::string name = std::string(kIntrinsicNames[i]) + (i < 4 ? "_px" : "");
+    signed_errors[name] = est[i] - truth[i];
+    if (std::isfinite(result->sigma[i]) && result->sigma[i] > 0) sigmas[name] = result->sigma[i];
+  }
+  values["rms_px"] = Num(result->rms_px);
+  values["iterations"] = result->iterations;
+  values["sigma_px"] = Num(result->sigma_px);
+  double worst = 0;
+  for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
+  values["projection_sigma_worst_px"] = Num(worst);
+  nlohmann::json r;
+  r["converged"] = result->termination == "CONVERGENCE";
+  r["termination"] = result->termination;
+  r["errors"] = errors;
+  r["signed_errors"] = signed_errors;
+  r["sigmas"] = sigmas;
+  r["values"] = values;
+  return r;
+}
 
 nlohmann::json MakeResult(const PoseProblem& problem, const PoseSolution& sol) {
   nlohmann::json errors = nlohmann::json::object(), signed_errors = nlohmann::json::object(),
@@ -358,6 +492,7 @@ nlohmann::json MakeResult(const PoseProblem& problem, const PoseSolution& sol) {
 }
 
 StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
+  if (IsCalibration(*run.problem)) return RunCalibration(state, run);
   for (const auto& kv : run.sweep) {
     if (!KnownSweeps().count(kv.first)) {
       return Status::Error("sweep variable '" + kv.first +

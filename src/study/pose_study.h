@@ -1,5 +1,6 @@
 // The production run function of `carmba study`: pose problems (problem/pose_problem.h) solved
-// with solver configurations, with Monte Carlo noise and accuracy against the truth.
+// with solver configurations, with Monte Carlo noise and accuracy against the truth; and
+// synthetic intrinsic calibrations (calib/calibrate.h), see the end of this comment.
 //
 // Problem entries of a study file:
 //   - name: thesis_tables
@@ -45,6 +46,25 @@
 //   sigmas:        the solver's 1-sigma for the same names (when it computed a covariance)
 //   values:        rms_px, iterations, sigma0, chi2_p_value
 //   converged, residuals_px (reprojection residuals, px, per coordinate)
+//
+// Calibration problems (synthetic only; their configs are calibration option files such as
+// configs/calib_thesis.yaml, read with LoadCalibrationOptions):
+//   - name: thesis_plate
+//     synthetic:
+//       kind: calibration
+//       camera: ../../data/thesis/camera.json   # the true intrinsics and image size
+//       pattern: circles                        # circles | acircles | chessboard
+//       rows: 5
+//       cols: 5
+//       spacing_mm: 20
+//       num_views: 16
+//       noise_px: 0.3                           # default when pixel_noise_px is not swept
+//       min_tilt_deg: 5, max_tilt_deg: 30, distance_min_mm: 650, distance_max_mm: 850,
+//       max_offset_fraction: 0.6                # optional (calib/synthetic_views.h)
+// Swept variables: pixel_noise_px, num_views, k1 (true radial distortion).
+// Result: errors focal_px (RMS of the fx and fy errors), principal_point_px; signed_errors and
+// sigmas per free intrinsic (fx_px, fy_px, cx_px, cy_px, k1, ...); values rms_px, iterations,
+// sigma_px, projection_sigma_worst_px.
 #pragma once
 
 #include "study/runner.h"

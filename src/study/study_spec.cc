@@ -116,8 +116,6 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
   StudySpec spec;
   spec.path = path;
   spec.name = BaseNameNoExt(path);
-  // Optional keys are read only when present (YamlMap::Get of an absent optional key reports
-  // "got nothing" with the yaml-cpp in use).
   if (m.Has("name")) m.Get("name", &spec.name);
   m.Get("trials", &spec.trials, /*required=*/true);
   int base_seed = 0;

@@ -214,7 +214,7 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
 
 // The shipped studies parse, and one trial of each runs without failures.
 TEST(StudyCliTest, ShippedStudiesRun) {
-  for (const char* name : {"thesis_solvers", "noise_sweep"}) {
+  for (const char* name : {"thesis_solvers", "noise_sweep", "calibration_sweep"}) {
     const std::string path = kSrc + "/configs/studies/" + name + ".yaml";
     // A copy with one trial per problem, in a temporary directory: its relative paths (relative
     // to configs/studies/) are made absolute.
