@@ -69,7 +69,7 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
       EXPECT_LT(img.at<uint8_t>(vv, u), median) << v["file"] << " " << uv;
     }
   }
-  EXPECT_EQ(truth["views"][4]["primary_deg"].get<double>(), 90.0);
+  EXPECT_EQ(truth["views"][4]["primary_deg"].get<double>(), -90.0);  // RAO 90 (see the scene)
   // No temporary directories left beside the output.
   for (const auto& e : fs::directory_iterator(out.parent_path())) {
     EXPECT_EQ(e.path().filename().string().find("carmba_sim_cli_pose.tmp"), std::string::npos);
@@ -95,6 +95,19 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
       Simulate("--scene=" + kScenes + "thesis_pose.yaml --overwrite --out=" + out.string()).code,
       0);
   EXPECT_TRUE(fs::exists(out / "truth.json"));
+}
+
+// `kind: ct` scenes are dispatched to the CT simulator (ct/ct_simulate.h).
+TEST(SimulateCli, CtSceneIsDispatched) {
+  const fs::path out = fs::path(testing::TempDir()) / "carmba_sim_cli_ct";
+  fs::remove_all(out);
+  const SimRun r = Simulate("--scene=" + kScenes + "thesis_ct.yaml --out=" + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json truth = nlohmann::json::parse(Slurp(out / "truth.json"));
+  EXPECT_EQ(truth["kind"], "ct");
+  EXPECT_EQ(truth["markers"].size(), 9u);
+  EXPECT_TRUE(fs::is_directory(out / "ct"));
+  EXPECT_FALSE(fs::is_empty(out / "ct"));
 }
 
 TEST(SimulateCli, BadSceneLeavesNoOutput) {
