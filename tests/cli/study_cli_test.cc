@@ -45,16 +45,20 @@ struct Result {
   std::string out, err;
 };
 
-// Runs `carmba args...` and captures its exit code, stdout and stderr.
-Result Carmba(const std::string& args, const std::string& dir) {
-  const std::string cmd = "'" + kBin + "' " + args + " > '" + dir + "/cmd.out' 2> '" + dir +
-                          "/cmd.err'";
+// Runs a shell command and captures its exit code, stdout and stderr.
+Result Shell(const std::string& command, const std::string& dir) {
+  const std::string cmd = command + " > '" + dir + "/cmd.out' 2> '" + dir + "/cmd.err'";
   Result r;
   const int status = std::system(cmd.c_str());
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   r.out = Read(dir + "/cmd.out");
   r.err = Read(dir + "/cmd.err");
   return r;
+}
+
+// Runs `carmba args...`.
+Result Carmba(const std::string& args, const std::string& dir) {
+  return Shell("'" + kBin + "' " + args, dir);
 }
 
 // A study of the simulated thesis object: 2 configs x 2 pixel noises x `trials`.
@@ -210,6 +214,23 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(Read(dir + "/sweep/summary.md").find("sweep variable 'exposure_ms' is not understood"),
             std::string::npos);
+}
+
+// The progress line (runs done, failed, ETA) goes to stderr only when stderr is a terminal.
+TEST(StudyCliTest, ProgressLineOnlyOnATerminal) {
+  const std::string dir = MakeTempDir();
+  const std::string study = WriteStudy(dir, 5);
+  Result r = Carmba("study --study=" + study + " --out=" + dir + "/plain --jobs=2", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("runs done"), std::string::npos) << r.err;
+  if (!FileExists("/usr/bin/script")) GTEST_SKIP() << "no /usr/bin/script to provide a terminal";
+  // script(1) runs the command on a pseudo-terminal.
+  r = Shell("/usr/bin/script -qec \"'" + kBin + "' study --study=" + study + " --out=" + dir +
+                "/tty --jobs=2\" /dev/null",
+            dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("20/20 runs done, 0 failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ETA"), std::string::npos) << r.out;
 }
 
 // The shipped studies parse, and one trial of each runs without failures.
