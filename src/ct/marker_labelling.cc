@@ -153,6 +153,13 @@ StatusOr<Labelling> LabelMarkers(const std::vector<Eigen::Vector3d>& found,
                   n, m, tolerance_mm, deepest);
     return Status::Error(b);
   }
+  if (best_rms > tolerance_mm) {
+    std::snprintf(b, sizeof(b),
+                  "the markers match the model's pairwise distances but no proper rigid motion "
+                  "fits them (RMS %.3f mm > %.2f mm): a mirror image of the model?",
+                  best_rms, tolerance_mm);
+    return Status::Error(b);
+  }
   best.assignments = complete;
   best.second_best_rms_mm = second_rms < 1e29 ? second_rms : -1;
   if (best.second_best_rms_mm >= 0 &&

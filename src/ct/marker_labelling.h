@@ -54,8 +54,9 @@ struct Labelling {
 };
 
 // Labels `found` (CT centres, mm) with the model's points. Needs 3 <= found.size() <=
-// model.size(). Errors: no consistent assignment within tolerance_mm (naming the distance that
-// failed most often), an ambiguous (symmetric) model.
+// model.size(). Errors: no consistent assignment within tolerance_mm (saying how many markers
+// could be matched), a best fit RMS above tolerance_mm (a mirror image), an ambiguous
+// (symmetric) model.
 StatusOr<Labelling> LabelMarkers(const std::vector<Eigen::Vector3d>& found,
                                  const std::vector<ModelPoint>& model,
                                  double tolerance_mm);
