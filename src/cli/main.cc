@@ -120,10 +120,24 @@ int main(int argc, char** argv) {
               << std::endl;
     return 2;
   }
-  // Drop the command name and parse the rest as this command's flags.
+  // Drop the command name and parse the rest as this command's flags. Dashes inside a flag's
+  // name are read as underscores (--spacing-mm = --spacing_mm), as users type them.
+  std::vector<std::string> normalized;
+  for (int i = 2; i < argc; ++i) {
+    std::string a = argv[i];
+    if (a.size() > 2 && a[0] == '-') {
+      const size_t start = a[1] == '-' ? 2 : 1;
+      const size_t end = std::min(a.find('='), a.size());
+      for (size_t k = start; k < end; ++k) {
+        if (a[k] == '-') a[k] = '_';
+      }
+    }
+    normalized.push_back(a);
+  }
   std::vector<char*> args;
   args.push_back(argv[0]);
   for (int i = 2; i < argc; ++i) {
+    argv[i] = normalized[i - 2].data();
     if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h") ||
         !std::strcmp(argv[i], "-help")) {
       carmba::cli::PrintCommandHelp(*cmd);

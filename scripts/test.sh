@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Installs the dependencies (skipping what is present), builds everything and runs all tests with
+# ctest. This is the README's test command and what CI runs (.ci/run).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+bash scripts/build.sh
+BUILD_DIR=${CARMBA_BUILD_DIR:-build}
+ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}" --timeout 900
