@@ -403,7 +403,81 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   return r;
 }
 
-nlohmann::json MakeResult(const PoseProblem& problem, const PoseSolution& sol) {
+// The predicted error budget of the first view: the covariance of the bundle adjustment,
+// Sigma = (A_px + A_ct)^-1 with A_px = J_px^T J_px / sigma_px^2 (reprojection residuals) and
+// A_ct = sum of the markers' inverse CT covariances (the priors), splits exactly into
+//   Sigma = Sigma A_px Sigma + Sigma A_ct Sigma,
+// the parts due to pixel noise and to CT noise. Reported as 1-sigma contributions (RMS over the
+// three axes) to the first view's rotation (small rotations about the camera axes, deg) and
+// translation (mm); their squares add up to the total. Valid for the trivial loss only; empty
+// otherwise, or when the information matrix is singular.
+nlohmann::json PredictedBudget(const PoseProblem& problem,
+                               const PoseSolution& sol,
+                               const SolverConfig& config) {
+  nlohmann::json budget = nlohmann::json::object();
+  if (!config.refine || config.loss != "trivial" || sol.views.empty()) return budget;
+  const int V = static_cast<int>(sol.views.size());
+  std::map<int, int> marker_col;
+  int n = 6 * V;
+  for (const auto& kv : sol.markers) {
+    marker_col[kv.first] = n;
+    n += 3;
+  }
+  Eigen::MatrixXd A_px = Eigen::MatrixXd::Zero(n, n), A_ct = Eigen::MatrixXd::Zero(n, n);
+  const double w = 1.0 / (problem.sigma_px * problem.sigma_px);
+  for (int v = 0; v < V && v < static_cast<int>(problem.views.size()); ++v) {
+    for (const auto& o : problem.views[v].observations) {
+      const auto m = sol.markers.find(o.marker_id);
+      if (m == sol.markers.end()) continue;
+      double uv[2];
+      Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_pose;
+      Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_p;
+      if (!ProjectPointWithJac(problem.camera.params.data(), sol.views[v].cam_from_object.data(),
+                               m->second.data(), uv, nullptr, J_pose.data(), J_p.data())) {
+        return nlohmann::json::object();
+      }
+      Eigen::MatrixXd J = Eigen::MatrixXd::Zero(2, n);
+      J.block<2, 6>(0, 6 * v) = J_pose;
+      J.block<2, 3>(0, marker_col.at(o.marker_id)) = J_p;
+      A_px.noalias() += w * J.transpose() * J;
+    }
+  }
+  for (const auto& m : problem.markers) {
+    const auto col = marker_col.find(m.id);
+    if (col == marker_col.end()) continue;
+    Eigen::Matrix3d cov = m.covariance;
+    if (problem.handedness == Handedness::kMirrored) {
+      const Eigen::Matrix3d D = Eigen::Vector3d(1, -1, 1).asDiagonal();
+      cov = D * cov * D;
+    }
+    A_ct.block<3, 3>(col->second, col->second) = cov.inverse();
+  }
+  const Eigen::MatrixXd A = A_px + A_ct;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(A);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive() ||
+      ldlt.vectorD().minCoeff() <= 1e-12 * ldlt.vectorD().maxCoeff()) {
+    return budget;
+  }
+  const Eigen::MatrixXd S = ldlt.solve(Eigen::MatrixXd::Identity(n, n));
+  double scale = 1;
+  if (config.covariance_aposteriori && std::isfinite(sol.sigma0)) scale = sol.sigma0 * sol.sigma0;
+  Eigen::Matrix3d Jl;
+  SO3LeftJacobian(sol.views[0].cam_from_object.data(), Jl.data());
+  Jl.transposeInPlace();  // row-major into column-major storage
+  for (const auto& [name, part] : {std::pair<std::string, const Eigen::MatrixXd*>{"pixel_noise",
+                                                                               &A_px},
+                                   {"ct_noise", &A_ct}}) {
+    const Eigen::MatrixXd C = scale * (S * (*part) * S);
+    const Eigen::Matrix3d rot = Jl * C.block<3, 3>(0, 0) * Jl.transpose();
+    budget["v0_rotation_deg." + name] = std::sqrt(rot.trace() / 3) * kRadToDeg;
+    budget["v0_translation_mm." + name] = std::sqrt(C.block<3, 3>(3, 3).trace() / 3);
+  }
+  return budget;
+}
+
+nlohmann::json MakeResult(const PoseProblem& problem,
+                          const PoseSolution& sol,
+                          const SolverConfig& config) {
   nlohmann::json errors = nlohmann::json::object(), signed_errors = nlohmann::json::object(),
                  sigmas = nlohmann::json::object(), values = nlohmann::json::object();
   std::map<std::string, size_t> view_index;
@@ -488,6 +562,7 @@ nlohmann::json MakeResult(const PoseProblem& problem, const PoseSolution& sol) {
   r["sigmas"] = sigmas;
   r["values"] = values;
   r["residuals_px"] = residuals;
+  r["budget"] = PredictedBudget(problem, sol, config);
   return r;
 }
 
@@ -590,7 +665,7 @@ StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
   }
   StatusOr<PoseSolution> sol = SolvePoseProblem(problem, cfg);
   if (!sol.ok()) return sol.status();
-  return MakeResult(problem, *sol);
+  return MakeResult(problem, *sol, cfg);
 }
 
 }  // namespace

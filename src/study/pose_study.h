@@ -46,6 +46,11 @@
 //   sigmas:        the solver's 1-sigma for the same names (when it computed a covariance)
 //   values:        rms_px, iterations, sigma0, chi2_p_value
 //   converged, residuals_px (reprojection residuals, px, per coordinate)
+//   budget:        predicted 1-sigma contributions of pixel noise and CT noise to the first
+//                  view's rotation and translation (v0_rotation_deg.pixel_noise,
+//                  v0_rotation_deg.ct_noise, v0_translation_mm.*): the covariance
+//                  (A_px + A_ct)^-1 split as Sigma A_px Sigma + Sigma A_ct Sigma (trivial loss,
+//                  refined configs only; their squares add up to the reported variance)
 //
 // Calibration problems (synthetic only; their configs are calibration option files such as
 // configs/calib_thesis.yaml, read with LoadCalibrationOptions):
