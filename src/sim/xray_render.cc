@@ -22,7 +22,8 @@ bool RenderOptions::Check(std::string* error) const {
                       fov_center_u_px,
                       fov_center_v_px,
                       outside_fov_gray,
-                      vignetting};
+                      vignetting,
+                      fov_edge_px};
   for (double x : v) {
     if (!std::isfinite(x)) return *error = "render options: non-finite value", false;
   }
@@ -33,6 +34,7 @@ bool RenderOptions::Check(std::string* error) const {
   if (fov_radius_px < 0) return *error = "fov_radius_px must be >= 0", false;
   if (outside_fov_gray < 0) return *error = "outside_fov_gray must be >= 0", false;
   if (!(vignetting >= 0 && vignetting < 1)) return *error = "vignetting must be in [0, 1)", false;
+  if (fov_edge_px < 0) return *error = "fov edge must be >= 0", false;
   if (!background_gain.empty() && background_gain.type() != CV_32F) {
     return *error = "background_gain must be CV_32F", false;
   }
@@ -254,6 +256,8 @@ StatusOr<cv::Mat> RenderXray(const Camera& camera,
   }
 
   const int W = camera.width, H = camera.height, S = options.supersampling, SS = S * S;
+  const Fov fov = FovOf(camera, options);
+  const double edge_px = fov.circular ? options.fov_edge_px : 0.0;
   cv::Mat expected(H, W, CV_32F);
   std::vector<double> box_t0(boxes.size()), box_t1(boxes.size());
   std::vector<char> box_hit(boxes.size());
@@ -299,7 +303,11 @@ StatusOr<cv::Mat> RenderXray(const Camera& camera,
           }
           double value = options.outside_fov_gray * (SS - n_inside) / SS;
           if (n_inside > 0) {
-            double gain = options.white_level * (1.0 - options.vignetting * grid->radius2(u, v));
+            const float r2 = grid->radius2(u, v);
+            double gain = options.white_level * (1.0 - options.vignetting * r2);
+            if (edge_px > 0) {
+              gain *= std::clamp((fov.r * (1.0 - std::sqrt(r2))) / edge_px, 0.0, 1.0);
+            }
             if (!options.background_gain.empty()) {
               gain *= options.background_gain.at<float>(v, u);
             }

@@ -12,7 +12,8 @@
 //     `outside_fov_gray`; the pixel is the mean over its sub-pixels (an anti-aliased edge).
 //     Inside, the expected grey level is
 //         E = white_level * mean(T) * (1 - vignetting * (r / R)^2) * background_gain(u, v)
-//     with r the distance to the FOV centre and R the FOV radius.
+//             * clamp((R - r) / fov_edge_px, 0, 1)          (the last factor only if edge > 0)
+//     with r the distance of the pixel centre to the FOV centre and R the FOV radius.
 //  4. Quantum noise: N ~ Poisson(E / white_level * photons_per_pixel), grey = N * white_level /
 //     photons_per_pixel (skipped when photons_per_pixel == 0).
 //  5. Detector blur: Gaussian, sigma `blur_sigma_px` (applied after the quanta are detected, as
@@ -49,7 +50,8 @@ struct RenderOptions {
   double fov_center_v_px = -1.0;  // < 0 = image centre ((height - 1) / 2)
   double outside_fov_gray = 0.0;  // grey level outside the field of view
   double vignetting = 0.0;        // relative intensity loss at the FOV edge, in [0, 1)
-  cv::Mat background_gain;        // optional CV_32F, image-sized, multiplicative, values in (0, 1]
+  double fov_edge_px = 0.0;  // width of the linear fall-off to 0 inside the FOV edge; 0 = sharp
+  cv::Mat background_gain;   // optional CV_32F, image-sized, multiplicative, values in (0, 1]
   uint64_t seed = 1;
 
   bool Check(std::string* error) const;

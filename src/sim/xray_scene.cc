@@ -161,6 +161,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   YamlMap& fov = im.Map("fov");
   fov.Get("circular", &r.circular_fov);
   fov.GetPositive("radius_px", &r.fov_radius_px);
+  fov.GetNonNegative("edge_px", &r.fov_edge_px);
   double fov_c[2];
   if (GetVec(fov, "center_px", 2, fov_c)) {
     if (fov_c[0] < 0 || fov_c[1] < 0) {

@@ -19,7 +19,7 @@
 //   imaging:                         # sim/xray_render.h RenderOptions
 //     supersampling: 3, white_level: 220, photons_per_pixel: 3000, read_noise_gray: 0.8,
 //     blur_sigma_px: 0.6, vignetting: 0.2, outside_fov_gray: 0,
-//     fov: {circular: true, radius_px: 204, center_px: [203.5, 203.5]}
+//     fov: {circular: true, radius_px: 204, center_px: [203.5, 203.5], edge_px: 6}
 //     background: {file: /usr/share/doc/libgdcm3.0/examples/00191113.dcm, strength: 0.3,
 //                  crop: 0.6}
 //   materials: {steel: 0.94, ...}    # mu (1/mm): overrides / additions to DefaultMaterials()

@@ -192,6 +192,22 @@ TEST(XrayRender, PerspectiveBiasOfLargeOffAxisSphere) {
   EXPECT_NEAR(c.y(), (*uv)[0].y(), 0.01);
 }
 
+TEST(XrayRender, FieldOfViewEdgeFallsOffLinearly) {
+  const Camera cam = MakeCamera(101, 1000, 0.0);
+  Phantom empty;
+  RenderOptions o = Noiseless(1);
+  o.circular_fov = true;
+  o.fov_radius_px = 40;
+  o.fov_edge_px = 10;
+  auto img = RenderXray(cam, {{&empty, Rigid3()}}, o);
+  ASSERT_TRUE(img.ok());
+  // Along the row through the FOV centre (50, 50): full white up to r = 30, half at r = 35.
+  EXPECT_FLOAT_EQ(img->at<float>(50, 50 + 30), 200.0f);
+  EXPECT_NEAR(img->at<float>(50, 50 + 35), 100.0, 1e-3);
+  EXPECT_NEAR(img->at<float>(50, 50 - 38), 40.0, 1e-3);
+  EXPECT_FLOAT_EQ(img->at<float>(50, 50 + 45), 0.0f);
+}
+
 TEST(XrayRender, QuantumNoiseHasPoissonVariance) {
   const Camera cam = MakeCamera(200, 1500, 0.0);
   Phantom empty;
