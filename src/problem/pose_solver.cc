@@ -262,6 +262,15 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     so.parameter_tolerance = config.parameter_tolerance;
     so.num_threads = config.num_threads;
     so.logging_type = ceres::SILENT;
+    if (so.linear_solver_type == ceres::DENSE_SCHUR || so.linear_solver_type == ceres::SPARSE_SCHUR ||
+        so.linear_solver_type == ceres::ITERATIVE_SCHUR) {
+      // Eliminate the markers first, then the poses: given explicitly, Ceres need not search
+      // for an independent set.
+      auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+      for (auto& [id, p] : markers) ordering->AddElementToGroup(p.data(), 0);
+      for (auto& pose : poses) ordering->AddElementToGroup(pose.data(), 1);
+      so.linear_solver_ordering = ordering;
+    }
     so.minimizer_progress_to_stdout = false;
     ceres::Solver::Summary summary;
     ceres::Solve(so, &cp, &summary);
