@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <map>
 #include <set>
+#include <tuple>
 #include <sstream>
 
 namespace carmba {
@@ -381,58 +382,76 @@ std::string ErrorBudget(const std::vector<GroupSummary>& groups,
                         const std::vector<std::string>& configs) {
   std::string html;
   for (const auto& problem : problems) {
-    // Mean over the sweep points of each config's budget entries; fall back to median errors.
-    std::vector<std::string> sources;
+    // Entries "quantity.source" (e.g. v0_rotation_deg.pixel_noise), averaged over the sweep
+    // points; one grouped bar chart per quantity with a bar per source in each config's slot.
+    // Without a budget in the runs, the median errors (one "source") stand in.
     bool have_budget = false;
     for (const auto& g : groups) {
       if (g.problem == problem && !g.budget.empty()) have_budget = true;
     }
-    std::map<std::pair<std::string, std::string>, std::pair<double, int>> value;
+    std::vector<std::string> quantities, sources;
+    // (config, quantity, source) -> (sum, count)
+    std::map<std::tuple<std::string, std::string, std::string>, std::pair<double, int>> value;
+    auto add = [&](const std::string& config, const std::string& entry, double v) {
+      const auto dot = entry.rfind('.');
+      const std::string q = dot == std::string::npos ? entry : entry.substr(0, dot);
+      const std::string src = dot == std::string::npos
+                                  ? std::string(have_budget ? "total" : "median error")
+                                  : entry.substr(dot + 1);
+      AddUnique(&quantities, q);
+      AddUnique(&sources, src);
+      auto& x = value[{config, q, src}];
+      x.first += v;
+      ++x.second;
+    };
     for (const auto& g : groups) {
       if (g.problem != problem) continue;
       if (have_budget) {
-        for (const auto& b : g.budget) {
-          AddUnique(&sources, b.first);
-          auto& v = value[{g.config, b.first}];
-          v.first += b.second;
-          ++v.second;
-        }
+        for (const auto& b : g.budget) add(g.config, b.first, b.second);
       } else {
         for (const auto& m : g.metrics) {
-          if (m.kind != "error" || m.n == 0) continue;
-          AddUnique(&sources, m.name);
-          auto& v = value[{g.config, m.name}];
-          v.first += m.median;
-          ++v.second;
+          if (m.kind == "error" && m.n > 0) add(g.config, m.name, m.median);
         }
       }
     }
-    if (sources.empty()) continue;
-    for (const auto& source : sources) {
+    for (const auto& q : quantities) {
       double hi = 0;
-      for (const auto& kv : value) {
-        if (kv.first.second == source) hi = std::max(hi, kv.second.first / kv.second.second);
+      for (const auto& c : configs) {
+        for (const auto& src : sources) {
+          auto it = value.find({c, q, src});
+          if (it != value.end()) hi = std::max(hi, it->second.first / it->second.second);
+        }
       }
+      if (!(hi > 0)) continue;
       SvgPlot plot("error-budget",
-                   problem + ": " + (have_budget ? "error budget, " : "median error, ") + source,
-                   "config", source);
-      const double n = static_cast<double>(configs.size());
-      plot.SetRange(0, n, 0, hi > 0 ? hi * 1.1 : 1, false, false);
+                   problem + ": " + (have_budget ? "predicted error budget of " : "median ") + q,
+                   "config", have_budget ? q + " (1 sigma)" : q);
+      plot.SetRange(0, static_cast<double>(configs.size()), 0, hi * 1.1, false, false);
       std::vector<std::pair<double, std::string>> labels;
+      const double width = 0.7 / static_cast<double>(sources.size());
       for (size_t c = 0; c < configs.size(); ++c) {
-        auto it = value.find({configs[c], source});
         labels.emplace_back(c + 0.5, configs[c]);
-        if (it == value.end()) continue;
-        const double v = it->second.first / it->second.second;
-        plot.Bar(c + 0.15, c + 0.85, v, Color(c), configs[c] + ": " + Tick(v));
+        for (size_t k = 0; k < sources.size(); ++k) {
+          auto it = value.find({configs[c], q, sources[k]});
+          if (it == value.end()) continue;
+          const double v = it->second.first / it->second.second;
+          const double x0 = c + 0.15 + width * k;
+          plot.Bar(x0, x0 + width, v, Color(have_budget ? k : c),
+                   configs[c] + " " + sources[k] + ": " + Tick(v));
+        }
+      }
+      if (have_budget) {
+        for (size_t k = 0; k < sources.size(); ++k) plot.Legend(sources[k], Color(k));
       }
       plot.Categories(labels);
       html += "<figure>" + plot.Svg() + "<figcaption>" +
-              (have_budget ? "Mean predicted contribution of " + Esc(source) +
-                                 " per config (the runs' \"budget\"), averaged over sweep points."
-                           : "Median " + Esc(source) +
-                                 " per config, averaged over sweep points (the runs report no "
-                                 "error budget).") +
+              (have_budget
+                   ? "Predicted 1-sigma contribution of each noise source to " + Esc(q) +
+                         " per config (the runs' \"budget\"; the squares add up to the reported "
+                         "variance), averaged over trials and sweep points."
+                   : "Median " + Esc(q) +
+                         " per config, averaged over sweep points (the runs report no error "
+                         "budget).") +
               "</figcaption></figure>\n";
     }
   }

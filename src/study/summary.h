@@ -7,9 +7,9 @@
 // shards, provided the run function returns the same numbers for the same run. (The pose solver
 // does up to the last bits: Ceres was observed to vary by ~1e-15 relative between identical
 // calls; %.6g hides that except when a number falls exactly on a rounding boundary, a chance of
-// about 1e-9 per printed number.) Wall-clock times vary from run to run; they are kept out of summary.csv (they go to
-// timing.csv) and sit in the last section of summary.md, "## Timing", which the equality tests
-// cut off.
+// about 1e-9 per printed number.) Wall-clock times vary from run to run; they are kept out of
+// summary.csv (they go to timing.csv) and sit in the last section of summary.md, "## Timing",
+// which the equality tests cut off.
 //
 // summary.csv is long-format, one row per group and metric:
 //   problem,config,<one column per swept variable>,runs,failed,kind,metric,n,mean,median,rms,
