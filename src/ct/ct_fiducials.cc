@@ -96,6 +96,7 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
   if (!volume.ok()) return volume.status();
   r.read_seconds = Seconds(t0);
   r.skipped_files = static_cast<int>(skipped.size());
+  r.skipped = skipped;
   MarkerDetectionOptions detect = options.detect;
   if (detect.expected_count == 0 && !r.model.empty()) {
     detect.expected_count = static_cast<int>(r.model.size());
@@ -226,7 +227,11 @@ std::string FormatFiducialsReport(const CtFiducialsResult& r, const std::string&
     << F("%.3f", g.slice_thickness_mm) << " mm), slice axes (row, column, stack) "
     << V3(g.axes.col(0), "%.4f") << ", " << V3(g.axes.col(1), "%.4f") << ", "
     << V3(g.axes.col(2), "%.4f") << ", first voxel at " << V3(g.origin_mm) << " mm";
-  if (r.skipped_files) o << "; " << r.skipped_files << " non-image file(s) skipped";
+  if (r.skipped_files) {
+    o << "; " << r.skipped_files << " non-image file(s) skipped:";
+    for (size_t a = 0; a < r.skipped.size() && a < 10; ++a) o << " `" << BaseName(r.skipped[a]) << "`";
+    if (r.skipped.size() > 10) o << " ...";
+  }
   o << ".\n\n";
   o << "Detection: threshold " << F("%.0f", d.threshold_hu) << " HU, 26-connected components, "
     << "nominal diameter " << F("%.3g", d.diameter_mm) << " mm, core volume accepted within "

@@ -52,6 +52,7 @@ struct CtFiducialsResult {
   std::string dicom_dir;
   CtVolume geometry;                    // the series' geometry (hu left empty)
   int skipped_files = 0;
+  std::vector<std::string> skipped;     // the skipped (non-image) files
   MarkerDetection detection;            // markers with final ids, sorted by id
   bool labelled = false;
   Labelling labelling;                  // when labelled; model_index re-ordered with the markers

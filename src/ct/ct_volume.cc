@@ -19,6 +19,7 @@
 #include <map>
 #include <sstream>
 #include <system_error>
+#include <fcntl.h>
 #include <unistd.h>
 
 #include "util/file_util.h"
@@ -27,6 +28,29 @@ namespace carmba {
 namespace fs = std::filesystem;
 
 namespace {
+
+// Silences file descriptor 2 while alive: codecs inside GDCM (OpenJPEG) print their own
+// messages for undecodable data, which would break our one-line error convention.
+class QuietStderr {
+ public:
+  QuietStderr() {
+    std::fflush(stderr);
+    saved_ = ::dup(2);
+    const int null_fd = ::open("/dev/null", O_WRONLY);
+    if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, 2);
+    if (null_fd >= 0) ::close(null_fd);
+  }
+  ~QuietStderr() {
+    std::fflush(stderr);
+    if (saved_ >= 0) {
+      ::dup2(saved_, 2);
+      ::close(saved_);
+    }
+  }
+
+ private:
+  int saved_ = -1;
+};
 
 // Quiet GDCM: its warnings go to stderr; ours are Status messages.
 void SilenceGdcm() {
@@ -278,10 +302,19 @@ Status ReadSlice(const std::string& path, Slice* slice, bool* is_image) {
   }
   gdcm::ImageReader reader;
   reader.SetFileName(path.c_str());
-  if (!reader.Read()) {
+  bool read_ok;
+  {
+    QuietStderr quiet;
+    read_ok = reader.Read();
+  }
+  if (!read_ok) {
     gdcm::Reader plain;
     plain.SetFileName(path.c_str());
-    const bool parsed = plain.Read();
+    bool parsed;
+    {
+      QuietStderr quiet;
+      parsed = plain.Read();
+    }
     if (parsed) {
       const gdcm::DataSet& ds = plain.GetFile().GetDataSet();
       if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) {
@@ -351,7 +384,12 @@ Status ReadSlice(const std::string& path, Slice* slice, bool* is_image) {
 
   const size_t n = static_cast<size_t>(slice->rows) * slice->columns;
   std::vector<char> raw(image.GetBufferLength());
-  if (!image.GetBuffer(raw.data())) {
+  bool decoded;
+  {
+    QuietStderr quiet;
+    decoded = image.GetBuffer(raw.data());
+  }
+  if (!decoded) {
     const gdcm::TransferSyntax& ts = file.GetHeader().GetDataSetTransferSyntax();
     return Status::Error(path + ": GDCM cannot decode the pixel data (transfer syntax " +
                          std::string(gdcm::TransferSyntax::GetTSString(ts)) + ")");
