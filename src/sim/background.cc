@@ -1,12 +1,15 @@
 // LoadBackgroundGain (sim/xray_render.h): reads a real X-ray frame (DICOM through GDCM, or any
 // image OpenCV reads) and turns it into a multiplicative background.
+#include <fcntl.h>
 #include <gdcmImage.h>
 #include <gdcmImageReader.h>
 #include <gdcmPhotometricInterpretation.h>
 #include <gdcmPixelFormat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -19,7 +22,31 @@ namespace carmba::sim {
 
 namespace {
 
+// Silences stderr (fd 2) for its lifetime: libpng and GDCM print their own multi-line
+// diagnostics there, while carmba reports one line per error.
+class QuietStderr {
+ public:
+  QuietStderr() {
+    std::fflush(stderr);
+    saved_ = ::dup(2);
+    const int null_fd = ::open("/dev/null", O_WRONLY);
+    if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, 2);
+    if (null_fd >= 0) ::close(null_fd);
+  }
+  ~QuietStderr() {
+    std::fflush(stderr);
+    if (saved_ >= 0) {
+      ::dup2(saved_, 2);
+      ::close(saved_);
+    }
+  }
+
+ private:
+  int saved_ = -1;
+};
+
 StatusOr<cv::Mat> ReadDicomFrame(const std::string& path) {
+  QuietStderr quiet;  // GDCM writes its warnings and errors to std::cerr
   gdcm::ImageReader reader;
   reader.SetFileName(path.c_str());
   if (!reader.Read()) return Status::Error(path + ": not a readable DICOM image");
@@ -82,7 +109,11 @@ StatusOr<cv::Mat> LoadBackgroundGain(
     if (!f.ok()) return f.status();
     frame = *f;
   } else {
-    cv::Mat raw = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+    cv::Mat raw;
+    {
+      QuietStderr quiet;
+      raw = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+    }
     if (raw.empty()) return Status::Error(path + ": not an image OpenCV can read");
     raw.convertTo(frame, CV_32F);
   }

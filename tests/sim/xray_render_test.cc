@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
 #include "camera/camera_model.h"
@@ -312,6 +313,24 @@ TEST(XrayRender, BackgroundFromRealDicomFrame) {
   EXPECT_GT(hi - lo, 0.1);  // real anatomy has contrast
   EXPECT_FALSE(LoadBackgroundGain("/nonexistent.dcm", 64, 64, 0.5, 1).ok());
   EXPECT_FALSE(LoadBackgroundGain(dcm, 64, 64, 1.5, 1).ok());
+  // Corrupt files: one error, and nothing printed by GDCM or libpng.
+  const std::string dir = testing::TempDir() + "/carmba_sim_background";
+  std::filesystem::create_directories(dir);
+  {
+    std::ifstream in(dcm, std::ios::binary);
+    std::string head(3000, '\0');
+    in.read(&head[0], head.size());
+    std::ofstream(dir + "/truncated.dcm", std::ios::binary) << head;
+    std::ofstream(dir + "/truncated.png", std::ios::binary) << "\x89PNG\r\n\x1a\n" << head;
+  }
+  for (const std::string name : {"truncated.dcm", "truncated.png"}) {
+    testing::internal::CaptureStderr();
+    auto bad = LoadBackgroundGain(dir + "/" + name, 64, 64, 0.5, 1);
+    const std::string printed = testing::internal::GetCapturedStderr();
+    ASSERT_FALSE(bad.ok()) << name;
+    EXPECT_NE(bad.status().message().find(name), std::string::npos);
+    EXPECT_EQ(printed, "") << name;
+  }
 }
 
 }  // namespace
