@@ -68,6 +68,24 @@ def main():
     for core_only_first, _ in stages:
         inputs['do_optimize_intrinsics_distortions'] = core_only_first
         stats = mrcal.optimize(**inputs)
+    seed_note = None
+    x_ours = None
+    if seed == 'seed_stereographic':
+        # If mrcal's own seed led to a worse local minimum than carmba's solution, say so and
+        # re-solve from carmba's solution (the comparison is then of the optimum, not the seeding).
+        chk = dict(inputs)
+        chk['intrinsics'] = np.array([inp['carmba']['intrinsics']], dtype=float)
+        chk['frames_rt_toref'] = np.array(inp['carmba']['poses'], dtype=float)
+        chk['do_optimize_intrinsics_distortions'] = True
+        x_ours = mrcal.optimizer_callback(**chk, no_jacobian=True, no_factorization=True)[1]
+        rms_ours = float(np.sqrt(np.mean(x_ours * x_ours)))
+        if stats['rms_reproj_error__pixels'] > 1.01 * rms_ours:
+            seed_note = ('mrcal from its own seed reached RMS %.6g px (carmba: %.6g px), a worse '
+                         'local minimum; re-solved from carmba\'s solution' %
+                         (stats['rms_reproj_error__pixels'], rms_ours))
+            inputs = chk
+            stats = mrcal.optimize(**inputs)
+            seed = "carmba's solution (after mrcal's own seed failed)"
     t_solve = time.time() - t0
     model_mrcal = mrcal.cameramodel(optimization_inputs=inputs, icam_intrinsics=0)
 
@@ -159,6 +177,7 @@ def main():
         diffs[name] = diff(intrinsics)
     out = {
         'seed': seed,
+        'seed_note': seed_note,
         'solve_seconds': t_solve,
         'intrinsics': model_mrcal.intrinsics()[1].tolist(),
         'rms_px': float(stats['rms_reproj_error__pixels']),

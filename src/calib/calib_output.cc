@@ -186,10 +186,10 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
     if (m) {
       double a = NAN, b = NAN;
       for (const auto& e : (*m)["projection_uncertainty_carmba_solution"]) {
-        if (e["where"] == p.where) a = e["worst_px"].get<double>();
+        if (e["where"] == p.where && e["worst_px"].is_number()) a = e["worst_px"].get<double>();
       }
       for (const auto& e : (*m)["projection_uncertainty_mrcal"]) {
-        if (e["where"] == p.where) b = e["worst_px"].get<double>();
+        if (e["where"] == p.where && e["worst_px"].is_number()) b = e["worst_px"].get<double>();
       }
       o << " " << F(a) << " | " << F(b) << " |";
     }
@@ -206,6 +206,11 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
          "rejection, seeded by "
       << (*m)["seed"].get<std::string>() << "; solve " << F((*m)["solve_seconds"].get<double>(), 3)
       << " s.\n";
+    if ((*m).contains("seed_note") && (*m)["seed_note"].is_string()) {
+      o << "\n**Seeding**: " << (*m)["seed_note"].get<std::string>() << ".\n";
+    }
+    o << "\nmrcal's RMS divides by all rows x cols points of every view (missing points count as "
+         "zero residuals); carmba's by the observed points.\n";
     if (!same_model) {
       o << "\n**Not the same problem**: carmba held some intrinsics or used a robust loss; mrcal "
            "always estimates all 9 (it cannot fix single parameters). The comparison below is "

@@ -113,6 +113,33 @@ bool RefineCentroid(const cv::Mat& f, bool dark, double radius, cv::Point2d* c) 
   return true;
 }
 
+// A SimpleBlobDetector that drops blobs touching the field-of-view border (the vignetted rim next
+// to the masked-out area looks like a chain of dark blobs). findCirclesGrid calls detect().
+class MaskedBlobDetector : public cv::Feature2D {
+ public:
+  MaskedBlobDetector(cv::Ptr<cv::SimpleBlobDetector> inner, cv::Mat border_distance)
+      : inner_(std::move(inner)), dist_(std::move(border_distance)) {}
+  void detect(cv::InputArray image,
+              std::vector<cv::KeyPoint>& keypoints,
+              cv::InputArray mask = cv::noArray()) override {
+    std::vector<cv::KeyPoint> all;
+    inner_->detect(image, all, mask);
+    keypoints.clear();
+    for (const auto& k : all) {
+      const int x = std::clamp(static_cast<int>(std::lround(k.pt.x)), 0, dist_.cols - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(k.pt.y)), 0, dist_.rows - 1);
+      if (dist_.at<float>(y, x) > 0.5f * k.size) keypoints.push_back(k);
+    }
+    last_count_ = static_cast<int>(keypoints.size());
+  }
+  int last_count() const { return last_count_; }
+
+ private:
+  cv::Ptr<cv::SimpleBlobDetector> inner_;
+  cv::Mat dist_;
+  int last_count_ = 0;
+};
+
 }  // namespace
 
 GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& o) {
@@ -185,14 +212,11 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
         cv::circle(circle_mask, c, static_cast<int>(rad - o.fov_margin_px), cv::Scalar(255),
                    cv::FILLED);
         cv::bitwise_and(mask, circle_mask, mask);
-        if (o.fov_margin_px > 0) {
-          const int k = 2 * static_cast<int>(o.fov_margin_px) + 1;
-          cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
-        }
       }
     }
   }
-  // 8-bit working image stretched over the 1..99 % range inside the mask; outside = median.
+  // 8-bit working image stretched over the 1..99 % range inside the mask. The outside is left as
+  // it is: blobs there or on the rim are dropped by their distance to the mask border.
   std::vector<float> vals;
   vals.reserve(f.total());
   for (int y = 0; y < f.rows; ++y) {
@@ -218,10 +242,15 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   }
   cv::Mat work;
   f.convertTo(work, CV_8U, 255.0 / (p99 - p01), -255.0 * p01 / (p99 - p01));
-  const uint8_t fill =
-      static_cast<uint8_t>(std::clamp(255.0 * (med - p01) / (p99 - p01), 0.0, 255.0));
-  work.setTo(cv::Scalar(fill), ~mask);
+  (void)med;
 
+  cv::Mat border_distance;
+  {
+    cv::Mat padded;
+    cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::distanceTransform(padded, border_distance, cv::DIST_L2, 3);
+    border_distance = border_distance(cv::Rect(1, 1, mask.cols, mask.rows)).clone();
+  }
   std::vector<cv::Point2f> centres;
   bool dark = true;
   const bool circles = grid.pattern != GridPattern::kChessboard;
@@ -243,27 +272,41 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       p.minInertiaRatio = 0.3f;
       p.minThreshold = 10;
       p.maxThreshold = 245;
-      p.thresholdStep = 10;
+      p.thresholdStep = 20;
       p.minDistBetweenBlobs = 3;
-      auto detector = cv::SimpleBlobDetector::create(p);
-      std::vector<cv::KeyPoint> kps;
-      detector->detect(work, kps);
-      most_blobs = std::max(most_blobs, static_cast<int>(kps.size()));
-      if (static_cast<int>(kps.size()) < grid.NumPoints()) continue;
+      auto detector =
+          cv::makePtr<MaskedBlobDetector>(cv::SimpleBlobDetector::create(p), border_distance);
       const int flags = grid.pattern == GridPattern::kAsymmetricCircles
                             ? cv::CALIB_CB_ASYMMETRIC_GRID
                             : cv::CALIB_CB_SYMMETRIC_GRID;
+      // OpenCV's symmetric grid finder depends on the order of the pattern size: try the
+      // transposed size too (then transpose the ordering back), with and without clustering.
       std::vector<cv::Point2f> found;
-      if (cv::findCirclesGrid(work, size, found, flags, detector) &&
-          static_cast<int>(found.size()) == grid.NumPoints()) {
-        centres = found;
-        dark = d;
-        det.polarity = d ? "dark" : "bright";
-        break;
+      bool ok = false;
+      for (int attempt = 0; attempt < 4 && !ok; ++attempt) {
+        const bool transposed = attempt % 2 == 1;
+        const bool clustering = attempt >= 2;
+        if (transposed && (grid.rows == grid.cols || grid.pattern != GridPattern::kCircles)) continue;
+        if (clustering && grid.pattern != GridPattern::kCircles) continue;
+        if (attempt > 0 && detector->last_count() < grid.NumPoints()) break;
+        const cv::Size try_size = transposed ? cv::Size(grid.rows, grid.cols) : size;
+        std::vector<cv::Point2f> f2;
+        ok = cv::findCirclesGrid(work, try_size, f2,
+                                 flags | (clustering ? cv::CALIB_CB_CLUSTERING : 0), detector) &&
+             static_cast<int>(f2.size()) == grid.NumPoints();
+        most_blobs = std::max(most_blobs, detector->last_count());
+        if (!ok) continue;
+        if (transposed) {
+          // f2[r' * rows + c'] is plate point (row c', col r').
+          found.assign(f2.size(), cv::Point2f());
+          for (int rp = 0; rp < grid.cols; ++rp) {
+            for (int cp = 0; cp < grid.rows; ++cp) found[cp * grid.cols + rp] = f2[rp * grid.rows + cp];
+          }
+        } else {
+          found = f2;
+        }
       }
-      if (grid.pattern == GridPattern::kCircles &&
-          cv::findCirclesGrid(work, size, found, flags | cv::CALIB_CB_CLUSTERING, detector) &&
-          static_cast<int>(found.size()) == grid.NumPoints()) {
+      if (ok) {
         centres = found;
         dark = d;
         det.polarity = d ? "dark" : "bright";
@@ -298,14 +341,6 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
     centres = found;
   }
 
-  // Every point well inside the field of view.
-  for (const auto& c : centres) {
-    const int x = static_cast<int>(std::lround(c.x)), y = static_cast<int>(std::lround(c.y));
-    if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows || !mask.at<uint8_t>(y, x)) {
-      det.reason = "grid partly outside the field of view (a point on the mask border)";
-      return det;
-    }
-  }
   // Sub-pixel centroids (circles) on the float image.
   std::vector<cv::Point2d> pts(centres.begin(), centres.end());
   if (circles && o.refine) {
@@ -322,21 +357,77 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       if (RefineCentroid(fm, dark, 0.35 * pitch, &q) && cv::norm(q - p) < 0.2 * pitch) p = q;
     }
   }
-  // Right-handed ordering in the image for symmetric patterns.
-  if (grid.pattern != GridPattern::kAsymmetricCircles) {
-    const cv::Point2d a = pts[1] - pts[0];
-    const cv::Point2d b = pts[grid.cols] - pts[0];
-    if (a.x * b.y - a.y * b.x < 0) {
-      std::vector<cv::Point2d> flipped(pts.size());
-      for (int r = 0; r < grid.rows; ++r) {
-        for (int c = 0; c < grid.cols; ++c) {
-          flipped[r * grid.cols + c] = pts[r * grid.cols + (grid.cols - 1 - c)];
-        }
+  // Points whose blob touches the field-of-view border are dropped (their centre is pulled by
+  // the rim); the view keeps the others.
+  std::vector<int> kept;
+  {
+    double pitch_px = 1e30;
+    for (int r = 0; r < grid.rows; ++r) {
+      for (int c = 0; c + 1 < grid.cols; ++c) {
+        pitch_px = std::min(pitch_px, cv::norm(pts[r * grid.cols + c + 1] - pts[r * grid.cols + c]));
       }
-      pts = flipped;
+    }
+    if (grid.pattern == GridPattern::kAsymmetricCircles) pitch_px *= 0.5;
+    for (int id = 0; id < grid.NumPoints(); ++id) {
+      const int x = static_cast<int>(std::lround(pts[id].x)), y = static_cast<int>(std::lround(pts[id].y));
+      if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) continue;
+      if (circles && border_distance.at<float>(y, x) < 0.2 * pitch_px) continue;
+      if (!circles && !mask.at<uint8_t>(y, x)) continue;
+      kept.push_back(id);
+    }
+    if (static_cast<int>(kept.size()) < std::max(4, grid.NumPoints() / 2)) {
+      det.reason = "grid partly outside the field of view (" + std::to_string(kept.size()) + " of " +
+                   std::to_string(grid.NumPoints()) + " points clear of its border)";
+      return det;
+    }
+    // The points must lie on a grid: a homography from the plate explains them to within 30 % of
+    // the pitch (lens distortion over a plate stays below that; a wrong blob does not).
+    std::vector<cv::Point2f> plate_xy, image_xy;
+    for (int id : kept) {
+      const Eigen::Vector3d P = grid.PointInPlate(id);
+      plate_xy.emplace_back(P.x(), P.y());
+      image_xy.emplace_back(pts[id]);
+    }
+    const cv::Mat Hm = cv::findHomography(plate_xy, image_xy, 0);
+    if (Hm.empty()) {
+      det.reason = "ambiguous grid ordering (no homography from the plate)";
+      return det;
+    }
+    std::vector<cv::Point2f> mapped;
+    cv::perspectiveTransform(plate_xy, mapped, Hm);
+    double worst = 0;
+    for (size_t i = 0; i < mapped.size(); ++i) worst = std::max(worst, cv::norm(mapped[i] - image_xy[i]));
+    if (worst > 0.3 * pitch_px) {
+      det.reason = "ambiguous grid ordering: a point is " + std::to_string(worst) +
+                   " px off the fitted grid (a wrong blob?)";
+      return det;
+    }
+    // Right-handed ordering in the image for symmetric patterns: the plate's x and y axes map to
+    // image directions with a positive cross product (Jacobian of H at the grid's first point).
+    if (grid.pattern != GridPattern::kAsymmetricCircles) {
+      const Eigen::Vector3d P0 = grid.PointInPlate(kept[0]);
+      const double h[9] = {Hm.at<double>(0, 0), Hm.at<double>(0, 1), Hm.at<double>(0, 2),
+                           Hm.at<double>(1, 0), Hm.at<double>(1, 1), Hm.at<double>(1, 2),
+                           Hm.at<double>(2, 0), Hm.at<double>(2, 1), Hm.at<double>(2, 2)};
+      const double w = h[6] * P0.x() + h[7] * P0.y() + h[8];
+      const double u = (h[0] * P0.x() + h[1] * P0.y() + h[2]) / w;
+      const double v = (h[3] * P0.x() + h[4] * P0.y() + h[5]) / w;
+      const double du_dx = (h[0] - u * h[6]) / w, du_dy = (h[1] - u * h[7]) / w;
+      const double dv_dx = (h[3] - v * h[6]) / w, dv_dy = (h[4] - v * h[7]) / w;
+      if (du_dx * dv_dy - du_dy * dv_dx < 0) {
+        std::vector<cv::Point2d> flipped(pts.size());
+        for (int r = 0; r < grid.rows; ++r) {
+          for (int c = 0; c < grid.cols; ++c) {
+            flipped[r * grid.cols + c] = pts[r * grid.cols + (grid.cols - 1 - c)];
+          }
+        }
+        pts = flipped;
+        for (int& id : kept) id = (id / grid.cols) * grid.cols + (grid.cols - 1 - id % grid.cols);
+        std::sort(kept.begin(), kept.end());
+      }
     }
   }
-  for (int id = 0; id < grid.NumPoints(); ++id) {
+  for (int id : kept) {
     det.view.point_ids.push_back(id);
     det.view.uv_px.emplace_back(pts[id].x + offset.x, pts[id].y + offset.y);
   }

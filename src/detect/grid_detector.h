@@ -40,7 +40,7 @@ struct DetectionOptions {
   // Find the image intensifier's circular field of view and mask outside it.
   bool auto_fov_mask = true;
   // Shrink the field-of-view circle by this many px (its rim is blurred).
-  double fov_margin_px = 4;
+  double fov_margin_px = 2;
   // Blob area limits (px^2) for circle grids.
   double min_blob_area_px = 6;
   double max_blob_area_px = 20000;
