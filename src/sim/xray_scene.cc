@@ -64,6 +64,17 @@ nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 }  // namespace
 
+uint64_t ViewSeed(uint64_t seed, int index) {
+  return SplitMix64(seed * 0x100000001B3ull + static_cast<uint64_t>(index)) >> 11;
+}
+
+void ReseedXrayScene(uint64_t seed, XrayScene* scene) {
+  scene->seed = seed;
+  for (size_t i = 0; i < scene->views.size(); ++i) {
+    scene->views[i].seed = ViewSeed(seed, static_cast<int>(i));
+  }
+}
+
 Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   XrayScene s;
   s.path = scene.file();
@@ -291,7 +302,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     GetVec(vm, "object_rotation_deg", 3, rot.data());
     GetVec(vm, "object_center_mm", 3, ctr.data());
     v.world_from_object = ObjectPlacement(centroid, rot, ctr);
-    v.seed = SplitMix64(s.seed * 0x100000001B3ull + i) >> 11;  // 53 bits: exact in JSON doubles
+    v.seed = ViewSeed(s.seed, static_cast<int>(i));
     s.views.push_back(v);
   }
 

@@ -102,6 +102,11 @@ struct XrayScene {
   }
 };
 
+// The noise seed of view `index` of a scene with seed `seed` (53 bits, exact in JSON).
+uint64_t ViewSeed(uint64_t seed, int index);
+// Sets the scene's seed and re-derives every view's seed (Monte Carlo studies over noise).
+void ReseedXrayScene(uint64_t seed, XrayScene* scene);
+
 // Reads the X-ray scene keys (all of the above, including `kind`) and calls scene.Finish().
 // Then checks every view's projection against the field of view.
 Status ParseXrayScene(YamlMap& scene, XrayScene* out);

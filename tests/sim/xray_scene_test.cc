@@ -92,6 +92,13 @@ TEST(XrayScene, BaseSceneParsesAndTruthMatchesCameraModel) {
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(cv::norm(a->image, b->image, cv::NORM_INF), 0.0);
   EXPECT_NE(scene->views[0].seed, scene->views[1].seed);
+  // Reseeding changes the noise, not the geometry.
+  XrayScene other = *scene;
+  ReseedXrayScene(99, &other);
+  auto c = RenderXrayView(other, 0);
+  ASSERT_TRUE(c.ok());
+  EXPECT_GT(cv::norm(a->image, c->image, cv::NORM_INF), 0.0);
+  EXPECT_EQ(c->truth["centers_px"], a->truth["centers_px"]);
 }
 
 TEST(XrayScene, ShippedScenesLoadWithEveryViewInsideTheFieldOfView) {
