@@ -29,6 +29,9 @@
 //      "where the marker happens to sit in the voxel grid"; it dominates with thick slices.
 //    The model neglects correlated noise, beam hardening and streaks near metal, and marker
 //    diameters different from the nominal one.
+// Sheared (gantry-tilted) volumes: the ROI distances and the covariance's axis frame treat the
+// volume axes as orthogonal (an approximation of the order of the shear angle); the centre, a
+// weighted mean of voxel indices mapped through the affine voxel-to-patient map, is unaffected.
 #pragma once
 
 #include <Eigen/Core>
