@@ -22,6 +22,9 @@ DEFINE_double(diameter_mm, 2.0, "Nominal marker diameter, mm.");
 DEFINE_int32(expected, 0, "Number of markers expected (0: the model's count, or any).");
 DEFINE_double(threshold_hu, 1000, "HU threshold of the marker cores.");
 DEFINE_double(label_tolerance_mm, 1.5, "Pairwise distance tolerance of the labelling, mm.");
+DEFINE_double(extra_sigma_mm, 0, "Isotropic sigma (mm) added in quadrature to every covariance "
+                                 "for effects the model leaves out on real scans (metal "
+                                 "streaks, kernel); 0 for simulated data.");
 DEFINE_string(frame, "patient", "Output frame: patient | model (rigid fit to --model) | "
                                 "marker:K (origin at marker K, patient axes).");
 // --out (the fiducials CSV) is shared: cli/common_flags.h.
@@ -45,6 +48,7 @@ int RunCtFiducials() {
   options.detect.threshold_hu = FLAGS_threshold_hu;
   options.label_tolerance_mm = FLAGS_label_tolerance_mm;
   options.frame = FLAGS_frame;
+  options.extra_sigma_mm = FLAGS_extra_sigma_mm;
   std::string error;
   if (!options.Check(&error)) return carmba::cli::Fail(cmd, error);
   auto result = carmba::ComputeCtFiducials(FLAGS_dicom, options);

@@ -57,6 +57,10 @@ std::string BaseName(const std::string& p) {
 
 bool CtFiducialsOptions::Check(std::string* error) const {
   if (!read.Check(error) || !detect.Check(error)) return false;
+  if (!(extra_sigma_mm >= 0) || !std::isfinite(extra_sigma_mm)) {
+    *error = "extra sigma must be >= 0 mm";
+    return false;
+  }
   if (!(label_tolerance_mm > 0)) {
     *error = "labelling tolerance must be > 0 mm";
     return false;
@@ -112,6 +116,11 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
   r.geometry.hu.shrink_to_fit();
 
   auto& markers = r.detection.markers;
+  r.extra_sigma_mm = options.extra_sigma_mm;
+  for (auto& m : markers) {
+    m.covariance_mm2 += options.extra_sigma_mm * options.extra_sigma_mm *
+                        Eigen::Matrix3d::Identity();
+  }
   if (!r.model.empty()) {
     std::vector<Eigen::Vector3d> found;
     for (const auto& m : markers) found.push_back(m.centre_mm);
@@ -197,7 +206,9 @@ std::string FormatFiducialsCsv(const CtFiducialsResult& r) {
   }
   o << "# covariance (mm^2): voxel noise (local MAD) + sub-voxel sampling of a "
     << F("%.3g", r.detect_options.diameter_mm)
-    << " mm ball; frame uncertainty not included. volume_mm3: voxels >= "
+    << " mm ball"
+    << (r.extra_sigma_mm > 0 ? " + (" + F("%.4g", r.extra_sigma_mm) + " mm)^2 I" : "")
+    << "; frame uncertainty not included. volume_mm3: voxels >= "
     << F("%.0f", r.detect_options.threshold_hu) << " HU\n";
   o << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,volume_mm3,peak_hu\n";
   for (const auto& m : r.detection.markers) {
@@ -296,7 +307,12 @@ std::string FormatFiducialsReport(const CtFiducialsResult& r, const std::string&
        "propagated through the weighted centroid, the background level's error, and the "
        "sub-voxel sampling error of a "
     << F("%.3g", d.diameter_mm)
-    << " mm ball box-filtered over each voxel (variance over a uniform sub-voxel phase). "
+    << " mm ball box-filtered over each voxel (variance over a uniform sub-voxel phase)"
+    << (r.extra_sigma_mm > 0
+            ? ", plus an isotropic (" + F("%.4g", r.extra_sigma_mm) + " mm)^2 for what the model "
+              "leaves out"
+            : std::string())
+    << ". "
        "Correlated noise, streaks and beam hardening near metal are not modelled; the frame's "
        "own uncertainty is not added.\n";
   return o.str();

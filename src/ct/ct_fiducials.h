@@ -44,6 +44,10 @@ struct CtFiducialsOptions {
   std::vector<std::string> model_columns;   // empty: auto (see ReadModelCsv)
   double label_tolerance_mm = 1.5;          // pairwise distance tolerance of the labelling
   std::string frame = "patient";            // "patient" | "model" | "marker:K"
+  // Isotropic sigma (mm) added in quadrature to every covariance, for what the model leaves out
+  // on real scans (streaks and beam hardening near metal, reconstruction kernel, marker shape):
+  // C += extra_sigma_mm^2 I. 0 on simulated data.
+  double extra_sigma_mm = 0;
 
   bool Check(std::string* error) const;
 };
@@ -63,6 +67,7 @@ struct CtFiducialsResult {
   double read_seconds = 0, detect_seconds = 0;
   MarkerDetectionOptions detect_options;
   std::string model_csv;
+  double extra_sigma_mm = 0;
 };
 
 StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,

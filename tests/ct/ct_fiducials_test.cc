@@ -135,6 +135,20 @@ TEST_F(CtFiducialsPipeline, ModelLabelsAndFramesAndCsvRoundTrip) {
   EXPECT_TRUE(fs::exists(dir_.File("fid.object_from_ct.json")));
 }
 
+TEST_F(CtFiducialsPipeline, ExtraSigmaIsAddedInQuadrature) {
+  CtFiducialsOptions opt;
+  auto a = ComputeCtFiducials(dir_.File("ct"), opt);
+  opt.extra_sigma_mm = 0.1;
+  auto b = ComputeCtFiducials(dir_.File("ct"), opt);
+  ASSERT_TRUE(a.ok() && b.ok());
+  const Eigen::Matrix3d diff =
+      b->detection.markers[0].covariance_mm2 - a->detection.markers[0].covariance_mm2;
+  EXPECT_NEAR((diff - 0.01 * Eigen::Matrix3d::Identity()).norm(), 0, 1e-12);
+  EXPECT_NE(FormatFiducialsCsv(*b).find("(0.1 mm)^2 I"), std::string::npos);
+  opt.extra_sigma_mm = -1;
+  EXPECT_FALSE(ComputeCtFiducials(dir_.File("ct"), opt).ok());
+}
+
 TEST_F(CtFiducialsPipeline, WithoutModelIdsFollowPatientZ) {
   CtFiducialsOptions opt;
   auto r = ComputeCtFiducials(dir_.File("ct"), opt);
