@@ -360,9 +360,12 @@ Status CheckViewsInsideFov(const XrayScene& s) {
                              "x" + std::to_string(s.camera.height) +
                              " image (the pattern is larger than the field of view?)");
       }
-      if (s.render.circular_fov && !(std::hypot(uv[0] - fu, uv[1] - fv) + r <= fr - 1.0)) {
+      // The whole silhouette must lie in the fully exposed disc, inside the fall-off edge.
+      const double usable = fr - s.render.fov_edge_px - 1.0;
+      if (s.render.circular_fov && !(std::hypot(uv[0] - fu, uv[1] - fv) + r <= usable)) {
         return Status::Error(where + ": " + at + "outside the circular field of view (centre (" +
-                             Fmt(fu) + ", " + Fmt(fv) + "), radius " + Fmt(fr) +
+                             Fmt(fu) + ", " + Fmt(fv) + "), radius " + Fmt(fr) + " px, edge " +
+                             Fmt(s.render.fov_edge_px) +
                              " px; the pattern is larger than the field of view?)");
       }
     }

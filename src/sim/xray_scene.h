@@ -45,7 +45,8 @@
 //       object_center_mm: [..]
 //
 // Every sphere of every view must project, with its whole silhouette, inside the image and the
-// field of view (else the scene is rejected naming the view and the sphere).
+// fully exposed part of the field of view (radius_px - edge_px), else the scene is rejected
+// naming the view and the sphere.
 //
 // GROUND TRUTH (truth.json, filled by SimulateXrayScene):
 //   {"kind": "xray", "description", "seed",
