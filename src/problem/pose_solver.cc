@@ -2,6 +2,7 @@
 #include <ceres/ceres.h>
 #include <ceres/jet.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
@@ -215,8 +216,24 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     sol.views[v].num_observations = static_cast<int>(problem.views[v].observations.size());
   }
 
-  // The Ceres problem.
-  std::array<double, kNumIntrinsics> intrinsics = problem.camera.params;
+  // The Ceres problem. All parameter blocks live in ONE buffer in a fixed order (poses, then
+  // markers by id, then the intrinsics): Ceres orders blocks by address in places (the
+  // covariance, elimination groups), so separately allocated blocks would make the results
+  // depend on the heap layout in the last digits.
+  const size_t M = markers.size();
+  std::vector<double> buffer(6 * V + 3 * M + kNumIntrinsics);
+  auto pose_ptr = [&](size_t v) { return buffer.data() + 6 * v; };
+  std::map<int, double*> marker_ptr;
+  {
+    size_t k = 0;
+    for (auto& [id, p] : markers) {
+      marker_ptr[id] = buffer.data() + 6 * V + 3 * k++;
+      std::copy(p.data(), p.data() + 3, marker_ptr[id]);
+    }
+  }
+  for (size_t v = 0; v < V; ++v) std::copy(poses[v].data(), poses[v].data() + 6, pose_ptr(v));
+  double* intrinsics = buffer.data() + 6 * V + 3 * M;
+  std::copy(problem.camera.params.begin(), problem.camera.params.end(), intrinsics);
   ceres::Problem::Options popts;
   ceres::Problem cp(popts);
   std::vector<ceres::ResidualBlockId> reproj_blocks;
@@ -227,11 +244,11 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
               ? ReprojectionError::Create(o.uv_px.x(), o.uv_px.y(), problem.sigma_px)
               : ReprojectionErrorAutoDiff::Create(o.uv_px.x(), o.uv_px.y(), problem.sigma_px);
       reproj_blocks.push_back(cp.AddResidualBlock(cost, MakeLoss(config, problem.sigma_px),
-                                                  poses[v].data(), markers[o.marker_id].data(),
-                                                  intrinsics.data()));
+                                                  pose_ptr(v), marker_ptr.at(o.marker_id),
+                                                  intrinsics));
     }
   }
-  cp.SetParameterBlockConstant(intrinsics.data());
+  cp.SetParameterBlockConstant(intrinsics);
   for (auto& [id, p] : markers) {
     const Marker& m = *marker_by_id.at(id);
     const Eigen::Matrix3d cov = MarkerCovarianceInProblemFrame(problem, m);
@@ -241,7 +258,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
                            ": covariance is not symmetric positive definite");
     }
     cp.AddResidualBlock(new PointPriorError(MarkerInProblemFrame(problem, m), cov), nullptr,
-                        p.data());
+                        marker_ptr.at(id));
   }
   // Initial cost, evaluated directly (Problem::Evaluate rebuilds Ceres's program each call).
   {
@@ -267,8 +284,8 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
       // Eliminate the markers first, then the poses: given explicitly, Ceres need not search
       // for an independent set.
       auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-      for (auto& [id, p] : markers) ordering->AddElementToGroup(p.data(), 0);
-      for (auto& pose : poses) ordering->AddElementToGroup(pose.data(), 1);
+      for (auto& [id, p] : marker_ptr) ordering->AddElementToGroup(p, 0);
+      for (size_t v = 0; v < V; ++v) ordering->AddElementToGroup(pose_ptr(v), 1);
       so.linear_solver_ordering = ordering;
     }
     so.minimizer_progress_to_stdout = false;
@@ -285,6 +302,9 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     sol.termination = "NOT_REFINED";
     sol.final_cost = sol.initial_cost;
   }
+
+  for (size_t v = 0; v < V; ++v) std::copy(pose_ptr(v), pose_ptr(v) + 6, poses[v].data());
+  for (auto& [id, p] : markers) std::copy(marker_ptr.at(id), marker_ptr.at(id) + 3, p.data());
 
   // Statistics from the raw (loss-free) whitened residuals.
   sol.chi2 = WhitenedChi2(problem, poses, markers, marker_by_id);
@@ -322,8 +342,8 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     std::vector<std::pair<const double*, const double*>> pairs;
     std::vector<const double*> blocks;
     for (size_t i = 0; i < V; ++i) {
-      blocks.push_back(poses[i].data());
-      for (size_t j = i; j < V; ++j) pairs.emplace_back(poses[i].data(), poses[j].data());
+      blocks.push_back(pose_ptr(i));
+      for (size_t j = i; j < V; ++j) pairs.emplace_back(pose_ptr(i), pose_ptr(j));
     }
     if (!covariance.Compute(pairs, &cp)) {
       return Status::Error(problem.path +
