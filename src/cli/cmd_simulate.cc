@@ -18,15 +18,17 @@
 #include "util/yaml_reader.h"
 
 DEFINE_string(scene, "", "Scene YAML file (configs/scenes/*.yaml), kind xray or ct.");
-// --out (output directory: images or the ct/ DICOM series, and truth.json) is shared:
-// cli/common_flags.h.
+// --out (output directory: images or the ct/ DICOM series, and truth.json) and --seed (overrides
+// an X-ray scene's noise seed) are shared: cli/common_flags.h.
 DEFINE_bool(overwrite, false, "Replace an existing non-empty output directory.");
 
 namespace {
 
 namespace fs = std::filesystem;
 
-carmba::Status Simulate(const std::string& scene_path, const std::string& tmp_dir) {
+carmba::Status Simulate(const std::string& scene_path,
+                        const std::string& tmp_dir,
+                        bool override_seed) {
   using carmba::Status;
   carmba::YamlMap scene = carmba::YamlMap::Load(scene_path);
   if (!scene.status().ok()) return scene.status();
@@ -37,11 +39,16 @@ carmba::Status Simulate(const std::string& scene_path, const std::string& tmp_di
   nlohmann::json truth;
   truth["scene"] = scene_path;
   if (kind == "ct") {
+    if (override_seed) {
+      return Status::Error(scene_path +
+                           ": --seed applies to X-ray scenes; set the CT scene's seed");
+    }
     CARMBA_RETURN_IF_ERROR(carmba::SimulateCtScene(scene, tmp_dir, &truth));
     truth["kind"] = "ct";
   } else {
     carmba::sim::XrayScene xray;
     CARMBA_RETURN_IF_ERROR(carmba::sim::ParseXrayScene(scene, &xray));
+    if (override_seed) carmba::sim::ReseedXrayScene(FLAGS_seed, &xray);
     CARMBA_RETURN_IF_ERROR(carmba::sim::SimulateXrayScene(xray, tmp_dir, &truth));
   }
   return carmba::WriteFileAtomic(carmba::JoinPath(tmp_dir, "truth.json"), truth.dump(2) + "\n");
@@ -68,7 +75,8 @@ int RunSimulate() {
   const std::string suffix = "." + std::to_string(::getpid());
   const fs::path tmp = out.string() + ".tmp" + suffix;
   fs::remove_all(tmp, ec);
-  carmba::Status status = Simulate(FLAGS_scene, tmp.string());
+  const bool override_seed = !gflags::GetCommandLineFlagInfoOrDie("seed").is_default;
+  carmba::Status status = Simulate(FLAGS_scene, tmp.string(), override_seed);
   if (status.ok()) {
     const fs::path old = out.string() + ".old" + suffix;
     if (exists) fs::rename(out, old, ec);
@@ -95,7 +103,7 @@ int RunSimulate() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(simulate, "out");
+CARMBA_COMMAND_FLAGS(simulate, "out,seed");
 CARMBA_REGISTER_COMMAND(simulate,
                         "Simulate C-arm X-ray images or a CT series with ground truth.",
                         RunSimulate);

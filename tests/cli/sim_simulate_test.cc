@@ -86,6 +86,16 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
     }
   }
 
+  // --seed changes the noise, not the geometry.
+  const fs::path out3 = fs::path(testing::TempDir()) / "carmba_sim_cli_pose3";
+  fs::remove_all(out3);
+  ASSERT_EQ(
+      Simulate("--scene=" + kScenes + "thesis_pose.yaml --seed=77 --out=" + out3.string()).code, 0);
+  const nlohmann::json truth3 = nlohmann::json::parse(Slurp(out3 / "truth.json"));
+  EXPECT_EQ(truth3["seed"], 77);
+  EXPECT_EQ(truth3["views"][0]["centers_px"], truth["views"][0]["centers_px"]);
+  EXPECT_FALSE(Slurp(out3 / "orient_000.png") == Slurp(out / "orient_000.png"));
+
   // An existing non-empty output is not overwritten without --overwrite ...
   const SimRun again = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
   EXPECT_NE(again.code, 0);
