@@ -223,8 +223,9 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     pl.Get("sphere_material", &s.plate.sphere_material);
     pl.Get("plate_material", &s.plate.plate_material);
     std::string error;
-    if (pl.status().ok() && !s.plate.Check(&error)) pl.Fail("rows", error);
-    if (pl.status().ok()) {
+    if (pl.status().ok() && !s.plate.Check(&error)) {
+      scene.Fail("plate", error.substr(error.find(": ") + 2));
+    } else if (pl.status().ok()) {
       auto ph = MakePlatePhantom(s.plate, materials);
       if (!ph.ok()) {
         pl.Fail("sphere_material", ph.status().message());
