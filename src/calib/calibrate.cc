@@ -512,6 +512,7 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   r.initial_intrinsics = x0;
   r.cam_from_plate.resize(num_views);
   for (int v = 0; v < num_views; ++v) PoseFromHomography(H[v], x0.data(), &r.cam_from_plate[v]);
+  r.initial_cam_from_plate = r.cam_from_plate;
 
   // --- Parametrisation intrinsics = x0 + A delta.
   r.free.assign(kNumIntrinsics, true);
@@ -563,9 +564,9 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::DENSE_SCHUR;
     so.max_num_iterations = opt.max_iterations;
-    so.function_tolerance = 1e-12;
+    so.function_tolerance = 1e-10;
     so.gradient_tolerance = 1e-14;
-    so.parameter_tolerance = 1e-12;
+    so.parameter_tolerance = 1e-10;
     so.num_threads = opt.num_threads;
     so.logging_type = ceres::SILENT;
     if (kk == 0) {

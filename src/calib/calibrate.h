@@ -120,6 +120,7 @@ struct CalibrationResult {
   Camera camera;  // estimate with covariance (names = all 9; fixed ones have zero rows)
   std::array<double, kNumIntrinsics> initial_intrinsics{};
   std::vector<std::array<double, 6>> cam_from_plate;  // rvec (rad), t (mm) per view
+  std::vector<std::array<double, 6>> initial_cam_from_plate;  // closed-form poses
   Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics> covariance;  // marginal over poses
   std::array<double, kNumIntrinsics> sigma{};  // sqrt(diag(covariance))
   std::vector<bool> free;                      // per intrinsic: estimated (not held)

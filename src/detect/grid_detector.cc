@@ -243,6 +243,10 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   cv::Mat work;
   f.convertTo(work, CV_8U, 255.0 / (p99 - p01), -255.0 * p01 / (p99 - p01));
   (void)med;
+  // A light blur for the blob search only (noise speckles otherwise form small blobs at
+  // thresholds near the background level); centres are refined on the unblurred image.
+  cv::Mat work_search;
+  cv::GaussianBlur(work, work_search, cv::Size(5, 5), 1.0);
 
   cv::Mat border_distance;
   {
@@ -291,7 +295,7 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
         if (attempt > 0 && detector->last_count() < grid.NumPoints()) break;
         const cv::Size try_size = transposed ? cv::Size(grid.rows, grid.cols) : size;
         std::vector<cv::Point2f> f2;
-        ok = cv::findCirclesGrid(work, try_size, f2,
+        ok = cv::findCirclesGrid(work_search, try_size, f2,
                                  flags | (clustering ? cv::CALIB_CB_CLUSTERING : 0), detector) &&
              static_cast<int>(f2.size()) == grid.NumPoints();
         most_blobs = std::max(most_blobs, detector->last_count());
@@ -343,6 +347,7 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
 
   // Sub-pixel centroids (circles) on the float image.
   std::vector<cv::Point2d> pts(centres.begin(), centres.end());
+  std::vector<bool> refined_ok(pts.size(), true);
   if (circles && o.refine) {
     double pitch = 1e30;
     for (int r = 0; r < grid.rows; ++r) {
@@ -352,9 +357,13 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
     }
     if (grid.pattern == GridPattern::kAsymmetricCircles) pitch *= 0.5;
     cv::Mat fm = f.clone();
-    for (auto& p : pts) {
-      cv::Point2d q = p;
-      if (RefineCentroid(fm, dark, 0.35 * pitch, &q) && cv::norm(q - p) < 0.2 * pitch) p = q;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      cv::Point2d q = pts[i];
+      if (RefineCentroid(fm, dark, 0.35 * pitch, &q) && cv::norm(q - pts[i]) < 0.3 * pitch) {
+        pts[i] = q;
+      } else {
+        refined_ok[i] = false;  // no blob there (OpenCV fills a missing blob from the grid model)
+      }
     }
   }
   // Points whose blob touches the field-of-view border are dropped (their centre is pulled by
@@ -373,6 +382,7 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) continue;
       if (circles && border_distance.at<float>(y, x) < 0.2 * pitch_px) continue;
       if (!circles && !mask.at<uint8_t>(y, x)) continue;
+      if (!refined_ok[id]) continue;
       kept.push_back(id);
     }
     if (static_cast<int>(kept.size()) < std::max(4, grid.NumPoints() / 2)) {
