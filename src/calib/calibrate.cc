@@ -541,7 +541,7 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   // with the distortion held at its initial value (mrcal seeds the same way), then everything.
   const double sigma_solve = opt.pixel_sigma_px > 0 ? opt.pixel_sigma_px : 1.0;
   std::array<double, kNumIntrinsics> x = x0;
-  auto solve = [&](const Eigen::MatrixXd& A, ceres::Solver::Summary* summary) -> Status {
+  auto solve = [&](const Eigen::MatrixXd& A, bool coarse, ceres::Solver::Summary* summary) -> Status {
     const int kk = static_cast<int>(A.cols());
     ceres::Problem problem;
     for (int v = 0; v < num_views; ++v) {
@@ -564,9 +564,10 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::DENSE_SCHUR;
     so.max_num_iterations = opt.max_iterations;
-    so.function_tolerance = 1e-10;
-    so.gradient_tolerance = 1e-14;
-    so.parameter_tolerance = 1e-10;
+    // The pinhole stage only seeds the full solve: loose tolerances.
+    so.function_tolerance = coarse ? 1e-6 : 1e-10;
+    so.gradient_tolerance = coarse ? 1e-10 : 1e-14;
+    so.parameter_tolerance = coarse ? 1e-6 : 1e-10;
     so.num_threads = opt.num_threads;
     so.logging_type = ceres::SILENT;
     if (kk == 0) {
@@ -599,10 +600,10 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     if (static_cast<int>(core_cols.size()) < k) {
       Eigen::MatrixXd A1(kNumIntrinsics, core_cols.size());
       for (size_t c = 0; c < core_cols.size(); ++c) A1.col(c) = r.intrinsics_from_free.col(core_cols[c]);
-      CARMBA_RETURN_IF_ERROR(solve(A1, &summary));
+      CARMBA_RETURN_IF_ERROR(solve(A1, true, &summary));
     }
   }
-  CARMBA_RETURN_IF_ERROR(solve(r.intrinsics_from_free, &summary));
+  CARMBA_RETURN_IF_ERROR(solve(r.intrinsics_from_free, false, &summary));
   r.iterations = static_cast<int>(summary.iterations.size()) - 1;
   r.termination = ceres::TerminationTypeToString(summary.termination_type);
   std::copy(x.begin(), x.end(), r.camera.params.begin());
