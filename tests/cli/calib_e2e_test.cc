@@ -74,6 +74,23 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
     EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
   }
   const nlohmann::json cam = Json(out + "/camera.json");
+  // camera.json is the pose problems' camera file; camera.cameramodel reads in mrcal and
+  // camera_opencv.yml in cv::FileStorage with the same focal length.
+  auto read_back = carmba::ReadCameraJson(out + "/camera.json");
+  ASSERT_TRUE(read_back.ok()) << read_back.status().message();
+  EXPECT_EQ(read_back->params[0], cam["fx"].get<double>());
+  EXPECT_EQ(read_back->covariance.size(), 9u);
+  const std::string py = "/usr/bin/python3 -c \"import mrcal, cv2; m = mrcal.cameramodel('" + out +
+                         "/camera.cameramodel'); f = cv2.FileStorage('" + out +
+                         "/camera_opencv.yml', cv2.FILE_STORAGE_READ); "
+                         "print(repr(m.intrinsics()[1][0]), repr(f.getNode('camera_matrix').mat()[0][0]))\" > " +
+                         Tmp("py.txt");
+  ASSERT_EQ(std::system(py.c_str()), 0);
+  std::istringstream py_out(Slurp(Tmp("py.txt")));
+  double fx_mrcal = 0, fx_cv = 0;
+  py_out >> fx_mrcal >> fx_cv;
+  EXPECT_DOUBLE_EQ(fx_mrcal, cam["fx"].get<double>());
+  EXPECT_NEAR(fx_cv, cam["fx"].get<double>(), 1e-9 * fx_cv);  // FileStorage prints 16 digits
   // The grid is found in at least 90 % of the rendered views (OpenCV's grid finder misses a strongly
   // distorted view with a sphere at the field-of-view rim in the pincushion scene).
   EXPECT_GE(cam["views"].size(), 0.9 * truth["views"].size()) << r.err;
