@@ -322,6 +322,159 @@ ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
   return ps;
 }
 
+// carmba's own Levenberg-Marquardt for the plain (non-robust) calibration: per iteration the
+// normal equations are built view by view from ProjectPointWithJac and the poses are eliminated
+// by the Schur complement (the same algebra as Ceres's DENSE_SCHUR, without its per-block
+// overhead). Marquardt damping H + lambda diag(H); a step is kept if the cost drops.
+struct LmReport {
+  int iterations = 0;
+  std::string termination;
+};
+
+double ViewCost(const std::vector<Eigen::Vector3d>& plate,
+                const std::vector<Eigen::Vector2d>& uv,
+                const double* intr,
+                const double* pose,
+                bool* ok) {
+  double c = 0;
+  for (size_t j = 0; j < plate.size(); ++j) {
+    double q[2];
+    if (!ProjectPoint(intr, pose, plate[j].data(), q)) {
+      *ok = false;
+      return 0;
+    }
+    const double du = q[0] - uv[j].x(), dv = q[1] - uv[j].y();
+    c += du * du + dv * dv;
+  }
+  return c;
+}
+
+Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& plate,
+                               const ObservationSet& obs,
+                               const Eigen::MatrixXd& A,
+                               int max_iterations,
+                               double function_tolerance,
+                               std::array<double, kNumIntrinsics>* x,
+                               std::vector<std::array<double, 6>>* poses,
+                               LmReport* report) {
+  const int nv = static_cast<int>(plate.size());
+  const int k = static_cast<int>(A.cols());
+  using Mat6X = Eigen::Matrix<double, 6, Eigen::Dynamic>;
+  std::vector<Mat6> Hii(nv);
+  std::vector<Mat6X> Hic(nv, Mat6X(6, k));
+  std::vector<Eigen::Matrix<double, 6, 1>> gi(nv);
+  Eigen::MatrixXd Hcc(k, k);
+  Eigen::VectorXd gc(k);
+  auto total_cost = [&](const std::array<double, kNumIntrinsics>& xi,
+                        const std::vector<std::array<double, 6>>& pi,
+                        bool* ok) {
+    double c = 0;
+    *ok = true;
+    for (int v = 0; v < nv && *ok; ++v) c += ViewCost(plate[v], obs.views[v].uv_px, xi.data(), pi[v].data(), ok);
+    return c;
+  };
+  bool ok = true;
+  double cost = total_cost(*x, *poses, &ok);
+  if (!ok) return Status::Error("initialisation puts grid points behind the source (bad detections?)");
+  double lambda = 1e-4;
+  report->termination = "NO_CONVERGENCE";
+  for (int it = 0; it < max_iterations; ++it) {
+    report->iterations = it + 1;
+    // Linearise.
+    Hcc.setZero();
+    gc.setZero();
+    for (int v = 0; v < nv; ++v) {
+      Hii[v].setZero();
+      Hic[v].setZero();
+      gi[v].setZero();
+      Eigen::Matrix<double, 9, 9> Hcc9 = Eigen::Matrix<double, 9, 9>::Zero();
+      Eigen::Matrix<double, 6, 9> Hic9 = Eigen::Matrix<double, 6, 9>::Zero();
+      Eigen::Matrix<double, 9, 1> gc9 = Eigen::Matrix<double, 9, 1>::Zero();
+      for (size_t j = 0; j < plate[v].size(); ++j) {
+        double q[2];
+        Eigen::Matrix<double, 2, 9, Eigen::RowMajor> Ji;
+        Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
+        if (!ProjectPointWithJac(x->data(), (*poses)[v].data(), plate[v][j].data(), q, Ji.data(),
+                                 Jp.data(), nullptr)) {
+          return Status::Error("a grid point moved behind the source during the adjustment");
+        }
+        const Eigen::Vector2d e(q[0] - obs.views[v].uv_px[j].x(), q[1] - obs.views[v].uv_px[j].y());
+        Hii[v].noalias() += Jp.transpose() * Jp;
+        Hic9.noalias() += Jp.transpose() * Ji;
+        Hcc9.noalias() += Ji.transpose() * Ji;
+        gi[v].noalias() += Jp.transpose() * e;
+        gc9.noalias() += Ji.transpose() * e;
+      }
+      Hic[v] = Hic9 * A;
+      Hcc.noalias() += A.transpose() * Hcc9 * A;
+      gc.noalias() += A.transpose() * gc9;
+    }
+    // Damped steps until the cost drops (re-using the linearisation).
+    bool accepted = false;
+    for (int tries = 0; tries < 20 && !accepted; ++tries) {
+      Eigen::MatrixXd S = Hcc;
+      S.diagonal() *= (1.0 + lambda);
+      Eigen::VectorXd b = gc;
+      std::vector<Mat6> Hii_inv(nv);
+      bool singular = false;
+      for (int v = 0; v < nv; ++v) {
+        Mat6 D = Hii[v];
+        D.diagonal() *= (1.0 + lambda);
+        Eigen::LLT<Mat6> llt(D);
+        if (llt.info() != Eigen::Success) {
+          singular = true;
+          break;
+        }
+        Hii_inv[v] = llt.solve(Mat6::Identity());
+        const Mat6X HinvHic = Hii_inv[v] * Hic[v];
+        S.noalias() -= Hic[v].transpose() * HinvHic;
+        b.noalias() -= HinvHic.transpose() * gi[v];
+      }
+      Eigen::VectorXd dc = Eigen::VectorXd::Zero(k);
+      if (!singular && k > 0) {
+        Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
+        if (ldlt.info() != Eigen::Success) singular = true;
+        else dc = -ldlt.solve(b);
+        if (!dc.allFinite()) singular = true;
+      }
+      if (singular) {
+        lambda *= 10;
+        continue;
+      }
+      std::array<double, kNumIntrinsics> x_new = *x;
+      const Eigen::VectorXd dx = A * dc;
+      for (int i = 0; i < kNumIntrinsics; ++i) x_new[i] += dx(i);
+      std::vector<std::array<double, 6>> p_new = *poses;
+      for (int v = 0; v < nv; ++v) {
+        const Eigen::Matrix<double, 6, 1> dp = -Hii_inv[v] * (gi[v] + Hic[v] * dc);
+        for (int i = 0; i < 6; ++i) p_new[v][i] += dp(i);
+      }
+      bool ok_new = true;
+      const double cost_new = total_cost(x_new, p_new, &ok_new);
+      if (ok_new && cost_new < cost) {
+        const double rel = (cost - cost_new) / cost;
+        *x = x_new;
+        *poses = p_new;
+        cost = cost_new;
+        lambda = std::max(lambda / 3.0, 1e-12);
+        accepted = true;
+        if (rel < function_tolerance) {
+          report->termination = "CONVERGENCE";
+          return Status::Ok();
+        }
+      } else {
+        lambda *= 4;
+      }
+    }
+    if (!accepted) {
+      // No damped step lowers the cost: at the minimum to machine precision.
+      report->termination = "CONVERGENCE";
+      return Status::Ok();
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 bool CalibrationOptions::Check(std::string* error) const {
@@ -373,6 +526,10 @@ bool CalibrationOptions::Check(std::string* error) const {
     *error = "uncertainty_distance_mm: expected >= 0 (0 = median plate distance)";
     return false;
   }
+  if (solver != "lm" && solver != "ceres") {
+    *error = "solver: expected lm or ceres, got '" + solver + "'";
+    return false;
+  }
   if (num_threads < 1) {
     *error = "num_threads: expected >= 1";
     return false;
@@ -401,6 +558,7 @@ Status LoadCalibrationOptions(const std::string& path,
   m.Get("max_iterations", &o->max_iterations);
   m.GetNonNegative("uncertainty_distance_mm", &o->uncertainty_distance_mm);
   m.Get("num_threads", &o->num_threads);
+  m.GetEnum("solver", {"lm", "ceres"}, &o->solver);
   for (const auto& k : other_keys) {
     if (m.Has(k)) m.Raw(k);
   }
@@ -592,6 +750,13 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     return Status::Ok();
   };
   ceres::Solver::Summary summary;
+  const bool own_lm = opt.solver == "lm" && opt.robust_loss == "none";
+  LmReport lm_report;
+  auto run_stage = [&](const Eigen::MatrixXd& A, bool coarse) -> Status {
+    if (!own_lm) return solve(A, coarse, &summary);
+    return SchurLevenbergMarquardt(plate, obs, A, opt.max_iterations, coarse ? 1e-6 : 1e-10, &x,
+                                   &r.cam_from_plate, &lm_report);
+  };
   {
     std::vector<int> core_cols;
     for (int c = 0; c < k; ++c) {
@@ -600,12 +765,17 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     if (static_cast<int>(core_cols.size()) < k) {
       Eigen::MatrixXd A1(kNumIntrinsics, core_cols.size());
       for (size_t c = 0; c < core_cols.size(); ++c) A1.col(c) = r.intrinsics_from_free.col(core_cols[c]);
-      CARMBA_RETURN_IF_ERROR(solve(A1, true, &summary));
+      CARMBA_RETURN_IF_ERROR(run_stage(A1, true));
     }
   }
-  CARMBA_RETURN_IF_ERROR(solve(r.intrinsics_from_free, false, &summary));
-  r.iterations = static_cast<int>(summary.iterations.size()) - 1;
-  r.termination = ceres::TerminationTypeToString(summary.termination_type);
+  CARMBA_RETURN_IF_ERROR(run_stage(r.intrinsics_from_free, false));
+  if (own_lm) {
+    r.iterations = lm_report.iterations;
+    r.termination = lm_report.termination + " (carmba Schur LM)";
+  } else {
+    r.iterations = static_cast<int>(summary.iterations.size()) - 1;
+    r.termination = std::string(ceres::TerminationTypeToString(summary.termination_type)) + " (Ceres)";
+  }
   std::copy(x.begin(), x.end(), r.camera.params.begin());
   r.camera.width = obs.width;
   r.camera.height = obs.height;

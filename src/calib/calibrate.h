@@ -77,6 +77,9 @@ struct CalibrationOptions {
   double uncertainty_distance_mm = 0;
   // Threads for Ceres.
   int num_threads = 1;
+  // "lm": carmba's Schur-complement Levenberg-Marquardt (plain least squares; with a robust loss
+  // Ceres is used); "ceres": Ceres DENSE_SCHUR with the same cost.
+  std::string solver = "lm";
 
   bool Check(std::string* error) const;
 };
