@@ -331,15 +331,31 @@ struct LmReport {
   std::string termination;
 };
 
+// The rotation of a view computed once (the per-point kernels would redo the trigonometry).
+struct ViewRotation {
+  Eigen::Matrix3d R;   // R(rvec)
+  Eigen::Matrix3d Jl;  // SO(3) left Jacobian of rvec (camera/camera_model.h)
+  explicit ViewRotation(const double* pose) {
+    double r[9], jl[9];
+    ceres::AngleAxisToRotationMatrix(pose, ceres::RowMajorAdapter3x3(r));
+    SO3LeftJacobian(pose, jl);
+    R = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
+    Jl = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jl);
+  }
+};
+
 double ViewCost(const std::vector<Eigen::Vector3d>& plate,
                 const std::vector<Eigen::Vector2d>& uv,
                 const double* intr,
                 const double* pose,
                 bool* ok) {
+  const ViewRotation rot(pose);
+  const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
   double c = 0;
   for (size_t j = 0; j < plate.size(); ++j) {
+    const Eigen::Vector3d pc = rot.R * plate[j] + t;
     double q[2];
-    if (!ProjectPoint(intr, pose, plate[j].data(), q)) {
+    if (!ProjectCamPoint(intr, pc.data(), q)) {
       *ok = false;
       return 0;
     }
@@ -390,14 +406,24 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
       Eigen::Matrix<double, 9, 9> Hcc9 = Eigen::Matrix<double, 9, 9>::Zero();
       Eigen::Matrix<double, 6, 9> Hic9 = Eigen::Matrix<double, 6, 9>::Zero();
       Eigen::Matrix<double, 9, 1> gc9 = Eigen::Matrix<double, 9, 1>::Zero();
+      const ViewRotation rot((*poses)[v].data());
+      const Eigen::Vector3d t((*poses)[v][3], (*poses)[v][4], (*poses)[v][5]);
       for (size_t j = 0; j < plate[v].size(); ++j) {
+        // ProjectPointWithJac's chain rule with the view's rotation computed once:
+        //   d uv/d r = J_uv_p_in_cam * (-[R p]_x J_l(r)),  d uv/d t = J_uv_p_in_cam.
+        const Eigen::Vector3d Rp = rot.R * plate[v][j];
+        const Eigen::Vector3d pc = Rp + t;
         double q[2];
         Eigen::Matrix<double, 2, 9, Eigen::RowMajor> Ji;
-        Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
-        if (!ProjectPointWithJac(x->data(), (*poses)[v].data(), plate[v][j].data(), q, Ji.data(),
-                                 Jp.data(), nullptr)) {
+        Eigen::Matrix<double, 2, 3, Eigen::RowMajor> Jpc;
+        if (!ProjectCamPointWithJac(x->data(), pc.data(), q, Ji.data(), Jpc.data())) {
           return Status::Error("a grid point moved behind the source during the adjustment");
         }
+        Eigen::Matrix3d minus_skew;
+        minus_skew << 0, Rp.z(), -Rp.y(), -Rp.z(), 0, Rp.x(), Rp.y(), -Rp.x(), 0;
+        Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
+        Jp.leftCols<3>() = Jpc * (minus_skew * rot.Jl);
+        Jp.rightCols<3>() = Jpc;
         const Eigen::Vector2d e(q[0] - obs.views[v].uv_px[j].x(), q[1] - obs.views[v].uv_px[j].y());
         Hii[v].noalias() += Jp.transpose() * Jp;
         Hic9.noalias() += Jp.transpose() * Ji;
