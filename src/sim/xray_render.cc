@@ -30,7 +30,10 @@ bool RenderOptions::Check(std::string* error) const {
   if (!(white_level > 0)) return *error = "white_level must be positive", false;
   if (photons_per_pixel < 0) return *error = "photons_per_pixel must be >= 0", false;
   if (read_noise_gray < 0) return *error = "read_noise_gray must be >= 0", false;
-  if (blur_sigma_px < 0) return *error = "blur_sigma_px must be >= 0", false;
+  if (!(blur_sigma_px >= 0 && blur_sigma_px <= 50)) {
+    return *error = "blur_sigma_px must be in [0, 50] px", false;
+  }
+  if (!(white_level <= 1e6)) return *error = "white_level must be <= 1e6 grey levels", false;
   if (fov_radius_px < 0) return *error = "fov_radius_px must be >= 0", false;
   if (outside_fov_gray < 0) return *error = "outside_fov_gray must be >= 0", false;
   if (!(vignetting >= 0 && vignetting < 1)) return *error = "vignetting must be in [0, 1)", false;
@@ -76,6 +79,13 @@ StatusOr<std::shared_ptr<const RayGrid>> RayGrid::Build(const Camera& camera,
   grid->fov_u_ = fov.u;
   grid->fov_v_ = fov.v;
   const size_t n = static_cast<size_t>(camera.width) * camera.height * S * S;
+  constexpr size_t kMaxSubPixels = size_t{1} << 26;  // 64 M rays: 768 MB of ray grid
+  if (n > kMaxSubPixels) {
+    return Status::Error("image " + std::to_string(camera.width) + "x" +
+                         std::to_string(camera.height) + " with supersampling " +
+                         std::to_string(S) + " needs " + std::to_string(n) +
+                         " rays, more than 2^26: reduce the supersampling or the image size");
+  }
   grid->xy_.assign(2 * n, 0.0f);
   grid->inside_.assign(n, 0);
   grid->r2_.assign(static_cast<size_t>(camera.width) * camera.height, 0.0f);

@@ -40,10 +40,10 @@ namespace carmba::sim {
 
 struct RenderOptions {
   int supersampling = 3;          // S: S x S rays per pixel (1..16)
-  double white_level = 220.0;     // grey level of an unattenuated ray at the FOV centre
+  double white_level = 220.0;     // grey level of an unattenuated ray at the FOV centre (<= 1e6)
   double photons_per_pixel = 0;   // detected quanta per pixel of an unattenuated ray; 0 = no noise
   double read_noise_gray = 0.0;   // additive Gaussian noise sigma (grey levels)
-  double blur_sigma_px = 0.0;     // detector blur sigma (px); 0 = none
+  double blur_sigma_px = 0.0;     // detector blur sigma (px), 0..50; 0 = none
   bool circular_fov = true;       // image-intensifier circle; false = the whole detector
   double fov_radius_px = 0.0;     // 0 = min(width, height) / 2
   double fov_center_u_px = -1.0;  // < 0 = image centre ((width - 1) / 2)

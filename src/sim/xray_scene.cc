@@ -169,6 +169,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     im.Fail("supersampling", "expected an integer in 1..16");
   }
   if (im.status().ok() && r.vignetting >= 1) im.Fail("vignetting", "expected a value in [0, 1)");
+  if (im.status().ok() && r.blur_sigma_px > 50) im.Fail("blur_sigma_px", "expected 0..50 px");
+  if (im.status().ok() && r.white_level > 1e6) im.Fail("white_level", "expected at most 1e6");
   YamlMap& fov = im.Map("fov");
   fov.Get("circular", &r.circular_fov);
   fov.GetPositive("radius_px", &r.fov_radius_px);
