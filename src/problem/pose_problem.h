@@ -43,7 +43,8 @@
 //   refine: true                  # false: report the initialiser's poses (no bundle adjustment)
 //   jacobians: analytic           # analytic | autodiff
 //   loss: {type: trivial, scale_px: 1.0}   # trivial | huber | cauchy | soft_l1
-//   linear_solver: dense_schur    # dense_qr | dense_schur | sparse_schur | sparse_normal_cholesky
+//   linear_solver: dense_schur    # dense_qr | dense_normal_cholesky | dense_schur | sparse_schur |
+//                                 # sparse_normal_cholesky | iterative_schur
 //   max_iterations: 100
 //   function_tolerance: 1e-12
 //   gradient_tolerance: 1e-12

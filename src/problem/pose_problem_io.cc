@@ -357,8 +357,8 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   loss.GetEnum("type", {"trivial", "huber", "cauchy", "soft_l1"}, &c.loss);
   loss.GetPositive("scale_px", &c.loss_scale_px);
   root.GetEnum("linear_solver",
-               {"dense_qr", "dense_schur", "sparse_schur", "sparse_normal_cholesky",
-                "iterative_schur"},
+               {"dense_qr", "dense_normal_cholesky", "dense_schur", "sparse_schur",
+                "sparse_normal_cholesky", "iterative_schur"},
                &c.linear_solver);
   root.Get("max_iterations", &c.max_iterations);
   root.GetPositive("function_tolerance", &c.function_tolerance);

@@ -151,6 +151,7 @@ ceres::LossFunction* MakeLoss(const SolverConfig& c, double sigma_px) {
 
 ceres::LinearSolverType LinearSolver(const std::string& name) {
   if (name == "dense_qr") return ceres::DENSE_QR;
+  if (name == "dense_normal_cholesky") return ceres::DENSE_NORMAL_CHOLESKY;
   if (name == "sparse_schur") return ceres::SPARSE_SCHUR;
   if (name == "sparse_normal_cholesky") return ceres::SPARSE_NORMAL_CHOLESKY;
   if (name == "iterative_schur") return ceres::ITERATIVE_SCHUR;

@@ -28,7 +28,7 @@ void BM_PoseOneView(benchmark::State& state) {
   c.analytic_jacobians = state.range(1) == 1;
   const char* algos[3] = {"dense_svd", "sparse_qr", "eigen_sparse_qr"};
   c.covariance_algorithm = algos[state.range(2)];
-  const char* solvers[2] = {"dense_schur", "dense_qr"};
+  const char* solvers[3] = {"dense_schur", "dense_qr", "dense_normal_cholesky"};
   c.linear_solver = solvers[state.range(3)];
   for (auto _ : state) {
     auto s = SolvePoseProblem(p, c);
@@ -40,7 +40,7 @@ void BM_PoseOneView(benchmark::State& state) {
 }
 BENCHMARK(BM_PoseOneView)
     // markers, analytic (1) / autodiff (0), covariance (0 dense_svd, 1 sparse_qr,
-    // 2 eigen_sparse_qr), linear solver (0 dense_schur, 1 dense_qr)
+    // 2 eigen_sparse_qr), linear solver (0 dense_schur, 1 dense_qr, 2 dense_normal_cholesky)
     ->Args({4, 1, 2, 0})
     ->Args({4, 0, 2, 0})
     ->Args({9, 1, 2, 0})
@@ -48,6 +48,8 @@ BENCHMARK(BM_PoseOneView)
     ->Args({9, 1, 0, 0})
     ->Args({9, 1, 1, 0})
     ->Args({9, 1, 2, 1})
+    ->Args({9, 1, 2, 2})
+    ->Args({9, 0, 2, 2})
     ->Unit(benchmark::kMicrosecond);
 
 // One reprojection residual with its three Jacobian blocks: analytic vs autodiff.
