@@ -23,34 +23,12 @@
 #include <unistd.h>
 
 #include "util/file_util.h"
+#include "util/quiet_stderr.h"
 
 namespace carmba {
 namespace fs = std::filesystem;
 
 namespace {
-
-// Silences file descriptor 2 while alive: codecs inside GDCM (OpenJPEG) print their own
-// messages for undecodable data, which would break our one-line error convention.
-class QuietStderr {
- public:
-  QuietStderr() {
-    std::fflush(stderr);
-    saved_ = ::dup(2);
-    const int null_fd = ::open("/dev/null", O_WRONLY);
-    if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, 2);
-    if (null_fd >= 0) ::close(null_fd);
-  }
-  ~QuietStderr() {
-    std::fflush(stderr);
-    if (saved_ >= 0) {
-      ::dup2(saved_, 2);
-      ::close(saved_);
-    }
-  }
-
- private:
-  int saved_ = -1;
-};
 
 // Quiet GDCM: its warnings go to stderr; ours are Status messages.
 void SilenceGdcm() {

@@ -17,33 +17,11 @@
 
 #include "sim/xray_render.h"
 #include "util/file_util.h"
+#include "util/quiet_stderr.h"
 
 namespace carmba::sim {
 
 namespace {
-
-// Silences stderr (fd 2) for its lifetime: libpng and GDCM print their own multi-line
-// diagnostics there, while carmba reports one line per error.
-class QuietStderr {
- public:
-  QuietStderr() {
-    std::fflush(stderr);
-    saved_ = ::dup(2);
-    const int null_fd = ::open("/dev/null", O_WRONLY);
-    if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, 2);
-    if (null_fd >= 0) ::close(null_fd);
-  }
-  ~QuietStderr() {
-    std::fflush(stderr);
-    if (saved_ >= 0) {
-      ::dup2(saved_, 2);
-      ::close(saved_);
-    }
-  }
-
- private:
-  int saved_ = -1;
-};
 
 StatusOr<cv::Mat> ReadDicomFrame(const std::string& path) {
   QuietStderr quiet;  // GDCM writes its warnings and errors to std::cerr

@@ -3,7 +3,7 @@
 
 Each view: C-arm primary/secondary angles and in-plane detector rotation, and the plate lying on
 the table (plate normal along the patient's A-P axis) turned about that normal and moved a little.
-Usage: /usr/bin/python3 configs/scenes/make_calib_views.py NAME_PREFIX COUNT SEED MAX_PRIMARY MAX_SECONDARY MAX_SHIFT_MM
+Usage: /usr/bin/python3 scripts/make_calib_views.py NAME_PREFIX COUNT SEED MAX_PRIMARY MAX_SECONDARY MAX_SHIFT_MM
 """
 import math
 import random

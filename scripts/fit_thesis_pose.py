@@ -11,7 +11,7 @@ views resemble the thesis's (Table 5.2), and prints the YAML keys to paste.
    it is put level with marker 3. sod = c_z, axis_offset = -(c_x, c_y).
 4. world_from_object = inverse(cam_from_world(primary 0)) * cam0_from_object, written as
    object_pose {rotation_deg about the spheres' centroid, center_mm}.
-Usage: /usr/bin/python3 configs/scenes/fit_thesis_pose.py  (from the repository root)
+Usage: /usr/bin/python3 scripts/fit_thesis_pose.py  (from the repository root)
 """
 import csv
 import math
