@@ -21,7 +21,7 @@ TEST(CrossCheckTest, EmbeddedScriptMatchesFile) {
   auto text = ReadFile(std::string(CARMBA_SOURCE_DIR) + "/scripts/mrcal_crosscheck.py");
   ASSERT_TRUE(text.ok());
   EXPECT_EQ(*text, std::string(MrcalCrossCheckScript()))
-      << "regenerate src/calib/mrcal_script.cc from scripts/mrcal_crosscheck.py";
+      << "re-run cmake: the embedded script is generated from scripts/mrcal_crosscheck.py";
 }
 
 class CrossCheck : public ::testing::Test {
