@@ -16,6 +16,10 @@ namespace carmba {
 namespace {
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat9 = Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics>;
+using Vec9 = Eigen::Matrix<double, kNumIntrinsics, 1>;
+using Mat69 = Eigen::Matrix<double, 6, kNumIntrinsics>;
 using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
@@ -185,65 +189,168 @@ double RobustWeight(const std::string& loss, double scale_whitened, double s) {
   return 1.0;
 }
 
-// The normal-equation blocks of the solved problem (unwhitened pixel units, robust-weighted).
-struct NormalBlocks {
-  Eigen::MatrixXd Hcc;                     // k x k
-  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 6>> Hci;  // k x 6 per view
-  std::vector<Mat6> Hii_inv;
-  Eigen::MatrixXd S_inv;                   // (Schur complement)^-1, k x k
+// Rotation matrix and SO(3) left Jacobian of a rotation vector (camera/camera_model.h).
+Eigen::Matrix3d RotationOf(const double* rvec) {
+  double r[9];
+  ceres::AngleAxisToRotationMatrix(rvec, ceres::RowMajorAdapter3x3(r));
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
+}
+
+Eigen::Matrix3d LeftJacobianOf(const double* rvec) {
+  double jl[9];
+  SO3LeftJacobian(rvec, jl);
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jl);
+}
+
+// Robust weighting of a point's residual: w = rho'(|e|^2 / sigma^2).
+struct RobustWeighting {
+  std::string loss;
+  double scale_whitened = 1;
+  double inv_sigma2 = 1;
+  double operator()(double e2_px) const { return RobustWeight(loss, scale_whitened, e2_px * inv_sigma2); }
 };
 
-Status ComputeNormalBlocks(const ObservationSet& obs,
+// The Gauss-Newton blocks of one view at (intrinsics, pose), in pixels (unwhitened), with
+// e_j = project - observed and weights w_j (1 without a robust loss):
+//   Hpp = sum w J_pose^T J_pose (6x6),  Hpc = sum w J_pose^T J_intr (6x9),  gp = sum w J_pose^T e;
+// the view's share of the intrinsics blocks is added to Hcc (sum w J_intr^T J_intr) and gc.
+// Per point, the pose columns are taken for a small rotation w of the camera frame,
+//   d(R p)/dw = -[R p]x,  so row a of J_uv_p_in_cam gives the row (R p) x a,
+// and mapped to the rotation vector once per view, J_uv_rvec = J_uv_w J_l(rvec) (the chain rule
+// of ProjectPointWithJac). All sizes are fixed: no heap allocation.
+struct ViewSystem {
+  Mat6 Hpp;
+  Mat69 Hpc;
+  Vec6 gp;
+};
+
+bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
+                   const std::vector<Eigen::Vector2d>& uv,
+                   const double* intr,
+                   const double* pose,
+                   const RobustWeighting* robust,
+                   ViewSystem* out,
+                   Mat9* Hcc,
+                   Vec9* gc) {
+  constexpr int kN = 6 + kNumIntrinsics;  // [w, t | intrinsics]
+  const Eigen::Matrix3d R = RotationOf(pose);
+  const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
+  Eigen::Matrix<double, kN, kN> H = Eigen::Matrix<double, kN, kN>::Zero();
+  Eigen::Matrix<double, kN, 1> g = Eigen::Matrix<double, kN, 1>::Zero();
+  for (size_t j = 0; j < plate.size(); ++j) {
+    const Eigen::Vector3d Rp = R * plate[j];
+    const Eigen::Vector3d pc = Rp + t;
+    double q[2], Ji[2 * kNumIntrinsics], Jpc[6];
+    if (!ProjectCamPointWithJac(intr, pc.data(), q, Ji, Jpc)) return false;
+    Eigen::Matrix<double, 2, kN, Eigen::RowMajor> J;
+    for (int r = 0; r < 2; ++r) {
+      const double* a = Jpc + 3 * r;
+      J(r, 0) = Rp.y() * a[2] - Rp.z() * a[1];
+      J(r, 1) = Rp.z() * a[0] - Rp.x() * a[2];
+      J(r, 2) = Rp.x() * a[1] - Rp.y() * a[0];
+      J(r, 3) = a[0], J(r, 4) = a[1], J(r, 5) = a[2];
+      for (int c = 0; c < kNumIntrinsics; ++c) J(r, 6 + c) = Ji[kNumIntrinsics * r + c];
+    }
+    const Eigen::Vector2d e(q[0] - uv[j].x(), q[1] - uv[j].y());
+    if (robust) {
+      const double w = (*robust)(e.squaredNorm());
+      const Eigen::Matrix<double, 2, kN, Eigen::RowMajor> Jw = w * J;
+      H.noalias() += Jw.transpose().lazyProduct(J);
+      g.noalias() += Jw.transpose().lazyProduct(e);
+    } else {
+      H.noalias() += J.transpose().lazyProduct(J);
+      g.noalias() += J.transpose().lazyProduct(e);
+    }
+  }
+  // [w, t] -> [rvec, t]: the rotation rows and columns times J_l.
+  const Eigen::Matrix3d Jl = LeftJacobianOf(pose);
+  out->Hpp.topLeftCorner<3, 3>().noalias() = Jl.transpose() * H.topLeftCorner<3, 3>() * Jl;
+  out->Hpp.topRightCorner<3, 3>().noalias() = Jl.transpose() * H.block<3, 3>(0, 3);
+  out->Hpp.bottomLeftCorner<3, 3>() = out->Hpp.topRightCorner<3, 3>().transpose();
+  out->Hpp.bottomRightCorner<3, 3>() = H.block<3, 3>(3, 3);
+  out->Hpc.topRows<3>().noalias() = Jl.transpose() * H.block<3, kNumIntrinsics>(0, 6);
+  out->Hpc.bottomRows<3>() = H.block<3, kNumIntrinsics>(3, 6);
+  out->gp.head<3>().noalias() = Jl.transpose() * g.head<3>();
+  out->gp.tail<3>() = g.segment<3>(3);
+  *Hcc += H.bottomRightCorner<kNumIntrinsics, kNumIntrinsics>();
+  *gc += g.tail<kNumIntrinsics>();
+  return true;
+}
+
+// Sum of squared residuals (px^2) of one view; false if a point is behind the source.
+bool ViewCost(const std::vector<Eigen::Vector3d>& plate,
+              const std::vector<Eigen::Vector2d>& uv,
+              const double* intr,
+              const double* pose,
+              double* cost) {
+  const Eigen::Matrix3d R = RotationOf(pose);
+  const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
+  double c = 0;
+  for (size_t j = 0; j < plate.size(); ++j) {
+    const Eigen::Vector3d pc = R * plate[j] + t;
+    double q[2];
+    if (!ProjectCamPoint(intr, pc.data(), q)) return false;
+    const double du = q[0] - uv[j].x(), dv = q[1] - uv[j].y();
+    c += du * du + dv * dv;
+  }
+  *cost += c;
+  return true;
+}
+
+// The normal-equation blocks of the solved problem (unwhitened pixel units, robust-weighted),
+// in the 9 intrinsics; the free parameters are delta with intrinsics = x0 + A delta.
+struct NormalBlocks {
+  std::vector<Mat69> Hpc;           // J_pose^T J_intr per view
+  std::vector<Mat6> Hii_inv;        // (J_pose^T J_pose)^-1 per view
+  std::vector<Eigen::Matrix3d> Jl;  // left Jacobian of each view's rotation vector
+  Eigen::MatrixXd S_inv;            // (A^T (Hcc - sum Hpc^T Hii^-1 Hpc) A)^-1, k x k
+};
+
+Status ComputeNormalBlocks(const std::vector<std::vector<Eigen::Vector3d>>& plate,
+                           const ObservationSet& obs,
                            const CalibrationResult& r,
                            double sigma_solve_px,
                            NormalBlocks* b) {
   const Eigen::MatrixXd& A = r.intrinsics_from_free;
   const int k = static_cast<int>(A.cols());
+  const int nv = static_cast<int>(obs.views.size());
   const double* intr = r.camera.params.data();
-  b->Hcc = Eigen::MatrixXd::Zero(k, k);
-  b->Hci.assign(obs.views.size(), Eigen::Matrix<double, Eigen::Dynamic, 6>::Zero(k, 6));
-  b->Hii_inv.resize(obs.views.size());
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(k, k);
-  const double scale_w = r.robust_loss_scale_px / sigma_solve_px;
-  for (size_t v = 0; v < obs.views.size(); ++v) {
+  RobustWeighting robust;
+  robust.loss = r.robust_loss;
+  robust.scale_whitened = r.robust_loss_scale_px / sigma_solve_px;
+  robust.inv_sigma2 = 1.0 / (sigma_solve_px * sigma_solve_px);
+  const RobustWeighting* weighting = r.robust_loss != "none" ? &robust : nullptr;
+  b->Hpc.resize(nv);
+  b->Hii_inv.resize(nv);
+  b->Jl.resize(nv);
+  Mat9 Hcc = Mat9::Zero(), reduction = Mat9::Zero();
+  Vec9 gc = Vec9::Zero();
+  for (int v = 0; v < nv; ++v) {
     const auto& view = obs.views[v];
-    Mat6 Hii = Mat6::Zero();
-    Eigen::Matrix<double, Eigen::Dynamic, 6> Hci = Eigen::Matrix<double, Eigen::Dynamic, 6>::Zero(k, 6);
-    for (size_t j = 0; j < view.uv_px.size(); ++j) {
-      const Eigen::Vector3d P = obs.grid.PointInPlate(view.point_ids[j]);
-      double uv[2];
-      Eigen::Matrix<double, 2, 9, Eigen::RowMajor> Ji;
-      Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
-      if (!ProjectPointWithJac(intr, r.cam_from_plate[v].data(), P.data(), uv, Ji.data(), Jp.data(),
-                               nullptr)) {
-        return Status::Error("view " + std::to_string(v) + " (" + view.image +
-                             "): a grid point projects behind the source at the solution");
-      }
-      double w = 1.0;
-      if (r.robust_loss != "none") {
-        const double du = (uv[0] - view.uv_px[j].x()) / sigma_solve_px;
-        const double dv = (uv[1] - view.uv_px[j].y()) / sigma_solve_px;
-        w = RobustWeight(r.robust_loss, scale_w, du * du + dv * dv);
-      }
-      const Eigen::Matrix<double, 2, Eigen::Dynamic> Jc = Ji * A;
-      Hii.noalias() += w * Jp.transpose() * Jp;
-      Hci.noalias() += w * Jc.transpose() * Jp;
-      b->Hcc.noalias() += w * Jc.transpose() * Jc;
+    ViewSystem vs;
+    if (!LineariseView(plate[v], view.uv_px, intr, r.cam_from_plate[v].data(), weighting, &vs,
+                       &Hcc, &gc)) {
+      return Status::Error("view " + std::to_string(v) + " (" + view.image +
+                           "): a grid point projects behind the source at the solution");
     }
-    Eigen::LDLT<Mat6> ldlt(Hii);
-    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff())) {
+    Eigen::LDLT<Mat6> ldlt(vs.Hpp);
+    if (ldlt.info() != Eigen::Success ||
+        !(ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff())) {
       return Status::Error("view " + std::to_string(v) + " (" + view.image +
                            "): its plate pose is not determined by its points");
     }
     b->Hii_inv[v] = ldlt.solve(Mat6::Identity());
-    b->Hci[v] = Hci;
-    S.noalias() -= Hci * b->Hii_inv[v] * Hci.transpose();
+    b->Hpc[v] = vs.Hpc;
+    b->Jl[v] = LeftJacobianOf(r.cam_from_plate[v].data());
+    const Mat69 Y = b->Hii_inv[v].lazyProduct(vs.Hpc);
+    reduction.noalias() += vs.Hpc.transpose().lazyProduct(Y);
   }
-  S += b->Hcc;
   if (k == 0) {
     b->S_inv = Eigen::MatrixXd::Zero(0, 0);
     return Status::Ok();
   }
+  const Mat9 S9 = Hcc - reduction;
+  const Eigen::MatrixXd S = A.transpose() * S9 * A;
   // Invert with a unit-diagonal scaling; a tiny eigenvalue means a parameter combination the views
   // do not determine.
   const Eigen::VectorXd d = S.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
@@ -287,32 +394,39 @@ ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
   if (!UnprojectToNormalized(intr, q, xy)) return ps;
   Eigen::Vector3d p_cam(xy[0], xy[1], 1.0);
   p_cam *= distance_mm / p_cam.norm();
-  double uv[2];
-  Eigen::Matrix<double, 2, 9, Eigen::RowMajor> Ji;
-  if (!ProjectCamPointWithJac(intr, p_cam.data(), uv, Ji.data(), nullptr)) return ps;
+  // q(theta) = project(intrinsics, mean_i T_i(theta) T_i0^-1 p_cam): each view maps p_cam back to
+  // itself at the solution, so J_uv_p_in_cam is the same for all views and view i's pose
+  // Jacobian is [((p_cam - t_i) x a) J_l(r_i), a] per row a of it (as in LineariseView).
+  double uv[2], Jpc[6];
+  Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor> Ji;
+  if (!ProjectCamPointWithJac(intr, p_cam.data(), uv, Ji.data(), Jpc)) return ps;
   const int k = static_cast<int>(r.intrinsics_from_free.cols());
-  Eigen::MatrixXd w = Ji * r.intrinsics_from_free;  // 2 x k
+  Eigen::Matrix<double, 2, kNumIntrinsics> w9 = Ji;
   Eigen::Matrix2d cov_poses = Eigen::Matrix2d::Zero();
   const double inv_n = 1.0 / obs.views.size();
   for (size_t i = 0; i < obs.views.size(); ++i) {
     const auto& pose = r.cam_from_plate[i];
-    double R[9];
-    ceres::AngleAxisToRotationMatrix(pose.data(), ceres::RowMajorAdapter3x3(R));
-    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Rm(R);
-    const Eigen::Vector3d p_frame =
-        Rm.transpose() * (p_cam - Eigen::Vector3d(pose[3], pose[4], pose[5]));
-    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
-    double uvi[2];
-    if (!ProjectPointWithJac(intr, pose.data(), p_frame.data(), uvi, nullptr, Jp.data(), nullptr)) {
-      return ps;
+    const Eigen::Vector3d Rp = p_cam - Eigen::Vector3d(pose[3], pose[4], pose[5]);
+    Eigen::Matrix<double, 2, 3> Jw;
+    Eigen::Matrix<double, 2, 6> a;
+    for (int row = 0; row < 2; ++row) {
+      const double* c = Jpc + 3 * row;
+      Jw(row, 0) = Rp.y() * c[2] - Rp.z() * c[1];
+      Jw(row, 1) = Rp.z() * c[0] - Rp.x() * c[2];
+      Jw(row, 2) = Rp.x() * c[1] - Rp.y() * c[0];
+      a(row, 3) = c[0], a(row, 4) = c[1], a(row, 5) = c[2];
     }
-    const Eigen::Matrix<double, 2, 6> a = Jp * inv_n;
+    a.leftCols<3>().noalias() = Jw * b.Jl[i];
+    a *= inv_n;
     const Eigen::Matrix<double, 2, 6> g = a * b.Hii_inv[i];
-    if (k > 0) w.noalias() -= g * b.Hci[i].transpose();
+    w9.noalias() -= g * b.Hpc[i];
     cov_poses.noalias() += g * a.transpose();
   }
   Eigen::Matrix2d cov = cov_poses;
-  if (k > 0) cov += w * b.S_inv * w.transpose();
+  if (k > 0) {
+    const Eigen::MatrixXd w = w9 * r.intrinsics_from_free;  // 2 x k
+    cov += w * b.S_inv * w.transpose();
+  }
   cov *= r.sigma_px * r.sigma_px;
   ps.sigma_u_px = std::sqrt(std::max(0.0, cov(0, 0)));
   ps.sigma_v_px = std::sqrt(std::max(0.0, cov(1, 1)));
@@ -323,47 +437,18 @@ ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
 }
 
 // carmba's own Levenberg-Marquardt for the plain (non-robust) calibration: per iteration the
-// normal equations are built view by view from ProjectPointWithJac and the poses are eliminated
-// by the Schur complement (the same algebra as Ceres's DENSE_SCHUR, without its per-block
-// overhead). Marquardt damping H + lambda diag(H); a step is kept if the cost drops.
+// normal equations are built view by view (LineariseView) and the poses are eliminated by the
+// Schur complement, the same algebra as Ceres's DENSE_SCHUR without its per-block overhead:
+//   (Hpp_i + lambda D_i) dp_i = -(gp_i + Hpc_i A dc)  for every view i,
+//   (A^T Hcc A + lambda D_c - A^T sum_i Hpc_i^T (Hpp_i + lambda D_i)^-1 Hpc_i A) dc
+//       = -(A^T gc - A^T sum_i Hpc_i^T (Hpp_i + lambda D_i)^-1 gp_i),
+// with Marquardt's damping D = diag(H). The reduction is done in the 9 intrinsics (fixed sizes)
+// and projected on the free parameters once per step. A step is kept if the cost drops; a
+// rejected step costs one cost evaluation and one reduction (the Jacobians are reused).
 struct LmReport {
   int iterations = 0;
   std::string termination;
 };
-
-// The rotation of a view computed once (the per-point kernels would redo the trigonometry).
-struct ViewRotation {
-  Eigen::Matrix3d R;   // R(rvec)
-  Eigen::Matrix3d Jl;  // SO(3) left Jacobian of rvec (camera/camera_model.h)
-  explicit ViewRotation(const double* pose) {
-    double r[9], jl[9];
-    ceres::AngleAxisToRotationMatrix(pose, ceres::RowMajorAdapter3x3(r));
-    SO3LeftJacobian(pose, jl);
-    R = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
-    Jl = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jl);
-  }
-};
-
-double ViewCost(const std::vector<Eigen::Vector3d>& plate,
-                const std::vector<Eigen::Vector2d>& uv,
-                const double* intr,
-                const double* pose,
-                bool* ok) {
-  const ViewRotation rot(pose);
-  const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
-  double c = 0;
-  for (size_t j = 0; j < plate.size(); ++j) {
-    const Eigen::Vector3d pc = rot.R * plate[j] + t;
-    double q[2];
-    if (!ProjectCamPoint(intr, pc.data(), q)) {
-      *ok = false;
-      return 0;
-    }
-    const double du = q[0] - uv[j].x(), dv = q[1] - uv[j].y();
-    c += du * du + dv * dv;
-  }
-  return c;
-}
 
 Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& plate,
                                const ObservationSet& obs,
@@ -375,112 +460,91 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
                                LmReport* report) {
   const int nv = static_cast<int>(plate.size());
   const int k = static_cast<int>(A.cols());
-  using Mat6X = Eigen::Matrix<double, 6, Eigen::Dynamic>;
-  std::vector<Mat6> Hii(nv);
-  std::vector<Mat6X> Hic(nv, Mat6X(6, k));
-  std::vector<Eigen::Matrix<double, 6, 1>> gi(nv);
-  Eigen::MatrixXd Hcc(k, k);
-  Eigen::VectorXd gc(k);
+  const Eigen::MatrixXd At = A.transpose();
+  std::vector<ViewSystem> sys(nv);
+  std::vector<Mat69> Y(nv);  // (Hpp_i + lambda D_i)^-1 Hpc_i
+  std::vector<Vec6> y(nv);   // (Hpp_i + lambda D_i)^-1 gp_i
+  std::vector<std::array<double, 6>> p_new(nv);
+  Eigen::MatrixXd Hcc(k, k), S(k, k);
+  Eigen::VectorXd gc(k), b(k), dc = Eigen::VectorXd::Zero(k);
   auto total_cost = [&](const std::array<double, kNumIntrinsics>& xi,
                         const std::vector<std::array<double, 6>>& pi,
-                        bool* ok) {
-    double c = 0;
-    *ok = true;
-    for (int v = 0; v < nv && *ok; ++v) c += ViewCost(plate[v], obs.views[v].uv_px, xi.data(), pi[v].data(), ok);
-    return c;
+                        double* c) {
+    *c = 0;
+    for (int v = 0; v < nv; ++v) {
+      if (!ViewCost(plate[v], obs.views[v].uv_px, xi.data(), pi[v].data(), c)) return false;
+    }
+    return true;
   };
-  bool ok = true;
-  double cost = total_cost(*x, *poses, &ok);
-  if (!ok) return Status::Error("initialisation puts grid points behind the source (bad detections?)");
+  double cost = 0;
+  if (!total_cost(*x, *poses, &cost)) {
+    return Status::Error("initialisation puts grid points behind the source (bad detections?)");
+  }
   double lambda = 1e-4;
   report->termination = "NO_CONVERGENCE";
   for (int it = 0; it < max_iterations; ++it) {
     report->iterations = it + 1;
     // Linearise.
-    Hcc.setZero();
-    gc.setZero();
+    Mat9 Hcc9 = Mat9::Zero();
+    Vec9 gc9 = Vec9::Zero();
     for (int v = 0; v < nv; ++v) {
-      Hii[v].setZero();
-      Hic[v].setZero();
-      gi[v].setZero();
-      Eigen::Matrix<double, 9, 9> Hcc9 = Eigen::Matrix<double, 9, 9>::Zero();
-      Eigen::Matrix<double, 6, 9> Hic9 = Eigen::Matrix<double, 6, 9>::Zero();
-      Eigen::Matrix<double, 9, 1> gc9 = Eigen::Matrix<double, 9, 1>::Zero();
-      const ViewRotation rot((*poses)[v].data());
-      const Eigen::Vector3d t((*poses)[v][3], (*poses)[v][4], (*poses)[v][5]);
-      for (size_t j = 0; j < plate[v].size(); ++j) {
-        // ProjectPointWithJac's chain rule with the view's rotation computed once:
-        //   d uv/d r = J_uv_p_in_cam * (-[R p]_x J_l(r)),  d uv/d t = J_uv_p_in_cam.
-        const Eigen::Vector3d Rp = rot.R * plate[v][j];
-        const Eigen::Vector3d pc = Rp + t;
-        double q[2];
-        Eigen::Matrix<double, 2, 9, Eigen::RowMajor> Ji;
-        Eigen::Matrix<double, 2, 3, Eigen::RowMajor> Jpc;
-        if (!ProjectCamPointWithJac(x->data(), pc.data(), q, Ji.data(), Jpc.data())) {
-          return Status::Error("a grid point moved behind the source during the adjustment");
-        }
-        Eigen::Matrix3d minus_skew;
-        minus_skew << 0, Rp.z(), -Rp.y(), -Rp.z(), 0, Rp.x(), Rp.y(), -Rp.x(), 0;
-        Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
-        Jp.leftCols<3>() = Jpc * (minus_skew * rot.Jl);
-        Jp.rightCols<3>() = Jpc;
-        const Eigen::Vector2d e(q[0] - obs.views[v].uv_px[j].x(), q[1] - obs.views[v].uv_px[j].y());
-        Hii[v].noalias() += Jp.transpose() * Jp;
-        Hic9.noalias() += Jp.transpose() * Ji;
-        Hcc9.noalias() += Ji.transpose() * Ji;
-        gi[v].noalias() += Jp.transpose() * e;
-        gc9.noalias() += Ji.transpose() * e;
+      if (!LineariseView(plate[v], obs.views[v].uv_px, x->data(), (*poses)[v].data(), nullptr,
+                         &sys[v], &Hcc9, &gc9)) {
+        return Status::Error("a grid point moved behind the source during the adjustment");
       }
-      Hic[v] = Hic9 * A;
-      Hcc.noalias() += A.transpose() * Hcc9 * A;
-      gc.noalias() += A.transpose() * gc9;
     }
+    Hcc.noalias() = At * Hcc9 * A;
+    gc.noalias() = At * gc9;
     // Damped steps until the cost drops (re-using the linearisation).
     bool accepted = false;
     for (int tries = 0; tries < 20 && !accepted; ++tries) {
-      Eigen::MatrixXd S = Hcc;
-      S.diagonal() *= (1.0 + lambda);
-      Eigen::VectorXd b = gc;
-      std::vector<Mat6> Hii_inv(nv);
+      Mat9 reduction = Mat9::Zero();
+      Vec9 reduction_g = Vec9::Zero();
       bool singular = false;
       for (int v = 0; v < nv; ++v) {
-        Mat6 D = Hii[v];
+        Mat6 D = sys[v].Hpp;
         D.diagonal() *= (1.0 + lambda);
-        Eigen::LLT<Mat6> llt(D);
+        const Eigen::LLT<Mat6> llt(D);
         if (llt.info() != Eigen::Success) {
           singular = true;
           break;
         }
-        Hii_inv[v] = llt.solve(Mat6::Identity());
-        const Mat6X HinvHic = Hii_inv[v] * Hic[v];
-        S.noalias() -= Hic[v].transpose() * HinvHic;
-        b.noalias() -= HinvHic.transpose() * gi[v];
+        Y[v] = llt.solve(sys[v].Hpc);
+        y[v] = llt.solve(sys[v].gp);
+        reduction.noalias() += sys[v].Hpc.transpose().lazyProduct(Y[v]);
+        reduction_g.noalias() += sys[v].Hpc.transpose().lazyProduct(y[v]);
       }
-      Eigen::VectorXd dc = Eigen::VectorXd::Zero(k);
       if (!singular && k > 0) {
+        S = Hcc;
+        S.diagonal() *= (1.0 + lambda);
+        S.noalias() -= At * reduction * A;
+        b = gc;
+        b.noalias() -= At * reduction_g;
         Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
-        if (ldlt.info() != Eigen::Success) singular = true;
-        else dc = -ldlt.solve(b);
-        if (!dc.allFinite()) singular = true;
+        if (ldlt.info() != Eigen::Success) {
+          singular = true;
+        } else {
+          dc = -ldlt.solve(b);
+          if (!dc.allFinite()) singular = true;
+        }
       }
       if (singular) {
         lambda *= 10;
         continue;
       }
       std::array<double, kNumIntrinsics> x_new = *x;
-      const Eigen::VectorXd dx = A * dc;
+      const Vec9 dx = A * dc;
       for (int i = 0; i < kNumIntrinsics; ++i) x_new[i] += dx(i);
-      std::vector<std::array<double, 6>> p_new = *poses;
       for (int v = 0; v < nv; ++v) {
-        const Eigen::Matrix<double, 6, 1> dp = -Hii_inv[v] * (gi[v] + Hic[v] * dc);
-        for (int i = 0; i < 6; ++i) p_new[v][i] += dp(i);
+        const Vec6 dp = -(y[v] + Y[v] * dx);
+        for (int i = 0; i < 6; ++i) p_new[v][i] = (*poses)[v][i] + dp(i);
       }
-      bool ok_new = true;
-      const double cost_new = total_cost(x_new, p_new, &ok_new);
+      double cost_new = 0;
+      const bool ok_new = total_cost(x_new, p_new, &cost_new);
       if (ok_new && cost_new < cost) {
         const double rel = (cost - cost_new) / cost;
         *x = x_new;
-        *poses = p_new;
+        poses->swap(p_new);
         cost = cost_new;
         lambda = std::max(lambda / 3.0, 1e-12);
         accepted = true;
@@ -500,7 +564,6 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
   }
   return Status::Ok();
 }
-
 }  // namespace
 
 bool CalibrationOptions::Check(std::string* error) const {
@@ -819,9 +882,12 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     vs.image = view.image;
     vs.num_points = static_cast<int>(view.uv_px.size());
     double vssr = 0;
+    const Eigen::Matrix3d R = RotationOf(r.cam_from_plate[v].data());
+    const Eigen::Vector3d t(r.cam_from_plate[v][3], r.cam_from_plate[v][4], r.cam_from_plate[v][5]);
     for (size_t j = 0; j < view.uv_px.size(); ++j) {
       double uv[2];
-      ProjectPoint(x.data(), r.cam_from_plate[v].data(), plate[v][j].data(), uv);
+      const Eigen::Vector3d pc = R * plate[v][j] + t;
+      ProjectCamPoint(x.data(), pc.data(), uv);
       PointResidual pr;
       pr.view = v;
       pr.point_id = view.point_ids[j];
@@ -842,9 +908,7 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     }
     ssr += vssr;
     vs.rms_px = std::sqrt(vssr / (2.0 * vs.num_points));
-    double R[9];
-    ceres::AngleAxisToRotationMatrix(r.cam_from_plate[v].data(), ceres::RowMajorAdapter3x3(R));
-    vs.tilt_deg = std::acos(std::min(1.0, std::abs(R[8]))) * 180.0 / M_PI;
+    vs.tilt_deg = std::acos(std::min(1.0, std::abs(R(2, 2)))) * 180.0 / M_PI;
     vs.distance_mm = Eigen::Vector3d(r.cam_from_plate[v][3], r.cam_from_plate[v][4],
                                      r.cam_from_plate[v][5])
                          .norm();
@@ -871,17 +935,22 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     r.sigma_px = std::sqrt(ssr_weighted / r.dof);
     r.sigma_estimated = true;
   }
-  std::sort(all.begin(), all.end(),
-            [](const PointResidual& a, const PointResidual& b) { return a.norm_px > b.norm_px; });
+  // Outliers and the 10 worst, largest first (only those are sorted).
+  const auto larger = [](const PointResidual& a, const PointResidual& b) {
+    return a.norm_px > b.norm_px;
+  };
   for (const auto& pr : all) {
     if (pr.norm_px > opt.outlier_threshold_sigma * r.sigma_px) r.outliers.push_back(pr);
   }
-  all.resize(std::min<size_t>(all.size(), 10));
+  std::sort(r.outliers.begin(), r.outliers.end(), larger);
+  const size_t num_worst = std::min<size_t>(all.size(), 10);
+  std::partial_sort(all.begin(), all.begin() + num_worst, all.end(), larger);
+  all.resize(num_worst);
   r.worst = all;
 
   // --- Covariance of the intrinsics, marginal over the poses.
   NormalBlocks blocks;
-  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(obs, r, sigma_solve, &blocks));
+  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(plate, obs, r, sigma_solve, &blocks));
   r.covariance.setZero();
   if (k > 0) {
     r.covariance = r.intrinsics_from_free * blocks.S_inv * r.intrinsics_from_free.transpose() *
@@ -939,7 +1008,11 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& obs,
                                                 double distance_mm) {
   NormalBlocks blocks;
   const double sigma_solve = result.sigma_estimated ? 1.0 : result.sigma_px;
-  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(obs, result, sigma_solve, &blocks));
+  std::vector<std::vector<Eigen::Vector3d>> plate(obs.views.size());
+  for (size_t v = 0; v < obs.views.size(); ++v) {
+    for (int id : obs.views[v].point_ids) plate[v].push_back(obs.grid.PointInPlate(id));
+  }
+  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(plate, obs, result, sigma_solve, &blocks));
   bool ok = false;
   ProjectionSigma ps = UncertaintyFromBlocks(obs, result, blocks, u_px, v_px, distance_mm, &ok);
   if (!ok) return Status::Error("pixel cannot be unprojected with the calibrated distortion");
