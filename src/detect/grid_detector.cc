@@ -50,56 +50,124 @@ void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
 
 namespace {
 
-// Intensity-weighted centroid of a blob around `c` (float image). The background is a plane
-// fitted to the border of a window of `radius` (removes vignetting and heel-effect gradients);
-// the blob's size is measured as the area above half its peak contrast; the centroid is then taken
-// over a disc of 1.5 x the blob radius + 1.5 px with weights (contrast - 10 % of the peak), so
-// the background's noise and gradient do not pull the centre. `dark`: contrast = plane - I.
-bool RefineCentroid(const cv::Mat& f, bool dark, double radius, cv::Point2d* c) {
+// Sub-pixel centre of a blob around `c` on the float image `f` (see the header, step 4). Only
+// pixels with `valid` != 0 (the field of view) are used.
+//   size:       the blob's half-contrast area against the median of the window (robust to a
+//               field-of-view edge or a plate edge in the window) gives its radius r_half; the
+//               centroid disc is rho = 1.5 r_half + 2 px (the blur's tails), the background ring
+//               rho .. rho + 3 px.
+//   background: a plane I = a + b (x - cx) + c (y - cy) fitted to the ring, refitted once without
+//               the pixels more than 3 robust sigmas off (a neighbouring blob, an edge).
+//   weights:    dark (X-ray): the flat-field contrast 1 - I / plane, i.e. the attenuation, which
+//               does not depend on the local brightness (vignetting, heel effect, plate
+//               thickness would otherwise pull the centre towards the brighter side); bright:
+//               I - plane. Minus 5 % of the peak, clipped at zero.
+// Iterated until the centre moves less than 1e-4 px.
+bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double radius, cv::Point2d* c) {
   const int r = std::max(3, static_cast<int>(std::ceil(radius)));
-  double rw = -1;
-  for (int it = 0; it < 4; ++it) {
+  double rho = -1;
+  int rw = r;  // half-size of the pixel box scanned: rho + ring
+  for (int it = 0; it < 8; ++it) {
     const int cx = static_cast<int>(std::lround(c->x)), cy = static_cast<int>(std::lround(c->y));
-    const int x0 = cx - r, y0 = cy - r;
-    if (x0 < 0 || y0 < 0 || x0 + 2 * r >= f.cols || y0 + 2 * r >= f.rows) return false;
-    // Plane fit to the window border: I = a + b (x - cx) + c (y - cy).
-    cv::Matx33d AtA = cv::Matx33d::zeros();
-    cv::Vec3d Atb(0, 0, 0);
-    auto add = [&](int x, int y) {
-      const cv::Vec3d row(1.0, x - cx, y - cy);
-      AtA += row * row.t();
-      Atb += row * static_cast<double>(f.at<float>(y, x));
-    };
-    for (int k = 0; k <= 2 * r; ++k) {
-      add(x0 + k, y0), add(x0 + k, y0 + 2 * r);
-      if (k > 0 && k < 2 * r) add(x0, y0 + k), add(x0 + 2 * r, y0 + k);
+    if (cx - r < 0 || cy - r < 0 || cx + r >= f.cols || cy + r >= f.rows) return false;
+    if (rho < 0) {
+      // Blob size from the window around the initial centre.
+      std::vector<float> vals;
+      vals.reserve((2 * r + 1) * (2 * r + 1));
+      float extreme = dark ? 1e30f : -1e30f;
+      for (int y = cy - r; y <= cy + r; ++y) {
+        const float* fr = f.ptr<float>(y);
+        const uint8_t* vr = valid.ptr<uint8_t>(y);
+        for (int x = cx - r; x <= cx + r; ++x) {
+          if (!vr[x]) continue;
+          vals.push_back(fr[x]);
+          extreme = dark ? std::min(extreme, fr[x]) : std::max(extreme, fr[x]);
+        }
+      }
+      if (vals.size() < 9) return false;
+      std::nth_element(vals.begin(), vals.begin() + vals.size() / 2, vals.end());
+      const float median = vals[vals.size() / 2];
+      const float half = 0.5f * (median + extreme);
+      int area = 0;
+      for (float v : vals) area += dark ? v < half : v > half;
+      if (area == 0 || !(dark ? median > extreme : median < extreme)) return false;
+      rho = 1.5 * std::sqrt(area / M_PI) + 2.0;
+      rw = std::min(r, static_cast<int>(std::ceil(rho + 3.0)));
+      if (rho + 3.0 > r + 0.5) rho = r - 3.0;
+      if (rho < 2.0) return false;
     }
-    cv::Vec3d plane;
-    if (!cv::solve(AtA, Atb, plane, cv::DECOMP_CHOLESKY)) return false;
-    auto contrast = [&](int x, int y) {
-      const double bg = plane[0] + plane[1] * (x - cx) + plane[2] * (y - cy);
-      const double v = f.at<float>(y, x);
-      return dark ? bg - v : v - bg;
+    const double ring_in2 = rho * rho, ring_out2 = (rho + 3.0) * (rho + 3.0);
+    // Background plane on the ring, robustly refitted once.
+    cv::Vec3d plane(0, 0, 0);
+    auto background = [&plane](double ex, double ey) {
+      return plane[0] + plane[1] * ex + plane[2] * ey;
     };
+    double cut = 1e300;
+    for (int pass = 0; pass < 2; ++pass) {
+      cv::Matx33d AtA = cv::Matx33d::zeros();
+      cv::Vec3d Atb(0, 0, 0);
+      std::vector<float> res;
+      int n = 0;
+      for (int y = cy - rw; y <= cy + rw; ++y) {
+        const float* fr = f.ptr<float>(y);
+        const uint8_t* vr = valid.ptr<uint8_t>(y);
+        const double dy = y - c->y;
+        for (int x = cx - rw; x <= cx + rw; ++x) {
+          const double dx = x - c->x, d2 = dx * dx + dy * dy;
+          if (d2 < ring_in2 || d2 > ring_out2) continue;
+          if (!vr[x]) return false;  // the ring reaches the field-of-view rim
+          const double ex = x - cx, ey = y - cy;
+          if (pass == 1) {
+            if (std::fabs(fr[x] - background(ex, ey)) > cut) continue;
+          }
+          const cv::Vec3d row(1.0, ex, ey);
+          AtA += row * row.t();
+          Atb += row * static_cast<double>(fr[x]);
+          ++n;
+        }
+      }
+      if (n < 8 || !cv::solve(AtA, Atb, plane, cv::DECOMP_CHOLESKY)) return false;
+      if (pass == 0) {
+        for (int y = cy - rw; y <= cy + rw; ++y) {
+          const float* fr = f.ptr<float>(y);
+          const uint8_t* vr = valid.ptr<uint8_t>(y);
+          const double dy = y - c->y;
+          for (int x = cx - rw; x <= cx + rw; ++x) {
+            const double dx = x - c->x, d2 = dx * dx + dy * dy;
+            if (d2 < ring_in2 || d2 > ring_out2 || !vr[x]) continue;
+            res.push_back(static_cast<float>(
+                std::fabs(fr[x] - background(x - cx, y - cy))));
+          }
+        }
+        std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
+        // 3 robust sigmas (1.4826 MAD), at least 1e-3 of the background level.
+        cut = std::max(3.0 * 1.4826 * res[res.size() / 2], 1e-3 * std::fabs(plane[0]));
+      }
+    }
+    if (dark && !(plane[0] > 0)) return false;
+    // Contrast weights on the disc.
     double peak = 0;
-    for (int y = y0; y <= y0 + 2 * r; ++y) {
-      for (int x = x0; x <= x0 + 2 * r; ++x) peak = std::max(peak, contrast(x, y));
+    const int rd = static_cast<int>(std::ceil(rho));
+    for (int y = cy - rd; y <= cy + rd; ++y) {
+      const float* fr = f.ptr<float>(y);
+      for (int x = cx - rd; x <= cx + rd; ++x) {
+        const double bg = background(x - cx, y - cy);
+        peak = std::max(peak, dark ? 1.0 - fr[x] / bg : fr[x] - bg);
+      }
     }
     if (!(peak > 0)) return false;
-    if (rw < 0) {
-      int area = 0;
-      for (int y = y0; y <= y0 + 2 * r; ++y) {
-        for (int x = x0; x <= x0 + 2 * r; ++x) area += contrast(x, y) > 0.5 * peak;
-      }
-      rw = std::min<double>(r, 1.5 * std::sqrt(area / M_PI) + 1.5);
-    }
+    const double floor = 0.05 * peak;
     double sw = 0, sx = 0, sy = 0;
-    const double r2 = rw * rw;
-    for (int y = y0; y <= y0 + 2 * r; ++y) {
-      for (int x = x0; x <= x0 + 2 * r; ++x) {
-        const double dx = x - c->x, dy = y - c->y;
-        if (dx * dx + dy * dy > r2) continue;
-        const double w = contrast(x, y) - 0.1 * peak;
+    for (int y = cy - rd; y <= cy + rd; ++y) {
+      const float* fr = f.ptr<float>(y);
+      const uint8_t* vr = valid.ptr<uint8_t>(y);
+      const double dy = y - c->y;
+      for (int x = cx - rd; x <= cx + rd; ++x) {
+        const double dx = x - c->x;
+        if (dx * dx + dy * dy > ring_in2) continue;
+        if (!vr[x]) return false;
+        const double bg = background(x - cx, y - cy);
+        const double w = (dark ? 1.0 - fr[x] / bg : fr[x] - bg) - floor;
         if (w <= 0) continue;
         sw += w, sx += w * x, sy += w * y;
       }
@@ -108,9 +176,48 @@ bool RefineCentroid(const cv::Mat& f, bool dark, double radius, cv::Point2d* c) 
     const cv::Point2d n(sx / sw, sy / sw);
     const double move = std::hypot(n.x - c->x, n.y - c->y);
     *c = n;
-    if (move < 1e-3) break;
+    if (move < 1e-4) break;
   }
   return true;
+}
+
+// The radius (px from the field-of-view centre `c`) out to which an image intensifier's field is
+// fully exposed: the median grey level of 1-px annuli follows the interior's trend (a line
+// fitted to the annuli 45..25 px inside `r`, which carries the vignetting) to within 3 %; beyond
+// it the rim falls off. `r` when no fall-off is seen or the field is too small to tell.
+double FullyExposedRadius(const cv::Mat& f, cv::Point2d c, double r) {
+  constexpr int kDepth = 45, kFit = 20;
+  if (r < 2 * kDepth) return r;
+  std::vector<std::vector<float>> bins(kDepth + 1);
+  const double r_in = r - kDepth;
+  const int y0 = std::max(0, static_cast<int>(c.y - r)), y1 = std::min(f.rows - 1, static_cast<int>(c.y + r) + 1);
+  const int x0 = std::max(0, static_cast<int>(c.x - r)), x1 = std::min(f.cols - 1, static_cast<int>(c.x + r) + 1);
+  for (int y = y0; y <= y1; ++y) {
+    const float* fr = f.ptr<float>(y);
+    const double dy2 = (y - c.y) * (y - c.y);
+    for (int x = x0; x <= x1; ++x) {
+      const double d2 = (x - c.x) * (x - c.x) + dy2;
+      if (d2 < r_in * r_in || d2 > r * r) continue;
+      const int k = static_cast<int>(std::sqrt(d2) - r_in);
+      if (k >= 0 && k <= kDepth) bins[k].push_back(fr[x]);
+    }
+  }
+  std::vector<double> med(kDepth + 1, 0.0);
+  for (int k = 0; k <= kDepth; ++k) {
+    if (bins[k].size() < 16) return r;
+    std::nth_element(bins[k].begin(), bins[k].begin() + bins[k].size() / 2, bins[k].end());
+    med[k] = bins[k][bins[k].size() / 2];
+  }
+  // Line through the interior annuli (least squares).
+  double sk = 0, sm = 0, skk = 0, skm = 0;
+  for (int k = 0; k <= kFit; ++k) sk += k, sm += med[k], skk += k * k, skm += k * med[k];
+  const double n = kFit + 1, slope = (n * skm - sk * sm) / (n * skk - sk * sk);
+  const double icept = (sm - slope * sk) / n;
+  if (!(icept > 0)) return r;
+  for (int k = kFit + 1; k <= kDepth; ++k) {
+    if (med[k] < 0.97 * (icept + slope * k)) return r_in + k;
+  }
+  return r;
 }
 
 // A SimpleBlobDetector that drops blobs touching the field-of-view border (the vignetted rim next
@@ -181,7 +288,14 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
     det.reason = "image has no contrast";
     return det;
   }
+  // The field-of-view circle when known (given, or found), for the rim below.
+  bool have_circle = false;
+  cv::Point2d fov_c;
+  double fov_r = 0;
   if (!o.fov_circle_px.empty()) {
+    have_circle = true;
+    fov_c = cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y);
+    fov_r = o.fov_circle_px[2];
     mask.setTo(0);
     cv::circle(mask,
                cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y),
@@ -212,6 +326,9 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
         cv::circle(circle_mask, c, static_cast<int>(rad - o.fov_margin_px), cv::Scalar(255),
                    cv::FILLED);
         cv::bitwise_and(mask, circle_mask, mask);
+        have_circle = true;
+        fov_c = c;
+        fov_r = rad;
       }
     }
   }
@@ -248,6 +365,17 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   cv::Mat work_search;
   cv::GaussianBlur(work, work_search, cv::Size(5, 5), 1.0);
 
+  // Sub-pixel refinement uses only the fully exposed field (not the intensifier's fall-off rim, whose
+  // steep gradient no local background plane follows); a blob whose window reaches the rim is
+  // dropped.
+  cv::Mat refine_valid = mask;
+  if (have_circle) {
+    const double exposed = FullyExposedRadius(f, fov_c, fov_r);
+    refine_valid = cv::Mat(f.size(), CV_8U, cv::Scalar(0));
+    cv::circle(refine_valid, fov_c, static_cast<int>(std::min(exposed, fov_r - o.fov_margin_px)),
+               cv::Scalar(255), cv::FILLED);
+    cv::bitwise_and(refine_valid, mask, refine_valid);
+  }
   cv::Mat border_distance;
   {
     cv::Mat padded;
@@ -356,10 +484,9 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       }
     }
     if (grid.pattern == GridPattern::kAsymmetricCircles) pitch *= 0.5;
-    cv::Mat fm = f.clone();
     for (size_t i = 0; i < pts.size(); ++i) {
       cv::Point2d q = pts[i];
-      if (RefineCentroid(fm, dark, 0.35 * pitch, &q) && cv::norm(q - pts[i]) < 0.3 * pitch) {
+      if (RefineCentroid(f, refine_valid, dark, 0.35 * pitch, &q) && cv::norm(q - pts[i]) < 0.3 * pitch) {
         pts[i] = q;
       } else {
         refined_ok[i] = false;  // no blob there (OpenCV fills a missing blob from the grid model)

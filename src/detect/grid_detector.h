@@ -10,8 +10,15 @@
 //   3. circles / acircles: cv::findCirclesGrid with a SimpleBlobDetector tuned for small dark
 //      (metal on bright, X-ray) or bright blobs; polarity "auto" tries dark first, then bright.
 //      chessboard: cv::findChessboardCorners + cornerSubPix.
-//   4. Sub-pixel centres of circles: intensity-weighted centroid of the background-subtracted
-//      blob in a window of 0.4 x the grid pitch (in px), iterated from the blob centre.
+//   4. Sub-pixel centres of circles, on the float image, iterated from the blob centre: the blob's
+//      size from its half-contrast area in a window of 0.35 x the grid pitch; a background plane
+//      fitted (robustly) to a 3 px ring just outside the blob; the centroid of the FLAT-FIELD
+//      contrast 1 - I / background over the disc inside the ring (dark polarity: X-ray
+//      attenuation, independent of vignetting and other brightness gradients; bright:
+//      I - background). Only the fully exposed field of view is used: the intensifier's rim
+//      fall-off (found from the median radial profile) is excluded, and a blob whose ring reaches
+//      it is dropped. Against the simulator's truth: ~0.004 px RMS systematic error
+//      (tests/detect/simulated_scene_test.cc).
 //   5. Ids: row-major in the grid (detect/observations.h). For symmetric grids and chessboards,
 //      whose ordering is only defined up to the grid's symmetry, the ordering is made right-handed
 //      in the image (row direction x column direction > 0): an X-ray sees the plate from either
