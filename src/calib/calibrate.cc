@@ -202,6 +202,42 @@ Eigen::Matrix3d LeftJacobianOf(const double* rvec) {
   return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jl);
 }
 
+// Inverse of a symmetric positive definite 6x6 matrix by Cholesky, A = L L^T, A^-1 = L^-T L^-1;
+// false if a pivot is not positive (as Eigen::LLT reports). Plain loops over fixed sizes: Eigen's
+// LLT::solve goes through its blocked triangular solver, costly at this size.
+bool InvertSpd6(const Mat6& A, Mat6* inv) {
+  double L[6][6] = {}, M[6][6] = {};
+  for (int j = 0; j < 6; ++j) {
+    double d = A(j, j);
+    for (int p = 0; p < j; ++p) d -= L[j][p] * L[j][p];
+    if (!(d > 0)) return false;
+    L[j][j] = std::sqrt(d);
+    const double inv_ljj = 1.0 / L[j][j];
+    for (int i = j + 1; i < 6; ++i) {
+      double s = A(i, j);
+      for (int p = 0; p < j; ++p) s -= L[i][p] * L[j][p];
+      L[i][j] = s * inv_ljj;
+    }
+  }
+  // M = L^-1 (lower triangular).
+  for (int j = 0; j < 6; ++j) {
+    M[j][j] = 1.0 / L[j][j];
+    for (int i = j + 1; i < 6; ++i) {
+      double s = 0;
+      for (int p = j; p < i; ++p) s -= L[i][p] * M[p][j];
+      M[i][j] = s / L[i][i];
+    }
+  }
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j) {
+      double s = 0;
+      for (int p = j; p < 6; ++p) s += M[p][i] * M[p][j];
+      (*inv)(i, j) = (*inv)(j, i) = s;
+    }
+  }
+  return true;
+}
+
 // Robust weighting of a point's residual: w = rho'(|e|^2 / sigma^2).
 struct RobustWeighting {
   std::string loss;
@@ -232,48 +268,60 @@ bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
                    ViewSystem* out,
                    Mat9* Hcc,
                    Vec9* gc) {
-  constexpr int kN = 6 + kNumIntrinsics;  // [w, t | intrinsics]
   const Eigen::Matrix3d R = RotationOf(pose);
   const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
-  Eigen::Matrix<double, kN, kN> H = Eigen::Matrix<double, kN, kN>::Zero();
-  Eigen::Matrix<double, kN, 1> g = Eigen::Matrix<double, kN, 1>::Zero();
+  // Accumulated for [w, t] and the intrinsics.
+  Mat6 Hpp = Mat6::Zero();
+  Mat69 Hpc = Mat69::Zero();
+  Mat9 Hcc_view = Mat9::Zero();
+  Vec6 gp = Vec6::Zero();
+  Vec9 gc_view = Vec9::Zero();
   for (size_t j = 0; j < plate.size(); ++j) {
     const Eigen::Vector3d Rp = R * plate[j];
     const Eigen::Vector3d pc = Rp + t;
     double q[2], Ji[2 * kNumIntrinsics], Jpc[6];
     if (!ProjectCamPointWithJac(intr, pc.data(), q, Ji, Jpc)) return false;
-    Eigen::Matrix<double, 2, kN, Eigen::RowMajor> J;
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
     for (int r = 0; r < 2; ++r) {
       const double* a = Jpc + 3 * r;
-      J(r, 0) = Rp.y() * a[2] - Rp.z() * a[1];
-      J(r, 1) = Rp.z() * a[0] - Rp.x() * a[2];
-      J(r, 2) = Rp.x() * a[1] - Rp.y() * a[0];
-      J(r, 3) = a[0], J(r, 4) = a[1], J(r, 5) = a[2];
-      for (int c = 0; c < kNumIntrinsics; ++c) J(r, 6 + c) = Ji[kNumIntrinsics * r + c];
+      Jp(r, 0) = Rp.y() * a[2] - Rp.z() * a[1];
+      Jp(r, 1) = Rp.z() * a[0] - Rp.x() * a[2];
+      Jp(r, 2) = Rp.x() * a[1] - Rp.y() * a[0];
+      Jp(r, 3) = a[0], Jp(r, 4) = a[1], Jp(r, 5) = a[2];
     }
-    const Eigen::Vector2d e(q[0] - uv[j].x(), q[1] - uv[j].y());
+    const Eigen::Map<const Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>> Jc(Ji);
+    Eigen::Vector2d e(q[0] - uv[j].x(), q[1] - uv[j].y());
+    // Blocks by lazy (coefficient-wise, fixed-size) products: Eigen's default product sends
+    // these sizes to its general GEMM.
     if (robust) {
       const double w = (*robust)(e.squaredNorm());
-      const Eigen::Matrix<double, 2, kN, Eigen::RowMajor> Jw = w * J;
-      H.noalias() += Jw.transpose().lazyProduct(J);
-      g.noalias() += Jw.transpose().lazyProduct(e);
+      const Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jpw = w * Jp;
+      const Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor> Jcw = w * Jc;
+      Hpp.noalias() += Jpw.transpose().lazyProduct(Jp);
+      Hpc.noalias() += Jpw.transpose().lazyProduct(Jc);
+      Hcc_view.noalias() += Jcw.transpose().lazyProduct(Jc);
+      gp.noalias() += Jpw.transpose().lazyProduct(e);
+      gc_view.noalias() += Jcw.transpose().lazyProduct(e);
     } else {
-      H.noalias() += J.transpose().lazyProduct(J);
-      g.noalias() += J.transpose().lazyProduct(e);
+      Hpp.noalias() += Jp.transpose().lazyProduct(Jp);
+      Hpc.noalias() += Jp.transpose().lazyProduct(Jc);
+      Hcc_view.noalias() += Jc.transpose().lazyProduct(Jc);
+      gp.noalias() += Jp.transpose().lazyProduct(e);
+      gc_view.noalias() += Jc.transpose().lazyProduct(e);
     }
   }
   // [w, t] -> [rvec, t]: the rotation rows and columns times J_l.
   const Eigen::Matrix3d Jl = LeftJacobianOf(pose);
-  out->Hpp.topLeftCorner<3, 3>().noalias() = Jl.transpose() * H.topLeftCorner<3, 3>() * Jl;
-  out->Hpp.topRightCorner<3, 3>().noalias() = Jl.transpose() * H.block<3, 3>(0, 3);
+  out->Hpp.topLeftCorner<3, 3>().noalias() = Jl.transpose() * Hpp.topLeftCorner<3, 3>() * Jl;
+  out->Hpp.topRightCorner<3, 3>().noalias() = Jl.transpose() * Hpp.topRightCorner<3, 3>();
   out->Hpp.bottomLeftCorner<3, 3>() = out->Hpp.topRightCorner<3, 3>().transpose();
-  out->Hpp.bottomRightCorner<3, 3>() = H.block<3, 3>(3, 3);
-  out->Hpc.topRows<3>().noalias() = Jl.transpose() * H.block<3, kNumIntrinsics>(0, 6);
-  out->Hpc.bottomRows<3>() = H.block<3, kNumIntrinsics>(3, 6);
-  out->gp.head<3>().noalias() = Jl.transpose() * g.head<3>();
-  out->gp.tail<3>() = g.segment<3>(3);
-  *Hcc += H.bottomRightCorner<kNumIntrinsics, kNumIntrinsics>();
-  *gc += g.tail<kNumIntrinsics>();
+  out->Hpp.bottomRightCorner<3, 3>() = Hpp.bottomRightCorner<3, 3>();
+  out->Hpc.topRows<3>().noalias() = Jl.transpose().lazyProduct(Hpc.topRows<3>());
+  out->Hpc.bottomRows<3>() = Hpc.bottomRows<3>();
+  out->gp.head<3>().noalias() = Jl.transpose() * gp.head<3>();
+  out->gp.tail<3>() = gp.tail<3>();
+  *Hcc += Hcc_view;
+  *gc += gc_view;
   return true;
 }
 
@@ -443,8 +491,10 @@ ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
 //   (A^T Hcc A + lambda D_c - A^T sum_i Hpc_i^T (Hpp_i + lambda D_i)^-1 Hpc_i A) dc
 //       = -(A^T gc - A^T sum_i Hpc_i^T (Hpp_i + lambda D_i)^-1 gp_i),
 // with Marquardt's damping D = diag(H). The reduction is done in the 9 intrinsics (fixed sizes)
-// and projected on the free parameters once per step. A step is kept if the cost drops; a
-// rejected step costs one cost evaluation and one reduction (the Jacobians are reused).
+// and projected on the free parameters once per step. A step is kept if the cost drops (then
+// lambda / 10: near the minimum the steps are Gauss-Newton steps, which the weakly determined
+// distortion directions need); a rejected step (lambda x 4) costs one cost evaluation and one
+// reduction, the Jacobians are reused.
 struct LmReport {
   int iterations = 0;
   std::string termination;
@@ -502,15 +552,14 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
       Vec9 reduction_g = Vec9::Zero();
       bool singular = false;
       for (int v = 0; v < nv; ++v) {
-        Mat6 D = sys[v].Hpp;
+        Mat6 D = sys[v].Hpp, D_inv;
         D.diagonal() *= (1.0 + lambda);
-        const Eigen::LLT<Mat6> llt(D);
-        if (llt.info() != Eigen::Success) {
+        if (!InvertSpd6(D, &D_inv)) {
           singular = true;
           break;
         }
-        Y[v] = llt.solve(sys[v].Hpc);
-        y[v] = llt.solve(sys[v].gp);
+        Y[v].noalias() = D_inv.lazyProduct(sys[v].Hpc);
+        y[v].noalias() = D_inv.lazyProduct(sys[v].gp);
         reduction.noalias() += sys[v].Hpc.transpose().lazyProduct(Y[v]);
         reduction_g.noalias() += sys[v].Hpc.transpose().lazyProduct(y[v]);
       }
@@ -546,7 +595,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
         *x = x_new;
         poses->swap(p_new);
         cost = cost_new;
-        lambda = std::max(lambda / 3.0, 1e-12);
+        lambda = std::max(lambda / 10.0, 1e-12);
         accepted = true;
         if (rel < function_tolerance) {
           report->termination = "CONVERGENCE";
