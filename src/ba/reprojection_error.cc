@@ -60,4 +60,26 @@ bool PointPriorError::Evaluate(double const* const* parameters,
   return true;
 }
 
+bool PointPriorRows::Evaluate(double const* const* parameters,
+                              double* residuals,
+                              double** jacobians) const {
+  const Eigen::Map<const Eigen::Vector3d> p(parameters[0]);
+  Eigen::Map<Eigen::Vector2d> r(residuals);
+  r = A_ * (p - p_measured_);
+  if (!r.allFinite()) return false;
+  if (jacobians && jacobians[0]) {
+    Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> J(jacobians[0]);
+    J = A_;
+  }
+  return true;
+}
+
+std::pair<PointPriorRows*, PointPriorRows*> PointPriorRows::Split(
+    const Eigen::Vector3d& p_measured, const Eigen::Matrix3d& sqrt_information) {
+  Eigen::Matrix<double, 2, 3> top = sqrt_information.topRows<2>();
+  Eigen::Matrix<double, 2, 3> last = Eigen::Matrix<double, 2, 3>::Zero();
+  last.row(0) = sqrt_information.row(2);
+  return {new PointPriorRows(p_measured, top), new PointPriorRows(p_measured, last)};
+}
+
 }  // namespace carmba

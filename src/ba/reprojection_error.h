@@ -22,6 +22,7 @@
 #include <ceres/sized_cost_function.h>
 
 #include <Eigen/Core>
+#include <utility>
 
 #include "camera/camera_model.h"
 
@@ -77,6 +78,29 @@ class PointPriorError final : public ceres::SizedCostFunction<3, 3> {
  private:
   Eigen::Vector3d p_measured_;
   Eigen::Matrix3d sqrt_information_;  // L^T, upper triangular
+};
+
+// PointPriorRows: two rows of a PointPriorError, r = A (p - p_measured) with A 2x3 (a row of A
+// may be zero). The pose problem hands each 3-row prior to Ceres as two of these, rows (0, 1) and
+// (2, zero), so that every residual block on a marker has 2 rows and Ceres picks its fixed-size
+// SchurEliminator<2, 3, 6> instead of the dynamic <-1, -1, -1> one. The cost, gradient and normal
+// equations are those of the 3-row prior: the zero row adds nothing.
+class PointPriorRows final : public ceres::SizedCostFunction<2, 3> {
+ public:
+  PointPriorRows(const Eigen::Vector3d& p_measured, const Eigen::Matrix<double, 2, 3>& A)
+      : p_measured_(p_measured), A_(A) {}
+
+  bool Evaluate(double const* const* parameters,
+                double* residuals,
+                double** jacobians) const override;
+
+  // The two blocks that together equal PointPriorError(p_measured, S^T S = C^-1).
+  static std::pair<PointPriorRows*, PointPriorRows*> Split(const Eigen::Vector3d& p_measured,
+                                                          const Eigen::Matrix3d& sqrt_information);
+
+ private:
+  Eigen::Vector3d p_measured_;
+  Eigen::Matrix<double, 2, 3> A_;
 };
 
 // Returns the upper-triangular square-root information S with S^T S = covariance^-1, or false if

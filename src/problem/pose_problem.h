@@ -9,8 +9,10 @@
 //   * per observation a ReprojectionError whitened by sigma_px (analytic Jacobians, or the autodiff
 //     twin); the intrinsics are read from the camera file and held constant here.
 // Initial poses come from the configured initialiser (legacy_posit, posit, epnp, sqpnp).
-// The covariance of all poses is computed jointly with ceres::Covariance; per view it is reported
-// as (rvec, t) and as small rotations about the camera axes (deg) and translations (mm).
+// The covariance of all poses is computed jointly, by default from the analytic Jacobians with the
+// markers eliminated by the Schur complement (problem/pose_covariance.h), or with ceres::Covariance;
+// per view it is reported as (rvec, t) and as small rotations about the camera axes (deg) and
+// translations (mm).
 //
 // PROBLEM FILE (problems/*.yaml); paths are relative to the problem file:
 //   name: thesis_pose
@@ -49,7 +51,8 @@
 //   function_tolerance: 1e-12
 //   gradient_tolerance: 1e-12
 //   parameter_tolerance: 1e-12
-//   covariance: {algorithm: eigen_sparse_qr, scale: apriori}  # or dense_svd, sparse_qr;
+//   covariance: {algorithm: schur, scale: apriori}  # or ceres::Covariance's dense_svd,
+//                                                 # sparse_qr, eigen_sparse_qr;
 //                                                 # aposteriori scales by s0^2
 //   num_threads: 1
 #pragma once
@@ -134,8 +137,10 @@ struct SolverConfig {
   double function_tolerance = 1e-12;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-12;
-  // dense_svd | sparse_qr (SuiteSparse) | eigen_sparse_qr (fastest on small problems)
-  std::string covariance_algorithm = "eigen_sparse_qr";
+  // schur: carmba's own, from the residuals' Jacobians with the markers eliminated
+  //        (problem/pose_covariance.h; the fastest);
+  // dense_svd | sparse_qr (SuiteSparse) | eigen_sparse_qr: ceres::Covariance (references).
+  std::string covariance_algorithm = "schur";
   bool covariance_aposteriori = false;  // scale covariance by the a-posteriori variance factor
   int num_threads = 1;
 

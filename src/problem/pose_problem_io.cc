@@ -339,6 +339,12 @@ bool SolverConfig::Check(std::string* error) const {
   }
   if (!(loss_scale_px > 0)) return *error = "loss.scale_px must be positive", false;
   if (num_threads < 1) return *error = "num_threads must be >= 1", false;
+  if (covariance_algorithm != "schur" && covariance_algorithm != "dense_svd" &&
+      covariance_algorithm != "sparse_qr" && covariance_algorithm != "eigen_sparse_qr") {
+    return *error = "covariance.algorithm '" + covariance_algorithm +
+                    "' is not one of schur, dense_svd, sparse_qr, eigen_sparse_qr",
+           false;
+  }
   return true;
 }
 
@@ -366,7 +372,8 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   root.GetPositive("parameter_tolerance", &c.parameter_tolerance);
   YamlMap& cov = root.Map("covariance");
   std::string scale = "apriori";
-  cov.GetEnum("algorithm", {"dense_svd", "sparse_qr", "eigen_sparse_qr"}, &c.covariance_algorithm);
+  cov.GetEnum("algorithm", {"schur", "dense_svd", "sparse_qr", "eigen_sparse_qr"},
+              &c.covariance_algorithm);
   cov.GetEnum("scale", {"apriori", "aposteriori"}, &scale);
   root.Get("num_threads", &c.num_threads);
   CARMBA_RETURN_IF_ERROR(root.Finish());

@@ -7,11 +7,13 @@
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <limits>
+#include <memory>
 #include <set>
 
 #include "ba/reprojection_error.h"
 #include "geometry/rotation.h"
 #include "pose/posit.h"
+#include "problem/pose_covariance.h"
 #include "problem/pose_problem.h"
 #include "util/stats.h"
 
@@ -117,10 +119,12 @@ double ViewRms(const PoseProblem& problem,
 }
 
 // Sum of squared whitened residuals (reprojection and CT priors), without any robust loss.
+// `information` holds each marker's CT information (problem frame), markers in id order.
 double WhitenedChi2(const PoseProblem& problem,
                     const std::vector<Pose6>& poses,
                     const std::map<int, Eigen::Vector3d>& markers,
-                    const std::map<int, const Marker*>& marker_by_id) {
+                    const std::map<int, const Marker*>& marker_by_id,
+                    const std::vector<Eigen::Matrix3d>& information) {
   double chi2 = 0;
   const double w = 1.0 / (problem.sigma_px * problem.sigma_px);
   for (size_t v = 0; v < problem.views.size(); ++v) {
@@ -133,10 +137,10 @@ double WhitenedChi2(const PoseProblem& problem,
       chi2 += (q - o.uv_px).squaredNorm() * w;
     }
   }
+  size_t k = 0;
   for (const auto& [id, p] : markers) {
-    const Marker& m = *marker_by_id.at(id);
-    const Eigen::Vector3d d = p - MarkerInProblemFrame(problem, m);
-    chi2 += d.dot(MarkerCovarianceInProblemFrame(problem, m).ldlt().solve(d));
+    const Eigen::Vector3d d = p - MarkerInProblemFrame(problem, *marker_by_id.at(id));
+    chi2 += d.dot(information[k++] * d);
   }
   return chi2;
 }
@@ -235,18 +239,33 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
   for (size_t v = 0; v < V; ++v) std::copy(poses[v].data(), poses[v].data() + 6, pose_ptr(v));
   double* intrinsics = buffer.data() + 6 * V + 3 * M;
   std::copy(problem.camera.params.begin(), problem.camera.params.end(), intrinsics);
+  // One Ceres context per thread, reused by every solve (Problem::Options::context): a study
+  // solves thousands of small problems and need not build a context for each.
+  static thread_local std::unique_ptr<ceres::Context> context(ceres::Context::Create());
   ceres::Problem::Options popts;
+  popts.context = context.get();
+  // The blocks below are built from validated input with sizes fixed at compile time; Ceres's
+  // per-block checks (duplicate or aliasing parameter blocks) cannot fire here.
+  popts.disable_all_safety_checks = true;
   ceres::Problem cp(popts);
-  std::vector<ceres::ResidualBlockId> reproj_blocks;
+  // The same blocks, as the Schur covariance needs them (owned by the Ceres problem).
+  PoseCovarianceInput cov_in;
+  std::map<int, int> marker_index;
+  for (auto& [id, p] : marker_ptr) {
+    marker_index[id] = static_cast<int>(cov_in.markers.size());
+    cov_in.markers.push_back(p);
+  }
+  for (size_t v = 0; v < V; ++v) cov_in.poses.push_back(pose_ptr(v));
+  cov_in.intrinsics = intrinsics;
   for (size_t v = 0; v < V; ++v) {
     for (const auto& o : problem.views[v].observations) {
       ceres::CostFunction* cost =
           config.analytic_jacobians
               ? ReprojectionError::Create(o.uv_px.x(), o.uv_px.y(), problem.sigma_px)
               : ReprojectionErrorAutoDiff::Create(o.uv_px.x(), o.uv_px.y(), problem.sigma_px);
-      reproj_blocks.push_back(cp.AddResidualBlock(cost, MakeLoss(config, problem.sigma_px),
-                                                  pose_ptr(v), marker_ptr.at(o.marker_id),
-                                                  intrinsics));
+      ceres::LossFunction* loss = MakeLoss(config, problem.sigma_px);
+      cp.AddResidualBlock(cost, loss, pose_ptr(v), marker_ptr.at(o.marker_id), intrinsics);
+      cov_in.blocks.push_back({cost, loss, static_cast<int>(v), marker_index.at(o.marker_id)});
     }
   }
   cp.SetParameterBlockConstant(intrinsics);
@@ -258,12 +277,16 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
       return Status::Error(problem.path + ": marker " + std::to_string(id) +
                            ": covariance is not symmetric positive definite");
     }
-    cp.AddResidualBlock(new PointPriorError(MarkerInProblemFrame(problem, m), cov), nullptr,
-                        marker_ptr.at(id));
+    // As two 2-row blocks (PointPriorRows): all marker rows then have 2 rows and Ceres uses its
+    // fixed-size Schur eliminator.
+    cov_in.marker_information.push_back(S.transpose() * S);
+    const auto [rows01, row2] = PointPriorRows::Split(MarkerInProblemFrame(problem, m), S);
+    cp.AddResidualBlock(rows01, nullptr, marker_ptr.at(id));
+    cp.AddResidualBlock(row2, nullptr, marker_ptr.at(id));
   }
   // Initial cost, evaluated directly (Problem::Evaluate rebuilds Ceres's program each call).
   {
-    const double chi2_0 = WhitenedChi2(problem, poses, markers, marker_by_id);
+    const double chi2_0 = WhitenedChi2(problem, poses, markers, marker_by_id, cov_in.marker_information);
     if (!std::isfinite(chi2_0)) {
       return Status::Error(problem.path + ": the initial poses give a non-finite cost (a marker "
                                           "behind the source?)");
@@ -308,7 +331,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
   for (auto& [id, p] : markers) std::copy(marker_ptr.at(id), marker_ptr.at(id) + 3, p.data());
 
   // Statistics from the raw (loss-free) whitened residuals.
-  sol.chi2 = WhitenedChi2(problem, poses, markers, marker_by_id);
+  sol.chi2 = WhitenedChi2(problem, poses, markers, marker_by_id, cov_in.marker_information);
   sol.num_residuals = 0;
   for (const auto& v : problem.views) sol.num_residuals += 2 * static_cast<int>(v.observations.size());
   sol.num_residuals += 3 * static_cast<int>(markers.size());
@@ -329,7 +352,14 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
   sol.chi2_p_value = ChiSquareUpperTail(sol.chi2, sol.dof);
 
   // Joint covariance of all poses.
-  if (config.refine) {
+  if (config.refine && config.covariance_algorithm == "schur") {
+    auto cov = PoseCovarianceBySchur(cov_in);
+    if (!cov.ok()) {
+      return Status::Error(problem.path + ": " + cov.status().message() +
+                           " (degenerate geometry: too few or (near-)coplanar markers in a view?)");
+    }
+    sol.joint_covariance = std::move(*cov);
+  } else if (config.refine) {
     ceres::Covariance::Options co;
     co.algorithm_type =
         config.covariance_algorithm == "dense_svd" ? ceres::DENSE_SVD : ceres::SPARSE_QR;
@@ -351,10 +381,11 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
                            ": the covariance is rank-deficient (degenerate geometry: too few or "
                            "(near-)coplanar markers in a view?)");
     }
-    sol.joint_covariance.resize(6 * V, 6 * V);
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jc(6 * V, 6 * V);
     covariance.GetCovarianceMatrix(blocks, jc.data());
     sol.joint_covariance = jc;
+  }
+  if (config.refine) {
     if (config.covariance_aposteriori && std::isfinite(sol.sigma0)) {
       sol.joint_covariance *= sol.sigma0 * sol.sigma0;
     }

@@ -179,24 +179,65 @@ TEST(Stats, ChiSquareUpperTail) {
 namespace carmba {
 namespace {
 
-// The three covariance back-ends compute the same matrix.
+// The four covariance back-ends compute the same matrix: carmba's Schur complement against
+// ceres::Covariance (dense SVD, SuiteSparse QR, Eigen sparse QR), with analytic and autodiff
+// Jacobians, with and without a robust loss that is active on some residuals, on one view and on
+// five views that share the markers.
 TEST(PoseSolver, CovarianceAlgorithmsAgree) {
+  constexpr double kRelTol = 1e-8;
+  for (int views : {1, 5}) {
+    SyntheticPoseSpec spec;
+    spec.camera = ThesisCamera();
+    spec.markers = ThesisMarkers();
+    if (views == 1) spec.view_angles_deg = {30}, spec.pairs.clear();
+    const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
+    for (const char* loss : {"trivial", "huber", "cauchy"}) {
+      for (bool analytic : {true, false}) {
+        SolverConfig c = DefaultConfig();
+        c.loss = loss;
+        c.loss_scale_px = 0.4;  // below the 0.5 px noise: the loss is active on some residuals
+        c.analytic_jacobians = analytic;
+        c.covariance_algorithm = "dense_svd";
+        auto ref = SolvePoseProblem(p, c);
+        ASSERT_TRUE(ref.ok()) << ref.status().message();
+        ASSERT_EQ(ref->joint_covariance.rows(), 6 * views);
+        for (const char* algo : {"schur", "sparse_qr", "eigen_sparse_qr"}) {
+          c.covariance_algorithm = algo;
+          auto s = SolvePoseProblem(p, c);
+          ASSERT_TRUE(s.ok()) << algo;
+          const double rel = (s->joint_covariance - ref->joint_covariance).norm() /
+                             ref->joint_covariance.norm();
+          EXPECT_LT(rel, kRelTol) << algo << ", " << views << " views, loss " << loss
+                                  << (analytic ? ", analytic" : ", autodiff");
+        }
+      }
+    }
+  }
+}
+
+// A robust loss changes the covariance (so the test above compares something the loss affects).
+TEST(PoseSolver, RobustLossEntersTheSchurCovariance) {
   SyntheticPoseSpec spec;
   spec.camera = ThesisCamera();
   spec.markers = ThesisMarkers();
   const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
   SolverConfig c = DefaultConfig();
-  c.covariance_algorithm = "dense_svd";
-  auto ref = SolvePoseProblem(p, c);
-  ASSERT_TRUE(ref.ok());
-  for (const char* algo : {"sparse_qr", "eigen_sparse_qr"}) {
-    c.covariance_algorithm = algo;
-    auto s = SolvePoseProblem(p, c);
-    ASSERT_TRUE(s.ok()) << algo;
-    const double rel = (s->joint_covariance - ref->joint_covariance).norm() /
-                       ref->joint_covariance.norm();
-    EXPECT_LT(rel, 1e-8) << algo;
-  }
+  auto plain = SolvePoseProblem(p, c);
+  c.loss = "cauchy";
+  c.loss_scale_px = 0.4;
+  auto robust = SolvePoseProblem(p, c);
+  ASSERT_TRUE(plain.ok() && robust.ok());
+  EXPECT_GT((plain->joint_covariance - robust->joint_covariance).norm() /
+                plain->joint_covariance.norm(),
+            1e-3);
+}
+
+TEST(PoseSolver, UnknownCovarianceAlgorithmIsRejected) {
+  SolverConfig c = DefaultConfig();
+  c.covariance_algorithm = "cholmod";
+  std::string err;
+  EXPECT_FALSE(c.Check(&err));
+  EXPECT_NE(err.find("cholmod"), std::string::npos);
 }
 
 }  // namespace
