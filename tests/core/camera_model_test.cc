@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/calib3d.hpp>
+#include <memory>
 #include <random>
 
 #include "ba/reprojection_error.h"
@@ -213,6 +214,35 @@ TEST(PointPrior, WhitensByCovariance) {
   EXPECT_LT(((J.transpose() * J) - C.inverse()).norm(), 1e-9);
   Eigen::Matrix3d S;
   EXPECT_FALSE(SqrtInformation(-C, &S));
+}
+
+// The two 2-row blocks the pose problem hands to Ceres are the 3-row prior: same squared norm,
+// same information J^T J and gradient J^T r.
+TEST(PointPrior, SplitIntoTwoRowBlocksIsTheSamePrior) {
+  Eigen::Matrix3d C;
+  C << 0.09, 0.01, 0, 0.01, 0.04, 0.005, 0, 0.005, 0.25;
+  const Eigen::Vector3d m(1, 2, 3), p(1.3, 1.9, 3.5);
+  Eigen::Matrix3d S;
+  ASSERT_TRUE(SqrtInformation(C, &S));
+  const auto [a, b] = PointPriorRows::Split(m, S);
+  std::unique_ptr<PointPriorRows> ua(a), ub(b);
+  const double* params[1] = {p.data()};
+  double chi2 = 0;
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d grad = Eigen::Vector3d::Zero();
+  for (const PointPriorRows* block : {a, b}) {
+    Eigen::Vector2d r;
+    Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J;
+    double* jac[1] = {J.data()};
+    ASSERT_TRUE(block->Evaluate(params, r.data(), jac));
+    chi2 += r.squaredNorm();
+    info += J.transpose() * J;
+    grad += J.transpose() * r;
+  }
+  const Eigen::Vector3d d = p - m;
+  EXPECT_NEAR(chi2, d.dot(C.inverse() * d), 1e-12);
+  EXPECT_LT((info - C.inverse()).norm(), 1e-9);
+  EXPECT_LT((grad - C.inverse() * d).norm(), 1e-9);
 }
 
 }  // namespace
