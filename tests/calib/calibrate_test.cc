@@ -140,7 +140,8 @@ TEST(CalibrateTest, ReportedCovarianceMatchesMonteCarloDistortionHeld) {
   // With the distortion held (at the truth) the problem is close to linear in the noise and every
   // re-solve's reported sigma of fx, fy, cx, cy must match the Monte Carlo spread. (With the
   // distortion free, the per-trial cx, cy sigmas are 1.25-1.6x below the spread: see the test
-  // above and the report.)
+  // above, the next one and tests/calib/scene_monte_carlo_test.cc: the cause is the tangential
+  // terms p1, p2, which trade with cx, cy along a curved valley, not k2 / k3.)
   SyntheticViewsOptions so;
   so.noise_sigma_px = 0;
   so.seed = 3;
@@ -151,6 +152,28 @@ TEST(CalibrateTest, ReportedCovarianceMatchesMonteCarloDistortionHeld) {
   opt.initial_intrinsics.assign(kTruth.begin(), kTruth.end());
   std::array<double, 4> sd, rep;
   MonteCarlo(clean, opt, kTrials, kMcNoise, &sd, &rep);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(sd[i] / rep[i], 1.0, kSigmaRelTol)
+        << kIntrinsicNames[i] << ": Monte Carlo " << sd[i] << " reported " << rep[i];
+  }
+}
+
+TEST(CalibrateTest, ReportedCovarianceMatchesMonteCarloFullModelAtLowNoise) {
+  // The full model's per-trial sigmas are honest when the noise is small enough for the
+  // linearisation to hold over its reach: 0.03 px (what the simulated scenes' images give, see
+  // tests/calib/scene_monte_carlo_test.cc). At 0.3 px they are not (the first test), and with this
+  // weak distortion (k1 = -0.3: the distortion centre barely pins the principal point) holding
+  // p1, p2 and k3 does not cure it either (cx, cy 1.27x, 1.20x measured) - unlike the scenes with
+  // strong distortion, where it does.
+  constexpr double kLowNoise = 0.03;
+  SyntheticViewsOptions so;
+  so.noise_sigma_px = 0;
+  so.seed = 3;
+  const ObservationSet clean = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
+  CalibrationOptions opt;
+  opt.pixel_sigma_px = kLowNoise;
+  std::array<double, 4> sd, rep;
+  MonteCarlo(clean, opt, kTrials, kLowNoise, &sd, &rep);
   for (int i = 0; i < 4; ++i) {
     EXPECT_NEAR(sd[i] / rep[i], 1.0, kSigmaRelTol)
         << kIntrinsicNames[i] << ": Monte Carlo " << sd[i] << " reported " << rep[i];
