@@ -61,28 +61,17 @@ Result Carmba(const std::string& args, const std::string& dir) {
   return Shell("'" + kBin + "' " + args, dir);
 }
 
-// The shipped solver config `name` with the dense QR linear solver instead of dense Schur. The
-// equality tests need bitwise-reproducible solves: with dense Schur, Ceres's results were
-// observed to differ in the last bits (and, rarely, by one iteration) depending on the heap
-// addresses of the parameter blocks, i.e. between threads; dense QR estimates were identical.
-// (The covariance still differs in the last bits, which %.6g hides.)
-std::string DenseQrConfig(const std::string& dir, const std::string& name) {
-  std::string text = Read(kSrc + "/configs/" + name + ".yaml");
-  const std::string from = "linear_solver: dense_schur";
-  const size_t pos = text.find(from);
-  EXPECT_NE(pos, std::string::npos) << name;
-  if (pos != std::string::npos) text.replace(pos, from.size(), "linear_solver: dense_qr");
-  const std::string path = dir + "/" + name + "_qr.yaml";
-  std::ofstream(path) << text;
-  return path;
-}
+// The shipped solver config `name`. The equality tests need bitwise-reproducible solves; the pose
+// solver keeps all parameter blocks in one buffer (Ceres orders blocks by address), so the shipped
+// dense-Schur configs are reproducible across threads and processes.
+std::string ShippedConfig(const std::string& name) { return kSrc + "/configs/" + name + ".yaml"; }
 
 // A study of the simulated thesis object: 2 configs x 2 pixel noises x `trials`.
 std::string WriteStudy(const std::string& dir, int trials, const std::string& extra_problems = "",
                        const std::string& extra_configs = "") {
   const std::string path = dir + "/study.yaml";
-  const std::string posit = DenseQrConfig(dir, "posit_ba_analytic");
-  const std::string sqpnp = DenseQrConfig(dir, "sqpnp_ba_analytic");
+  const std::string posit = ShippedConfig("posit_ba_analytic");
+  const std::string sqpnp = ShippedConfig("sqpnp_ba_analytic");
   std::ofstream(path) << "name: cli_study\ntrials: " << trials
                       << "\nbase_seed: 3\nproblems:\n"
                          "  - name: sim\n    synthetic:\n      camera: "

@@ -55,14 +55,10 @@ fi
 echo $RANDOM
 )";
   ::chmod(sbatch.c_str(), 0755);
-  // Dense QR: bitwise-reproducible solves across threads (see study_cli_test.cc).
-  std::string config = ReadFile(kSrc + "/configs/posit_ba_analytic.yaml").value();
-  config.replace(config.find("dense_schur"), 11, "dense_qr");
-  std::ofstream(dir + "/qr.yaml") << config;
   const std::string study = dir + "/study.yaml";
   std::ofstream(study) << "name: slurm\ntrials: 5\nproblems:\n  - name: sim\n    synthetic: {camera: "
                        << kSrc << "/data/thesis/camera.json, markers: thesis}\nconfigs:\n"
-                       << "  - {name: c, file: " << dir << "/qr.yaml}\n"
+                       << "  - {name: c, file: " << kSrc << "/configs/posit_ba_analytic.yaml}\n"
                        << "sweeps:\n  pixel_noise_px: [0.2, 0.6, 1.0]\n";
   const std::string log = " > '" + dir + "/log.txt' 2>&1";
   ASSERT_EQ(Shell("PATH='" + dir + "/fakebin':\"$PATH\" CARMBA='" + kBin + "' '" + kSrc +
