@@ -2,7 +2,6 @@
 
 #include <Eigen/Dense>
 #include <cmath>
-#include <limits>
 
 namespace carmba {
 
@@ -36,28 +35,6 @@ bool SqrtInformation(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* S) {
   // information = L L^T  =>  S = L^T satisfies S^T S = information.
   *S = llt.matrixL().transpose();
   return S->allFinite();
-}
-
-PointPriorError::PointPriorError(const Eigen::Vector3d& p_measured,
-                                 const Eigen::Matrix3d& covariance_mm2)
-    : p_measured_(p_measured) {
-  if (!SqrtInformation(covariance_mm2, &sqrt_information_)) {
-    sqrt_information_.setConstant(std::numeric_limits<double>::quiet_NaN());
-  }
-}
-
-bool PointPriorError::Evaluate(double const* const* parameters,
-                               double* residuals,
-                               double** jacobians) const {
-  const Eigen::Map<const Eigen::Vector3d> p(parameters[0]);
-  Eigen::Map<Eigen::Vector3d> r(residuals);
-  r = sqrt_information_ * (p - p_measured_);
-  if (!r.allFinite()) return false;
-  if (jacobians && jacobians[0]) {
-    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> J(jacobians[0]);
-    J = sqrt_information_;
-  }
-  return true;
 }
 
 bool PointPriorRows::Evaluate(double const* const* parameters,

@@ -13,9 +13,10 @@
 // sigma_px. ReprojectionErrorAutoDiff is the autodiff twin, used by the `autodiff` configuration
 // and by the tests to check the analytic derivatives.
 //
-// PointPriorError: a 3-D point tied to a measured position (a CT fiducial) with covariance C:
-//   residual (3): L^T (p - p_measured),  with L L^T = C^-1  (L^T is the square-root information)
-//   so that |r|^2 = (p - p_m)^T C^-1 (p - p_m).  Jacobian: L^T (constant).
+// CT prior: a 3-D point tied to a measured position (a CT fiducial) with covariance C:
+//   residual (3): S (p - p_measured),  with S^T S = C^-1  (S = L^T, the square-root information)
+//   so that |r|^2 = (p - p_measured)^T C^-1 (p - p_measured).  Jacobian: S (constant).
+// It is handed to Ceres as two PointPriorRows blocks of 2 rows each (see below).
 #pragma once
 
 #include <ceres/autodiff_cost_function.h>
@@ -66,22 +67,8 @@ struct ReprojectionErrorAutoDiff {
   double u, v, inv_sigma;
 };
 
-class PointPriorError final : public ceres::SizedCostFunction<3, 3> {
- public:
-  // `covariance_mm2` must be symmetric positive definite (checked by the caller).
-  PointPriorError(const Eigen::Vector3d& p_measured, const Eigen::Matrix3d& covariance_mm2);
-
-  bool Evaluate(double const* const* parameters,
-                double* residuals,
-                double** jacobians) const override;
-
- private:
-  Eigen::Vector3d p_measured_;
-  Eigen::Matrix3d sqrt_information_;  // L^T, upper triangular
-};
-
-// PointPriorRows: two rows of a PointPriorError, r = A (p - p_measured) with A 2x3 (a row of A
-// may be zero). The pose problem hands each 3-row prior to Ceres as two of these, rows (0, 1) and
+// PointPriorRows: two rows of the CT prior, r = A (p - p_measured) with A 2x3 (a row of A may be
+// zero). The pose problem hands each 3-row prior to Ceres as two of these, rows (0, 1) and
 // (2, zero), so that every residual block on a marker has 2 rows and Ceres picks its fixed-size
 // SchurEliminator<2, 3, 6> instead of the dynamic <-1, -1, -1> one. The cost, gradient and normal
 // equations are those of the 3-row prior: the zero row adds nothing.
@@ -94,7 +81,7 @@ class PointPriorRows final : public ceres::SizedCostFunction<2, 3> {
                 double* residuals,
                 double** jacobians) const override;
 
-  // The two blocks that together equal PointPriorError(p_measured, S^T S = C^-1).
+  // The two blocks that together are the prior with square-root information S (S^T S = C^-1).
   static std::pair<PointPriorRows*, PointPriorRows*> Split(const Eigen::Vector3d& p_measured,
                                                           const Eigen::Matrix3d& sqrt_information);
 

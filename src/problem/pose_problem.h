@@ -4,7 +4,7 @@
 // The bundle adjustment (one Ceres problem over all views):
 //   * per view v a pose cam_from_object_v = [rx, ry, rz (rad), tx, ty, tz (mm)];
 //   * per marker m its position p_m in the object frame, a parameter block shared by all views,
-//     tied to its CT measurement by a PointPriorError whitened by the CT covariance. The prior fixes
+//     tied to its CT measurement by a prior whitened by the CT covariance (PointPriorRows). It fixes
 //     the object frame (the gauge), and CT error enters the covariance and correlates the views;
 //   * per observation a ReprojectionError whitened by sigma_px (analytic Jacobians, or the autodiff
 //     twin); the intrinsics are read from the camera file and held constant here.

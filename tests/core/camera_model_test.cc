@@ -199,30 +199,14 @@ TEST(CameraModel, UnprojectInvertsProjection) {
   }
 }
 
-TEST(PointPrior, WhitensByCovariance) {
-  Eigen::Matrix3d C;
-  C << 0.09, 0.01, 0, 0.01, 0.04, 0.005, 0, 0.005, 0.25;
-  const Eigen::Vector3d m(1, 2, 3), p(1.3, 1.9, 3.5);
-  PointPriorError prior(m, C);
-  const double* params[1] = {p.data()};
-  Eigen::Vector3d r;
-  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> J;
-  double* jac[1] = {J.data()};
-  ASSERT_TRUE(prior.Evaluate(params, r.data(), jac));
-  const Eigen::Vector3d d = p - m;
-  EXPECT_NEAR(r.squaredNorm(), d.dot(C.inverse() * d), 1e-12);
-  EXPECT_LT(((J.transpose() * J) - C.inverse()).norm(), 1e-9);
-  Eigen::Matrix3d S;
-  EXPECT_FALSE(SqrtInformation(-C, &S));
-}
-
-// The two 2-row blocks the pose problem hands to Ceres are the 3-row prior: same squared norm,
-// same information J^T J and gradient J^T r.
+// The CT prior, as the two 2-row blocks the pose problem hands to Ceres: whitened by the CT
+// covariance (squared norm = Mahalanobis distance), information J^T J = C^-1, gradient C^-1 d.
 TEST(PointPrior, SplitIntoTwoRowBlocksIsTheSamePrior) {
   Eigen::Matrix3d C;
   C << 0.09, 0.01, 0, 0.01, 0.04, 0.005, 0, 0.005, 0.25;
   const Eigen::Vector3d m(1, 2, 3), p(1.3, 1.9, 3.5);
   Eigen::Matrix3d S;
+  EXPECT_FALSE(SqrtInformation(-C, &S));
   ASSERT_TRUE(SqrtInformation(C, &S));
   const auto [a, b] = PointPriorRows::Split(m, S);
   std::unique_ptr<PointPriorRows> ua(a), ub(b);
