@@ -1,0 +1,124 @@
+// Calibration from the simulator's IMAGES against the known truth, per shipped scene: render,
+// detect, calibrate (free OPENCV5, the pixel sigma estimated from the residuals, as a user runs
+// it); the estimated projection must be within 3 sigma of the true projection over a grid of
+// pixels covering the field of view, the image centre and the corners, and the residual RMS must
+// be what the detection error (against the truth) predicts.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+
+#include "calib/calibrate.h"
+#include "camera/camera_model.h"
+#include "detect/grid_detector.h"
+#include "scene_test_util.h"
+
+namespace carmba {
+namespace {
+
+constexpr double kNumSigmas = 3.0;  // the bound, per coordinate
+// Residual RMS vs the detection error: 1000-2000 residuals give the RMS to ~2-3 %; the detection
+// error's small systematic part (~0.004 px RMS, partly absorbed by the model) adds a little.
+constexpr double kRmsRelTol = 0.15;
+
+struct Detected {
+  ObservationSet obs;
+  double error_rms_px = 0;  // per coordinate, detections vs the true projected centres
+};
+
+Detected RenderAndDetect(const sim::XrayScene& scene) {
+  Detected d;
+  d.obs.grid = SceneGrid(scene);
+  d.obs.width = scene.camera.width;
+  d.obs.height = scene.camera.height;
+  auto grid = sim::RayGrid::Build(scene.camera, scene.render);
+  EXPECT_TRUE(grid.ok());
+  double sum2 = 0;
+  int n = 0;
+  for (int i = 0; i < static_cast<int>(scene.views.size()); ++i) {
+    auto v = sim::RenderXrayView(scene, i, grid->get());
+    EXPECT_TRUE(v.ok());
+    GridDetection det = DetectGrid(v->image, d.obs.grid, DetectionOptions());
+    EXPECT_TRUE(det.found) << scene.views[i].name << ": " << det.reason;
+    if (!det.found) continue;
+    det.view.image = scene.views[i].name;
+    for (const auto& uv : det.view.uv_px) {
+      double best = 1e300;
+      for (const auto& t : v->centers_px) best = std::min(best, (uv - t).squaredNorm());
+      sum2 += best;
+      ++n;
+    }
+    d.obs.views.push_back(det.view);
+  }
+  d.error_rms_px = std::sqrt(sum2 / (2.0 * n));
+  return d;
+}
+
+// Largest |estimate - truth| / sigma (per coordinate) of the projection of the true ray of each
+// pixel in `pixels`; sigma from the intrinsics' covariance (marginal over the plate poses).
+double WorstSigmas(const CalibrationResult& r, const Camera& truth,
+                   const std::vector<Eigen::Vector2d>& pixels, std::string* where) {
+  double worst = 0;
+  for (const auto& q : pixels) {
+    double xy[2];
+    EXPECT_TRUE(UnprojectToNormalized(truth.params.data(), q.data(), xy));
+    const double p[3] = {xy[0], xy[1], 1.0};
+    double uv[2], J[2 * kNumIntrinsics];
+    EXPECT_TRUE(ProjectCamPointWithJac(r.camera.params.data(), p, uv, J, nullptr));
+    const Eigen::Map<const Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>> Jm(J);
+    const Eigen::Matrix2d C = Jm * r.covariance * Jm.transpose();
+    for (int c = 0; c < 2; ++c) {
+      const double n_sigma = std::abs(uv[c] - q[c]) / std::sqrt(C(c, c));
+      if (n_sigma > worst) {
+        worst = n_sigma;
+        *where = "pixel (" + std::to_string(q.x()) + ", " + std::to_string(q.y()) + ") " +
+                 (c ? "v" : "u") + ": error " + std::to_string(uv[c] - q[c]) + " px, sigma " +
+                 std::to_string(std::sqrt(C(c, c))) + " px";
+      }
+    }
+  }
+  return worst;
+}
+
+TEST(SceneAccuracy, ProjectionWithinThreeSigmaOfTheTruthFromImages) {
+  for (const std::string name : {"thesis_calibration", "calib_7x6_pincushion"}) {
+    const sim::XrayScene scene = LoadShippedScene(name);
+    const Detected d = RenderAndDetect(scene);
+    ASSERT_EQ(d.obs.views.size(), scene.views.size()) << name;
+    auto r = Calibrate(d.obs, CalibrationOptions());
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    const int w = scene.camera.width, h = scene.camera.height;
+    // A 9 x 9 grid over the fully exposed field of view, plus its centre and the image corners
+    // (outside the circular field: extrapolated, with correspondingly large sigmas).
+    const double fu = scene.render.fov_center_u_px >= 0 ? scene.render.fov_center_u_px : 0.5 * (w - 1);
+    const double fv = scene.render.fov_center_v_px >= 0 ? scene.render.fov_center_v_px : 0.5 * (h - 1);
+    const double fr = (scene.render.fov_radius_px > 0 ? scene.render.fov_radius_px : 0.5 * std::min(w, h)) -
+                      scene.render.fov_edge_px;
+    std::vector<Eigen::Vector2d> field, corners = {{0, 0}, {w - 1.0, 0}, {0, h - 1.0}, {w - 1.0, h - 1.0}};
+    for (int i = 0; i < 9; ++i) {
+      for (int j = 0; j < 9; ++j) {
+        const Eigen::Vector2d q(fu + fr * (i - 4) / 4.0, fv + fr * (j - 4) / 4.0);
+        if (std::hypot(q.x() - fu, q.y() - fv) <= fr) field.push_back(q);
+      }
+    }
+    std::string where_field, where_corner;
+    const double worst_field = WorstSigmas(*r, scene.camera, field, &where_field);
+    const double worst_corner = WorstSigmas(*r, scene.camera, corners, &where_corner);
+    const double expected_rms = d.error_rms_px * std::sqrt(double(r->dof) / (2.0 * r->num_points));
+    std::cout << name << ": detection error " << d.error_rms_px << " px RMS; calibration RMS "
+              << r->rms_px << " px (expected " << expected_rms << ")\n  worst over the field "
+              << worst_field << " sigma (" << where_field << ")\n  worst at the corners "
+              << worst_corner << " sigma (" << where_corner << ")\n";
+    for (int i = 0; i < 4; ++i) {
+      std::cout << "  " << kIntrinsicNames[i] << " - truth = "
+                << r->camera.params[i] - scene.camera.params[i] << " px = "
+                << (r->camera.params[i] - scene.camera.params[i]) / r->sigma[i] << " sigma\n";
+    }
+    EXPECT_LT(worst_field, kNumSigmas) << name << ": " << where_field;
+    EXPECT_LT(worst_corner, kNumSigmas) << name << ": " << where_corner;
+    EXPECT_NEAR(r->rms_px / expected_rms, 1.0, kRmsRelTol) << name;
+  }
+}
+
+}  // namespace
+}  // namespace carmba
