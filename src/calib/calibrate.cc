@@ -492,9 +492,8 @@ ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
 //       = -(A^T gc - A^T sum_i Hpc_i^T (Hpp_i + lambda D_i)^-1 gp_i),
 // with Marquardt's damping D = diag(H). The reduction is done in the 9 intrinsics (fixed sizes)
 // and projected on the free parameters once per step. A step is kept if the cost drops (then
-// lambda / 10: near the minimum the steps are Gauss-Newton steps, which the weakly determined
-// distortion directions need); a rejected step (lambda x 4) costs one cost evaluation and one
-// reduction, the Jacobians are reused.
+// lambda / 3); a rejected step (lambda x 4) costs one cost evaluation and one reduction, the
+// Jacobians are reused.
 struct LmReport {
   int iterations = 0;
   std::string termination;
@@ -595,7 +594,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
         *x = x_new;
         poses->swap(p_new);
         cost = cost_new;
-        lambda = std::max(lambda / 10.0, 1e-12);
+        lambda = std::max(lambda / 3.0, 1e-12);
         accepted = true;
         if (rel < function_tolerance) {
           report->termination = "CONVERGENCE";
