@@ -62,11 +62,17 @@ namespace {
 //               does not depend on the local brightness (vignetting, heel effect, plate
 //               thickness would otherwise pull the centre towards the brighter side); bright:
 //               I - plane. Minus 5 % of the peak, clipped at zero.
-// Iterated until the centre moves less than 1e-4 px.
+// Iterated until the centre moves less than 1e-3 px.
 bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double radius, cv::Point2d* c) {
   const int r = std::max(3, static_cast<int>(std::ceil(radius)));
   double rho = -1;
   int rw = r;  // half-size of the pixel box scanned: rho + ring
+  struct Px {
+    int ex, ey;   // offset from the rounded centre
+    float value;  // grey level (disc: then contrast)
+  };
+  std::vector<Px> ring, disc;
+  std::vector<float> res;
   for (int it = 0; it < 8; ++it) {
     const int cx = static_cast<int>(std::lround(c->x)), cy = static_cast<int>(std::lround(c->y));
     if (cx - r < 0 || cy - r < 0 || cx + r >= f.cols || cy + r >= f.rows) return false;
@@ -97,86 +103,64 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double ra
       if (rho < 2.0) return false;
     }
     const double ring_in2 = rho * rho, ring_out2 = (rho + 3.0) * (rho + 3.0);
-    // Background plane on the ring, robustly refitted once.
+    // Background plane on the ring, robustly refitted once (when a ring pixel is off).
+    ring.clear();
+    disc.clear();
+    for (int y = cy - rw; y <= cy + rw; ++y) {
+      const float* fr = f.ptr<float>(y);
+      const uint8_t* vr = valid.ptr<uint8_t>(y);
+      const double dy = y - c->y;
+      for (int x = cx - rw; x <= cx + rw; ++x) {
+        const double dx = x - c->x, d2 = dx * dx + dy * dy;
+        if (d2 > ring_out2) continue;
+        if (!vr[x]) return false;  // the disc or the ring reaches the field-of-view rim
+        (d2 < ring_in2 ? disc : ring).push_back({x - cx, y - cy, fr[x]});
+      }
+    }
     cv::Vec3d plane(0, 0, 0);
-    auto background = [&plane](double ex, double ey) {
-      return plane[0] + plane[1] * ex + plane[2] * ey;
-    };
+    auto background = [&plane](const Px& q) { return plane[0] + plane[1] * q.ex + plane[2] * q.ey; };
     double cut = 1e300;
     for (int pass = 0; pass < 2; ++pass) {
-      cv::Matx33d AtA = cv::Matx33d::zeros();
-      cv::Vec3d Atb(0, 0, 0);
-      std::vector<float> res;
-      int n = 0;
-      for (int y = cy - rw; y <= cy + rw; ++y) {
-        const float* fr = f.ptr<float>(y);
-        const uint8_t* vr = valid.ptr<uint8_t>(y);
-        const double dy = y - c->y;
-        for (int x = cx - rw; x <= cx + rw; ++x) {
-          const double dx = x - c->x, d2 = dx * dx + dy * dy;
-          if (d2 < ring_in2 || d2 > ring_out2) continue;
-          if (!vr[x]) return false;  // the ring reaches the field-of-view rim
-          const double ex = x - cx, ey = y - cy;
-          if (pass == 1) {
-            if (std::fabs(fr[x] - background(ex, ey)) > cut) continue;
-          }
-          const cv::Vec3d row(1.0, ex, ey);
-          AtA += row * row.t();
-          Atb += row * static_cast<double>(fr[x]);
-          ++n;
-        }
+      double s1 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, sv = 0, sxv = 0, syv = 0;
+      for (const Px& q : ring) {
+        if (pass == 1 && std::fabs(q.value - background(q)) > cut) continue;
+        const double x = q.ex, y = q.ey, v = q.value;
+        s1 += 1, sx += x, sy += y, sxx += x * x, sxy += x * y, syy += y * y;
+        sv += v, sxv += x * v, syv += y * v;
       }
-      if (n < 8 || !cv::solve(AtA, Atb, plane, cv::DECOMP_CHOLESKY)) return false;
-      if (pass == 0) {
-        for (int y = cy - rw; y <= cy + rw; ++y) {
-          const float* fr = f.ptr<float>(y);
-          const uint8_t* vr = valid.ptr<uint8_t>(y);
-          const double dy = y - c->y;
-          for (int x = cx - rw; x <= cx + rw; ++x) {
-            const double dx = x - c->x, d2 = dx * dx + dy * dy;
-            if (d2 < ring_in2 || d2 > ring_out2 || !vr[x]) continue;
-            res.push_back(static_cast<float>(
-                std::fabs(fr[x] - background(x - cx, y - cy))));
-          }
-        }
-        std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
-        // 3 robust sigmas (1.4826 MAD), at least 1e-3 of the background level.
-        cut = std::max(3.0 * 1.4826 * res[res.size() / 2], 1e-3 * std::fabs(plane[0]));
-      }
+      const cv::Matx33d AtA(s1, sx, sy, sx, sxx, sxy, sy, sxy, syy);
+      const cv::Vec3d Atb(sv, sxv, syv);
+      if (s1 < 8 || !cv::solve(AtA, Atb, plane, cv::DECOMP_CHOLESKY)) return false;
+      if (pass == 1) break;
+      res.clear();
+      for (const Px& q : ring) res.push_back(static_cast<float>(std::fabs(q.value - background(q))));
+      const float largest = *std::max_element(res.begin(), res.end());
+      std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
+      // 3 robust sigmas (1.4826 MAD), at least 1e-3 of the background level.
+      cut = std::max(3.0 * 1.4826 * res[res.size() / 2], 1e-3 * std::fabs(plane[0]));
+      if (largest <= cut) break;  // nothing to drop: the refit would be the same plane
     }
     if (dark && !(plane[0] > 0)) return false;
     // Contrast weights on the disc.
     double peak = 0;
-    const int rd = static_cast<int>(std::ceil(rho));
-    for (int y = cy - rd; y <= cy + rd; ++y) {
-      const float* fr = f.ptr<float>(y);
-      for (int x = cx - rd; x <= cx + rd; ++x) {
-        const double bg = background(x - cx, y - cy);
-        peak = std::max(peak, dark ? 1.0 - fr[x] / bg : fr[x] - bg);
-      }
+    for (Px& q : disc) {
+      const double bg = background(q);
+      q.value = static_cast<float>(dark ? 1.0 - q.value / bg : q.value - bg);
+      peak = std::max(peak, static_cast<double>(q.value));
     }
     if (!(peak > 0)) return false;
     const double floor = 0.05 * peak;
     double sw = 0, sx = 0, sy = 0;
-    for (int y = cy - rd; y <= cy + rd; ++y) {
-      const float* fr = f.ptr<float>(y);
-      const uint8_t* vr = valid.ptr<uint8_t>(y);
-      const double dy = y - c->y;
-      for (int x = cx - rd; x <= cx + rd; ++x) {
-        const double dx = x - c->x;
-        if (dx * dx + dy * dy > ring_in2) continue;
-        if (!vr[x]) return false;
-        const double bg = background(x - cx, y - cy);
-        const double w = (dark ? 1.0 - fr[x] / bg : fr[x] - bg) - floor;
-        if (w <= 0) continue;
-        sw += w, sx += w * x, sy += w * y;
-      }
+    for (const Px& q : disc) {
+      const double w = q.value - floor;
+      if (w <= 0) continue;
+      sw += w, sx += w * (q.ex + cx), sy += w * (q.ey + cy);
     }
     if (!(sw > 0)) return false;
     const cv::Point2d n(sx / sw, sy / sw);
     const double move = std::hypot(n.x - c->x, n.y - c->y);
     *c = n;
-    if (move < 1e-4) break;
+    if (move < 1e-3) break;
   }
   return true;
 }
@@ -383,12 +367,24 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
     det.reason = "field of view / region of interest is (almost) empty";
     return det;
   }
-  auto pct = [&vals](double q) {
-    const size_t k = std::min(vals.size() - 1, static_cast<size_t>(q * vals.size()));
-    std::nth_element(vals.begin(), vals.begin() + k, vals.end());
-    return vals[k];
-  };
-  const double p01 = pct(0.01), p99 = pct(0.99);
+  // Percentiles by nested selection: each nth_element works only on the part of the array that
+  // the previous one left on the percentile's side.
+  const size_t n_vals = vals.size();
+  auto index = [n_vals](double q) { return std::min(n_vals - 1, static_cast<size_t>(q * n_vals)); };
+  const size_t k01 = index(0.01), k35 = index(0.35), k65 = index(0.65), k99 = index(0.99);
+  std::nth_element(vals.begin(), vals.begin() + k35, vals.end());
+  const double p35 = vals[k35];  // (read before the next selections move it)
+  std::nth_element(vals.begin(), vals.begin() + k01, vals.begin() + k35);
+  const double p01 = vals[k01];
+  std::nth_element(vals.begin() + k35 + 1, vals.begin() + k65, vals.end());
+  const double p65 = vals[k65];
+  std::nth_element(vals.begin() + k65 + 1, vals.begin() + k99, vals.end());
+  const double p99 = vals[k99];
+  // The 35th / 65th percentiles on the working scale bound the blob search's thresholds: a dark
+  // blob is darker than most of the field (its levels lie below the 35th percentile), a bright
+  // one brighter. Thresholds beyond only cut the background into noise contours.
+  const double work_p35 = 255.0 * (p35 - p01) / (p99 - p01);
+  const double work_p65 = 255.0 * (p65 - p01) / (p99 - p01);
   if (!(p99 > p01)) {
     det.reason = "no contrast inside the field of view";
     return det;
@@ -430,8 +426,10 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       p.minConvexity = 0.8f;
       p.filterByInertia = true;
       p.minInertiaRatio = 0.3f;
-      p.minThreshold = 10;
-      p.maxThreshold = 245;
+      // 10 .. 245 in steps of 20, trimmed at the field's 35th (dark) / 65th (bright) percentile but
+      // keeping at least 4 levels.
+      p.minThreshold = d ? 10.0f : static_cast<float>(std::clamp(work_p65, 10.0, 165.0));
+      p.maxThreshold = d ? static_cast<float>(std::clamp(work_p35 + 1.0, 90.0, 245.0)) : 245.0f;
       p.thresholdStep = 20;
       p.minDistBetweenBlobs = 3;
       auto detector =
