@@ -175,7 +175,7 @@ double FullyExposedRadius(const cv::Mat& f, cv::Point2d c, double r) {
   std::vector<std::vector<float>> bins(kDepth + 1);
   const double r_in = r - kDepth;
   const int y0 = std::max(0, static_cast<int>(c.y - r)), y1 = std::min(f.rows - 1, static_cast<int>(c.y + r) + 1);
-  for (int y = y0; y <= y1; ++y) {
+  for (int y = y0; y <= y1; y += 2) {  // every second row: ~300+ pixels per annulus still
     const float* fr = f.ptr<float>(y);
     const double dy2 = (y - c.y) * (y - c.y);
     if (dy2 > r * r) continue;
