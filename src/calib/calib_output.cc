@@ -1,5 +1,7 @@
 #include "calib/calib_output.h"
 
+#include "calib/conditioning.h"
+
 #include <opencv2/core.hpp>
 
 #include <cmath>
@@ -170,6 +172,23 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
         << (ms > 0 && r.free[i] ? F(r.sigma[i] / ms, 4) : "-") << " |";
     }
     if (cvr) o << " " << G(cvr->intrinsics[i]) << " | " << F(cvr->sigma[i], 6) << " |";
+    o << "\n";
+  }
+
+  {
+    const ConditioningReport cond =
+        AssessConditioning(r, run.observations.width, run.observations.height);
+    o << "\n## Conditioning\n\n";
+    if (cond.warnings.empty()) {
+      o << "No warnings: the principal point's sigmas are under "
+        << F(100 * kPrincipalPointSigmaWarnFraction, 0)
+        << " % of the image, where the linearised covariance matched a seeded Monte Carlo.";
+    }
+    for (const auto& w : cond.warnings) o << "- WARNING: " << w << "\n";
+    if (!cond.max_pp_distortion_pair.empty()) {
+      o << (cond.warnings.empty() ? " " : "- ") << "Largest principal-point / distortion correlation: "
+        << cond.max_pp_distortion_pair << " " << F(cond.max_pp_distortion_correlation, 4) << ".";
+    }
     o << "\n";
   }
 
