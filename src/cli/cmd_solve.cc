@@ -33,6 +33,11 @@ int RunSolve() {
   if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "report.md"), report);
   if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "result.json"), j.dump(2) + "\n");
   if (!s.ok()) return cli::Fail("solve", s);
+  if (config->refine && solution->termination != "CONVERGENCE") {
+    std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
+              << solution->termination << "; max_iterations " << config->max_iterations
+              << "): the results are not at a minimum" << std::endl;
+  }
   if (!comparison.handedness_warning.empty()) {
     std::cerr << "carmba solve: warning: " << comparison.handedness_warning << std::endl;
   }

@@ -287,6 +287,9 @@ StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path) {
         root.Fail("views", "expected a list of view ids");
       } else {
         for (const auto& v : vn) views.push_back(ViewIdFrom(v));
+        if (views.empty()) {
+          root.Fail("views", "expected a non-empty list of view ids (omit the key for all views)");
+        }
       }
     }
   }

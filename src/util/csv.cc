@@ -1,5 +1,7 @@
 #include "util/csv.h"
 
+#include <cctype>
+
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -30,6 +32,13 @@ std::vector<std::string> SplitFields(const std::string& line) {
 bool ParseFiniteDouble(const std::string& s, double* value) {
   const std::string t = Trim(s);
   if (t.empty()) return false;
+  // Decimal notation only: strtod would also take hexadecimal ("0x10" = 16), "inf" and "nan".
+  for (char c : t) {
+    if (!std::isdigit(static_cast<unsigned char>(c)) && c != '+' && c != '-' && c != '.' &&
+        c != 'e' && c != 'E') {
+      return false;
+    }
+  }
   char* end = nullptr;
   const double v = std::strtod(t.c_str(), &end);
   if (end != t.c_str() + t.size() || !std::isfinite(v)) return false;
@@ -73,7 +82,9 @@ StatusOr<int> CsvTable::Integer(int row, const std::string& col) const {
 StatusOr<CsvTable> ParseCsv(const std::string& text, const std::string& path) {
   CsvTable t;
   t.path = path;
-  std::istringstream in(text);
+  // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first field.
+  const bool bom = text.size() >= 3 && text.compare(0, 3, "\xEF\xBB\xBF") == 0;
+  std::istringstream in(bom ? text.substr(3) : text);
   std::string line;
   int lineno = 0;
   while (std::getline(in, line)) {

@@ -1,8 +1,10 @@
 #include "util/yaml_reader.h"
 
 #include <cmath>
+#include <set>
 
 #include "util/csv.h"
+#include "util/file_util.h"
 
 namespace carmba {
 
@@ -13,18 +15,39 @@ YamlMap::YamlMap(const YAML::Node& node, std::string file, std::string prefix)
                             (prefix_.empty() ? std::string("top level")
                                              : "key '" + prefix_ + "'") +
                             ": expected a mapping of keys to values");
+    return;
+  }
+  // yaml-cpp keeps both entries of a repeated key and node[key] returns the first: a repeated key
+  // would silently lose the later value.
+  if (node_ && node_.IsMap()) {
+    std::set<std::string> keys;
+    for (const auto& kv : node_) {
+      if (!kv.first.IsScalar()) continue;
+      if (!keys.insert(kv.first.Scalar()).second) {
+        status_ = Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
+                                ": key '" + KeyPath(kv.first.Scalar()) +
+                                "' appears twice, expected each key once");
+        return;
+      }
+    }
   }
 }
 
 YamlMap YamlMap::Load(const std::string& path) {
   YAML::Node root;
   std::string error;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    error = path + ": cannot open file";
-  } catch (const YAML::Exception& e) {
-    error = path + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax error: " + e.msg;
+  if (IsDirectory(path)) {
+    error = path + ": is a directory, expected a YAML file";
+  } else {
+    try {
+      root = YAML::LoadFile(path);
+    } catch (const YAML::BadFile&) {
+      error = path + ": cannot open file";
+    } catch (const YAML::Exception& e) {
+      error = path + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax error: " + e.msg;
+    } catch (const std::exception& e) {  // e.g. std::ios_base::failure from the stream
+      error = path + ": cannot read file (" + e.what() + ")";
+    }
   }
   YamlMap m(root, path);
   if (!error.empty()) {

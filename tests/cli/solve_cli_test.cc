@@ -162,6 +162,65 @@ TEST_F(BadInput, MarkerNotInList) {
   ExpectError("view 'b' observes marker 9 which is not among the markers");
 }
 
+TEST_F(BadInput, RepeatedKey) {
+  problem_ += "sigma_px: 2.0\n";
+  ExpectError("problem.yaml:6: key 'sigma_px' appears twice");
+}
+
+TEST_F(BadInput, EmptyViewList) {
+  problem_ += "views: []\n";
+  ExpectError("key 'views': expected a non-empty list of view ids");
+}
+
+TEST_F(BadInput, HexadecimalNumber) {
+  markers_ = "id,x_mm,y_mm,z_mm\n1,0,0x10,0\n2,-58.85,1,14\n3,13.35,1,14\n4,-8.25,-20.5,24\n";
+  ExpectError("markers.csv:2: column 'y_mm': expected a finite number, got '0x10'");
+}
+
+TEST_F(BadInput, DirectoryAsProblemOrConfig) {
+  WriteAll();
+  for (const std::string& args :
+       {"--problem=" + dir_.path() + " --config=" + dir_.File("config.yaml"),
+        "--problem=" + dir_.File("problem.yaml") + " --config=" + dir_.path()}) {
+    const auto r = RunCarmba("solve " + args + " --out=" + dir_.File("out"));
+    EXPECT_EQ(r.exit_code, 1) << args << "\n" << r.err;  // an error, not a crash (134)
+    EXPECT_EQ(CountLines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("is a directory"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir_.File("out/result.json")));
+  }
+}
+
+// Not converged (max_iterations 0): the results are written, with a warning on stderr and in the
+// report.
+TEST_F(BadInput, NotConvergedIsWarned) {
+  config_ = "name: c\ninitializer: posit\nmax_iterations: 0\n";
+  WriteAll();
+  const auto r = RunCarmba("solve --problem=" + dir_.File("problem.yaml") + " --config=" +
+                           dir_.File("config.yaml") + " --out=" + dir_.File("out"));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("did not converge"), std::string::npos) << r.err;
+  std::ifstream rep(dir_.File("out/report.md"));
+  std::stringstream ss;
+  ss << rep.rdbuf();
+  EXPECT_NE(ss.str().find("did not converge"), std::string::npos);
+}
+
+// refine: false compares both handednesses after the bundle adjustment, so no false warning; the
+// report does not call the initializer's values "bundle adjustment".
+TEST(SolveCli, UnrefinedConfigHasNoFalseHandednessWarning) {
+  TempDir out;
+  const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml" +
+                           " --config=" + kSource + "/configs/legacy_posit_only.yaml" +
+                           " --out=" + out.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("handedness"), std::string::npos) << r.err;
+  std::ifstream rep(out.File("report.md"));
+  std::stringstream ss;
+  ss << rep.rdbuf();
+  EXPECT_NE(ss.str().find("does not refine"), std::string::npos);
+  EXPECT_EQ(ss.str().find("| bundle adjustment (view dirs)"), std::string::npos);
+}
+
 TEST_F(BadInput, NonPositiveSigma) {
   problem_ = "name: x\ncamera: camera.json\nsigma_px: -1\n"
              "markers: {file: markers.csv, sigma_mm: 0.2}\n"

@@ -1,0 +1,81 @@
+// Input parsing in util/: numbers, CSV and YAML edge cases that must be errors, not values.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <string>
+
+#include "util/csv.h"
+#include "util/file_util.h"
+#include "util/yaml_reader.h"
+
+namespace carmba {
+namespace {
+
+TEST(ParseFiniteDouble, DecimalOnly) {
+  double v = 0;
+  EXPECT_TRUE(ParseFiniteDouble(" -1.5e-3 ", &v));
+  EXPECT_DOUBLE_EQ(v, -1.5e-3);
+  EXPECT_TRUE(ParseFiniteDouble("20", &v));
+  for (const char* bad : {"0x10", "inf", "-inf", "nan", "1.0f", "1,5", "", "e", "1e400"}) {
+    EXPECT_FALSE(ParseFiniteDouble(bad, &v)) << bad;
+  }
+}
+
+TEST(Csv, ByteOrderMarkIsNotPartOfTheFirstField) {
+  auto t = ParseCsv("\xEF\xBB\xBF# exported\nid,x\n1,2.5\n", "bom.csv");
+  ASSERT_TRUE(t.ok()) << t.status().message();
+  ASSERT_EQ(t->header.size(), 2u);
+  EXPECT_EQ(t->header[0], "id");
+  EXPECT_DOUBLE_EQ(*t->Number(0, "x"), 2.5);
+}
+
+TEST(Csv, HexadecimalValueIsAnErrorNamingTheLine) {
+  auto t = ParseCsv("id,x\n1,0x10\n", "hex.csv");
+  ASSERT_TRUE(t.ok());
+  auto v = t->Number(0, "x");
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.status().message().find("hex.csv:2"), std::string::npos) << v.status().message();
+}
+
+class YamlFile : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = ::testing::TempDir() + "carmba_util_test_" + std::to_string(::getpid());
+    ASSERT_TRUE(MakeDirs(dir_).ok());
+  }
+  std::string Write(const std::string& name, const std::string& text) {
+    const std::string path = dir_ + "/" + name;
+    std::ofstream(path) << text;
+    return path;
+  }
+  std::string dir_;
+};
+
+TEST_F(YamlFile, RepeatedKeyIsAnErrorNamingItsLine) {
+  YamlMap m = YamlMap::Load(Write("dup.yaml", "a: 1\nb: 2\na: 3\n"));
+  ASSERT_FALSE(m.status().ok());
+  EXPECT_NE(m.status().message().find("dup.yaml:3"), std::string::npos) << m.status().message();
+  EXPECT_NE(m.status().message().find("'a'"), std::string::npos);
+}
+
+TEST_F(YamlFile, RepeatedNestedKeyIsAnError) {
+  YamlMap m = YamlMap::Load(Write("dup2.yaml", "loss:\n  type: huber\n  type: cauchy\n"));
+  ASSERT_TRUE(m.status().ok());
+  YamlMap& loss = m.Map("loss");
+  std::string type;
+  loss.Get("type", &type);
+  const Status s = m.Finish();
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("dup2.yaml:3"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("loss.type"), std::string::npos) << s.message();
+}
+
+TEST_F(YamlFile, DirectoryIsAnErrorNotACrash) {
+  YamlMap m = YamlMap::Load(dir_);
+  ASSERT_FALSE(m.status().ok());
+  EXPECT_NE(m.status().message().find("is a directory"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace carmba
