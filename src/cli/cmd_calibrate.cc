@@ -21,6 +21,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <sstream>
 #include <unistd.h>
 
 #include "calib/calib_output.h"
@@ -32,7 +33,6 @@
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
 
-DEFINE_double(spacing_mm, 0, "Grid pitch in mm (default: the problem's, the observations', or 20).");
 DEFINE_string(observations, "", "Pre-detected observations.csv (instead of --images).");
 DEFINE_string(truth, "", "Ground truth (simulator truth.json or a camera.json) to compare with.");
 DEFINE_bool(mrcal, true, "Cross-check with mrcal (python3-mrcal).");
@@ -54,13 +54,14 @@ Status LoadConfig(const std::string& path,
                   DetectionOptions* detect,
                   CrossCheckConfig* cross) {
   CARMBA_RETURN_IF_ERROR(LoadCalibrationOptions(path, calib, {"detection", "crosscheck"}));
-  YAML::Node root = YAML::LoadFile(path);
-  YamlMap d(root["detection"], path, "detection.");
+  YamlMap root = YamlMap::Load(path);
+  CARMBA_RETURN_IF_ERROR(root.status());
+  YamlMap d(root.Raw("detection"), path, "detection");
   ReadDetectionOptions(d, detect);
   CARMBA_RETURN_IF_ERROR(d.Finish());
   std::string err;
   if (!detect->Check(&err)) return Status::Error(path + ": detection." + err);
-  YamlMap c(root["crosscheck"], path, "crosscheck.");
+  YamlMap c(root.Raw("crosscheck"), path, "crosscheck");
   c.Get("mrcal", &cross->mrcal);
   c.Get("opencv", &cross->opencv);
   c.Get("opencv_max_views", &cross->opencv_max_views);
@@ -74,6 +75,10 @@ int RunCalibrate() {
   std::string truth = FLAGS_truth, pattern = FLAGS_pattern;
   int rows = FLAGS_rows, cols = FLAGS_cols;
   double spacing = FLAGS_spacing_mm;
+  {
+    std::string err;
+    if (!cli::CheckSpacingFlag(&err)) return cli::Fail(kCmd, err);
+  }
   if (!FLAGS_problem.empty()) {
     YamlMap p = YamlMap::Load(FLAGS_problem);
     if (!p.status().ok()) return cli::Fail(kCmd, p.status());
@@ -129,7 +134,7 @@ int RunCalibrate() {
     grid.spacing_mm = spacing > 0 ? spacing : 20.0;
     std::string err;
     if (!grid.Check(&err)) return cli::Fail(kCmd, err);
-    auto files = ListFiles(images);
+    auto files = ListImageFiles(images);
     if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
     double per_image = 0;
     auto obs = DetectGridInFiles(*files, grid, detect, &run.skipped, &per_image);
@@ -197,11 +202,23 @@ int RunCalibrate() {
   } else {
     run.mrcal_error = "disabled";
   }
-  run.command_line = "carmba calibrate" +
-                     (FLAGS_problem.empty() ? "" : " --problem " + FLAGS_problem) +
-                     (images.empty() ? "" : " --images " + images) +
-                     (observations.empty() ? "" : " --observations " + observations) +
-                     (config.empty() ? "" : " --config " + config) + " --out " + FLAGS_out;
+  // The effective inputs (after the problem file), so that the line reproduces this run.
+  auto quoted = [](const std::string& v) { return "'" + v + "'"; };
+  std::ostringstream cmd;
+  cmd << "carmba calibrate";
+  if (!images.empty()) {
+    cmd << " --images " << quoted(images) << " --pattern " << pattern << " --rows " << rows
+        << " --cols " << cols;
+  } else {
+    cmd << " --observations " << quoted(observations);
+  }
+  cmd << " --spacing_mm " << run.observations.grid.spacing_mm;
+  if (!config.empty()) cmd << " --config " << quoted(config);
+  if (!truth.empty()) cmd << " --truth " << quoted(truth);
+  if (!cross.mrcal) cmd << " --nomrcal";
+  if (!cross.opencv) cmd << " --noopencv";
+  cmd << " --out " << quoted(FLAGS_out);
+  run.command_line = cmd.str();
   Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "");
   std::error_code ec;
   std::filesystem::remove_all(work, ec);
@@ -221,7 +238,7 @@ int RunCalibrate() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(calibrate, "images,pattern,rows,cols,config,problem,out");
+CARMBA_COMMAND_FLAGS(calibrate, "images,pattern,rows,cols,spacing_mm,config,problem,out");
 CARMBA_REGISTER_COMMAND(calibrate,
                         "Calibrate the C-arm's intrinsics from grid images (bundle adjustment, "
                         "covariance, mrcal and OpenCV cross-checks).",

@@ -11,8 +11,6 @@
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
 
-DEFINE_double(grid_spacing_mm, 20, "Grid pitch in mm (recorded in observations.csv).");
-
 namespace {
 
 using namespace carmba;
@@ -27,24 +25,21 @@ int RunDetect() {
   grid.pattern = *pat;
   grid.rows = FLAGS_rows;
   grid.cols = FLAGS_cols;
-  grid.spacing_mm = FLAGS_grid_spacing_mm;
   std::string err;
+  if (!cli::CheckSpacingFlag(&err)) return cli::Fail(kCmd, err);
+  grid.spacing_mm = FLAGS_spacing_mm > 0 ? FLAGS_spacing_mm : 20.0;  // recorded in the CSV
   if (!grid.Check(&err)) return cli::Fail(kCmd, err);
   DetectionOptions options;
   if (!FLAGS_config.empty()) {
-    // The `detection:` map of a calibration config.
-    YAML::Node root;
-    try {
-      root = YAML::LoadFile(FLAGS_config);
-    } catch (const std::exception& e) {
-      return cli::Fail(kCmd, FLAGS_config + ": " + e.what());
-    }
-    YamlMap d(root["detection"], FLAGS_config, "detection.");
+    // The `detection:` map of a calibration config (its other keys are the calibration's).
+    YamlMap root = YamlMap::Load(FLAGS_config);
+    if (!root.status().ok()) return cli::Fail(kCmd, root.status());
+    YamlMap d(root.Raw("detection"), FLAGS_config, "detection");
     ReadDetectionOptions(d, &options);
     Status s = d.Finish();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
-  auto files = ListFiles(FLAGS_images);
+  auto files = ListImageFiles(FLAGS_images);
   if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
   std::vector<std::string> skipped;
   double per_image = 0;
@@ -65,6 +60,6 @@ int RunDetect() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(detect, "images,pattern,rows,cols,config,out");
+CARMBA_COMMAND_FLAGS(detect, "images,pattern,rows,cols,spacing_mm,config,out");
 CARMBA_REGISTER_COMMAND(detect, "Detect a calibration grid in images; write observations.csv.",
                         RunDetect);

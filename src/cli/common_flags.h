@@ -7,6 +7,8 @@
 
 #include <gflags/gflags.h>
 
+#include <string>
+
 DECLARE_string(out);      // output directory or file
 DECLARE_string(config);   // solver/calibration configuration YAML
 DECLARE_string(problem);  // problem YAML
@@ -14,5 +16,11 @@ DECLARE_string(images);   // directory or glob of images
 DECLARE_string(pattern);  // calibration pattern: circles | acircles | chessboard
 DECLARE_int32(rows);      // pattern rows
 DECLARE_int32(cols);      // pattern columns
+DECLARE_double(spacing_mm);  // grid pitch in mm (0: from the problem / observations, else 20)
 DECLARE_uint64(seed);     // random seed
 DECLARE_int32(jobs);      // parallel jobs (0 = all cores)
+
+namespace carmba::cli {
+// --spacing_mm checked: 0 (not given) or a positive finite number. Returns false with `error`.
+bool CheckSpacingFlag(std::string* error);
+}  // namespace carmba::cli

@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <cctype>
+#include <set>
 #include <fstream>
 #include <sstream>
 
@@ -97,6 +99,25 @@ StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob) {
   }
   std::sort(files.begin(), files.end());
   return files;
+}
+
+StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob) {
+  auto files = ListFiles(dir_or_glob);
+  if (!files.ok() || !IsDirectory(dir_or_glob)) return files;
+  static const std::set<std::string> kImageExtensions = {".png", ".pgm", ".ppm", ".pnm", ".tif",
+                                                         ".tiff", ".jpg", ".jpeg", ".bmp"};
+  std::vector<std::string> images;
+  for (const auto& f : *files) {
+    std::string ext = std::filesystem::path(f).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (kImageExtensions.count(ext)) images.push_back(f);
+  }
+  if (images.empty()) {
+    return Status::Error(dir_or_glob + ": directory contains no image files (png, pgm, ppm, tif, "
+                                       "jpg, bmp)");
+  }
+  return images;
 }
 
 }  // namespace carmba

@@ -29,5 +29,9 @@ std::string DirName(const std::string& path);
 // Expands a directory (all regular files, sorted by name) or a glob pattern (sorted matches).
 // Error when nothing matches.
 StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob);
+// ListFiles for images: from a directory only the files with an image extension (png, pgm, ppm,
+// pnm, tif, tiff, jpg, jpeg, bmp; any case), so that e.g. the simulator's truth.json beside its
+// images is not taken for one; a glob is taken as given. Error if no image is left.
+StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob);
 
 }  // namespace carmba

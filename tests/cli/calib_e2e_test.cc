@@ -241,6 +241,20 @@ TEST(CalibE2E, OpenCvChessboardPhotosAgreeWithOpenCvAndMrcal) {
   EXPECT_EQ(cam["views"].size(), 13u);  // left01..left14 without left10 (not shipped)
 }
 
+// --images DIR takes the images of a directory and leaves other files (the simulator's
+// truth.json) alone; --spacing_mm is recorded in observations.csv.
+TEST(CalibE2E, DetectTakesOnlyTheImagesOfADirectory) {
+  const std::string sim = Simulated("thesis_calibration");
+  ASSERT_TRUE(fs::exists(sim + "/truth.json"));
+  const std::string csv = Tmp("detect_dir.csv");
+  CliRun r = Carmba("detect --images " + sim + " --spacing_mm 20 --out " + csv);
+  ASSERT_EQ(r.code, 0) << r.err;
+  auto obs = carmba::ReadObservationsCsv(csv);
+  ASSERT_TRUE(obs.ok()) << obs.status().message();
+  EXPECT_EQ(obs->views.size(), 20u);
+  EXPECT_DOUBLE_EQ(obs->grid.spacing_mm, 20.0);
+}
+
 // Bad input: each gives a one-line error and leaves no output directory.
 void ExpectFailsCleanly(const std::string& args, const std::string& expected) {
   const std::string out = Tmp("out_bad");
@@ -266,6 +280,11 @@ TEST(CalibE2E, BadInputs) {
                      "found in 0 of 20 images");
   ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --pattern chessboard --rows 5 --cols 5",
                      "found in 0 of 20 images");
+
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --spacing_mm -20",
+                     "--spacing_mm: expected a positive number");
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --config " + empty,
+                     "is a directory");
 
   // All fronto-parallel views (pre-detected observations): degenerate.
   carmba::SyntheticViewsOptions so;
