@@ -33,6 +33,7 @@ struct CalibrationRun {
   std::optional<nlohmann::json> mrcal;
   std::string mrcal_error;
   std::string command_line;
+  std::optional<Camera> truth;       // known truth (--truth), compared in the report
 };
 
 nlohmann::json CalibrationCameraJson(const CalibrationRun& run);

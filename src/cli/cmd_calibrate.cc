@@ -155,7 +155,6 @@ int RunCalibrate() {
   run.result = *result;
 
   std::map<std::string, std::array<double, kNumIntrinsics>> others;
-  std::optional<Camera> truth_camera;
   if (!truth.empty()) {
     auto text = ReadFile(truth);
     if (!text.ok()) return cli::Fail(kCmd, text.status().WithContext("--truth"));
@@ -167,7 +166,7 @@ int RunCalibrate() {
     }
     auto cam = CameraFromJson(j.contains("camera") ? j["camera"] : j, truth);
     if (!cam.ok()) return cli::Fail(kCmd, cam.status());
-    truth_camera = *cam;
+    run.truth = *cam;
     others["truth"] = cam->params;
   }
   if (cross.opencv) {
