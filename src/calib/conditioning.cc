@@ -34,7 +34,8 @@ ConditioningReport AssessConditioning(const CalibrationResult& r, int width, int
     if (tangential_free) {
       w << " The free tangential terms trade with the principal point (largest correlation "
         << out.max_pp_distortion_pair << " " << out.max_pp_distortion_correlation
-        << "): hold them (zero_tangential: true, and fix_k3: true as the thesis did), or add "
+        << "): hold them (zero_tangential: true, and fix_k3: true as the thesis did: "
+           "configs/calib_radial.yaml), or add "
            "more strongly tilted views or more precise detections.";
     } else {
       w << " Add more strongly tilted views or more precise detections, or hold the principal "
