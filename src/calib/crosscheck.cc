@@ -42,16 +42,22 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& obs,
   if (opt.zero_tangential) add(cv::CALIB_ZERO_TANGENT_DIST, "ZERO_TANGENT_DIST");
   if (opt.fix_principal_point) add(cv::CALIB_FIX_PRINCIPAL_POINT, "FIX_PRINCIPAL_POINT");
   if (opt.fix_k3) add(cv::CALIB_FIX_K3, "FIX_K3");
-  bool fx = false, fy = false, p1 = false, p2 = false;
+  bool fx = false, fy = false, p1 = false, p2 = false, cx = false, cy = false;
   for (const auto& n : opt.fix) {
     if (n == "fx") fx = true;
     if (n == "fy") fy = true;
+    if (n == "cx") cx = true;
+    if (n == "cy") cy = true;
     if (n == "p1") p1 = true;
     if (n == "p2") p2 = true;
     if (n == "k1") add(cv::CALIB_FIX_K1, "FIX_K1");
     if (n == "k2") add(cv::CALIB_FIX_K2, "FIX_K2");
-    if (n == "k3") add(cv::CALIB_FIX_K3, "FIX_K3");
-    if (n == "cx" || n == "cy") {
+    if (n == "k3" && !opt.fix_k3) add(cv::CALIB_FIX_K3, "FIX_K3");
+  }
+  if ((cx || cy) && !opt.fix_principal_point) {
+    if (cx && cy) {
+      add(cv::CALIB_FIX_PRINCIPAL_POINT, "FIX_PRINCIPAL_POINT");
+    } else {
       ref.equivalent = false;
       ref.note += "OpenCV cannot fix cx or cy alone; ";
     }
@@ -71,7 +77,7 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& obs,
     if (!opt.zero_tangential) add(cv::CALIB_ZERO_TANGENT_DIST, "ZERO_TANGENT_DIST");
   }
   const bool guess = !opt.principal_point_px.empty() || !opt.initial_intrinsics.empty() ||
-                     fx || fy;
+                     fx || fy || cx || cy;
   if (guess) {
     add(cv::CALIB_USE_INTRINSIC_GUESS, "USE_INTRINSIC_GUESS");
     for (int i = 0; i < 5; ++i) dist.at<double>(i) = x0[4 + i];
