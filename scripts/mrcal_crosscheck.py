@@ -17,6 +17,7 @@
 # fitted rotation, with that fit's floor. (The comparison with a known truth, against carmba's
 # sigmas, is carmba's own: calib/truth_check.h.)
 import json
+import os
 import sys
 import time
 
@@ -109,6 +110,10 @@ def main():
     ours['frames_rt_toref'] = np.array(inp['carmba']['poses'], dtype=float)
     ours['do_optimize_intrinsics_distortions'] = True
     model_ours = mrcal.cameramodel(optimization_inputs=ours, icam_intrinsics=0)
+    # carmba's solution with mrcal's optimization_inputs, beside OUT.json: mrcal's uncertainty
+    # tools (mrcal-show-projection-uncertainty, mrcal.projection_uncertainty) read it.
+    model_ours.write(os.path.join(os.path.dirname(os.path.abspath(sys.argv[2])),
+                                  'camera_with_optimization_inputs.cameramodel'))
 
     pixels = [('centre', ((W - 1) / 2, (H - 1) / 2)), ('top-left', (0, 0)),
               ('top-right', (W - 1, 0)), ('bottom-left', (0, H - 1)),

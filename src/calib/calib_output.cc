@@ -266,7 +266,9 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
         << (std::abs(q) <= kMrcalSigmaRelTol ? "pass" : "FAIL") << " |\n";
     }
     o << "\nmrcal's RMS evaluated at carmba's solution: "
-      << F((*m)["rms_px_of_carmba_solution"].get<double>(), 6) << " px.\n";
+      << F((*m)["rms_px_of_carmba_solution"].get<double>(), 6) << " px. carmba's solution with "
+      << "mrcal's optimization inputs (for mrcal's uncertainty tools): "
+         "`mrcal/camera_with_optimization_inputs.cameramodel`.\n";
   }
 
   o << "\n## Cross-check: OpenCV calibrateCamera\n\n";

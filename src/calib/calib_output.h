@@ -8,6 +8,9 @@
 //   observations.csv     detect/observations.h
 //   corners.vnl          mrcal's corners format
 //   report.md            the calibration, its statistics and the mrcal / OpenCV cross-checks
+//   mrcal/               the mrcal cross-check's script, input and output, and
+//                        camera_with_optimization_inputs.cameramodel: carmba's solution with
+//                        mrcal's optimization_inputs, for mrcal's uncertainty tools
 // All are written into a temporary directory first and moved into place only when every file has
 // been written, so an error leaves no partial output.
 #pragma once

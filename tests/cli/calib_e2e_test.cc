@@ -84,6 +84,8 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
   const std::string py = "/usr/bin/python3 -c \"import mrcal, cv2; m = mrcal.cameramodel('" + out +
                          "/camera.cameramodel'); f = cv2.FileStorage('" + out +
                          "/camera_opencv.yml', cv2.FILE_STORAGE_READ); "
+                         "w = mrcal.cameramodel('" + out + "/mrcal/camera_with_optimization_inputs.cameramodel'); "
+                         "assert w.optimization_inputs() is not None; "
                          "print(repr(m.intrinsics()[1][0]), repr(f.getNode('camera_matrix').mat()[0][0]))\" > " +
                          Tmp("py.txt");
   ASSERT_EQ(std::system(py.c_str()), 0);
