@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "util/quiet_stderr.h"
 #include "util/yaml_reader.h"
 
 namespace carmba {
@@ -51,11 +52,19 @@ void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
 namespace {
 
 // Sub-pixel centre of a blob around `c` on the float image `f` (see the header, step 4). Only
-// pixels with `valid` != 0 (the field of view) are used.
-//   size:       the blob's half-contrast area against the median of the window (robust to a
-//               field-of-view edge or a plate edge in the window) gives its radius r_half; the
-//               centroid disc is rho = 1.5 r_half + 2 px (the blur's tails), the background ring
-//               rho .. rho + 3 px.
+// pixels with `valid` != 0 (the field of view) are used. `nn_px` is the distance to the nearest
+// other grid point: the window, the centroid disc and the background ring scale with it and with
+// the blob's own measured radius, so that they hold for any circle size up to nearly touching
+// circles.
+//   size:       the blob's half-contrast area in a window of half-size 0.5 nn_px (for circles
+//               that do not overlap it holds the blob and background only), the background level
+//               being the median of the window's 2 px border band (between the blob and its
+//               neighbours; robust to a field-of-view edge or a plate edge), gives its radius
+//               r_half. The centroid disc is rho = r_half + t with the blur's tails
+//               t = 0.5 r_half + 2 px, but the disc within ceil(0.35 nn_px) - 3 px (noise) if the
+//               tails stay >= 1 px, the background ring rho .. rho + 3 px; when the ring would
+//               reach the neighbours' blobs (their half-contrast edge at nn_px - r_half, minus
+//               their tails), t and the ring width shrink to fit the gap (at least 1 and 2 px).
 //   background: a plane I = a + b (x - cx) + c (y - cy) fitted to the ring, refitted once without
 //               the pixels more than 3 robust sigmas off (a neighbouring blob, an edge).
 //   weights:    dark (X-ray): the flat-field contrast 1 - I / plane, i.e. the attenuation, which
@@ -63,10 +72,11 @@ namespace {
 //               thickness would otherwise pull the centre towards the brighter side); bright:
 //               I - plane. Minus 5 % of the peak, clipped at zero.
 // Iterated until the centre moves less than 1e-3 px.
-bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double radius, cv::Point2d* c) {
-  const int r = std::max(3, static_cast<int>(std::ceil(radius)));
-  double rho = -1;
-  int rw = r;  // half-size of the pixel box scanned: rho + ring
+bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
+                    cv::Point2d* c) {
+  const int w = std::max(3, static_cast<int>(std::ceil(0.5 * nn_px)));
+  double rho = -1, ring_width = 3;
+  int rw = w;  // half-size of the pixel box scanned: rho + ring
   struct Px {
     int ex, ey;   // offset from the rounded centre
     float value;  // grey level (disc: then contrast)
@@ -75,34 +85,49 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double ra
   std::vector<float> res;
   for (int it = 0; it < 8; ++it) {
     const int cx = static_cast<int>(std::lround(c->x)), cy = static_cast<int>(std::lround(c->y));
-    if (cx - r < 0 || cy - r < 0 || cx + r >= f.cols || cy + r >= f.rows) return false;
     if (rho < 0) {
-      // Blob size from the window around the initial centre.
-      std::vector<float> vals;
-      vals.reserve((2 * r + 1) * (2 * r + 1));
+      // Blob size from the window around the initial centre (clipped to the image).
+      if (cx < 0 || cy < 0 || cx >= f.cols || cy >= f.rows) return false;
+      std::vector<float> vals, band;
+      vals.reserve((2 * w + 1) * (2 * w + 1));
+      band.reserve(16 * w + 8);
       float extreme = dark ? 1e30f : -1e30f;
-      for (int y = cy - r; y <= cy + r; ++y) {
+      for (int y = std::max(0, cy - w); y <= std::min(f.rows - 1, cy + w); ++y) {
         const float* fr = f.ptr<float>(y);
         const uint8_t* vr = valid.ptr<uint8_t>(y);
-        for (int x = cx - r; x <= cx + r; ++x) {
+        const bool edge_row = std::abs(y - cy) >= w - 1;
+        for (int x = std::max(0, cx - w); x <= std::min(f.cols - 1, cx + w); ++x) {
           if (!vr[x]) continue;
           vals.push_back(fr[x]);
+          if (edge_row || std::abs(x - cx) >= w - 1) band.push_back(fr[x]);
           extreme = dark ? std::min(extreme, fr[x]) : std::max(extreme, fr[x]);
         }
       }
       if (vals.size() < 9) return false;
-      std::nth_element(vals.begin(), vals.begin() + vals.size() / 2, vals.end());
-      const float median = vals[vals.size() / 2];
+      std::vector<float>& bg = band.size() >= 8 ? band : vals;
+      std::nth_element(bg.begin(), bg.begin() + bg.size() / 2, bg.end());
+      const float median = bg[bg.size() / 2];
       const float half = 0.5f * (median + extreme);
       int area = 0;
       for (float v : vals) area += dark ? v < half : v > half;
       if (area == 0 || !(dark ? median > extreme : median < extreme)) return false;
-      rho = 1.5 * std::sqrt(area / M_PI) + 2.0;
-      rw = std::min(r, static_cast<int>(std::ceil(rho + 3.0)));
-      if (rho + 3.0 > r + 0.5) rho = r - 3.0;
+      const double r_half = std::sqrt(area / M_PI);
+      // Tails and ring between the blob (edge r_half) and its neighbours (edge nn_px - r_half).
+      const double gap = nn_px - 2.0 * r_half;
+      // The disc no larger than needed: the centroid's noise grows with its area. As before the
+      // large-circle fix, disc + ring within ceil(0.35 nn_px) where the tails allow (small
+      // circles: identical results), but the tails at least 1 px.
+      double tail = std::max(1.0, std::min(0.5 * r_half + 2.0, disc_px - r_half));
+      if (2.0 * tail + ring_width > gap) {
+        ring_width = std::clamp(gap - 2.0, 2.0, 3.0);
+        tail = std::max(1.0, 0.5 * (gap - ring_width));
+      }
+      rho = r_half + tail;
+      rw = static_cast<int>(std::ceil(rho + ring_width));
       if (rho < 2.0) return false;
     }
-    const double ring_in2 = rho * rho, ring_out2 = (rho + 3.0) * (rho + 3.0);
+    if (cx - rw < 0 || cy - rw < 0 || cx + rw >= f.cols || cy + rw >= f.rows) return false;
+    const double ring_in2 = rho * rho, ring_out2 = (rho + ring_width) * (rho + ring_width);
     // Background plane on the ring, robustly refitted once (when a ring pixel is off).
     ring.clear();
     disc.clear();
@@ -230,6 +255,102 @@ bool ClearOfMaskBorder(const cv::Mat& mask, cv::Point2d pt, double radius) {
   return true;
 }
 
+// Plate position of lattice node (row r, col c) in units of the spacing; r and c may lie outside
+// the grid (the lattice's continuation).
+cv::Point2f LatticeNode(const GridSpec& g, int r, int c) {
+  if (g.pattern == GridPattern::kAsymmetricCircles) {
+    return cv::Point2f(static_cast<float>(2 * c + ((r % 2) + 2) % 2), static_cast<float>(r));
+  }
+  return cv::Point2f(static_cast<float>(c), static_cast<float>(r));
+}
+
+// How far the lattice of a found grid continues among the detected blobs: rows x cols of the
+// lattice (>= the grid's). Grows the lattice by one row or column at a time on each side: its
+// nodes predicted by a homography fitted to the 3 nearest rows / columns found so far (local:
+// lens distortion), a node found when a blob of about the grid's blob size lies within 0.25 x
+// the pitch; a new line counts when at least 2 of its nodes and half of those in the field of
+// view are found. Stray blobs (noise, other markers) rarely sit on lattice nodes, let alone on
+// half a line of them.
+cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, const std::vector<int>& ids,
+                       const std::vector<cv::KeyPoint>& blobs, const cv::Mat& mask, double pitch_px) {
+  cv::Size extent(g.cols, g.rows);
+  if (blobs.empty() || ids.empty()) return extent;
+  const double tol = 0.25 * pitch_px;
+  auto nearest = [&blobs](cv::Point2d q, double* dist) {
+    int best = -1;
+    double bd = 1e300;
+    for (int k = 0; k < static_cast<int>(blobs.size()); ++k) {
+      const double d = cv::norm(cv::Point2d(blobs[k].pt) - q);
+      if (d < bd) bd = d, best = k;
+    }
+    *dist = bd;
+    return best;
+  };
+  std::vector<float> sizes;
+  struct Node {
+    int r, c;
+    cv::Point2f uv;
+  };
+  std::vector<Node> nodes;
+  for (int id : ids) {
+    nodes.push_back({id / g.cols, id % g.cols, cv::Point2f(pts[id])});
+    double d;
+    const int k = nearest(pts[id], &d);
+    if (k >= 0 && d < tol) sizes.push_back(blobs[k].size);
+  }
+  float size = 0;
+  if (!sizes.empty()) {
+    std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
+    size = sizes[sizes.size() / 2];
+  }
+  int rmin = 0, rmax = g.rows - 1, cmin = 0, cmax = g.cols - 1;
+  for (int round = 0; round < 64; ++round) {
+    bool grew = false;
+    for (int side = 0; side < 4; ++side) {
+      // side 0 / 1: a new row above / below; 2 / 3: a new column left / right.
+      const bool row = side < 2;
+      const int line = side == 0 ? rmin - 1 : side == 1 ? rmax + 1 : side == 2 ? cmin - 1 : cmax + 1;
+      std::vector<cv::Point2f> plate, image;
+      for (const Node& n : nodes) {
+        if (std::abs((row ? n.r : n.c) - line) <= 3) {
+          plate.push_back(LatticeNode(g, n.r, n.c));
+          image.push_back(n.uv);
+        }
+      }
+      if (plate.size() < 4) continue;
+      const cv::Mat H = cv::findHomography(plate, image, 0);
+      if (H.empty()) continue;
+      std::vector<cv::Point2f> pred_plate;
+      const int lo = row ? cmin : rmin, hi = row ? cmax : rmax;
+      for (int k = lo; k <= hi; ++k) pred_plate.push_back(row ? LatticeNode(g, line, k) : LatticeNode(g, k, line));
+      std::vector<cv::Point2f> pred;
+      cv::perspectiveTransform(pred_plate, pred, H);
+      int counted = 0;
+      std::vector<Node> found;
+      for (size_t i = 0; i < pred.size(); ++i) {
+        const cv::Point2d q(pred[i]);
+        if (!ClearOfMaskBorder(mask, q, 0.2 * pitch_px)) continue;
+        ++counted;
+        double d;
+        const int k = nearest(q, &d);
+        if (k < 0 || d > tol) continue;
+        if (size > 0 && (blobs[k].size < 0.5f * size || blobs[k].size > 2.0f * size)) continue;
+        const int other = lo + static_cast<int>(i);
+        found.push_back({row ? line : other, row ? other : line, blobs[k].pt});
+      }
+      if (found.size() < 2 || 2 * static_cast<int>(found.size()) < counted) continue;
+      nodes.insert(nodes.end(), found.begin(), found.end());
+      if (side == 0) rmin = line;
+      if (side == 1) rmax = line;
+      if (side == 2) cmin = line;
+      if (side == 3) cmax = line;
+      grew = true;
+    }
+    if (!grew) break;
+  }
+  return cv::Size(cmax - cmin + 1, rmax - rmin + 1);
+}
+
 // A SimpleBlobDetector that drops blobs touching the field-of-view border (the vignetted rim next
 // to the masked-out area looks like a chain of dark blobs). findCirclesGrid calls detect() once
 // per attempt on the same image: the blobs are found once and reused.
@@ -255,6 +376,7 @@ class MaskedBlobDetector : public cv::Feature2D {
     keypoints = kept_;
   }
   int last_count() const { return static_cast<int>(kept_.size()); }
+  const std::vector<cv::KeyPoint>& last_keypoints() const { return kept_; }
 
  private:
   cv::Ptr<cv::SimpleBlobDetector> inner_;
@@ -408,6 +530,7 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
     cv::bitwise_and(refine_valid, mask, refine_valid);
   }
   std::vector<cv::Point2f> centres;
+  std::vector<cv::KeyPoint> blobs;  // the blobs of the polarity that found the grid
   bool dark = true;
   const bool circles = grid.pattern != GridPattern::kChessboard;
   const cv::Size size(grid.cols, grid.rows);
@@ -469,6 +592,7 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       }
       if (ok) {
         centres = found;
+        blobs = detector->last_keypoints();
         dark = d;
         det.polarity = d ? "dark" : "bright";
         break;
@@ -514,8 +638,14 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
     }
     if (grid.pattern == GridPattern::kAsymmetricCircles) pitch *= 0.5;
     for (size_t i = 0; i < pts.size(); ++i) {
+      // The distance to the nearest other grid point bounds the blob's window and ring.
+      double nn = 1e30;
+      for (size_t j = 0; j < pts.size(); ++j) {
+        if (j != i) nn = std::min(nn, cv::norm(pts[j] - pts[i]));
+      }
       cv::Point2d q = pts[i];
-      if (RefineCentroid(f, refine_valid, dark, 0.35 * pitch, &q) && cv::norm(q - pts[i]) < 0.3 * pitch) {
+      if (RefineCentroid(f, refine_valid, dark, nn, std::max(3.0, std::ceil(0.35 * pitch)) - 3.0, &q) &&
+          cv::norm(q - pts[i]) < 0.3 * pitch) {
         pts[i] = q;
       } else {
         refined_ok[i] = false;  // no blob there (OpenCV fills a missing blob from the grid model)
@@ -568,6 +698,19 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
                    " px off the fitted grid (a wrong blob?)";
       return det;
     }
+    // A plate larger than the requested pattern: OpenCV picks some sub-window of it, a different
+    // one in different views, so point ids would not be consistent across views.
+    if (circles) {
+      const cv::Size plate = LatticeExtent(grid, pts, kept, blobs, mask, pitch_px);
+      if (plate.width > grid.cols || plate.height > grid.rows) {
+        det.reason = "ambiguous: more grid points than " + std::to_string(grid.rows) + "x" +
+                     std::to_string(grid.cols) + " (the plate has at least " +
+                     std::to_string(std::max(plate.height, grid.rows)) + "x" +
+                     std::to_string(std::max(plate.width, grid.cols)) +
+                     "; give its full --rows and --cols)";
+        return det;
+      }
+    }
     // Right-handed ordering in the image for symmetric patterns: the plate's x and y axes map to
     // image directions with a positive cross product (Jacobian of H at the grid's first point).
     if (grid.pattern != GridPattern::kAsymmetricCircles) {
@@ -604,6 +747,9 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
 StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
   cv::Mat m;
   try {
+    // libpng / libtiff print their own diagnostics on a corrupt file; the Status below is the
+    // one-line message.
+    QuietStderr quiet;
     m = cv::imread(path, cv::IMREAD_UNCHANGED);
   } catch (const cv::Exception& e) {
     return Status::Error(path + ": unreadable image (" + e.what() + ")");

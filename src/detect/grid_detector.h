@@ -11,8 +11,11 @@
 //      (metal on bright, X-ray) or bright blobs; polarity "auto" tries dark first, then bright.
 //      chessboard: cv::findChessboardCorners + cornerSubPix.
 //   4. Sub-pixel centres of circles, on the float image, iterated from the blob centre: the blob's
-//      size from its half-contrast area in a window of 0.35 x the grid pitch; a background plane
-//      fitted (robustly) to a 3 px ring just outside the blob; the centroid of the FLAT-FIELD
+//      size from its half-contrast area in a window of half the distance to the nearest grid
+//      point (background level: the window's border band, between the blob and its neighbours);
+//      a background plane fitted (robustly) to a 3 px ring just outside the blob, fitted into the
+//      gap to the neighbours for large circles (any diameter up to nearly touching circles:
+//      tests/detect/grid_detector_test.cc LargeCirclesSubPixel); the centroid of the FLAT-FIELD
 //      contrast 1 - I / background over the disc inside the ring (dark polarity: X-ray
 //      attenuation, independent of vignetting and other brightness gradients; bright:
 //      I - background). Only the fully exposed field of view is used: the intensifier's rim
@@ -23,8 +26,12 @@
 //      whose ordering is only defined up to the grid's symmetry, the ordering is made right-handed
 //      in the image (row direction x column direction > 0): an X-ray sees the plate from either
 //      side, and a consistent handedness is what lets all views share one rigid plate.
+//   6. A plate larger than the requested pattern (the blob lattice continues beyond the found
+//      rows / columns: at least 2 blobs and half a line on the next lattice nodes) is rejected as
+//      ambiguous: OpenCV would pick a different sub-window in different views.
 // A not-found result carries why: too few blobs (with the count), no grid ordering among the
-// blobs (ambiguous, or grid partly outside the field of view), points on the mask border.
+// blobs (ambiguous, or grid partly outside the field of view), points on the mask border, more
+// grid points than the pattern (with the plate's size seen).
 #pragma once
 
 #include <opencv2/core.hpp>

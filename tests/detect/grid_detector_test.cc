@@ -31,8 +31,9 @@ struct Rendered {
   std::vector<cv::Point2d> centres;  // by grid id
 };
 
+// `extra_mm`: further discs (not grid points) at these plate positions.
 Rendered RenderCircles(const GridSpec& g, int size, bool dark, int depth, double radius_px,
-                       double scale, uint64_t seed) {
+                       double scale, uint64_t seed, const std::vector<Eigen::Vector3d>& extra_mm = {}) {
   Rendered out;
   cv::Mat big(size * kSuper, size * kSuper, CV_32F, cv::Scalar(0));
   // Bright circular field of view with vignetting, dark outside.
@@ -43,9 +44,11 @@ Rendered RenderCircles(const GridSpec& g, int size, bool dark, int depth, double
     }
   }
   cv::Mat disc(big.size(), CV_8U, cv::Scalar(0));
-  for (int id = 0; id < g.NumPoints(); ++id) {
-    const cv::Point2d q = PlateToPixel(g.PointInPlate(id), size, scale);
-    out.centres.push_back(q);
+  for (int id = 0; id < g.NumPoints() + static_cast<int>(extra_mm.size()); ++id) {
+    const bool grid_point = id < g.NumPoints();
+    const cv::Point2d q =
+        PlateToPixel(grid_point ? g.PointInPlate(id) : extra_mm[id - g.NumPoints()], size, scale);
+    if (grid_point) out.centres.push_back(q);
     // Pixel centre convention: pixel (0,0) centre at 0 -> supersampled centre at (q + 0.5) * S - 0.5.
     const cv::Point2d qs((q.x + 0.5) * kSuper - 0.5, (q.y + 0.5) * kSuper - 0.5);
     cv::circle(disc, cv::Point(std::lround(qs.x * 16), std::lround(qs.y * 16)),
@@ -123,6 +126,83 @@ TEST(GridDetectorTest, AsymmetricGridKeepsOpenCvOrdering) {
   GridDetection d = DetectGrid(r.image, g, DetectionOptions());
   ASSERT_TRUE(d.found) << d.reason;
   EXPECT_LT(MaxError(d, r.centres), kSubPixelTol);
+}
+
+// Circles large relative to their spacing, up to nearly touching (diameter / nearest-neighbour
+// distance 0.4 .. 0.8, a gap of 5 px here; at 0.85, a 3.75 px gap, the error reaches 0.4 px):
+// the window and the background ring follow the blob's size and its neighbours. Before they did not (window 0.35 x pitch, ring clipped inside it): errors of
+// 0.5 .. 6 px from a diameter of ~0.5 x the spacing on.
+TEST(GridDetectorTest, LargeCirclesSubPixel) {
+  constexpr double kTol = 0.05;  // px
+  GridSpec sym;
+  sym.rows = 6;
+  sym.cols = 8;
+  sym.spacing_mm = 10;
+  const double scale = 2.5;  // px per mm: 25 px pitch
+  for (double ratio : {0.4, 0.5, 0.6, 0.7, 0.8}) {
+    const double radius = 0.5 * ratio * sym.spacing_mm * scale;
+    Rendered r = RenderCircles(sym, 408, true, CV_8U, radius, scale, 11);
+    GridDetection d = DetectGrid(r.image, sym, DetectionOptions());
+    ASSERT_TRUE(d.found) << "symmetric, diameter " << ratio << " x pitch: " << d.reason;
+    EXPECT_EQ(d.view.uv_px.size(), 48u) << ratio;
+    std::cout << "symmetric 6x8, diameter " << ratio << " x pitch: max error " << MaxError(d, r.centres) << " px\n";
+    EXPECT_LT(MaxError(d, r.centres), kTol) << "symmetric, diameter " << ratio << " x pitch";
+  }
+  GridSpec asym;
+  asym.pattern = GridPattern::kAsymmetricCircles;
+  asym.rows = 11;
+  asym.cols = 4;
+  asym.spacing_mm = 10;
+  // Nearest neighbours sqrt(2) x the spacing apart; 20 px spacing (the plate inside the field).
+  const double asym_scale = 2.0;
+  for (double ratio : {0.6, 0.8, 1.0, 1.1}) {
+    const double radius = 0.5 * ratio * asym.spacing_mm * asym_scale;
+    Rendered r = RenderCircles(asym, 408, true, CV_8U, radius, asym_scale, 12);
+    GridDetection d = DetectGrid(r.image, asym, DetectionOptions());
+    ASSERT_TRUE(d.found) << "asymmetric, diameter " << ratio << " x spacing: " << d.reason;
+    EXPECT_EQ(d.view.uv_px.size(), 44u) << ratio;
+    std::cout << "asymmetric 11x4, diameter " << ratio << " x spacing: max error " << MaxError(d, r.centres) << " px\n";
+    EXPECT_LT(MaxError(d, r.centres), kTol) << "asymmetric, diameter " << ratio << " x spacing";
+  }
+}
+
+// A pattern smaller than the plate: OpenCV finds some sub-window of it (a different one per view),
+// so the ids would not be consistent across views. Rejected as ambiguous, naming the plate's
+// size; a few stray blobs, even one on a lattice node, are not a larger plate.
+TEST(GridDetectorTest, PatternSmallerThanThePlateIsAmbiguous) {
+  GridSpec g;  // 5 x 5, 20 mm
+  const std::vector<Eigen::Vector3d> stray = {{-30, 17, 0}, {110, 63, 0}, {47, -28, 0}, {100, 40, 0}};
+  Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 7, stray);
+  GridDetection d = DetectGrid(r.image, g, DetectionOptions());
+  ASSERT_TRUE(d.found) << d.reason;
+  EXPECT_EQ(d.view.uv_px.size(), 25u);
+  EXPECT_LT(MaxError(d, r.centres), kSubPixelTol);
+  for (auto [rows, cols] : {std::pair{5, 4}, {4, 5}, {4, 4}, {3, 5}}) {
+    GridSpec smaller = g;
+    smaller.rows = rows;
+    smaller.cols = cols;
+    d = DetectGrid(r.image, smaller, DetectionOptions());
+    EXPECT_FALSE(d.found) << rows << "x" << cols;
+    const std::string expected = "ambiguous: more grid points than " + std::to_string(rows) + "x" +
+                                 std::to_string(cols) + " (the plate has at least 5x5";
+    EXPECT_NE(d.reason.find(expected), std::string::npos) << d.reason;
+  }
+  GridSpec asym;
+  asym.pattern = GridPattern::kAsymmetricCircles;
+  asym.rows = 11;
+  asym.cols = 4;
+  asym.spacing_mm = 10;
+  Rendered a = RenderCircles(asym, 408, true, CV_8U, 3.0, 2.0, 8);
+  d = DetectGrid(a.image, asym, DetectionOptions());
+  ASSERT_TRUE(d.found) << d.reason;
+  for (auto [rows, cols] : {std::pair{9, 4}, {11, 3}}) {
+    GridSpec smaller = asym;
+    smaller.rows = rows;
+    smaller.cols = cols;
+    d = DetectGrid(a.image, smaller, DetectionOptions());
+    // (OpenCV's asymmetric finder itself finds no ordering here; either reason will do.)
+    EXPECT_FALSE(d.found) << rows << "x" << cols;
+  }
 }
 
 TEST(GridDetectorTest, ReasonsWhenNotFound) {
