@@ -136,12 +136,15 @@ bool ProjectPointWithJac(const double* intrinsics,
   return true;
 }
 
-bool UnprojectToNormalized(const double* in, const double* uv, double* xy) {
-  // Start from the undistorted pinhole inverse and refine (x, y) by Gauss-Newton on the
-  // distortion equations, using the analytic 2x2 Jacobian of the projection of (x, y, 1).
-  double x = (uv[0] - in[kCx]) / in[kFx];
-  double y = (uv[1] - in[kCy]) / in[kFy];
-  for (int it = 0; it < 50; ++it) {
+bool UnprojectToNormalizedFrom(const double* in,
+                               const double* uv,
+                               const double* seed_xy,
+                               int max_iterations,
+                               double* xy) {
+  // Refine (x, y) by Gauss-Newton on the distortion equations, using the analytic 2x2 Jacobian of
+  // the projection of (x, y, 1).
+  double x = seed_xy[0], y = seed_xy[1];
+  for (int it = 0; it < max_iterations; ++it) {
     const double p[3] = {x, y, 1.0};
     double q[2], J[6];
     if (!ProjectCamPointWithJac(in, p, q, nullptr, J)) return false;
@@ -160,10 +163,15 @@ bool UnprojectToNormalized(const double* in, const double* uv, double* xy) {
   }
   const double p[3] = {x, y, 1.0};
   double q[2];
-  ProjectCamPoint(in, p, q);
-  if (std::hypot(uv[0] - q[0], uv[1] - q[1]) > 1e-9) return false;
+  if (!ProjectCamPoint(in, p, q) || std::hypot(uv[0] - q[0], uv[1] - q[1]) > 1e-9) return false;
   xy[0] = x, xy[1] = y;
   return true;
+}
+
+bool UnprojectToNormalized(const double* in, const double* uv, double* xy) {
+  // From the undistorted pinhole inverse.
+  const double seed[2] = {(uv[0] - in[kCx]) / in[kFx], (uv[1] - in[kCy]) / in[kFy]};
+  return UnprojectToNormalizedFrom(in, uv, seed, 50, xy);
 }
 
 }  // namespace carmba

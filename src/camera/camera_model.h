@@ -99,5 +99,12 @@ void SO3LeftJacobian(const double* rvec, double* J);
 // projection is `uv`, by Gauss-Newton from the undistorted guess. Returns false if it does not
 // converge to 1e-9 px (strong distortion far outside the calibrated field).
 bool UnprojectToNormalized(const double* intrinsics, const double* uv, double* xy);
+// The same Gauss-Newton started from `seed_xy` (e.g. the solution of a nearby pixel), at most
+// `max_iterations` steps. UnprojectToNormalized is this from the undistorted guess with 50 steps.
+bool UnprojectToNormalizedFrom(const double* intrinsics,
+                               const double* uv,
+                               const double* seed_xy,
+                               int max_iterations,
+                               double* xy);
 
 }  // namespace carmba

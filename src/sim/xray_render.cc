@@ -68,24 +68,7 @@ namespace {
 // solution of a nearby pixel: a sub-pixel's neighbour is a fraction of a pixel away, so one or two
 // steps converge instead of the ~5 from the undistorted guess. Falls back to the full routine.
 bool UnprojectNear(const double* in, const double* uv, const double* seed_xy, double* xy) {
-  double x = seed_xy[0], y = seed_xy[1];
-  for (int it = 0; it < 8; ++it) {
-    const double p[3] = {x, y, 1.0};
-    double q[2], J[6];
-    if (!ProjectCamPointWithJac(in, p, q, nullptr, J)) break;
-    const double ex = uv[0] - q[0], ey = uv[1] - q[1];
-    if (std::hypot(ex, ey) < 1e-10) {
-      xy[0] = x, xy[1] = y;
-      return true;
-    }
-    const double a = J[0], b = J[1], c = J[3], d = J[4];
-    const double det = a * d - b * c;
-    if (!(std::fabs(det) > 1e-12)) break;
-    x += (d * ex - b * ey) / det;
-    y += (-c * ex + a * ey) / det;
-    if (!std::isfinite(x) || !std::isfinite(y)) break;
-  }
-  return UnprojectToNormalized(in, uv, xy);
+  return UnprojectToNormalizedFrom(in, uv, seed_xy, 8, xy) || UnprojectToNormalized(in, uv, xy);
 }
 
 }  // namespace
