@@ -274,7 +274,8 @@ cv::Point2f LatticeNode(const GridSpec& g, int r, int c) {
 cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, const std::vector<int>& ids,
                        const std::vector<cv::KeyPoint>& blobs, const cv::Mat& mask, double pitch_px) {
   cv::Size extent(g.cols, g.rows);
-  if (blobs.empty() || ids.empty()) return extent;
+  // A continuation needs at least 2 blobs beyond the grid's.
+  if (static_cast<int>(blobs.size()) < g.NumPoints() + 2 || ids.empty()) return extent;
   const double tol = 0.25 * pitch_px;
   auto nearest = [&blobs](cv::Point2d q, double* dist) {
     int best = -1;
