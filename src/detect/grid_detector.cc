@@ -55,14 +55,14 @@ namespace {
 // pixels with `valid` != 0 (the field of view) are used. `nn_px` is the distance to the nearest
 // other grid point: the window, the centroid disc and the background ring scale with it and with
 // the blob's own measured radius, so that they hold for any circle size up to nearly touching
-// circles.
+// circles. `disc_px`: the largest centroid disc wanted when the blob's tails allow (noise).
 //   size:       the blob's half-contrast area in a window of half-size 0.5 nn_px (for circles
 //               that do not overlap it holds the blob and background only), the background level
 //               being the median of the window's 2 px border band (between the blob and its
 //               neighbours; robust to a field-of-view edge or a plate edge), gives its radius
 //               r_half. The centroid disc is rho = r_half + t with the blur's tails
-//               t = 0.5 r_half + 2 px, but the disc within ceil(0.35 nn_px) - 3 px (noise) if the
-//               tails stay >= 1 px, the background ring rho .. rho + 3 px; when the ring would
+//               t = 0.5 r_half + 2 px, but the disc within disc_px (noise) as long as the tails
+//               stay >= 1 px, the background ring rho .. rho + 3 px; when the ring would
 //               reach the neighbours' blobs (their half-contrast edge at nn_px - r_half, minus
 //               their tails), t and the ring width shrink to fit the gap (at least 1 and 2 px).
 //   background: a plane I = a + b (x - cx) + c (y - cy) fitted to the ring, refitted once without
@@ -114,9 +114,8 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
       const double r_half = std::sqrt(area / M_PI);
       // Tails and ring between the blob (edge r_half) and its neighbours (edge nn_px - r_half).
       const double gap = nn_px - 2.0 * r_half;
-      // The disc no larger than needed: the centroid's noise grows with its area. As before the
-      // large-circle fix, disc + ring within ceil(0.35 nn_px) where the tails allow (small
-      // circles: identical results), but the tails at least 1 px.
+      // The disc no larger than needed (the centroid's noise grows with its area): within
+      // disc_px while the tails stay >= 1 px.
       double tail = std::max(1.0, std::min(0.5 * r_half + 2.0, disc_px - r_half));
       if (2.0 * tail + ring_width > gap) {
         ring_width = std::clamp(gap - 2.0, 2.0, 3.0);
@@ -645,6 +644,8 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
         if (j != i) nn = std::min(nn, cv::norm(pts[j] - pts[i]));
       }
       cv::Point2d q = pts[i];
+      // The disc cap as before the large-circle fix (disc + ring within ceil(0.35 pitch)): small
+      // circles keep their results (same noise), large ones go beyond it with 1 px tails.
       if (RefineCentroid(f, refine_valid, dark, nn, std::max(3.0, std::ceil(0.35 * pitch)) - 3.0, &q) &&
           cv::norm(q - pts[i]) < 0.3 * pitch) {
         pts[i] = q;
