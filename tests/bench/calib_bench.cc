@@ -41,9 +41,12 @@ const ObservationSet& Views(int n) {
   return it->second;
 }
 
+// range(0): views; range(1): 0 = carmba's Schur LM (the default), 1 = Ceres (solver: ceres).
 void BM_CalibCarmba(benchmark::State& state) {
   const ObservationSet& obs = Views(static_cast<int>(state.range(0)));
   CalibrationOptions opt;
+  if (state.range(1) == 1) opt.solver = "ceres";
+  state.SetLabel(opt.solver);
   double rms = 0, fx = 0, cx = 0;
   for (auto _ : state) {
     auto r = Calibrate(obs, opt);
@@ -157,7 +160,14 @@ void BM_CalibOpenCv(benchmark::State& state) {
 
 }  // namespace
 
-BENCHMARK(BM_CalibCarmba)->Arg(16)->Arg(200)->Arg(1000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CalibCarmba)
+    ->Args({16, 0})
+    ->Args({200, 0})
+    ->Args({1000, 0})
+    ->Args({16, 1})
+    ->Args({200, 1})
+    ->Args({1000, 1})
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CalibMrcalC)->Arg(16)->Arg(200)->Arg(1000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CalibOpenCv)->Arg(16)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CalibOpenCv)->Arg(200)->Iterations(1)->Unit(benchmark::kMillisecond);
