@@ -370,6 +370,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
                 "sparse_normal_cholesky", "iterative_schur"},
                &c.linear_solver);
   root.Get("max_iterations", &c.max_iterations);
+  if (c.max_iterations < 0) root.Fail("max_iterations", "expected an integer >= 0");
   root.GetPositive("function_tolerance", &c.function_tolerance);
   root.GetPositive("gradient_tolerance", &c.gradient_tolerance);
   root.GetPositive("parameter_tolerance", &c.parameter_tolerance);
@@ -379,6 +380,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
               &c.covariance_algorithm);
   cov.GetEnum("scale", {"apriori", "aposteriori"}, &scale);
   root.Get("num_threads", &c.num_threads);
+  if (c.num_threads < 1) root.Fail("num_threads", "expected an integer >= 1");
   CARMBA_RETURN_IF_ERROR(root.Finish());
   c.covariance_aposteriori = scale == "aposteriori";
   c.analytic_jacobians = jac == "analytic";

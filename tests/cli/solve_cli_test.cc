@@ -221,6 +221,11 @@ TEST(SolveCli, UnrefinedConfigHasNoFalseHandednessWarning) {
   EXPECT_EQ(ss.str().find("| bundle adjustment (view dirs)"), std::string::npos);
 }
 
+TEST_F(BadInput, NumThreadsBelowOneNamesTheLine) {
+  config_ = "name: c\nnum_threads: 0\n";
+  ExpectError("config.yaml:2: key 'num_threads': expected an integer >= 1");
+}
+
 TEST_F(BadInput, NonPositiveSigma) {
   problem_ = "name: x\ncamera: camera.json\nsigma_px: -1\n"
              "markers: {file: markers.csv, sigma_mm: 0.2}\n"
