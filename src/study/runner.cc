@@ -165,17 +165,17 @@ Status RunStudy(const StudySpec& spec,
   if (bad + dup > 0) CARMBA_RETURN_IF_ERROR(RewriteRunLog(log_path, *existing));
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(info_path, info.dump(2) + "\n"));
 
-  std::vector<const RunSpec*> todo;
+  std::vector<const RunSpec*> pending;
   for (const auto& r : runs) {
-    if (!done.count(r.key)) todo.push_back(&r);
+    if (!done.count(r.key)) pending.push_back(&r);
   }
-  st.skipped = static_cast<int>(runs.size() - todo.size());
+  st.skipped = static_cast<int>(runs.size() - pending.size());
 
   RunLogWriter writer;
   CARMBA_RETURN_IF_ERROR(writer.Open(log_path));
   int jobs = options.jobs > 0 ? options.jobs
                               : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  jobs = std::max(1, std::min<int>(jobs, static_cast<int>(std::max<size_t>(1, todo.size()))));
+  jobs = std::max(1, std::min<int>(jobs, static_cast<int>(std::max<size_t>(1, pending.size()))));
   st.jobs = jobs;
 
   std::atomic<size_t> next{0};
@@ -191,7 +191,7 @@ Status RunStudy(const StudySpec& spec,
     last_print = now;
     const double elapsed = std::chrono::duration<double>(now - start).count();
     const double rate = executed > 0 ? executed / std::max(elapsed, 1e-9) : 0;
-    const int left = static_cast<int>(todo.size()) - executed;
+    const int left = static_cast<int>(pending.size()) - executed;
     std::fprintf(stderr, "\r[study %s] %d/%zu runs done, %d failed, %s elapsed, ETA %s   ",
                  spec.name.c_str(), executed + st.skipped, runs.size(), failed,
                  FormatDuration(elapsed).c_str(),
@@ -203,12 +203,12 @@ Status RunStudy(const StudySpec& spec,
   auto worker = [&]() {
     for (;;) {
       const size_t i = next.fetch_add(1);
-      if (i >= todo.size()) return;
+      if (i >= pending.size()) return;
       {
         std::lock_guard<std::mutex> lock(mutex);
         if (!write_error.ok()) return;
       }
-      RunRecord record = Execute(run, *todo[i]);
+      RunRecord record = Execute(run, *pending[i]);
       const Status appended = writer.Append(record);
       std::lock_guard<std::mutex> lock(mutex);
       if (!appended.ok()) {
@@ -233,7 +233,7 @@ Status RunStudy(const StudySpec& spec,
   st.executed = executed;
   st.failed = failed;
   st.runs_time_s = runs_time;
-  if (options.progress && !todo.empty()) print_progress(true);
+  if (options.progress && !pending.empty()) print_progress(true);
   CARMBA_RETURN_IF_ERROR(write_error);
 
   CARMBA_RETURN_IF_ERROR(WriteStudyOutputs(dir, options.write_report, st.wall_s, jobs));
