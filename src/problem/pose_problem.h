@@ -65,12 +65,11 @@
 #include <vector>
 
 #include "camera/camera.h"
+#include "geometry/pose.h"
 #include "util/status.h"
 
 namespace carmba {
 
-using Pose6 = Eigen::Matrix<double, 6, 1>;  // [rx, ry, rz, tx, ty, tz]
-using Matrix6 = Eigen::Matrix<double, 6, 6>;
 
 enum class Handedness { kAsGiven, kMirrored };
 

@@ -1,0 +1,449 @@
+#include "ba/bundle_adjuster.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "ba/priors.h"
+#include "ba/reprojection_error.h"
+#include "util/stats.h"
+
+namespace carmba {
+namespace ba {
+namespace {
+
+// Ceres's robust-loss correction of a block's Jacobian (ceres/internal/corrector.cc): with
+// s = |r|^2 and rho = (rho(s), rho'(s), rho''(s)),
+//   J <- sqrt(rho') (I - alpha r r^T / s) J,   alpha = 1 - sqrt(1 + 2 s rho'' / rho'),
+// where alpha = 0 if s = 0 or rho'' <= 0.
+void CorrectForLoss(const ceres::LossFunction& loss, const Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+  const double s = r.squaredNorm();
+  double rho[3];
+  loss.Evaluate(s, rho);
+  const double sqrt_rho1 = std::sqrt(rho[1]);
+  if (s == 0.0 || rho[2] <= 0.0) {
+    *J *= sqrt_rho1;
+    return;
+  }
+  const double alpha = 1.0 - std::sqrt(1.0 + 2.0 * s * rho[2] / rho[1]);
+  const Eigen::MatrixXd P =
+      Eigen::MatrixXd::Identity(r.size(), r.size()) - (alpha / s) * r * r.transpose();
+  *J = sqrt_rho1 * (P * *J);
+}
+
+ceres::LossFunction* MakeLoss(const BaOptions& o, double sigma_px) {
+  const double s = o.loss_scale_px / sigma_px;  // residuals are whitened
+  if (o.loss == "huber") return new ceres::HuberLoss(s);
+  if (o.loss == "cauchy") return new ceres::CauchyLoss(s);
+  if (o.loss == "soft_l1") return new ceres::SoftLOneLoss(s);
+  return nullptr;
+}
+
+bool LinearSolverType(const std::string& name, ceres::LinearSolverType* t) {
+  if (name == "dense_qr") *t = ceres::DENSE_QR;
+  else if (name == "dense_normal_cholesky") *t = ceres::DENSE_NORMAL_CHOLESKY;
+  else if (name == "dense_schur") *t = ceres::DENSE_SCHUR;
+  else if (name == "sparse_schur") *t = ceres::SPARSE_SCHUR;
+  else if (name == "sparse_normal_cholesky") *t = ceres::SPARSE_NORMAL_CHOLESKY;
+  else if (name == "iterative_schur") *t = ceres::ITERATIVE_SCHUR;
+  else return false;
+  return true;
+}
+
+// One residual block as built: its cost, loss, source, the layout blocks of its parameters and,
+// for reprojections, which observation it is.
+struct BuiltBlock {
+  ceres::CostFunction* cost = nullptr;
+  ceres::LossFunction* loss = nullptr;
+  Source source;
+  std::vector<int> blocks;
+  int view = -1, obs = -1;
+};
+
+struct Assembly {
+  std::vector<BuiltBlock> built;
+  std::vector<double> buffer;
+};
+
+// Adds the residual blocks of `problem` to `cp` (skipping observations in `dropped`).
+Status Assemble(const BaProblem& problem,
+                const StateLayout& layout,
+                const BaOptions& o,
+                const std::vector<std::vector<char>>& dropped,
+                Assembly* as,
+                ceres::Problem* cp) {
+  auto ptr = [&](int b) { return as->buffer.data() + layout.block(b).offset; };
+  std::map<int, int> marker_index;
+  for (size_t m = 0; m < problem.markers.size(); ++m) marker_index[problem.markers[m].id] = static_cast<int>(m);
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    const BaView& view = problem.views[v];
+    const int pose_b = layout.view_block(static_cast<int>(v));
+    const int intr_b = layout.group_block(view.group);
+    for (size_t i = 0; i < view.point_ids.size(); ++i) {
+      if (dropped[v][i]) continue;
+      const int point_b = view.kind == ViewKind::kPlate
+                              ? layout.plate_point_block(view.point_ids[i])
+                              : layout.marker_block(marker_index.at(view.point_ids[i]));
+      const Eigen::Vector2d& q = view.uv_px[i];
+      ceres::CostFunction* cost =
+          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.sigma_px)
+                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px);
+      ceres::LossFunction* loss = MakeLoss(o, view.sigma_px);
+      cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
+      as->built.push_back({cost, loss,
+                           view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels,
+                           {pose_b, point_b, intr_b}, static_cast<int>(v), static_cast<int>(i)});
+    }
+  }
+  auto add_point_prior = [&](int b, const Eigen::Vector3d& p, const Eigen::Matrix3d& S, Source s) {
+    const auto [rows01, row2] = PointPriorRows::Split(p, S);
+    if (o.analytic_jacobians) {
+      cp->AddResidualBlock(rows01, nullptr, ptr(b));
+      cp->AddResidualBlock(row2, nullptr, ptr(b));
+      as->built.push_back({rows01, nullptr, s, {b}});
+      as->built.push_back({row2, nullptr, s, {b}});
+    } else {
+      Eigen::Matrix<double, 2, 3> top = S.topRows<2>(), last = Eigen::Matrix<double, 2, 3>::Zero();
+      last.row(0) = S.row(2);
+      delete rows01;
+      delete row2;
+      for (const auto& A : {top, last}) {
+        ceres::CostFunction* c = PointPriorRowsAutoDiff::Create(p, A);
+        cp->AddResidualBlock(c, nullptr, ptr(b));
+        as->built.push_back({c, nullptr, s, {b}});
+      }
+    }
+  };
+  if (problem.markers_free && problem.marker_priors) {
+    for (size_t m = 0; m < problem.markers.size(); ++m) {
+      Eigen::Matrix3d S;
+      if (!SqrtInformation(problem.markers[m].covariance, &S)) {
+        return Status::Error("marker " + std::to_string(problem.markers[m].id) +
+                             ": CT covariance is not symmetric positive definite");
+      }
+      add_point_prior(layout.marker_block(static_cast<int>(m)), problem.markers[m].p_ct, S,
+                      Source::kCt);
+    }
+  }
+  if (problem.plate.free && problem.plate.sigma_mm > 0) {
+    const Eigen::Matrix3d S = Eigen::Matrix3d::Identity() / problem.plate.sigma_mm;
+    for (size_t p = 0; p < problem.plate.points.size(); ++p) {
+      add_point_prior(layout.plate_point_block(static_cast<int>(p)), problem.plate.points[p], S,
+                      Source::kPlateManufacturing);
+    }
+  }
+  for (size_t g = 0; g < problem.groups.size(); ++g) {
+    const IntrinsicsGroup& grp = problem.groups[g];
+    if (!grp.has_prior) continue;
+    Eigen::MatrixXd S;
+    if (!SqrtInformationN(grp.prior.covariance, &S)) {
+      return Status::Error("group '" + grp.name +
+                           "': intrinsics prior covariance is not symmetric positive definite");
+    }
+    const int b = layout.group_block(static_cast<int>(g));
+    ceres::CostFunction* c =
+        o.analytic_jacobians
+            ? static_cast<ceres::CostFunction*>(
+                  new IntrinsicsPriorError(grp.prior.mean.data(), grp.prior.indices, S))
+            : IntrinsicsPriorAutoDiff::Create(grp.prior.mean.data(), grp.prior.indices, S);
+    cp->AddResidualBlock(c, nullptr, ptr(b));
+    as->built.push_back({c, nullptr, Source::kIntrinsicsPrior, {b}});
+  }
+  // Held parameters.
+  for (const BlockInfo& b : layout.blocks()) {
+    double* p = as->buffer.data() + b.offset;
+    if (!cp->HasParameterBlock(p)) continue;
+    if (b.constant) {
+      cp->SetParameterBlockConstant(p);
+    } else if (static_cast<int>(b.free.size()) < b.size) {
+      std::vector<int> held;
+      for (int i = 0; i < b.size; ++i) {
+        if (std::find(b.free.begin(), b.free.end(), i) == b.free.end()) held.push_back(i);
+      }
+      cp->SetManifold(p, new ceres::SubsetManifold(b.size, held));
+    }
+  }
+  return Status::Ok();
+}
+
+// Evaluates one built block at the buffer: whitened residual and (optionally) the free-column
+// Jacobians, corrected for its loss. False if not evaluable.
+bool EvaluateBlock(const BuiltBlock& bb,
+                   const StateLayout& layout,
+                   const std::vector<double>& buffer,
+                   Eigen::VectorXd* r,
+                   LinearizedBlock* lin) {
+  const int nr = bb.cost->num_residuals();
+  const auto& sizes = bb.cost->parameter_block_sizes();
+  std::vector<const double*> params;
+  for (int b : bb.blocks) params.push_back(buffer.data() + layout.block(b).offset);
+  r->resize(nr);
+  std::vector<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J;
+  std::vector<double*> jac;
+  if (lin) {
+    for (int s : sizes) J.emplace_back(nr, s);
+    for (auto& j : J) jac.push_back(j.data());
+  }
+  if (!bb.cost->Evaluate(params.data(), r->data(), lin ? jac.data() : nullptr) || !r->allFinite()) {
+    return false;
+  }
+  if (!lin) return true;
+  lin->source = bb.source;
+  for (size_t i = 0; i < bb.blocks.size(); ++i) {
+    const BlockInfo& bi = layout.block(bb.blocks[i]);
+    if (bi.constant) continue;
+    Eigen::MatrixXd Jf(nr, bi.free.size());
+    for (size_t c = 0; c < bi.free.size(); ++c) Jf.col(c) = J[i].col(bi.free[c]);
+    if (bb.loss) CorrectForLoss(*bb.loss, *r, &Jf);
+    lin->blocks.push_back(bb.blocks[i]);
+    lin->J.push_back(std::move(Jf));
+  }
+  return true;
+}
+
+}  // namespace
+
+bool BaOptions::Check(std::string* error) const {
+  ceres::LinearSolverType t;
+  if (!LinearSolverType(linear_solver, &t)) {
+    *error = "linear_solver '" + linear_solver + "' is unknown";
+    return false;
+  }
+  if (loss != "trivial" && loss != "huber" && loss != "cauchy" && loss != "soft_l1") {
+    *error = "loss '" + loss + "' is unknown (trivial, huber, cauchy, soft_l1)";
+    return false;
+  }
+  if (!(loss_scale_px > 0) || !std::isfinite(loss_scale_px)) {
+    *error = "loss scale_px must be > 0";
+    return false;
+  }
+  if (max_iterations < 0 || num_threads < 1) {
+    *error = "max_iterations must be >= 0 and num_threads >= 1";
+    return false;
+  }
+  if (!(outlier_sigma > 0) || !(reject_sigma >= 0)) {
+    *error = "outlier_sigma must be > 0 and reject_sigma >= 0";
+    return false;
+  }
+  return true;
+}
+
+StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string err;
+  if (!o.Check(&err)) return Status::Error("solver options: " + err);
+  CARMBA_RETURN_IF_ERROR(problem.Check());
+  BaResult res;
+  res.layout = std::make_shared<StateLayout>(problem);
+  const StateLayout& layout = *res.layout;
+  std::vector<std::vector<char>> dropped(problem.views.size());
+  for (size_t v = 0; v < problem.views.size(); ++v) dropped[v].assign(problem.views[v].point_ids.size(), 0);
+  std::vector<double> state = InitialState(problem, layout);
+
+  static thread_local std::unique_ptr<ceres::Context> context(ceres::Context::Create());
+  constexpr int kMaxRejectionPasses = 100;
+  for (int pass = 0; pass <= kMaxRejectionPasses; ++pass) {
+    Assembly as;
+    as.buffer = state;
+    ceres::Problem::Options popts;
+    popts.context = context.get();
+    popts.disable_all_safety_checks = true;
+    ceres::Problem cp(popts);
+    CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, dropped, &as, &cp));
+    // Initial cost, evaluated directly.
+    double chi2_0 = 0;
+    for (const auto& bb : as.built) {
+      Eigen::VectorXd r;
+      if (!EvaluateBlock(bb, layout, as.buffer, &r, nullptr)) {
+        const std::string what =
+            bb.view >= 0 ? "view '" + problem.views[bb.view].id + "' point " +
+                               std::to_string(problem.views[bb.view].point_ids[bb.obs])
+                         : std::string("a prior");
+        return Status::Error("the initial state gives a non-finite residual at " + what +
+                             " (behind the source? a wrong initial pose?)");
+      }
+      chi2_0 += r.squaredNorm();
+    }
+    if (pass == 0) res.initial_cost = 0.5 * chi2_0;
+
+    ceres::Solver::Options so;
+    LinearSolverType(o.linear_solver, &so.linear_solver_type);
+    so.max_num_iterations = o.max_iterations;
+    so.function_tolerance = o.function_tolerance;
+    so.gradient_tolerance = o.gradient_tolerance;
+    so.parameter_tolerance = o.parameter_tolerance;
+    so.num_threads = o.num_threads;
+    so.logging_type = ceres::SILENT;
+    if (so.linear_solver_type == ceres::DENSE_SCHUR || so.linear_solver_type == ceres::SPARSE_SCHUR ||
+        so.linear_solver_type == ceres::ITERATIVE_SCHUR) {
+      auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+      bool any_point = false;
+      for (const BlockInfo& b : layout.blocks()) {
+        const bool point = b.kind == BlockKind::kMarker || b.kind == BlockKind::kPlatePoint;
+        any_point |= point && !b.constant && cp.HasParameterBlock(as.buffer.data() + b.offset);
+      }
+      for (const BlockInfo& b : layout.blocks()) {
+        double* p = as.buffer.data() + b.offset;
+        if (!cp.HasParameterBlock(p) || cp.IsParameterBlockConstant(p)) continue;
+        int group = 0;
+        switch (b.kind) {
+          case BlockKind::kMarker:
+          case BlockKind::kPlatePoint: group = 0; break;
+          case BlockKind::kPlatePose:
+          case BlockKind::kObjectPose: group = any_point ? 1 : 0; break;
+          case BlockKind::kIntrinsics: group = any_point ? 2 : 1; break;
+        }
+        ordering->AddElementToGroup(p, group);
+      }
+      so.linear_solver_ordering = ordering;
+    }
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &cp, &summary);
+    res.iterations += static_cast<int>(summary.iterations.size()) - 1;
+    res.termination = ceres::TerminationTypeToString(summary.termination_type);
+    res.converged = summary.termination_type == ceres::CONVERGENCE;
+    if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
+      return Status::Error("bundle adjustment failed: " + summary.message);
+    }
+    state = as.buffer;
+
+    // Residuals, outliers, statistics and the linearisation at the solution.
+    auto lin = std::make_shared<Linearization>();
+    res.outliers.clear();
+    res.chi2 = 0;
+    res.num_residuals = 0;
+    std::vector<double> view_ss(problem.views.size(), 0.0);
+    std::vector<int> view_n(problem.views.size(), 0);
+    // The rejection pass drops the worst observation above reject_sigma, then solves again: one
+    // gross error pulls the residuals of the observations that share its marker, pose or
+    // intrinsics up too, so dropping all above the threshold at once would throw good
+    // observations away with it.
+    int worst_view = -1, worst_obs = -1;
+    double worst_sigma = 0;
+    BaOutlier worst_out;
+    bool any_rejected = false;
+    for (const auto& bb : as.built) {
+      Eigen::VectorXd r;
+      LinearizedBlock lb;
+      if (!EvaluateBlock(bb, layout, state, &r, &lb)) {
+        return Status::Error("a residual is not finite at the solution (a point behind the source?)");
+      }
+      res.chi2 += r.squaredNorm();
+      res.num_residuals += static_cast<int>(r.size());
+      if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
+      if (bb.view < 0) continue;
+      const BaView& view = problem.views[bb.view];
+      const double n_sigma = r.norm();
+      view_ss[bb.view] += r.squaredNorm() * view.sigma_px * view.sigma_px;
+      view_n[bb.view] += 1;
+      BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[bb.obs], n_sigma,
+                    r[0] * view.sigma_px, r[1] * view.sigma_px};
+      if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
+      if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
+          n_sigma > worst_sigma) {
+        worst_sigma = n_sigma;
+        worst_view = bb.view;
+        worst_obs = bb.obs;
+        worst_out = out;
+        any_rejected = true;
+      }
+    }
+    if (any_rejected) {
+      dropped[worst_view][worst_obs] = 1;
+      res.rejected.push_back(worst_out);
+    }
+    std::sort(res.outliers.begin(), res.outliers.end(),
+              [](const BaOutlier& a, const BaOutlier& b) { return a.residual_sigma > b.residual_sigma; });
+    if (any_rejected) {
+      for (size_t v = 0; v < problem.views.size(); ++v) {
+        const auto left = std::count(dropped[v].begin(), dropped[v].end(), 0);
+        if (left < 4) {
+          return Status::Error("outlier rejection (reject_sigma " + std::to_string(o.reject_sigma) +
+                               ") leaves view '" + problem.views[v].id + "' with " +
+                               std::to_string(left) + " observations, at least 4 needed");
+        }
+      }
+      continue;  // solve again without them
+    }
+    res.final_cost = 0.5 * res.chi2;
+    res.views.clear();
+    double ss_plate = 0, ss_object = 0;
+    int n_plate = 0, n_object = 0;
+    for (size_t v = 0; v < problem.views.size(); ++v) {
+      BaViewStats vs;
+      vs.id = problem.views[v].id;
+      vs.num_observations = view_n[v];
+      vs.rms_px = view_n[v] ? std::sqrt(view_ss[v] / (2.0 * view_n[v])) : 0.0;
+      res.views.push_back(vs);
+      if (problem.views[v].kind == ViewKind::kPlate) {
+        ss_plate += view_ss[v], n_plate += view_n[v];
+      } else {
+        ss_object += view_ss[v], n_object += view_n[v];
+      }
+    }
+    res.rms_plate_px = n_plate ? std::sqrt(ss_plate / (2.0 * n_plate)) : std::nan("");
+    res.rms_object_px = n_object ? std::sqrt(ss_object / (2.0 * n_object)) : std::nan("");
+    res.num_free = layout.num_free();
+    res.dof = res.num_residuals - res.num_free;
+    res.sigma0 = res.dof > 0 ? std::sqrt(res.chi2 / res.dof) : std::nan("");
+    res.chi2_p_value = ChiSquareUpperTail(res.chi2, res.dof);
+    res.linearization = lin;
+    break;
+  }
+  res.state = state;
+  res.dropped = dropped;
+  if (o.compute_covariance) {
+    auto cov = SchurCovariance::Compute(layout, *res.linearization, o.min_reciprocal_condition);
+    if (!cov.ok()) return cov.status();
+    res.covariance = *cov;
+    res.covariance_scale =
+        o.covariance_aposteriori && std::isfinite(res.sigma0) ? res.sigma0 * res.sigma0 : 1.0;
+  }
+  res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
+                                               const BaOptions& o,
+                                               const BaResult& result,
+                                               const std::vector<int>& blocks,
+                                               const std::string& algorithm) {
+  const StateLayout& layout = *result.layout;
+  Assembly as;
+  as.buffer = result.state;
+  ceres::Problem cp;
+  CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, result.dropped, &as, &cp));
+  ceres::Covariance::Options co;
+  if (algorithm == "dense_svd") {
+    co.algorithm_type = ceres::DENSE_SVD;
+  } else if (algorithm == "sparse_qr" || algorithm == "eigen_sparse_qr") {
+    co.algorithm_type = ceres::SPARSE_QR;
+    if (algorithm == "eigen_sparse_qr") co.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+  } else {
+    return Status::Error("covariance algorithm '" + algorithm +
+                         "' is unknown (dense_svd, sparse_qr, eigen_sparse_qr)");
+  }
+  co.null_space_rank = 0;
+  co.min_reciprocal_condition_number = o.min_reciprocal_condition;
+  ceres::Covariance cov(co);
+  std::vector<const double*> ptrs;
+  for (int b : blocks) ptrs.push_back(as.buffer.data() + layout.block(b).offset);
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (size_t i = 0; i < ptrs.size(); ++i) {
+    for (size_t j = i; j < ptrs.size(); ++j) pairs.emplace_back(ptrs[i], ptrs[j]);
+  }
+  if (!cov.Compute(pairs, &cp)) {
+    return Status::Error("ceres::Covariance (" + algorithm + "): rank-deficient");
+  }
+  int n = 0;
+  for (int b : blocks) n += layout.block(b).size;
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(n, n);
+  cov.GetCovarianceMatrix(ptrs, C.data());
+  return Eigen::MatrixXd(C * result.covariance_scale);
+}
+
+}  // namespace ba
+}  // namespace carmba

@@ -1,0 +1,114 @@
+// The bundle adjuster: builds the Ceres problem from a problem description (ba/problem.h) and
+// options (HOW it is solved), solves it, and linearises it at the solution for the covariance
+// and the error budget (ba/covariance.h). COLMAP's split: options / config of what is free /
+// adjuster.
+//
+// Residual blocks (all whitened, ba/problem.h lists their sources):
+//   plate view v, point j:   ReprojectionError(pose_v, plate point j, intrinsics of v's group)
+//   object view v, marker m: ReprojectionError(pose_v, marker m, intrinsics of v's group)
+//   marker m (free, with priors):  PointPriorRows x 2 (its CT covariance, ba/reprojection_error.h)
+//   plate point j (free):    PointPriorRows x 2 (isotropic sigma_mm)
+//   group g with a prior:    IntrinsicsPriorError (ba/priors.h)
+// A robust loss acts on the reprojection blocks only, with its scale in px (whitened by each
+// view's sigma_px). Held intrinsics are a ceres::SubsetManifold; constant blocks are set constant.
+// Ordering for the Schur solvers: points first, then poses, then intrinsics (poses first when no
+// point is free).
+//
+// Outliers: after the solve every observation whose whitened residual norm |r| exceeds
+// `outlier_sigma` is listed; with `reject_sigma` > 0, the worst observation above it is dropped
+// and the problem solved again (warm), until none is above it (at most 100 passes; a view left
+// with fewer than 4 observations is an error).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ba/covariance.h"
+#include "ba/problem.h"
+#include "util/status.h"
+
+namespace carmba {
+namespace ba {
+
+struct BaOptions {
+  bool analytic_jacobians = true;    // false: the autodiff twins
+  std::string loss = "trivial";      // trivial | huber | cauchy | soft_l1
+  double loss_scale_px = 1.0;
+  std::string linear_solver = "dense_schur";  // any Ceres linear solver name in lower case
+  int max_iterations = 100;
+  double function_tolerance = 1e-12;
+  double gradient_tolerance = 1e-12;
+  double parameter_tolerance = 1e-12;
+  int num_threads = 1;
+  bool compute_covariance = true;
+  bool covariance_aposteriori = false;  // scale the covariance by sigma0^2
+  double outlier_sigma = 4.0;           // list observations with |r| above this (whitened)
+  double reject_sigma = 0;              // > 0: drop observations above it and re-solve
+  double min_reciprocal_condition = 1e-14;
+
+  bool Check(std::string* error) const;
+};
+
+struct BaOutlier {
+  std::string view;
+  bool plate = false;   // plate view (point id) or object view (marker id)
+  int id = 0;
+  double residual_sigma = 0;  // |whitened residual|
+  double du_px = 0, dv_px = 0;
+};
+
+struct BaViewStats {
+  std::string id;
+  int num_observations = 0;
+  double rms_px = 0;  // per coordinate
+};
+
+struct BaResult {
+  std::vector<double> state;   // the parameter buffer in layout order
+  std::shared_ptr<StateLayout> layout;
+  std::shared_ptr<Linearization> linearization;   // at the solution
+  std::shared_ptr<SchurCovariance> covariance;    // null when not computed
+  double covariance_scale = 1.0;                  // 1 (a priori) or sigma0^2 (a posteriori)
+
+  std::vector<BaViewStats> views;  // problem order
+  double rms_plate_px = 0, rms_object_px = 0;  // per coordinate (NaN when no such view)
+  double chi2 = 0;        // sum of squared whitened residuals (priors included), no loss
+  int num_residuals = 0;
+  int num_free = 0;
+  int dof = 0;
+  double sigma0 = 0;      // sqrt(chi2 / dof)
+  double chi2_p_value = 0;
+  std::vector<BaOutlier> outliers;   // above outlier_sigma, largest first
+  std::vector<BaOutlier> rejected;   // dropped by the rejection pass
+  std::vector<std::vector<char>> dropped;  // per view and observation: rejected (1) or used (0)
+
+  int iterations = 0;
+  std::string termination;
+  bool converged = false;
+  double initial_cost = 0, final_cost = 0;
+  double time_s = 0;
+
+  const double* block(int b) const { return state.data() + layout->block(b).offset; }
+  // Covariance of blocks (ambient parameters), scaled by covariance_scale.
+  Eigen::MatrixXd Covariance(const std::vector<int>& blocks) const {
+    return covariance->BlockCovariance(blocks) * covariance_scale;
+  }
+};
+
+// Solves. Errors name what is wrong: problem consistency, a non-finite initial cost, a failed
+// solve, a rank-deficient covariance (naming the null direction).
+StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptions& options);
+
+// The covariance of `blocks` (ambient parameters, as BaResult::Covariance) by ceres::Covariance
+// over the same Ceres problem at the solution: `algorithm` dense_svd, sparse_qr or
+// eigen_sparse_qr. The reference the Schur covariance is tested against, and the configs'
+// alternative covariance algorithms.
+StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
+                                               const BaOptions& options,
+                                               const BaResult& result,
+                                               const std::vector<int>& blocks,
+                                               const std::string& algorithm);
+
+}  // namespace ba
+}  // namespace carmba

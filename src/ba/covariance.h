@@ -1,0 +1,93 @@
+// Covariance of any set of parameter blocks, and error budgets, from ONE module (COLMAP's
+// estimators/covariance.cc is the model).
+//
+// Input: the problem linearised at the solution -- every residual block's whitened Jacobian with
+// respect to the FREE parameters of the blocks it touches (held intrinsics are dropped columns,
+// constant blocks are absent), corrected for a robust loss as Ceres corrects it
+// (ceres/internal/corrector.cc), and the noise source the block belongs to (ba/problem.h).
+//
+// Information H = J^T J, kept block-sparse. It is reduced by the Schur complement in two levels:
+//   1. the points (markers, free plate points): each touches only poses, intrinsics and its own
+//      prior, so H restricted to them is block-diagonal (3x3 blocks);
+//   2. then the plate poses, when after level 1 they are still uncoupled from each other (they
+//      are unless the plate points are free): 6x6 blocks coupled only to the intrinsics;
+//   S = H_KK - H_KE H_EE^-1 H_EK over what is kept (intrinsics and object poses; for a
+//   calibration only the 9 intrinsics), dense, Jacobi-scaled and Cholesky-factored.
+// Any block or cross-block of H^-1 then follows by forward reduction and back-substitution
+// (`Solve`). Point covariances are MARGINAL (not conditioned on the poses as COLMAP's are).
+//
+// Gauge and rank: a singular 3x3 / 6x6 block (a marker seen in one view without a prior) or a
+// singular S (markers free without priors: a similarity gauge) is refused, naming the parameters
+// that move along the null direction (the smallest eigenvector of the Jacobi-scaled S, carried
+// back through the eliminated blocks): never a covariance full of noise.
+//
+// Error budget (shared/notes/joint-ba.md): for derived quantities f with gradient G = df/dx (rows
+// over the free state) and whitened rows grouped by independent source s,
+//   Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T,
+// computed as a = H^-1 G^T once, then |J_b a|^2 accumulated per residual block b into its source.
+// The shares add up to the total G H^-1 G^T (the sources cover all rows).
+#pragma once
+
+#include <Eigen/Dense>
+#include <map>
+#include <memory>
+#include <vector>
+
+#include "ba/problem.h"
+#include "util/status.h"
+
+namespace carmba {
+namespace ba {
+
+struct LinearizedBlock {
+  Source source = Source::kPlatePixels;
+  std::vector<int> blocks;        // layout blocks (free ones only) this residual block touches
+  std::vector<Eigen::MatrixXd> J; // per block: rows x |free parameters of the block|
+};
+
+struct Linearization {
+  std::vector<LinearizedBlock> rows;
+};
+
+struct ErrorBudget {
+  Eigen::VectorXd total;       // q variances, G H^-1 G^T
+  Eigen::MatrixXd by_source;   // q x kNumSources variances; rows add up to `total`
+};
+
+class SchurCovariance {
+ public:
+  // Errors: rank deficiency (naming the null direction), non-finite Jacobians.
+  static StatusOr<std::shared_ptr<SchurCovariance>> Compute(const StateLayout& layout,
+                                                            const Linearization& lin,
+                                                            double min_reciprocal_condition = 1e-14);
+
+  int num_free() const { return n_; }
+  // H^-1 B, B num_free x k.
+  Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
+  // Covariance of the concatenated blocks in their full (ambient) parameters, held parameters as
+  // zero rows and columns. Blocks are layout indices; constant blocks give zero blocks.
+  Eigen::MatrixXd BlockCovariance(const std::vector<int>& blocks) const;
+  // The budget of quantities with gradient rows G (q x num_free) over `lin`'s rows.
+  ErrorBudget Budget(const Eigen::MatrixXd& G, const Linearization& lin) const;
+  // Sizes of the eliminated and kept parts (for tests and reports).
+  int num_eliminated_blocks() const;
+  int kept_size() const { return static_cast<int>(kept_dim_); }
+
+ private:
+  SchurCovariance() = default;
+  struct Eliminated {
+    int block;                         // layout block
+    Eigen::MatrixXd H_inv;             // (H_ee)^-1 at its level
+    std::vector<std::pair<int, Eigen::MatrixXd>> H_er;  // neighbours at its level
+  };
+  const StateLayout* layout_ = nullptr;
+  int n_ = 0;
+  std::vector<std::vector<Eliminated>> levels_;
+  std::vector<int> kept_blocks_;              // layout blocks of S, in order
+  std::vector<int> kept_offset_;              // their offsets in S
+  Eigen::Index kept_dim_ = 0;
+  Eigen::MatrixXd S_inv_;                     // (S)^-1 over the kept blocks
+};
+
+}  // namespace ba
+}  // namespace carmba

@@ -1,0 +1,224 @@
+#include "ba/problem.h"
+
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "camera/camera.h"
+
+namespace carmba {
+namespace ba {
+
+const char* SourceName(Source s) {
+  switch (s) {
+    case Source::kPlatePixels: return "plate pixels";
+    case Source::kObjectPixels: return "object pixels";
+    case Source::kCt: return "CT localisation";
+    case Source::kPlateManufacturing: return "plate manufacturing";
+    case Source::kIntrinsicsPrior: return "intrinsics prior";
+  }
+  return "?";
+}
+
+Status BaProblem::Check() const {
+  if (groups.empty()) return Status::Error("no intrinsics group");
+  if (views.empty()) return Status::Error("no views");
+  std::set<std::string> group_names;
+  for (const auto& g : groups) {
+    if (!group_names.insert(g.name).second) {
+      return Status::Error("intrinsics group '" + g.name + "' is given twice");
+    }
+    for (double x : g.initial) {
+      if (!std::isfinite(x)) return Status::Error("group '" + g.name + "': non-finite intrinsics");
+    }
+    if (!(g.initial[kFx] > 0) || !(g.initial[kFy] > 0)) {
+      return Status::Error("group '" + g.name + "': fx and fy must be > 0");
+    }
+    if (g.has_prior) {
+      const auto n = static_cast<Eigen::Index>(g.prior.indices.size());
+      if (n == 0 || g.prior.covariance.rows() != n || g.prior.covariance.cols() != n ||
+          !g.prior.covariance.allFinite()) {
+        return Status::Error("group '" + g.name + "': the intrinsics prior needs a finite " +
+                             std::to_string(n) + "x" + std::to_string(n) + " covariance");
+      }
+      Eigen::LLT<Eigen::MatrixXd> llt(g.prior.covariance);
+      if (llt.info() != Eigen::Success) {
+        return Status::Error("group '" + g.name +
+                             "': the intrinsics prior's covariance is not positive definite");
+      }
+    }
+  }
+  std::set<std::string> view_ids;
+  std::map<int, const BaMarker*> marker_by_id;
+  for (const auto& m : markers) {
+    if (!marker_by_id.emplace(m.id, &m).second) {
+      return Status::Error("marker " + std::to_string(m.id) + " is given twice");
+    }
+    if (!m.p_ct.allFinite() || !m.covariance.allFinite()) {
+      return Status::Error("marker " + std::to_string(m.id) + ": non-finite position or covariance");
+    }
+  }
+  std::vector<int> plate_views_of(groups.size(), 0), views_of(groups.size(), 0);
+  for (const auto& v : views) {
+    if (!view_ids.insert(v.id).second) return Status::Error("view '" + v.id + "' is given twice");
+    if (v.group < 0 || v.group >= static_cast<int>(groups.size())) {
+      return Status::Error("view '" + v.id + "': unknown intrinsics group");
+    }
+    if (!(v.sigma_px > 0) || !std::isfinite(v.sigma_px)) {
+      return Status::Error("view '" + v.id + "': sigma_px must be > 0");
+    }
+    if (v.point_ids.size() != v.uv_px.size()) {
+      return Status::Error("view '" + v.id + "': ids and pixels differ in number");
+    }
+    if (v.point_ids.size() < 4) {
+      return Status::Error("view '" + v.id + "': " + std::to_string(v.point_ids.size()) +
+                           " observation(s), at least 4 needed");
+    }
+    if (!v.initial.allFinite()) return Status::Error("view '" + v.id + "': no initial pose");
+    std::set<int> seen;
+    for (size_t i = 0; i < v.point_ids.size(); ++i) {
+      const int id = v.point_ids[i];
+      if (!seen.insert(id).second) {
+        return Status::Error("view '" + v.id + "': point " + std::to_string(id) +
+                             " observed twice");
+      }
+      if (!v.uv_px[i].allFinite()) {
+        return Status::Error("view '" + v.id + "': non-finite pixel of point " +
+                             std::to_string(id));
+      }
+      if (v.kind == ViewKind::kPlate) {
+        if (id < 0 || id >= static_cast<int>(plate.points.size())) {
+          return Status::Error("view '" + v.id + "': plate point " + std::to_string(id) +
+                               " is not on the plate (" + std::to_string(plate.points.size()) +
+                               " points)");
+        }
+      } else if (!marker_by_id.count(id)) {
+        return Status::Error("view '" + v.id + "': marker " + std::to_string(id) +
+                             " is not among the fiducials");
+      }
+    }
+    ++views_of[v.group];
+    if (v.kind == ViewKind::kPlate) ++plate_views_of[v.group];
+  }
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (views_of[g] == 0) {
+      return Status::Error("intrinsics group '" + groups[g].name + "' has no views");
+    }
+    bool any_free = false;
+    for (bool f : groups[g].free) any_free |= f;
+    if (any_free && plate_views_of[g] == 0 && !groups[g].has_prior) {
+      return Status::Error("intrinsics group '" + groups[g].name +
+                           "' has no plate views and no prior: its intrinsics are not "
+                           "calibrated (add plate views of that group, or a camera prior)");
+    }
+  }
+  if (plate.free && !(plate.sigma_mm >= 0 && std::isfinite(plate.sigma_mm))) {
+    return Status::Error("the plate's manufacturing sigma_mm must be >= 0 (0: no prior)");
+  }
+  return Status::Ok();
+}
+
+StateLayout::StateLayout(const BaProblem& problem) {
+  auto add = [&](BlockKind kind, int index, int size, std::string label, bool constant,
+                 std::vector<int> free) {
+    BlockInfo b;
+    b.kind = kind;
+    b.index = index;
+    b.offset = buffer_size_;
+    b.size = size;
+    b.label = std::move(label);
+    b.constant = constant || free.empty();
+    if (!b.constant) {
+      b.free = std::move(free);
+      b.free_offset = num_free_;
+      for (size_t i = 0; i < b.free.size(); ++i) {
+        free_index_.emplace_back(static_cast<int>(blocks_.size()), b.free[i]);
+      }
+      num_free_ += static_cast<int>(b.free.size());
+    }
+    buffer_size_ += size;
+    blocks_.push_back(std::move(b));
+    return static_cast<int>(blocks_.size()) - 1;
+  };
+  auto all = [](int n) {
+    std::vector<int> v(n);
+    for (int i = 0; i < n; ++i) v[i] = i;
+    return v;
+  };
+  const bool one_group = problem.groups.size() == 1;
+  for (size_t g = 0; g < problem.groups.size(); ++g) {
+    std::vector<int> free;
+    for (int i = 0; i < kNumIntrinsics; ++i) {
+      if (problem.groups[g].free[i]) free.push_back(i);
+    }
+    group_block_.push_back(add(BlockKind::kIntrinsics, static_cast<int>(g), kNumIntrinsics,
+                               one_group ? "" : problem.groups[g].name, false, free));
+  }
+  view_block_.assign(problem.views.size(), -1);
+  for (ViewKind kind : {ViewKind::kPlate, ViewKind::kObject}) {
+    for (size_t v = 0; v < problem.views.size(); ++v) {
+      if (problem.views[v].kind != kind) continue;
+      view_block_[v] = add(kind == ViewKind::kPlate ? BlockKind::kPlatePose : BlockKind::kObjectPose,
+                           static_cast<int>(v), 6,
+                           (kind == ViewKind::kPlate ? "plate " : "view ") + problem.views[v].id,
+                           false, all(6));
+    }
+  }
+  for (size_t m = 0; m < problem.markers.size(); ++m) {
+    marker_block_.push_back(add(BlockKind::kMarker, static_cast<int>(m), 3,
+                                "marker " + std::to_string(problem.markers[m].id),
+                                !problem.markers_free, all(3)));
+  }
+  for (size_t p = 0; p < problem.plate.points.size(); ++p) {
+    plate_point_block_.push_back(add(BlockKind::kPlatePoint, static_cast<int>(p), 3,
+                                     "plate point " + std::to_string(p), !problem.plate.free,
+                                     all(3)));
+  }
+}
+
+std::string StateLayout::ParameterName(int b, int i) const {
+  static const char* const kPose[6] = {"rx", "ry", "rz", "tx", "ty", "tz"};
+  static const char* const kPoint[3] = {"x", "y", "z"};
+  const BlockInfo& blk = blocks_[b];
+  std::string p;
+  switch (blk.kind) {
+    case BlockKind::kIntrinsics: p = kIntrinsicNames[i]; break;
+    case BlockKind::kPlatePose:
+    case BlockKind::kObjectPose: p = kPose[i]; break;
+    case BlockKind::kMarker:
+    case BlockKind::kPlatePoint: p = kPoint[i]; break;
+  }
+  return blk.label.empty() ? p : blk.label + " " + p;
+}
+
+std::string StateLayout::FreeName(int k) const {
+  const auto [b, i] = free_index_[k];
+  return ParameterName(b, i);
+}
+
+std::vector<double> InitialState(const BaProblem& problem, const StateLayout& layout) {
+  std::vector<double> x(layout.buffer_size());
+  for (const BlockInfo& b : layout.blocks()) {
+    double* dst = x.data() + b.offset;
+    switch (b.kind) {
+      case BlockKind::kIntrinsics:
+        std::copy(problem.groups[b.index].initial.begin(), problem.groups[b.index].initial.end(),
+                  dst);
+        break;
+      case BlockKind::kPlatePose:
+      case BlockKind::kObjectPose:
+        for (int i = 0; i < 6; ++i) dst[i] = problem.views[b.index].initial[i];
+        break;
+      case BlockKind::kMarker:
+        for (int i = 0; i < 3; ++i) dst[i] = problem.markers[b.index].p_ct[i];
+        break;
+      case BlockKind::kPlatePoint:
+        for (int i = 0; i < 3; ++i) dst[i] = problem.plate.points[b.index][i];
+        break;
+    }
+  }
+  return x;
+}
+
+}  // namespace ba
+}  // namespace carmba

@@ -1,0 +1,146 @@
+// The one bundle-adjustment problem description of carmba (calibration, pose and the joint
+// problem are front ends that fill it), and its named state layout.
+//
+// WHAT is estimated (COLMAP's "config" beside its "options"; mrcal's state vector):
+//   * intrinsics groups g: [fx, fy, cx, cy, k1, k2, p1, p2, k3] (camera/camera_model.h), one per
+//     group ("shared" for one C-arm geometry, or one per orientation group). Each intrinsic is
+//     free or held at its initial value; a group may carry a Gaussian prior (mean, covariance over
+//     a subset of the names, e.g. an earlier calibration's camera.json).
+//   * one pose per view, `cam_from_plate` for a plate view, `cam_from_object` for an object view:
+//     [rx, ry, rz (rad), tx, ty, tz (mm)], p_in_cam = R(r) p + t.
+//   * the object's markers p_in_object (mm), tied to their CT centres by priors whitened with each
+//     marker's 3x3 CT covariance (the CT frame is the object frame: the priors fix the gauge).
+//   * the plate's sphere positions (mm), held at the nominal grid, or free and tied to it by a
+//     manufacturing-tolerance prior of sigma_mm per coordinate.
+// Residual kinds, each whitened, each with an analytic cost and an autodiff twin
+// (ba/reprojection_error.h, ba/priors.h), each belonging to one independent noise SOURCE:
+//   plate reprojection (kPlatePixels), marker reprojection (kObjectPixels), CT prior (kCt),
+//   plate prior (kPlateManufacturing), intrinsics prior (kIntrinsicsPrior).
+//
+// STATE LAYOUT: parameter blocks in a fixed order -- intrinsics groups, plate-view poses,
+// object-view poses, markers (by id), plate points (by id) -- in one contiguous buffer (Ceres
+// orders blocks by address in places, so one buffer makes solves reproducible to the last digit).
+// Every scalar has a name used by the covariance output, the rank-deficiency message and the
+// reports: `fx` (one group) or `lao30 fx` (several), `plate 3 rz`, `view lao+030 rz`,
+// `marker 7 z`, `plate point 12 x`. Held parameters (fixed intrinsics, constant blocks) are not
+// in the FREE state; `FreeIndex` maps the free state to (block, parameter).
+#pragma once
+
+#include <Eigen/Dense>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "camera/camera_model.h"
+#include "geometry/pose.h"
+#include "util/status.h"
+
+namespace carmba {
+namespace ba {
+
+// Independent noise sources (error budget).
+enum class Source { kPlatePixels = 0, kObjectPixels, kCt, kPlateManufacturing, kIntrinsicsPrior };
+constexpr int kNumSources = 5;
+// "plate pixels", "object pixels", "CT localisation", "plate manufacturing", "intrinsics prior".
+const char* SourceName(Source s);
+
+struct IntrinsicsPrior {
+  std::array<double, kNumIntrinsics> mean{};
+  std::vector<int> indices;      // which intrinsics the covariance is over (IntrinsicIndex)
+  Eigen::MatrixXd covariance;    // |indices| x |indices|, symmetric positive definite
+};
+
+struct IntrinsicsGroup {
+  std::string name = "shared";
+  int width = 0, height = 0;  // image size, px (0: unknown)
+  std::array<double, kNumIntrinsics> initial{};
+  std::array<bool, kNumIntrinsics> free{true, true, true, true, true, true, true, true, true};
+  bool has_prior = false;
+  IntrinsicsPrior prior;
+};
+
+enum class ViewKind { kPlate, kObject };
+
+struct BaView {
+  std::string id;
+  ViewKind kind = ViewKind::kObject;
+  int group = 0;                      // index into BaProblem::groups
+  Pose6 initial = Pose6::Zero();      // cam_from_plate / cam_from_object, set by the front end
+  std::vector<int> point_ids;         // plate point ids (plate view) or marker ids (object view)
+  std::vector<Eigen::Vector2d> uv_px;
+  double sigma_px = 1.0;              // pixel noise, 1 sigma per coordinate
+};
+
+struct BaMarker {
+  int id = 0;
+  Eigen::Vector3d p_ct = Eigen::Vector3d::Zero();        // CT centre (object frame), mm
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  // mm^2
+};
+
+struct BaPlate {
+  std::vector<Eigen::Vector3d> points;  // nominal positions by point id (plate frame), mm
+  bool free = false;                    // estimate them, tied to the nominal grid
+  double sigma_mm = 0;                  // manufacturing tolerance, 1 sigma per coordinate
+                                        // (0 with free: no prior -- a gauge freedom)
+};
+
+struct BaProblem {
+  std::string name;
+  std::vector<IntrinsicsGroup> groups;
+  std::vector<BaView> views;
+  std::vector<BaMarker> markers;
+  bool markers_free = true;   // estimate the markers (else held at their CT centres)
+  bool marker_priors = true;  // tie free markers to their CT centres (the CT prior)
+  BaPlate plate;
+
+  // Consistency, before anything is built: groups and views valid, ids unique, every observation
+  // names a known point or marker, >= 4 observations per view, finite values, sigmas > 0, each
+  // group used, a group with object views but no plate view and no prior is an error (its
+  // intrinsics would rest on the markers alone).
+  Status Check() const;
+};
+
+enum class BlockKind { kIntrinsics, kPlatePose, kObjectPose, kMarker, kPlatePoint };
+
+struct BlockInfo {
+  BlockKind kind;
+  int index = 0;           // group / view / marker or plate-point index in the problem
+  int offset = 0;          // into the parameter buffer
+  int size = 0;            // 9, 6 or 3
+  std::string label;       // "" (one group), "lao30", "plate 3", "view lao+030", "marker 7", ...
+  bool constant = false;   // held entirely
+  std::vector<int> free;   // free parameter indices within the block (empty if constant)
+  int free_offset = -1;    // into the free state (-1 if constant)
+};
+
+class StateLayout {
+ public:
+  explicit StateLayout(const BaProblem& problem);
+
+  int buffer_size() const { return buffer_size_; }
+  int num_free() const { return num_free_; }
+  const std::vector<BlockInfo>& blocks() const { return blocks_; }
+  const BlockInfo& block(int b) const { return blocks_[b]; }
+  int group_block(int g) const { return group_block_[g]; }
+  int view_block(int v) const { return view_block_[v]; }
+  int marker_block(int m) const { return marker_block_[m]; }        // m: index in problem.markers
+  int plate_point_block(int p) const { return plate_point_block_[p]; }  // p: point id
+  // Name of parameter `i` of block `b`, e.g. "view lao+030 rz".
+  std::string ParameterName(int b, int i) const;
+  // Name of free-state index `k`.
+  std::string FreeName(int k) const;
+  // (block, parameter) of free-state index k.
+  std::pair<int, int> FreeIndex(int k) const { return free_index_[k]; }
+
+ private:
+  std::vector<BlockInfo> blocks_;
+  std::vector<int> group_block_, view_block_, marker_block_, plate_point_block_;
+  std::vector<std::pair<int, int>> free_index_;
+  int buffer_size_ = 0, num_free_ = 0;
+};
+
+// The initial state: every block's initial value in layout order.
+std::vector<double> InitialState(const BaProblem& problem, const StateLayout& layout);
+
+}  // namespace ba
+}  // namespace carmba

@@ -1,0 +1,147 @@
+#include "ba/quantities.h"
+
+#include <ceres/jet.h>
+
+#include <cmath>
+
+#include "geometry/rotation.h"
+
+namespace carmba {
+namespace ba {
+namespace {
+
+// Writes gradient `g` of block b's ambient parameters into row `row` of G (free columns only).
+void SetRow(const StateLayout& L, int b, const double* g, int row, Eigen::MatrixXd* G) {
+  const BlockInfo& bi = L.block(b);
+  if (bi.constant) return;
+  for (size_t i = 0; i < bi.free.size(); ++i) (*G)(row, bi.free_offset + i) += g[bi.free[i]];
+}
+
+template <typename F>
+double PairMetric(const double* a, const double* b, F f, double* ga, double* gb) {
+  using J = ceres::Jet<double, 12>;
+  J pa[6], pb[6];
+  for (int i = 0; i < 6; ++i) {
+    pa[i] = J(a[i], i);
+    pb[i] = J(b[i], 6 + i);
+  }
+  const J v = f(pa, pb);
+  for (int i = 0; i < 6; ++i) ga[i] = v.v[i], gb[i] = v.v[6 + i];
+  return v.a;
+}
+
+}  // namespace
+
+QuantitySet DerivedQuantities(const BaProblem& problem,
+                              const BaResult& result,
+                              const std::vector<std::pair<int, int>>& pairs) {
+  const StateLayout& L = *result.layout;
+  std::vector<Quantity> qs;
+  std::vector<std::vector<std::pair<int, std::vector<double>>>> grads;  // per quantity: (block, g)
+  auto add = [&](std::string name, std::string unit, double value, int b, std::vector<double> g) {
+    qs.push_back({std::move(name), std::move(unit), value});
+    grads.push_back({{b, std::move(g)}});
+  };
+  // Distance for the centre projection: the mean object (else plate) distance.
+  double d_sum = 0;
+  int d_n = 0;
+  for (ViewKind kind : {ViewKind::kObject, ViewKind::kPlate}) {
+    for (size_t v = 0; v < problem.views.size() && d_n == 0; ++v) {
+      if (problem.views[v].kind != kind) continue;
+      for (size_t w = v; w < problem.views.size(); ++w) {
+        if (problem.views[w].kind != kind) continue;
+        d_sum += result.block(L.view_block(static_cast<int>(w)))[5];
+        ++d_n;
+      }
+    }
+  }
+  const double distance = d_n ? d_sum / d_n : 1000.0;
+  for (size_t g = 0; g < problem.groups.size(); ++g) {
+    const int b = L.group_block(static_cast<int>(g));
+    const BlockInfo& bi = L.block(b);
+    const double* x = result.block(b);
+    for (int i : bi.free) {
+      std::vector<double> grad(kNumIntrinsics, 0.0);
+      grad[i] = 1.0;
+      add(L.ParameterName(b, i), i < 4 ? "px" : "", x[i], b, grad);
+    }
+    // Centre projection.
+    const IntrinsicsGroup& grp = problem.groups[g];
+    const double uc[2] = {grp.width > 0 ? 0.5 * (grp.width - 1) : x[kCx],
+                          grp.height > 0 ? 0.5 * (grp.height - 1) : x[kCy]};
+    double xy[2];
+    if (UnprojectToNormalized(x, uc, xy)) {
+      const double p[3] = {xy[0] * distance, xy[1] * distance, distance};
+      double uv[2], J[2 * kNumIntrinsics];
+      ProjectCamPointWithJac(x, p, uv, J, nullptr);
+      const std::string prefix = bi.label.empty() ? "" : bi.label + " ";
+      add(prefix + "centre projection u", "px", uv[0], b, std::vector<double>(J, J + 9));
+      add(prefix + "centre projection v", "px", uv[1], b, std::vector<double>(J + 9, J + 18));
+    }
+  }
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    if (problem.views[v].kind != ViewKind::kObject) continue;
+    const int b = L.view_block(static_cast<int>(v));
+    const double* pose = result.block(b);
+    Eigen::Matrix3d Jl;
+    SO3LeftJacobian(pose, Jl.data());
+    Jl.transposeInPlace();  // row-major into column-major storage
+    static const char* const kAxis[3] = {"x", "y", "z"};
+    for (int a = 0; a < 3; ++a) {
+      std::vector<double> grad(6, 0.0);
+      for (int c = 0; c < 3; ++c) grad[c] = Jl(a, c) * kRadToDeg;
+      add("view " + problem.views[v].id + " rot " + kAxis[a], "deg", 0.0, b, grad);
+    }
+    for (int a = 0; a < 3; ++a) {
+      std::vector<double> grad(6, 0.0);
+      grad[3 + a] = 1.0;
+      add("view " + problem.views[v].id + " t" + kAxis[a], "mm", pose[3 + a], b, grad);
+    }
+  }
+  for (const auto& [ia, ib] : pairs) {
+    const int ba = L.view_block(ia), bb = L.view_block(ib);
+    const std::string name = "pair " + problem.views[ia].id + "/" + problem.views[ib].id;
+    double ga[6], gb[6];
+    const double rr = PairMetric(result.block(ba), result.block(bb),
+                                 [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, ga, gb);
+    for (int i = 0; i < 6; ++i) ga[i] *= kRadToDeg, gb[i] *= kRadToDeg;
+    qs.push_back({name + " relative rotation", "deg", rr * kRadToDeg});
+    grads.push_back({{ba, std::vector<double>(ga, ga + 6)}, {bb, std::vector<double>(gb, gb + 6)}});
+    const double vd = PairMetric(result.block(ba), result.block(bb),
+                                 [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, ga, gb);
+    for (int i = 0; i < 6; ++i) ga[i] *= kRadToDeg, gb[i] *= kRadToDeg;
+    qs.push_back({name + " view directions", "deg", vd * kRadToDeg});
+    grads.push_back({{ba, std::vector<double>(ga, ga + 6)}, {bb, std::vector<double>(gb, gb + 6)}});
+  }
+  QuantitySet out;
+  out.quantities = qs;
+  out.G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(qs.size()), L.num_free());
+  for (size_t q = 0; q < qs.size(); ++q) {
+    for (const auto& [b, g] : grads[q]) SetRow(L, b, g.data(), static_cast<int>(q), &out.G);
+  }
+  return out;
+}
+
+std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
+                                          const BaResult& result,
+                                          const std::vector<std::pair<int, int>>& pairs) {
+  const QuantitySet qs = DerivedQuantities(problem, result, pairs);
+  const ErrorBudget eb = result.covariance->Budget(qs.G, *result.linearization);
+  std::vector<BudgetRow> rows;
+  for (size_t q = 0; q < qs.quantities.size(); ++q) {
+    BudgetRow r;
+    r.quantity = qs.quantities[q];
+    const double total = eb.total[q] * result.covariance_scale;
+    r.sigma = std::sqrt(std::max(0.0, total));
+    for (int s = 0; s < kNumSources; ++s) {
+      const double var = eb.by_source(q, s) * result.covariance_scale;
+      r.source_sigma[s] = std::sqrt(std::max(0.0, var));
+      r.share[s] = total > 0 ? var / total : 0.0;
+    }
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+}  // namespace ba
+}  // namespace carmba

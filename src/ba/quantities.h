@@ -1,0 +1,56 @@
+// Derived quantities of a solved bundle adjustment and their error budgets (ba/covariance.h):
+// the numbers a user reports, each with its sigma and the share of its variance from each noise
+// source.
+//
+// Quantities (value, unit, gradient over the free state):
+//   * every free intrinsic of every group (`fx`, `lao30 cx`, ...), px or unitless;
+//   * the projection of the image centre's ray: the point p = d * unproject(image centre) (at the
+//     solution; the principal point when the image size is unknown) held fixed in the camera frame (d = the mean object distance, or the plate distance without object views),
+//     projected with the estimated intrinsics; u and v in px (intrinsics only: how well the
+//     camera maps a known ray, the calibration's own uncertainty);
+//   * every object view's pose: small rotations about the camera axes (deg; the rvec covariance
+//     mapped by the SO(3) left Jacobian, as the pose report does) and the translation (mm);
+//   * every validation pair of object views: the relative-rotation angle and the angle between the
+//     viewing directions (deg; geometry/rotation.h), gradients by ceres::Jet.
+#pragma once
+
+#include <array>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "ba/bundle_adjuster.h"
+
+namespace carmba {
+namespace ba {
+
+struct Quantity {
+  std::string name;   // e.g. "fx", "view +030 rot x", "pair +000/+030 relative rotation"
+  std::string unit;   // "px", "deg", "mm", ""
+  double value = 0;
+};
+
+struct QuantitySet {
+  std::vector<Quantity> quantities;
+  Eigen::MatrixXd G;  // q x num_free (derivatives in the quantities' units)
+};
+
+// `pairs` are view indices (problem order) of object views.
+QuantitySet DerivedQuantities(const BaProblem& problem,
+                              const BaResult& result,
+                              const std::vector<std::pair<int, int>>& pairs);
+
+struct BudgetRow {
+  Quantity quantity;
+  double sigma = 0;                                  // sqrt(total variance)
+  std::array<double, kNumSources> source_sigma{};    // sqrt(variance of each source)
+  std::array<double, kNumSources> share{};           // variance share, adds up to 1
+};
+
+// The error budget of the derived quantities (scaled by the result's covariance_scale).
+std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
+                                          const BaResult& result,
+                                          const std::vector<std::pair<int, int>>& pairs);
+
+}  // namespace ba
+}  // namespace carmba

@@ -1,0 +1,304 @@
+// The bundle-adjustment engine (src/ba/): prior Jacobians against their autodiff twins, the Schur
+// covariance against ceres::Covariance, gauge and rank messages, the error budget's additivity,
+// analytic and autodiff solves reaching the same optimum, bad problems.
+#include <gtest/gtest.h>
+
+#include <ceres/ceres.h>
+
+#include <functional>
+#include <random>
+
+#include "ba/bundle_adjuster.h"
+#include "ba/priors.h"
+#include "ba/quantities.h"
+#include "ba/reprojection_error.h"
+#include "ba/synthetic.h"
+
+namespace carmba {
+namespace ba {
+namespace {
+
+// Analytic and autodiff derivatives of the same expression agree to rounding.
+constexpr double kJacTol = 1e-10;
+// ceres::Covariance (dense SVD of the whole Jacobian) and the Schur complement differ by the
+// rounding of two different factorisations of a matrix with condition ~1e8.
+constexpr double kCovTol = 1e-8;
+
+SyntheticJointSpec SmallSpec() {
+  SyntheticJointSpec s;
+  s.num_plate_views = 5;
+  s.object_angles_deg = {0, 30, 90};
+  return s;
+}
+
+TEST(BaPriors, IntrinsicsPriorAnalyticEqualsAutodiff) {
+  const double mean[9] = {2000, 2010, 205, 200, 0.1, 0.01, 0.001, -0.002, 0.0};
+  const std::vector<int> idx = {kFx, kCx, kK1};
+  Eigen::MatrixXd C(3, 3);
+  C << 25, 1, 0.01, 1, 4, 0.002, 0.01, 0.002, 1e-4;
+  Eigen::MatrixXd S;
+  ASSERT_TRUE(SqrtInformationN(C, &S));
+  EXPECT_LT((S.transpose() * S - C.inverse()).norm(), 1e-9 * C.inverse().norm());
+  IntrinsicsPriorError analytic(mean, idx, S);
+  std::unique_ptr<ceres::CostFunction> autodiff(IntrinsicsPriorAutoDiff::Create(mean, idx, S));
+  const double x[9] = {2003, 2009, 201, 199, 0.12, 0.0, 0.0, 0.0, 0.001};
+  const double* params[1] = {x};
+  double r1[3], r2[3], J1[27], J2[27];
+  double* j1[1] = {J1};
+  double* j2[1] = {J2};
+  ASSERT_TRUE(analytic.Evaluate(params, r1, j1));
+  ASSERT_TRUE(autodiff->Evaluate(params, r2, j2));
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(r1[i], r2[i], kJacTol) << i;
+  for (int i = 0; i < 27; ++i) EXPECT_NEAR(J1[i], J2[i], kJacTol) << "index " << i;
+  // |r|^2 is the Mahalanobis distance of the prior.
+  Eigen::Vector3d d(3, -4, 0.02);
+  EXPECT_NEAR(Eigen::Vector3d(r1[0], r1[1], r1[2]).squaredNorm(), d.dot(C.inverse() * d), 1e-9);
+}
+
+TEST(BaPriors, PointPriorRowsAnalyticEqualsAutodiff) {
+  Eigen::Matrix<double, 2, 3> A;
+  A << 2, 0.1, -0.3, 0, 4, 0.5;
+  const Eigen::Vector3d p0(1, 2, 3);
+  PointPriorRows analytic(p0, A);
+  std::unique_ptr<ceres::CostFunction> autodiff(PointPriorRowsAutoDiff::Create(p0, A));
+  const double x[3] = {1.5, 1.0, 3.2};
+  const double* params[1] = {x};
+  double r1[2], r2[2], J1[6], J2[6];
+  double* j1[1] = {J1};
+  double* j2[1] = {J2};
+  ASSERT_TRUE(analytic.Evaluate(params, r1, j1));
+  ASSERT_TRUE(autodiff->Evaluate(params, r2, j2));
+  for (int i = 0; i < 2; ++i) EXPECT_NEAR(r1[i], r2[i], kJacTol);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(J1[i], J2[i], kJacTol) << "index " << i;
+}
+
+TEST(BaLayout, NamesEveryParameter) {
+  auto sj = MakeSyntheticJoint(SmallSpec(), NoiseSwitches(), 1);
+  StateLayout L(sj.problem);
+  // 6 free intrinsics + 8 poses + 9 markers (plate points held).
+  EXPECT_EQ(L.num_free(), 6 + 6 * 8 + 3 * 9);
+  EXPECT_EQ(L.FreeName(0), "fx");
+  EXPECT_EQ(L.FreeName(5), "k2");
+  EXPECT_EQ(L.FreeName(6), "plate p00 rx");
+  EXPECT_EQ(L.FreeName(6 + 6 * 5 + 2), "view +000 rz");
+  EXPECT_EQ(L.FreeName(L.num_free() - 1), "marker 9 z");
+}
+
+// Solves the small joint problem with everything that makes the covariance non-trivial: free
+// plate points with their prior, an intrinsics prior, a Huber loss that is active.
+struct Solved {
+  SyntheticJoint sj;
+  BaOptions options;
+  BaResult result;
+};
+
+Solved SolveSmall(const std::string& loss, bool analytic) {
+  SyntheticJointSpec spec = SmallSpec();
+  spec.plate_free = true;
+  spec.sigma_plate_mm = 0.02;
+  spec.intrinsics_prior = true;
+  Solved s{MakeSyntheticJoint(spec, NoiseSwitches(), 7), BaOptions(), BaResult()};
+  s.options.loss = loss;
+  s.options.loss_scale_px = 0.06;  // ~1 plate sigma: the loss is active on many points
+  s.options.analytic_jacobians = analytic;
+  auto r = SolveBundleAdjustment(s.sj.problem, s.options);
+  EXPECT_TRUE(r.ok()) << r.status().message();
+  if (r.ok()) s.result = *r;
+  return s;
+}
+
+TEST(BaCovariance, SchurEqualsCeresCovariance) {
+  for (const std::string loss : {"trivial", "huber", "cauchy"}) {
+    SCOPED_TRACE(loss);
+    Solved s = SolveSmall(loss, true);
+    ASSERT_TRUE(s.result.covariance);
+    const StateLayout& L = *s.result.layout;
+    EXPECT_EQ(s.result.covariance->num_eliminated_blocks(), 9 + 25);  // markers, plate points
+    // Intrinsics, two object poses, a plate pose, a marker, a plate point: blocks and cross-blocks.
+    const std::vector<int> blocks = {L.group_block(0), L.view_block(5), L.view_block(7),
+                                     L.view_block(0), L.marker_block(3), L.plate_point_block(12)};
+    const Eigen::MatrixXd schur = s.result.Covariance(blocks);
+    auto ceres_cov = CeresBlockCovariance(s.sj.problem, s.options, s.result, blocks, "dense_svd");
+    ASSERT_TRUE(ceres_cov.ok()) << ceres_cov.status().message();
+    ASSERT_EQ(schur.rows(), ceres_cov->rows());
+    for (int i = 0; i < schur.rows(); ++i) {
+      for (int j = 0; j < schur.cols(); ++j) {
+        const double ref = (*ceres_cov)(i, j);
+        const double scale = std::sqrt(std::abs((*ceres_cov)(i, i) * (*ceres_cov)(j, j)));
+        ASSERT_NEAR(schur(i, j), ref, kCovTol * scale + 1e-300)
+            << "entry (" << i << ", " << j << ")";
+      }
+    }
+  }
+}
+
+TEST(BaCovariance, CalibrationOnlyEliminatesPlatePoses) {
+  SyntheticJointSpec spec = SmallSpec();
+  spec.object_angles_deg.clear();
+  auto sj = MakeSyntheticJoint(spec, NoiseSwitches(), 3);
+  sj.problem.markers.clear();
+  BaOptions o;
+  auto r = SolveBundleAdjustment(sj.problem, o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->covariance->kept_size(), 6);  // the free intrinsics only
+  const std::vector<int> blocks = {r->layout->group_block(0), r->layout->view_block(2)};
+  const Eigen::MatrixXd schur = r->Covariance(blocks);
+  auto ref = CeresBlockCovariance(sj.problem, o, *r, blocks, "dense_svd");
+  ASSERT_TRUE(ref.ok()) << ref.status().message();
+  for (int i = 0; i < schur.rows(); ++i) {
+    for (int j = 0; j < schur.cols(); ++j) {
+      const double scale = std::sqrt(std::abs((*ref)(i, i) * (*ref)(j, j)));
+      ASSERT_NEAR(schur(i, j), (*ref)(i, j), kCovTol * scale + 1e-300) << i << "," << j;
+    }
+  }
+}
+
+TEST(BaSolve, AnalyticAndAutodiffReachTheSameOptimum) {
+  Solved a = SolveSmall("huber", true);
+  Solved b = SolveSmall("huber", false);
+  ASSERT_EQ(a.result.state.size(), b.result.state.size());
+  EXPECT_NEAR(a.result.chi2, b.result.chi2, 1e-9 * a.result.chi2);
+  const Eigen::MatrixXd ca = a.result.Covariance({a.result.layout->group_block(0)});
+  const Eigen::MatrixXd cb = b.result.Covariance({b.result.layout->group_block(0)});
+  for (int i = 0; i < 9; ++i) {
+    const double sigma = std::sqrt(std::max(ca(i, i), 1e-300));
+    EXPECT_NEAR(a.result.state[i], b.result.state[i], 1e-6 * sigma + 1e-12) << i;
+  }
+  EXPECT_LT((ca - cb).norm(), 1e-6 * ca.norm());
+}
+
+TEST(BaBudget, SharesAddUpToTheTotal) {
+  Solved s = SolveSmall("trivial", true);
+  const auto rows = ComputeErrorBudget(s.sj.problem, s.result, s.sj.pairs);
+  ASSERT_FALSE(rows.empty());
+  const QuantitySet qs = DerivedQuantities(s.sj.problem, s.result, s.sj.pairs);
+  ASSERT_EQ(rows.size(), qs.quantities.size());
+  // 6 intrinsics + 2 centre projections + 3 views x 6 + 2 pairs x 2.
+  EXPECT_EQ(rows.size(), 6u + 2u + 18u + 4u);
+  const Eigen::MatrixXd cov_all = s.result.covariance->Solve(qs.G.transpose());
+  for (size_t q = 0; q < rows.size(); ++q) {
+    double sum = 0;
+    for (double sh : rows[q].share) sum += sh;
+    EXPECT_NEAR(sum, 1.0, 1e-9) << rows[q].quantity.name;
+    // sigma is G H^-1 G^T.
+    EXPECT_NEAR(rows[q].sigma * rows[q].sigma, (qs.G.row(q) * cov_all.col(q))(0),
+                1e-9 * rows[q].sigma * rows[q].sigma) << rows[q].quantity.name;
+    for (int src = 0; src < kNumSources; ++src) EXPECT_GE(rows[q].share[src], 0.0);
+  }
+  // Every source contributes to the relative rotations here (all five are present).
+  const BudgetRow& pair = rows[rows.size() - 4];
+  EXPECT_NE(pair.quantity.name.find("relative rotation"), std::string::npos);
+  for (int src = 0; src < kNumSources; ++src) EXPECT_GT(pair.share[src], 0.0) << src;
+  // An intrinsic's sigma is its covariance's diagonal.
+  const Eigen::MatrixXd ci = s.result.Covariance({s.result.layout->group_block(0)});
+  EXPECT_NEAR(rows[0].sigma, std::sqrt(ci(0, 0)), 1e-9 * rows[0].sigma);
+}
+
+TEST(BaGauge, MarkersFreeWithoutPriorsNameTheNullDirection) {
+  SyntheticJointSpec spec = SmallSpec();
+  auto sj = MakeSyntheticJoint(spec, NoiseSwitches(), 5);
+  sj.problem.marker_priors = false;
+  auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+  ASSERT_FALSE(r.ok());
+  const std::string& m = r.status().message();
+  EXPECT_NE(m.find("rank-deficient"), std::string::npos) << m;
+  EXPECT_NE(m.find("gauge"), std::string::npos) << m;
+  EXPECT_NE(m.find("marker"), std::string::npos) << m;
+  EXPECT_NE(m.find("view"), std::string::npos) << m;
+}
+
+TEST(BaGauge, PlatePointsFreeWithoutPriorNameTheNullDirection) {
+  auto sj = MakeSyntheticJoint(SmallSpec(), NoiseSwitches(), 5);
+  sj.problem.plate.free = true;
+  sj.problem.plate.sigma_mm = 0;  // no manufacturing prior
+  auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+  ASSERT_FALSE(r.ok());
+  const std::string& m = r.status().message();
+  EXPECT_NE(m.find("rank-deficient"), std::string::npos) << m;
+  EXPECT_NE(m.find("plate"), std::string::npos) << m;
+}
+
+TEST(BaGauge, MarkerInOneViewWithoutPriorIsNamed) {
+  SyntheticJointSpec spec = SmallSpec();
+  auto sj = MakeSyntheticJoint(spec, NoiseSwitches(), 5);
+  sj.problem.marker_priors = false;
+  // Marker 4 seen only in the first object view.
+  for (auto& v : sj.problem.views) {
+    if (v.kind != ViewKind::kObject || v.id == "+000") continue;
+    for (size_t i = 0; i < v.point_ids.size(); ++i) {
+      if (v.point_ids[i] == 4) {
+        v.point_ids.erase(v.point_ids.begin() + i);
+        v.uv_px.erase(v.uv_px.begin() + i);
+        break;
+      }
+    }
+  }
+  auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("marker 4 x, marker 4 y, marker 4 z not determined"),
+            std::string::npos)
+      << r.status().message();
+}
+
+TEST(BaProblemCheck, BadProblemsAreOneLineErrors) {
+  auto base = MakeSyntheticJoint(SmallSpec(), NoiseSwitches(), 5).problem;
+  struct Case {
+    std::string expect;
+    std::function<void(BaProblem*)> corrupt;
+  };
+  const std::vector<Case> cases = {
+      {"marker 42 is not among the fiducials",
+       [](BaProblem* p) { p->views.back().point_ids[0] = 42; }},
+      {"1 observation(s), at least 4 needed",
+       [](BaProblem* p) {
+         p->views.back().point_ids.resize(1);
+         p->views.back().uv_px.resize(1);
+       }},
+      {"has no plate views and no prior",
+       [](BaProblem* p) {
+         IntrinsicsGroup g = p->groups[0];
+         g.name = "lao90";
+         p->groups.push_back(g);
+         p->views.back().group = 1;
+       }},
+      {"is given twice", [](BaProblem* p) { p->views[1].id = p->views[0].id; }},
+      {"plate point 99 is not on the plate",
+       [](BaProblem* p) { p->views[0].point_ids[0] = 99; }},
+      {"sigma_px must be > 0", [](BaProblem* p) { p->views[0].sigma_px = 0; }},
+      {"non-finite pixel", [](BaProblem* p) { p->views[0].uv_px[2].x() = std::nan(""); }},
+  };
+  for (const auto& c : cases) {
+    BaProblem p = base;
+    c.corrupt(&p);
+    auto r = SolveBundleAdjustment(p, BaOptions());
+    ASSERT_FALSE(r.ok()) << c.expect;
+    EXPECT_NE(r.status().message().find(c.expect), std::string::npos) << r.status().message();
+    EXPECT_EQ(r.status().message().find('\n'), std::string::npos);
+  }
+}
+
+TEST(BaOutliers, ListedAndRejected) {
+  // 7 object views: a wrong pixel cannot hide in one marker's CT prior and one view's pose.
+  auto sj = MakeSyntheticJoint(SyntheticJointSpec(), NoiseSwitches(), 11);
+  // A gross error on marker 5 in the last object view.
+  BaView& v = sj.problem.views.back();
+  v.uv_px[4] += Eigen::Vector2d(8.0, -6.0);  // 50 sigma at 0.2 px
+  BaOptions o;
+  auto r = SolveBundleAdjustment(sj.problem, o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  ASSERT_FALSE(r->outliers.empty());
+  EXPECT_EQ(r->outliers[0].view, v.id);
+  EXPECT_EQ(r->outliers[0].id, 5);
+  EXPECT_GT(r->outliers[0].residual_sigma, 8.0);
+  o.reject_sigma = 5.0;
+  auto rr = SolveBundleAdjustment(sj.problem, o);
+  ASSERT_TRUE(rr.ok()) << rr.status().message();
+  ASSERT_EQ(rr->rejected.size(), 1u);
+  EXPECT_EQ(rr->rejected[0].id, 5);
+  EXPECT_TRUE(rr->outliers.empty());
+  EXPECT_LT(rr->sigma0, 1.5);
+}
+
+}  // namespace
+}  // namespace ba
+}  // namespace carmba
