@@ -679,6 +679,13 @@ Status LoadCalibrationOptions(const std::string& path,
                               const std::vector<std::string>& other_keys) {
   YamlMap m = YamlMap::Load(path);
   CARMBA_RETURN_IF_ERROR(m.status());
+  for (const char* k : {"initializer", "linear_solver", "covariance", "jacobians", "refine"}) {
+    if (m.Has(k)) {
+      return Status::Error(path + ": this is a solver config (key '" + k +
+                           "'), for `carmba solve`; `carmba calibrate` needs a calibration config "
+                           "(fix, robust_loss, pixel_sigma_px, detection; configs/calib_*.yaml)");
+    }
+  }
   m.Get("fix", &o->fix);
   m.Get("fix_aspect_ratio", &o->fix_aspect_ratio);
   m.Get("aspect_ratio_fy_over_fx", &o->aspect_ratio_fy_over_fx);

@@ -6,6 +6,7 @@
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
+#include "joint/joint_problem.h"
 #include "problem/pose_problem.h"
 #include "report/pose_report.h"
 #include "util/file_util.h"
@@ -13,11 +14,40 @@
 
 namespace {
 
+// A joint problem (plate and/or object views): the engine's joint bundle adjustment.
+int RunJoint() {
+  using namespace carmba;
+  auto problem = LoadJointProblem(FLAGS_problem);
+  if (!problem.ok()) return cli::Fail("solve", problem.status());
+  auto config = LoadSolverConfig(FLAGS_config);
+  if (!config.ok()) return cli::Fail("solve", config.status());
+  auto solution = SolveJointProblem(*problem, *config);
+  if (!solution.ok()) return cli::Fail("solve", solution.status());
+  const nlohmann::json j = JointSolutionToJson(*problem, *config, *solution);
+  const std::string report = JointReportMarkdown(*problem, *config, *solution);
+  Status s = MakeDirs(FLAGS_out);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "result.json"), j.dump(2) + "\n");
+  if (!s.ok()) return cli::Fail("solve", s);
+  if (!solution->result.converged) {
+    std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
+              << solution->result.termination << "): the results are not at a minimum" << std::endl;
+  }
+  std::cout << "solved " << problem->name << " (joint) with " << config->name << ": "
+            << problem->plate.views.size() << " plate views, " << problem->object_views.size()
+            << " object views, RMS " << solution->result.rms_plate_px << " / "
+            << solution->result.rms_object_px << " px, " << solution->result.iterations
+            << " iterations; wrote " << FLAGS_out << "/result.json and " << FLAGS_out
+            << "/report.md" << std::endl;
+  return 0;
+}
+
 int RunSolve() {
   using namespace carmba;
   if (FLAGS_problem.empty()) return cli::Fail("solve", "--problem is required");
   if (FLAGS_config.empty()) return cli::Fail("solve", "--config is required");
   if (FLAGS_out.empty()) return cli::Fail("solve", "--out is required");
+  if (IsJointProblemFile(FLAGS_problem)) return RunJoint();
   auto problem = LoadPoseProblem(FLAGS_problem);
   if (!problem.ok()) return cli::Fail("solve", problem.status());
   auto config = LoadSolverConfig(FLAGS_config);

@@ -55,6 +55,11 @@
 //                                                 # sparse_qr, eigen_sparse_qr;
 //                                                 # aposteriori scales by s0^2
 //   num_threads: 1
+//   fix: [p1, p2, k3]             # joint problems: intrinsics held (default: none)
+//   outliers: {list_sigma: 4, reject_sigma: 0}   # list above 4 sigma; reject_sigma > 0 drops
+//                                 # the worst above it and solves again, until none is left
+// A calibration config given here (it has keys such as robust_loss, detection, crosscheck) is an
+// error saying so.
 #pragma once
 
 #include <Eigen/Dense>
@@ -142,11 +147,35 @@ struct SolverConfig {
   std::string covariance_algorithm = "schur";
   bool covariance_aposteriori = false;  // scale covariance by the a-posteriori variance factor
   int num_threads = 1;
+  // Joint problems (joint/joint_problem.h): intrinsics held at their initial values, by name
+  // (fx fy cx cy k1 k2 p1 p2 k3); pose problems hold all of them.
+  std::vector<std::string> fix;
+  // Observations whose whitened residual exceeds outlier_sigma are listed; reject_sigma > 0
+  // drops them one at a time and solves again (ba/bundle_adjuster.h).
+  double outlier_sigma = 4.0;
+  double reject_sigma = 0;
 
   bool Check(std::string* error) const;
 };
 
 StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path);
+
+// Reads markers (fiducials) from a CSV: ids in `id_column`, positions (mm) in `columns`, and the
+// covariance from the columns cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz (mm^2, as `carmba
+// ct-fiducials` writes them) or, when sigma_mm > 0, isotropic sigma_mm. Without either the error
+// names `sigma_key`. Errors name file:line.
+StatusOr<std::vector<Marker>> ReadMarkersCsv(const std::string& path,
+                                             const std::string& id_column,
+                                             const std::vector<std::string>& columns,
+                                             double sigma_mm,
+                                             const std::string& sigma_key);
+
+// The initial pose cam_from_object of one view from its 2-D/3-D pairs by `initializer` with the
+// camera's intrinsics. Errors: the initialiser fails or returns an invalid pose.
+StatusOr<Pose6> InitialObjectPose(const Camera& camera,
+                                  Initializer initializer,
+                                  const std::vector<Eigen::Vector3d>& p_in_object,
+                                  const std::vector<Eigen::Vector2d>& uv_px);
 StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path);
 const char* InitializerName(Initializer i);
 

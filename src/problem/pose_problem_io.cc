@@ -1,4 +1,5 @@
 // Reading problem and config YAML files (formats in pose_problem.h).
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -32,49 +33,10 @@ Status ReadMarkers(YamlMap& m, const std::string& base, PoseProblem* p) {
     m.Fail("columns", "expected three column names (x, y, z)");
     return m.status();
   }
-  const std::string path = JoinPath(base, file);
-  auto t = ReadCsv(path);
-  if (!t.ok()) return t.status();
-  const char* cov_cols[6] = {"cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"};
-  const bool has_cov = t->Column("cov_xx").ok();
-  if (!has_cov && sigma_mm < 0) {
-    m.Fail("sigma_mm", "missing: give the CT sigma or covariance columns cov_xx..cov_zz in " + path);
-    return m.status();
-  }
-  std::set<int> ids;
-  for (size_t r = 0; r < t->rows.size(); ++r) {
-    Marker mk;
-    auto id = t->Integer(r, id_column);
-    if (!id.ok()) return id.status();
-    mk.id = *id;
-    if (!ids.insert(mk.id).second) {
-      return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) + ": marker id " +
-                           std::to_string(mk.id) + " appears twice");
-    }
-    for (int c = 0; c < 3; ++c) {
-      auto v = t->Number(r, columns[c]);
-      if (!v.ok()) return v.status();
-      mk.p_in_object[c] = *v;
-    }
-    if (sigma_mm > 0) {
-      mk.covariance = Eigen::Matrix3d::Identity() * sigma_mm * sigma_mm;
-    } else {
-      double c6[6];
-      for (int k = 0; k < 6; ++k) {
-        auto v = t->Number(r, cov_cols[k]);
-        if (!v.ok()) return v.status();
-        c6[k] = *v;
-      }
-      mk.covariance << c6[0], c6[1], c6[2], c6[1], c6[3], c6[4], c6[2], c6[4], c6[5];
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(mk.covariance);
-      if (!(es.eigenvalues().minCoeff() > 0)) {
-        return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
-                             ": marker covariance is not positive definite");
-      }
-    }
-    p->markers.push_back(mk);
-  }
-  if (p->markers.empty()) return Status::Error(path + ": no markers");
+  auto markers = ReadMarkersCsv(JoinPath(base, file), id_column, columns, sigma_mm,
+                                m.KeyPath("sigma_mm"));
+  if (!markers.ok()) return markers.status();
+  p->markers = std::move(*markers);
   return Status::Ok();
 }
 
@@ -228,6 +190,57 @@ Status ReadTruth(const std::string& path, PoseProblem* p) {
 
 }  // namespace
 
+StatusOr<std::vector<Marker>> ReadMarkersCsv(const std::string& path,
+                                             const std::string& id_column,
+                                             const std::vector<std::string>& columns,
+                                             double sigma_mm,
+                                             const std::string& sigma_key) {
+  auto t = ReadCsv(path);
+  if (!t.ok()) return t.status();
+  const char* cov_cols[6] = {"cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"};
+  const bool has_cov = t->Column("cov_xx").ok();
+  if (!has_cov && !(sigma_mm > 0)) {
+    return Status::Error(sigma_key + ": missing: give the CT sigma or covariance columns "
+                         "cov_xx..cov_zz in " + path);
+  }
+  std::vector<Marker> markers;
+  std::set<int> ids;
+  for (size_t r = 0; r < t->rows.size(); ++r) {
+    Marker mk;
+    auto id = t->Integer(r, id_column);
+    if (!id.ok()) return id.status();
+    mk.id = *id;
+    if (!ids.insert(mk.id).second) {
+      return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) + ": marker id " +
+                           std::to_string(mk.id) + " appears twice");
+    }
+    for (int c = 0; c < 3; ++c) {
+      auto v = t->Number(r, columns[c]);
+      if (!v.ok()) return v.status();
+      mk.p_in_object[c] = *v;
+    }
+    if (sigma_mm > 0) {
+      mk.covariance = Eigen::Matrix3d::Identity() * sigma_mm * sigma_mm;
+    } else {
+      double c6[6];
+      for (int k = 0; k < 6; ++k) {
+        auto v = t->Number(r, cov_cols[k]);
+        if (!v.ok()) return v.status();
+        c6[k] = *v;
+      }
+      mk.covariance << c6[0], c6[1], c6[2], c6[1], c6[3], c6[4], c6[2], c6[4], c6[5];
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(mk.covariance);
+      if (!(es.eigenvalues().minCoeff() > 0)) {
+        return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
+                             ": marker covariance is not positive definite");
+      }
+    }
+    markers.push_back(mk);
+  }
+  if (markers.empty()) return Status::Error(path + ": no markers");
+  return markers;
+}
+
 Status PoseProblem::Check() const {
   if (!(sigma_px > 0)) return Status::Error(path + ": sigma_px must be positive");
   std::set<int> ids;
@@ -356,6 +369,14 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   if (!root.status().ok()) return root.status();
   SolverConfig c;
   c.path = yaml_path;
+  for (const char* k : {"robust_loss", "pixel_sigma_px", "detection", "crosscheck", "min_views",
+                        "fix_aspect_ratio", "zero_tangential", "fix_principal_point", "fix_k3"}) {
+    if (root.Has(k)) {
+      return Status::Error(yaml_path + ": this is a calibration config (key '" + k +
+                           "'), for `carmba calibrate`; `carmba solve` needs a solver config "
+                           "(initializer, loss, linear_solver, covariance; configs/posit_*.yaml)");
+    }
+  }
   std::string init = "posit", jac = "analytic", description;
   root.Get("name", &c.name, true);
   root.Get("description", &description);
@@ -381,6 +402,16 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   cov.GetEnum("scale", {"apriori", "aposteriori"}, &scale);
   root.Get("num_threads", &c.num_threads);
   if (c.num_threads < 1) root.Fail("num_threads", "expected an integer >= 1");
+  root.Get("fix", &c.fix);
+  for (const auto& n : c.fix) {
+    if (std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, n) ==
+        kIntrinsicNames + kNumIntrinsics) {
+      root.Fail("fix", "'" + n + "' is not an intrinsic (fx fy cx cy k1 k2 p1 p2 k3)");
+    }
+  }
+  YamlMap& outliers = root.Map("outliers");
+  outliers.GetPositive("list_sigma", &c.outlier_sigma);
+  outliers.GetNonNegative("reject_sigma", &c.reject_sigma);
   CARMBA_RETURN_IF_ERROR(root.Finish());
   c.covariance_aposteriori = scale == "aposteriori";
   c.analytic_jacobians = jac == "analytic";

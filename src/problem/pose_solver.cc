@@ -33,12 +33,13 @@ Eigen::Matrix3d MarkerCovarianceInProblemFrame(const PoseProblem& problem, const
   return F * m.covariance * F;
 }
 
-StatusOr<Pose6> InitialPose(const PoseProblem& problem,
-                            const SolverConfig& config,
-                            const std::vector<Eigen::Vector3d>& pts,
-                            const std::vector<Eigen::Vector2d>& uv) {
-  const Camera& cam = problem.camera;
-  switch (config.initializer) {
+}  // namespace
+
+StatusOr<Pose6> InitialObjectPose(const Camera& cam,
+                                  Initializer initializer,
+                                  const std::vector<Eigen::Vector3d>& pts,
+                                  const std::vector<Eigen::Vector2d>& uv) {
+  switch (initializer) {
     case Initializer::kPosit:
       return PositPose(cam, pts, uv, PositOptions());
     case Initializer::kLegacyPosit: {
@@ -80,18 +81,18 @@ StatusOr<Pose6> InitialPose(const PoseProblem& problem,
       bool ok = false;
       try {
         ok = cv::solvePnP(obj, img, K, dist, rvec, tvec, false,
-                          config.initializer == Initializer::kEpnp ? cv::SOLVEPNP_EPNP
+                          initializer == Initializer::kEpnp ? cv::SOLVEPNP_EPNP
                                                                    : cv::SOLVEPNP_SQPNP);
       } catch (const cv::Exception& e) {
-        return Status::Error(std::string(InitializerName(config.initializer)) + ": " + e.what());
+        return Status::Error(std::string(InitializerName(initializer)) + ": " + e.what());
       }
       if (!ok || rvec.empty()) {
-        return Status::Error(std::string(InitializerName(config.initializer)) + " failed");
+        return Status::Error(std::string(InitializerName(initializer)) + " failed");
       }
       Pose6 pose;
       for (int c = 0; c < 3; ++c) pose[c] = rvec.at<double>(c), pose[3 + c] = tvec.at<double>(c);
       if (!pose.allFinite() || !(pose[5] > 0)) {
-        return Status::Error(std::string(InitializerName(config.initializer)) +
+        return Status::Error(std::string(InitializerName(initializer)) +
                              " returned an invalid pose");
       }
       return pose;
@@ -99,6 +100,8 @@ StatusOr<Pose6> InitialPose(const PoseProblem& problem,
   }
   return Status::Error("unknown initializer");
 }
+
+namespace {
 
 double ViewRms(const PoseProblem& problem,
                const PoseView& view,
@@ -209,7 +212,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
       pts.push_back(markers.at(o.marker_id));
       uv.push_back(o.uv_px);
     }
-    auto init = InitialPose(problem, config, pts, uv);
+    auto init = InitialObjectPose(problem.camera, config.initializer, pts, uv);
     if (!init.ok()) {
       return Status::Error(problem.path + ": view '" + problem.views[v].id + "': " +
                            init.status().message());

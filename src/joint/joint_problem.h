@@ -1,0 +1,118 @@
+// The joint problem: calibration and pose as ONE bundle adjustment over all plate views, object
+// views and the CT fiducials (the engine: ba/bundle_adjuster.h), with an error budget and the
+// two-step comparison. A front end: it reads the problem, finds initial values, fills a
+// ba::BaProblem and reports.
+//
+// PROBLEM FILE (problems/*.yaml; paths relative to the file). The same vocabulary as the pose and
+// calibration problems; a calibration-only or pose-only problem is this file with one kind of
+// view (a pose-only one needs `camera`):
+//   name: thesis_joint
+//   description: ...
+//   plate_views:                      # calibration plate views
+//     observations: plate/observations.csv   # as `carmba detect` writes it (grid in its header)
+//     # or images: DIR_OR_GLOB with pattern: circles, rows: 5, cols: 5, spacing_mm: 20
+//     sigma_px: 0.05                  # detection noise, 1 sigma per coordinate
+//     plate: {free: false, sigma_mm: 0.01}    # optional: sphere positions free, tied to the
+//                                             # nominal grid by the manufacturing tolerance
+//   object_views:
+//     observations: object/observations.csv  # long: view, marker, u_px, v_px
+//     sigma_px: 0.3
+//   fiducials: fiducials.csv          # as `carmba ct-fiducials` writes it: id, x_mm, y_mm, z_mm,
+//                                     # cov_xx..cov_zz (the CT prior); or a map
+//                                     # {file, id_column, columns, sigma_mm}
+//   camera: camera.json               # optional: initial intrinsics (default: Zhang on the plate
+//                                     # views); with `intrinsics: {prior: true}` its covariance is
+//                                     # an intrinsics prior
+//   intrinsics: {model: shared}       # or {model: per_group, groups: groups.csv} (columns view,
+//                                     # group; a plate view is named by its image stem or number)
+//   validation: [{a: VIEW, b: VIEW, expected_deg: X}, ...]   # object views
+//   truth: truth.json                 # optional (the simulator's joint truth)
+// The solver configuration (configs/, SolverConfig of problem/pose_problem.h) says how: the
+// object views' initialiser, loss, linear solver, covariance, intrinsics held (`fix`), outliers.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "ba/bundle_adjuster.h"
+#include "ba/quantities.h"
+#include "camera/camera.h"
+#include "detect/observations.h"
+#include "problem/pose_problem.h"
+
+namespace carmba {
+
+struct JointObjectView {
+  std::string id;
+  std::vector<int> marker_ids;
+  std::vector<Eigen::Vector2d> uv_px;
+};
+
+struct JointTruth {
+  std::optional<Camera> camera;
+  std::map<std::string, Pose6> object_poses;  // cam_from_object by view id
+};
+
+struct JointProblem {
+  std::string name, description;
+  std::string path;
+  // Plate views.
+  ObservationSet plate;                 // empty views when there are none
+  std::vector<std::string> plate_view_ids;  // image stems (or numbers), per plate view
+  double plate_sigma_px = 0;
+  bool plate_free = false;
+  double plate_sigma_mm = 0;
+  std::vector<std::string> skipped_images;  // plate images without a usable grid ("file: why")
+  // Object views.
+  std::vector<JointObjectView> object_views;
+  double object_sigma_px = 0;
+  std::vector<Marker> fiducials;
+  // Intrinsics.
+  std::optional<Camera> camera;
+  bool camera_prior = false;
+  bool per_group = false;
+  std::map<std::string, std::string> group_of_view;  // per_group: view id -> group name
+  std::vector<ValidationPair> validation;
+  JointTruth truth;
+};
+
+StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path);
+// True if the YAML file is a joint problem (has plate_views or object_views).
+bool IsJointProblemFile(const std::string& yaml_path);
+
+// One way of solving the object views' poses, for the comparison.
+struct PoseSigmas {
+  std::string method;
+  std::vector<Eigen::Vector3d> sigma_rotation_deg;    // per object view
+  std::vector<Eigen::Vector3d> sigma_translation_mm;
+  std::vector<double> sigma_relative_rotation_deg;    // per validation pair
+  std::vector<double> relative_rotation_deg;
+};
+
+struct JointSolution {
+  ba::BaProblem ba_problem;
+  ba::BaResult result;
+  std::vector<std::pair<int, int>> pairs;        // validation pairs as view indices
+  std::vector<ba::BudgetRow> budget;
+  std::vector<PoseSigmas> comparison;            // joint, two-step, two-step with prior
+  std::string comparison_error;                  // why the comparison is missing (if it is)
+  std::string initial_intrinsics_from;           // "camera.json", "Zhang + calibration" ...
+};
+
+StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config);
+
+nlohmann::json JointSolutionToJson(const JointProblem& problem,
+                                   const SolverConfig& config,
+                                   const JointSolution& solution);
+std::string JointReportMarkdown(const JointProblem& problem,
+                                const SolverConfig& config,
+                                const JointSolution& solution);
+
+// The options of the engine from a solver config (one vocabulary for pose and joint).
+ba::BaOptions BaOptionsFromConfig(const SolverConfig& config);
+
+}  // namespace carmba

@@ -1,0 +1,310 @@
+// Reading joint problem files (format in joint_problem.h).
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include "detect/grid_detector.h"
+#include "joint/joint_problem.h"
+#include "util/csv.h"
+#include "util/file_util.h"
+#include "util/yaml_reader.h"
+
+namespace carmba {
+namespace {
+
+std::string Stem(const std::string& path) { return std::filesystem::path(path).stem().string(); }
+
+Status ReadPlateViews(YamlMap& m, const std::string& base, JointProblem* p) {
+  std::string observations, images, pattern = "circles";
+  GridSpec grid;
+  bool has_grid = m.Has("rows") || m.Has("cols") || m.Has("spacing_mm") || m.Has("pattern");
+  m.Get("observations", &observations);
+  m.Get("images", &images);
+  m.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &pattern);
+  m.Get("rows", &grid.rows);
+  m.Get("cols", &grid.cols);
+  m.GetPositive("spacing_mm", &grid.spacing_mm);
+  m.GetPositive("sigma_px", &p->plate_sigma_px, true);
+  YamlMap& plate = m.Map("plate");
+  plate.Get("free", &p->plate_free);
+  plate.GetNonNegative("sigma_mm", &p->plate_sigma_mm);
+  if (!m.status().ok()) return m.status();
+  if (observations.empty() == images.empty()) {
+    m.Fail("observations", "give exactly one of observations (CSV) and images (DIR or GLOB)");
+    return m.status();
+  }
+  auto pat = ParseGridPattern(pattern);
+  if (!pat.ok()) return pat.status();
+  grid.pattern = *pat;
+  std::string err;
+  if (has_grid && !grid.Check(&err)) {
+    m.Fail("rows", err);
+    return m.status();
+  }
+  if (!observations.empty()) {
+    const std::string path = JoinPath(base, observations);
+    auto obs = ReadObservationsCsv(path);
+    if (!obs.ok()) return obs.status();
+    if (has_grid && (obs->grid.pattern != grid.pattern || obs->grid.rows != grid.rows ||
+                     obs->grid.cols != grid.cols ||
+                     std::abs(obs->grid.spacing_mm - grid.spacing_mm) > 1e-9)) {
+      return Status::Error(path + ": grid " + GridPatternName(obs->grid.pattern) + " " +
+                           std::to_string(obs->grid.rows) + "x" + std::to_string(obs->grid.cols) +
+                           " spacing " + std::to_string(obs->grid.spacing_mm) + " mm, but " +
+                           m.KeyPath("rows") + "/cols/spacing_mm say " + pattern + " " +
+                           std::to_string(grid.rows) + "x" + std::to_string(grid.cols) +
+                           " spacing " + std::to_string(grid.spacing_mm) + " mm");
+    }
+    p->plate = *obs;
+  } else {
+    if (!has_grid) {
+      m.Fail("rows", "plate images need the grid: pattern, rows, cols, spacing_mm");
+      return m.status();
+    }
+    auto files = ListImageFiles(JoinPath(base, images));
+    if (!files.ok()) return files.status().WithContext(m.KeyPath("images"));
+    auto obs = DetectGridInFiles(*files, grid, DetectionOptions(), &p->skipped_images);
+    if (!obs.ok()) return obs.status();
+    p->plate = *obs;
+  }
+  std::set<std::string> ids;
+  for (size_t v = 0; v < p->plate.views.size(); ++v) {
+    std::string id = Stem(p->plate.views[v].image);
+    if (id.empty() || !ids.insert(id).second) id = std::to_string(v);
+    ids.insert(id);
+    p->plate_view_ids.push_back(id);
+  }
+  if (p->plate.views.empty()) return Status::Error(m.KeyPath("observations") + ": no plate views");
+  return Status::Ok();
+}
+
+Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p) {
+  std::string observations, marker_column = "marker";
+  m.Get("observations", &observations, true);
+  m.Get("marker_column", &marker_column);
+  m.GetPositive("sigma_px", &p->object_sigma_px, true);
+  if (m.Has("images")) {
+    m.Raw("images");
+    m.Fail("images", "object views from images need marker detection, which is not built yet; "
+                     "give observations (CSV: view, marker, u_px, v_px)");
+  }
+  if (!m.status().ok()) return m.status();
+  const std::string path = JoinPath(base, observations);
+  auto t = ReadCsv(path);
+  if (!t.ok()) return t.status();
+  auto vc = t->Column("view");
+  if (!vc.ok()) return vc.status();
+  std::map<std::string, size_t> index;
+  for (size_t r = 0; r < t->rows.size(); ++r) {
+    const std::string id = t->rows[r][*vc];
+    const std::string where = path + ":" + std::to_string(t->line_numbers[r]);
+    if (id.empty()) return Status::Error(where + ": column 'view': expected a view id");
+    auto mid = t->Integer(r, marker_column);
+    if (!mid.ok()) return mid.status();
+    auto u = t->Number(r, "u_px");
+    if (!u.ok()) return u.status();
+    auto v = t->Number(r, "v_px");
+    if (!v.ok()) return v.status();
+    if (!index.count(id)) {
+      index[id] = p->object_views.size();
+      p->object_views.push_back({id, {}, {}});
+    }
+    JointObjectView& ov = p->object_views[index[id]];
+    for (int m2 : ov.marker_ids) {
+      if (m2 == *mid) {
+        return Status::Error(where + ": marker " + std::to_string(*mid) + " twice in view '" + id + "'");
+      }
+    }
+    ov.marker_ids.push_back(*mid);
+    ov.uv_px.emplace_back(*u, *v);
+  }
+  if (p->object_views.empty()) return Status::Error(path + ": no object views");
+  return Status::Ok();
+}
+
+Status ReadGroups(const std::string& path, JointProblem* p) {
+  auto t = ReadCsv(path);
+  if (!t.ok()) return t.status();
+  auto vc = t->Column("view");
+  if (!vc.ok()) return vc.status();
+  auto gc = t->Column("group");
+  if (!gc.ok()) return gc.status();
+  for (size_t r = 0; r < t->rows.size(); ++r) {
+    const std::string view = t->rows[r][*vc], group = t->rows[r][*gc];
+    const std::string where = path + ":" + std::to_string(t->line_numbers[r]);
+    if (view.empty() || group.empty()) return Status::Error(where + ": expected a view and a group");
+    auto it = p->group_of_view.find(view);
+    if (it != p->group_of_view.end() && it->second != group) {
+      return Status::Error(where + ": view '" + view + "' is in two groups ('" + it->second +
+                           "' and '" + group + "')");
+    }
+    p->group_of_view[view] = group;
+  }
+  return Status::Ok();
+}
+
+Status ReadJointTruth(const std::string& path, JointTruth* truth) {
+  auto text = ReadFile(path);
+  if (!text.ok()) return text.status();
+  try {
+    const nlohmann::json j = nlohmann::json::parse(*text);
+    if (j.contains("camera")) {
+      auto cam = CameraFromJson(j.at("camera"), path + ": camera");
+      if (!cam.ok()) return cam.status();
+      truth->camera = *cam;
+    }
+    if (j.contains("object_views")) {
+      for (const auto& v : j.at("object_views")) {
+        Pose6 pose;
+        for (int k = 0; k < 3; ++k) pose[k] = v.at("rvec").at(k).get<double>();
+        for (int k = 0; k < 3; ++k) pose[3 + k] = v.at("t_mm").at(k).get<double>();
+        truth->object_poses[v.at("id").get<std::string>()] = pose;
+      }
+    }
+  } catch (const std::exception& e) {
+    return Status::Error(path + ": expected {\"camera\": {...}, \"object_views\": [{\"id\", "
+                         "\"rvec\", \"t_mm\"}]}: " + e.what());
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+bool IsJointProblemFile(const std::string& yaml_path) {
+  try {
+    const YAML::Node n = YAML::LoadFile(yaml_path);
+    return n.IsMap() && (n["plate_views"] || n["object_views"]);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
+  YamlMap root = YamlMap::Load(yaml_path);
+  if (!root.status().ok()) return root.status();
+  JointProblem p;
+  p.path = yaml_path;
+  const std::string base = DirName(yaml_path);
+  std::string camera_file, truth_file, model = "shared", groups_file;
+  root.Get("name", &p.name, true);
+  root.Get("description", &p.description);
+  root.Get("camera", &camera_file);
+  root.Get("truth", &truth_file);
+  YamlMap& intr = root.Map("intrinsics");
+  intr.GetEnum("model", {"shared", "per_group"}, &model);
+  intr.Get("groups", &groups_file);
+  intr.Get("prior", &p.camera_prior);
+  if (root.Has("config")) {
+    root.Raw("config");
+    root.Fail("config", "a problem does not name its config: give --config to `carmba solve`");
+  }
+  auto pairs = root.MapList("validation");
+  for (YamlMap* pm : pairs) {
+    ValidationPair vp;
+    YAML::Node a = pm->Raw("a"), b = pm->Raw("b");
+    if (!a.IsScalar() || !b.IsScalar()) {
+      pm->Fail("a", "expected view ids a and b");
+    } else {
+      vp.a = a.Scalar();
+      vp.b = b.Scalar();
+    }
+    double e = NAN;
+    pm->Get("expected_deg", &e);
+    if (std::isfinite(e)) vp.expected_deg = e;
+    p.validation.push_back(vp);
+  }
+  const bool has_plate = root.Has("plate_views"), has_object = root.Has("object_views");
+  YamlMap& plate = root.Map("plate_views");
+  YamlMap& object = root.Map("object_views");
+  if (!has_plate && !has_object) root.Fail("plate_views", "give plate_views, object_views or both");
+  std::string fiducials_file, id_column = "id";
+  std::vector<std::string> columns = {"x_mm", "y_mm", "z_mm"};
+  double fid_sigma_mm = -1;
+  std::string sigma_key = root.KeyPath("fiducials") + ".sigma_mm";
+  if (has_object) {
+    if (!root.Has("fiducials")) {
+      root.Fail("fiducials", "object views need the fiducials (CSV from `carmba ct-fiducials`)");
+    } else if (root.Raw("fiducials").IsScalar()) {
+      fiducials_file = root.Raw("fiducials").Scalar();
+    } else {
+      YamlMap& f = root.Map("fiducials");
+      f.Get("file", &fiducials_file, true);
+      f.Get("id_column", &id_column);
+      f.Get("columns", &columns);
+      f.GetPositive("sigma_mm", &fid_sigma_mm);
+      if (columns.size() != 3) f.Fail("columns", "expected three column names (x, y, z)");
+    }
+  } else if (root.Has("fiducials")) {
+    root.Raw("fiducials");
+  }
+  if (!root.status().ok()) return root.status();
+  if (has_plate) CARMBA_RETURN_IF_ERROR(ReadPlateViews(plate, base, &p));
+  if (has_object) {
+    CARMBA_RETURN_IF_ERROR(ReadObjectViews(object, base, &p));
+    auto markers = ReadMarkersCsv(JoinPath(base, fiducials_file), id_column, columns, fid_sigma_mm,
+                                  sigma_key);
+    if (!markers.ok()) return markers.status();
+    p.fiducials = *markers;
+    std::set<int> ids;
+    for (const auto& m : p.fiducials) ids.insert(m.id);
+    for (const auto& v : p.object_views) {
+      for (int id : v.marker_ids) {
+        if (!ids.count(id)) {
+          return Status::Error(JoinPath(base, object.KeyPath("observations")) + ": view '" + v.id +
+                               "' observes marker " + std::to_string(id) +
+                               ", which is not in the fiducials " +
+                               JoinPath(base, fiducials_file));
+        }
+      }
+      if (v.marker_ids.size() < 4) {
+        return Status::Error(yaml_path + ": object view '" + v.id + "' has " +
+                             std::to_string(v.marker_ids.size()) +
+                             " markers; a pose needs at least 4");
+      }
+    }
+  }
+  CARMBA_RETURN_IF_ERROR(root.Finish());
+  if (!camera_file.empty()) {
+    auto cam = ReadCameraJson(JoinPath(base, camera_file));
+    if (!cam.ok()) return cam.status();
+    p.camera = *cam;
+  }
+  if (p.camera_prior && (!p.camera || p.camera->covariance.empty())) {
+    return Status::Error(yaml_path + ": intrinsics.prior: true needs a camera with a covariance");
+  }
+  if (!has_plate && !p.camera) {
+    return Status::Error(yaml_path + ": camera: a problem without plate views needs the camera "
+                                     "(camera.json) for its intrinsics");
+  }
+  p.per_group = model == "per_group";
+  if (p.per_group) {
+    if (groups_file.empty()) {
+      return Status::Error(yaml_path + ": intrinsics.groups: per_group needs a CSV (view, group)");
+    }
+    CARMBA_RETURN_IF_ERROR(ReadGroups(JoinPath(base, groups_file), &p));
+    auto check = [&](const std::string& id, const std::string& number) -> Status {
+      if (p.group_of_view.count(id) || (!number.empty() && p.group_of_view.count(number))) {
+        return Status::Ok();
+      }
+      return Status::Error(JoinPath(base, groups_file) + ": view '" + id + "' has no group");
+    };
+    for (size_t v = 0; v < p.plate_view_ids.size(); ++v) {
+      CARMBA_RETURN_IF_ERROR(check(p.plate_view_ids[v], std::to_string(v)));
+    }
+    for (const auto& v : p.object_views) CARMBA_RETURN_IF_ERROR(check(v.id, ""));
+  } else if (!groups_file.empty()) {
+    return Status::Error(yaml_path + ": intrinsics.groups is only for model: per_group");
+  }
+  std::set<std::string> object_ids;
+  for (const auto& v : p.object_views) object_ids.insert(v.id);
+  for (const auto& vp : p.validation) {
+    if (!object_ids.count(vp.a) || !object_ids.count(vp.b)) {
+      return Status::Error(yaml_path + ": validation pair " + vp.a + "-" + vp.b +
+                           " names a view that is not an object view");
+    }
+  }
+  if (!truth_file.empty()) CARMBA_RETURN_IF_ERROR(ReadJointTruth(JoinPath(base, truth_file), &p.truth));
+  return p;
+}
+
+}  // namespace carmba

@@ -1,0 +1,301 @@
+// The joint problem's front end: initial values, the engine's problem, error budget and the
+// two-step comparison (joint_problem.h).
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "calib/calibrate.h"
+#include "joint/joint_problem.h"
+
+namespace carmba {
+namespace {
+
+int IntrinsicIndexByName(const std::string& n) {
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (n == kIntrinsicNames[i]) return i;
+  }
+  return -1;
+}
+
+std::string GroupOfPlateView(const JointProblem& p, size_t v) {
+  if (!p.per_group) return "shared";
+  auto it = p.group_of_view.find(p.plate_view_ids[v]);
+  if (it == p.group_of_view.end()) it = p.group_of_view.find(std::to_string(v));
+  return it->second;
+}
+
+std::string GroupOfObjectView(const JointProblem& p, const std::string& id) {
+  return p.per_group ? p.group_of_view.at(id) : "shared";
+}
+
+// The object views' poses and their sigmas in a solved engine problem.
+PoseSigmas SigmasOf(const std::string& method,
+                    const ba::BaProblem& bp,
+                    const ba::BaResult& r,
+                    const std::vector<std::pair<int, int>>& pairs) {
+  PoseSigmas s;
+  s.method = method;
+  const auto rows = ba::ComputeErrorBudget(bp, r, pairs);
+  std::map<std::string, const ba::BudgetRow*> by_name;
+  for (const auto& row : rows) by_name[row.quantity.name] = &row;
+  static const char* const kAxis[3] = {"x", "y", "z"};
+  for (const auto& v : bp.views) {
+    if (v.kind != ba::ViewKind::kObject) continue;
+    Eigen::Vector3d rot, t;
+    for (int a = 0; a < 3; ++a) {
+      rot[a] = by_name.at("view " + v.id + " rot " + kAxis[a])->sigma;
+      t[a] = by_name.at("view " + v.id + " t" + kAxis[a])->sigma;
+    }
+    s.sigma_rotation_deg.push_back(rot);
+    s.sigma_translation_mm.push_back(t);
+  }
+  for (const auto& [a, b] : pairs) {
+    const auto* row = by_name.at("pair " + bp.views[a].id + "/" + bp.views[b].id + " relative rotation");
+    s.sigma_relative_rotation_deg.push_back(row->sigma);
+    s.relative_rotation_deg.push_back(row->quantity.value);
+  }
+  return s;
+}
+
+// A copy of `bp` with only its object views (pairs re-indexed), for the two-step comparison.
+ba::BaProblem ObjectViewsOnly(const ba::BaProblem& bp,
+                              const std::vector<std::pair<int, int>>& pairs,
+                              std::vector<std::pair<int, int>>* new_pairs) {
+  ba::BaProblem out = bp;
+  out.views.clear();
+  std::map<int, int> index;
+  for (size_t v = 0; v < bp.views.size(); ++v) {
+    if (bp.views[v].kind != ba::ViewKind::kObject) continue;
+    index[static_cast<int>(v)] = static_cast<int>(out.views.size());
+    out.views.push_back(bp.views[v]);
+  }
+  out.plate = ba::BaPlate();
+  new_pairs->clear();
+  for (const auto& [a, b] : pairs) new_pairs->emplace_back(index.at(a), index.at(b));
+  return out;
+}
+
+}  // namespace
+
+ba::BaOptions BaOptionsFromConfig(const SolverConfig& c) {
+  ba::BaOptions o;
+  o.analytic_jacobians = c.analytic_jacobians;
+  o.loss = c.loss;
+  o.loss_scale_px = c.loss_scale_px;
+  o.linear_solver = c.linear_solver;
+  o.max_iterations = c.max_iterations;
+  o.function_tolerance = c.function_tolerance;
+  o.gradient_tolerance = c.gradient_tolerance;
+  o.parameter_tolerance = c.parameter_tolerance;
+  o.num_threads = c.num_threads;
+  o.covariance_aposteriori = c.covariance_aposteriori;
+  o.outlier_sigma = c.outlier_sigma;
+  o.reject_sigma = c.reject_sigma;
+  return o;
+}
+
+StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config) {
+  std::string err;
+  if (!config.Check(&err)) return Status::Error(config.path + ": " + err);
+  if (!config.refine) {
+    return Status::Error(config.path + ": refine: false has no meaning for a joint problem");
+  }
+  if (config.covariance_algorithm != "schur") {
+    return Status::Error(config.path + ": covariance.algorithm '" + config.covariance_algorithm +
+                         "': joint problems use the engine's Schur covariance (schur), which the "
+                         "error budget is built on; ceres::Covariance is its test reference");
+  }
+  JointSolution sol;
+  ba::BaProblem& bp = sol.ba_problem;
+  bp.name = problem.name;
+  std::array<bool, kNumIntrinsics> free{};
+  free.fill(true);
+  for (const auto& n : config.fix) free[IntrinsicIndexByName(n)] = false;
+
+  // Groups, in order of first appearance.
+  std::vector<std::string> group_names;
+  auto group_index = [&](const std::string& g) {
+    auto it = std::find(group_names.begin(), group_names.end(), g);
+    if (it != group_names.end()) return static_cast<int>(it - group_names.begin());
+    group_names.push_back(g);
+    return static_cast<int>(group_names.size()) - 1;
+  };
+  std::vector<int> plate_group(problem.plate.views.size());
+  for (size_t v = 0; v < problem.plate.views.size(); ++v) {
+    plate_group[v] = group_index(GroupOfPlateView(problem, v));
+  }
+  std::vector<int> object_group;
+  for (const auto& v : problem.object_views) object_group.push_back(group_index(GroupOfObjectView(problem, v.id)));
+
+  // Plate points (nominal grid).
+  for (int id = 0; id < problem.plate.grid.NumPoints() && !problem.plate.views.empty(); ++id) {
+    bp.plate.points.push_back(problem.plate.grid.PointInPlate(id));
+  }
+  bp.plate.free = problem.plate_free;
+  bp.plate.sigma_mm = problem.plate_sigma_mm;
+
+  // Intrinsics and plate poses per group: carmba's calibration of the group's plate views (Zhang,
+  // then its bundle adjustment), from camera.json's intrinsics when given.
+  std::vector<std::vector<std::array<double, 6>>> plate_poses(group_names.size());
+  std::vector<std::vector<int>> plate_views_of(group_names.size());
+  for (size_t v = 0; v < problem.plate.views.size(); ++v) plate_views_of[plate_group[v]].push_back(static_cast<int>(v));
+  sol.initial_intrinsics_from = problem.camera ? "camera file" : "calibration of the plate views";
+  for (size_t g = 0; g < group_names.size(); ++g) {
+    ba::IntrinsicsGroup grp;
+    grp.name = group_names[g];
+    grp.free = free;
+    if (problem.camera) {
+      std::copy(problem.camera->params.begin(), problem.camera->params.end(), grp.initial.begin());
+      grp.width = problem.camera->width;
+      grp.height = problem.camera->height;
+    }
+    if (!plate_views_of[g].empty()) {
+      ObservationSet sub;
+      sub.grid = problem.plate.grid;
+      sub.width = problem.plate.width;
+      sub.height = problem.plate.height;
+      for (int v : plate_views_of[g]) sub.views.push_back(problem.plate.views[v]);
+      CalibrationOptions co;
+      co.fix = config.fix;
+      co.pixel_sigma_px = problem.plate_sigma_px;
+      co.min_views = 1;
+      co.max_iterations = std::max(config.max_iterations, 1);
+      if (problem.camera) co.initial_intrinsics.assign(grp.initial.begin(), grp.initial.end());
+      auto cal = Calibrate(sub, co);
+      if (!cal.ok()) {
+        return Status::Error(problem.path + ": plate views of group '" + grp.name +
+                             "': " + cal.status().message());
+      }
+      std::copy(cal->camera.params.begin(), cal->camera.params.end(), grp.initial.begin());
+      grp.width = problem.plate.width;
+      grp.height = problem.plate.height;
+      plate_poses[g] = cal->cam_from_plate;
+    } else if (!problem.camera) {
+      return Status::Error(problem.path + ": intrinsics group '" + grp.name +
+                           "' has no plate views and no camera file");
+    }
+    if (problem.camera_prior) {
+      grp.has_prior = true;
+      std::copy(problem.camera->params.begin(), problem.camera->params.end(), grp.prior.mean.begin());
+      const Camera& c = *problem.camera;
+      std::vector<int> names_index;
+      for (size_t i = 0; i < c.covariance_names.size(); ++i) {
+        const int k = IntrinsicIndexByName(c.covariance_names[i]);
+        if (k >= 0 && c.covariance[i][i] > 0) {
+          grp.prior.indices.push_back(k);
+          names_index.push_back(static_cast<int>(i));
+        }
+      }
+      const int n = static_cast<int>(names_index.size());
+      grp.prior.covariance.resize(n, n);
+      for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) grp.prior.covariance(i, j) = c.covariance[names_index[i]][names_index[j]];
+      }
+    }
+    bp.groups.push_back(grp);
+  }
+
+  // Views: plate, then object.
+  std::vector<size_t> next_pose(group_names.size(), 0);
+  for (size_t v = 0; v < problem.plate.views.size(); ++v) {
+    const int g = plate_group[v];
+    ba::BaView view;
+    view.id = problem.plate_view_ids[v];
+    view.kind = ba::ViewKind::kPlate;
+    view.group = g;
+    view.sigma_px = problem.plate_sigma_px;
+    const auto& pose = plate_poses[g][next_pose[g]++];
+    for (int i = 0; i < 6; ++i) view.initial[i] = pose[i];
+    view.point_ids = problem.plate.views[v].point_ids;
+    view.uv_px = problem.plate.views[v].uv_px;
+    bp.views.push_back(view);
+  }
+  std::map<int, Eigen::Vector3d> fiducial;
+  for (const auto& m : problem.fiducials) {
+    fiducial[m.id] = m.p_in_object;
+    bp.markers.push_back({m.id, m.p_in_object, m.covariance});
+  }
+  std::map<std::string, int> object_index;
+  for (size_t k = 0; k < problem.object_views.size(); ++k) {
+    const JointObjectView& ov = problem.object_views[k];
+    ba::BaView view;
+    view.id = ov.id;
+    view.kind = ba::ViewKind::kObject;
+    view.group = object_group[k];
+    view.sigma_px = problem.object_sigma_px;
+    view.point_ids = ov.marker_ids;
+    view.uv_px = ov.uv_px;
+    Camera cam;
+    std::copy(bp.groups[view.group].initial.begin(), bp.groups[view.group].initial.end(), cam.params.begin());
+    std::vector<Eigen::Vector3d> pts;
+    for (int id : ov.marker_ids) pts.push_back(fiducial.at(id));
+    auto init = InitialObjectPose(cam, config.initializer, pts, ov.uv_px);
+    if (!init.ok()) {
+      return Status::Error(problem.path + ": object view '" + ov.id + "': " + init.status().message());
+    }
+    view.initial = *init;
+    object_index[ov.id] = static_cast<int>(bp.views.size());
+    bp.views.push_back(view);
+  }
+  for (const auto& vp : problem.validation) sol.pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
+
+  const ba::BaOptions options = BaOptionsFromConfig(config);
+  auto r = ba::SolveBundleAdjustment(bp, options);
+  if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
+  sol.result = std::move(*r);
+  sol.budget = ba::ComputeErrorBudget(bp, sol.result, sol.pairs);
+
+  // Two-step comparison: needs both kinds of view.
+  if (problem.object_views.empty() || problem.plate.views.empty()) {
+    sol.comparison_error = "needs both plate and object views";
+    return sol;
+  }
+  sol.comparison.push_back(SigmasOf("joint", bp, sol.result, sol.pairs));
+  // Step 1: calibration alone (the plate views).
+  ba::BaProblem calib = bp;
+  calib.views.erase(std::remove_if(calib.views.begin(), calib.views.end(),
+                                   [](const ba::BaView& v) { return v.kind == ba::ViewKind::kObject; }),
+                    calib.views.end());
+  calib.markers.clear();
+  auto rc = ba::SolveBundleAdjustment(calib, options);
+  if (!rc.ok()) {
+    sol.comparison_error = "calibration alone: " + rc.status().message();
+    return sol;
+  }
+  std::vector<std::pair<int, int>> pairs2;
+  ba::BaProblem two_step = ObjectViewsOnly(bp, sol.pairs, &pairs2);
+  ba::BaProblem with_prior = two_step;
+  for (size_t g = 0; g < bp.groups.size(); ++g) {
+    const int b = rc->layout->group_block(static_cast<int>(g));
+    const double* x = rc->block(b);
+    const Eigen::MatrixXd C = rc->Covariance({b});
+    ba::IntrinsicsGroup& g2 = two_step.groups[g];
+    std::copy(x, x + kNumIntrinsics, g2.initial.begin());
+    g2.free.fill(false);
+    g2.has_prior = false;
+    ba::IntrinsicsGroup& g3 = with_prior.groups[g];
+    std::copy(x, x + kNumIntrinsics, g3.initial.begin());
+    g3.has_prior = true;
+    std::copy(x, x + kNumIntrinsics, g3.prior.mean.begin());
+    g3.prior.indices.clear();
+    for (int i = 0; i < kNumIntrinsics; ++i) {
+      if (g3.free[i]) g3.prior.indices.push_back(i);
+    }
+    const int n = static_cast<int>(g3.prior.indices.size());
+    g3.prior.covariance.resize(n, n);
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) g3.prior.covariance(i, j) = C(g3.prior.indices[i], g3.prior.indices[j]);
+    }
+  }
+  auto r2 = ba::SolveBundleAdjustment(two_step, options);
+  auto r3 = ba::SolveBundleAdjustment(with_prior, options);
+  if (!r2.ok() || !r3.ok()) {
+    sol.comparison_error = "two-step: " + (r2.ok() ? r3.status().message() : r2.status().message());
+    return sol;
+  }
+  sol.comparison.push_back(SigmasOf("two-step (intrinsics fixed)", two_step, *r2, pairs2));
+  sol.comparison.push_back(SigmasOf("two-step with the calibration's covariance as prior", with_prior, *r3, pairs2));
+  return sol;
+}
+
+}  // namespace carmba
