@@ -916,9 +916,11 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   if (own_lm) {
     r.iterations = lm_report.iterations;
     r.termination = lm_report.termination + " (carmba Schur LM)";
+    r.converged = lm_report.termination == "CONVERGENCE";
   } else {
     r.iterations = static_cast<int>(summary.iterations.size()) - 1;
     r.termination = std::string(ceres::TerminationTypeToString(summary.termination_type)) + " (Ceres)";
+    r.converged = summary.termination_type == ceres::CONVERGENCE;
   }
   std::copy(x.begin(), x.end(), r.camera.params.begin());
   r.camera.width = obs.width;

@@ -146,7 +146,8 @@ struct CalibrationResult {
   std::vector<ProjectionSigma> projection_sigma;  // centre and the four corners
 
   int iterations = 0;
-  std::string termination;
+  std::string termination;  // the solver's termination, with the solver named
+  bool converged = false;   // the final stage reached its convergence criterion
   double solve_seconds = 0, covariance_seconds = 0;
 };
 

@@ -394,7 +394,7 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
   values["projection_sigma_worst_px"] = Num(worst);
   nlohmann::json r;
-  r["converged"] = result->termination == "CONVERGENCE";
+  r["converged"] = result->converged;
   r["termination"] = result->termination;
   r["errors"] = errors;
   r["signed_errors"] = signed_errors;
