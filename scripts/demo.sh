@@ -7,13 +7,16 @@
 #      and OpenCV cross-checks and the ground truth         -> out/calibration/report.md
 #   3. marker centres with covariance from a simulated DICOM CT of the thesis's 9-marker object
 #                                                           -> out/ct/fiducials.csv, fiducials.md
+#   4. the joint bundle adjustment: plate views, object views and CT fiducials of one simulated
+#      C-arm in ONE problem, with the error budget and the two-step comparison
+#                                                           -> out/joint/report.md
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 bash scripts/build.sh --target carmba
 BIN=${CARMBA_BUILD_DIR:-build}/bin/carmba
 OUT=${CARMBA_OUT:-out}
-rm -rf "$OUT/thesis_pose" "$OUT/sim" "$OUT/calibration" "$OUT/ct"
+rm -rf "$OUT/thesis_pose" "$OUT/sim" "$OUT/calibration" "$OUT/ct" "$OUT/joint"
 mkdir -p "$OUT"
 
 echo "== 1. Thesis pose experiment (Tables 5.2-5.6): legacy POSIT vs bundle adjustment"
@@ -35,4 +38,18 @@ mkdir -p "$OUT/ct"
   --model-columns=x_o,y_o,z_o --diameter-mm=2 --expected=9 --out="$OUT/ct/fiducials.csv"
 
 echo
-echo "Reports: $OUT/thesis_pose/report.md, $OUT/calibration/report.md, $OUT/ct/fiducials.md"
+echo "== 4. Joint bundle adjustment: calibration + pose + CT fiducials in one problem"
+# problems/thesis_joint.yaml reads its data from out/sim/joint (relative to the problem file).
+JOINT_SIM=out/sim/joint
+rm -rf "$JOINT_SIM"
+"$BIN" simulate --scene=configs/scenes/thesis_joint.yaml --out="$JOINT_SIM"
+"$BIN" ct-fiducials --dicom="$JOINT_SIM/ct" --model=data/thesis/markers_table_5_1.csv \
+  --model-columns=x_o,y_o,z_o --diameter-mm=2 --expected=9 --out="$JOINT_SIM/fiducials.csv"
+"$BIN" solve --problem=problems/thesis_joint.yaml --config=configs/joint_radial.yaml \
+  --out="$OUT/joint"
+sed -n '1,/^## Error budget/p' "$OUT/joint/report.md" | head -n -1
+sed -n '/^## Joint against two-step/,$p' "$OUT/joint/report.md"
+
+echo
+echo "Reports: $OUT/thesis_pose/report.md, $OUT/calibration/report.md, $OUT/ct/fiducials.md," \
+  "$OUT/joint/report.md"

@@ -33,14 +33,14 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
                 "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
                 "/fiducials.csv");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  // The shipped problem with its /tmp paths pointed at this scene.
+  // The shipped problem with its data paths (the demo's out/sim/joint) pointed at this scene.
   std::ifstream in(kSource + "/problems/thesis_joint.yaml");
   std::stringstream ss;
   ss << in.rdbuf();
   std::string problem = ss.str();
-  for (size_t p = problem.find("/tmp/thesis_joint"); p != std::string::npos;
-       p = problem.find("/tmp/thesis_joint", p)) {
-    problem.replace(p, 17, scene);
+  const std::string shipped = "../out/sim/joint";
+  for (size_t p = problem.find(shipped); p != std::string::npos; p = problem.find(shipped, p)) {
+    problem.replace(p, shipped.size(), scene);
   }
   dir.Write("problem.yaml", problem);
   r = RunCarmba("solve --problem " + dir.File("problem.yaml") + " --config " + kSource +
