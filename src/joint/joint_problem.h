@@ -91,6 +91,7 @@ struct PoseSigmas {
   std::vector<Eigen::Vector3d> sigma_translation_mm;
   std::vector<double> sigma_relative_rotation_deg;    // per validation pair
   std::vector<double> relative_rotation_deg;
+  std::vector<Pose6> cam_from_object;                 // the estimates, per object view
 };
 
 struct JointSolution {

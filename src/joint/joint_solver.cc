@@ -48,6 +48,10 @@ PoseSigmas SigmasOf(const std::string& method,
     }
     s.sigma_rotation_deg.push_back(rot);
     s.sigma_translation_mm.push_back(t);
+    Pose6 pose;
+    const double* x = r.block(r.layout->view_block(static_cast<int>(&v - bp.views.data())));
+    for (int i = 0; i < 6; ++i) pose[i] = x[i];
+    s.cam_from_object.push_back(pose);
   }
   for (const auto& [a, b] : pairs) {
     const auto* row = by_name.at("pair " + bp.views[a].id + "/" + bp.views[b].id + " relative rotation");
