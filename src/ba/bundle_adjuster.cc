@@ -61,6 +61,7 @@ struct BuiltBlock {
   Source source;
   std::vector<int> blocks;
   int view = -1, obs = -1;
+  int zero_rows = 0;  // rows that are zero by construction (the split point prior's third block)
 };
 
 struct Assembly {
@@ -104,16 +105,18 @@ Status Assemble(const BaProblem& problem,
       cp->AddResidualBlock(rows01, nullptr, ptr(b));
       cp->AddResidualBlock(row2, nullptr, ptr(b));
       as->built.push_back({rows01, nullptr, s, {b}});
-      as->built.push_back({row2, nullptr, s, {b}});
+      as->built.push_back({row2, nullptr, s, {b}, -1, -1, 1});
     } else {
       Eigen::Matrix<double, 2, 3> top = S.topRows<2>(), last = Eigen::Matrix<double, 2, 3>::Zero();
       last.row(0) = S.row(2);
       delete rows01;
       delete row2;
+      int zero_rows = 0;
       for (const auto& A : {top, last}) {
         ceres::CostFunction* c = PointPriorRowsAutoDiff::Create(p, A);
         cp->AddResidualBlock(c, nullptr, ptr(b));
-        as->built.push_back({c, nullptr, s, {b}});
+        as->built.push_back({c, nullptr, s, {b}, -1, -1, zero_rows});
+        zero_rows = 1;
       }
     }
   };
@@ -332,7 +335,7 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
         return Status::Error("a residual is not finite at the solution (a point behind the source?)");
       }
       res.chi2 += r.squaredNorm();
-      res.num_residuals += static_cast<int>(r.size());
+      res.num_residuals += static_cast<int>(r.size()) - bb.zero_rows;
       if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
       if (bb.view < 0) continue;
       const BaView& view = problem.views[bb.view];

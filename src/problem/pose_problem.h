@@ -1,7 +1,8 @@
 // A pose problem (WHAT is estimated from WHICH data) and a solver configuration (HOW), both read
 // from YAML, and the bundle adjustment that solves one with the other.
 //
-// The bundle adjustment (one Ceres problem over all views):
+// The bundle adjustment is the engine's (ba/bundle_adjuster.h, one Ceres problem over all views);
+// this front end fills it:
 //   * per view v a pose cam_from_object_v = [rx, ry, rz (rad), tx, ty, tz (mm)];
 //   * per marker m its position p_m in the object frame, a parameter block shared by all views,
 //     tied to its CT measurement by a prior whitened by the CT covariance (PointPriorRows). It fixes
@@ -10,7 +11,7 @@
 //     twin); the intrinsics are read from the camera file and held constant here.
 // Initial poses come from the configured initialiser (legacy_posit, posit, epnp, sqpnp).
 // The covariance of all poses is computed jointly, by default from the analytic Jacobians with the
-// markers eliminated by the Schur complement (problem/pose_covariance.h), or with ceres::Covariance;
+// markers eliminated by the Schur complement (ba/covariance.h), or with ceres::Covariance;
 // per view it is reported as (rvec, t) and as small rotations about the camera axes (deg) and
 // translations (mm).
 //
@@ -64,11 +65,13 @@
 
 #include <Eigen/Dense>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "ba/bundle_adjuster.h"
 #include "camera/camera.h"
 #include "geometry/pose.h"
 #include "util/status.h"
@@ -141,8 +144,8 @@ struct SolverConfig {
   double function_tolerance = 1e-12;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-12;
-  // schur: carmba's own, from the residuals' Jacobians with the markers eliminated
-  //        (problem/pose_covariance.h; the fastest);
+  // schur: the engine's, from the residuals' Jacobians with the markers eliminated
+  //        (ba/covariance.h; the fastest);
   // dense_svd | sparse_qr (SuiteSparse) | eigen_sparse_qr: ceres::Covariance (references).
   std::string covariance_algorithm = "schur";
   bool covariance_aposteriori = false;  // scale covariance by the a-posteriori variance factor
@@ -219,6 +222,9 @@ struct PoseSolution {
   std::string termination;
   double initial_cost = 0, final_cost = 0;
   double time_s = 0;                  // wall time of initialisation + solve + covariance
+  // The engine's problem and result (ba/), for error budgets and further analysis.
+  std::shared_ptr<const ba::BaProblem> ba_problem;
+  std::shared_ptr<const ba::BaResult> ba_result;
 };
 
 // Solves a pose problem. Errors: a view whose initialiser fails, a non-finite initial cost,

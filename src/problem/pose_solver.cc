@@ -10,10 +10,9 @@
 #include <memory>
 #include <set>
 
-#include "ba/reprojection_error.h"
+#include "ba/bundle_adjuster.h"
 #include "geometry/rotation.h"
 #include "pose/posit.h"
-#include "problem/pose_covariance.h"
 #include "problem/pose_problem.h"
 #include "util/stats.h"
 
@@ -121,50 +120,6 @@ double ViewRms(const PoseProblem& problem,
   return std::sqrt(ss / n);
 }
 
-// Sum of squared whitened residuals (reprojection and CT priors), without any robust loss.
-// `information` holds each marker's CT information (problem frame), markers in id order.
-double WhitenedChi2(const PoseProblem& problem,
-                    const std::vector<Pose6>& poses,
-                    const std::map<int, Eigen::Vector3d>& markers,
-                    const std::map<int, const Marker*>& marker_by_id,
-                    const std::vector<Eigen::Matrix3d>& information) {
-  double chi2 = 0;
-  const double w = 1.0 / (problem.sigma_px * problem.sigma_px);
-  for (size_t v = 0; v < problem.views.size(); ++v) {
-    for (const auto& o : problem.views[v].observations) {
-      Eigen::Vector2d q;
-      if (!ProjectPoint(problem.camera.params.data(), poses[v].data(),
-                        markers.at(o.marker_id).data(), q.data())) {
-        return std::numeric_limits<double>::infinity();
-      }
-      chi2 += (q - o.uv_px).squaredNorm() * w;
-    }
-  }
-  size_t k = 0;
-  for (const auto& [id, p] : markers) {
-    const Eigen::Vector3d d = p - MarkerInProblemFrame(problem, *marker_by_id.at(id));
-    chi2 += d.dot(information[k++] * d);
-  }
-  return chi2;
-}
-
-ceres::LossFunction* MakeLoss(const SolverConfig& c, double sigma_px) {
-  const double s = c.loss_scale_px / sigma_px;  // residuals are whitened
-  if (c.loss == "huber") return new ceres::HuberLoss(s);
-  if (c.loss == "cauchy") return new ceres::CauchyLoss(s);
-  if (c.loss == "soft_l1") return new ceres::SoftLOneLoss(s);
-  return nullptr;
-}
-
-ceres::LinearSolverType LinearSolver(const std::string& name) {
-  if (name == "dense_qr") return ceres::DENSE_QR;
-  if (name == "dense_normal_cholesky") return ceres::DENSE_NORMAL_CHOLESKY;
-  if (name == "sparse_schur") return ceres::SPARSE_SCHUR;
-  if (name == "sparse_normal_cholesky") return ceres::SPARSE_NORMAL_CHOLESKY;
-  if (name == "iterative_schur") return ceres::ITERATIVE_SCHUR;
-  return ceres::DENSE_SCHUR;
-}
-
 // Value and gradient (w.r.t. the 12 parameters of two poses) of a pair metric.
 template <typename F>
 double PairMetric(const Pose6& a, const Pose6& b, F f, Eigen::Matrix<double, 12, 1>* grad) {
@@ -189,155 +144,114 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
 
   PoseSolution sol;
   sol.config_name = config.name;
-  // Marker parameter blocks (only markers that some view observes).
+  // Markers: only those that some view observes (an unobserved marker would add nothing but its
+  // own prior).
   std::set<int> observed;
   for (const auto& v : problem.views) {
     for (const auto& o : v.observations) observed.insert(o.marker_id);
   }
-  std::map<int, Eigen::Vector3d> markers;  // the parameter blocks, problem frame
+  std::map<int, Eigen::Vector3d> markers;  // problem frame
   std::map<int, const Marker*> marker_by_id;
   for (const auto& m : problem.markers) {
     marker_by_id[m.id] = &m;
     if (observed.count(m.id)) markers[m.id] = MarkerInProblemFrame(problem, m);
   }
 
-  // Initial poses.
+  // The engine's problem: one intrinsics group held at the camera's values, one object view per
+  // pose view, the observed markers tied to their CT measurements.
+  ba::BaProblem bp;
+  bp.name = problem.name;
+  ba::IntrinsicsGroup g;
+  std::copy(problem.camera.params.begin(), problem.camera.params.end(), g.initial.begin());
+  g.free.fill(false);
+  g.width = problem.camera.width;
+  g.height = problem.camera.height;
+  bp.groups.push_back(g);
+  for (const auto& [id, p] : markers) {
+    const Marker& m = *marker_by_id.at(id);
+    bp.markers.push_back({id, p, MarkerCovarianceInProblemFrame(problem, m)});
+  }
   const size_t V = problem.views.size();
-  std::vector<Pose6> poses(V);
   sol.views.resize(V);
   for (size_t v = 0; v < V; ++v) {
     std::vector<Eigen::Vector3d> pts;
     std::vector<Eigen::Vector2d> uv;
+    ba::BaView view;
+    view.id = problem.views[v].id;
+    view.kind = ba::ViewKind::kObject;
+    view.sigma_px = problem.sigma_px;
     for (const auto& o : problem.views[v].observations) {
       pts.push_back(markers.at(o.marker_id));
       uv.push_back(o.uv_px);
+      view.point_ids.push_back(o.marker_id);
+      view.uv_px.push_back(o.uv_px);
     }
     auto init = InitialObjectPose(problem.camera, config.initializer, pts, uv);
     if (!init.ok()) {
       return Status::Error(problem.path + ": view '" + problem.views[v].id + "': " +
                            init.status().message());
     }
-    poses[v] = *init;
+    view.initial = *init;
+    bp.views.push_back(view);
     sol.views[v].id = problem.views[v].id;
     sol.views[v].initial = *init;
     sol.views[v].initial_rms_px = ViewRms(problem, problem.views[v], *init, markers);
     sol.views[v].num_observations = static_cast<int>(problem.views[v].observations.size());
   }
 
-  // The Ceres problem. All parameter blocks live in ONE buffer in a fixed order (poses, then
-  // markers by id, then the intrinsics): Ceres orders blocks by address in places (the
-  // covariance, elimination groups), so separately allocated blocks would make the results
-  // depend on the heap layout in the last digits.
-  const size_t M = markers.size();
-  std::vector<double> buffer(6 * V + 3 * M + kNumIntrinsics);
-  auto pose_ptr = [&](size_t v) { return buffer.data() + 6 * v; };
-  std::map<int, double*> marker_ptr;
-  {
-    size_t k = 0;
-    for (auto& [id, p] : markers) {
-      marker_ptr[id] = buffer.data() + 6 * V + 3 * k++;
-      std::copy(p.data(), p.data() + 3, marker_ptr[id]);
+  ba::BaOptions options;
+  options.analytic_jacobians = config.analytic_jacobians;
+  options.loss = config.loss;
+  options.loss_scale_px = config.loss_scale_px;
+  options.linear_solver = config.linear_solver;
+  options.max_iterations = config.refine ? config.max_iterations : 0;
+  options.function_tolerance = config.function_tolerance;
+  options.gradient_tolerance = config.gradient_tolerance;
+  options.parameter_tolerance = config.parameter_tolerance;
+  options.num_threads = config.num_threads;
+  options.covariance_aposteriori = config.covariance_aposteriori;
+  options.compute_covariance = config.refine && config.covariance_algorithm == "schur";
+  options.outlier_sigma = config.outlier_sigma;
+  options.reject_sigma = config.refine ? config.reject_sigma : 0;
+  auto solved = ba::SolveBundleAdjustment(bp, options);
+  if (!solved.ok()) {
+    const std::string& m = solved.status().message();
+    if (m.find("rank-deficient") != std::string::npos) {
+      return Status::Error(problem.path + ": " + m +
+                           " (degenerate geometry: too few or (near-)coplanar markers in a view?)");
     }
-  }
-  for (size_t v = 0; v < V; ++v) std::copy(poses[v].data(), poses[v].data() + 6, pose_ptr(v));
-  double* intrinsics = buffer.data() + 6 * V + 3 * M;
-  std::copy(problem.camera.params.begin(), problem.camera.params.end(), intrinsics);
-  // One Ceres context per thread, reused by every solve (Problem::Options::context): a study
-  // solves thousands of small problems and need not build a context for each.
-  static thread_local std::unique_ptr<ceres::Context> context(ceres::Context::Create());
-  ceres::Problem::Options popts;
-  popts.context = context.get();
-  // The blocks below are built from validated input with sizes fixed at compile time; Ceres's
-  // per-block checks (duplicate or aliasing parameter blocks) cannot fire here.
-  popts.disable_all_safety_checks = true;
-  ceres::Problem cp(popts);
-  // The same blocks, as the Schur covariance needs them (owned by the Ceres problem).
-  PoseCovarianceInput cov_in;
-  std::map<int, int> marker_index;
-  for (auto& [id, p] : marker_ptr) {
-    marker_index[id] = static_cast<int>(cov_in.markers.size());
-    cov_in.markers.push_back(p);
-  }
-  for (size_t v = 0; v < V; ++v) cov_in.poses.push_back(pose_ptr(v));
-  cov_in.intrinsics = intrinsics;
-  for (size_t v = 0; v < V; ++v) {
-    for (const auto& o : problem.views[v].observations) {
-      ceres::CostFunction* cost =
-          config.analytic_jacobians
-              ? ReprojectionError::Create(o.uv_px.x(), o.uv_px.y(), problem.sigma_px)
-              : ReprojectionErrorAutoDiff::Create(o.uv_px.x(), o.uv_px.y(), problem.sigma_px);
-      ceres::LossFunction* loss = MakeLoss(config, problem.sigma_px);
-      cp.AddResidualBlock(cost, loss, pose_ptr(v), marker_ptr.at(o.marker_id), intrinsics);
-      cov_in.blocks.push_back({cost, loss, static_cast<int>(v), marker_index.at(o.marker_id)});
-    }
-  }
-  cp.SetParameterBlockConstant(intrinsics);
-  for (auto& [id, p] : markers) {
-    const Marker& m = *marker_by_id.at(id);
-    const Eigen::Matrix3d cov = MarkerCovarianceInProblemFrame(problem, m);
-    Eigen::Matrix3d S;
-    if (!SqrtInformation(cov, &S)) {
-      return Status::Error(problem.path + ": marker " + std::to_string(id) +
-                           ": covariance is not symmetric positive definite");
-    }
-    // As two 2-row blocks (PointPriorRows): all marker rows then have 2 rows and Ceres uses its
-    // fixed-size Schur eliminator.
-    cov_in.marker_information.push_back(S.transpose() * S);
-    const auto [rows01, row2] = PointPriorRows::Split(MarkerInProblemFrame(problem, m), S);
-    cp.AddResidualBlock(rows01, nullptr, marker_ptr.at(id));
-    cp.AddResidualBlock(row2, nullptr, marker_ptr.at(id));
-  }
-  // Initial cost, evaluated directly (Problem::Evaluate rebuilds Ceres's program each call).
-  {
-    const double chi2_0 = WhitenedChi2(problem, poses, markers, marker_by_id, cov_in.marker_information);
-    if (!std::isfinite(chi2_0)) {
+    if (m.find("the initial state") != std::string::npos) {
       return Status::Error(problem.path + ": the initial poses give a non-finite cost (a marker "
                                           "behind the source?)");
     }
-    sol.initial_cost = 0.5 * chi2_0;
+    return Status::Error(problem.path + ": " + m);
   }
-
+  sol.ba_problem = std::make_shared<const ba::BaProblem>(bp);
+  sol.ba_result = std::make_shared<const ba::BaResult>(std::move(*solved));
+  const ba::BaResult& r = *sol.ba_result;
+  const ba::StateLayout& L = *r.layout;
+  sol.iterations = r.iterations;
+  sol.initial_cost = r.initial_cost;
   if (config.refine) {
-    ceres::Solver::Options so;
-    so.linear_solver_type = LinearSolver(config.linear_solver);
-    so.max_num_iterations = config.max_iterations;
-    so.function_tolerance = config.function_tolerance;
-    so.gradient_tolerance = config.gradient_tolerance;
-    so.parameter_tolerance = config.parameter_tolerance;
-    so.num_threads = config.num_threads;
-    so.logging_type = ceres::SILENT;
-    if (so.linear_solver_type == ceres::DENSE_SCHUR || so.linear_solver_type == ceres::SPARSE_SCHUR ||
-        so.linear_solver_type == ceres::ITERATIVE_SCHUR) {
-      // Eliminate the markers first, then the poses: given explicitly, Ceres need not search
-      // for an independent set.
-      auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-      for (auto& [id, p] : marker_ptr) ordering->AddElementToGroup(p, 0);
-      for (size_t v = 0; v < V; ++v) ordering->AddElementToGroup(pose_ptr(v), 1);
-      so.linear_solver_ordering = ordering;
-    }
-    so.minimizer_progress_to_stdout = false;
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &cp, &summary);
-    sol.iterations = static_cast<int>(summary.iterations.size()) - 1;
-    sol.termination = ceres::TerminationTypeToString(summary.termination_type);
-    if (summary.termination_type == ceres::FAILURE ||
-        summary.termination_type == ceres::USER_FAILURE) {
-      return Status::Error(problem.path + ": bundle adjustment failed: " + summary.message);
-    }
-    sol.final_cost = summary.final_cost;
+    sol.termination = r.termination;
+    sol.final_cost = r.final_cost;
   } else {
     sol.termination = "NOT_REFINED";
     sol.final_cost = sol.initial_cost;
   }
-
-  for (size_t v = 0; v < V; ++v) std::copy(pose_ptr(v), pose_ptr(v) + 6, poses[v].data());
-  for (auto& [id, p] : markers) std::copy(marker_ptr.at(id), marker_ptr.at(id) + 3, p.data());
-
-  // Statistics from the raw (loss-free) whitened residuals.
-  sol.chi2 = WhitenedChi2(problem, poses, markers, marker_by_id, cov_in.marker_information);
-  sol.num_residuals = 0;
-  for (const auto& v : problem.views) sol.num_residuals += 2 * static_cast<int>(v.observations.size());
-  sol.num_residuals += 3 * static_cast<int>(markers.size());
+  std::vector<Pose6> poses(V);
+  for (size_t v = 0; v < V; ++v) {
+    for (int i = 0; i < 6; ++i) poses[v][i] = r.block(L.view_block(static_cast<int>(v)))[i];
+  }
+  {
+    size_t k = 0;
+    for (auto& [id, p] : markers) {
+      for (int i = 0; i < 3; ++i) p[i] = r.block(L.marker_block(static_cast<int>(k)))[i];
+      ++k;
+    }
+  }
+  sol.chi2 = r.chi2;
+  sol.num_residuals = r.num_residuals;
   double ss = 0;
   int n = 0;
   for (size_t v = 0; v < V; ++v) {
@@ -348,50 +262,31 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
   }
   sol.rms_px = std::sqrt(ss / n);
   sol.markers = markers;
-  sol.num_parameters = static_cast<int>(6 * V + 3 * markers.size());
-  sol.dof = sol.num_residuals - sol.num_parameters;
-  sol.sigma0 = sol.dof > 0 ? std::sqrt(sol.chi2 / sol.dof) : std::nan("");
+  sol.num_parameters = r.num_free;
+  sol.dof = r.dof;
+  sol.sigma0 = r.sigma0;
   sol.sigma_aposteriori_px = sol.sigma0 * problem.sigma_px;
-  sol.chi2_p_value = ChiSquareUpperTail(sol.chi2, sol.dof);
+  sol.chi2_p_value = r.chi2_p_value;
 
-  // Joint covariance of all poses.
+  // Joint covariance of all poses: the engine's Schur covariance, or ceres::Covariance over the
+  // same problem (the configs' reference algorithms).
+  std::vector<int> pose_blocks;
+  for (size_t v = 0; v < V; ++v) pose_blocks.push_back(L.view_block(static_cast<int>(v)));
   if (config.refine && config.covariance_algorithm == "schur") {
-    auto cov = PoseCovarianceBySchur(cov_in);
-    if (!cov.ok()) {
-      return Status::Error(problem.path + ": " + cov.status().message() +
-                           " (degenerate geometry: too few or (near-)coplanar markers in a view?)");
-    }
-    sol.joint_covariance = std::move(*cov);
+    sol.joint_covariance = r.Covariance(pose_blocks);
   } else if (config.refine) {
-    ceres::Covariance::Options co;
-    co.algorithm_type =
-        config.covariance_algorithm == "dense_svd" ? ceres::DENSE_SVD : ceres::SPARSE_QR;
-    if (config.covariance_algorithm == "eigen_sparse_qr") {
-      co.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
-    }
-    co.num_threads = config.num_threads;
-    co.null_space_rank = 0;
-    co.min_reciprocal_condition_number = 1e-14;
-    ceres::Covariance covariance(co);
-    std::vector<std::pair<const double*, const double*>> pairs;
-    std::vector<const double*> blocks;
-    for (size_t i = 0; i < V; ++i) {
-      blocks.push_back(pose_ptr(i));
-      for (size_t j = i; j < V; ++j) pairs.emplace_back(pose_ptr(i), pose_ptr(j));
-    }
-    if (!covariance.Compute(pairs, &cp)) {
+    auto cov = ba::CeresBlockCovariance(bp, options, r, pose_blocks, config.covariance_algorithm);
+    if (!cov.ok()) {
       return Status::Error(problem.path +
                            ": the covariance is rank-deficient (degenerate geometry: too few or "
                            "(near-)coplanar markers in a view?)");
     }
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jc(6 * V, 6 * V);
-    covariance.GetCovarianceMatrix(blocks, jc.data());
-    sol.joint_covariance = jc;
-  }
-  if (config.refine) {
+    sol.joint_covariance = *cov;
     if (config.covariance_aposteriori && std::isfinite(sol.sigma0)) {
       sol.joint_covariance *= sol.sigma0 * sol.sigma0;
     }
+  }
+  if (config.refine) {
     sol.has_covariance = sol.joint_covariance.allFinite();
     for (size_t v = 0; v < V; ++v) {
       ViewSolution& vs = sol.views[v];

@@ -7,6 +7,7 @@
 #include <random>
 #include <set>
 
+#include "ba/quantities.h"
 #include "calib/calibrate.h"
 #include "calib/synthetic_views.h"
 #include "camera/camera_model.h"
@@ -403,74 +404,32 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   return r;
 }
 
-// The predicted error budget of the first view: the covariance of the bundle adjustment,
-// Sigma = (A_px + A_ct)^-1 with A_px = J_px^T J_px / sigma_px^2 (reprojection residuals) and
-// A_ct = sum of the markers' inverse CT covariances (the priors), splits exactly into
-//   Sigma = Sigma A_px Sigma + Sigma A_ct Sigma,
-// the parts due to pixel noise and to CT noise. Reported as 1-sigma contributions (RMS over the
-// three axes) to the first view's rotation (small rotations about the camera axes, deg) and
-// translation (mm); their squares add up to the total. Valid for the trivial loss only; empty
-// otherwise, or when the information matrix is singular.
-nlohmann::json PredictedBudget(const PoseProblem& problem,
-                               const PoseSolution& sol,
-                               const SolverConfig& config) {
+// The predicted error budget of the first view from the engine (ba/quantities.h): the shares of
+// the variance of its pose from pixel noise (the object views) and CT noise (the markers' priors),
+// first order, Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T. Reported as 1-sigma contributions (RMS
+// over the three axes) to the first view's rotation (small rotations about the camera axes, deg)
+// and translation (mm); their squares add up to the total. Empty without a covariance.
+nlohmann::json PredictedBudget(const PoseSolution& sol, const SolverConfig& config) {
   nlohmann::json budget = nlohmann::json::object();
-  if (!config.refine || config.loss != "trivial" || sol.views.empty()) return budget;
-  const int V = static_cast<int>(sol.views.size());
-  std::map<int, int> marker_col;
-  int n = 6 * V;
-  for (const auto& kv : sol.markers) {
-    marker_col[kv.first] = n;
-    n += 3;
-  }
-  Eigen::MatrixXd A_px = Eigen::MatrixXd::Zero(n, n), A_ct = Eigen::MatrixXd::Zero(n, n);
-  const double w = 1.0 / (problem.sigma_px * problem.sigma_px);
-  for (int v = 0; v < V && v < static_cast<int>(problem.views.size()); ++v) {
-    for (const auto& o : problem.views[v].observations) {
-      const auto m = sol.markers.find(o.marker_id);
-      if (m == sol.markers.end()) continue;
-      double uv[2];
-      Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_pose;
-      Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_p;
-      if (!ProjectPointWithJac(problem.camera.params.data(), sol.views[v].cam_from_object.data(),
-                               m->second.data(), uv, nullptr, J_pose.data(), J_p.data())) {
-        return nlohmann::json::object();
-      }
-      Eigen::MatrixXd J = Eigen::MatrixXd::Zero(2, n);
-      J.block<2, 6>(0, 6 * v) = J_pose;
-      J.block<2, 3>(0, marker_col.at(o.marker_id)) = J_p;
-      A_px.noalias() += w * J.transpose() * J;
-    }
-  }
-  for (const auto& m : problem.markers) {
-    const auto col = marker_col.find(m.id);
-    if (col == marker_col.end()) continue;
-    Eigen::Matrix3d cov = m.covariance;
-    if (problem.handedness == Handedness::kMirrored) {
-      const Eigen::Matrix3d D = Eigen::Vector3d(1, -1, 1).asDiagonal();
-      cov = D * cov * D;
-    }
-    A_ct.block<3, 3>(col->second, col->second) = cov.inverse();
-  }
-  const Eigen::MatrixXd A = A_px + A_ct;
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(A);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive() ||
-      ldlt.vectorD().minCoeff() <= 1e-12 * ldlt.vectorD().maxCoeff()) {
+  if (!config.refine || sol.views.empty() || !sol.ba_result || !sol.ba_result->covariance) {
     return budget;
   }
-  const Eigen::MatrixXd S = ldlt.solve(Eigen::MatrixXd::Identity(n, n));
-  double scale = 1;
-  if (config.covariance_aposteriori && std::isfinite(sol.sigma0)) scale = sol.sigma0 * sol.sigma0;
-  Eigen::Matrix3d Jl;
-  SO3LeftJacobian(sol.views[0].cam_from_object.data(), Jl.data());
-  Jl.transposeInPlace();  // row-major into column-major storage
-  for (const auto& [name, part] : {std::pair<std::string, const Eigen::MatrixXd*>{"pixel_noise",
-                                                                               &A_px},
-                                   {"ct_noise", &A_ct}}) {
-    const Eigen::MatrixXd C = scale * (S * (*part) * S);
-    const Eigen::Matrix3d rot = Jl * C.block<3, 3>(0, 0) * Jl.transpose();
-    budget["v0_rotation_deg." + name] = std::sqrt(rot.trace() / 3) * kRadToDeg;
-    budget["v0_translation_mm." + name] = std::sqrt(C.block<3, 3>(3, 3).trace() / 3);
+  const auto rows = ba::ComputeErrorBudget(*sol.ba_problem, *sol.ba_result, {});
+  const std::string view = "view " + sol.views[0].id + " ";
+  for (const auto& [name, source] :
+       {std::pair<std::string, ba::Source>{"pixel_noise", ba::Source::kObjectPixels},
+        {"ct_noise", ba::Source::kCt}}) {
+    double rot = 0, trans = 0;
+    for (const auto& row : rows) {
+      const double s = row.source_sigma[static_cast<int>(source)];
+      if (row.quantity.name.rfind(view + "rot ", 0) == 0) rot += s * s;
+      if (row.quantity.name.rfind(view + "t", 0) == 0 &&
+          row.quantity.name.size() == view.size() + 2) {
+        trans += s * s;
+      }
+    }
+    budget["v0_rotation_deg." + name] = std::sqrt(rot / 3);
+    budget["v0_translation_mm." + name] = std::sqrt(trans / 3);
   }
   return budget;
 }
@@ -562,7 +521,7 @@ nlohmann::json MakeResult(const PoseProblem& problem,
   r["sigmas"] = sigmas;
   r["values"] = values;
   r["residuals_px"] = residuals;
-  r["budget"] = PredictedBudget(problem, sol, config);
+  r["budget"] = PredictedBudget(sol, config);
   return r;
 }
 
