@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "util/csv.h"
+#include "util/plausible.h"
 #include "util/file_util.h"
 
 namespace carmba {
@@ -57,7 +58,7 @@ Status ReadMarkersCsv(const std::string& path,
     if (!id.ok()) return id.status().WithContext(where);
     m.id = *id;
     for (int a = 0; a < 3; ++a) {
-      auto x = table->Number(r, columns[a]);
+      auto x = table->NumberIn(r, columns[a], plausible::kCoordinateMm);
       if (!x.ok()) return x.status().WithContext(where);
       m.centre_mm[a] = *x;
     }

@@ -6,6 +6,7 @@
 
 #include "camera/camera_model.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 namespace carmba::sim {
 
@@ -97,8 +98,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   // C-arm first: the detector pitch needs the SID.
   CarmGeometry carm;
   YamlMap& cm = scene.Map("carm");
-  cm.GetPositive("sid_mm", &carm.sid_mm);
-  cm.GetPositive("sod_mm", &carm.sod_mm);
+  cm.GetInRange("sid_mm", &carm.sid_mm, plausible::kDistanceMm);
+  cm.GetInRange("sod_mm", &carm.sod_mm, plausible::kDistanceMm);
   GetVec(cm, "isocenter_mm", 3, carm.isocenter_mm.data());
   GetVec(cm, "axis_offset_mm", 2, carm.axis_offset_mm.data());
   if (cm.status().ok() && !(carm.sod_mm < carm.sid_mm)) {
@@ -126,8 +127,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     s.camera.height = size[1];
     s.camera.params.fill(0.0);
     if (has_f) {
-      cam.GetPositive("fx", &s.camera.params[kFx], true);
-      cam.GetPositive("fy", &s.camera.params[kFy], true);
+      cam.GetInRange("fx", &s.camera.params[kFx], plausible::kFocalPx, true);
+      cam.GetInRange("fy", &s.camera.params[kFy], plausible::kFocalPx, true);
       cam.Get("cx", &s.camera.params[kCx], true);
       cam.Get("cy", &s.camera.params[kCy], true);
     } else {
@@ -143,8 +144,10 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       }
       if (cam.status().ok()) {
         if (pitch.size() == 1) pitch.push_back(pitch[0]);
-        if (pitch.size() != 2 || !(pitch[0] > 0) || !(pitch[1] > 0)) {
-          cam.Fail("pixel_pitch_mm", "expected a positive number or [x, y] (mm)");
+        if (pitch.size() != 2 || !InRange(pitch[0], plausible::kPixelPitchMm) ||
+            !InRange(pitch[1], plausible::kPixelPitchMm)) {
+          cam.Fail("pixel_pitch_mm", "expected a number or [x, y], each " +
+                                         FormatRange(plausible::kPixelPitchMm));
         } else {
           det.pitch_x_mm = pitch[0];
           det.pitch_y_mm = pitch[1];
@@ -295,9 +298,9 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       vm.Fail("name", "duplicate view name '" + v.name + "'");
     }
     v.carm = carm;
-    vm.Get("primary_deg", &v.carm.primary_angle_deg);
+    vm.GetInRange("primary_deg", &v.carm.primary_angle_deg, plausible::kAngleDeg);
     vm.Get("secondary_deg", &v.carm.secondary_angle_deg);
-    vm.Get("detector_rotation_deg", &v.carm.detector_rotation_deg);
+    vm.GetInRange("detector_rotation_deg", &v.carm.detector_rotation_deg, plausible::kAngleDeg);
     if (vm.status().ok() && std::fabs(v.carm.secondary_angle_deg) > 90) {
       vm.Fail("secondary_deg", "expected an angle in [-90, 90] degrees");
     }
