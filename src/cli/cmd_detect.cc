@@ -26,7 +26,7 @@ int RunDetect() {
   grid.rows = FLAGS_rows;
   grid.cols = FLAGS_cols;
   std::string err;
-  if (!cli::CheckSpacingFlag(&err)) return cli::Fail(kCmd, err);
+  if (!cli::CheckGridFlags(&err)) return cli::Fail(kCmd, err);
   grid.spacing_mm = FLAGS_spacing_mm > 0 ? FLAGS_spacing_mm : 20.0;  // recorded in the CSV
   if (!grid.Check(&err)) return cli::Fail(kCmd, err);
   DetectionOptions options;

@@ -29,6 +29,10 @@ int RunStudyCommand() {
   if (FLAGS_out.empty()) return cli::Fail("study", "--out is required (an output directory)");
   StudyRunOptions options;
   options.out_dir = FLAGS_out;
+  {
+    std::string err;
+    if (!cli::CheckJobsFlag(&err)) return cli::Fail("study", err);
+  }
   options.jobs = FLAGS_jobs;
   options.resume = FLAGS_resume;
   options.progress = ::isatty(STDERR_FILENO) == 1;
