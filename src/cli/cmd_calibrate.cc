@@ -105,6 +105,10 @@ int RunCalibrate() {
     if (spacing == 0) spacing = p_spacing;
   }
   if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
   if (images.empty() == observations.empty()) {
     return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
   }

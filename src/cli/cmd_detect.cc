@@ -19,6 +19,10 @@ int RunDetect() {
   const char* kCmd = "detect";
   if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
   if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (observations.csv) is required");
+  {
+    const Status s = CheckOutputFile(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
   auto pat = ParseGridPattern(FLAGS_pattern);
   if (!pat.ok()) return cli::Fail(kCmd, pat.status().WithContext("--pattern"));
   GridSpec grid;

@@ -18,6 +18,10 @@ int RunSolve() {
   if (FLAGS_problem.empty()) return cli::Fail("solve", "--problem is required");
   if (FLAGS_config.empty()) return cli::Fail("solve", "--config is required");
   if (FLAGS_out.empty()) return cli::Fail("solve", "--out is required");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail("solve", s);
+  }
   auto problem = LoadPoseProblem(FLAGS_problem);
   if (!problem.ok()) return cli::Fail("solve", problem.status());
   auto config = LoadSolverConfig(FLAGS_config);
