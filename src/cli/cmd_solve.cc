@@ -33,9 +33,13 @@ int RunSolve() {
   j["comparison"] = PoseComparisonToJson(*problem, comparison);
   const std::string report = PoseReportMarkdown(*problem, *config, *solution, comparison);
 
-  Status s = MakeDirs(FLAGS_out);
-  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "report.md"), report);
-  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "result.json"), j.dump(2) + "\n");
+  // Both files or neither (a failed second write used to leave report.md behind); other files in
+  // an existing --out are kept.
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (config->refine && solution->termination != "CONVERGENCE") {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("

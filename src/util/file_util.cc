@@ -185,9 +185,20 @@ Status StagedOutputDir::Commit(bool replace_all) {
   }
   std::vector<fs::path> entries;
   for (const auto& e : fs::directory_iterator(staging, ec)) entries.push_back(e.path());
+  // A file cannot replace a directory: found before anything is moved.
   for (const auto& p : entries) {
     const fs::path target = fs::path(dir_) / p.filename();
-    if (fs::is_directory(target) && !fs::is_symlink(target)) fs::remove_all(target, ec);
+    if (!fs::is_directory(p) && fs::is_directory(target)) {
+      restore();
+      return Status::Error(target.string() + ": is a directory, expected a file (or nothing)");
+    }
+  }
+  for (const auto& p : entries) {
+    const fs::path target = fs::path(dir_) / p.filename();
+    // A directory replaces a directory of the same name (calibrate's mrcal/).
+    if (fs::is_directory(p) && fs::is_directory(target) && !fs::is_symlink(target)) {
+      fs::remove_all(target, ec);
+    }
     fs::rename(p, target, ec);
     if (ec) {
       restore();

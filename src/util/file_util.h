@@ -31,8 +31,10 @@ Status CheckOutputFile(const std::string& path, const std::string& what);
 //   - `dir` does not exist: the results are written into `dir.tmp.<pid>` beside it (same parent
 //     directory, hence the same mount) and Commit renames that to `dir`;
 //   - `dir` exists: they are written into `dir/.carmba-tmp.<pid>` inside it and Commit moves each
-//     entry into `dir` (replacing an entry of the same name); with `replace_all` the entries that
-//     were in `dir` before are moved aside first and deleted after, or moved back on error.
+//     entry into `dir` (replacing an entry of the same name; a file never replaces a directory:
+//     that is an error before anything moves); with `replace_all` the entries that were in `dir`
+//     before are moved aside first and deleted after, or moved back on error. A rename failing
+//     half-way through (not expected within one directory) can leave some entries moved.
 // Without Commit the destructor removes the staging directory.
 class StagedOutputDir {
  public:

@@ -164,6 +164,19 @@ TEST_F(OutputPaths, FileWhereADirectoryIsMeant) {
   EXPECT_EQ(fs::file_size(f), 2u);
 }
 
+// An existing --out with a directory where an output file goes: both files or neither. Was:
+// report.md written, then "result.json: cannot rename temporary file (Is a directory)".
+TEST_F(OutputPaths, DirectoryInTheWayOfAnOutputFile) {
+  const std::string out = dir_.File("a_dir");
+  fs::create_directories(out + "/result.json");
+  ExpectFails(Solve(out), out + "/result.json: is a directory, expected a file (or nothing)",
+              out + "/report.md");
+  EXPECT_TRUE(fs::is_empty(out + "/result.json"));
+  for (const auto& e : fs::directory_iterator(out)) {
+    EXPECT_EQ(e.path().filename().string().find(".carmba-"), std::string::npos) << e.path();
+  }
+}
+
 TEST_F(OutputPaths, MissingDirectoryOfAnOutputFile) {
   const std::string p = dir_.File("nowhere/obs.csv");
   ExpectFails(Detect(p), "--out " + p + ": directory " + dir_.File("nowhere") + " does not exist",
