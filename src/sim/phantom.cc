@@ -44,9 +44,9 @@ bool PlateSpec::Check(std::string* error) const {
   if (!(sphere_diameter_mm > 0) || !(sphere_diameter_mm < pitch_mm)) {
     return *error = "plate: sphere_diameter_mm must be > 0 and smaller than pitch_mm", false;
   }
-  if (!(thickness_mm >= 0) || !(margin_mm >= 0) || !std::isfinite(thickness_mm) ||
-      !std::isfinite(margin_mm)) {
-    return *error = "plate: thickness_mm and margin_mm must be >= 0", false;
+  if (!CheckRange("plate: thickness_mm", thickness_mm, plausible::kLengthMm, error) ||
+      !CheckRange("plate: margin_mm", margin_mm, plausible::kLengthMm, error)) {
+    return false;
   }
   return true;
 }

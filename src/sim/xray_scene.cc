@@ -163,11 +163,11 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   RenderOptions& r = s.render;
   im.Get("supersampling", &r.supersampling);
   im.GetPositive("white_level", &r.white_level);
-  im.GetNonNegative("photons_per_pixel", &r.photons_per_pixel);
-  im.GetNonNegative("read_noise_gray", &r.read_noise_gray);
+  im.GetInRange("photons_per_pixel", &r.photons_per_pixel, plausible::kPhotonsPerPixel);
+  im.GetInRange("read_noise_gray", &r.read_noise_gray, plausible::kGreyLevel);
   im.GetNonNegative("blur_sigma_px", &r.blur_sigma_px);
   im.GetNonNegative("vignetting", &r.vignetting);
-  im.GetNonNegative("outside_fov_gray", &r.outside_fov_gray);
+  im.GetInRange("outside_fov_gray", &r.outside_fov_gray, plausible::kGreyLevel);
   if (im.status().ok() && (r.supersampling < 1 || r.supersampling > 16)) {
     im.Fail("supersampling", "expected an integer in 1..16");
   }
@@ -223,8 +223,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     pl.Get("cols", &s.plate.cols);
     pl.GetPositive("pitch_mm", &s.plate.pitch_mm);
     pl.GetPositive("sphere_diameter_mm", &s.plate.sphere_diameter_mm);
-    pl.GetNonNegative("thickness_mm", &s.plate.thickness_mm);
-    pl.GetNonNegative("margin_mm", &s.plate.margin_mm);
+    pl.GetInRange("thickness_mm", &s.plate.thickness_mm, plausible::kLengthMm);
+    pl.GetInRange("margin_mm", &s.plate.margin_mm, plausible::kLengthMm);
     pl.Get("sphere_material", &s.plate.sphere_material);
     pl.Get("plate_material", &s.plate.plate_material);
     std::string error;

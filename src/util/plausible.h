@@ -46,10 +46,20 @@ inline constexpr PlausibleRange kIntrinsicSigma{0, 1e6, ""};
 // outside the image arise from extrapolated or legacy coordinates).
 inline constexpr PlausibleRange kPixelCoordinatePx{-1e5, 1e5, "px"};
 
+// Simulated detected photons per pixel (0 = noise-free): a fluoroscopy frame has 100..1000, a
+// radiograph 1e4..1e5; beyond 1e9 the quantum noise is below a 16-bit grey level, and the Poisson
+// sampler never returned for 1e300.
+inline constexpr PlausibleRange kPhotonsPerPixel{0, 1e9, "photons"};
+// Grey levels of a simulated image (white level, read noise, outside-field level): 16-bit images
+// reach 65535; 1e6 leaves room for float output.
+inline constexpr PlausibleRange kGreyLevel{0, 1e6, "grey levels"};
+
 // --- Objects, CT, geometry ----------------------------------------------------------------------
 // A coordinate of a marker or grid point (object or CT patient frame): 10 m either way, far
 // beyond an operating table; a metre-for-millimetre slip lands outside.
 inline constexpr PlausibleRange kCoordinateMm{-1e4, 1e4, "mm"};
+// A thickness, margin or padding of a simulated object: 0 .. 10 m.
+inline constexpr PlausibleRange kLengthMm{0, 1e4, "mm"};
 // A distance of the C-arm geometry (source-to-detector, source-to-object, object distance): up
 // to 10 m.
 inline constexpr PlausibleRange kDistanceMm{1, 1e4, "mm"};

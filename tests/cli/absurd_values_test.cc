@@ -171,6 +171,14 @@ TEST_F(AbsurdInput, SceneFile) {
   dir_.Write("fx.yaml", Corrupt(scene, "fx: 2061.389", "fx: 1e308"));
   ExpectFails("simulate --scene " + dir_.File("fx.yaml"),
               "fx.yaml:14: key 'camera.fx': expected 1 .. 1e+06 px, got 1e+308");
+  // Was: the simulator never returned (Poisson sampling with a mean of 1e300).
+  dir_.Write("photons.yaml", Corrupt(scene, "photons_per_pixel: 250", "photons_per_pixel: 1e300"));
+  ExpectFails("simulate --scene " + dir_.File("photons.yaml"),
+              "photons.yaml:34: key 'imaging.photons_per_pixel': expected 0 .. 1e+09 photons, got "
+              "1e+300");
+  dir_.Write("thick.yaml", Corrupt(scene, "thickness_mm: 5", "thickness_mm: 1e300"));
+  ExpectFails("simulate --scene " + dir_.File("thick.yaml"),
+              "thick.yaml:45: key 'plate.thickness_mm': expected 0 .. 10000 mm, got 1e+300");
 }
 
 }  // namespace
