@@ -181,5 +181,17 @@ TEST_F(AbsurdInput, SceneFile) {
               "thick.yaml:45: key 'plate.thickness_mm': expected 0 .. 10000 mm, got 1e+300");
 }
 
+TEST_F(AbsurdInput, CtSceneFile) {
+  const std::string scene = Slurp(kSource + "/configs/scenes/thesis_ct.yaml");
+  ASSERT_FALSE(scene.empty());
+  dir_.Write("pixel.yaml",
+             Corrupt(scene, "pixel_spacing_mm: 0.3515625", "pixel_spacing_mm: 1e300"));
+  ExpectFails("simulate --scene " + dir_.File("pixel.yaml"),
+              "pixel.yaml:21: key 'ct.pixel_spacing_mm': expected 0.001 .. 10 mm, got 1e+300");
+  dir_.Write("hu.yaml", Corrupt(scene, "air_hu: -1000", "air_hu: -1e200"));
+  ExpectFails("simulate --scene " + dir_.File("hu.yaml"),
+              "hu.yaml:17: key 'air_hu': expected -1024 .. 32767 HU, got -1e+200");
+}
+
 }  // namespace
 }  // namespace carmba::test
