@@ -355,14 +355,12 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
                                const std::string& out_dir,
                                const std::string& mrcal_work_dir) {
   namespace fs = std::filesystem;
-  const std::string tmp = out_dir + ".tmp." + std::to_string(::getpid());
+  // Staged beside out_dir when it does not exist, inside it when it does (file_util.h): the
+  // final renames never cross file systems, even when out_dir is a mount point.
+  StagedOutputDir staged(out_dir);
+  CARMBA_RETURN_IF_ERROR(staged.Begin());
+  const std::string& tmp = staged.path();
   std::error_code ec;
-  fs::remove_all(tmp, ec);
-  CARMBA_RETURN_IF_ERROR(MakeDirs(tmp));
-  auto fail = [&](const Status& s) {
-    fs::remove_all(tmp, ec);
-    return s;
-  };
   const std::pair<std::string, std::string> files[] = {
       {"camera.json", CalibrationCameraJson(run).dump(2) + "\n"},
       {"camera.cameramodel", MrcalCameraModelText(run.result)},
@@ -370,30 +368,15 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
       {"corners.vnl", CornersVnl(run.observations)},
       {"report.md", CalibrationReportMarkdown(run)}};
   for (const auto& [name, text] : files) {
-    Status s = WriteFileAtomic(JoinPath(tmp, name), text);
-    if (!s.ok()) return fail(s);
+    CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(tmp, name), text));
   }
-  Status s = WriteObservationsCsv(run.observations, JoinPath(tmp, "observations.csv"));
-  if (!s.ok()) return fail(s);
+  CARMBA_RETURN_IF_ERROR(WriteObservationsCsv(run.observations, JoinPath(tmp, "observations.csv")));
   if (!mrcal_work_dir.empty() && IsDirectory(mrcal_work_dir)) {
     fs::copy(mrcal_work_dir, JoinPath(tmp, "mrcal"), fs::copy_options::recursive, ec);
-    if (ec) return fail(Status::Error("copying " + mrcal_work_dir + ": " + ec.message()));
+    if (ec) return Status::Error("copying " + mrcal_work_dir + ": " + ec.message());
   }
-  // Move into place: the whole directory if out_dir does not exist, else file by file.
-  if (!fs::exists(out_dir)) {
-    const std::string parent = DirName(out_dir);
-    if (!parent.empty() && parent != ".") MakeDirs(parent);
-    fs::rename(tmp, out_dir, ec);
-    if (ec) return fail(Status::Error("cannot create " + out_dir + ": " + ec.message()));
-    return Status::Ok();
-  }
-  if (!fs::is_directory(out_dir)) return fail(Status::Error(out_dir + ": exists and is not a directory"));
-  if (fs::exists(JoinPath(out_dir, "mrcal"))) fs::remove_all(JoinPath(out_dir, "mrcal"), ec);
-  for (const auto& e : fs::directory_iterator(tmp)) {
-    fs::rename(e.path(), fs::path(out_dir) / e.path().filename(), ec);
-    if (ec) return fail(Status::Error("cannot write into " + out_dir + ": " + ec.message()));
-  }
-  fs::remove_all(tmp, ec);
+  // Into place; an existing out_dir keeps its other files, a previous mrcal/ is replaced.
+  CARMBA_RETURN_IF_ERROR(staged.Commit(/*replace_all=*/false));
   return Status::Ok();
 }
 

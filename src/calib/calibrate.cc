@@ -9,6 +9,7 @@
 #include <cmath>
 #include <memory>
 
+#include "util/plausible.h"
 #include "util/yaml_reader.h"
 
 namespace carmba {
@@ -629,26 +630,36 @@ bool CalibrationOptions::Check(std::string* error) const {
     *error = "principal_point_px: expected [cx, cy] or []";
     return false;
   }
-  if (!initial_intrinsics.empty() &&
-      (initial_intrinsics.size() != kNumIntrinsics || !(initial_intrinsics[0] > 0) ||
-       !(initial_intrinsics[1] > 0))) {
-    *error = "initial_intrinsics: expected 9 values [fx, fy, cx, cy, k1, k2, p1, p2, k3], fx, fy > 0";
+  namespace pl = plausible;
+  for (size_t i = 0; i < principal_point_px.size(); ++i) {
+    if (!CheckRange("principal_point_px: element " + std::to_string(i), principal_point_px[i],
+                    pl::kPixelCoordinatePx, error)) {
+      return false;
+    }
+  }
+  if (!initial_intrinsics.empty() && initial_intrinsics.size() != kNumIntrinsics) {
+    *error = "initial_intrinsics: expected 9 values [fx, fy, cx, cy, k1, k2, p1, p2, k3]";
     return false;
+  }
+  for (size_t i = 0; i < initial_intrinsics.size(); ++i) {
+    const PlausibleRange& r = i < 2 ? pl::kFocalPx : i < 4 ? pl::kPixelCoordinatePx : pl::kDistortion;
+    if (!CheckRange(std::string("initial_intrinsics: ") + kIntrinsicNames[i],
+                    initial_intrinsics[i], r, error)) {
+      return false;
+    }
   }
   if (robust_loss != "none" && robust_loss != "huber" && robust_loss != "cauchy") {
     *error = "robust_loss: expected none, huber or cauchy, got '" + robust_loss + "'";
     return false;
   }
-  if (!(robust_loss_scale_px > 0)) {
-    *error = "robust_loss_scale_px: expected > 0";
+  if (!CheckRange("robust_loss_scale_px", robust_loss_scale_px, pl::kLossScalePx, error) ||
+      !CheckRange("outlier_threshold_sigma", outlier_threshold_sigma, pl::kSigmaMultiple,
+                  error)) {
     return false;
   }
-  if (!(outlier_threshold_sigma > 0)) {
-    *error = "outlier_threshold_sigma: expected > 0";
-    return false;
-  }
-  if (!(pixel_sigma_px >= 0) || !std::isfinite(pixel_sigma_px)) {
-    *error = "pixel_sigma_px: expected >= 0 (0 = estimate)";
+  if (pixel_sigma_px != 0 && !InRange(pixel_sigma_px, pl::kPixelSigmaPx)) {
+    *error = "pixel_sigma_px: expected 0 (estimate) or " + FormatRange(pl::kPixelSigmaPx) +
+             ", got " + FormatCompact(pixel_sigma_px);
     return false;
   }
   if (min_views < 1) {
@@ -659,18 +670,17 @@ bool CalibrationOptions::Check(std::string* error) const {
     *error = "max_iterations: expected >= 1";
     return false;
   }
-  if (!(uncertainty_distance_mm >= 0)) {
-    *error = "uncertainty_distance_mm: expected >= 0 (0 = median plate distance)";
+  if (!CheckRange("max_iterations", max_iterations, pl::kMaxIterations, error)) return false;
+  if (uncertainty_distance_mm != 0 && !InRange(uncertainty_distance_mm, pl::kDistanceMm)) {
+    *error = "uncertainty_distance_mm: expected 0 (the median plate distance) or " +
+             FormatRange(pl::kDistanceMm) + ", got " + FormatCompact(uncertainty_distance_mm);
     return false;
   }
   if (solver != "lm" && solver != "ceres") {
     *error = "solver: expected lm or ceres, got '" + solver + "'";
     return false;
   }
-  if (num_threads < 1) {
-    *error = "num_threads: expected >= 1";
-    return false;
-  }
+  if (!CheckRange("num_threads", num_threads, pl::kThreads, error)) return false;
   return true;
 }
 
@@ -695,13 +705,13 @@ Status LoadCalibrationOptions(const std::string& path,
   m.Get("fix_k3", &o->fix_k3);
   m.Get("initial_intrinsics", &o->initial_intrinsics);
   m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &o->robust_loss);
-  m.GetPositive("robust_loss_scale_px", &o->robust_loss_scale_px);
-  m.GetPositive("outlier_threshold_sigma", &o->outlier_threshold_sigma);
+  m.GetInRange("robust_loss_scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
+  m.GetInRange("outlier_threshold_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
   m.GetNonNegative("pixel_sigma_px", &o->pixel_sigma_px);
   m.Get("min_views", &o->min_views);
-  m.Get("max_iterations", &o->max_iterations);
+  m.GetInRange("max_iterations", &o->max_iterations, plausible::kMaxIterations);
   m.GetNonNegative("uncertainty_distance_mm", &o->uncertainty_distance_mm);
-  m.Get("num_threads", &o->num_threads);
+  m.GetInRange("num_threads", &o->num_threads, plausible::kThreads);
   m.GetEnum("solver", {"lm", "ceres"}, &o->solver);
   for (const auto& k : other_keys) {
     if (m.Has(k)) m.Raw(k);

@@ -1,8 +1,11 @@
 #include "camera/camera.h"
 
+#include <algorithm>
 #include <cmath>
+#include <set>
 
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 namespace carmba {
 
@@ -10,13 +13,79 @@ const char* const kIntrinsicNames[kNumIntrinsics] = {"fx", "fy", "cx", "cy", "k1
                                                      "k2", "p1", "p2", "k3"};
 
 Status Camera::Check() const {
-  if (width <= 0 || height <= 0) return Status::Error("image_size must be positive");
-  for (int i = 0; i < kNumIntrinsics; ++i) {
-    if (!std::isfinite(params[i])) {
-      return Status::Error(std::string(kIntrinsicNames[i]) + " is not finite");
+  namespace pl = plausible;
+  std::string e;
+  if (!CheckRange("key 'image_size': width", width, pl::kImageSizePx, &e) ||
+      !CheckRange("key 'image_size': height", height, pl::kImageSizePx, &e) ||
+      !CheckRange("key 'fx'", params[kFx], pl::kFocalPx, &e) ||
+      !CheckRange("key 'fy'", params[kFy], pl::kFocalPx, &e)) {
+    return Status::Error(e);
+  }
+  // The principal point's range is in image sizes; stated in px for this image.
+  const double size[2] = {static_cast<double>(width), static_cast<double>(height)};
+  for (int i = 0; i < 2; ++i) {
+    const PlausibleRange r{pl::kPrincipalPointImageSizes.lo * size[i],
+                           pl::kPrincipalPointImageSizes.hi * size[i], "px"};
+    if (!CheckRange(std::string("key '") + kIntrinsicNames[kCx + i] + "'", params[kCx + i], r,
+                    &e)) {
+      return Status::Error(e + " (" + FormatCompact(pl::kPrincipalPointImageSizes.lo) + " .. " +
+                           FormatCompact(pl::kPrincipalPointImageSizes.hi) + " x the image " +
+                           (i == 0 ? "width" : "height") + ")");
     }
   }
-  if (!(params[kFx] > 0) || !(params[kFy] > 0)) return Status::Error("fx and fy must be positive");
+  for (int i = 4; i < kNumIntrinsics; ++i) {
+    if (!CheckRange("key 'distortion': element " + std::to_string(i - 4) + " (" +
+                        kIntrinsicNames[i] + ")",
+                    params[i], pl::kDistortion, &e)) {
+      return Status::Error(e);
+    }
+  }
+  if (covariance_names.empty() && covariance.empty()) return Status::Ok();
+  const size_t n = covariance_names.size();
+  std::set<std::string> seen;
+  for (const auto& name : covariance_names) {
+    bool known = false;
+    for (const char* k : kIntrinsicNames) known = known || name == k;
+    if (!known || !seen.insert(name).second) {
+      return Status::Error("key 'covariance.names': expected distinct intrinsic names (fx fy cx "
+                           "cy k1 k2 p1 p2 k3), got '" + name + "'");
+    }
+  }
+  if (covariance.size() != n) {
+    return Status::Error("key 'covariance.matrix': expected " + std::to_string(n) + " rows (one "
+                         "per name), got " + std::to_string(covariance.size()));
+  }
+  for (size_t r = 0; r < n; ++r) {
+    if (covariance[r].size() != n) {
+      return Status::Error("key 'covariance.matrix': row " + std::to_string(r) + ": expected " +
+                           std::to_string(n) + " numbers, got " +
+                           std::to_string(covariance[r].size()));
+    }
+  }
+  double max_var = 0;
+  for (size_t r = 0; r < n; ++r) {
+    const double var = covariance[r][r];
+    if (!CheckRange("key 'covariance.matrix': the sigma of " + covariance_names[r] +
+                        " (square root of the diagonal)",
+                    var >= 0 ? std::sqrt(var) : var, pl::kIntrinsicSigma, &e)) {
+      return Status::Error(e);
+    }
+    max_var = std::max(max_var, var);
+  }
+  for (size_t r = 0; r < n; ++r) {
+    for (size_t c = 0; c < n; ++c) {
+      // |cov_rc| <= sigma_r sigma_c (a correlation within [-1, 1]) and cov_rc = cov_cr, with
+      // slack for the rounding of a written file and of a computed covariance.
+      const double limit = std::sqrt(covariance[r][r] * covariance[c][c]);
+      const double slack = 1e-6 * limit + 1e-12 * max_var;
+      if (!std::isfinite(covariance[r][c]) || std::fabs(covariance[r][c]) > limit + slack ||
+          std::fabs(covariance[r][c] - covariance[c][r]) > slack) {
+        return Status::Error("key 'covariance.matrix': element [" + std::to_string(r) + "][" +
+                             std::to_string(c) + "] = " + FormatCompact(covariance[r][c]) +
+                             ": expected a symmetric matrix with correlations within [-1, 1]");
+      }
+    }
+  }
   return Status::Ok();
 }
 
@@ -38,8 +107,18 @@ StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& wher
       !j["image_size"][0].is_number_integer() || !j["image_size"][1].is_number_integer()) {
     return Status::Error(where + ": key 'image_size': expected [width, height] in px");
   }
-  c.width = j["image_size"][0].get<int>();
-  c.height = j["image_size"][1].get<int>();
+  // Beyond int (e.g. 99999999999) the cast would wrap: out-of-range sizes are kept out of it and
+  // reported by Check().
+  const double size[2] = {j["image_size"][0].get<double>(), j["image_size"][1].get<double>()};
+  for (int i = 0; i < 2; ++i) {
+    if (!InRange(size[i], plausible::kImageSizePx)) {
+      return Status::Error(where + ": key 'image_size': " + (i == 0 ? "width" : "height") +
+                           ": expected " + FormatRange(plausible::kImageSizePx) + ", got " +
+                           FormatCompact(size[i]));
+    }
+  }
+  c.width = static_cast<int>(size[0]);
+  c.height = static_cast<int>(size[1]);
   for (int i = 0; i < 4; ++i) {
     auto v = Num(j, kIntrinsicNames[i], where);
     if (!v.ok()) return v.status();
@@ -58,12 +137,22 @@ StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& wher
       c.params[4 + i] = d[i].get<double>();
     }
   }
-  if (j.contains("covariance") && j["covariance"].is_object()) {
+  if (j.contains("covariance")) {
     const auto& cov = j["covariance"];
-    if (cov.contains("names") && cov.contains("matrix")) {
-      c.covariance_names = cov["names"].get<std::vector<std::string>>();
-      c.covariance = cov["matrix"].get<std::vector<std::vector<double>>>();
+    const auto& names = cov.is_object() && cov.contains("names") ? cov["names"] : nlohmann::json();
+    const auto& matrix = cov.is_object() && cov.contains("matrix") ? cov["matrix"] : nlohmann::json();
+    bool ok = names.is_array() && matrix.is_array();
+    for (const auto& nm : names) ok = ok && nm.is_string();
+    for (const auto& row : matrix) {
+      ok = ok && row.is_array();
+      for (const auto& x : row) ok = ok && x.is_number();
     }
+    if (!ok) {
+      return Status::Error(where + ": key 'covariance': expected {\"names\": [\"fx\", ...], "
+                           "\"matrix\": [[numbers], ...]}");
+    }
+    c.covariance_names = names.get<std::vector<std::string>>();
+    c.covariance = matrix.get<std::vector<std::vector<double>>>();
   }
   Status s = c.Check();
   if (!s.ok()) return s.WithContext(where);

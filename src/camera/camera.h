@@ -29,7 +29,10 @@ struct Camera {
   std::vector<std::string> covariance_names;
   std::vector<std::vector<double>> covariance;
 
-  // fx, fy > 0, all finite, image size positive.
+  // Every value within its plausible range (util/plausible.h): image size, fx, fy, cx, cy (in
+  // image sizes), distortion; the covariance square, symmetric, over distinct intrinsic names,
+  // with plausible sigmas and correlations within [-1, 1]. The message names the key, the range
+  // and the value; callers prefix the file.
   Status Check() const;
 };
 

@@ -31,6 +31,7 @@
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 #include "util/yaml_reader.h"
 
 DEFINE_string(observations, "", "Pre-detected observations.csv (instead of --images).");
@@ -77,7 +78,7 @@ int RunCalibrate() {
   double spacing = FLAGS_spacing_mm;
   {
     std::string err;
-    if (!cli::CheckSpacingFlag(&err)) return cli::Fail(kCmd, err);
+    if (!cli::CheckGridFlags(&err)) return cli::Fail(kCmd, err);
   }
   if (!FLAGS_problem.empty()) {
     YamlMap p = YamlMap::Load(FLAGS_problem);
@@ -89,10 +90,10 @@ int RunCalibrate() {
     p.Get("images", &p_images);
     p.Get("observations", &p_obs);
     p.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &pattern);
-    p.Get("rows", &rows);
-    p.Get("cols", &cols);
+    p.GetInRange("rows", &rows, plausible::kGridRowsCols);
+    p.GetInRange("cols", &cols, plausible::kGridRowsCols);
     double p_spacing = 0;
-    p.GetPositive("spacing_mm", &p_spacing);
+    p.GetInRange("spacing_mm", &p_spacing, plausible::kGridSpacingMm);
     p.Get("config", &p_config);
     p.Get("truth", &p_truth);
     Status s = p.Finish();
@@ -104,6 +105,10 @@ int RunCalibrate() {
     if (spacing == 0) spacing = p_spacing;
   }
   if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
   if (images.empty() == observations.empty()) {
     return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
   }

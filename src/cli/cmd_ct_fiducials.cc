@@ -11,6 +11,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "ct/ct_fiducials.h"
+#include "util/file_util.h"
 
 DEFINE_string(dicom, "", "Directory of the DICOM CT series (files in any order, any names).");
 DEFINE_string(series_uid, "", "SeriesInstanceUID to read when the directory mixes several series.");
@@ -35,6 +36,10 @@ int RunCtFiducials() {
   const std::string cmd = "ct-fiducials";
   if (FLAGS_dicom.empty()) return carmba::cli::Fail(cmd, "--dicom DIR is required");
   if (FLAGS_out.empty()) return carmba::cli::Fail(cmd, "--out fiducials.csv is required");
+  {
+    const carmba::Status s = carmba::CheckOutputFile(FLAGS_out, "--out");
+    if (!s.ok()) return carmba::cli::Fail(cmd, s);
+  }
   carmba::CtFiducialsOptions options;
   options.read.series_uid = FLAGS_series_uid;
   options.model_csv = FLAGS_model;

@@ -19,6 +19,10 @@ int RunDetect() {
   const char* kCmd = "detect";
   if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
   if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (observations.csv) is required");
+  {
+    const Status s = CheckOutputFile(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
   auto pat = ParseGridPattern(FLAGS_pattern);
   if (!pat.ok()) return cli::Fail(kCmd, pat.status().WithContext("--pattern"));
   GridSpec grid;
@@ -26,7 +30,7 @@ int RunDetect() {
   grid.rows = FLAGS_rows;
   grid.cols = FLAGS_cols;
   std::string err;
-  if (!cli::CheckSpacingFlag(&err)) return cli::Fail(kCmd, err);
+  if (!cli::CheckGridFlags(&err)) return cli::Fail(kCmd, err);
   grid.spacing_mm = FLAGS_spacing_mm > 0 ? FLAGS_spacing_mm : 20.0;  // recorded in the CSV
   if (!grid.Check(&err)) return cli::Fail(kCmd, err);
   DetectionOptions options;

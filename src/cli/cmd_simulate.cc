@@ -1,8 +1,9 @@
 // `carmba simulate --scene configs/scenes/NAME.yaml --out DIR`: renders a simulated X-ray scene
 // (sim/xray_scene.h) or CT scene (ct/ct_simulate.h) into DIR with DIR/truth.json.
 //
-// Everything is written into a temporary directory beside DIR and renamed to DIR at the end, so
-// an error leaves no partial output. An existing non-empty DIR is an error unless --overwrite.
+// Everything is written into a staging directory (beside DIR, or inside an existing DIR) and moved
+// into place at the end, so an error leaves no partial output. An existing non-empty DIR is an
+// error unless --overwrite, which replaces its contents.
 #include <gflags/gflags.h>
 #include <unistd.h>
 
@@ -161,11 +162,12 @@ int RunSimulate() {
   if (FLAGS_out.empty()) return carmba::cli::Fail(cmd, "--out is required");
   fs::path out = fs::path(FLAGS_out).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();  // trailing '/'
+  {
+    const carmba::Status s = carmba::CheckOutputDir(out.string(), "--out");
+    if (!s.ok()) return carmba::cli::Fail(cmd, s);
+  }
   std::error_code ec;
   const bool exists = fs::exists(out, ec);
-  if (exists && !fs::is_directory(out, ec)) {
-    return carmba::cli::Fail(cmd, out.string() + ": exists and is not a directory");
-  }
   const bool non_empty = exists && !fs::is_empty(out, ec);
   if (non_empty && !FLAGS_overwrite) {
     return carmba::cli::Fail(cmd,
@@ -173,31 +175,14 @@ int RunSimulate() {
                                  ": output directory exists and is not empty "
                                  "(use --overwrite to replace it)");
   }
-  const std::string suffix = "." + std::to_string(::getpid());
-  const fs::path tmp = out.string() + ".tmp" + suffix;
-  fs::remove_all(tmp, ec);
+  // Staged beside DIR when it does not exist, inside it when it does (util/file_util.h), so that
+  // the final renames never cross file systems (DIR may be a mount point).
+  carmba::StagedOutputDir staged(out.string());
+  carmba::Status status = staged.Begin();
   const bool override_seed = !gflags::GetCommandLineFlagInfoOrDie("seed").is_default;
-  carmba::Status status = Simulate(FLAGS_scene, tmp.string(), override_seed);
-  if (status.ok()) {
-    const fs::path old = out.string() + ".old" + suffix;
-    if (exists) fs::rename(out, old, ec);
-    if (!ec) fs::rename(tmp, out, ec);
-    if (ec) {
-      status = carmba::Status::Error(out.string() +
-                                     ": cannot move the result into place: " + ec.message());
-      if (exists) {
-        std::error_code ec2;
-        fs::rename(old, out, ec2);
-      }
-    } else if (exists) {
-      fs::remove_all(old, ec);
-    }
-  }
-  if (!status.ok()) {
-    std::error_code ec2;
-    fs::remove_all(tmp, ec2);
-    return carmba::cli::Fail(cmd, status);
-  }
+  if (status.ok()) status = Simulate(FLAGS_scene, staged.path(), override_seed);
+  if (status.ok()) status = staged.Commit(/*replace_all=*/true);
+  if (!status.ok()) return carmba::cli::Fail(cmd, status);
   std::cout << "wrote " << out.string() << " (truth.json)\n";
   return 0;
 }

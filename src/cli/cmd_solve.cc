@@ -25,9 +25,12 @@ int RunJoint() {
   if (!solution.ok()) return cli::Fail("solve", solution.status());
   const nlohmann::json j = JointSolutionToJson(*problem, *config, *solution);
   const std::string report = JointReportMarkdown(*problem, *config, *solution);
-  Status s = MakeDirs(FLAGS_out);
-  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "report.md"), report);
-  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "result.json"), j.dump(2) + "\n");
+  // Both files or neither; other files in an existing --out are kept.
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (!solution->result.converged) {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
@@ -47,6 +50,10 @@ int RunSolve() {
   if (FLAGS_problem.empty()) return cli::Fail("solve", "--problem is required");
   if (FLAGS_config.empty()) return cli::Fail("solve", "--config is required");
   if (FLAGS_out.empty()) return cli::Fail("solve", "--out is required");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail("solve", s);
+  }
   if (IsJointProblemFile(FLAGS_problem)) return RunJoint();
   auto problem = LoadPoseProblem(FLAGS_problem);
   if (!problem.ok()) return cli::Fail("solve", problem.status());
@@ -59,9 +66,13 @@ int RunSolve() {
   j["comparison"] = PoseComparisonToJson(*problem, comparison);
   const std::string report = PoseReportMarkdown(*problem, *config, *solution, comparison);
 
-  Status s = MakeDirs(FLAGS_out);
-  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "report.md"), report);
-  if (s.ok()) s = WriteFileAtomic(JoinPath(FLAGS_out, "result.json"), j.dump(2) + "\n");
+  // Both files or neither (a failed second write used to leave report.md behind); other files in
+  // an existing --out are kept.
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (config->refine && solution->termination != "CONVERGENCE") {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("

@@ -27,8 +27,16 @@ int RunStudyCommand() {
   using namespace carmba;
   if (FLAGS_study.empty()) return cli::Fail("study", "--study is required (a study YAML file)");
   if (FLAGS_out.empty()) return cli::Fail("study", "--out is required (an output directory)");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail("study", s);
+  }
   StudyRunOptions options;
   options.out_dir = FLAGS_out;
+  {
+    std::string err;
+    if (!cli::CheckJobsFlag(&err)) return cli::Fail("study", err);
+  }
   options.jobs = FLAGS_jobs;
   options.resume = FLAGS_resume;
   options.progress = ::isatty(STDERR_FILENO) == 1;

@@ -12,6 +12,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "study/runner.h"
+#include "util/file_util.h"
 
 DEFINE_string(shards, "", "Shard output directories: a comma-separated list, each item a "
                           "directory or a glob pattern (quoted), e.g. 'out/shard-*'.");
@@ -25,6 +26,10 @@ int RunStudyMerge() {
   using namespace carmba;
   if (FLAGS_shards.empty()) return cli::Fail("study-merge", "--shards is required");
   if (FLAGS_out.empty()) return cli::Fail("study-merge", "--out is required");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail("study-merge", s);
+  }
   std::vector<std::string> dirs;
   std::stringstream ss(FLAGS_shards);
   std::string item;

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "util/plausible.h"
+
 DEFINE_string(out, "", "Output directory (or file, where the command says so).");
 DEFINE_string(config, "", "Configuration YAML (how it is solved).");
 DEFINE_string(problem, "", "Problem YAML (what is estimated from which data).");
@@ -17,11 +19,24 @@ DEFINE_int32(jobs, 0, "Parallel jobs (0 = all cores).");
 namespace carmba::cli {
 bool CheckSpacingFlag(std::string* error) {
   if (FLAGS_spacing_mm == 0) return true;
-  if (!(FLAGS_spacing_mm > 0) || !std::isfinite(FLAGS_spacing_mm)) {
-    *error = "--spacing_mm: expected a positive number of mm, got " +
-             std::to_string(FLAGS_spacing_mm);
+  if (!InRange(FLAGS_spacing_mm, plausible::kGridSpacingMm)) {
+    *error = "--spacing_mm: expected 0 (not given) or " +
+             FormatRange(plausible::kGridSpacingMm) + ", got " + FormatCompact(FLAGS_spacing_mm);
     return false;
   }
   return true;
+}
+
+bool CheckGridFlags(std::string* error) {
+  return CheckRange("--rows", FLAGS_rows, plausible::kGridRowsCols, error) &&
+         CheckRange("--cols", FLAGS_cols, plausible::kGridRowsCols, error) &&
+         CheckSpacingFlag(error);
+}
+
+bool CheckJobsFlag(std::string* error) {
+  if (InRange(FLAGS_jobs, plausible::kJobs)) return true;
+  *error = "--jobs: expected " + FormatRange(plausible::kJobs) + " (0 = all cores), got " +
+           std::to_string(FLAGS_jobs);
+  return false;
 }
 }  // namespace carmba::cli

@@ -21,6 +21,12 @@ DECLARE_uint64(seed);     // random seed
 DECLARE_int32(jobs);      // parallel jobs (0 = all cores)
 
 namespace carmba::cli {
-// --spacing_mm checked: 0 (not given) or a positive finite number. Returns false with `error`.
+// The numeric flags checked against their plausible ranges (util/plausible.h); each returns false
+// with `error` naming the flag, the range and the value.
+// --spacing_mm: 0 (not given) or plausible::kGridSpacingMm.
 bool CheckSpacingFlag(std::string* error);
+// --rows and --cols (plausible::kGridRowsCols), and --spacing_mm.
+bool CheckGridFlags(std::string* error);
+// --jobs: plausible::kJobs (0 = all cores).
+bool CheckJobsFlag(std::string* error);
 }  // namespace carmba::cli

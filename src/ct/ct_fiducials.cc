@@ -10,6 +10,7 @@
 
 #include "util/csv.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 namespace carmba {
 
@@ -57,12 +58,11 @@ std::string BaseName(const std::string& p) {
 
 bool CtFiducialsOptions::Check(std::string* error) const {
   if (!read.Check(error) || !detect.Check(error)) return false;
-  if (!(extra_sigma_mm >= 0) || !std::isfinite(extra_sigma_mm)) {
-    *error = "extra sigma must be >= 0 mm";
+  if (extra_sigma_mm != 0 &&
+      !CheckRange("extra_sigma_mm (0: none)", extra_sigma_mm, plausible::kToleranceMm, error)) {
     return false;
   }
-  if (!(label_tolerance_mm > 0)) {
-    *error = "labelling tolerance must be > 0 mm";
+  if (!CheckRange("label_tolerance_mm", label_tolerance_mm, plausible::kToleranceMm, error)) {
     return false;
   }
   int k = 0;
@@ -358,7 +358,8 @@ StatusOr<std::vector<CtFiducialRow>> ReadFiducialsCsv(const std::string& path) {
     if (!id.ok()) return id.status();
     f.id = *id;
     for (int c = 0; c < 11; ++c) {
-      auto x = t->Number(r, cols[c + 1]);
+      auto x = c < 3 ? t->NumberIn(r, cols[c + 1], plausible::kCoordinateMm)
+                     : t->Number(r, cols[c + 1]);
       if (!x.ok()) return x.status();
       v[c] = *x;
     }

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "util/csv.h"
+#include "util/plausible.h"
 #include "util/file_util.h"
 
 namespace carmba {
@@ -33,11 +34,24 @@ template <typename T>
 void Opt(YamlMap& m, const std::string& key, T* out) {
   if (m.Has(key)) m.Get(key, out);
 }
-void OptPositive(YamlMap& m, const std::string& key, double* out) {
-  if (m.Has(key)) m.GetPositive(key, out);
+// CT noise: 0 (noise-free) up to the largest CT value.
+constexpr PlausibleRange kNoiseHu{0, plausible::kHounsfield.hi, "HU"};
+
+void OptIn(YamlMap& m, const std::string& key, double* out, const PlausibleRange& range) {
+  if (m.Has(key)) m.GetInRange(key, out, range);
 }
-void OptNonNegative(YamlMap& m, const std::string& key, double* out) {
-  if (m.Has(key)) m.GetNonNegative(key, out);
+// Each of a list's numbers within `range`.
+void CheckEach(YamlMap& m,
+               const std::string& key,
+               const std::vector<double>& v,
+               const PlausibleRange& range) {
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (!InRange(v[i], range)) {
+      m.Fail(key, "element " + std::to_string(i) + ": expected " + FormatRange(range) +
+                      ", got " + FormatCompact(v[i]));
+      return;
+    }
+  }
 }
 
 Status ReadMarkersCsv(const std::string& path,
@@ -57,7 +71,7 @@ Status ReadMarkersCsv(const std::string& path,
     if (!id.ok()) return id.status().WithContext(where);
     m.id = *id;
     for (int a = 0; a < 3; ++a) {
-      auto x = table->Number(r, columns[a]);
+      auto x = table->NumberIn(r, columns[a], plausible::kCoordinateMm);
       if (!x.ok()) return x.status().WithContext(where);
       m.centre_mm[a] = *x;
     }
@@ -116,17 +130,19 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   Opt(mk, "id_column", &id_column);
   Opt(mk, "columns", &columns);
   if (columns.size() != 3) mk.Fail("columns", "expected 3 column names (x, y, z)");
-  OptPositive(mk, "diameter_mm", &s.phantom.marker_diameter_mm);
-  Opt(mk, "hu", &s.phantom.marker_hu);
+  OptIn(mk, "diameter_mm", &s.phantom.marker_diameter_mm, plausible::kMarkerDiameterMm);
+  OptIn(mk, "hu", &s.phantom.marker_hu, plausible::kHounsfield);
 
   YamlMap& bl = scene.Map("block");
   double padding_mm = 5;
   std::vector<double> block_centre, block_size;
   Opt(bl, "enabled", &s.phantom.has_block);
-  OptNonNegative(bl, "padding_mm", &padding_mm);
+  OptIn(bl, "padding_mm", &padding_mm, plausible::kLengthMm);
   Opt(bl, "centre_mm", &block_centre);
   Opt(bl, "size_mm", &block_size);
-  Opt(bl, "hu", &s.phantom.block_hu);
+  OptIn(bl, "hu", &s.phantom.block_hu, plausible::kHounsfield);
+  CheckEach(bl, "centre_mm", block_centre, plausible::kCoordinateMm);
+  CheckEach(bl, "size_mm", block_size, plausible::kLengthMm);
   if (!block_centre.empty() && block_centre.size() != 3) bl.Fail("centre_mm", "expected 3 numbers");
   if (!block_size.empty() && block_size.size() != 3) bl.Fail("size_mm", "expected 3 numbers");
   if (block_centre.empty() != block_size.empty()) {
@@ -136,7 +152,7 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   for (double v : block_size) {
     if (!(v > 0)) bl.Fail("size_mm", "expected 3 positive sizes");
   }
-  Opt(scene, "air_hu", &s.phantom.air_hu);
+  OptIn(scene, "air_hu", &s.phantom.air_hu, plausible::kHounsfield);
 
   YamlMap& ct = scene.Map("ct");
   int columns_px = 512, rows_px = 512, slices = 120;
@@ -145,13 +161,13 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   Opt(ct, "columns", &columns_px);
   Opt(ct, "rows", &rows_px);
   Opt(ct, "slices", &slices);
-  OptPositive(ct, "pixel_spacing_mm", &pixel_mm);
-  OptPositive(ct, "slice_spacing_mm", &spacing_mm);
-  OptPositive(ct, "slice_thickness_mm", &thickness_mm);
+  OptIn(ct, "pixel_spacing_mm", &pixel_mm, plausible::kPixelPitchMm);
+  OptIn(ct, "slice_spacing_mm", &spacing_mm, plausible::kPixelPitchMm);
+  OptIn(ct, "slice_thickness_mm", &thickness_mm, plausible::kPixelPitchMm);
   Opt(ct, "centre_mm", &centre);
   Opt(ct, "orientation", &orientation);
   Opt(ct, "tilt_deg", &tilt_deg);
-  OptNonNegative(ct, "noise_hu", &s.voxelise.noise_hu);
+  OptIn(ct, "noise_hu", &s.voxelise.noise_hu, kNoiseHu);
   Opt(ct, "supersampling", &s.voxelise.marker_supersampling);
   Opt(ct, "block_supersampling", &s.voxelise.block_supersampling);
   Opt(ct, "rescale_slope", &s.write.rescale_slope);
@@ -160,6 +176,7 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   if (rows_px < 1 || rows_px > 4096) ct.Fail("rows", "expected 1 .. 4096");
   if (slices < 1 || slices > 4096) ct.Fail("slices", "expected 1 .. 4096");
   if (!centre.empty() && centre.size() != 3) ct.Fail("centre_mm", "expected 3 numbers");
+  CheckEach(ct, "centre_mm", centre, plausible::kCoordinateMm);
   if (orientation.size() != 6) ct.Fail("orientation", "expected 6 numbers");
   if (!(std::abs(tilt_deg) < 80)) ct.Fail("tilt_deg", "expected an angle within (-80, 80)");
   if (s.voxelise.marker_supersampling < 1 || s.voxelise.marker_supersampling > 32) {

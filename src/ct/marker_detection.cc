@@ -6,19 +6,15 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "util/plausible.h"
+
 namespace carmba {
 
 bool MarkerDetectionOptions::Check(std::string* error) const {
-  if (!std::isfinite(threshold_hu)) {
-    *error = "threshold must be a finite HU value";
-    return false;
-  }
-  if (!(diameter_mm > 0) || !std::isfinite(diameter_mm)) {
-    *error = "marker diameter must be > 0 mm";
-    return false;
-  }
-  if (expected_count < 0) {
-    *error = "expected marker count must be >= 0 (0: any)";
+  if (!CheckRange("threshold_hu", threshold_hu, plausible::kHounsfield, error) ||
+      !CheckRange("diameter_mm", diameter_mm, plausible::kMarkerDiameterMm, error) ||
+      !CheckRange("expected (marker count, 0: any)", expected_count, plausible::kMarkerCount,
+                  error)) {
     return false;
   }
   if (!(min_volume_fraction >= 0) || !(max_volume_fraction > min_volume_fraction)) {

@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "util/csv.h"
+#include "util/plausible.h"
 
 namespace carmba {
 
@@ -39,7 +40,7 @@ StatusOr<std::vector<ModelPoint>> ReadModelCsv(const std::string& path,
     if (!id.ok()) return id.status();
     m.id = *id;
     for (int a = 0; a < 3; ++a) {
-      auto x = table->Number(r, cols[a]);
+      auto x = table->NumberIn(r, cols[a], plausible::kCoordinateMm);
       if (!x.ok()) return x.status();
       m.p_in_object[a] = *x;
     }

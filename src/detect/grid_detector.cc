@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "util/plausible.h"
 #include "util/quiet_stderr.h"
 #include "util/yaml_reader.h"
 
@@ -19,20 +20,37 @@ bool DetectionOptions::Check(std::string* error) const {
     *error = "polarity: expected dark, bright or auto, got '" + polarity + "'";
     return false;
   }
+  namespace pl = plausible;
   if (!roi_px.empty() && (roi_px.size() != 4 || roi_px[2] <= 0 || roi_px[3] <= 0)) {
     *error = "roi_px: expected [x, y, w, h] with w, h > 0";
     return false;
+  }
+  for (size_t i = 0; i < roi_px.size(); ++i) {
+    if (!CheckRange("roi_px: element " + std::to_string(i), roi_px[i], pl::kPixelCoordinatePx,
+                    error)) {
+      return false;
+    }
   }
   if (!fov_circle_px.empty() && (fov_circle_px.size() != 3 || !(fov_circle_px[2] > 0))) {
     *error = "fov_circle_px: expected [cx, cy, r] with r > 0";
     return false;
   }
+  for (size_t i = 0; i < fov_circle_px.size(); ++i) {
+    if (!CheckRange("fov_circle_px: element " + std::to_string(i), fov_circle_px[i],
+                    pl::kPixelCoordinatePx, error)) {
+      return false;
+    }
+  }
   if (!(min_blob_area_px > 0) || !(max_blob_area_px > min_blob_area_px)) {
     *error = "blob area: expected 0 < min_blob_area_px < max_blob_area_px";
     return false;
   }
-  if (!(fov_margin_px >= 0)) {
-    *error = "fov_margin_px: expected >= 0";
+  // Blob areas and the margin are bounded by the largest image.
+  const PlausibleRange area{0, pl::kImageSizePx.hi * pl::kImageSizePx.hi, "px^2"};
+  const PlausibleRange margin{0, pl::kImageSizePx.hi, "px"};
+  if (!CheckRange("min_blob_area_px", min_blob_area_px, area, error) ||
+      !CheckRange("max_blob_area_px", max_blob_area_px, area, error) ||
+      !CheckRange("fov_margin_px", fov_margin_px, margin, error)) {
     return false;
   }
   return true;

@@ -7,6 +7,7 @@
 
 #include "util/csv.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 namespace carmba {
 
@@ -30,16 +31,9 @@ StatusOr<GridPattern> ParseGridPattern(const std::string& name) {
 }
 
 bool GridSpec::Check(std::string* error) const {
-  if (rows < 2 || cols < 2 || rows * cols < 4) {
-    *error = "grid: expected rows >= 2 and cols >= 2, got " + std::to_string(rows) + " x " +
-             std::to_string(cols);
-    return false;
-  }
-  if (!(spacing_mm > 0) || !std::isfinite(spacing_mm)) {
-    *error = "grid: expected a positive finite spacing_mm";
-    return false;
-  }
-  return true;
+  return CheckRange("grid: rows", rows, plausible::kGridRowsCols, error) &&
+         CheckRange("grid: cols", cols, plausible::kGridRowsCols, error) &&
+         CheckRange("grid: spacing_mm", spacing_mm, plausible::kGridSpacingMm, error);
 }
 
 Eigen::Vector3d GridSpec::PointInPlate(int id) const {
@@ -101,9 +95,15 @@ StatusOr<ObservationSet> ReadObservationsCsv(const std::string& path) {
       obs.grid.pattern = *p;
       have_grid = true;
     } else if (key == "image_size:") {
-      if (!(is >> obs.width >> obs.height) || obs.width <= 0 || obs.height <= 0) {
-        return Status::Error(path + ": comment '# image_size:': expected 'width height' > 0");
+      double w = 0, h = 0;
+      if (!(is >> w >> h) || w != std::floor(w) || h != std::floor(h) ||
+          !InRange(w, plausible::kImageSizePx) || !InRange(h, plausible::kImageSizePx)) {
+        return Status::Error(path + ": comment '# image_size:': expected 'width height', each an "
+                             "integer " + FormatRange(plausible::kImageSizePx) + ", got '" +
+                             c.substr(c.find(':') + 1) + "'");
       }
+      obs.width = static_cast<int>(w);
+      obs.height = static_cast<int>(h);
       have_size = true;
     }
   }
@@ -121,9 +121,9 @@ StatusOr<ObservationSet> ReadObservationsCsv(const std::string& path) {
     if (!view.ok()) return view.status();
     auto point = t.Integer(r, "point");
     if (!point.ok()) return point.status();
-    auto u = t.Number(r, "u_px");
+    auto u = t.NumberIn(r, "u_px", plausible::kPixelCoordinatePx);
     if (!u.ok()) return u.status();
-    auto v = t.Number(r, "v_px");
+    auto v = t.NumberIn(r, "v_px", plausible::kPixelCoordinatePx);
     if (!v.ok()) return v.status();
     if (*point < 0 || *point >= obs.grid.NumPoints()) {
       return Status::Error(where + ": column 'point': expected 0.." +

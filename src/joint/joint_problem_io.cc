@@ -7,6 +7,7 @@
 #include "joint/joint_problem.h"
 #include "util/csv.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 #include "util/yaml_reader.h"
 
 namespace carmba {
@@ -23,11 +24,11 @@ Status ReadPlateViews(YamlMap& m, const std::string& base, JointProblem* p) {
   m.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &pattern);
   m.Get("rows", &grid.rows);
   m.Get("cols", &grid.cols);
-  m.GetPositive("spacing_mm", &grid.spacing_mm);
-  m.GetPositive("sigma_px", &p->plate_sigma_px, true);
+  m.GetInRange("spacing_mm", &grid.spacing_mm, plausible::kGridSpacingMm);
+  m.GetInRange("sigma_px", &p->plate_sigma_px, plausible::kPixelSigmaPx, true);
   YamlMap& plate = m.Map("plate");
   plate.Get("free", &p->plate_free);
-  plate.GetNonNegative("sigma_mm", &p->plate_sigma_mm);
+  if (plate.Has("sigma_mm")) plate.GetInRange("sigma_mm", &p->plate_sigma_mm, plausible::kToleranceMm);
   if (!m.status().ok()) return m.status();
   if (observations.empty() == images.empty()) {
     m.Fail("observations", "give exactly one of observations (CSV) and images (DIR or GLOB)");
@@ -82,7 +83,7 @@ Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p) {
   std::string observations, marker_column = "marker";
   m.Get("observations", &observations, true);
   m.Get("marker_column", &marker_column);
-  m.GetPositive("sigma_px", &p->object_sigma_px, true);
+  m.GetInRange("sigma_px", &p->object_sigma_px, plausible::kPixelSigmaPx, true);
   if (m.Has("images")) {
     m.Raw("images");
     m.Fail("images", "object views from images need marker detection, which is not built yet; "
@@ -101,9 +102,9 @@ Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p) {
     if (id.empty()) return Status::Error(where + ": column 'view': expected a view id");
     auto mid = t->Integer(r, marker_column);
     if (!mid.ok()) return mid.status();
-    auto u = t->Number(r, "u_px");
+    auto u = t->NumberIn(r, "u_px", plausible::kPixelCoordinatePx);
     if (!u.ok()) return u.status();
-    auto v = t->Number(r, "v_px");
+    auto v = t->NumberIn(r, "v_px", plausible::kPixelCoordinatePx);
     if (!v.ok()) return v.status();
     if (!index.count(id)) {
       index[id] = p->object_views.size();
@@ -231,7 +232,7 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
       f.Get("file", &fiducials_file, true);
       f.Get("id_column", &id_column);
       f.Get("columns", &columns);
-      f.GetPositive("sigma_mm", &fid_sigma_mm);
+      f.GetInRange("sigma_mm", &fid_sigma_mm, plausible::kCtSigmaMm);
       if (columns.size() != 3) f.Fail("columns", "expected three column names (x, y, z)");
     }
   } else if (root.Has("fiducials")) {

@@ -6,6 +6,7 @@
 #include "problem/pose_problem.h"
 #include "util/csv.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 #include "util/yaml_reader.h"
 
 namespace carmba {
@@ -27,7 +28,7 @@ Status ReadMarkers(YamlMap& m, const std::string& base, PoseProblem* p) {
   m.Get("file", &file, true);
   m.Get("id_column", &id_column);
   m.Get("columns", &columns);
-  m.GetPositive("sigma_mm", &sigma_mm);
+  m.GetInRange("sigma_mm", &sigma_mm, plausible::kCtSigmaMm);
   if (!m.status().ok()) return m.status();
   if (columns.size() != 3) {
     m.Fail("columns", "expected three column names (x, y, z)");
@@ -72,9 +73,9 @@ Status ReadObservations(YamlMap& m,
         auto mid = t->Integer(r, id_column);
         if (!mid.ok()) return mid.status();
         o.marker_id = *mid;
-        auto u = t->Number(r, "u_" + id);
+        auto u = t->NumberIn(r, "u_" + id, plausible::kPixelCoordinatePx);
         if (!u.ok()) return u.status();
-        auto vv = t->Number(r, "v_" + id);
+        auto vv = t->NumberIn(r, "v_" + id, plausible::kPixelCoordinatePx);
         if (!vv.ok()) return vv.status();
         o.uv_px = Eigen::Vector2d(*u, *vv);
         v.observations.push_back(o);
@@ -95,9 +96,9 @@ Status ReadObservations(YamlMap& m,
       auto mid = t->Integer(r, id_column);
       if (!mid.ok()) return mid.status();
       o.marker_id = *mid;
-      auto u = t->Number(r, "u_px");
+      auto u = t->NumberIn(r, "u_px", plausible::kPixelCoordinatePx);
       if (!u.ok()) return u.status();
-      auto vv = t->Number(r, "v_px");
+      auto vv = t->NumberIn(r, "v_px", plausible::kPixelCoordinatePx);
       if (!vv.ok()) return vv.status();
       o.uv_px = Eigen::Vector2d(*u, *vv);
       if (!views.count(id)) {
@@ -122,9 +123,9 @@ Status ReadReference(YamlMap& m, const std::string& base, PoseProblem* p) {
   if (m.Has("legacy_posit")) {
     YamlMap& l = m.Map("legacy_posit");
     LegacyPositReference r;
-    l.GetPositive("focal_px", &r.focal_px, true);
-    l.Get("cx_px", &r.cx_px, true);
-    l.Get("cy_px", &r.cy_px, true);
+    l.GetInRange("focal_px", &r.focal_px, plausible::kFocalPx, true);
+    l.GetInRange("cx_px", &r.cx_px, plausible::kPixelCoordinatePx, true);
+    l.GetInRange("cy_px", &r.cy_px, plausible::kPixelCoordinatePx, true);
     l.Get("y_up", &r.y_up);
     p->legacy_reference = r;
   } else {
@@ -215,7 +216,7 @@ StatusOr<std::vector<Marker>> ReadMarkersCsv(const std::string& path,
                            std::to_string(mk.id) + " appears twice");
     }
     for (int c = 0; c < 3; ++c) {
-      auto v = t->Number(r, columns[c]);
+      auto v = t->NumberIn(r, columns[c], plausible::kCoordinateMm);
       if (!v.ok()) return v.status();
       mk.p_in_object[c] = *v;
     }
@@ -229,6 +230,15 @@ StatusOr<std::vector<Marker>> ReadMarkersCsv(const std::string& path,
         c6[k] = *v;
       }
       mk.covariance << c6[0], c6[1], c6[2], c6[1], c6[3], c6[4], c6[2], c6[4], c6[5];
+      for (int k : {0, 3, 5}) {  // the variances: their square roots are sigmas in mm
+        const double sigma = c6[k] >= 0 ? std::sqrt(c6[k]) : c6[k];
+        if (!InRange(sigma, plausible::kCtSigmaMm)) {
+          return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) + ": column '" +
+                               cov_cols[k] + "': expected a variance whose square root is " +
+                               FormatRange(plausible::kCtSigmaMm) + ", got " +
+                               FormatCompact(c6[k]));
+        }
+      }
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(mk.covariance);
       if (!(es.eigenvalues().minCoeff() > 0)) {
         return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
@@ -242,7 +252,18 @@ StatusOr<std::vector<Marker>> ReadMarkersCsv(const std::string& path,
 }
 
 Status PoseProblem::Check() const {
-  if (!(sigma_px > 0)) return Status::Error(path + ": sigma_px must be positive");
+  std::string e;
+  if (!CheckRange("key 'sigma_px'", sigma_px, plausible::kPixelSigmaPx, &e)) {
+    return Status::Error(path + ": " + e);
+  }
+  for (const auto& m : markers) {
+    for (int c = 0; c < 3; ++c) {
+      if (!CheckRange("marker " + std::to_string(m.id) + ": coordinate " + "xyz"[c],
+                      m.p_in_object[c], plausible::kCoordinateMm, &e)) {
+        return Status::Error(path + ": " + e);
+      }
+    }
+  }
   std::set<int> ids;
   for (const auto& m : markers) ids.insert(m.id);
   std::set<std::string> vids;
@@ -258,9 +279,12 @@ Status PoseProblem::Check() const {
         return Status::Error(path + ": view '" + v.id + "' observes marker " +
                              std::to_string(o.marker_id) + " twice");
       }
-      if (!o.uv_px.allFinite()) {
-        return Status::Error(path + ": view '" + v.id + "': non-finite pixel of marker " +
-                             std::to_string(o.marker_id));
+      for (int c = 0; c < 2; ++c) {
+        if (!CheckRange("view '" + v.id + "': marker " + std::to_string(o.marker_id) + ": " +
+                            (c == 0 ? "u" : "v"),
+                        o.uv_px[c], plausible::kPixelCoordinatePx, &e)) {
+          return Status::Error(path + ": " + e);
+        }
       }
     }
     if (v.observations.size() < 4) {
@@ -288,7 +312,7 @@ StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path) {
   root.Get("name", &p.name, true);
   root.Get("description", &description);
   root.Get("camera", &camera_file, true);
-  root.GetPositive("sigma_px", &p.sigma_px, true);
+  root.GetInRange("sigma_px", &p.sigma_px, plausible::kPixelSigmaPx, true);
   root.GetEnum("handedness", {"as_given", "mirrored"}, &handedness);
   root.Get("truth", &truth_file);
   std::vector<std::string> views;
@@ -320,7 +344,7 @@ StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path) {
       vp.b = b.Scalar();
     }
     double e = NAN;
-    pm->Get("expected_deg", &e);
+    pm->GetInRange("expected_deg", &e, plausible::kAngleDeg);
     if (std::isfinite(e)) vp.expected_deg = e;
     p.validation.push_back(vp);
   }
@@ -349,12 +373,15 @@ const char* InitializerName(Initializer i) {
 }
 
 bool SolverConfig::Check(std::string* error) const {
-  if (max_iterations < 0) return *error = "max_iterations must be >= 0", false;
-  if (!(function_tolerance > 0 && gradient_tolerance > 0 && parameter_tolerance > 0)) {
-    return *error = "tolerances must be positive", false;
+  namespace pl = plausible;
+  if (!CheckRange("max_iterations", max_iterations, pl::kMaxIterations, error) ||
+      !CheckRange("function_tolerance", function_tolerance, pl::kSolverTolerance, error) ||
+      !CheckRange("gradient_tolerance", gradient_tolerance, pl::kSolverTolerance, error) ||
+      !CheckRange("parameter_tolerance", parameter_tolerance, pl::kSolverTolerance, error) ||
+      !CheckRange("loss.scale_px", loss_scale_px, pl::kLossScalePx, error) ||
+      !CheckRange("num_threads", num_threads, pl::kThreads, error)) {
+    return false;
   }
-  if (!(loss_scale_px > 0)) return *error = "loss.scale_px must be positive", false;
-  if (num_threads < 1) return *error = "num_threads must be >= 1", false;
   if (covariance_algorithm != "schur" && covariance_algorithm != "dense_svd" &&
       covariance_algorithm != "sparse_qr" && covariance_algorithm != "eigen_sparse_qr") {
     return *error = "covariance.algorithm '" + covariance_algorithm +
@@ -385,23 +412,21 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   root.GetEnum("jacobians", {"analytic", "autodiff"}, &jac);
   YamlMap& loss = root.Map("loss");
   loss.GetEnum("type", {"trivial", "huber", "cauchy", "soft_l1"}, &c.loss);
-  loss.GetPositive("scale_px", &c.loss_scale_px);
+  loss.GetInRange("scale_px", &c.loss_scale_px, plausible::kLossScalePx);
   root.GetEnum("linear_solver",
                {"dense_qr", "dense_normal_cholesky", "dense_schur", "sparse_schur",
                 "sparse_normal_cholesky", "iterative_schur"},
                &c.linear_solver);
-  root.Get("max_iterations", &c.max_iterations);
-  if (c.max_iterations < 0) root.Fail("max_iterations", "expected an integer >= 0");
-  root.GetPositive("function_tolerance", &c.function_tolerance);
-  root.GetPositive("gradient_tolerance", &c.gradient_tolerance);
-  root.GetPositive("parameter_tolerance", &c.parameter_tolerance);
+  root.GetInRange("max_iterations", &c.max_iterations, plausible::kMaxIterations);
+  root.GetInRange("function_tolerance", &c.function_tolerance, plausible::kSolverTolerance);
+  root.GetInRange("gradient_tolerance", &c.gradient_tolerance, plausible::kSolverTolerance);
+  root.GetInRange("parameter_tolerance", &c.parameter_tolerance, plausible::kSolverTolerance);
   YamlMap& cov = root.Map("covariance");
   std::string scale = "apriori";
   cov.GetEnum("algorithm", {"schur", "dense_svd", "sparse_qr", "eigen_sparse_qr"},
               &c.covariance_algorithm);
   cov.GetEnum("scale", {"apriori", "aposteriori"}, &scale);
-  root.Get("num_threads", &c.num_threads);
-  if (c.num_threads < 1) root.Fail("num_threads", "expected an integer >= 1");
+  root.GetInRange("num_threads", &c.num_threads, plausible::kThreads);
   root.Get("fix", &c.fix);
   for (const auto& n : c.fix) {
     if (std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, n) ==

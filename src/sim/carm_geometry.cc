@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "util/plausible.h"
+
 namespace carmba::sim {
 
 namespace {
@@ -48,7 +50,21 @@ bool CarmGeometry::Check(std::string* error) const {
   for (double x : v) {
     if (!std::isfinite(x)) return *error = "C-arm geometry: non-finite value", false;
   }
-  if (!(sid_mm > 0)) return *error = "sid_mm must be positive", false;
+  namespace pl = plausible;
+  if (!CheckRange("sid_mm", sid_mm, pl::kDistanceMm, error) ||
+      !CheckRange("sod_mm", sod_mm, pl::kDistanceMm, error) ||
+      !CheckRange("primary_deg", primary_angle_deg, pl::kAngleDeg, error) ||
+      !CheckRange("detector_rotation_deg", detector_rotation_deg, pl::kAngleDeg, error)) {
+    return false;
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!CheckRange(std::string("isocenter_mm ") + "xyz"[i], isocenter_mm[i], pl::kCoordinateMm,
+                    error) ||
+        (i < 2 && !CheckRange(std::string("axis_offset_mm ") + "xy"[i], axis_offset_mm[i],
+                              pl::kCoordinateMm, error))) {
+      return false;
+    }
+  }
   if (!(sod_mm > 0 && sod_mm < sid_mm)) {
     return *error = "sod_mm must be positive and smaller than sid_mm", false;
   }
@@ -80,12 +96,14 @@ Rigid3 CamFromWorld(const CarmGeometry& g) {
 }
 
 bool DetectorSpec::Check(std::string* error) const {
-  if (width_px <= 0 || height_px <= 0) return *error = "detector size must be positive", false;
-  if (!(pitch_x_mm > 0) || !(pitch_y_mm > 0) || !std::isfinite(pitch_x_mm) ||
-      !std::isfinite(pitch_y_mm)) {
-    return *error = "pixel pitch must be positive", false;
-  }
-  if (!principal_offset_px.allFinite()) return *error = "principal offset not finite", false;
+  namespace pl = plausible;
+  return CheckRange("detector width", width_px, pl::kImageSizePx, error) &&
+         CheckRange("detector height", height_px, pl::kImageSizePx, error) &&
+         CheckRange("pixel_pitch_mm x", pitch_x_mm, pl::kPixelPitchMm, error) &&
+         CheckRange("pixel_pitch_mm y", pitch_y_mm, pl::kPixelPitchMm, error) &&
+         CheckRange("principal offset x", principal_offset_px.x(), pl::kPixelCoordinatePx,
+                    error) &&
+         CheckRange("principal offset y", principal_offset_px.y(), pl::kPixelCoordinatePx, error);
   return true;
 }
 

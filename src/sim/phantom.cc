@@ -4,6 +4,7 @@
 #include <set>
 
 #include "util/csv.h"
+#include "util/plausible.h"
 
 namespace carmba::sim {
 
@@ -34,14 +35,18 @@ bool PlateSpec::Check(std::string* error) const {
   if (rows < 1 || cols < 1 || rows * cols < 2) {
     return *error = "plate: rows and cols must be >= 1 with at least 2 spheres", false;
   }
-  if (!(pitch_mm > 0) || !std::isfinite(pitch_mm))
-    return *error = "plate: pitch_mm must be > 0", false;
+  if (rows > plausible::kGridRowsCols.hi || cols > plausible::kGridRowsCols.hi) {
+    return *error = "plate: rows and cols must be <= " +
+                    FormatCompact(plausible::kGridRowsCols.hi),
+           false;
+  }
+  if (!CheckRange("plate: pitch_mm", pitch_mm, plausible::kGridSpacingMm, error)) return false;
   if (!(sphere_diameter_mm > 0) || !(sphere_diameter_mm < pitch_mm)) {
     return *error = "plate: sphere_diameter_mm must be > 0 and smaller than pitch_mm", false;
   }
-  if (!(thickness_mm >= 0) || !(margin_mm >= 0) || !std::isfinite(thickness_mm) ||
-      !std::isfinite(margin_mm)) {
-    return *error = "plate: thickness_mm and margin_mm must be >= 0", false;
+  if (!CheckRange("plate: thickness_mm", thickness_mm, plausible::kLengthMm, error) ||
+      !CheckRange("plate: margin_mm", margin_mm, plausible::kLengthMm, error)) {
+    return false;
   }
   return true;
 }
@@ -54,7 +59,12 @@ bool MarkerSpec::Check(std::string* error) const {
   }
   std::set<int> seen;
   for (size_t i = 0; i < centers_mm.size(); ++i) {
-    if (!centers_mm[i].allFinite()) return *error = "markers: non-finite centre", false;
+    for (int k = 0; k < 3; ++k) {
+      if (!CheckRange("markers: marker " + std::to_string(ids[i]) + ": " + "xyz"[k],
+                      centers_mm[i][k], plausible::kCoordinateMm, error)) {
+        return false;
+      }
+    }
     if (!seen.insert(ids[i]).second) {
       return *error = "markers: duplicate id " + std::to_string(ids[i]), false;
     }
@@ -160,7 +170,7 @@ Status ReadMarkerCsv(const std::string& path,
     Eigen::Vector3d c;
     const std::string cols[3] = {x_col, y_col, z_col};
     for (int k = 0; k < 3; ++k) {
-      auto v = table->Number(r, cols[k]);
+      auto v = table->NumberIn(r, cols[k], plausible::kCoordinateMm);
       if (!v.ok()) return v.status();
       c[k] = *v;
     }

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "camera/camera_model.h"
+#include "util/plausible.h"
 
 namespace carmba::sim {
 
@@ -28,8 +29,11 @@ bool RenderOptions::Check(std::string* error) const {
     if (!std::isfinite(x)) return *error = "render options: non-finite value", false;
   }
   if (!(white_level > 0)) return *error = "white_level must be positive", false;
-  if (photons_per_pixel < 0) return *error = "photons_per_pixel must be >= 0", false;
-  if (read_noise_gray < 0) return *error = "read_noise_gray must be >= 0", false;
+  if (!CheckRange("photons_per_pixel", photons_per_pixel, plausible::kPhotonsPerPixel, error) ||
+      !CheckRange("read_noise_gray", read_noise_gray, plausible::kGreyLevel, error) ||
+      !CheckRange("outside_fov_gray", outside_fov_gray, plausible::kGreyLevel, error)) {
+    return false;
+  }
   if (!(blur_sigma_px >= 0 && blur_sigma_px <= 50)) {
     return *error = "blur_sigma_px must be in [0, 50] px", false;
   }

@@ -6,6 +6,7 @@
 
 #include "camera/camera_model.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 namespace carmba::sim {
 
@@ -97,8 +98,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   // C-arm first: the detector pitch needs the SID.
   CarmGeometry carm;
   YamlMap& cm = scene.Map("carm");
-  cm.GetPositive("sid_mm", &carm.sid_mm);
-  cm.GetPositive("sod_mm", &carm.sod_mm);
+  cm.GetInRange("sid_mm", &carm.sid_mm, plausible::kDistanceMm);
+  cm.GetInRange("sod_mm", &carm.sod_mm, plausible::kDistanceMm);
   GetVec(cm, "isocenter_mm", 3, carm.isocenter_mm.data());
   GetVec(cm, "axis_offset_mm", 2, carm.axis_offset_mm.data());
   if (cm.status().ok() && !(carm.sod_mm < carm.sid_mm)) {
@@ -126,8 +127,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     s.camera.height = size[1];
     s.camera.params.fill(0.0);
     if (has_f) {
-      cam.GetPositive("fx", &s.camera.params[kFx], true);
-      cam.GetPositive("fy", &s.camera.params[kFy], true);
+      cam.GetInRange("fx", &s.camera.params[kFx], plausible::kFocalPx, true);
+      cam.GetInRange("fy", &s.camera.params[kFy], plausible::kFocalPx, true);
       cam.Get("cx", &s.camera.params[kCx], true);
       cam.Get("cy", &s.camera.params[kCy], true);
     } else {
@@ -143,8 +144,10 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       }
       if (cam.status().ok()) {
         if (pitch.size() == 1) pitch.push_back(pitch[0]);
-        if (pitch.size() != 2 || !(pitch[0] > 0) || !(pitch[1] > 0)) {
-          cam.Fail("pixel_pitch_mm", "expected a positive number or [x, y] (mm)");
+        if (pitch.size() != 2 || !InRange(pitch[0], plausible::kPixelPitchMm) ||
+            !InRange(pitch[1], plausible::kPixelPitchMm)) {
+          cam.Fail("pixel_pitch_mm", "expected a number or [x, y], each " +
+                                         FormatRange(plausible::kPixelPitchMm));
         } else {
           det.pitch_x_mm = pitch[0];
           det.pitch_y_mm = pitch[1];
@@ -160,11 +163,11 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   RenderOptions& r = s.render;
   im.Get("supersampling", &r.supersampling);
   im.GetPositive("white_level", &r.white_level);
-  im.GetNonNegative("photons_per_pixel", &r.photons_per_pixel);
-  im.GetNonNegative("read_noise_gray", &r.read_noise_gray);
+  im.GetInRange("photons_per_pixel", &r.photons_per_pixel, plausible::kPhotonsPerPixel);
+  im.GetInRange("read_noise_gray", &r.read_noise_gray, plausible::kGreyLevel);
   im.GetNonNegative("blur_sigma_px", &r.blur_sigma_px);
   im.GetNonNegative("vignetting", &r.vignetting);
-  im.GetNonNegative("outside_fov_gray", &r.outside_fov_gray);
+  im.GetInRange("outside_fov_gray", &r.outside_fov_gray, plausible::kGreyLevel);
   if (im.status().ok() && (r.supersampling < 1 || r.supersampling > 16)) {
     im.Fail("supersampling", "expected an integer in 1..16");
   }
@@ -220,8 +223,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     pl.Get("cols", &s.plate.cols);
     pl.GetPositive("pitch_mm", &s.plate.pitch_mm);
     pl.GetPositive("sphere_diameter_mm", &s.plate.sphere_diameter_mm);
-    pl.GetNonNegative("thickness_mm", &s.plate.thickness_mm);
-    pl.GetNonNegative("margin_mm", &s.plate.margin_mm);
+    pl.GetInRange("thickness_mm", &s.plate.thickness_mm, plausible::kLengthMm);
+    pl.GetInRange("margin_mm", &s.plate.margin_mm, plausible::kLengthMm);
     pl.Get("sphere_material", &s.plate.sphere_material);
     pl.Get("plate_material", &s.plate.plate_material);
     std::string error;
@@ -295,9 +298,9 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       vm.Fail("name", "duplicate view name '" + v.name + "'");
     }
     v.carm = carm;
-    vm.Get("primary_deg", &v.carm.primary_angle_deg);
+    vm.GetInRange("primary_deg", &v.carm.primary_angle_deg, plausible::kAngleDeg);
     vm.Get("secondary_deg", &v.carm.secondary_angle_deg);
-    vm.Get("detector_rotation_deg", &v.carm.detector_rotation_deg);
+    vm.GetInRange("detector_rotation_deg", &v.carm.detector_rotation_deg, plausible::kAngleDeg);
     if (vm.status().ok() && std::fabs(v.carm.secondary_angle_deg) > 90) {
       vm.Fail("secondary_deg", "expected an angle in [-90, 90] degrees");
     }

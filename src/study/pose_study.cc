@@ -14,6 +14,7 @@
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 namespace carmba {
 namespace {
@@ -43,10 +44,15 @@ class JsonMap {
   void Fail(const std::string& key, const std::string& what) {
     if (status_.ok()) status_ = Status::Error(where_ + "." + key + ": " + what);
   }
-  void Number(const std::string& key, double* out) {
+  // A number, within `range` (util/plausible.h) when given.
+  void Number(const std::string& key, double* out, const PlausibleRange* range = nullptr) {
     const nlohmann::json* v = Find(key);
     if (!v) return;
     if (!v->is_number() || !std::isfinite(v->get<double>())) return Fail(key, "expected a number");
+    if (range && !InRange(v->get<double>(), *range)) {
+      return Fail(key, "expected " + FormatRange(*range) + ", got " +
+                           FormatCompact(v->get<double>()));
+    }
     *out = v->get<double>();
   }
   void Vector3(const std::string& key, Eigen::Vector3d* out) {
@@ -130,7 +136,7 @@ StatusOr<SyntheticEntry> ParseSynthetic(const StudyProblem& p) {
     m.Fail("markers", "missing, expected 'thesis' or a list of [x, y, z] (mm)");
   }
   m.Numbers("view_angles_deg", &e.spec.view_angles_deg);
-  m.Number("source_to_object_mm", &e.spec.source_to_object_mm);
+  m.Number("source_to_object_mm", &e.spec.source_to_object_mm, &plausible::kDistanceMm);
   m.Vector3("rotation_axis", &e.spec.rotation_axis);
   m.Vector3("base_rvec", &e.spec.base_rvec);
   if (const nlohmann::json* pairs = m.Find("pairs")) {
@@ -144,8 +150,8 @@ StatusOr<SyntheticEntry> ParseSynthetic(const StudyProblem& p) {
       e.spec.pairs.emplace_back(x[0].get<int>(), x[1].get<int>());
     }
   }
-  m.Number("sigma_px", &e.sigma_px);
-  m.Number("sigma_ct_mm", &e.sigma_ct_mm);
+  m.Number("sigma_px", &e.sigma_px, &plausible::kPixelSigmaPx);
+  m.Number("sigma_ct_mm", &e.sigma_ct_mm, &plausible::kCtSigmaMm);
   CARMBA_RETURN_IF_ERROR(m.Finish());
   if (kind != "pose") {
     return Status::Error(where + ".kind: expected pose or calibration, got '" + kind + "'");
@@ -287,15 +293,15 @@ StatusOr<CalibrationEntry> ParseCalibrationSynthetic(const StudyProblem& p) {
   if (camera_file.empty()) m.Fail("camera", "missing, expected the path of a camera.json");
   double rows = e.grid.rows, cols = e.grid.cols, num_views = e.views.num_views;
   m.String("pattern", &pattern);
-  m.Number("rows", &rows);
-  m.Number("cols", &cols);
-  m.Number("spacing_mm", &e.grid.spacing_mm);
-  m.Number("num_views", &num_views);
+  m.Number("rows", &rows, &plausible::kGridRowsCols);
+  m.Number("cols", &cols, &plausible::kGridRowsCols);
+  m.Number("spacing_mm", &e.grid.spacing_mm, &plausible::kGridSpacingMm);
+  m.Number("num_views", &num_views, &plausible::kViews);
   m.Number("noise_px", &e.views.noise_sigma_px);
-  m.Number("min_tilt_deg", &e.views.min_tilt_deg);
-  m.Number("max_tilt_deg", &e.views.max_tilt_deg);
-  m.Number("distance_min_mm", &e.views.distance_min_mm);
-  m.Number("distance_max_mm", &e.views.distance_max_mm);
+  m.Number("min_tilt_deg", &e.views.min_tilt_deg, &plausible::kAngleDeg);
+  m.Number("max_tilt_deg", &e.views.max_tilt_deg, &plausible::kAngleDeg);
+  m.Number("distance_min_mm", &e.views.distance_min_mm, &plausible::kDistanceMm);
+  m.Number("distance_max_mm", &e.views.distance_max_mm, &plausible::kDistanceMm);
   m.Number("max_offset_fraction", &e.views.max_offset_fraction);
   CARMBA_RETURN_IF_ERROR(m.Finish());
   StatusOr<GridPattern> gp = ParseGridPattern(pattern);

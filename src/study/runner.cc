@@ -16,6 +16,7 @@
 #include "study/report_html.h"
 #include "study/summary.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 namespace carmba {
 namespace {
@@ -97,7 +98,10 @@ bool StudyRunOptions::Check(std::string* error) const {
     return false;
   };
   if (out_dir.empty()) return fail("output directory: expected a path, got nothing");
-  if (jobs < 0) return fail("jobs: expected >= 0 (0 = all cores), got " + std::to_string(jobs));
+  if (!InRange(jobs, plausible::kJobs)) {
+    return fail("jobs: expected " + FormatRange(plausible::kJobs) + " (0 = all cores), got " +
+                std::to_string(jobs));
+  }
   if (shard_n < 1 || shard_k < 1 || shard_k > shard_n) {
     return fail("shard: expected 1 <= K <= N, got " + std::to_string(shard_k) + "/" +
                 std::to_string(shard_n));

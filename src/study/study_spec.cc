@@ -3,10 +3,12 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <set>
 
 #include "util/csv.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 #include "util/yaml_reader.h"
 
 namespace carmba {
@@ -167,6 +169,24 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
         s.name = kv.first.Scalar();
         sm.Get(s.name, &s.values, /*required=*/true);
         if (sm.status().ok() && s.values.empty()) sm.Fail(s.name, "expected a non-empty list");
+        // The variables the pose and calibration studies know (study/pose_study.h), each within
+        // its plausible range; a noise of 0 (noise-free views) is allowed.
+        static const std::map<std::string, PlausibleRange> kSweepRanges = {
+            {"pixel_noise_px", plausible::kPixelSigmaPx},
+            {"ct_noise_mm", plausible::kCtSigmaMm},
+            {"num_views", plausible::kViews},
+            {"k1", plausible::kDistortion}};
+        const auto range = kSweepRanges.find(s.name);
+        for (size_t i = 0; sm.status().ok() && range != kSweepRanges.end() && i < s.values.size();
+             ++i) {
+          const double v = s.values[i];
+          const bool noise = s.name.find("noise") != std::string::npos;
+          if (!(noise && v == 0) && !InRange(v, range->second)) {
+            sm.Fail(s.name, "element " + std::to_string(i) + ": expected " +
+                                (noise ? std::string("0 or ") : std::string()) +
+                                FormatRange(range->second) + ", got " + FormatCompact(v));
+          }
+        }
         spec.sweeps.push_back(std::move(s));
       }
     }

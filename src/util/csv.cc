@@ -69,6 +69,18 @@ StatusOr<double> CsvTable::Number(int row, const std::string& col) const {
   return Number(row, *c);
 }
 
+StatusOr<double> CsvTable::NumberIn(int row,
+                                    const std::string& col,
+                                    const PlausibleRange& range) const {
+  auto v = Number(row, col);
+  if (!v.ok()) return v.status();
+  if (!InRange(*v, range)) {
+    return Status::Error(path + ":" + std::to_string(line_numbers[row]) + ": column '" + col +
+                         "': expected " + FormatRange(range) + ", got " + FormatCompact(*v));
+  }
+  return v;
+}
+
 StatusOr<int> CsvTable::Integer(int row, const std::string& col) const {
   auto v = Number(row, col);
   if (!v.ok()) return v.status();

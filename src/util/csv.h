@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "util/plausible.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -27,6 +28,9 @@ struct CsvTable {
   StatusOr<double> Number(int row, int col) const;
   StatusOr<double> Number(int row, const std::string& col) const;
   StatusOr<int> Integer(int row, const std::string& col) const;
+  // Number() within a plausible range (util/plausible.h); the error names file:line, the column,
+  // the range and the value (%g).
+  StatusOr<double> NumberIn(int row, const std::string& col, const PlausibleRange& range) const;
 };
 
 // Parses CSV text. `path` is used in messages only.

@@ -2,6 +2,7 @@
 
 #include <glob.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -11,6 +12,8 @@
 #include <filesystem>
 #include <cctype>
 #include <set>
+#include <system_error>
+#include <vector>
 #include <fstream>
 #include <sstream>
 
@@ -35,6 +38,177 @@ Status WriteFileAtomic(const std::string& path, const std::string& contents) {
     std::remove(tmp.c_str());
     return Status::Error(path + ": cannot rename temporary file (" + std::strerror(errno) + ")");
   }
+  return Status::Ok();
+}
+
+namespace {
+
+std::string StripTrailingSlashes(std::string p) {
+  while (p.size() > 1 && p.back() == '/') p.pop_back();
+  return p;
+}
+
+// `target` (named `what`) is to be created in the existing directory `d`: it must accept new
+// entries.
+Status CheckCanCreateIn(const std::string& d, const std::string& target, const std::string& what) {
+  struct statvfs vfs;
+  if (::statvfs(d.c_str(), &vfs) == 0 && (vfs.f_flag & ST_RDONLY)) {
+    return Status::Error(what + " " + target + ": " + d +
+                         " is on a read-only file system, expected a writable directory");
+  }
+  const std::string probe = JoinPath(d, ".carmba-probe." + std::to_string(::getpid()));
+  if (::mkdir(probe.c_str(), 0700) != 0) {
+    const int e = errno;
+    if (e != EEXIST) {
+      // ENOENT for an existing directory: a virtual file system (/proc) that has no such entries.
+      const std::string reason =
+          e == ENOENT ? "the file system accepts no new entries" : std::strerror(e);
+      return Status::Error(what + " " + target + ": cannot create files in " + d + " (" + reason +
+                           "), expected a writable directory");
+    }
+  } else {
+    ::rmdir(probe.c_str());
+  }
+  return Status::Ok();
+}
+
+// The nearest existing ancestor of `p` (not `p` itself); "." or "/" at the top.
+std::string NearestExistingAncestor(const std::string& p) {
+  std::string a = DirName(p);
+  while (!FileExists(a) && a != "." && a != "/") a = DirName(a);
+  return a;
+}
+
+}  // namespace
+
+Status CheckOutputDir(const std::string& dir_in, const std::string& what) {
+  if (dir_in.empty()) return Status::Error(what + ": expected a directory path, got nothing");
+  const std::string dir = StripTrailingSlashes(dir_in);
+  if (FileExists(dir)) {
+    if (!IsDirectory(dir)) {
+      return Status::Error(what + " " + dir + ": exists and is not a directory, expected a "
+                                              "directory");
+    }
+    return CheckCanCreateIn(dir, dir, what);
+  }
+  const std::string a = NearestExistingAncestor(dir);
+  if (!IsDirectory(a)) {
+    return Status::Error(what + " " + dir + ": " + a + " is a file, expected a directory");
+  }
+  return CheckCanCreateIn(a, dir, what);
+}
+
+Status CheckOutputFile(const std::string& path, const std::string& what) {
+  if (path.empty() || path.back() == '/') {
+    return Status::Error(what + " " + path + ": expected a file name");
+  }
+  struct stat st;
+  if (::stat(path.c_str(), &st) == 0) {
+    if (S_ISDIR(st.st_mode)) {
+      return Status::Error(what + " " + path + ": is a directory, expected a file name");
+    }
+    if (!S_ISREG(st.st_mode)) {
+      return Status::Error(what + " " + path + ": exists and is not a regular file, expected a "
+                                               "file name");
+    }
+  }
+  const std::string d = DirName(path);
+  if (!FileExists(d)) {
+    const std::string a = NearestExistingAncestor(d);
+    if (!IsDirectory(a)) {
+      return Status::Error(what + " " + path + ": " + a + " is a file, expected a directory");
+    }
+    return Status::Error(what + " " + path + ": directory " + d + " does not exist");
+  }
+  if (!IsDirectory(d)) {
+    return Status::Error(what + " " + path + ": " + d + " is a file, expected a directory");
+  }
+  return CheckCanCreateIn(d, path, what);
+}
+
+StagedOutputDir::StagedOutputDir(std::string dir) : dir_(StripTrailingSlashes(std::move(dir))) {}
+
+StagedOutputDir::~StagedOutputDir() {
+  if (!done_ && !staging_.empty()) {
+    std::error_code ec;
+    std::filesystem::remove_all(staging_, ec);
+  }
+}
+
+Status StagedOutputDir::Begin() {
+  const std::string suffix = std::to_string(::getpid());
+  if (FileExists(dir_)) {
+    if (!IsDirectory(dir_)) return Status::Error(dir_ + ": exists and is not a directory");
+    inside_ = true;
+    staging_ = JoinPath(dir_, ".carmba-tmp." + suffix);
+  } else {
+    staging_ = dir_ + ".tmp." + suffix;
+  }
+  std::error_code ec;
+  std::filesystem::remove_all(staging_, ec);
+  return MakeDirs(staging_);
+}
+
+Status StagedOutputDir::Commit(bool replace_all) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!inside_) {
+    fs::rename(staging_, dir_, ec);
+    if (ec) return Status::Error(dir_ + ": cannot move the results into place (" + ec.message() + ")");
+    done_ = true;
+    return Status::Ok();
+  }
+  // Everything below stays inside dir_: one file system.
+  const fs::path staging(staging_);
+  const fs::path old = fs::path(dir_) / (".carmba-old." + std::to_string(::getpid()));
+  std::vector<fs::path> moved_aside;
+  auto restore = [&]() {
+    std::error_code e2;
+    for (const auto& p : moved_aside) fs::rename(old / p.filename(), p, e2);
+    fs::remove_all(old, e2);
+  };
+  if (replace_all) {
+    fs::create_directory(old, ec);
+    if (ec) return Status::Error(dir_ + ": cannot move the old contents aside (" + ec.message() + ")");
+    std::vector<fs::path> before;
+    for (const auto& e : fs::directory_iterator(dir_, ec)) {
+      if (e.path() != staging && e.path() != old) before.push_back(e.path());
+    }
+    for (const auto& p : before) {
+      fs::rename(p, old / p.filename(), ec);
+      if (ec) {
+        restore();  // the entries moved so far go back
+        return Status::Error(dir_ + ": cannot move the old contents aside (" + ec.message() + ")");
+      }
+      moved_aside.push_back(p);
+    }
+  }
+  std::vector<fs::path> entries;
+  for (const auto& e : fs::directory_iterator(staging, ec)) entries.push_back(e.path());
+  // A file cannot replace a directory: found before anything is moved.
+  for (const auto& p : entries) {
+    const fs::path target = fs::path(dir_) / p.filename();
+    if (!fs::is_directory(p) && fs::is_directory(target)) {
+      restore();
+      return Status::Error(target.string() + ": is a directory, expected a file (or nothing)");
+    }
+  }
+  for (const auto& p : entries) {
+    const fs::path target = fs::path(dir_) / p.filename();
+    // A directory replaces a directory of the same name (calibrate's mrcal/).
+    if (fs::is_directory(p) && fs::is_directory(target) && !fs::is_symlink(target)) {
+      fs::remove_all(target, ec);
+    }
+    fs::rename(p, target, ec);
+    if (ec) {
+      restore();
+      return Status::Error(dir_ + ": cannot move " + p.filename().string() + " into place (" +
+                           ec.message() + ")");
+    }
+  }
+  fs::remove_all(staging, ec);
+  fs::remove_all(old, ec);
+  done_ = true;
   return Status::Ok();
 }
 

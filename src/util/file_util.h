@@ -12,6 +12,49 @@ namespace carmba {
 // error leaves either the old file or no file, never half a file.
 Status WriteFileAtomic(const std::string& path, const std::string& contents);
 
+// Output paths, checked before any work so that a bad --out fails at once with a clear reason
+// (not after minutes of solving, with a rename's errno). `what` names the flag, e.g. "--out".
+// CheckOutputDir: `dir` is an existing directory, or the nearest existing ancestor is a
+// directory (none of the ancestors is a file), and that directory is not on a read-only file
+// system and accepts new entries (probed by creating and removing a directory
+// `.carmba-probe.<pid>` in it: /proc and /sys refuse with ENOENT / EPERM although access(2) says
+// they are writable).
+Status CheckOutputDir(const std::string& dir, const std::string& what);
+// CheckOutputFile: `path` names a file: not an existing directory or other non-regular file
+// (renaming onto /dev/null would replace the device); its directory exists and passes the
+// checks above.
+Status CheckOutputFile(const std::string& path, const std::string& what);
+
+// An output directory written through a staging directory, so that an error leaves no partial
+// output and the final renames stay within one file system (rename(2) across mounts fails with
+// EXDEV, e.g. when `dir` is a mount point):
+//   - `dir` does not exist: the results are written into `dir.tmp.<pid>` beside it (same parent
+//     directory, hence the same mount) and Commit renames that to `dir`;
+//   - `dir` exists: they are written into `dir/.carmba-tmp.<pid>` inside it and Commit moves each
+//     entry into `dir` (replacing an entry of the same name; a file never replaces a directory:
+//     that is an error before anything moves); with `replace_all` the entries that were in `dir`
+//     before are moved aside first and deleted after, or moved back on error. A rename failing
+//     half-way through (not expected within one directory) can leave some entries moved.
+// Without Commit the destructor removes the staging directory.
+class StagedOutputDir {
+ public:
+  explicit StagedOutputDir(std::string dir);
+  ~StagedOutputDir();
+  StagedOutputDir(const StagedOutputDir&) = delete;
+  StagedOutputDir& operator=(const StagedOutputDir&) = delete;
+  // Creates the staging directory (parents of `dir` as needed).
+  Status Begin();
+  // Where to write the results.
+  const std::string& path() const { return staging_; }
+  Status Commit(bool replace_all);
+
+ private:
+  std::string dir_;
+  std::string staging_;
+  bool inside_ = false;
+  bool done_ = false;
+};
+
 // Reads a whole file. Error names the path.
 StatusOr<std::string> ReadFile(const std::string& path);
 

@@ -254,6 +254,36 @@ void YamlMap::GetNonNegative(const std::string& key, double* out, bool required)
   *out = v;
 }
 
+void YamlMap::GetInRange(const std::string& key,
+                         double* out,
+                         const PlausibleRange& range,
+                         bool required) {
+  double v = *out;
+  const bool had = Has(key);
+  Get(key, &v, required);
+  if (!had || !status_.ok()) return;
+  if (!InRange(v, range)) {
+    Fail(key, "expected " + FormatRange(range) + ", got " + FormatCompact(v));
+    return;
+  }
+  *out = v;
+}
+
+void YamlMap::GetInRange(const std::string& key,
+                         int* out,
+                         const PlausibleRange& range,
+                         bool required) {
+  int v = *out;
+  const bool had = Has(key);
+  Get(key, &v, required);
+  if (!had || !status_.ok()) return;
+  if (!InRange(v, range)) {
+    Fail(key, "expected an integer " + FormatRange(range) + ", got " + std::to_string(v));
+    return;
+  }
+  *out = v;
+}
+
 YamlMap& YamlMap::Map(const std::string& key, bool required) {
   const auto n = Node(key, required, "a mapping");
   children_.push_back(std::make_unique<YamlMap>(n ? *n : YAML::Node(), file_, KeyPath(key)));

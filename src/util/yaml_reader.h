@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "util/plausible.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -49,6 +50,14 @@ class YamlMap {
   // A positive / non-negative number (after Get).
   void GetPositive(const std::string& key, double* out, bool required = false);
   void GetNonNegative(const std::string& key, double* out, bool required = false);
+  // A number / an integer within a plausible range (util/plausible.h); the error names the line,
+  // the key, the range and the value (%g), e.g.
+  //   config.yaml:4: key 'loss.scale_px': expected 1e-06 .. 10000 px, got 1e+300
+  void GetInRange(const std::string& key,
+                  double* out,
+                  const PlausibleRange& range,
+                  bool required = false);
+  void GetInRange(const std::string& key, int* out, const PlausibleRange& range, bool required = false);
 
   // A nested map (absent -> an empty map). Its errors and unknown keys are reported by this
   // map's Finish().

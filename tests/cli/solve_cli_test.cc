@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 
 #include "cli_test_util.h"
 
@@ -74,7 +75,7 @@ class BadInput : public ::testing::Test {
   }
   // Runs solve and checks: non-zero exit, exactly one line on stderr containing `expected`,
   // and no result.json or report.md left behind.
-  void ExpectError(const std::string& expected) {
+  CommandResult ExpectError(const std::string& expected) {
     WriteAll();
     const std::string out = dir_.File("out");
     const auto r = RunCarmba("solve --problem=" + dir_.File("problem.yaml") +
@@ -84,6 +85,7 @@ class BadInput : public ::testing::Test {
     EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
     EXPECT_FALSE(std::filesystem::exists(out + "/result.json"));
     EXPECT_FALSE(std::filesystem::exists(out + "/report.md"));
+    return r;
   }
   TempDir dir_;
   std::string markers_, obs_, problem_, config_;
@@ -223,14 +225,173 @@ TEST(SolveCli, UnrefinedConfigHasNoFalseHandednessWarning) {
 
 TEST_F(BadInput, NumThreadsBelowOneNamesTheLine) {
   config_ = "name: c\nnum_threads: 0\n";
-  ExpectError("config.yaml:2: key 'num_threads': expected an integer >= 1");
+  ExpectError("config.yaml:2: key 'num_threads': expected an integer 1 .. 1024, got 0");
 }
 
 TEST_F(BadInput, NonPositiveSigma) {
   problem_ = "name: x\ncamera: camera.json\nsigma_px: -1\n"
              "markers: {file: markers.csv, sigma_mm: 0.2}\n"
              "observations: {file: obs.csv, format: long}\n";
-  ExpectError("key 'sigma_px': expected a positive number");
+  ExpectError("problem.yaml:3: key 'sigma_px': expected 1e-06 .. 1000 px, got -1");
+}
+
+// Absurd values (util/plausible.h): one corruption at a time of the valid problem; the message
+// names the file (and line or key), the plausible range and the value printed with %g.
+class AbsurdValue : public BadInput {
+ protected:
+  // Replaces the one occurrence of `from` in `*text` by `to`.
+  static void Corrupt(std::string* text, const std::string& from, const std::string& to) {
+    const auto pos = text->find(from);
+    ASSERT_NE(pos, std::string::npos) << from;
+    ASSERT_EQ(text->find(from, pos + 1), std::string::npos) << from;
+    text->replace(pos, from.size(), to);
+  }
+  void ExpectAbsurd(const std::string& expected) {
+    const CommandResult r = ExpectError(expected);
+    // No number printed digit by digit (the old message printed 1e200 with 200 digits).
+    EXPECT_FALSE(std::regex_search(r.err, std::regex("[0-9]{12}"))) << r.err;
+  }
+  void SetCamera(const std::string& from, const std::string& to) {
+    camera_ = R"({"image_size": [408, 408], "fx": 2061.4, "fy": 2254.6, "cx": 203.7,)"
+              R"( "cy": 205.1, "distortion": [0, 0, 0, 0, 0]})";
+    Corrupt(&camera_, from, to);
+    dir_.Write("camera.json", camera_);
+  }
+  std::string camera_;
+};
+
+// Was: "view 'a': POSIT: focal length must be positive and finite" (with distortion: "POSIT:
+// pixel 0 cannot be undistorted").
+TEST_F(AbsurdValue, FocalLength) {
+  SetCamera("\"fx\": 2061.4", "\"fx\": 1e308");
+  ExpectAbsurd("camera.json: key 'fx': expected 1 .. 1e+06 px, got 1e+308");
+}
+
+TEST_F(AbsurdValue, FocalLengthWithDistortion) {
+  SetCamera("\"fx\": 2061.4, \"fy\": 2254.6, \"cx\": 203.7, \"cy\": 205.1, "
+            "\"distortion\": [0, 0, 0, 0, 0]",
+            "\"fx\": 1e308, \"fy\": 2254.6, \"cx\": 203.7, \"cy\": 205.1, "
+            "\"distortion\": [0.1, 0, 0, 0, 0]");
+  ExpectAbsurd("camera.json: key 'fx': expected 1 .. 1e+06 px, got 1e+308");
+}
+
+TEST_F(AbsurdValue, FocalLengthTiny) {
+  SetCamera("\"fy\": 2254.6", "\"fy\": 1e-300");
+  ExpectAbsurd("camera.json: key 'fy': expected 1 .. 1e+06 px, got 1e-300");
+}
+
+TEST_F(AbsurdValue, PrincipalPointFarOutsideTheImage) {
+  SetCamera("\"cx\": 203.7", "\"cx\": 5e9");
+  ExpectAbsurd("camera.json: key 'cx': expected -408 .. 816 px, got 5e+09 (-1 .. 2 x the image "
+               "width)");
+}
+
+TEST_F(AbsurdValue, Distortion) {
+  SetCamera("[0, 0, 0, 0, 0]", "[0, 0, 0, 0, 1e300]");
+  ExpectAbsurd("camera.json: key 'distortion': element 4 (k3): expected -1e+06 .. 1e+06, got "
+               "1e+300");
+}
+
+TEST_F(AbsurdValue, ImageSize) {
+  SetCamera("[408, 408]", "[408, 0]");
+  ExpectAbsurd("camera.json: key 'image_size': height: expected 1 .. 65535 px, got 0");
+}
+
+TEST_F(AbsurdValue, ImageSizeBeyondInt) {
+  SetCamera("[408, 408]", "[99999999999, 408]");
+  ExpectAbsurd("camera.json: key 'image_size': width: expected 1 .. 65535 px, got 1e+11");
+}
+
+TEST_F(AbsurdValue, CovarianceSigma) {
+  SetCamera("\"distortion\"", R"("covariance": {"names": ["fx", "fy"],)"
+                                 R"( "matrix": [[1e300, 0], [0, 4]]}, "distortion")");
+  ExpectAbsurd("camera.json: key 'covariance.matrix': the sigma of fx (square root of the "
+               "diagonal): expected 0 .. 1e+06, got 1e+150");
+}
+
+TEST_F(AbsurdValue, CovarianceNotSymmetric) {
+  SetCamera("\"distortion\"", R"("covariance": {"names": ["fx", "fy"],)"
+                                 R"( "matrix": [[4, 1], [-1, 4]]}, "distortion")");
+  ExpectAbsurd("camera.json: key 'covariance.matrix': element [0][1] = 1: expected a symmetric "
+               "matrix with correlations within [-1, 1]");
+}
+
+TEST_F(AbsurdValue, CovarianceShape) {
+  SetCamera("\"distortion\"", R"("covariance": {"names": ["fx", "fy"],)"
+                                 R"( "matrix": [[4, 0, 0], [0, 4, 0]]}, "distortion")");
+  ExpectAbsurd("camera.json: key 'covariance.matrix': row 0: expected 2 numbers, got 3");
+}
+
+TEST_F(AbsurdValue, CovarianceNotNumbers) {
+  // Was an uncaught nlohmann::json type_error.
+  SetCamera("\"distortion\"", R"("covariance": {"names": ["fx", 3],)"
+                                 R"( "matrix": [[4, 0], [0, 4]]}, "distortion")");
+  ExpectAbsurd("camera.json: key 'covariance': expected {\"names\": [\"fx\", ...], \"matrix\": "
+               "[[numbers], ...]}");
+}
+
+// Was: "POSIT: the object points are (near-)coplanar (singular values 9999...(200 digits)".
+TEST_F(AbsurdValue, MarkerCoordinate) {
+  Corrupt(&markers_, "3,13.35,1,14", "3,1e200,1,14");
+  ExpectAbsurd("markers.csv:4: column 'x_mm': expected -10000 .. 10000 mm, got 1e+200");
+}
+
+TEST_F(AbsurdValue, MarkerCovariance) {
+  markers_ =
+      "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n"
+      "1,0,0,0,0.04,0,0,0.04,0,0.04\n2,-58.85,1,14,0.04,0,0,0.04,0,0.04\n"
+      "3,13.35,1,14,0.04,0,0,1e300,0,0.04\n4,-8.25,-20.5,24,0.04,0,0,0.04,0,0.04\n"
+      "5,-56.05,19,31,0.04,0,0,0.04,0,0.04\n";
+  Corrupt(&problem_, "markers: {file: markers.csv, sigma_mm: 0.2}", "markers: {file: markers.csv}");
+  ExpectAbsurd("markers.csv:4: column 'cov_yy': expected a variance whose square root is 1e-06 .. "
+               "1000 mm, got 1e+300");
+}
+
+TEST_F(AbsurdValue, PixelCoordinate) {
+  Corrupt(&obs_, "b,4,185.0,146.0", "b,4,185.0,-3e15");
+  ExpectAbsurd("obs.csv:10: column 'v_px': expected -100000 .. 100000 px, got -3e+15");
+}
+
+TEST_F(AbsurdValue, PixelSigma) {
+  Corrupt(&problem_, "sigma_px: 0.5", "sigma_px: 1e6");
+  ExpectAbsurd("problem.yaml:3: key 'sigma_px': expected 1e-06 .. 1000 px, got 1e+06");
+}
+
+TEST_F(AbsurdValue, CtSigma) {
+  Corrupt(&problem_, "sigma_mm: 0.2", "sigma_mm: 2e-9");
+  ExpectAbsurd("problem.yaml:4: key 'markers.sigma_mm': expected 1e-06 .. 1000 mm, got 2e-09");
+}
+
+TEST_F(AbsurdValue, ExpectedValidationAngle) {
+  problem_ += "validation:\n  - {a: a, b: b, expected_deg: 1e5}\n";
+  ExpectAbsurd("problem.yaml:7: key 'validation[0].expected_deg': expected -360 .. 360 deg, got "
+               "100000");
+}
+
+TEST_F(AbsurdValue, LegacyPositFocalLength) {
+  problem_ += "reference:\n  legacy_posit: {focal_px: 1e300, cx_px: 204, cy_px: 205}\n";
+  ExpectAbsurd("problem.yaml:7: key 'reference.legacy_posit.focal_px': expected 1 .. 1e+06 px, "
+               "got 1e+300");
+}
+
+TEST_F(AbsurdValue, LossScale) {
+  config_ += "loss: {type: huber, scale_px: 1e300}\n";
+  ExpectAbsurd("config.yaml:3: key 'loss.scale_px': expected 1e-06 .. 10000 px, got 1e+300");
+}
+
+TEST_F(AbsurdValue, Tolerance) {
+  config_ += "function_tolerance: 10\n";
+  ExpectAbsurd("config.yaml:3: key 'function_tolerance': expected 1e-32 .. 1, got 10");
+}
+
+TEST_F(AbsurdValue, MaxIterations) {
+  config_ += "max_iterations: 2000000000\n";
+  ExpectAbsurd("config.yaml:3: key 'max_iterations': expected an integer 0 .. 1e+06, got 2000000000");
+}
+
+TEST_F(AbsurdValue, NumThreads) {
+  config_ += "num_threads: 100000\n";
+  ExpectAbsurd("config.yaml:3: key 'num_threads': expected an integer 1 .. 1024, got 100000");
 }
 
 TEST(Cli, HelpListsCommandsAndFlags) {

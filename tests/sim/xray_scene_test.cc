@@ -140,8 +140,8 @@ TEST(XrayScene, BadScenesAreRejectedWithOneLineErrors) {
   const std::vector<Case> cases = {
       {"  sod_mm: 500", "  sod_mm: 500\n  focus: 1", "unknown key 'carm.focus'"},
       {"seed: 4", "seed: 4\ncolour: red", "unknown key 'colour'"},
-      {"sid_mm: 900", "sid_mm: -900", "key 'carm.sid_mm': expected a positive number"},
-      {"sod_mm: 500", "sod_mm: -5", "key 'carm.sod_mm': expected a positive number"},
+      {"sid_mm: 900", "sid_mm: -900", "key 'carm.sid_mm': expected 1 .. 10000 mm, got -900"},
+      {"sod_mm: 500", "sod_mm: -5", "key 'carm.sod_mm': expected 1 .. 10000 mm, got -5"},
       {"sod_mm: 500", "sod_mm: 950", "smaller than sid_mm"},
       {"sid_mm: 900", "sid_mm: .nan", "key 'carm.sid_mm': expected a finite number"},
       {"rows: 3", "rows: 12", "larger than the field of view"},

@@ -172,6 +172,13 @@ TEST(PoseStudyTest, RejectsWhatItDoesNotUnderstand) {
        "sweeps:\n  num_views: [9]\n", "num_views = 9: expected 1..5"},
       {"file: " + kSrc + "/problems/thesis_pose.yaml\n    options: {monte_carlo: often}", "",
        "expected none or resimulate"},
+      // Absurd values (util/plausible.h), named with the range and printed with %g.
+      {"synthetic: {camera: " + kSrc + "/data/thesis/camera.json, markers: thesis, "
+       "source_to_object_mm: 1e300}",
+       "", "synthetic.source_to_object_mm: expected 1 .. 10000 mm, got 1e+300"},
+      {"synthetic: {camera: " + kSrc + "/data/thesis/camera.json, markers: thesis, "
+       "sigma_ct_mm: -1}",
+       "", "synthetic.sigma_ct_mm: expected 1e-06 .. 1000 mm, got -1"},
   };
   for (const auto& c : cases) {
     const StudySpec spec =
@@ -182,6 +189,20 @@ TEST(PoseStudyTest, RejectsWhatItDoesNotUnderstand) {
     EXPECT_NE(r.status().message().find(c.expected), std::string::npos)
         << r.status().message() << "\nexpected: " << c.expected;
   }
+}
+
+// A sweep value outside the variable's plausible range is an error of the study file, at load.
+TEST(PoseStudyTest, AbsurdSweepValueNamesTheLine) {
+  std::string dir = ::testing::TempDir() + "/carmba_pose_study_XXXXXX";
+  ASSERT_NE(::mkdtemp(dir.data()), nullptr);
+  std::ofstream(dir + "/s.yaml") << SyntheticStudy(1, "sweeps:\n  pixel_noise_px: [0.5, 1e300]\n");
+  const StatusOr<StudySpec> spec = LoadStudySpec(dir + "/s.yaml");
+  ASSERT_FALSE(spec.ok());
+  EXPECT_NE(spec.status().message().find(
+                "s.yaml:9: key 'sweeps.pixel_noise_px': element 1: expected 0 or 1e-06 .. 1000 "
+                "px, got 1e+300"),
+            std::string::npos)
+      << spec.status().message();
 }
 
 TEST(PoseStudyTest, SyntheticCalibrationReportsIntrinsicErrors) {
