@@ -1,0 +1,160 @@
+// The nominal view of a DICOM X-ray frame (sim/dicom_view.h): one DICOM file per sign of each
+// positioner angle, written and read back through io/dicom_xray.h, checked against the physical
+// meaning of the sign (PS3.3 C.8.7.5.1.2: +primary = LAO, +secondary = cranial), and the nominal
+// focal lengths from SID and Imager Pixel Spacing (row\column).
+#include "sim/dicom_view.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "io/dicom_xray.h"
+
+namespace carmba::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Rotations are built from cos / sin of the angles: exact to rounding.
+constexpr double kTol = 1e-9;
+
+// Writes one 16 x 12 frame with these tags, reads it back and returns its nominal view.
+NominalDicomView ViewFromFile(const XrayFrameGeometry& g) {
+  const std::string path = (fs::temp_directory_path() /
+                            ("carmba_dicom_view_" + std::to_string(::getpid()) + ".dcm"))
+                               .string();
+  DicomXrayWriteOptions o;
+  o.geometry = g;
+  EXPECT_TRUE(WriteDicomXray(path, {cv::Mat(12, 16, CV_16UC1, cv::Scalar(100))}, o).ok());
+  auto image = ReadDicomXray(path);
+  fs::remove(path);
+  EXPECT_TRUE(image.ok()) << image.status().message();
+  auto view = NominalViewFromDicom(image->geometry[0], 16, 12, path);
+  EXPECT_TRUE(view.ok()) << view.status().message();
+  return *view;
+}
+
+XrayFrameGeometry Geometry(double primary_deg, double secondary_deg) {
+  XrayFrameGeometry g;
+  g.primary_angle_deg = primary_deg;
+  g.secondary_angle_deg = secondary_deg;
+  g.sid_mm = 1000;
+  g.sod_mm = 600;
+  g.pixel_spacing_row_mm = 0.25;
+  g.pixel_spacing_col_mm = 0.2;
+  return g;
+}
+
+// The beam (camera z) and the source position, in the patient frame (LPS, origin = isocentre).
+Eigen::Vector3d Beam(const Rigid3& cam_from_patient) {
+  return cam_from_patient.R.transpose() * Eigen::Vector3d::UnitZ();
+}
+Eigen::Vector3d Source(const Rigid3& cam_from_patient) {
+  return cam_from_patient.Inverse().t;
+}
+
+TEST(DicomView, ZeroZeroIsAnteroPosterior) {
+  const NominalDicomView v = ViewFromFile(Geometry(0, 0));
+  ASSERT_TRUE(v.cam_from_patient.has_value());
+  // Beam from the posterior source to the anterior detector: -y in LPS.
+  EXPECT_LT((Beam(*v.cam_from_patient) - Eigen::Vector3d(0, -1, 0)).norm(), kTol);
+  EXPECT_LT((Source(*v.cam_from_patient) - Eigen::Vector3d(0, 600, 0)).norm(), 1e-9 * 600);
+  // The isocentre is on the optical axis, SOD in front of the source.
+  EXPECT_LT(((*v.cam_from_patient) * Eigen::Vector3d::Zero() - Eigen::Vector3d(0, 0, 600)).norm(),
+            1e-9 * 600);
+  // Image x = patient right (-x in LPS), image y = feet (-z).
+  EXPECT_LT((v.cam_from_patient->R.transpose().col(0) - Eigen::Vector3d(-1, 0, 0)).norm(), kTol);
+  EXPECT_LT((v.cam_from_patient->R.transpose().col(1) - Eigen::Vector3d(0, 0, -1)).norm(), kTol);
+  EXPECT_TRUE(v.missing.empty());
+}
+
+TEST(DicomView, PositivePrimaryIsLao) {
+  const NominalDicomView v = ViewFromFile(Geometry(30, 0));
+  ASSERT_TRUE(v.cam_from_patient.has_value());
+  const Eigen::Vector3d beam = Beam(*v.cam_from_patient);
+  // The detector at the patient's left-anterior: the beam goes towards +x (left) and -y
+  // (anterior); the source sits right-posterior.
+  EXPECT_LT((beam - Eigen::Vector3d(std::sin(M_PI / 6), -std::cos(M_PI / 6), 0)).norm(), kTol);
+  EXPECT_LT(Source(*v.cam_from_patient).x(), -299);
+}
+
+TEST(DicomView, NegativePrimaryIsRao) {
+  const NominalDicomView v = ViewFromFile(Geometry(-90, 0));
+  ASSERT_TRUE(v.cam_from_patient.has_value());
+  // RAO 90: the detector at the patient's right, the beam along -x (left to right).
+  EXPECT_LT((Beam(*v.cam_from_patient) - Eigen::Vector3d(-1, 0, 0)).norm(), kTol);
+  EXPECT_GT(Source(*v.cam_from_patient).x(), 599);
+}
+
+TEST(DicomView, PositiveSecondaryIsCranial) {
+  const NominalDicomView v = ViewFromFile(Geometry(0, 20));
+  ASSERT_TRUE(v.cam_from_patient.has_value());
+  const Eigen::Vector3d beam = Beam(*v.cam_from_patient);
+  // The detector tilted towards the head: the beam gains +z (superior), the source is caudal.
+  const double b = 20 * M_PI / 180;
+  EXPECT_LT((beam - Eigen::Vector3d(0, -std::cos(b), std::sin(b))).norm(), kTol);
+  EXPECT_LT(Source(*v.cam_from_patient).z(), -200);
+}
+
+TEST(DicomView, NegativeSecondaryIsCaudal) {
+  const NominalDicomView v = ViewFromFile(Geometry(0, -20));
+  ASSERT_TRUE(v.cam_from_patient.has_value());
+  EXPECT_LT(Beam(*v.cam_from_patient).z(), -0.34);
+  EXPECT_GT(Source(*v.cam_from_patient).z(), 200);
+}
+
+// Combined angles: the closed form of carm_geometry.h, z_cam = (sin a cos b, -cos a cos b, sin b).
+TEST(DicomView, CombinedAnglesFollowTheClosedForm) {
+  const double a = 25, b = -35;
+  const NominalDicomView v = ViewFromFile(Geometry(a, b));
+  ASSERT_TRUE(v.cam_from_patient.has_value());
+  const double ar = a * M_PI / 180, br = b * M_PI / 180;
+  const Eigen::Vector3d expected(std::sin(ar) * std::cos(br), -std::cos(ar) * std::cos(br),
+                                 std::sin(br));
+  EXPECT_LT((Beam(*v.cam_from_patient) - expected).norm(), kTol);
+}
+
+// Imager Pixel Spacing is "row spacing\column spacing": fx = SID / column spacing.
+TEST(DicomView, NominalFocalLengthsFromSidAndImagerPixelSpacing) {
+  const NominalDicomView v = ViewFromFile(Geometry(0, 0));
+  ASSERT_TRUE(v.camera.has_value());
+  EXPECT_DOUBLE_EQ(v.camera->params[0], 1000 / 0.2);   // fx
+  EXPECT_DOUBLE_EQ(v.camera->params[1], 1000 / 0.25);  // fy
+  EXPECT_DOUBLE_EQ(v.camera->params[2], 7.5);          // cx = (16 - 1) / 2
+  EXPECT_DOUBLE_EQ(v.camera->params[3], 5.5);          // cy = (12 - 1) / 2
+  EXPECT_EQ(v.camera->width, 16);
+  EXPECT_EQ(v.camera->height, 12);
+}
+
+TEST(DicomView, AbsentTagsLeaveTheirPartOutAndAreListed) {
+  XrayFrameGeometry g = Geometry(10, 0);
+  g.sod_mm.reset();
+  g.pixel_spacing_row_mm.reset();
+  g.pixel_spacing_col_mm.reset();
+  const NominalDicomView v = ViewFromFile(g);
+  EXPECT_FALSE(v.cam_from_patient.has_value());
+  EXPECT_FALSE(v.camera.has_value());
+  ASSERT_EQ(v.missing.size(), 2u);
+  EXPECT_EQ(v.missing[0], "Distance Source to Patient (0018,1111)");
+  EXPECT_EQ(v.missing[1], "Imager Pixel Spacing (0018,1164)");
+}
+
+TEST(DicomView, InconsistentDistancesAndAnglesAreErrors) {
+  XrayFrameGeometry g = Geometry(0, 0);
+  g.sod_mm = 1000;
+  auto v = NominalViewFromDicom(g, 16, 12, "x.dcm#frame2");
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.status().message().find("x.dcm#frame2: Distance Source to Patient (0018,1111)"),
+            std::string::npos)
+      << v.status().message();
+  g = Geometry(0, 95);
+  v = NominalViewFromDicom(g, 16, 12, "y.dcm");
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.status().message().find("expected [-90, 90]"), std::string::npos)
+      << v.status().message();
+}
+
+}  // namespace
+}  // namespace carmba::sim
