@@ -208,7 +208,12 @@ bool IsDicomFileName(const std::string& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".dcm" || ext == ".dicom") return true;
-  return ext.empty() && HasDicmMarker(path);
+  static const char* kOtherImages[] = {".png", ".pgm", ".ppm", ".pnm", ".tif",
+                                       ".tiff", ".jpg", ".jpeg", ".bmp"};
+  for (const char* e : kOtherImages) {
+    if (ext == e) return false;
+  }
+  return HasDicmMarker(path);
 }
 
 std::string DicomFrameName(const std::string& file, int index, int num_frames) {

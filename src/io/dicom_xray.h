@@ -83,7 +83,8 @@ struct DicomXrayImage {
 StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path);
 
 // True for names taken as DICOM: a `#frameN` suffix, the extension .dcm / .dicom (any case), or,
-// for a file without extension, the DICM preamble.
+// for a file without one of the image extensions OpenCV reads (png, pgm, ppm, pnm, tif, tiff,
+// jpg, jpeg, bmp), the DICM preamble (Siemens .IMA, UID-like names, no extension).
 bool IsDicomFileName(const std::string& path);
 
 // The view name of frame `index` (0-based) of a file with `num_frames` frames: the file name

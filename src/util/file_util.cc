@@ -118,11 +118,16 @@ StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob
     std::string ext = std::filesystem::path(f).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    if (kImageExtensions.count(ext) || (ext.empty() && HasDicmMarker(f))) images.push_back(f);
+    std::string name = std::filesystem::path(f).filename().string();
+    std::transform(name.begin(), name.end(), name.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    if (name == "DICOMDIR") continue;  // a DICOM media directory (no pixels), as on CDs
+    // Other DICOM files are found by their preamble: .IMA, UID-like names, no extension.
+    if (kImageExtensions.count(ext) || HasDicmMarker(f)) images.push_back(f);
   }
   if (images.empty()) {
     return Status::Error(dir_or_glob + ": directory contains no image files (png, pgm, ppm, tif, "
-                                       "jpg, bmp, dcm, or DICOM without extension)");
+                                       "jpg, bmp, dcm, or DICOM files with the DICM preamble)");
   }
   return images;
 }

@@ -183,11 +183,19 @@ TEST(DicomDetect, DirectoryListingTakesDicomFilesWithAndWithoutExtension) {
   ASSERT_TRUE(cv::imwrite(dir.File("a.png"), img));
   ASSERT_TRUE(WriteDicomXray(dir.File("b.DCM"), {img}, DicomXrayWriteOptions()).ok());
   ASSERT_TRUE(WriteDicomXray(dir.File("c"), {img}, DicomXrayWriteOptions()).ok());  // no extension
+  ASSERT_TRUE(WriteDicomXray(dir.File("c.IMA"), {img}, DicomXrayWriteOptions()).ok());  // Siemens
+  ASSERT_TRUE(WriteDicomXray(dir.File("1.2.826.0.1.7"), {img}, DicomXrayWriteOptions()).ok());
+  // A DICOMDIR has the preamble but no pixels: left out (here any DICOM file stands for one).
+  ASSERT_TRUE(WriteDicomXray(dir.File("DICOMDIR"), {img}, DicomXrayWriteOptions()).ok());
   std::ofstream(dir.File("d")) << "not an image, no extension";
   std::ofstream(dir.File("truth.json")) << "{}";
   auto files = ListImageFiles(dir.path());
   ASSERT_TRUE(files.ok()) << files.status().message();
-  EXPECT_EQ(*files, (std::vector<std::string>{dir.File("a.png"), dir.File("b.DCM"), dir.File("c")}));
+  EXPECT_EQ(*files, (std::vector<std::string>{dir.File("1.2.826.0.1.7"), dir.File("a.png"),
+                                              dir.File("b.DCM"), dir.File("c"),
+                                              dir.File("c.IMA")}));
+  auto uid_named = ReadImageFile(dir.File("1.2.826.0.1.7"));
+  ASSERT_TRUE(uid_named.ok()) << uid_named.status().message();
   // The extension-less DICOM file reads as an image.
   auto c = ReadImageFile(dir.File("c"));
   ASSERT_TRUE(c.ok()) << c.status().message();
