@@ -288,6 +288,7 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
   out.modality = GetString(ds, 0x0008, 0x0060);
   out.transfer_syntax_uid = GetString(file.GetHeader(), 0x0002, 0x0010);
   out.photometric = GetString(ds, 0x0028, 0x0004);
+  out.patient_orientation = GetString(ds, 0x0020, 0x0020);
   const gdcm::PixelFormat& pf = image.GetPixelFormat();
   if (pf.GetSamplesPerPixel() != 1) {
     return Status::Error(path + ": Samples per Pixel (0028,0002) is " +
@@ -527,6 +528,9 @@ Status WriteDicomXray(const std::string& path,
   PutString(&ds, 0x0020, 0x000e, gdcm::VR::UI, options.series_uid);
   PutString(&ds, 0x0020, 0x0011, gdcm::VR::IS, "1");
   PutString(&ds, 0x0020, 0x0013, gdcm::VR::IS, "1");
+  if (!options.patient_orientation.empty()) {
+    PutString(&ds, 0x0020, 0x0020, gdcm::VR::CS, options.patient_orientation);
+  }
   PutUS<0x0028, 0x0002>(&ds, 1);
   PutString(&ds, 0x0028, 0x0004, gdcm::VR::CS, options.photometric);
   if (frames.size() > 1) {

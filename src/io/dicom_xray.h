@@ -41,8 +41,8 @@
 // ERRORS (one line, starting with the file name): unreadable file; not DICOM; corrupt DICOM
 // (truncated, or unparsable: GDCM's own diagnostics are silenced); no Pixel Data (7fe0,0010);
 // pixel data GDCM cannot decode (naming the transfer syntax UID and name); unsupported
-// photometric interpretation, samples per pixel or bits allocated; a frame number beyond the
-// file's frames.
+// photometric interpretation, samples per pixel or bits allocated; malformed geometry tags (see
+// above). (A `file#frameN` beyond the file's frames is detect/grid_detector.h's error.)
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -72,6 +72,9 @@ struct DicomXrayImage {
   std::string modality;             // (0008,0060), e.g. XA, RF, CR, DX
   std::string transfer_syntax_uid;  // (0002,0010) as stored
   std::string photometric;          // (0028,0004) as stored: MONOCHROME1 or MONOCHROME2
+  // Patient Orientation (0020,0020) as stored, e.g. "R\F": the patient directions of the image's
+  // rows (+x) and columns (+y); empty when absent. sim/dicom_view.h checks it against the pose.
+  std::string patient_orientation;
   int bits_allocated = 0;
   int bits_stored = 0;
   bool was_signed = false;              // Pixel Representation 1 (shifted to offset binary)
@@ -116,6 +119,7 @@ struct DicomXrayWriteOptions {
   XrayFrameGeometry geometry;
   std::vector<double> primary_increment_deg;
   std::vector<double> secondary_increment_deg;
+  std::string patient_orientation;  // (0020,0020), written when not empty, e.g. "R\F"
   std::string study_uid = "1.2.826.0.1.3680043.10.1393.1";
   std::string series_uid = "1.2.826.0.1.3680043.10.1393.1.1";
   std::string sop_instance_uid = "1.2.826.0.1.3680043.10.1393.1.1.1";

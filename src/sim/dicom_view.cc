@@ -4,10 +4,25 @@
 
 namespace carmba::sim {
 
+namespace {
+
+// The patient-direction letter (LPS: +x L, +y P, +z H) of a unit direction within 25 deg of a
+// patient axis, else 0.
+char DirectionLetter(const Eigen::Vector3d& d) {
+  static const char kPlus[3] = {'L', 'P', 'H'}, kMinus[3] = {'R', 'A', 'F'};
+  int axis = 0;
+  d.cwiseAbs().maxCoeff(&axis);
+  if (std::fabs(d(axis)) < std::cos(25.0 * M_PI / 180.0)) return 0;
+  return d(axis) > 0 ? kPlus[axis] : kMinus[axis];
+}
+
+}  // namespace
+
 StatusOr<NominalDicomView> NominalViewFromDicom(const XrayFrameGeometry& g,
                                                 int width_px,
                                                 int height_px,
-                                                const std::string& name) {
+                                                const std::string& name,
+                                                const std::string& patient_orientation) {
   NominalDicomView out;
   if (g.secondary_angle_deg && std::fabs(*g.secondary_angle_deg) > 90.0) {
     return Status::Error(name + ": Positioner Secondary Angle " +
@@ -35,6 +50,21 @@ StatusOr<NominalDicomView> NominalViewFromDicom(const XrayFrameGeometry& g,
     std::string err;
     if (!carm.Check(&err)) return Status::Error(name + ": " + err);
     out.cam_from_patient = CamFromWorld(carm);
+    const size_t sep = patient_orientation.find('\\');
+    if (!patient_orientation.empty() && sep != std::string::npos && sep > 0 &&
+        sep + 1 < patient_orientation.size()) {
+      const char given[2] = {patient_orientation[0], patient_orientation[sep + 1]};
+      const char* axis_name[2] = {"x", "y"};
+      for (int a = 0; a < 2; ++a) {
+        const char nominal = DirectionLetter(out.cam_from_patient->R.row(a).transpose());
+        if (nominal != 0 && given[a] != nominal) {
+          out.warnings.push_back(
+              name + ": image " + axis_name[a] + " points " + given[a] +
+              " in Patient Orientation (0020,0020) '" + patient_orientation + "', " + nominal +
+              " in the nominal pose: the image is mirrored or the angles are not the image's");
+        }
+      }
+    }
   }
   if (g.sid_mm && g.pixel_spacing_row_mm && g.pixel_spacing_col_mm) {
     DetectorSpec d;

@@ -16,7 +16,12 @@
 //     relative to the patient, so the rotation holds for any patient position on the table.
 //   * The image is taken as seen from the source (CarmGeometry's camera: at 0 / 0, image x =
 //     patient right, image y = feet). A file whose pixels are stored mirrored (as seen from the
-//     detector) needs its image flipped first; Patient Orientation (0020,0020) is not read.
+//     detector) needs its image flipped first. When the file has Patient Orientation (0020,0020)
+//     (the patient directions of the image's +x and +y, letters L R A P H F), each axis whose
+//     nominal direction lies within 25 deg of a patient axis is checked against its first letter;
+//     a disagreement is a warning (e.g. "image x points L in Patient Orientation (0020,0020)
+//     'L\F', R in the nominal pose: the image is mirrored or the angles are not the image's"),
+//     not an error: the pose is still returned.
 //   * No in-plane detector rotation (the XA Positioner Module has none), no central-ray offset.
 //   * fx = SID / column spacing, fy = SID / row spacing (Imager Pixel Spacing (0018,1164) is
 //     "row\column"), cx, cy = the image centre; no distortion.
@@ -40,13 +45,17 @@ struct NominalDicomView {
   std::optional<Camera> camera;
   // The tags that were absent and left a part out, e.g. "Distance Source to Patient (0018,1111)".
   std::vector<std::string> missing;
+  // Disagreements between Patient Orientation and the nominal pose (see above).
+  std::vector<std::string> warnings;
 };
 
 // `name` (the view's name, e.g. file.dcm#frame2) prefixes the errors: secondary angle outside
 // [-90, 90], SOD not smaller than SID (when both are present).
+// `patient_orientation` is DicomXrayImage::patient_orientation ("" = not checked).
 StatusOr<NominalDicomView> NominalViewFromDicom(const XrayFrameGeometry& geometry,
                                                 int width_px,
                                                 int height_px,
-                                                const std::string& name);
+                                                const std::string& name,
+                                                const std::string& patient_orientation = "");
 
 }  // namespace carmba::sim

@@ -23,17 +23,19 @@ namespace fs = std::filesystem;
 constexpr double kTol = 1e-9;
 
 // Writes one 16 x 12 frame with these tags, reads it back and returns its nominal view.
-NominalDicomView ViewFromFile(const XrayFrameGeometry& g) {
+NominalDicomView ViewFromFile(const XrayFrameGeometry& g, const std::string& orientation = "") {
   const std::string path = (fs::temp_directory_path() /
                             ("carmba_dicom_view_" + std::to_string(::getpid()) + ".dcm"))
                                .string();
   DicomXrayWriteOptions o;
   o.geometry = g;
+  o.patient_orientation = orientation;
   EXPECT_TRUE(WriteDicomXray(path, {cv::Mat(12, 16, CV_16UC1, cv::Scalar(100))}, o).ok());
   auto image = ReadDicomXray(path);
   fs::remove(path);
   EXPECT_TRUE(image.ok()) << image.status().message();
-  auto view = NominalViewFromDicom(image->geometry[0], 16, 12, path);
+  EXPECT_EQ(image->patient_orientation, orientation);
+  auto view = NominalViewFromDicom(image->geometry[0], 16, 12, path, image->patient_orientation);
   EXPECT_TRUE(view.ok()) << view.status().message();
   return *view;
 }
@@ -128,6 +130,27 @@ TEST(DicomView, NominalFocalLengthsFromSidAndImagerPixelSpacing) {
   EXPECT_DOUBLE_EQ(v.camera->params[3], 5.5);          // cy = (12 - 1) / 2
   EXPECT_EQ(v.camera->width, 16);
   EXPECT_EQ(v.camera->height, 12);
+}
+
+// Patient Orientation (0020,0020) against the nominal pose: at 0 / 0 the image seen from the
+// source has x = patient right, y = feet ("R\F"); at LAO 90, x = anterior ("A\F"); an axis
+// more than 25 deg from every patient axis (LAO 45) is not checked.
+TEST(DicomView, PatientOrientationCheckedAgainstTheNominalPose) {
+  EXPECT_TRUE(ViewFromFile(Geometry(0, 0), "R\\F").warnings.empty());
+  EXPECT_TRUE(ViewFromFile(Geometry(90, 0), "A\\F").warnings.empty());
+  const NominalDicomView mirrored = ViewFromFile(Geometry(0, 0), "L\\F");
+  ASSERT_EQ(mirrored.warnings.size(), 1u);
+  EXPECT_NE(mirrored.warnings[0].find("image x points L in Patient Orientation (0020,0020) "
+                                      "'L\\F', R in the nominal pose"),
+            std::string::npos)
+      << mirrored.warnings[0];
+  const NominalDicomView upside_down = ViewFromFile(Geometry(0, 0), "L\\H");
+  EXPECT_EQ(upside_down.warnings.size(), 2u);
+  // LAO 45: image x is between R and A; only y (feet) is checked.
+  EXPECT_TRUE(ViewFromFile(Geometry(45, 0), "P\\F").warnings.empty());
+  EXPECT_EQ(ViewFromFile(Geometry(45, 0), "P\\H").warnings.size(), 1u);
+  // Without the tag nothing is checked.
+  EXPECT_TRUE(ViewFromFile(Geometry(0, 0)).warnings.empty());
 }
 
 TEST(DicomView, AbsentTagsLeaveTheirPartOutAndAreListed) {
