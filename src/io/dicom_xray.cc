@@ -102,7 +102,7 @@ Status GetOptional(const gdcm::DataSet& ds,
   }
   if (positive && !(v[0] > 0)) {
     return Status::Error(path + ": " + what + " " + TagName(g, e) + " is " +
-                         GetString(ds, g, e) + ", expected a positive number (mm)");
+                         GetString(ds, g, e) + ", expected a positive number");
   }
   *out = v[0];
   return Status::Ok();
@@ -127,6 +127,9 @@ Status ReadGeometry(const gdcm::DataSet& ds,
                                      true, &base.sid_mm));
   CARMBA_RETURN_IF_ERROR(GetOptional(ds, 0x0018, 0x1111, "Distance Source to Patient", path, true,
                                      &base.sod_mm));
+  CARMBA_RETURN_IF_ERROR(GetOptional(ds, 0x0018, 0x1114,
+                                     "Estimated Radiographic Magnification Factor", path, true,
+                                     &base.magnification));
   std::vector<double> spacing;
   CARMBA_RETURN_IF_ERROR(
       GetDecimals(ds, 0x0018, 0x1164, "Imager Pixel Spacing", path, &spacing));
@@ -504,6 +507,7 @@ Status WriteDicomXray(const std::string& path,
   const XrayFrameGeometry& g = options.geometry;
   if (g.sid_mm) PutString(&ds, 0x0018, 0x1110, gdcm::VR::DS, Decimal(*g.sid_mm));
   if (g.sod_mm) PutString(&ds, 0x0018, 0x1111, gdcm::VR::DS, Decimal(*g.sod_mm));
+  if (g.magnification) PutString(&ds, 0x0018, 0x1114, gdcm::VR::DS, Decimal(*g.magnification));
   if (g.pixel_spacing_row_mm && g.pixel_spacing_col_mm) {
     PutString(&ds, 0x0018, 0x1164, gdcm::VR::DS,
               Decimal(*g.pixel_spacing_row_mm) + "\\" + Decimal(*g.pixel_spacing_col_mm));

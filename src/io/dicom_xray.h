@@ -27,7 +27,8 @@
 //     each frame from the first frame's angle (frame k at angle + increment[k]) (PS3.3
 //     C.8.7.5.1.3). An increment without its base angle leaves that angle absent.
 //   * Distance Source to Detector (0018,1110) = SID, Distance Source to Patient (0018,1111) = SOD
-//     (source to isocentre on C-arms), mm.
+//     (source to isocentre on C-arms), mm; Estimated Radiographic Magnification Factor (0018,1114)
+//     = SID / SOD (sim/dicom_view.h uses it when SOD is absent).
 //   * Imager Pixel Spacing (0018,1164) = "row spacing\column spacing" in mm, at the detector's
 //     front plane: row spacing is the distance between adjacent ROWS (vertical, image y), column
 //     spacing the distance between adjacent COLUMNS (horizontal, image x). (Pixel Spacing
@@ -62,6 +63,7 @@ struct XrayFrameGeometry {
   std::optional<double> secondary_angle_deg;  // cranial +, caudal - (0018,1511) (+ 0018,1521)
   std::optional<double> sid_mm;               // Distance Source to Detector (0018,1110)
   std::optional<double> sod_mm;               // Distance Source to Patient (0018,1111)
+  std::optional<double> magnification;  // Estimated Radiographic Magnification Factor (0018,1114)
   std::optional<double> pixel_spacing_row_mm;  // Imager Pixel Spacing (0018,1164)[0]: along y
   std::optional<double> pixel_spacing_col_mm;  // Imager Pixel Spacing (0018,1164)[1]: along x
 };

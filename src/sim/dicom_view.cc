@@ -24,6 +24,14 @@ StatusOr<NominalDicomView> NominalViewFromDicom(const XrayFrameGeometry& g,
                                                 const std::string& name,
                                                 const std::string& patient_orientation) {
   NominalDicomView out;
+  std::optional<double> sod_mm = g.sod_mm;
+  if (!sod_mm && g.sid_mm && g.magnification) {
+    if (!(*g.magnification > 1)) {
+      return Status::Error(name + ": Estimated Radiographic Magnification Factor (0018,1114) " +
+                           std::to_string(*g.magnification) + ", expected > 1 (SID / SOD)");
+    }
+    sod_mm = *g.sid_mm / *g.magnification;
+  }
   if (g.secondary_angle_deg && std::fabs(*g.secondary_angle_deg) > 90.0) {
     return Status::Error(name + ": Positioner Secondary Angle " +
                          std::to_string(*g.secondary_angle_deg) +
@@ -37,14 +45,14 @@ StatusOr<NominalDicomView> NominalViewFromDicom(const XrayFrameGeometry& g,
   }
   if (!g.primary_angle_deg) out.missing.push_back("Positioner Primary Angle (0018,1510)");
   if (!g.secondary_angle_deg) out.missing.push_back("Positioner Secondary Angle (0018,1511)");
-  if (!g.sod_mm) out.missing.push_back("Distance Source to Patient (0018,1111)");
+  if (!sod_mm) out.missing.push_back("Distance Source to Patient (0018,1111)");
   if (!g.sid_mm) out.missing.push_back("Distance Source to Detector (0018,1110)");
   if (!g.pixel_spacing_row_mm) out.missing.push_back("Imager Pixel Spacing (0018,1164)");
-  if (g.primary_angle_deg && g.secondary_angle_deg && g.sod_mm) {
+  if (g.primary_angle_deg && g.secondary_angle_deg && sod_mm) {
     CarmGeometry carm;
-    carm.sod_mm = *g.sod_mm;
+    carm.sod_mm = *sod_mm;
     // The detector distance does not enter the pose; any SID beyond the SOD passes Check().
-    carm.sid_mm = g.sid_mm ? *g.sid_mm : 2 * *g.sod_mm;
+    carm.sid_mm = g.sid_mm ? *g.sid_mm : 2 * *sod_mm;
     carm.primary_angle_deg = *g.primary_angle_deg;
     carm.secondary_angle_deg = *g.secondary_angle_deg;
     std::string err;

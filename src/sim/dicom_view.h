@@ -39,7 +39,8 @@
 namespace carmba::sim {
 
 struct NominalDicomView {
-  // Needs both positioner angles and the source-to-patient distance.
+  // Needs both positioner angles and the source-to-patient distance: SOD (0018,1111), or else
+  // SID / Estimated Radiographic Magnification Factor (0018,1114).
   std::optional<Rigid3> cam_from_patient;
   // Needs SID and Imager Pixel Spacing: fx, fy, cx, cy (no distortion), width x height px.
   std::optional<Camera> camera;

@@ -100,6 +100,7 @@ DicomXrayWriteOptions WithGeometry() {
   o.geometry.secondary_angle_deg = 20.25;
   o.geometry.sid_mm = 1195.5;
   o.geometry.sod_mm = 785;
+  o.geometry.magnification = 1.5;
   o.geometry.pixel_spacing_row_mm = 0.308;
   o.geometry.pixel_spacing_col_mm = 0.154;
   return o;
@@ -125,6 +126,7 @@ TEST(DicomXray, SingleFrame16BitPixelsAndGeometryAsWritten) {
   EXPECT_EQ(g.secondary_angle_deg, 20.25);
   EXPECT_EQ(g.sid_mm, 1195.5);
   EXPECT_EQ(g.sod_mm, 785.0);
+  EXPECT_EQ(g.magnification, 1.5);
   EXPECT_EQ(g.pixel_spacing_row_mm, 0.308);
   EXPECT_EQ(g.pixel_spacing_col_mm, 0.154);
 }

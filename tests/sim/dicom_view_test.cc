@@ -166,6 +166,24 @@ TEST(DicomView, AbsentTagsLeaveTheirPartOutAndAreListed) {
   EXPECT_EQ(v.missing[1], "Imager Pixel Spacing (0018,1164)");
 }
 
+// Without SOD, SID / Estimated Radiographic Magnification Factor (0018,1114) stands in for it.
+TEST(DicomView, MagnificationFactorGivesTheSodWhenItIsAbsent) {
+  XrayFrameGeometry g = Geometry(0, 0);
+  g.sod_mm.reset();
+  g.magnification = 1.6;  // 1000 / 1.6 = 625 mm
+  const NominalDicomView v = ViewFromFile(g);
+  ASSERT_TRUE(v.cam_from_patient.has_value());
+  EXPECT_NEAR(Source(*v.cam_from_patient).y(), 625, 1e-9);
+  EXPECT_TRUE(v.missing.empty());
+  g.magnification = 0.8;
+  auto bad = NominalViewFromDicom(g, 16, 12, "m.dcm");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("m.dcm: Estimated Radiographic Magnification Factor "
+                                        "(0018,1114) 0.800000, expected > 1"),
+            std::string::npos)
+      << bad.status().message();
+}
+
 TEST(DicomView, InconsistentDistancesAndAnglesAreErrors) {
   XrayFrameGeometry g = Geometry(0, 0);
   g.sod_mm = 1000;
