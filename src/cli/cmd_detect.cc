@@ -54,8 +54,8 @@ int RunDetect() {
   if (!s.ok()) return cli::Fail(kCmd, s);
   // A multi-frame DICOM file counts one image per frame.
   std::cout << "found the grid in " << obs->views.size() << " of "
-            << obs->views.size() + skipped.size() << " images (" << per_image * 1e3 << " ms per image); wrote " << FLAGS_out
-            << std::endl;
+            << obs->views.size() + skipped.size() << " images (" << per_image * 1e3
+            << " ms per image); wrote " << FLAGS_out << std::endl;
   return 0;
 }
 

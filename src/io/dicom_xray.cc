@@ -101,8 +101,8 @@ Status GetOptional(const gdcm::DataSet& ds,
                          std::to_string(v.size()) + " values, expected 1");
   }
   if (positive && !(v[0] > 0)) {
-    return Status::Error(path + ": " + what + " " + TagName(g, e) + " is " +
-                         GetString(ds, g, e) + ", expected a positive number");
+    return Status::Error(path + ": " + what + " " + TagName(g, e) + " is " + GetString(ds, g, e) +
+                         ", expected a positive number");
   }
   *out = v[0];
   return Status::Ok();
@@ -119,20 +119,23 @@ Status ReadGeometry(const gdcm::DataSet& ds,
                     int num_frames,
                     std::vector<XrayFrameGeometry>* out) {
   XrayFrameGeometry base;
-  CARMBA_RETURN_IF_ERROR(GetOptional(ds, 0x0018, 0x1510, "Positioner Primary Angle", path, false,
-                                     &base.primary_angle_deg));
-  CARMBA_RETURN_IF_ERROR(GetOptional(ds, 0x0018, 0x1511, "Positioner Secondary Angle", path,
-                                     false, &base.secondary_angle_deg));
-  CARMBA_RETURN_IF_ERROR(GetOptional(ds, 0x0018, 0x1110, "Distance Source to Detector", path,
-                                     true, &base.sid_mm));
-  CARMBA_RETURN_IF_ERROR(GetOptional(ds, 0x0018, 0x1111, "Distance Source to Patient", path, true,
-                                     &base.sod_mm));
-  CARMBA_RETURN_IF_ERROR(GetOptional(ds, 0x0018, 0x1114,
-                                     "Estimated Radiographic Magnification Factor", path, true,
+  CARMBA_RETURN_IF_ERROR(GetOptional(
+      ds, 0x0018, 0x1510, "Positioner Primary Angle", path, false, &base.primary_angle_deg));
+  CARMBA_RETURN_IF_ERROR(GetOptional(
+      ds, 0x0018, 0x1511, "Positioner Secondary Angle", path, false, &base.secondary_angle_deg));
+  CARMBA_RETURN_IF_ERROR(
+      GetOptional(ds, 0x0018, 0x1110, "Distance Source to Detector", path, true, &base.sid_mm));
+  CARMBA_RETURN_IF_ERROR(
+      GetOptional(ds, 0x0018, 0x1111, "Distance Source to Patient", path, true, &base.sod_mm));
+  CARMBA_RETURN_IF_ERROR(GetOptional(ds,
+                                     0x0018,
+                                     0x1114,
+                                     "Estimated Radiographic Magnification Factor",
+                                     path,
+                                     true,
                                      &base.magnification));
   std::vector<double> spacing;
-  CARMBA_RETURN_IF_ERROR(
-      GetDecimals(ds, 0x0018, 0x1164, "Imager Pixel Spacing", path, &spacing));
+  CARMBA_RETURN_IF_ERROR(GetDecimals(ds, 0x0018, 0x1164, "Imager Pixel Spacing", path, &spacing));
   if (!spacing.empty()) {
     if (spacing.size() != 2 || !(spacing[0] > 0) || !(spacing[1] > 0)) {
       return Status::Error(path + ": Imager Pixel Spacing (0018,1164) is '" +
@@ -150,8 +153,9 @@ Status ReadGeometry(const gdcm::DataSet& ds,
     CARMBA_RETURN_IF_ERROR(GetDecimals(ds, 0x0018, e, inc_name[a], path, &inc[a]));
     if (inc[a].size() > 1 && static_cast<int>(inc[a].size()) != num_frames) {
       return Status::Error(path + ": " + inc_name[a] + " " + TagName(0x0018, e) + " has " +
-                           std::to_string(inc[a].size()) + " values, expected 1 or one per frame (" +
-                           std::to_string(num_frames) + ")");
+                           std::to_string(inc[a].size()) +
+                           " values, expected 1 or one per frame (" + std::to_string(num_frames) +
+                           ")");
     }
   }
   out->assign(num_frames, base);
@@ -208,11 +212,12 @@ bool IsDicomFileName(const std::string& path) {
   std::string err;
   if (SplitDicomFrameName(path, &file, &frame, &err)) return true;
   std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) {
+    return static_cast<char>(std::tolower(c));
+  });
   if (ext == ".dcm" || ext == ".dicom") return true;
-  static const char* kOtherImages[] = {".png", ".pgm", ".ppm", ".pnm", ".tif",
-                                       ".tiff", ".jpg", ".jpeg", ".bmp"};
+  static const char* kOtherImages[] = {
+      ".png", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp"};
   for (const char* e : kOtherImages) {
     if (ext == e) return false;
   }
@@ -249,8 +254,9 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
     bool dicom = false;
     const std::string problem = CheckDicomStructure(*bytes, &dicom);
     if (!dicom) {
-      return Status::Error(path + ": not a DICOM file (no DICM preamble, no DICOM element at the "
-                                  "start)");
+      return Status::Error(path +
+                           ": not a DICOM file (no DICM preamble, no DICOM element at the "
+                           "start)");
     }
     if (!problem.empty()) return Status::Error(path + ": corrupt DICOM file: " + problem);
   }
@@ -273,14 +279,15 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
     const gdcm::DataSet& ds = plain.GetFile().GetDataSet();
     if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) {
       if (ds.FindDataElement(gdcm::Tag(0x0028, 0x0010))) {
-        return Status::Error(path + ": corrupt or truncated DICOM image: Rows (0028,0010) but no "
-                                    "Pixel Data (7fe0,0010)");
+        return Status::Error(path +
+                             ": corrupt or truncated DICOM image: Rows (0028,0010) but no "
+                             "Pixel Data (7fe0,0010)");
       }
       return Status::Error(path + ": no Pixel Data (7fe0,0010): not an image");
     }
     const std::string ts = GetString(plain.GetFile().GetHeader(), 0x0002, 0x0010);
-    return Status::Error(path + ": GDCM cannot read the image (transfer syntax " +
-                         SyntaxName(ts) + ")");
+    return Status::Error(path + ": GDCM cannot read the image (transfer syntax " + SyntaxName(ts) +
+                         ")");
   }
   const gdcm::File& file = reader.GetFile();
   const gdcm::DataSet& ds = file.GetDataSet();
@@ -315,8 +322,7 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
       pf.GetHighBit() + 1 < out.bits_stored || pf.GetHighBit() >= out.bits_allocated) {
     return Status::Error(path + ": Bits Stored (0028,0101) " + std::to_string(out.bits_stored) +
                          " / High Bit (0028,0102) " + std::to_string(pf.GetHighBit()) +
-                         " inconsistent with Bits Allocated " +
-                         std::to_string(out.bits_allocated));
+                         " inconsistent with Bits Allocated " + std::to_string(out.bits_allocated));
   }
   const int cols = static_cast<int>(image.GetDimension(0));
   const int rows = static_cast<int>(image.GetDimension(1));
@@ -346,11 +352,25 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
   }
   const bool mono1 = pi == gdcm::PhotometricInterpretation::MONOCHROME1;
   if (bytes_per == 1) {
-    ToFrames<uint8_t>(raw.data(), rows, cols, num_frames, out.bits_stored, pf.GetHighBit(),
-                      out.was_signed, mono1, &out.frames);
+    ToFrames<uint8_t>(raw.data(),
+                      rows,
+                      cols,
+                      num_frames,
+                      out.bits_stored,
+                      pf.GetHighBit(),
+                      out.was_signed,
+                      mono1,
+                      &out.frames);
   } else {
-    ToFrames<uint16_t>(raw.data(), rows, cols, num_frames, out.bits_stored, pf.GetHighBit(),
-                       out.was_signed, mono1, &out.frames);
+    ToFrames<uint16_t>(raw.data(),
+                       rows,
+                       cols,
+                       num_frames,
+                       out.bits_stored,
+                       pf.GetHighBit(),
+                       out.was_signed,
+                       mono1,
+                       &out.frames);
   }
   CARMBA_RETURN_IF_ERROR(ReadGeometry(ds, path, num_frames, &out.geometry));
   return out;
@@ -402,8 +422,10 @@ bool DicomXrayWriteOptions::Check(std::string* error) const {
   }
   if (transfer_syntax != "explicit_le" && transfer_syntax != "jpeg_lossless" &&
       transfer_syntax != "jpeg_ls_lossless" && transfer_syntax != "rle") {
-    return *error = "transfer_syntax must be explicit_le, jpeg_lossless, jpeg_ls_lossless or rle, "
-                    "not '" + transfer_syntax + "'",
+    return *error =
+               "transfer_syntax must be explicit_le, jpeg_lossless, jpeg_ls_lossless or rle, "
+               "not '" +
+               transfer_syntax + "'",
            false;
   }
   if (bits_stored < 0 || bits_stored > 16) return *error = "bits_stored must be 0..16", false;
@@ -442,8 +464,8 @@ Status WriteDicomXray(const std::string& path,
     cv::minMaxLoc(f, nullptr, &hi);
     if (hi > max_value) {
       return Status::Error(path + ": frame " + std::to_string(k + 1) + " has value " +
-                           std::to_string(static_cast<int>(hi)) + " > 2^bits_stored - 1 = " +
-                           std::to_string(max_value));
+                           std::to_string(static_cast<int>(hi)) +
+                           " > 2^bits_stored - 1 = " + std::to_string(max_value));
     }
     if (mono1) {
       cv::Mat inverted = cv::Scalar::all(max_value) - f;  // a new buffer: the input is const
@@ -475,7 +497,7 @@ Status WriteDicomXray(const std::string& path,
   gdcm::TransferSyntax ts = gdcm::TransferSyntax::ExplicitVRLittleEndian;
   gdcm::DataElement encoded = pixels;
   if (options.transfer_syntax != "explicit_le") {
-    ts = options.transfer_syntax == "jpeg_lossless"      ? gdcm::TransferSyntax::JPEGLosslessProcess14_1
+    ts = options.transfer_syntax == "jpeg_lossless" ? gdcm::TransferSyntax::JPEGLosslessProcess14_1
          : options.transfer_syntax == "jpeg_ls_lossless" ? gdcm::TransferSyntax::JPEGLSLossless
                                                          : gdcm::TransferSyntax::RLELossless;
     gdcm::ImageChangeTransferSyntax change;
@@ -497,7 +519,10 @@ Status WriteDicomXray(const std::string& path,
   gdcm::DataSet& ds = file.GetDataSet();
   const bool xa = options.sop_class == "xa";
   PutString(&ds, 0x0008, 0x0008, gdcm::VR::CS, "ORIGINAL\\PRIMARY\\SINGLE PLANE");
-  PutString(&ds, 0x0008, 0x0016, gdcm::VR::UI,
+  PutString(&ds,
+            0x0008,
+            0x0016,
+            gdcm::VR::UI,
             xa ? "1.2.840.10008.5.1.4.1.1.12.1" : "1.2.840.10008.5.1.4.1.1.12.2");
   PutString(&ds, 0x0008, 0x0018, gdcm::VR::UI, options.sop_instance_uid);
   PutString(&ds, 0x0008, 0x0060, gdcm::VR::CS, xa ? "XA" : "RF");
@@ -509,10 +534,16 @@ Status WriteDicomXray(const std::string& path,
   if (g.sod_mm) PutString(&ds, 0x0018, 0x1111, gdcm::VR::DS, Decimal(*g.sod_mm));
   if (g.magnification) PutString(&ds, 0x0018, 0x1114, gdcm::VR::DS, Decimal(*g.magnification));
   if (g.pixel_spacing_row_mm && g.pixel_spacing_col_mm) {
-    PutString(&ds, 0x0018, 0x1164, gdcm::VR::DS,
+    PutString(&ds,
+              0x0018,
+              0x1164,
+              gdcm::VR::DS,
               Decimal(*g.pixel_spacing_row_mm) + "\\" + Decimal(*g.pixel_spacing_col_mm));
   }
-  PutString(&ds, 0x0018, 0x1500, gdcm::VR::CS,
+  PutString(&ds,
+            0x0018,
+            0x1500,
+            gdcm::VR::CS,
             options.primary_increment_deg.empty() && options.secondary_increment_deg.empty()
                 ? "STATIC"
                 : "DYNAMIC");

@@ -47,7 +47,6 @@
 #pragma once
 
 #include <opencv2/core.hpp>
-
 #include <optional>
 #include <string>
 #include <vector>
@@ -79,8 +78,8 @@ struct DicomXrayImage {
   std::string patient_orientation;
   int bits_allocated = 0;
   int bits_stored = 0;
-  bool was_signed = false;              // Pixel Representation 1 (shifted to offset binary)
-  std::vector<cv::Mat> frames;          // CV_8U / CV_16U, MONOCHROME2 convention
+  bool was_signed = false;                  // Pixel Representation 1 (shifted to offset binary)
+  std::vector<cv::Mat> frames;              // CV_8U / CV_16U, MONOCHROME2 convention
   std::vector<XrayFrameGeometry> geometry;  // one per frame
 };
 

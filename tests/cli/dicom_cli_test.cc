@@ -61,11 +61,11 @@ TEST(DicomCli, DetectAndCalibrateFromAMultiFrameXaFileAsFromPngs) {
   RenderBoth(dir);
   if (HasFatalFailure()) return;
   const std::string grid = " --pattern circles --rows 5 --cols 5 --spacing_mm 20";
-  auto d_png = RunCarmba("detect --images " + dir.File("png") + grid + " --out " +
-                         dir.File("png.csv"));
+  auto d_png =
+      RunCarmba("detect --images " + dir.File("png") + grid + " --out " + dir.File("png.csv"));
   ASSERT_EQ(d_png.exit_code, 0) << d_png.err;
-  auto d_dcm = RunCarmba("detect --images " + dir.File("dcm") + grid + " --out " +
-                         dir.File("dcm.csv"));
+  auto d_dcm =
+      RunCarmba("detect --images " + dir.File("dcm") + grid + " --out " + dir.File("dcm.csv"));
   ASSERT_EQ(d_dcm.exit_code, 0) << d_dcm.err;
   EXPECT_NE(d_dcm.out.find("found the grid in 20 of 20 images"), std::string::npos) << d_dcm.out;
   auto png = ReadObservationsCsv(dir.File("png.csv"));

@@ -22,8 +22,8 @@ class TempDir {
  public:
   TempDir() {
     static int counter = 0;
-    path_ = (fs::temp_directory_path() /
-             ("carmba_dicom_detect_" + std::to_string(::getpid()) + "_" + std::to_string(counter++)))
+    path_ = (fs::temp_directory_path() / ("carmba_dicom_detect_" + std::to_string(::getpid()) +
+                                          "_" + std::to_string(counter++)))
                 .string();
     fs::remove_all(path_);
     fs::create_directories(path_);
@@ -151,8 +151,9 @@ TEST(DicomDetect, FramesOfAMultiFrameFileAreViews) {
 
   auto beyond = ReadImageViews(multi + "#frame4");
   ASSERT_FALSE(beyond.ok());
-  EXPECT_NE(beyond.status().message().find("m.dcm#frame4: no such frame, " + multi + " has 3 frames"),
-            std::string::npos)
+  EXPECT_NE(
+      beyond.status().message().find("m.dcm#frame4: no such frame, " + multi + " has 3 frames"),
+      std::string::npos)
       << beyond.status().message();
 
   auto whole = ReadImageFile(multi);
@@ -191,9 +192,12 @@ TEST(DicomDetect, DirectoryListingTakesDicomFilesWithAndWithoutExtension) {
   std::ofstream(dir.File("truth.json")) << "{}";
   auto files = ListImageFiles(dir.path());
   ASSERT_TRUE(files.ok()) << files.status().message();
-  EXPECT_EQ(*files, (std::vector<std::string>{dir.File("1.2.826.0.1.7"), dir.File("a.png"),
-                                              dir.File("b.DCM"), dir.File("c"),
-                                              dir.File("c.IMA")}));
+  EXPECT_EQ(*files,
+            (std::vector<std::string>{dir.File("1.2.826.0.1.7"),
+                                      dir.File("a.png"),
+                                      dir.File("b.DCM"),
+                                      dir.File("c"),
+                                      dir.File("c.IMA")}));
   auto uid_named = ReadImageFile(dir.File("1.2.826.0.1.7"));
   ASSERT_TRUE(uid_named.ok()) << uid_named.status().message();
   // The extension-less DICOM file reads as an image.

@@ -242,7 +242,9 @@ TEST(DicomXray, MultiFrameViewsAndAngleIncrements) {
     SetString(&f->GetDataSet(), 0x0018, 0x1520, gdcm::VR::DS, "1\\2");
   });
   ExpectError(ReadDicomXray(dir.File("mf.dcm")),
-              {"mf.dcm", "Positioner Primary Angle Increment (0018,1520)", "2 values",
+              {"mf.dcm",
+               "Positioner Primary Angle Increment (0018,1520)",
+               "2 values",
                "expected 1 or one per frame (3)"});
 }
 
@@ -372,9 +374,7 @@ TEST(DicomXray, TruncatedAndNonDicomFilesAreErrors) {
     // Rows and no Pixel Data: "corrupt or truncated DICOM image".
     ExpectError(ReadDicomXray(path), {"t.dcm", size < 132 ? "not a DICOM file" : "corrupt"});
   }
-  {
-    std::ofstream(dir.File("x.dcm")) << "P5 2 2 255\n....";
-  }
+  { std::ofstream(dir.File("x.dcm")) << "P5 2 2 255\n...."; }
   ExpectError(ReadDicomXray(dir.File("x.dcm")), {"x.dcm", "not a DICOM file"});
   ExpectError(ReadDicomXray(dir.File("missing.dcm")), {"missing.dcm"});
 }
@@ -414,10 +414,8 @@ TEST(DicomXray, GdcmExampleXaFourFramesJpegLossless) {
   EXPECT_EQ(r->modality, "XA");
   EXPECT_EQ(r->transfer_syntax_uid, "1.2.840.10008.1.2.4.70");
   ASSERT_EQ(r->frames.size(), 4u);
-  const int64_t sums[4][2] = {{8971815, 4515695872},
-                              {9402069, 4730801696},
-                              {9290986, 4675006934},
-                              {9190270, 4623476624}};
+  const int64_t sums[4][2] = {
+      {8971815, 4515695872}, {9402069, 4730801696}, {9290986, 4675006934}, {9190270, 4623476624}};
   for (int f = 0; f < 4; ++f) {
     const cv::Mat& m = r->frames[f];
     ASSERT_EQ(m.type(), CV_8UC1);
@@ -446,8 +444,8 @@ TEST(DicomXray, ReadTimeOf512x512Frame) {
   std::mt19937 rng(11);
   for (int r = 0; r < 512; ++r) {
     for (int c = 0; c < 512; ++c) {
-      img.at<uint16_t>(r, c) = static_cast<uint16_t>(
-          2000 + 1000 * std::sin(r / 20.0) * std::cos(c / 30.0) + rng() % 3);
+      img.at<uint16_t>(r, c) =
+          static_cast<uint16_t>(2000 + 1000 * std::sin(r / 20.0) * std::cos(c / 30.0) + rng() % 3);
     }
   }
   for (const std::string ts : {"explicit_le", "jpeg_lossless"}) {
@@ -458,10 +456,9 @@ TEST(DicomXray, ReadTimeOf512x512Frame) {
     constexpr int kReps = 10;
     const auto t0 = std::chrono::steady_clock::now();
     for (int i = 0; i < kReps; ++i) ASSERT_TRUE(ReadDicomXray(path).ok());
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
-                                                                t0)
-                          .count() /
-                      kReps;
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() /
+        kReps;
     std::cout << "read a 512 x 512 16-bit frame (" << ts << "): " << ms << " ms\n";
     EXPECT_LT(ms, 500);
   }

@@ -24,9 +24,9 @@ constexpr double kTol = 1e-9;
 
 // Writes one 16 x 12 frame with these tags, reads it back and returns its nominal view.
 NominalDicomView ViewFromFile(const XrayFrameGeometry& g, const std::string& orientation = "") {
-  const std::string path = (fs::temp_directory_path() /
-                            ("carmba_dicom_view_" + std::to_string(::getpid()) + ".dcm"))
-                               .string();
+  const std::string path =
+      (fs::temp_directory_path() / ("carmba_dicom_view_" + std::to_string(::getpid()) + ".dcm"))
+          .string();
   DicomXrayWriteOptions o;
   o.geometry = g;
   o.patient_orientation = orientation;
@@ -55,9 +55,7 @@ XrayFrameGeometry Geometry(double primary_deg, double secondary_deg) {
 Eigen::Vector3d Beam(const Rigid3& cam_from_patient) {
   return cam_from_patient.R.transpose() * Eigen::Vector3d::UnitZ();
 }
-Eigen::Vector3d Source(const Rigid3& cam_from_patient) {
-  return cam_from_patient.Inverse().t;
-}
+Eigen::Vector3d Source(const Rigid3& cam_from_patient) { return cam_from_patient.Inverse().t; }
 
 TEST(DicomView, ZeroZeroIsAnteroPosterior) {
   const NominalDicomView v = ViewFromFile(Geometry(0, 0));
@@ -115,8 +113,8 @@ TEST(DicomView, CombinedAnglesFollowTheClosedForm) {
   const NominalDicomView v = ViewFromFile(Geometry(a, b));
   ASSERT_TRUE(v.cam_from_patient.has_value());
   const double ar = a * M_PI / 180, br = b * M_PI / 180;
-  const Eigen::Vector3d expected(std::sin(ar) * std::cos(br), -std::cos(ar) * std::cos(br),
-                                 std::sin(br));
+  const Eigen::Vector3d expected(
+      std::sin(ar) * std::cos(br), -std::cos(ar) * std::cos(br), std::sin(br));
   EXPECT_LT((Beam(*v.cam_from_patient) - expected).norm(), kTol);
 }
 
@@ -226,8 +224,8 @@ TEST(DicomView, SimulatedXaFilesGiveBackTheTruePoseAndFocalLengths) {
     auto image = ReadDicomXray(file);
     ASSERT_TRUE(image.ok()) << image.status().message();
     EXPECT_EQ(image->frames[0].cols, scene->camera.width);
-    auto view = NominalViewFromDicom(image->geometry[0], image->frames[0].cols,
-                                     image->frames[0].rows, file);
+    auto view = NominalViewFromDicom(
+        image->geometry[0], image->frames[0].cols, image->frames[0].rows, file);
     ASSERT_TRUE(view.ok()) << view.status().message();
     ASSERT_TRUE(view->cam_from_patient && view->camera) << file;
     const auto& R = tv["cam_from_world"]["R"];
@@ -237,8 +235,7 @@ TEST(DicomView, SimulatedXaFilesGiveBackTheTruePoseAndFocalLengths) {
         EXPECT_NEAR(view->cam_from_patient->R(r, c), R[r][c].get<double>(), kTol) << file;
       }
       const double missing = r < 2 ? offset(r) : 0.0;
-      EXPECT_NEAR(view->cam_from_patient->t(r) - missing, t[r].get<double>(), 1e-9 * 1000)
-          << file;
+      EXPECT_NEAR(view->cam_from_patient->t(r) - missing, t[r].get<double>(), 1e-9 * 1000) << file;
     }
     // Imager Pixel Spacing is written with 12 significant digits.
     EXPECT_NEAR(view->camera->params[0] / scene->camera.params[0], 1, 1e-11) << file;
