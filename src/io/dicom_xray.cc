@@ -173,34 +173,21 @@ Status ReadGeometry(const gdcm::DataSet& ds,
   return Status::Ok();
 }
 
-// Copies frame pixels to MONOCHROME2-convention unsigned images (see the header).
+// To the MONOCHROME2-convention stored value in place (see the header); nothing to do for the
+// common case of unsigned MONOCHROME2 data using all its bits.
 template <typename T>
-void ToFrames(const char* raw,
-              int rows,
-              int cols,
-              int num_frames,
-              int bits_stored,
-              int high_bit,
-              bool is_signed,
-              bool monochrome1,
-              std::vector<cv::Mat>* frames) {
-  const int cv_type = sizeof(T) == 1 ? CV_8U : CV_16U;
+void ToStoredValues(T* p, size_t n, int bits_stored, int high_bit, bool is_signed, bool mono1) {
   const int shift = high_bit + 1 - bits_stored;
-  const uint32_t mask = (bits_stored >= 32) ? 0xffffffffu : ((1u << bits_stored) - 1u);
+  const uint32_t mask = (1u << bits_stored) - 1u;
   const uint32_t sign_bit = 1u << (bits_stored - 1);
-  const T* p = reinterpret_cast<const T*>(raw);
-  for (int f = 0; f < num_frames; ++f) {
-    cv::Mat m(rows, cols, cv_type);
-    T* out = m.ptr<T>(0);
-    const size_t n = static_cast<size_t>(rows) * cols;
-    const T* in = p + n * f;
-    for (size_t i = 0; i < n; ++i) {
-      uint32_t v = (static_cast<uint32_t>(in[i]) >> shift) & mask;
-      if (is_signed) v ^= sign_bit;  // two's complement -> offset binary
-      if (monochrome1) v = mask - v;
-      out[i] = static_cast<T>(v);
-    }
-    frames->push_back(m);
+  if (shift == 0 && bits_stored == 8 * static_cast<int>(sizeof(T)) && !is_signed && !mono1) {
+    return;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t v = (static_cast<uint32_t>(p[i]) >> shift) & mask;
+    if (is_signed) v ^= sign_bit;  // two's complement -> offset binary
+    if (mono1) v = mask - v;
+    p[i] = static_cast<T>(v);
   }
 }
 
@@ -340,11 +327,12 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
                          std::to_string(expected) + " (" + std::to_string(cols) + " x " +
                          std::to_string(rows) + " x " + std::to_string(num_frames) + " frames)");
   }
-  std::vector<char> raw(expected);
+  // All frames decoded into one buffer, one row range per frame (no copy).
+  cv::Mat all(rows * num_frames, cols, bytes_per == 1 ? CV_8UC1 : CV_16UC1);
   bool decoded;
   {
     QuietStderr quiet;
-    decoded = image.GetBuffer(raw.data());
+    decoded = image.GetBuffer(reinterpret_cast<char*>(all.data));
   }
   if (!decoded) {
     return Status::Error(path + ": GDCM cannot decode the pixel data (transfer syntax " +
@@ -352,26 +340,13 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
   }
   const bool mono1 = pi == gdcm::PhotometricInterpretation::MONOCHROME1;
   if (bytes_per == 1) {
-    ToFrames<uint8_t>(raw.data(),
-                      rows,
-                      cols,
-                      num_frames,
-                      out.bits_stored,
-                      pf.GetHighBit(),
-                      out.was_signed,
-                      mono1,
-                      &out.frames);
+    ToStoredValues(
+        all.ptr<uint8_t>(), all.total(), out.bits_stored, pf.GetHighBit(), out.was_signed, mono1);
   } else {
-    ToFrames<uint16_t>(raw.data(),
-                       rows,
-                       cols,
-                       num_frames,
-                       out.bits_stored,
-                       pf.GetHighBit(),
-                       out.was_signed,
-                       mono1,
-                       &out.frames);
+    ToStoredValues(
+        all.ptr<uint16_t>(), all.total(), out.bits_stored, pf.GetHighBit(), out.was_signed, mono1);
   }
+  for (int f = 0; f < num_frames; ++f) out.frames.push_back(all.rowRange(f * rows, (f + 1) * rows));
   CARMBA_RETURN_IF_ERROR(ReadGeometry(ds, path, num_frames, &out.geometry));
   return out;
 }

@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -435,8 +436,8 @@ TEST(DicomXray, GdcmExampleXaFourFramesJpegLossless) {
   }
 }
 
-// Read time of one 512 x 512 16-bit frame, uncompressed and JPEG lossless (printed; the bound is
-// only a gross-regression guard for a 2-core machine).
+// Read time of one 512 x 512 16-bit frame, uncompressed and JPEG lossless, file to cv::Mat
+// (printed; the bound is only a gross-regression guard for a 2-core machine).
 TEST(DicomXray, ReadTimeOf512x512Frame) {
   TempDir dir;
   // A smooth image with 2 grey levels of noise (compresses like an X-ray image, not like noise).
@@ -453,13 +454,18 @@ TEST(DicomXray, ReadTimeOf512x512Frame) {
     o.transfer_syntax = ts;
     const std::string path = dir.File(ts + ".dcm");
     ASSERT_TRUE(WriteDicomXray(path, {img}, o).ok());
+    // The fastest of 10 reads (the machine is shared: the mean mostly measures the other load).
     constexpr int kReps = 10;
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int i = 0; i < kReps; ++i) ASSERT_TRUE(ReadDicomXray(path).ok());
-    const double ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() /
-        kReps;
-    std::cout << "read a 512 x 512 16-bit frame (" << ts << "): " << ms << " ms\n";
+    double ms = 1e9;
+    for (int i = 0; i < kReps; ++i) {
+      const auto t0 = std::chrono::steady_clock::now();
+      ASSERT_TRUE(ReadDicomXray(path).ok());
+      ms = std::min(
+          ms,
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+    std::cout << "read a 512 x 512 16-bit frame (" << ts << "): " << ms << " ms (fastest of "
+              << kReps << ")\n";
     EXPECT_LT(ms, 500);
   }
 }
