@@ -78,8 +78,9 @@ struct DicomXrayImage {
   std::string patient_orientation;
   int bits_allocated = 0;
   int bits_stored = 0;
-  bool was_signed = false;                  // Pixel Representation 1 (shifted to offset binary)
-  std::vector<cv::Mat> frames;              // CV_8U / CV_16U, MONOCHROME2 convention
+  bool was_signed = false;  // Pixel Representation 1 (shifted to offset binary)
+  // CV_8U / CV_16U, MONOCHROME2 convention; row ranges of one buffer (disjoint, continuous).
+  std::vector<cv::Mat> frames;
   std::vector<XrayFrameGeometry> geometry;  // one per frame
 };
 

@@ -213,6 +213,13 @@ TEST(DicomXray, Monochrome1IsInvertedToMonochrome2) {
   ASSERT_TRUE(r.ok()) << r.status().message();
   EXPECT_EQ(r->photometric, "MONOCHROME1");
   EXPECT_TRUE(Equal(r->frames[0], img));
+  // The same through JPEG lossless (GDCM's decoder, then the inversion).
+  o.transfer_syntax = "jpeg_lossless";
+  ASSERT_TRUE(WriteDicomXray(dir.File("m1j.dcm"), {img}, o).ok());
+  r = ReadDicomXray(dir.File("m1j.dcm"));
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->transfer_syntax_uid, "1.2.840.10008.1.2.4.70");
+  EXPECT_TRUE(Equal(r->frames[0], img));
 }
 
 // Increments (PS3.3 C.8.7.5.1.3): one per frame = offsets from the first frame's angle; a single
@@ -353,6 +360,45 @@ TEST(DicomXray, UndecodableSyntaxIsAnErrorNamingIt) {
     ExpectError(r, {"enc.dcm", "cannot", uid});
     std::cout << r.status().message() << "\n";
   }
+}
+
+// Colour and 32-bit pixel data are not X-ray projection images carmba reads.
+TEST(DicomXray, UnsupportedPixelFormatsAreErrors) {
+  TempDir dir;
+  const std::string path = dir.File("fmt.dcm");
+  ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 12)}, WithGeometry()).ok());
+  EditDicom(path, [](gdcm::File* f) {
+    gdcm::DataSet& ds = f->GetDataSet();
+    gdcm::Attribute<0x0028, 0x0002> spp = {3};
+    gdcm::Attribute<0x0028, 0x0006> planar = {0};
+    ds.Replace(spp.GetAsDataElement());
+    ds.Replace(planar.GetAsDataElement());
+    SetString(&ds, 0x0028, 0x0004, gdcm::VR::CS, "RGB");
+    const std::string rgb(8 * 8 * 3, '\x40');
+    gdcm::DataElement px(gdcm::Tag(0x7fe0, 0x0010));
+    px.SetVR(gdcm::VR::OB);
+    px.SetByteValue(rgb.data(), static_cast<uint32_t>(rgb.size()));
+    ds.Replace(px);
+  });
+  ExpectError(ReadDicomXray(path), {"fmt.dcm", "Samples per Pixel (0028,0002) is 3, expected 1"});
+
+  ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 13)}, WithGeometry()).ok());
+  EditDicom(path, [](gdcm::File* f) {
+    gdcm::DataSet& ds = f->GetDataSet();
+    gdcm::Attribute<0x0028, 0x0100> ba = {32};
+    gdcm::Attribute<0x0028, 0x0101> bs = {32};
+    gdcm::Attribute<0x0028, 0x0102> hb = {31};
+    ds.Replace(ba.GetAsDataElement());
+    ds.Replace(bs.GetAsDataElement());
+    ds.Replace(hb.GetAsDataElement());
+    const std::string words(8 * 8 * 4, '\x01');
+    gdcm::DataElement px(gdcm::Tag(0x7fe0, 0x0010));
+    px.SetVR(gdcm::VR::OW);
+    px.SetByteValue(words.data(), static_cast<uint32_t>(words.size()));
+    ds.Replace(px);
+  });
+  ExpectError(ReadDicomXray(path),
+              {"fmt.dcm", "Bits Allocated (0028,0100) is 32, expected 8 or 16"});
 }
 
 TEST(DicomXray, FileWithoutPixelDataIsAnError) {
