@@ -10,8 +10,10 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "io/dicom_xray.h"
+#include "sim/xray_render.h"
 #include "sim/xray_scene.h"
 
 namespace carmba::sim {
@@ -241,6 +243,44 @@ TEST(DicomView, SimulatedXaFilesGiveBackTheTruePoseAndFocalLengths) {
     EXPECT_NEAR(view->camera->params[0] / scene->camera.params[0], 1, 1e-11) << file;
     EXPECT_NEAR(view->camera->params[1] / scene->camera.params[1], 1, 1e-11) << file;
   }
+  fs::remove_all(dir);
+}
+
+// The simulator's background (sim/xray_render.h LoadBackgroundGain) reads DICOM through
+// io/dicom_xray.h: the first frame by default, frame N of `file.dcm#frameN`; the same gain as
+// from the frame saved as PNG (OpenCV's path).
+TEST(DicomBackground, FrameOfAMultiFrameFileAsFromPng) {
+  const std::string dir =
+      (fs::temp_directory_path() / ("carmba_dicom_bg_" + std::to_string(::getpid()))).string();
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 2; ++k) {
+    cv::Mat m(40, 50, CV_16UC1);
+    for (int r = 0; r < m.rows; ++r) {
+      for (int c = 0; c < m.cols; ++c) {
+        m.at<uint16_t>(r, c) = static_cast<uint16_t>(k == 0 ? 100 + 20 * r : 3000 - 40 * c);
+      }
+    }
+    frames.push_back(m);
+    ASSERT_TRUE(cv::imwrite(dir + "/f" + std::to_string(k + 1) + ".png", m));
+  }
+  const std::string dcm = dir + "/bg.dcm";
+  ASSERT_TRUE(WriteDicomXray(dcm, frames, DicomXrayWriteOptions()).ok());
+  auto same = [](const StatusOr<cv::Mat>& a, const StatusOr<cv::Mat>& b) {
+    EXPECT_TRUE(a.ok() && b.ok()) << a.status().message() << b.status().message();
+    return a.ok() && b.ok() && cv::norm(*a, *b, cv::NORM_INF) == 0;
+  };
+  EXPECT_TRUE(same(LoadBackgroundGain(dcm, 32, 32, 0.5, 0.8),
+                   LoadBackgroundGain(dir + "/f1.png", 32, 32, 0.5, 0.8)));
+  EXPECT_TRUE(same(LoadBackgroundGain(dcm + "#frame2", 32, 32, 0.5, 0.8),
+                   LoadBackgroundGain(dir + "/f2.png", 32, 32, 0.5, 0.8)));
+  EXPECT_FALSE(same(LoadBackgroundGain(dcm + "#frame2", 32, 32, 0.5, 0.8),
+                    LoadBackgroundGain(dir + "/f1.png", 32, 32, 0.5, 0.8)));
+  auto beyond = LoadBackgroundGain(dcm + "#frame3", 32, 32, 0.5, 0.8);
+  ASSERT_FALSE(beyond.ok());
+  EXPECT_NE(beyond.status().message().find("bg.dcm#frame3: no such frame"), std::string::npos)
+      << beyond.status().message();
   fs::remove_all(dir);
 }
 
