@@ -779,7 +779,7 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path) {
   if (!IsDicomFileName(path)) {
     auto img = ReadImageFile(path);
     if (!img.ok()) return img.status();
-    views.push_back({path, *img});
+    views.push_back({path, *img, std::nullopt});
     return views;
   }
   std::string file = path, err;
@@ -794,7 +794,8 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path) {
   }
   for (int k = 0; k < n; ++k) {
     if (frame >= 0 && k != frame) continue;
-    views.push_back({frame >= 0 ? path : DicomFrameName(file, k, n), dicom->frames[k]});
+    views.push_back(
+        {frame >= 0 ? path : DicomFrameName(file, k, n), dicom->frames[k], dicom->geometry[k]});
   }
   return views;
 }

@@ -36,10 +36,12 @@
 
 #include <opencv2/core.hpp>
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "detect/observations.h"
+#include "io/dicom_xray.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -91,6 +93,8 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path);
 struct NamedImage {
   std::string name;
   cv::Mat image;
+  // A DICOM frame's C-arm tags (io/dicom_xray.h); std::nullopt for other image files.
+  std::optional<XrayFrameGeometry> geometry;
 };
 // The views of a file: one for an ordinary image or a single-frame DICOM file, one per frame for a
 // multi-frame DICOM file (io/dicom_xray.h; `file#frameN` reads frame N only).

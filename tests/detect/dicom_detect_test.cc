@@ -135,19 +135,25 @@ TEST(DicomDetect, FramesOfAMultiFrameFileAreViews) {
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 3; ++k) frames.push_back(cv::Mat(10, 12, CV_8UC1, cv::Scalar(10 * k + 1)));
   const std::string multi = dir.File("m.dcm");
-  ASSERT_TRUE(WriteDicomXray(multi, frames, DicomXrayWriteOptions()).ok());
+  DicomXrayWriteOptions o;
+  o.geometry.primary_angle_deg = 30;
+  o.primary_increment_deg = {5};
+  ASSERT_TRUE(WriteDicomXray(multi, frames, o).ok());
 
   auto all = ReadImageViews(multi);
   ASSERT_TRUE(all.ok()) << all.status().message();
   ASSERT_EQ(all->size(), 3u);
   EXPECT_EQ((*all)[2].name, multi + "#frame3");
   EXPECT_EQ((*all)[2].image.at<uint8_t>(0, 0), 21);
+  ASSERT_TRUE((*all)[2].geometry.has_value());
+  EXPECT_EQ((*all)[2].geometry->primary_angle_deg, 40.0);  // 30 + 2 x 5
 
   auto one = ReadImageViews(multi + "#frame2");
   ASSERT_TRUE(one.ok()) << one.status().message();
   ASSERT_EQ(one->size(), 1u);
   EXPECT_EQ((*one)[0].name, multi + "#frame2");
   EXPECT_EQ((*one)[0].image.at<uint8_t>(0, 0), 11);
+  EXPECT_EQ((*one)[0].geometry->primary_angle_deg, 35.0);
 
   auto beyond = ReadImageViews(multi + "#frame4");
   ASSERT_FALSE(beyond.ok());
@@ -198,6 +204,10 @@ TEST(DicomDetect, DirectoryListingTakesDicomFilesWithAndWithoutExtension) {
                                       dir.File("b.DCM"),
                                       dir.File("c"),
                                       dir.File("c.IMA")}));
+  auto png_views = ReadImageViews(dir.File("a.png"));
+  ASSERT_TRUE(png_views.ok()) << png_views.status().message();
+  ASSERT_EQ(png_views->size(), 1u);
+  EXPECT_FALSE((*png_views)[0].geometry.has_value());
   auto uid_named = ReadImageFile(dir.File("1.2.826.0.1.7"));
   ASSERT_TRUE(uid_named.ok()) << uid_named.status().message();
   // The extension-less DICOM file reads as an image.
