@@ -327,6 +327,15 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
                          std::to_string(expected) + " (" + std::to_string(cols) + " x " +
                          std::to_string(rows) + " x " + std::to_string(num_frames) + " frames)");
   }
+  // Uncompressed pixel data must hold every declared frame (GDCM decodes the missing ones as
+  // undefined pixels without an error).
+  const gdcm::ByteValue* stored = ds.GetDataElement(gdcm::Tag(0x7fe0, 0x0010)).GetByteValue();
+  if (stored && stored->GetLength() < expected) {
+    return Status::Error(path + ": Pixel Data (7fe0,0010) has " +
+                         std::to_string(stored->GetLength()) + " bytes, " + std::to_string(cols) +
+                         " x " + std::to_string(rows) + " x " + std::to_string(num_frames) +
+                         " frames (Number of Frames (0028,0008)) need " + std::to_string(expected));
+  }
   // All frames decoded into one buffer, one row range per frame (no copy).
   cv::Mat all(rows * num_frames, cols, bytes_per == 1 ? CV_8UC1 : CV_16UC1);
   bool decoded;

@@ -401,6 +401,26 @@ TEST(DicomXray, UnsupportedPixelFormatsAreErrors) {
               {"fmt.dcm", "Bits Allocated (0028,0100) is 32, expected 8 or 16"});
 }
 
+// Number of Frames (0028,0008) larger than the pixel data holds (uncompressed and JPEG): an
+// error naming the file, not frames of undefined pixels.
+TEST(DicomXray, MoreFramesDeclaredThanStoredIsAnError) {
+  TempDir dir;
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 3; ++k) frames.push_back(RandomImage(16, 16, CV_16UC1, 16, 20 + k));
+  for (const std::string ts : {"explicit_le", "jpeg_lossless"}) {
+    const std::string path = dir.File("frames_" + ts + ".dcm");
+    DicomXrayWriteOptions o;
+    o.transfer_syntax = ts;
+    ASSERT_TRUE(WriteDicomXray(path, frames, o).ok());
+    EditDicom(path, [](gdcm::File* f) {
+      SetString(&f->GetDataSet(), 0x0028, 0x0008, gdcm::VR::IS, "4");
+    });
+    const auto r = ReadDicomXray(path);
+    ExpectError(r, {"frames_" + ts + ".dcm", ts == "explicit_le" ? "need 2048" : "cannot decode"});
+    std::cout << (r.ok() ? std::string("read") : r.status().message()) << "\n";
+  }
+}
+
 TEST(DicomXray, FileWithoutPixelDataIsAnError) {
   TempDir dir;
   const std::string path = dir.File("nopix.dcm");
