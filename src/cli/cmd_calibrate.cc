@@ -150,7 +150,9 @@ int RunCalibrate() {
       return cli::Fail(kCmd, "the grid (" + pattern + " " + std::to_string(rows) + " x " +
                                  std::to_string(cols) + ") was found in " +
                                  std::to_string(run.observations.views.size()) + " of " +
-                                 std::to_string(files->size()) + " images, min_views is " +
+                                 std::to_string(run.observations.views.size() +
+                                                run.skipped.size()) +
+                                 " images, min_views is " +
                                  std::to_string(options.min_views) +
                                  (run.skipped.empty() ? "" : "; first skipped: " + run.skipped[0]));
     }

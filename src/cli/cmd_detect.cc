@@ -51,14 +51,15 @@ int RunDetect() {
   if (!obs.ok()) return cli::Fail(kCmd, obs.status());
   for (const auto& s : skipped) std::cerr << "carmba detect: not found: " << s << "\n";
   if (obs->views.empty()) {
-    return cli::Fail(kCmd, "the grid was found in none of the " + std::to_string(files->size()) +
+    return cli::Fail(kCmd, "the grid was found in none of the " + std::to_string(skipped.size()) +
                                " images (first: " + skipped[0] + ")");
   }
   Status s = WriteObservationsCsv(*obs, FLAGS_out);
   if (!s.ok()) return cli::Fail(kCmd, s);
-  std::cout << "found the grid in " << obs->views.size() << " of " << files->size()
-            << " images (" << per_image * 1e3 << " ms per image); wrote " << FLAGS_out
-            << std::endl;
+  // A multi-frame DICOM file counts one image per frame.
+  std::cout << "found the grid in " << obs->views.size() << " of "
+            << obs->views.size() + skipped.size() << " images (" << per_image * 1e3
+            << " ms per image); wrote " << FLAGS_out << std::endl;
   return 0;
 }
 

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "io/dicom_xray.h"
 #include "util/plausible.h"
 #include "util/quiet_stderr.h"
 #include "util/yaml_reader.h"
@@ -765,6 +766,16 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
 }
 
 StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
+  if (IsDicomFileName(path)) {
+    auto views = ReadImageViews(path);
+    if (!views.ok()) return views.status();
+    if (views->size() != 1) {
+      return Status::Error(path + ": " + std::to_string(views->size()) +
+                           " frames, name one as " + path + "#frameN (N = 1.." +
+                           std::to_string(views->size()) + ")");
+    }
+    return views->front().image;
+  }
   cv::Mat m;
   try {
     // libpng / libtiff print their own diagnostics on a corrupt file; the Status below is the
@@ -781,6 +792,32 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
   return m;
 }
 
+StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path) {
+  std::vector<NamedImage> views;
+  if (!IsDicomFileName(path)) {
+    auto img = ReadImageFile(path);
+    if (!img.ok()) return img.status();
+    views.push_back({path, *img, std::nullopt});
+    return views;
+  }
+  std::string file = path, err;
+  int frame = -1;
+  if (SplitDicomFrameName(path, &file, &frame, &err) && !err.empty()) return Status::Error(err);
+  auto dicom = ReadDicomXray(file);
+  if (!dicom.ok()) return dicom.status();
+  const int n = static_cast<int>(dicom->frames.size());
+  if (frame >= n) {
+    return Status::Error(path + ": no such frame, " + file + " has " + std::to_string(n) +
+                         (n == 1 ? " frame" : " frames"));
+  }
+  for (int k = 0; k < n; ++k) {
+    if (frame >= 0 && k != frame) continue;
+    views.push_back(
+        {frame >= 0 ? path : DicomFrameName(file, k, n), dicom->frames[k], dicom->geometry[k]});
+  }
+  return views;
+}
+
 StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
                                            const GridSpec& grid,
                                            const DetectionOptions& options,
@@ -792,28 +829,34 @@ StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files
   ObservationSet obs;
   obs.grid = grid;
   double total = 0;
-  for (const auto& file : files) {
-    auto img = ReadImageFile(file);
-    if (!img.ok()) return img.status();
-    if (obs.width == 0) {
-      obs.width = img->cols;
-      obs.height = img->rows;
-    } else if (img->cols != obs.width || img->rows != obs.height) {
-      return Status::Error(file + ": image size " + std::to_string(img->cols) + "x" +
-                           std::to_string(img->rows) + " differs from the first image's " +
-                           std::to_string(obs.width) + "x" + std::to_string(obs.height));
+  int num_views = 0;
+  for (const auto& path : files) {
+    auto named = ReadImageViews(path);
+    if (!named.ok()) return named.status();
+    for (const NamedImage& view : *named) {
+      const std::string& file = view.name;
+      const cv::Mat* img = &view.image;
+      ++num_views;
+      if (obs.width == 0) {
+        obs.width = img->cols;
+        obs.height = img->rows;
+      } else if (img->cols != obs.width || img->rows != obs.height) {
+        return Status::Error(file + ": image size " + std::to_string(img->cols) + "x" +
+                             std::to_string(img->rows) + " differs from the first image's " +
+                             std::to_string(obs.width) + "x" + std::to_string(obs.height));
+      }
+      const auto t0 = std::chrono::steady_clock::now();
+      GridDetection d = DetectGrid(*img, grid, options);
+      total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      if (!d.found) {
+        skipped->push_back(file + ": " + d.reason);
+        continue;
+      }
+      d.view.image = file;
+      obs.views.push_back(d.view);
     }
-    const auto t0 = std::chrono::steady_clock::now();
-    GridDetection d = DetectGrid(*img, grid, options);
-    total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (!d.found) {
-      skipped->push_back(file + ": " + d.reason);
-      continue;
-    }
-    d.view.image = file;
-    obs.views.push_back(d.view);
   }
-  if (seconds_per_image && !files.empty()) *seconds_per_image = total / files.size();
+  if (seconds_per_image && num_views > 0) *seconds_per_image = total / num_views;
   return obs;
 }
 

@@ -122,8 +122,9 @@ double SphereImageRadius(const Camera& camera,
                          double radius_mm,
                          const Eigen::Vector2d& uv_center);
 
-// A multiplicative background from a real X-ray frame: a DICOM file (.dcm, first frame, GDCM) or
-// any image OpenCV reads. The central `crop_fraction` (0 < f <= 1) of the frame's shorter side is
+// A multiplicative background from a real X-ray frame: a DICOM file (io/dicom_xray.h: the first
+// frame, or frame N of `file.dcm#frameN`; MONOCHROME2 convention, stored values) or any image
+// OpenCV reads. The central `crop_fraction` (0 < f <= 1) of the frame's shorter side is
 // cut out, resized to width x height, normalised by its 99th percentile and mapped to
 //   gain = 1 - strength + strength * clamp(value, 0.02, 1).
 StatusOr<cv::Mat> LoadBackgroundGain(

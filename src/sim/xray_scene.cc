@@ -5,6 +5,7 @@
 #include <set>
 
 #include "camera/camera_model.h"
+#include "io/dicom_xray.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
 
@@ -89,7 +90,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   s.seed = static_cast<uint64_t>(seed);
 
   YamlMap& output = scene.Map("output");
-  output.GetEnum("format", {"png", "pgm"}, &s.format);
+  output.GetEnum("format", {"png", "pgm", "dcm"}, &s.format);
   output.Get("bit_depth", &s.bit_depth);
   if (output.Has("bit_depth") && s.bit_depth != 8 && s.bit_depth != 16) {
     output.Fail("bit_depth", "expected 8 or 16");
@@ -458,7 +459,20 @@ Status SimulateXrayScene(const XrayScene& scene,
     auto view = RenderXrayView(scene, i, grid->get());
     if (!view.ok()) return view.status().WithContext(scene.path);
     const std::string file = JoinPath(out_dir, view->truth["file"].get<std::string>());
-    CARMBA_RETURN_IF_ERROR(WriteImage(file, view->image));
+    if (scene.format == "dcm") {
+      const CarmGeometry& carm = scene.views[i].carm;
+      DicomXrayWriteOptions o;
+      o.geometry.primary_angle_deg = carm.primary_angle_deg;
+      o.geometry.secondary_angle_deg = carm.secondary_angle_deg;
+      o.geometry.sid_mm = carm.sid_mm;
+      o.geometry.sod_mm = carm.sod_mm;
+      o.geometry.pixel_spacing_row_mm = carm.sid_mm / scene.camera.params[kFy];
+      o.geometry.pixel_spacing_col_mm = carm.sid_mm / scene.camera.params[kFx];
+      o.sop_instance_uid = o.series_uid + "." + std::to_string(i + 1);
+      CARMBA_RETURN_IF_ERROR(WriteDicomXray(file, {view->image}, o));
+    } else {
+      CARMBA_RETURN_IF_ERROR(WriteImage(file, view->image));
+    }
     t["views"].push_back(view->truth);
   }
   return Status::Ok();

@@ -7,7 +7,12 @@
 //   kind: xray                       # required ('ct' scenes go to ct/ct_simulate.h)
 //   description: "..."
 //   seed: 1                          # noise seed; view i uses a seed derived from (seed, i)
-//   output: {format: png, bit_depth: 8}        # png | pgm, 8 | 16
+//   output: {format: png, bit_depth: 8}        # png | pgm | dcm, 8 | 16
+//     dcm: one single-frame DICOM XA file per view (io/dicom_xray.h WriteDicomXray) carrying the
+//     view's Positioner Primary / Secondary Angle, SID, SOD and Imager Pixel Spacing
+//     (SID / fy \ SID / fx, so that sim/dicom_view.h gives back fx, fy). The detector rotation,
+//     the isocentre, the axis offset, cx, cy and the distortion have no XA tag: only truth.json
+//     has them.
 //   camera:
 //     image_size: [408, 408]         # required, px
 //     fx: .., fy: .., cx: .., cy: .. # px; either all four, or

@@ -17,6 +17,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "util/dicom_structure.h"
+
 namespace carmba {
 
 Status WriteFileAtomic(const std::string& path, const std::string& contents) {
@@ -276,20 +278,30 @@ StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob) {
 }
 
 StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob) {
+  const size_t frame = dir_or_glob.rfind("#frame");
+  if (frame != std::string::npos && !FileExists(dir_or_glob) &&
+      FileExists(dir_or_glob.substr(0, frame))) {
+    return std::vector<std::string>{dir_or_glob};  // one frame of a multi-frame DICOM file
+  }
   auto files = ListFiles(dir_or_glob);
   if (!files.ok() || !IsDirectory(dir_or_glob)) return files;
-  static const std::set<std::string> kImageExtensions = {".png", ".pgm", ".ppm", ".pnm", ".tif",
-                                                         ".tiff", ".jpg", ".jpeg", ".bmp"};
+  static const std::set<std::string> kImageExtensions = {
+      ".png", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".dcm", ".dicom"};
   std::vector<std::string> images;
   for (const auto& f : *files) {
     std::string ext = std::filesystem::path(f).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    if (kImageExtensions.count(ext)) images.push_back(f);
+    std::string name = std::filesystem::path(f).filename().string();
+    std::transform(name.begin(), name.end(), name.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    if (name == "DICOMDIR") continue;  // a DICOM media directory (no pixels), as on CDs
+    // Other DICOM files are found by their preamble: .IMA, UID-like names, no extension.
+    if (kImageExtensions.count(ext) || HasDicmMarker(f)) images.push_back(f);
   }
   if (images.empty()) {
     return Status::Error(dir_or_glob + ": directory contains no image files (png, pgm, ppm, tif, "
-                                       "jpg, bmp)");
+                                       "jpg, bmp, dcm, or DICOM files with the DICM preamble)");
   }
   return images;
 }

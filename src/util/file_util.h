@@ -73,8 +73,12 @@ std::string DirName(const std::string& path);
 // Error when nothing matches.
 StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob);
 // ListFiles for images: from a directory only the files with an image extension (png, pgm, ppm,
-// pnm, tif, tiff, jpg, jpeg, bmp; any case), so that e.g. the simulator's truth.json beside its
-// images is not taken for one; a glob is taken as given. Error if no image is left.
+// pnm, tif, tiff, jpg, jpeg, bmp, dcm, dicom; any case) and the other files that have the DICOM
+// preamble ("DICM" at byte 128: Siemens .IMA, UID-like names, no extension), but not a DICOMDIR,
+// so that e.g. the simulator's truth.json beside its images is not taken for one; a glob is taken
+// as given. `file.dcm#frameN` (one frame of a
+// multi-frame DICOM file, detect/grid_detector.h ReadImageViews) is taken as given when the file
+// exists. Error if no image is left.
 StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob);
 
 }  // namespace carmba

@@ -1,0 +1,588 @@
+#include "io/dicom_xray.h"
+
+#include <gdcmAttribute.h>
+#include <gdcmImage.h>
+#include <gdcmImageChangeTransferSyntax.h>
+#include <gdcmImageReader.h>
+#include <gdcmReader.h>
+#include <gdcmTrace.h>
+#include <gdcmTransferSyntax.h>
+#include <gdcmUIDs.h>
+#include <gdcmWriter.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+
+#include "util/dicom_structure.h"
+#include "util/file_util.h"
+#include "util/quiet_stderr.h"
+
+namespace carmba {
+namespace {
+
+void SilenceGdcm() {
+  static const bool done = [] {
+    gdcm::Trace::SetDebug(false);
+    gdcm::Trace::SetWarning(false);
+    gdcm::Trace::SetError(false);
+    return true;
+  }();
+  (void)done;
+}
+
+std::string Trim(std::string s) {
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  size_t b = 0;
+  while (b < s.size() && s[b] == ' ') ++b;
+  return s.substr(b);
+}
+
+std::string TagName(uint16_t g, uint16_t e) {
+  char b[16];
+  std::snprintf(b, sizeof(b), "(%04x,%04x)", g, e);
+  return b;
+}
+
+// The string value of an element, or "" when absent or empty.
+std::string GetString(const gdcm::DataSet& ds, uint16_t g, uint16_t e) {
+  const gdcm::Tag tag(g, e);
+  if (!ds.FindDataElement(tag)) return "";
+  const gdcm::ByteValue* bv = ds.GetDataElement(tag).GetByteValue();
+  if (!bv || bv->GetLength() == 0) return "";
+  return Trim(std::string(bv->GetPointer(), bv->GetLength()));
+}
+
+// The decimal values (DS / IS) of an element: empty when absent or empty; an error naming the
+// file and the tag when a value is not a finite number.
+Status GetDecimals(const gdcm::DataSet& ds,
+                   uint16_t g,
+                   uint16_t e,
+                   const std::string& what,
+                   const std::string& path,
+                   std::vector<double>* out) {
+  out->clear();
+  const std::string s = GetString(ds, g, e);
+  if (s.empty()) return Status::Ok();
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, '\\')) {
+    item = Trim(item);
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(v)) {
+      return Status::Error(path + ": " + what + " " + TagName(g, e) + " is '" + s +
+                           "', expected decimal numbers separated by '\\'");
+    }
+    out->push_back(v);
+  }
+  return Status::Ok();
+}
+
+// One value, or none (absent / empty); `positive` requires > 0.
+Status GetOptional(const gdcm::DataSet& ds,
+                   uint16_t g,
+                   uint16_t e,
+                   const std::string& what,
+                   const std::string& path,
+                   bool positive,
+                   std::optional<double>* out) {
+  std::vector<double> v;
+  CARMBA_RETURN_IF_ERROR(GetDecimals(ds, g, e, what, path, &v));
+  out->reset();
+  if (v.empty()) return Status::Ok();
+  if (v.size() != 1) {
+    return Status::Error(path + ": " + what + " " + TagName(g, e) + " has " +
+                         std::to_string(v.size()) + " values, expected 1");
+  }
+  if (positive && !(v[0] > 0)) {
+    return Status::Error(path + ": " + what + " " + TagName(g, e) + " is " + GetString(ds, g, e) +
+                         ", expected a positive number");
+  }
+  *out = v[0];
+  return Status::Ok();
+}
+
+std::string SyntaxName(const std::string& uid) {
+  gdcm::UIDs u;
+  if (u.SetFromUID(uid.c_str()) && u.GetName()) return uid + " (" + u.GetName() + ")";
+  return uid + " (unknown to GDCM)";
+}
+
+Status ReadGeometry(const gdcm::DataSet& ds,
+                    const std::string& path,
+                    int num_frames,
+                    std::vector<XrayFrameGeometry>* out) {
+  XrayFrameGeometry base;
+  CARMBA_RETURN_IF_ERROR(GetOptional(
+      ds, 0x0018, 0x1510, "Positioner Primary Angle", path, false, &base.primary_angle_deg));
+  CARMBA_RETURN_IF_ERROR(GetOptional(
+      ds, 0x0018, 0x1511, "Positioner Secondary Angle", path, false, &base.secondary_angle_deg));
+  CARMBA_RETURN_IF_ERROR(
+      GetOptional(ds, 0x0018, 0x1110, "Distance Source to Detector", path, true, &base.sid_mm));
+  CARMBA_RETURN_IF_ERROR(
+      GetOptional(ds, 0x0018, 0x1111, "Distance Source to Patient", path, true, &base.sod_mm));
+  CARMBA_RETURN_IF_ERROR(GetOptional(ds,
+                                     0x0018,
+                                     0x1114,
+                                     "Estimated Radiographic Magnification Factor",
+                                     path,
+                                     true,
+                                     &base.magnification));
+  std::vector<double> spacing;
+  CARMBA_RETURN_IF_ERROR(GetDecimals(ds, 0x0018, 0x1164, "Imager Pixel Spacing", path, &spacing));
+  if (!spacing.empty()) {
+    if (spacing.size() != 2 || !(spacing[0] > 0) || !(spacing[1] > 0)) {
+      return Status::Error(path + ": Imager Pixel Spacing (0018,1164) is '" +
+                           GetString(ds, 0x0018, 0x1164) +
+                           "', expected two positive numbers (row\\column spacing, mm)");
+    }
+    base.pixel_spacing_row_mm = spacing[0];
+    base.pixel_spacing_col_mm = spacing[1];
+  }
+  std::vector<double> inc[2];
+  const char* inc_name[2] = {"Positioner Primary Angle Increment",
+                             "Positioner Secondary Angle Increment"};
+  for (int a = 0; a < 2; ++a) {
+    const uint16_t e = a == 0 ? 0x1520 : 0x1521;
+    CARMBA_RETURN_IF_ERROR(GetDecimals(ds, 0x0018, e, inc_name[a], path, &inc[a]));
+    if (inc[a].size() > 1 && static_cast<int>(inc[a].size()) != num_frames) {
+      return Status::Error(path + ": " + inc_name[a] + " " + TagName(0x0018, e) + " has " +
+                           std::to_string(inc[a].size()) +
+                           " values, expected 1 or one per frame (" + std::to_string(num_frames) +
+                           ")");
+    }
+  }
+  out->assign(num_frames, base);
+  for (int k = 0; k < num_frames; ++k) {
+    // PS3.3 C.8.7.5.1.3: one value = the change per frame; one per frame = offsets from the first
+    // frame's angle.
+    auto offset = [&](const std::vector<double>& v) {
+      if (v.empty()) return 0.0;
+      return v.size() == 1 ? k * v[0] : v[k];
+    };
+    XrayFrameGeometry& g = (*out)[k];
+    if (g.primary_angle_deg) *g.primary_angle_deg += offset(inc[0]);
+    if (g.secondary_angle_deg) *g.secondary_angle_deg += offset(inc[1]);
+  }
+  return Status::Ok();
+}
+
+// To the MONOCHROME2-convention stored value in place (see the header); nothing to do for the
+// common case of unsigned MONOCHROME2 data using all its bits.
+template <typename T>
+void ToStoredValues(T* p, size_t n, int bits_stored, int high_bit, bool is_signed, bool mono1) {
+  const int shift = high_bit + 1 - bits_stored;
+  const uint32_t mask = (1u << bits_stored) - 1u;
+  const uint32_t sign_bit = 1u << (bits_stored - 1);
+  if (shift == 0 && bits_stored == 8 * static_cast<int>(sizeof(T)) && !is_signed && !mono1) {
+    return;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t v = (static_cast<uint32_t>(p[i]) >> shift) & mask;
+    if (is_signed) v ^= sign_bit;  // two's complement -> offset binary
+    if (mono1) v = mask - v;
+    p[i] = static_cast<T>(v);
+  }
+}
+
+}  // namespace
+
+bool IsDicomFileName(const std::string& path) {
+  std::string file;
+  int frame = 0;
+  std::string err;
+  if (SplitDicomFrameName(path, &file, &frame, &err)) return true;
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) {
+    return static_cast<char>(std::tolower(c));
+  });
+  if (ext == ".dcm" || ext == ".dicom") return true;
+  static const char* kOtherImages[] = {
+      ".png", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp"};
+  for (const char* e : kOtherImages) {
+    if (ext == e) return false;
+  }
+  return HasDicmMarker(path);
+}
+
+std::string DicomFrameName(const std::string& file, int index, int num_frames) {
+  return num_frames == 1 ? file : file + "#frame" + std::to_string(index + 1);
+}
+
+bool SplitDicomFrameName(const std::string& name,
+                         std::string* file,
+                         int* frame_index,
+                         std::string* error) {
+  const size_t pos = name.rfind("#frame");
+  if (pos == std::string::npos) return false;
+  const std::string num = name.substr(pos + 6);
+  char* end = nullptr;
+  const long n = std::strtol(num.c_str(), &end, 10);
+  if (num.empty() || *end != '\0' || n < 1 || n > 1000000) {
+    *error = name + ": frame suffix '#frame" + num + "', expected #frameN with N = 1, 2, ...";
+    return true;
+  }
+  *file = name.substr(0, pos);
+  *frame_index = static_cast<int>(n - 1);
+  return true;
+}
+
+StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
+  SilenceGdcm();
+  {
+    auto bytes = ReadFile(path);
+    if (!bytes.ok()) return bytes.status();
+    bool dicom = false;
+    const std::string problem = CheckDicomStructure(*bytes, &dicom);
+    if (!dicom) {
+      return Status::Error(path +
+                           ": not a DICOM file (no DICM preamble, no DICOM element at the "
+                           "start)");
+    }
+    if (!problem.empty()) return Status::Error(path + ": corrupt DICOM file: " + problem);
+  }
+  gdcm::ImageReader reader;
+  reader.SetFileName(path.c_str());
+  bool read_ok;
+  {
+    QuietStderr quiet;
+    read_ok = reader.Read();
+  }
+  if (!read_ok) {
+    gdcm::Reader plain;
+    plain.SetFileName(path.c_str());
+    bool parsed;
+    {
+      QuietStderr quiet;
+      parsed = plain.Read();
+    }
+    if (!parsed) return Status::Error(path + ": corrupt DICOM file (GDCM cannot parse it)");
+    const gdcm::DataSet& ds = plain.GetFile().GetDataSet();
+    if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) {
+      if (ds.FindDataElement(gdcm::Tag(0x0028, 0x0010))) {
+        return Status::Error(path +
+                             ": corrupt or truncated DICOM image: Rows (0028,0010) but no "
+                             "Pixel Data (7fe0,0010)");
+      }
+      return Status::Error(path + ": no Pixel Data (7fe0,0010): not an image");
+    }
+    const std::string ts = GetString(plain.GetFile().GetHeader(), 0x0002, 0x0010);
+    return Status::Error(path + ": GDCM cannot read the image (transfer syntax " + SyntaxName(ts) +
+                         ")");
+  }
+  const gdcm::File& file = reader.GetFile();
+  const gdcm::DataSet& ds = file.GetDataSet();
+  const gdcm::Image& image = reader.GetImage();
+  DicomXrayImage out;
+  out.file = path;
+  out.sop_class_uid = GetString(ds, 0x0008, 0x0016);
+  out.modality = GetString(ds, 0x0008, 0x0060);
+  out.transfer_syntax_uid = GetString(file.GetHeader(), 0x0002, 0x0010);
+  out.photometric = GetString(ds, 0x0028, 0x0004);
+  out.patient_orientation = GetString(ds, 0x0020, 0x0020);
+  const gdcm::PixelFormat& pf = image.GetPixelFormat();
+  if (pf.GetSamplesPerPixel() != 1) {
+    return Status::Error(path + ": Samples per Pixel (0028,0002) is " +
+                         std::to_string(pf.GetSamplesPerPixel()) +
+                         ", expected 1 (a monochrome X-ray image)");
+  }
+  const auto pi = image.GetPhotometricInterpretation();
+  if (pi != gdcm::PhotometricInterpretation::MONOCHROME1 &&
+      pi != gdcm::PhotometricInterpretation::MONOCHROME2) {
+    return Status::Error(path + ": Photometric Interpretation (0028,0004) is '" + out.photometric +
+                         "', expected MONOCHROME1 or MONOCHROME2");
+  }
+  out.bits_allocated = pf.GetBitsAllocated();
+  out.bits_stored = pf.GetBitsStored();
+  out.was_signed = pf.GetPixelRepresentation() == 1;
+  if (out.bits_allocated != 8 && out.bits_allocated != 16) {
+    return Status::Error(path + ": Bits Allocated (0028,0100) is " +
+                         std::to_string(out.bits_allocated) + ", expected 8 or 16");
+  }
+  if (out.bits_stored < 1 || out.bits_stored > out.bits_allocated ||
+      pf.GetHighBit() + 1 < out.bits_stored || pf.GetHighBit() >= out.bits_allocated) {
+    return Status::Error(path + ": Bits Stored (0028,0101) " + std::to_string(out.bits_stored) +
+                         " / High Bit (0028,0102) " + std::to_string(pf.GetHighBit()) +
+                         " inconsistent with Bits Allocated " + std::to_string(out.bits_allocated));
+  }
+  const int cols = static_cast<int>(image.GetDimension(0));
+  const int rows = static_cast<int>(image.GetDimension(1));
+  const int num_frames =
+      image.GetNumberOfDimensions() >= 3 ? static_cast<int>(image.GetDimension(2)) : 1;
+  if (rows <= 0 || cols <= 0 || num_frames <= 0) {
+    return Status::Error(path + ": empty image (" + std::to_string(cols) + " x " +
+                         std::to_string(rows) + " px, " + std::to_string(num_frames) + " frames)");
+  }
+  const size_t bytes_per = out.bits_allocated / 8;
+  const size_t expected = static_cast<size_t>(rows) * cols * num_frames * bytes_per;
+  if (image.GetBufferLength() != expected) {
+    return Status::Error(path + ": decoded pixel data has " +
+                         std::to_string(image.GetBufferLength()) + " bytes, expected " +
+                         std::to_string(expected) + " (" + std::to_string(cols) + " x " +
+                         std::to_string(rows) + " x " + std::to_string(num_frames) + " frames)");
+  }
+  // Uncompressed pixel data must hold every declared frame (GDCM decodes the missing ones as
+  // undefined pixels without an error).
+  const gdcm::ByteValue* stored = ds.GetDataElement(gdcm::Tag(0x7fe0, 0x0010)).GetByteValue();
+  if (stored && stored->GetLength() < expected) {
+    return Status::Error(path + ": Pixel Data (7fe0,0010) has " +
+                         std::to_string(stored->GetLength()) + " bytes, " + std::to_string(cols) +
+                         " x " + std::to_string(rows) + " x " + std::to_string(num_frames) +
+                         " frames (Number of Frames (0028,0008)) need " + std::to_string(expected));
+  }
+  // All frames decoded into one buffer, one row range per frame (no copy).
+  cv::Mat all(rows * num_frames, cols, bytes_per == 1 ? CV_8UC1 : CV_16UC1);
+  bool decoded;
+  {
+    QuietStderr quiet;
+    decoded = image.GetBuffer(reinterpret_cast<char*>(all.data));
+  }
+  if (!decoded) {
+    return Status::Error(path + ": GDCM cannot decode the pixel data (transfer syntax " +
+                         SyntaxName(out.transfer_syntax_uid) + ")");
+  }
+  const bool mono1 = pi == gdcm::PhotometricInterpretation::MONOCHROME1;
+  if (bytes_per == 1) {
+    ToStoredValues(
+        all.ptr<uint8_t>(), all.total(), out.bits_stored, pf.GetHighBit(), out.was_signed, mono1);
+  } else {
+    ToStoredValues(
+        all.ptr<uint16_t>(), all.total(), out.bits_stored, pf.GetHighBit(), out.was_signed, mono1);
+  }
+  for (int f = 0; f < num_frames; ++f) out.frames.push_back(all.rowRange(f * rows, (f + 1) * rows));
+  CARMBA_RETURN_IF_ERROR(ReadGeometry(ds, path, num_frames, &out.geometry));
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writing.
+
+namespace {
+
+void PutString(gdcm::DataSet* ds, uint16_t g, uint16_t e, gdcm::VR vr, std::string value) {
+  if (value.size() % 2) value.push_back(vr == gdcm::VR::UI ? '\0' : ' ');
+  gdcm::DataElement de(gdcm::Tag(g, e));
+  de.SetVR(vr);
+  de.SetByteValue(value.data(), static_cast<uint32_t>(value.size()));
+  ds->Replace(de);
+}
+
+template <uint16_t G, uint16_t E>
+void PutUS(gdcm::DataSet* ds, uint16_t v) {
+  gdcm::Attribute<G, E> a = {v};
+  ds->Replace(a.GetAsDataElement());
+}
+
+std::string Decimal(double value) {
+  for (int precision = 12; precision >= 1; --precision) {
+    char b[64];
+    std::snprintf(b, sizeof(b), "%.*g", precision, value);
+    if (std::string(b).size() <= 16) return b;
+  }
+  return "0";
+}
+
+std::string Decimals(const std::vector<double>& v) {
+  std::string s;
+  for (size_t i = 0; i < v.size(); ++i) s += (i ? "\\" : "") + Decimal(v[i]);
+  return s;
+}
+
+}  // namespace
+
+bool DicomXrayWriteOptions::Check(std::string* error) const {
+  if (sop_class != "xa" && sop_class != "rf") {
+    return *error = "sop_class must be 'xa' or 'rf', not '" + sop_class + "'", false;
+  }
+  if (photometric != "MONOCHROME1" && photometric != "MONOCHROME2") {
+    return *error = "photometric must be MONOCHROME1 or MONOCHROME2, not '" + photometric + "'",
+           false;
+  }
+  if (transfer_syntax != "explicit_le" && transfer_syntax != "jpeg_lossless" &&
+      transfer_syntax != "jpeg_ls_lossless" && transfer_syntax != "rle") {
+    return *error =
+               "transfer_syntax must be explicit_le, jpeg_lossless, jpeg_ls_lossless or rle, "
+               "not '" +
+               transfer_syntax + "'",
+           false;
+  }
+  if (bits_stored < 0 || bits_stored > 16) return *error = "bits_stored must be 0..16", false;
+  return true;
+}
+
+Status WriteDicomXray(const std::string& path,
+                      const std::vector<cv::Mat>& frames,
+                      const DicomXrayWriteOptions& options) {
+  SilenceGdcm();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(path + ": DICOM write options: " + error);
+  if (frames.empty()) return Status::Error(path + ": no frames to write");
+  const cv::Mat& f0 = frames[0];
+  if ((f0.type() != CV_8UC1 && f0.type() != CV_16UC1) || f0.rows > 65535 || f0.cols > 65535) {
+    return Status::Error(path + ": frames must be CV_8UC1 or CV_16UC1 of at most 65535 px a side");
+  }
+  for (const auto& f : frames) {
+    if (f.type() != f0.type() || f.size() != f0.size()) {
+      return Status::Error(path + ": all frames must have the first frame's size and type");
+    }
+  }
+  const int depth_bits = f0.type() == CV_8UC1 ? 8 : 16;
+  const int bits = options.bits_stored > 0 ? options.bits_stored : depth_bits;
+  if (bits > depth_bits) {
+    return Status::Error(path + ": bits_stored " + std::to_string(bits) + " exceeds the frames' " +
+                         std::to_string(depth_bits) + " bits");
+  }
+  const uint32_t max_value = (1u << bits) - 1u;
+  const bool mono1 = options.photometric == "MONOCHROME1";
+  const size_t n = static_cast<size_t>(f0.rows) * f0.cols;
+  std::vector<char> buffer(n * frames.size() * (depth_bits / 8));
+  for (size_t k = 0; k < frames.size(); ++k) {
+    cv::Mat f = frames[k].isContinuous() ? frames[k] : frames[k].clone();
+    double hi = 0;
+    cv::minMaxLoc(f, nullptr, &hi);
+    if (hi > max_value) {
+      return Status::Error(path + ": frame " + std::to_string(k + 1) + " has value " +
+                           std::to_string(static_cast<int>(hi)) +
+                           " > 2^bits_stored - 1 = " + std::to_string(max_value));
+    }
+    if (mono1) {
+      cv::Mat inverted = cv::Scalar::all(max_value) - f;  // a new buffer: the input is const
+      f = inverted;
+    }
+    std::memcpy(buffer.data() + k * n * (depth_bits / 8), f.data, n * (depth_bits / 8));
+  }
+
+  // Reference counted: a filter's SetInput takes a SmartPointer to it (a stack object would be
+  // deleted by the filter).
+  gdcm::SmartPointer<gdcm::Image> image_ptr = new gdcm::Image;
+  gdcm::Image& image = *image_ptr;
+  image.SetNumberOfDimensions(frames.size() > 1 ? 3 : 2);
+  image.SetDimension(0, f0.cols);
+  image.SetDimension(1, f0.rows);
+  if (frames.size() > 1) image.SetDimension(2, static_cast<unsigned int>(frames.size()));
+  gdcm::PixelFormat pf(depth_bits == 8 ? gdcm::PixelFormat::UINT8 : gdcm::PixelFormat::UINT16);
+  pf.SetBitsStored(static_cast<uint16_t>(bits));
+  pf.SetHighBit(static_cast<uint16_t>(bits - 1));
+  image.SetPixelFormat(pf);
+  image.SetPhotometricInterpretation(mono1 ? gdcm::PhotometricInterpretation::MONOCHROME1
+                                           : gdcm::PhotometricInterpretation::MONOCHROME2);
+  image.SetTransferSyntax(gdcm::TransferSyntax::ExplicitVRLittleEndian);
+  gdcm::DataElement pixels(gdcm::Tag(0x7fe0, 0x0010));
+  pixels.SetVR(depth_bits == 8 ? gdcm::VR::OB : gdcm::VR::OW);
+  pixels.SetByteValue(buffer.data(), static_cast<uint32_t>(buffer.size()));
+  image.SetDataElement(pixels);
+
+  gdcm::TransferSyntax ts = gdcm::TransferSyntax::ExplicitVRLittleEndian;
+  gdcm::DataElement encoded = pixels;
+  if (options.transfer_syntax != "explicit_le") {
+    ts = options.transfer_syntax == "jpeg_lossless" ? gdcm::TransferSyntax::JPEGLosslessProcess14_1
+         : options.transfer_syntax == "jpeg_ls_lossless" ? gdcm::TransferSyntax::JPEGLSLossless
+                                                         : gdcm::TransferSyntax::RLELossless;
+    gdcm::ImageChangeTransferSyntax change;
+    change.SetTransferSyntax(ts);
+    change.SetInput(image);
+    bool changed;
+    {
+      QuietStderr quiet;
+      changed = change.Change();
+    }
+    if (!changed) {
+      return Status::Error(path + ": GDCM cannot encode the frames as " + options.transfer_syntax);
+    }
+    encoded = change.GetOutput().GetDataElement();
+  }
+
+  gdcm::Writer writer;
+  gdcm::File& file = writer.GetFile();
+  gdcm::DataSet& ds = file.GetDataSet();
+  const bool xa = options.sop_class == "xa";
+  PutString(&ds, 0x0008, 0x0008, gdcm::VR::CS, "ORIGINAL\\PRIMARY\\SINGLE PLANE");
+  PutString(&ds,
+            0x0008,
+            0x0016,
+            gdcm::VR::UI,
+            xa ? "1.2.840.10008.5.1.4.1.1.12.1" : "1.2.840.10008.5.1.4.1.1.12.2");
+  PutString(&ds, 0x0008, 0x0018, gdcm::VR::UI, options.sop_instance_uid);
+  PutString(&ds, 0x0008, 0x0060, gdcm::VR::CS, xa ? "XA" : "RF");
+  PutString(&ds, 0x0008, 0x0070, gdcm::VR::LO, "carmba");
+  PutString(&ds, 0x0010, 0x0010, gdcm::VR::PN, "CARMBA^PHANTOM");
+  PutString(&ds, 0x0010, 0x0020, gdcm::VR::LO, "CARMBA0001");
+  const XrayFrameGeometry& g = options.geometry;
+  if (g.sid_mm) PutString(&ds, 0x0018, 0x1110, gdcm::VR::DS, Decimal(*g.sid_mm));
+  if (g.sod_mm) PutString(&ds, 0x0018, 0x1111, gdcm::VR::DS, Decimal(*g.sod_mm));
+  if (g.magnification) PutString(&ds, 0x0018, 0x1114, gdcm::VR::DS, Decimal(*g.magnification));
+  if (g.pixel_spacing_row_mm && g.pixel_spacing_col_mm) {
+    PutString(&ds,
+              0x0018,
+              0x1164,
+              gdcm::VR::DS,
+              Decimal(*g.pixel_spacing_row_mm) + "\\" + Decimal(*g.pixel_spacing_col_mm));
+  }
+  PutString(&ds,
+            0x0018,
+            0x1500,
+            gdcm::VR::CS,
+            options.primary_increment_deg.empty() && options.secondary_increment_deg.empty()
+                ? "STATIC"
+                : "DYNAMIC");
+  if (g.primary_angle_deg) {
+    PutString(&ds, 0x0018, 0x1510, gdcm::VR::DS, Decimal(*g.primary_angle_deg));
+  }
+  if (g.secondary_angle_deg) {
+    PutString(&ds, 0x0018, 0x1511, gdcm::VR::DS, Decimal(*g.secondary_angle_deg));
+  }
+  if (!options.primary_increment_deg.empty()) {
+    PutString(&ds, 0x0018, 0x1520, gdcm::VR::DS, Decimals(options.primary_increment_deg));
+  }
+  if (!options.secondary_increment_deg.empty()) {
+    PutString(&ds, 0x0018, 0x1521, gdcm::VR::DS, Decimals(options.secondary_increment_deg));
+  }
+  PutString(&ds, 0x0020, 0x000d, gdcm::VR::UI, options.study_uid);
+  PutString(&ds, 0x0020, 0x000e, gdcm::VR::UI, options.series_uid);
+  PutString(&ds, 0x0020, 0x0011, gdcm::VR::IS, "1");
+  PutString(&ds, 0x0020, 0x0013, gdcm::VR::IS, "1");
+  if (!options.patient_orientation.empty()) {
+    PutString(&ds, 0x0020, 0x0020, gdcm::VR::CS, options.patient_orientation);
+  }
+  PutUS<0x0028, 0x0002>(&ds, 1);
+  PutString(&ds, 0x0028, 0x0004, gdcm::VR::CS, options.photometric);
+  if (frames.size() > 1) {
+    PutString(&ds, 0x0028, 0x0008, gdcm::VR::IS, std::to_string(frames.size()));
+  }
+  PutUS<0x0028, 0x0010>(&ds, static_cast<uint16_t>(f0.rows));
+  PutUS<0x0028, 0x0011>(&ds, static_cast<uint16_t>(f0.cols));
+  PutUS<0x0028, 0x0100>(&ds, static_cast<uint16_t>(depth_bits));
+  PutUS<0x0028, 0x0101>(&ds, static_cast<uint16_t>(bits));
+  PutUS<0x0028, 0x0102>(&ds, static_cast<uint16_t>(bits - 1));
+  PutUS<0x0028, 0x0103>(&ds, 0);
+  PutString(&ds, 0x0028, 0x1040, gdcm::VR::CS, "LIN");
+  ds.Replace(encoded);
+  file.GetHeader().SetDataSetTransferSyntax(ts);
+
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  writer.SetFileName(tmp.c_str());
+  bool written;
+  {
+    QuietStderr quiet;
+    written = writer.Write();
+  }
+  std::error_code ec;
+  if (!written) {
+    std::filesystem::remove(tmp, ec);
+    return Status::Error(path + ": GDCM could not write the file");
+  }
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    return Status::Error(path + ": cannot rename the written file into place");
+  }
+  return Status::Ok();
+}
+
+}  // namespace carmba

@@ -1,0 +1,23 @@
+// Structural checks of DICOM files that need no DICOM library: the "DICM" marker, and a walk over
+// the elements that finds truncation before a parser sees the file (GDCM, as packaged by Debian,
+// aborts on an assertion for some truncated files). Used by the CT series reader (ct/ct_volume.h)
+// and the X-ray image reader (io/dicom_xray.h).
+#pragma once
+
+#include <string>
+
+namespace carmba {
+
+// True when the file has the DICOM preamble: "DICM" at byte 128.
+bool HasDicmMarker(const std::string& path);
+
+// Walks the file meta group and the data set of a whole file's bytes (explicit or implicit VR
+// little endian, nested sequences and encapsulated pixel data) and checks that every element's
+// value lies within the file. Returns "" when the structure is sound, else what is wrong (e.g.
+// "truncated: element (7fe0,0010) at byte 1234 needs 524288 bytes, the file has 2000").
+// *is_dicom is false for data that does not look like DICOM at all (no preamble and no group
+// 0002/0008 element at the start); then "" is returned. Big-endian and deflated data sets are
+// left to the parser ("" returned).
+std::string CheckDicomStructure(const std::string& bytes, bool* is_dicom);
+
+}  // namespace carmba
