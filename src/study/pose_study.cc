@@ -8,10 +8,12 @@
 #include <set>
 
 #include "ba/quantities.h"
+#include "ba/synthetic.h"
 #include "calib/calibrate.h"
 #include "calib/synthetic_views.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
+#include "joint/joint_problem.h"
 #include "problem/pose_problem.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -338,6 +340,164 @@ bool IsCalibration(const StudyProblem& p) {
          p.synthetic["kind"] == "calibration";
 }
 
+bool IsJoint(const StudyProblem& p) {
+  return p.synthetic.is_object() && p.synthetic.contains("kind") && p.synthetic["kind"] == "joint";
+}
+
+std::string BudgetKey(ba::Source s) {
+  switch (s) {
+    case ba::Source::kPlatePixels: return "plate_pixels";
+    case ba::Source::kObjectPixels: return "object_pixels";
+    case ba::Source::kCt: return "ct";
+    case ba::Source::kPlateManufacturing: return "plate_manufacturing";
+    case ba::Source::kIntrinsicsPrior: return "intrinsics_prior";
+  }
+  return "?";
+}
+
+// A synthetic joint problem (ba/synthetic.h): calibration and pose in one bundle adjustment with
+// the config's held intrinsics; accuracy of intrinsics and object poses against the truth and
+// the error budget.
+StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
+  static const std::set<std::string> kSweeps = {"num_plate_views", "plate_noise_px",
+                                                "pixel_noise_px", "ct_noise_mm"};
+  for (const auto& kv : run.sweep) {
+    if (!kSweeps.count(kv.first)) {
+      return Status::Error("sweep variable '" + kv.first +
+                           "' is not understood by joint problems (known: ct_noise_mm, "
+                           "num_plate_views, pixel_noise_px, plate_noise_px)");
+    }
+  }
+  const StudyProblem& sp = *run.problem;
+  const std::string where = "problem '" + sp.name + "': synthetic";
+  JsonMap m(sp.synthetic, where);
+  std::string kind;
+  m.String("kind", &kind);
+  ba::SyntheticJointSpec spec;
+  double n_plate = spec.num_plate_views;
+  m.Number("num_plate_views", &n_plate, &plausible::kViews);
+  m.Numbers("object_angles_deg", &spec.object_angles_deg);
+  m.Number("sigma_plate_px", &spec.sigma_plate_px, &plausible::kPixelSigmaPx);
+  m.Number("sigma_object_px", &spec.sigma_object_px, &plausible::kPixelSigmaPx);
+  m.Number("sigma_ct_mm", &spec.sigma_ct_mm, &plausible::kCtSigmaMm);
+  m.Number("plate_distance_mm", &spec.plate_distance_mm, &plausible::kDistanceMm);
+  m.Number("object_distance_mm", &spec.object_distance_mm, &plausible::kDistanceMm);
+  CARMBA_RETURN_IF_ERROR(m.Finish());
+  if (!sp.options.is_null()) {
+    return Status::Error("problem '" + sp.name + "': key 'options' applies to problem files");
+  }
+  spec.num_plate_views = static_cast<int>(run.SweepValue("num_plate_views", n_plate));
+  spec.sigma_plate_px = run.SweepValue("plate_noise_px", spec.sigma_plate_px);
+  spec.sigma_object_px = run.SweepValue("pixel_noise_px", spec.sigma_object_px);
+  spec.sigma_ct_mm = run.SweepValue("ct_noise_mm", spec.sigma_ct_mm);
+  if (spec.num_plate_views < 3 || spec.object_angles_deg.size() < 2 ||
+      !(spec.sigma_plate_px > 0 && spec.sigma_object_px > 0 && spec.sigma_ct_mm > 0)) {
+    return Status::Error(where + ": expected >= 3 plate views, >= 2 object views and noise > 0");
+  }
+  const StudyConfig& sc = *run.config;
+  auto config = state->configs.Get(sc.file, [&] { return LoadSolverConfig(sc.file); });
+  if (!config->ok()) return config->status();
+  ba::BaOptions options = BaOptionsFromConfig(config->value());
+  options.num_threads = 1;
+  ba::SyntheticJoint sj = ba::MakeSyntheticJoint(spec, ba::NoiseSwitches(), run.seed);
+  for (const auto& n : config->value().fix) {
+    for (int i = 0; i < kNumIntrinsics; ++i) {
+      if (n == kIntrinsicNames[i]) sj.problem.groups[0].free[i] = false;
+    }
+  }
+  auto r = ba::SolveBundleAdjustment(sj.problem, options);
+  if (!r.ok()) return r.status();
+  const auto budget = ba::ComputeErrorBudget(sj.problem, *r, sj.pairs);
+  std::map<std::string, const ba::BudgetRow*> row;
+  for (const auto& b : budget) row[b.quantity.name] = &b;
+  const ba::StateLayout& L = *r->layout;
+  nlohmann::json errors, signed_errors, sigmas, values, budget_json = nlohmann::json::object();
+  const double* x = r->block(L.group_block(0));
+  static const char* const kIntr[4] = {"fx_px", "fy_px", "cx_px", "cy_px"};
+  for (int i = 0; i < 4; ++i) {
+    signed_errors[kIntr[i]] = x[i] - sj.true_intrinsics[i];
+    auto it = row.find(kIntrinsicNames[i]);
+    if (it != row.end()) sigmas[kIntr[i]] = it->second->sigma;
+  }
+  errors["focal_px"] = Rms({x[kFx] - sj.true_intrinsics[kFx], x[kFy] - sj.true_intrinsics[kFy]});
+  errors["principal_point_px"] =
+      Rms({x[kCx] - sj.true_intrinsics[kCx], x[kCy] - sj.true_intrinsics[kCy]});
+  std::vector<double> rot, trans;
+  bool first = true;
+  const std::string first_view = sj.problem.views[sj.pairs.empty() ? 0 : sj.pairs[0].first].id;
+  for (size_t v = 0; v < sj.problem.views.size(); ++v) {
+    if (sj.problem.views[v].kind != ba::ViewKind::kObject) continue;
+    const double* pose = r->block(L.view_block(static_cast<int>(v)));
+    const Eigen::Matrix3d R_est = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
+    const Eigen::Matrix3d R_true = RotationFromRvec(sj.true_poses[v].head<3>());
+    const Eigen::Vector3d d = RvecFromRotation(R_est * R_true.transpose()) * kRadToDeg;
+    const Eigen::Vector3d dt = Eigen::Vector3d(pose[3], pose[4], pose[5]) - sj.true_poses[v].tail<3>();
+    rot.push_back(d.norm());
+    trans.push_back(dt.norm());
+    if (!first) continue;
+    first = false;
+    const std::string id = sj.problem.views[v].id;
+    static const char* const kAxis[3] = {"x", "y", "z"};
+    const char* const kRot[] = {"v0_rx_deg", "v0_ry_deg", "v0_rz_deg"};
+    const char* const kTrans[] = {"v0_tx_mm", "v0_ty_mm", "v0_tz_mm"};
+    std::array<double, ba::kNumSources> rot_var{}, trans_var{};
+    for (int a = 0; a < 3; ++a) {
+      signed_errors[kRot[a]] = d[a];
+      signed_errors[kTrans[a]] = dt[a];
+      const ba::BudgetRow* br = row.at("view " + id + " rot " + kAxis[a]);
+      const ba::BudgetRow* bt = row.at("view " + id + " t" + kAxis[a]);
+      sigmas[kRot[a]] = br->sigma;
+      sigmas[kTrans[a]] = bt->sigma;
+      for (int s = 0; s < ba::kNumSources; ++s) {
+        rot_var[s] += br->source_sigma[s] * br->source_sigma[s] / 3;
+        trans_var[s] += bt->source_sigma[s] * bt->source_sigma[s] / 3;
+      }
+    }
+    for (int s = 0; s < ba::kNumSources; ++s) {
+      if (rot_var[s] <= 0 && trans_var[s] <= 0) continue;
+      budget_json["v0_rotation_deg." + BudgetKey(static_cast<ba::Source>(s))] = std::sqrt(rot_var[s]);
+      budget_json["v0_translation_mm." + BudgetKey(static_cast<ba::Source>(s))] = std::sqrt(trans_var[s]);
+    }
+  }
+  errors["rotation_deg"] = Rms(rot);
+  errors["translation_mm"] = Rms(trans);
+  std::vector<double> validation;
+  for (const auto& [a, b] : sj.pairs) {
+    const double* pa = r->block(L.view_block(a));
+    const double* pb = r->block(L.view_block(b));
+    const double est = RelativeRotationAngle(pa, pb) * kRadToDeg;
+    const double truth =
+        RelativeRotationAngle(sj.true_poses[a].data(), sj.true_poses[b].data()) * kRadToDeg;
+    const std::string name = "pair_" + sj.problem.views[a].id + "_" + sj.problem.views[b].id + "_deg";
+    signed_errors[name] = est - truth;
+    sigmas[name] = row.at("pair " + sj.problem.views[a].id + "/" + sj.problem.views[b].id +
+                          " relative rotation")->sigma;
+    validation.push_back(est - truth);
+  }
+  errors["validation_deg"] = Rms(validation);
+  const ba::BudgetRow* fx = row.count("fx") ? row.at("fx") : nullptr;
+  if (fx) {
+    for (int s = 0; s < ba::kNumSources; ++s) {
+      if (fx->source_sigma[s] > 0) budget_json["fx_px." + BudgetKey(static_cast<ba::Source>(s))] = fx->source_sigma[s];
+    }
+  }
+  values["rms_plate_px"] = Num(r->rms_plate_px);
+  values["rms_object_px"] = Num(r->rms_object_px);
+  values["iterations"] = r->iterations;
+  values["sigma0"] = Num(r->sigma0);
+  values["chi2_p_value"] = Num(r->chi2_p_value);
+  values["first_view"] = first_view;
+  nlohmann::json out;
+  out["converged"] = r->converged;
+  out["termination"] = r->termination;
+  out["errors"] = errors;
+  out["signed_errors"] = signed_errors;
+  out["sigmas"] = sigmas;
+  out["values"] = values;
+  out["budget"] = budget_json;
+  return out;
+}
+
 // One calibration of seeded synthetic views; accuracy of the intrinsics against the truth.
 StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& run) {
   const StudyProblem& sp = *run.problem;
@@ -533,6 +693,7 @@ nlohmann::json MakeResult(const PoseProblem& problem,
 
 StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
   if (IsCalibration(*run.problem)) return RunCalibration(state, run);
+  if (IsJoint(*run.problem)) return RunJoint(state, run);
   for (const auto& kv : run.sweep) {
     if (!KnownSweeps().count(kv.first)) {
       return Status::Error("sweep variable '" + kv.first +

@@ -342,6 +342,43 @@ std::string SummaryMarkdown(const nlohmann::json& info,
     }
   }
 
+  // The error budget per group: each quantity's predicted 1-sigma contribution per noise source
+  // (the runs' "budget" entries "quantity.source", mean over the trials), and each source's share
+  // of the variance.
+  bool any_budget = false;
+  for (const auto& g : groups) any_budget |= !g.budget.empty();
+  if (any_budget) {
+    out << "\n## Error budget (predicted, mean over trials)\n\n"
+           "Each cell: the source's 1-sigma contribution, and its share of the variance.\n\n"
+           "| problem | config |";
+    for (const auto& s : sweeps) out << " " << Md(s) << " |";
+    out << " quantity | source contributions |\n|---|---|";
+    for (size_t i = 0; i < sweeps.size() + 2; ++i) out << "---|";
+    out << "\n";
+    for (const auto& g : groups) {
+      std::vector<std::string> quantities;
+      std::map<std::string, std::vector<std::pair<std::string, double>>> by_q;
+      for (const auto& [entry, v] : g.budget) {
+        const auto dot = entry.rfind('.');
+        const std::string q = dot == std::string::npos ? entry : entry.substr(0, dot);
+        if (!by_q.count(q)) quantities.push_back(q);
+        by_q[q].emplace_back(dot == std::string::npos ? "total" : entry.substr(dot + 1), v);
+      }
+      for (const auto& q : quantities) {
+        double total = 0;
+        for (const auto& sv : by_q[q]) total += sv.second * sv.second;
+        out << "| " << Md(g.problem) << " | " << Md(g.config) << " | " << SweepCells(g, sweeps, " | ")
+            << Md(q) << " |";
+        for (const auto& [src, v] : by_q[q]) {
+          char share[32];
+          std::snprintf(share, sizeof share, "%.0f %%", total > 0 ? 100 * v * v / total : 0.0);
+          out << " " << Md(src) << " " << FormatNumber(v) << " (" << share << ");";
+        }
+        out << " |\n";
+      }
+    }
+  }
+
   out << "\n## Failures\n\n";
   if (failed == 0) {
     out << "None.\n";

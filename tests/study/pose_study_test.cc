@@ -224,5 +224,46 @@ TEST(PoseStudyTest, SyntheticCalibrationReportsIntrinsicErrors) {
   EXPECT_NE(r->at("termination").get<std::string>().find("CONVERGENCE"), std::string::npos);
 }
 
+TEST(PoseStudyTest, SyntheticJointReportsBudgetAndIntrinsicErrors) {
+  const StudySpec spec = LoadStudy(
+      "trials: 2\nproblems:\n  - name: joint\n    synthetic: {kind: joint, object_angles_deg: "
+      "[0, 30, 90]}\nconfigs:\n  - {name: radial, file: " + kSrc + "/configs/joint_radial.yaml}\n"
+      "sweeps:\n  num_plate_views: [5, 20]\n");
+  const auto runs = EnumerateRuns(spec);
+  ASSERT_EQ(runs.size(), 4u);
+  StatusOr<nlohmann::json> few = PoseStudyRunFunction()(runs.at(0));
+  StatusOr<nlohmann::json> many = PoseStudyRunFunction()(runs.at(2));
+  ASSERT_TRUE(few.ok()) << few.status().message();
+  ASSERT_TRUE(many.ok()) << many.status().message();
+  EXPECT_TRUE(few->at("converged").get<bool>());
+  EXPECT_GT(Get(*few, "sigmas", "fx_px"), 0.0);
+  EXPECT_TRUE(few->at("signed_errors").contains("pair_+000_+030_deg"));
+  // The budget's plate-pixel share of the pose translation falls with more plate views.
+  const auto& bf = few->at("budget");
+  const auto& bm = many->at("budget");
+  ASSERT_TRUE(bf.contains("v0_translation_mm.plate_pixels")) << bf.dump();
+  EXPECT_GT(bf.at("v0_translation_mm.plate_pixels").get<double>(),
+            bm.at("v0_translation_mm.plate_pixels").get<double>());
+  EXPECT_TRUE(bf.contains("v0_translation_mm.ct"));
+  EXPECT_TRUE(bf.contains("fx_px.plate_pixels"));
+}
+
+TEST(PoseStudyTest, SyntheticJointRejectsUnknownSweepAndKeys) {
+  StudySpec spec = LoadStudy(
+      "trials: 1\nproblems:\n  - name: joint\n    synthetic: {kind: joint}\nconfigs:\n"
+      "  - {name: radial, file: " + kSrc + "/configs/joint_radial.yaml}\nsweeps:\n  k1: [0.1]\n");
+  StatusOr<nlohmann::json> r = PoseStudyRunFunction()(EnumerateRuns(spec).at(0));
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("sweep variable 'k1' is not understood by joint problems"),
+            std::string::npos) << r.status().message();
+  spec = LoadStudy(
+      "trials: 1\nproblems:\n  - name: joint\n    synthetic: {kind: joint, plate_views: 3}\n"
+      "configs:\n  - {name: radial, file: " + kSrc + "/configs/joint_radial.yaml}\n");
+  r = PoseStudyRunFunction()(EnumerateRuns(spec).at(0));
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("unknown key 'plate_views'"), std::string::npos)
+      << r.status().message();
+}
+
 }  // namespace
 }  // namespace carmba
