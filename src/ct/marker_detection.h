@@ -44,7 +44,7 @@
 namespace carmba {
 
 struct MarkerDetectionOptions {
-  double threshold_hu = 1000;        // core threshold, HU (the thesis kept > 1000 HU)
+  double threshold_hu = 1500;        // core threshold, HU (the thesis kept > 1000 HU)
   double diameter_mm = 2.0;          // nominal marker diameter
   int expected_count = 0;            // markers expected; 0: any number >= 1
   double min_volume_fraction = 0.1;  // accepted core volume, x nominal sphere volume
@@ -54,6 +54,16 @@ struct MarkerDetectionOptions {
   int iterations = 3;                // re-centrings of the ROI
   // Refuse when more than this fraction of all voxels is above the threshold (wrong threshold).
   double max_core_fraction = 0.01;
+  // A marker's fitted ball HU (partial volume removed) is at least this: metal, not bone.
+  double min_metal_hu = 2500;
+  // Of the voxels most inside the fitted ball (fraction >= 0.75 x the largest), at least this
+  // share must be within 25 % of their fitted contrast (ball-shaped, not a hot bone ridge).
+  double min_inner_fraction = 0.8;
+  // Centroid and fit disagreeing by more than this chi-square (3 dof; 11.34: 1 % false alarms)
+  // means contamination: the fit's centre is used.
+  double contamination_chi2 = 11.34;
+  // Local maxima tried in a component larger than max_volume_fraction x nominal.
+  int max_seeds_per_component = 200;
 
   bool Check(std::string* error) const;
 };
@@ -74,6 +84,18 @@ struct DetectedMarker {
   int roi_voxels = 0;
   Eigen::Matrix3d covariance_noise_mm2;     // the noise + background part
   Eigen::Matrix3d covariance_sampling_mm2;  // the sampling part
+  // Robust partial-volume ball fit (see 6.).
+  bool fit_ok = false;
+  Eigen::Vector3d fit_centre_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d fit_covariance_mm2 = Eigen::Matrix3d::Zero();
+  double fit_metal_hu = 0, fit_background_hu = 0, fit_scale_hu = 0, fit_outlier_mass = 0;
+  double fit_inner_fraction = 0;
+  int fit_voxels = 0;
+  double contamination_chi2 = 0;  // (centroid - fit)^T (C_centroid + C_fit)^-1 (centroid - fit)
+  bool contaminated = false;      // contamination_chi2 > threshold: centre_mm is the fit's
+  Eigen::Vector3d centroid_mm = Eigen::Vector3d::Zero();  // the weighted centroid
+  bool merged = false;            // seeded from a local maximum of a larger component
+  double peak_needed_hu = 0;      // the least peak of a min_metal_hu ball over background_hu
 };
 
 struct RejectedComponent {
