@@ -102,10 +102,15 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
   r.skipped_files = static_cast<int>(skipped.size());
   r.skipped = skipped;
   MarkerDetectionOptions detect = options.detect;
-  if (detect.expected_count == 0 && !r.model.empty()) {
-    detect.expected_count = static_cast<int>(r.model.size());
+  // With a model, the labelling selects the model's markers among the candidates; the expected
+  // count (given, or the model's) is checked on the labelled markers.
+  int expected = detect.expected_count;
+  if (!r.model.empty()) {
+    if (expected == 0) expected = static_cast<int>(r.model.size());
+    detect.expected_count = 0;
   }
   r.detect_options = detect;
+  r.detect_options.expected_count = expected;
   t0 = std::chrono::steady_clock::now();
   auto det = DetectMarkers(*volume, detect);
   if (!det.ok()) return det.status().WithContext(dicom_dir);
@@ -128,6 +133,36 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
     if (!lab.ok()) return lab.status().WithContext(dicom_dir + " vs model " + options.model_csv);
     r.labelling = std::move(lab).value();
     r.labelled = true;
+    if (r.labelling.selected > 0) {
+      // Keep the selected candidates; the others are reported as rejected.
+      std::vector<DetectedMarker> kept;
+      std::vector<int> index;
+      std::vector<double> residual;
+      for (size_t a = 0; a < markers.size(); ++a) {
+        if (r.labelling.model_index[a] < 0) {
+          RejectedComponent rej;
+          rej.centroid_mm = markers[a].centre_mm;
+          rej.volume_mm3 = markers[a].volume_mm3;
+          rej.peak_hu = markers[a].peak_hu;
+          rej.voxels = markers[a].core_voxels;
+          rej.reason = "a marker-like candidate that does not fit the model's pairwise distances";
+          r.detection.rejected.push_back(rej);
+          continue;
+        }
+        kept.push_back(markers[a]);
+        index.push_back(r.labelling.model_index[a]);
+        residual.push_back(r.labelling.residual_mm[a]);
+      }
+      r.candidates = static_cast<int>(markers.size());
+      markers = kept;
+      r.labelling.model_index = index;
+      r.labelling.residual_mm = residual;
+    }
+    if (expected > 0 && static_cast<int>(markers.size()) != expected) {
+      return Status::Error(dicom_dir + ": labelled " + std::to_string(markers.size()) +
+                           " markers with the model " + options.model_csv + ", expected " +
+                           std::to_string(expected));
+    }
     for (size_t a = 0; a < markers.size(); ++a) {
       markers[a].id = r.model[r.labelling.model_index[a]].id;
     }
@@ -276,7 +311,12 @@ std::string FormatFiducialsReport(const CtFiducialsResult& r, const std::string&
   o << "\n## Ids\n\n";
   if (r.labelled) {
     o << "Labelled with the model `" << r.model_csv << "` by pairwise distances ("
-      << r.labelling.assignments << " consistent assignment(s)); rigid fit model <- CT: RMS "
+      << r.labelling.assignments << " consistent assignment(s)";
+    if (r.candidates > 0) {
+      o << "; the " << r.detection.markers.size() << " markers selected among "
+        << r.candidates << " marker-like candidates, the others listed as rejected";
+    }
+    o << "); rigid fit model <- CT: RMS "
       << F("%.4f", r.labelling.rms_mm) << " mm, max " << F("%.4f", r.labelling.max_mm) << " mm";
     if (r.labelling.second_best_rms_mm >= 0) {
       o << "; next best assignment RMS " << F("%.3f", r.labelling.second_best_rms_mm) << " mm";

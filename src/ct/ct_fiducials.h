@@ -60,6 +60,7 @@ struct CtFiducialsResult {
   MarkerDetection detection;            // markers with final ids, sorted by id
   bool labelled = false;
   Labelling labelling;                  // when labelled; model_index re-ordered with the markers
+  int candidates = 0;                   // > 0: markers selected among this many candidates
   std::vector<ModelPoint> model;
   std::string frame = "patient";
   bool has_object_frame = false;

@@ -186,7 +186,8 @@ struct BallFitResult {
   double inner_fraction = 0;   // of the voxels with f >= 0.75 f_max, those within 25 % of f (M - b)
 };
 
-// Robust (Cauchy, scale 3 x the residuals' MAD-based sigma) Gauss-Newton fit of
+// Robust (Cauchy, scale 3 x the MAD-based sigma of the residuals where the ball has f > 0.05)
+// Gauss-Newton fit of
 // v = b + (M - b) f(d; c) with the radius fixed.
 bool FitBall(const std::vector<FitVoxel>& vox,
              const Eigen::Matrix3d& axes,
@@ -209,10 +210,19 @@ bool FitBall(const std::vector<FitVoxel>& vox,
       f[i] = BallFraction(vox[i].d, c, axes, e, R, kSupersampling, &g[i]);
       res[i] = vox[i].v - (b + (M - b) * f[i]);
     }
-    std::vector<double> a(n);
-    for (int i = 0; i < n; ++i) a[i] = std::abs(res[i]);
-    std::nth_element(a.begin(), a.begin() + n / 2, a.end());
-    scale = std::max(1.4826 * a[n / 2], 1.0);
+    // The scale from the voxels the ball touches (their residuals are noise for a marker,
+    // whatever mix of materials surrounds it), or from all when fewer than 10.
+    std::vector<double> a;
+    for (int i = 0; i < n; ++i) {
+      if (f[i] > 0.05) a.push_back(std::abs(res[i]));
+    }
+    if (a.size() < 10) {
+      a.clear();
+      for (int i = 0; i < n; ++i) a.push_back(std::abs(res[i]));
+    }
+    const size_t half = a.size() / 2;
+    std::nth_element(a.begin(), a.begin() + half, a.end());
+    scale = std::max(1.4826 * a[half], 1.0);
   };
   for (int it = 0; it < kIterations; ++it) {
     evaluate();
@@ -235,6 +245,9 @@ bool FitBall(const std::vector<FitVoxel>& vox,
     constexpr double kMaxStepMm = 0.5;
     if (len > kMaxStepMm) step *= kMaxStepMm / len;
     c += step.head<3>();
+    // A local fit: the centre stays within R of where it started (a marker's seed is within
+    // its radius of its centre); beyond lies a neighbour's optimum (bone, air), not this one.
+    if (c.norm() > R) c *= R / c.norm();
     M += step(3);
     b += step(4);
     if (step.head<3>().norm() < 1e-5 && it > 3) break;
@@ -332,6 +345,12 @@ bool Refine(const CtVolume& vol,
   std::vector<double> shell;
   std::vector<std::pair<Eigen::Vector3d, double>> roi;  // mm offset from c, HU
   double b = 0, sigma = 0, W = 0;
+  bool centroid_ok = true;
+  Eigen::Matrix3d sampling = Eigen::Matrix3d::Zero();
+  for (int a = 0; a < 3; ++a) {
+    sampling(a, a) = SamplingVarianceMm2(0.5 * opt.diameter_mm, h[a], e[a]);
+  }
+  m->covariance_sampling_mm2 = vol.axes * sampling * vol.axes.transpose();
   for (int it = 0; it <= opt.iterations; ++it) {
     const double margin = opt.roi_margin_mm + (it == 0 ? 0.5 * e.maxCoeff() : 0.0);
     const double r_roi = radius + margin;
@@ -360,7 +379,10 @@ bool Refine(const CtVolume& vol,
         }
       }
     }
-    if (shell.size() < 8 || roi.empty()) return false;
+    if (shell.size() < 8 || roi.empty()) {
+      centroid_ok = false;
+      break;
+    }
     b = Median(&shell);
     std::vector<double> dev(shell.size());
     for (size_t s = 0; s < shell.size(); ++s) dev[s] = std::abs(shell[s] - b);
@@ -371,7 +393,10 @@ bool Refine(const CtVolume& vol,
       W += v - b;
       moment += (v - b) * d;
     }
-    if (!(W > 0)) return false;
+    if (!(W > 0)) {
+      centroid_ok = false;
+      break;
+    }
     const Eigen::Vector3d shift_mm = moment / W;
     c += shift_mm.cwiseQuotient(h);
     if (it == opt.iterations) {
@@ -387,12 +412,7 @@ bool Refine(const CtVolume& vol,
       Eigen::Matrix3d noise = sigma * sigma * S / (W * W) +
                               sigma * sigma / static_cast<double>(shell.size()) * g *
                                   g.transpose();
-      Eigen::Matrix3d sampling = Eigen::Matrix3d::Zero();
-      for (int a = 0; a < 3; ++a) {
-        sampling(a, a) = SamplingVarianceMm2(0.5 * opt.diameter_mm, h[a], e[a]);
-      }
       m->covariance_noise_mm2 = vol.axes * noise * vol.axes.transpose();
-      m->covariance_sampling_mm2 = vol.axes * sampling * vol.axes.transpose();
       m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
     }
   }
@@ -400,8 +420,8 @@ bool Refine(const CtVolume& vol,
   m->centre_mm = vol.PatientFromIndex(c);
   {
     // Robust partial-volume ball fit over the voxels within R + e_max of a start point, started
-    // from the seed and from the centroid, each re-fitted once over the region around its first
-    // result; the fit with the lower mean robust cost is kept.
+    // from the peak voxel, the seed and the centroid, each re-fitted once over the region around
+    // its first result; the fit with the lower mean robust cost is kept.
     const double r_fit = 0.5 * opt.diameter_mm + e.maxCoeff();
     const Eigen::Matrix3d A = vol.PatientFromIndexLinear(), A_inv = A.inverse();
     const int dims[3] = {vol.columns, vol.rows, vol.slices};
@@ -430,7 +450,9 @@ bool Refine(const CtVolume& vol,
         start += A_inv * fit->centre;
         fit->centre = start;  // now in continuous voxel indices
       }
-      return true;
+      // The peak voxel of a ball lies within half a voxel diagonal of its centre: a fit that
+      // ended farther away found a neighbour (bone, air) instead.
+      return (A * (start - m->peak_index)).norm() <= 0.5 * opt.diameter_mm + 0.5 * e.norm();
     };
     BallFitResult fit, other;
     int n_fit = 0, n_other = 0;
@@ -438,13 +460,18 @@ bool Refine(const CtVolume& vol,
     // favourable sub-voxel position, no fit is tried.
     m->peak_needed_hu = b + min_peak_fraction * (opt.min_metal_hu - b);
     const bool peak_ok = m->peak_hu >= m->peak_needed_hu;
-    m->fit_ok = peak_ok && fit_from(seed_index, &fit, &n_fit);
-    if (peak_ok && fit_from(c, &other, &n_other) &&
-        (!m->fit_ok || other.cost / n_other < fit.cost / n_fit)) {
-      fit = other;
-      n_fit = n_other;
-      m->fit_ok = true;
+    m->fit_ok = peak_ok && fit_from(m->peak_index, &fit, &n_fit);
+    std::vector<Eigen::Vector3d> starts = {seed_index};
+    if (centroid_ok) starts.push_back(c);
+    for (const Eigen::Vector3d& start : starts) {
+      if (peak_ok && fit_from(start, &other, &n_other) &&
+          (!m->fit_ok || other.cost / n_other < fit.cost / n_fit)) {
+        fit = other;
+        n_fit = n_other;
+        m->fit_ok = true;
+      }
     }
+    if (!centroid_ok && !m->fit_ok) return false;
     if (m->fit_ok) {
       const Eigen::Vector3d cf = fit.centre;
       m->fit_centre_mm = vol.PatientFromIndex(cf);
@@ -457,10 +484,11 @@ bool Refine(const CtVolume& vol,
       m->fit_inner_fraction = fit.inner_fraction;
       // Contamination: the weighted centroid and the robust fit disagree beyond their
       // covariances (bone or air in the region of interest or its shell pulls the centroid).
+      // Without a centroid (the surroundings outweigh the marker), the fit.
       const Eigen::Vector3d delta = m->centre_mm - m->fit_centre_mm;
       const Eigen::Matrix3d C = m->covariance_mm2 + m->fit_covariance_mm2;
-      m->contamination_chi2 = delta.dot(C.ldlt().solve(delta));
-      if (m->contamination_chi2 > opt.contamination_chi2) {
+      m->contamination_chi2 = centroid_ok ? delta.dot(C.ldlt().solve(delta)) : -1;
+      if (!centroid_ok || m->contamination_chi2 > opt.contamination_chi2) {
         m->contaminated = true;
         m->centroid_mm = m->centre_mm;
         m->centre_mm = m->fit_centre_mm;
@@ -559,12 +587,16 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     Eigen::Vector3i lo = ijk(core[members[0]]), hi = lo;
     double peak = -1e30;
+    Eigen::Vector3d peak_at = Eigen::Vector3d::Zero();
     for (int p : members) {
       const Eigen::Vector3i q = ijk(core[p]);
       sum += q.cast<double>();
       lo = lo.cwiseMin(q);
       hi = hi.cwiseMax(q);
-      peak = std::max(peak, static_cast<double>(vol.hu[core[p]]));
+      if (vol.hu[core[p]] > peak) {
+        peak = vol.hu[core[p]];
+        peak_at = q.cast<double>();
+      }
     }
     const Eigen::Vector3d centroid = sum / members.size();
     const double volume = members.size() * voxel_mm3;
@@ -594,10 +626,11 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
       Eigen::Vector3d index;
       double core_radius_mm;
       double peak_hu;
+      Eigen::Vector3d peak_index;
     };
     std::vector<Seed> seeds;
     if (!large) {
-      seeds.push_back({centroid, std::cbrt(3.0 * volume / (4.0 * M_PI)), peak});
+      seeds.push_back({centroid, std::cbrt(3.0 * volume / (4.0 * M_PI)), peak, peak_at});
     } else {
       std::vector<std::pair<double, Eigen::Vector3i>> maxima;
       for (int p : members) {
@@ -626,7 +659,7 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
         const Eigen::Vector3d x = q.cast<double>();
         bool far = true;
         for (const auto& s : seeds) far = far && (A * (x - s.index)).norm() >= radius;
-        if (far) seeds.push_back({x, radius, v});
+        if (far) seeds.push_back({x, radius, v, x});
         if (static_cast<int>(seeds.size()) >= opt.max_seeds_per_component) break;
       }
     }
@@ -645,6 +678,7 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
       m.bbox_centre_mm = large ? m.core_centroid_mm
                                : vol.PatientFromIndex(0.5 * (lo + hi).cast<double>());
       m.centre_index = seed.index;
+      m.peak_index = seed.peak_index;
       m.merged = large;
       if (!Refine(vol, opt, seed.core_radius_mm, min_peak_fraction, &m)) {
         last_reason = "no contrast against its surroundings (weighted mass <= 0) or no background";

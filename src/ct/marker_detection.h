@@ -75,6 +75,7 @@ struct DetectedMarker {
   Eigen::Vector3d bbox_centre_mm;      // centre of the core's bounding box (thesis method)
   Eigen::Vector3d core_centroid_mm;    // unweighted centroid of the core voxels
   Eigen::Vector3d centre_index;        // weighted centroid in continuous voxel indices (i, j, k)
+  Eigen::Vector3d peak_index = Eigen::Vector3d::Zero();  // the voxel of peak_hu
   double volume_mm3 = 0;               // core volume (voxels >= threshold x voxel volume)
   double peak_hu = 0;                  // maximum HU in the core
   double background_hu = 0;            // b

@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "ct/ct_fiducials.h"
+#include "ct/marker_labelling.h"
 #include "ct/ct_invesalius.h"
 #include "ct/ct_test_util.h"
 #include "ct/skull_beads.h"
@@ -255,6 +256,54 @@ TEST(SkullBeads, DefaultSettingsFindEveryBeadWithHonestCovariance) {
   const double mean_nees = s.found ? s.sum_nees / s.found : 0;
   EXPECT_GE(mean_nees, 2.4);
   EXPECT_LE(mean_nees, 3.6);
+}
+
+// The issue's `--model` case: a model of 6 of the beads (in an object frame) among 18
+// marker-like candidates: the 6 are selected and labelled with their model ids, the other 12
+// are listed as rejected.
+TEST(SkullBeads, ModelSelectsItsMarkersAmongTheCandidates) {
+  SKIP_WITHOUT_SKULL();
+  constexpr uint64_t kSeed = 7;
+  const auto beads = testing::PlaceSkullBeads(*testing::SkullCt(), kSeed, kBeadDiameterMm, 8, 5, 5);
+  ASSERT_EQ(beads.size(), 18u);
+  const CtVolume vol = testing::SkullWithBeads(*testing::SkullCt(), beads, kBeadDiameterMm,
+                                               kSteelHu, kBeadNoiseHu, kSeed);
+  ScratchDir dir("skull_model");
+  CtWriteOptions wo;
+  wo.study_uid = "2.25.78.1";
+  wo.series_uid = "2.25.78.2";
+  wo.frame_of_reference_uid = "2.25.78.3";
+  ASSERT_TRUE(WriteCtSeries(vol, dir.File("ct"), wo).ok());
+  RigidTransform object_from_ct;
+  object_from_ct.R =
+      Eigen::AngleAxisd(0.9, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
+  object_from_ct.t = Eigen::Vector3d(10, 20, -30);
+  // Model ids 101..106: beads 0, 3, 6, 9, 12, 15 (bone, brain and soft ones among them).
+  std::string csv = "id,x_mm,y_mm,z_mm\n";
+  for (int a = 0; a < 6; ++a) {
+    const Eigen::Vector3d p = object_from_ct * beads[3 * a].centre_mm;
+    char line[160];
+    std::snprintf(line, sizeof(line), "%d,%.4f,%.4f,%.4f\n", 101 + a, p.x(), p.y(), p.z());
+    csv += line;
+  }
+  testing::WriteText(dir.File("model.csv"), csv);
+  CtFiducialsOptions options;
+  options.detect.diameter_mm = kBeadDiameterMm;
+  options.model_csv = dir.File("model.csv");
+  auto r = ComputeCtFiducials(dir.File("ct"), options);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  ASSERT_EQ(r->detection.markers.size(), 6u);
+  EXPECT_EQ(r->candidates, 18);
+  for (int a = 0; a < 6; ++a) {
+    const auto& m = r->detection.markers[a];
+    EXPECT_EQ(m.id, 101 + a);
+    EXPECT_LT((m.centre_mm - beads[3 * a].centre_mm).norm(), 0.3) << "model id " << m.id;
+  }
+  int set_aside = 0;
+  for (const auto& c : r->detection.rejected) {
+    set_aside += c.reason.find("does not fit the model") != std::string::npos;
+  }
+  EXPECT_EQ(set_aside, 12);
 }
 
 }  // namespace
