@@ -276,7 +276,17 @@ bool FitBall(const std::vector<FitVoxel>& vox,
   // sandwich H^-1 B H^-1 (Huber-White), which holds when the residuals are not identically
   // distributed: bone or air mixed into the marker's voxels leaves large residuals exactly
   // where the centre is decided.
-  const double s2 = swr2 / (sw - 5);
+  // The scale: the robust residual variance, or the plain mean square of the residuals of the
+  // voxels the ball's surface cuts (0 < f < 1: the ones that decide the centre) when larger --
+  // bone or air mixed into them biases the centre by about what their residuals show.
+  double edge_ss = 0;
+  int edge_n = 0;
+  for (int i = 0; i < n; ++i) {
+    if (f[i] <= 0 || f[i] >= 1) continue;
+    edge_ss += res[i] * res[i];
+    ++edge_n;
+  }
+  const double s2 = std::max(swr2 / (sw - 5), edge_n > 5 ? edge_ss / (edge_n - 5) : 0.0);
   const Eigen::Matrix<double, 5, 5> H_inv = H.inverse();
   Eigen::Matrix<double, 5, 5> cov = s2 * H_inv;
   const Eigen::Matrix<double, 5, 5> sandwich = n / (n - 5.0) * H_inv * B * H_inv;

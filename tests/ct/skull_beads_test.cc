@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "ct/ct_fiducials.h"
+#include "ct/marker_detection.h"
 #include "ct/marker_labelling.h"
 #include "ct/ct_invesalius.h"
 #include "ct/ct_test_util.h"
@@ -241,13 +242,14 @@ std::vector<SeedOutcome> RunSeeds(const std::vector<uint64_t>& seeds, CtFiducial
 
 // The target: >= 50 beads over soft tissue, brain and bone, all found with default
 // settings (only the diameter given), no false candidate, and an honest covariance: the mean of
-// e^T C^-1 e (chi-square with 3 degrees of freedom: mean 3, standard error 6 / sqrt(2 n) for n
-// beads, 0.6 at n = 54) within [2.4, 3.6].
+// e^T C^-1 e (chi-square with 3 degrees of freedom: mean 3, standard error sqrt(6 / n), 0.24 at
+// n = 108) within [2.4, 3.6], and no bead beyond 5 sigma (for 108 honest chi-square(3) draws
+// the chance of one is about 0.2 %).
 TEST(SkullBeads, DefaultSettingsFindEveryBeadWithHonestCovariance) {
   SKIP_WITHOUT_SKULL();
   CtFiducialsOptions options;
   options.detect.diameter_mm = kBeadDiameterMm;
-  const auto seeds = RunSeeds(Seeds({1, 2, 3}), options);
+  const auto seeds = RunSeeds(Seeds({1, 2, 3, 4, 5, 6}), options);
   const Summary s = Summarise(seeds);
   EXPECT_GE(s.expected, 50);
   EXPECT_EQ(s.refused, 0);
@@ -256,6 +258,19 @@ TEST(SkullBeads, DefaultSettingsFindEveryBeadWithHonestCovariance) {
   const double mean_nees = s.found ? s.sum_nees / s.found : 0;
   EXPECT_GE(mean_nees, 2.4);
   EXPECT_LE(mean_nees, 3.6);
+  EXPECT_LT(s.worst_sigma, 5.0);
+}
+
+// The skull alone: teeth and dense bone (up to 2986 HU here) give no marker with the default
+// settings (the old fixed 1500 HU threshold gave ~110 bead-sized components).
+TEST(SkullBeads, BoneAloneGivesNoMarker) {
+  SKIP_WITHOUT_SKULL();
+  MarkerDetectionOptions options;
+  options.diameter_mm = kBeadDiameterMm;
+  auto det = DetectMarkers(*testing::SkullCt(), options);
+  ASSERT_FALSE(det.ok());
+  EXPECT_NE(det.status().message().find("found 0 markers"), std::string::npos)
+      << det.status().message();
 }
 
 // The issue's `--model` case: a model of 6 of the beads (in an object frame) among 18
