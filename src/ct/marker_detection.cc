@@ -181,6 +181,7 @@ struct BallFitResult {
   double metal_hu = 0, background_hu = 0;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of centre, mm^2
   double scale_hu = 0;         // robust residual scale
+  double metal_sigma_hu = 0;   // standard deviation of the fitted metal HU
   double cost = 0;             // sum of the robust loss
   double outlier_mass = 0;     // sum of |residual| (1 - w) over the voxels, HU
   double inner_fraction = 0;   // of the voxels with f >= 0.75 f_max, those within 25 % of f (M - b)
@@ -296,6 +297,7 @@ bool FitBall(const std::vector<FitVoxel>& vox,
   out->metal_hu = M;
   out->background_hu = b;
   out->covariance = cov.topLeftCorner<3, 3>();
+  out->metal_sigma_hu = std::sqrt(std::max(0.0, cov(3, 3)));
   out->scale_hu = scale;
   out->cost = cost;
   out->outlier_mass = outlier;
@@ -487,6 +489,7 @@ bool Refine(const CtVolume& vol,
       m->fit_centre_mm = vol.PatientFromIndex(cf);
       m->fit_covariance_mm2 = fit.covariance;  // patient frame already
       m->fit_metal_hu = fit.metal_hu;
+      m->fit_metal_sigma_hu = fit.metal_sigma_hu;
       m->fit_background_hu = fit.background_hu;
       m->fit_scale_hu = fit.scale_hu;
       m->fit_outlier_mass = fit.outlier_mass;

@@ -117,6 +117,7 @@ struct DetectedMarker {
   Eigen::Matrix3d fit_covariance_mm2 = Eigen::Matrix3d::Zero();
   double fit_metal_hu = 0, fit_background_hu = 0, fit_scale_hu = 0, fit_outlier_mass = 0;
   double fit_inner_fraction = 0;
+  double fit_metal_sigma_hu = 0;  // standard deviation of fit_metal_hu
   int fit_voxels = 0;
   double contamination_chi2 = 0;  // (centroid - fit)^T (C_centroid + C_fit)^-1 (centroid - fit)
   bool contaminated = false;      // contamination_chi2 > threshold: centre_mm is the fit's

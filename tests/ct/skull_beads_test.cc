@@ -4,8 +4,10 @@
 // back by `ct-fiducials`'s pipeline with default detection settings. Skipped when the package is
 // not installed (scripts/setup.sh installs it unless CARMBA_WITH_SKULL_CT=0).
 //
-// Measurement (more seeds, printed per bead): CARMBA_SKULL_SEEDS=1,2,3,4,5,6 and optionally
-// CARMBA_SKULL_THRESHOLD_HU=2000 (the old fixed-threshold behaviour) and CARMBA_SKULL_VERBOSE=1.
+// Measurement (more seeds, printed per bead): CARMBA_SKULL_SEEDS=7,8,9 and optionally
+// CARMBA_SKULL_THRESHOLD_HU=2000 (a fixed threshold), CARMBA_SKULL_VERBOSE=1, and for other
+// beads CARMBA_SKULL_DIAMETER_MM and CARMBA_SKULL_BEAD_HU (the default test's checks then apply
+// to them too).
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
@@ -28,8 +30,13 @@ namespace {
 using testing::ScratchDir;
 using testing::SkullBead;
 
-constexpr double kBeadDiameterMm = 3.0;  // the 3 mm steel beads
-constexpr double kSteelHu = 3000;        // steel on a 12-bit scanner (the simulator's default)
+double EnvOr(const char* name, double fallback) {
+  const char* env = std::getenv(name);
+  return env && *env ? std::atof(env) : fallback;
+}
+// The 3 mm steel beads; steel on a 12-bit scanner (the simulator's default HU).
+const double kBeadDiameterMm = EnvOr("CARMBA_SKULL_DIAMETER_MM", 3.0);
+const double kSteelHu = EnvOr("CARMBA_SKULL_BEAD_HU", 3000);
 // White noise added to the bead's own share of a voxel; the scan's noise stays in the rest
 // (the skull CT's brain has a local MAD-based sigma of about 20 HU).
 constexpr double kBeadNoiseHu = 20;
@@ -148,9 +155,10 @@ SeedOutcome RunSeed(uint64_t seed, CtFiducialsOptions options, const std::vector
       if (used[m]) continue;
       const auto& d = r->detection.markers[m];
       std::printf("  false candidate at (%7.2f %7.2f %7.2f), core %.1f mm^3, peak %.0f HU, fit %d "
-                  "M %.0f b %.0f scale %.0f\n",
+                  "M %.0f +- %.0f b %.0f scale %.0f inner %.2f\n",
                   d.centre_mm.x(), d.centre_mm.y(), d.centre_mm.z(), d.volume_mm3, d.peak_hu,
-                  d.fit_ok, d.fit_metal_hu, d.fit_background_hu, d.fit_scale_hu);
+                  d.fit_ok, d.fit_metal_hu, d.fit_metal_sigma_hu, d.fit_background_hu,
+                  d.fit_scale_hu, d.fit_inner_fraction);
     }
     for (const auto& o : out.beads) {
       if (o.found) continue;
@@ -224,9 +232,10 @@ std::vector<SeedOutcome> RunSeeds(const std::vector<uint64_t>& seeds, CtFiducial
           const Eigen::Vector3d ef = m.fit_centre_mm - b.bead.centre_mm;
           const Eigen::Vector3d dd = m.centre_mm - m.fit_centre_mm;
           const Eigen::Matrix3d Cw = m.covariance_mm2, Cf = m.fit_covariance_mm2;
-          std::printf(" | fit err %.3f mm %.2f sig (noise-only) | M %.0f b %.0f scale %.1f "
+          std::printf(" | fit err %.3f mm %.2f sig (noise-only) | M %.0f +- %.0f b %.0f scale %.1f "
                       "outl %.0f n %d | delta %.3f chi2 %.1f | bg %.0f noise %.1f | +samp %.2f sig",
                       ef.norm(), std::sqrt(ef.dot(Cf.ldlt().solve(ef))), m.fit_metal_hu,
+                      m.fit_metal_sigma_hu,
                       m.fit_background_hu, m.fit_scale_hu, m.fit_outlier_mass, m.fit_voxels,
                       dd.norm(), dd.dot((Cw + Cf).ldlt().solve(dd)), m.background_hu, m.noise_hu,
                       std::sqrt(ef.dot((Cf + m.covariance_sampling_mm2).ldlt().solve(ef))));
