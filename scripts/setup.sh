@@ -13,10 +13,14 @@ PKGS=(
   libyaml-cpp-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-numpy python3-matplotlib python3-opencv python3-pydicom
-  libgdcm3.0
+  libgdcm3.0 zlib1g-dev
 )
 if [[ "${CARMBA_WITH_DOCS_DATA:-1}" == 1 ]]; then
   PKGS+=(opencv-doc)
+fi
+# The real skull CT the CT-fiducial tests embed beads into (GPL; tests skip without it).
+if [[ "${CARMBA_WITH_SKULL_CT:-1}" == 1 ]]; then
+  PKGS+=(invesalius-examples)
 fi
 if [[ "${CARMBA_WITH_BROWSER:-0}" == 1 ]]; then
   PKGS+=(chromium)

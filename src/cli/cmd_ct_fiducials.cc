@@ -21,7 +21,9 @@ DEFINE_string(model_columns, "", "Model coordinate columns, e.g. 'x_o,y_o,z_o' (
                                  "first of x_mm.., x.., x_o.., x_ct.. present).");
 DEFINE_double(diameter_mm, 2.0, "Nominal marker diameter, mm.");
 DEFINE_int32(expected, 0, "Number of markers expected (0: the model's count, or any).");
-DEFINE_double(threshold_hu, 1000, "HU threshold of the marker cores.");
+DEFINE_double(threshold_hu, 1500, "HU threshold of the marker cores (candidates).");
+DEFINE_double(min_metal_hu, 2500, "A marker's fitted ball HU (partial volume removed) is at least "
+                                  "this (metal, not bone).");
 DEFINE_double(label_tolerance_mm, 1.5, "Pairwise distance tolerance of the labelling, mm.");
 DEFINE_double(extra_sigma_mm, 0, "Isotropic sigma (mm) added in quadrature to every covariance "
                                  "for effects the model leaves out on real scans (metal "
@@ -51,6 +53,7 @@ int RunCtFiducials() {
   options.detect.diameter_mm = FLAGS_diameter_mm;
   options.detect.expected_count = FLAGS_expected;
   options.detect.threshold_hu = FLAGS_threshold_hu;
+  options.detect.min_metal_hu = FLAGS_min_metal_hu;
   options.label_tolerance_mm = FLAGS_label_tolerance_mm;
   options.frame = FLAGS_frame;
   options.extra_sigma_mm = FLAGS_extra_sigma_mm;

@@ -102,10 +102,15 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
   r.skipped_files = static_cast<int>(skipped.size());
   r.skipped = skipped;
   MarkerDetectionOptions detect = options.detect;
-  if (detect.expected_count == 0 && !r.model.empty()) {
-    detect.expected_count = static_cast<int>(r.model.size());
+  // With a model, the labelling selects the model's markers among the candidates; the expected
+  // count (given, or the model's) is checked on the labelled markers.
+  int expected = detect.expected_count;
+  if (!r.model.empty()) {
+    if (expected == 0) expected = static_cast<int>(r.model.size());
+    detect.expected_count = 0;
   }
   r.detect_options = detect;
+  r.detect_options.expected_count = expected;
   t0 = std::chrono::steady_clock::now();
   auto det = DetectMarkers(*volume, detect);
   if (!det.ok()) return det.status().WithContext(dicom_dir);
@@ -128,6 +133,36 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
     if (!lab.ok()) return lab.status().WithContext(dicom_dir + " vs model " + options.model_csv);
     r.labelling = std::move(lab).value();
     r.labelled = true;
+    if (r.labelling.selected > 0) {
+      // Keep the selected candidates; the others are reported as rejected.
+      std::vector<DetectedMarker> kept;
+      std::vector<int> index;
+      std::vector<double> residual;
+      for (size_t a = 0; a < markers.size(); ++a) {
+        if (r.labelling.model_index[a] < 0) {
+          RejectedComponent rej;
+          rej.centroid_mm = markers[a].centre_mm;
+          rej.volume_mm3 = markers[a].volume_mm3;
+          rej.peak_hu = markers[a].peak_hu;
+          rej.voxels = markers[a].core_voxels;
+          rej.reason = "a marker-like candidate that does not fit the model's pairwise distances";
+          r.detection.rejected.push_back(rej);
+          continue;
+        }
+        kept.push_back(markers[a]);
+        index.push_back(r.labelling.model_index[a]);
+        residual.push_back(r.labelling.residual_mm[a]);
+      }
+      r.candidates = static_cast<int>(markers.size());
+      markers = kept;
+      r.labelling.model_index = index;
+      r.labelling.residual_mm = residual;
+    }
+    if (expected > 0 && static_cast<int>(markers.size()) != expected) {
+      return Status::Error(dicom_dir + ": labelled " + std::to_string(markers.size()) +
+                           " markers with the model " + options.model_csv + ", expected " +
+                           std::to_string(expected));
+    }
     for (size_t a = 0; a < markers.size(); ++a) {
       markers[a].id = r.model[r.labelling.model_index[a]].id;
     }
@@ -206,7 +241,8 @@ std::string FormatFiducialsCsv(const CtFiducialsResult& r) {
   }
   o << "# covariance (mm^2): voxel noise (local MAD) + sub-voxel sampling of a "
     << F("%.3g", r.detect_options.diameter_mm)
-    << " mm ball"
+    << " mm ball (ball-fit centres where bone or air pulls the centroid: fit covariance + "
+       "sampling)"
     << (r.extra_sigma_mm > 0 ? " + (" + F("%.4g", r.extra_sigma_mm) + " mm)^2 I" : "")
     << "; frame uncertainty not included. volume_mm3: voxels >= "
     << F("%.0f", r.detect_options.threshold_hu) << " HU\n";
@@ -245,6 +281,7 @@ std::string FormatFiducialsReport(const CtFiducialsResult& r, const std::string&
   }
   o << ".\n\n";
   o << "Detection: threshold " << F("%.0f", d.threshold_hu) << " HU, 26-connected components, "
+    << "metal if the fitted ball HU >= " << F("%.0f", d.min_metal_hu) << ", "
     << "nominal diameter " << F("%.3g", d.diameter_mm) << " mm, core volume accepted within "
     << F("%.2f", d.min_volume_fraction) << " .. " << F("%.2f", d.max_volume_fraction)
     << " x nominal; " << r.detection.markers.size() << " marker(s)"
@@ -253,17 +290,29 @@ std::string FormatFiducialsReport(const CtFiducialsResult& r, const std::string&
     << " voxels above the threshold. Read " << F("%.3f", r.read_seconds) << " s, detection "
     << F("%.3f", r.detect_seconds) << " s.\n\n";
   o << "## Markers (patient coordinates, mm)\n\n"
-    << "Centre: intensity-weighted centroid over the partial-volume rim. BBox: centre of the "
+    << "Centre: intensity-weighted centroid over the partial-volume rim, or, when bone or air "
+       "around the marker pulls it (centroid and robust partial-volume ball fit disagree beyond "
+       "their covariances, chi2 > "
+    << F("%.2f", d.contamination_chi2)
+    << "), the ball fit's centre. BBox: centre of the "
        "bounding box of the voxels above the threshold (the thesis's method), and its distance "
-       "to the centre. sd: square roots of the covariance's diagonal.\n\n"
-    << "| id | centre | sd (x, y, z) | bbox centre | bbox - centre | volume mm^3 | peak HU | "
-       "background HU | noise HU |\n|---|---|---|---|---|---|---|---|---|\n";
+       "to the centre. sd: square roots of the covariance's diagonal. Fit HU: the ball's fitted "
+       "material HU.\n\n"
+    << "| id | centre | from | sd (x, y, z) | bbox centre | bbox - centre | volume mm^3 | peak HU | "
+       "fit HU | background HU | noise HU |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& m : r.detection.markers) {
     const Eigen::Vector3d sd = m.covariance_mm2.diagonal().cwiseSqrt();
-    o << "| " << m.id << " | " << V3(m.centre_mm) << " | " << V3(sd, "%.4f") << " | "
+    const std::string from =
+        m.contaminated ? (m.contamination_chi2 < 0 ? std::string("ball fit (no centroid)")
+                                                   : "ball fit (chi2 " +
+                                                         F("%.1f", m.contamination_chi2) + ")")
+                       : "centroid (chi2 " + F("%.1f", m.contamination_chi2) + ")";
+    o << "| " << m.id << " | " << V3(m.centre_mm) << " | " << from << " | " << V3(sd, "%.4f")
+      << " | "
       << V3(m.bbox_centre_mm) << " | " << F("%.3f", (m.bbox_centre_mm - m.centre_mm).norm())
       << " | " << F("%.3f", m.volume_mm3) << " | " << F("%.0f", m.peak_hu) << " | "
-      << F("%.0f", m.background_hu) << " | " << F("%.1f", m.noise_hu) << " |\n";
+      << F("%.0f", m.fit_metal_hu) << " | " << F("%.0f", m.background_hu) << " | "
+      << F("%.1f", m.noise_hu) << " |\n";
   }
   if (!r.detection.rejected.empty()) {
     o << "\n## Rejected components\n\n| centroid (mm) | volume mm^3 | peak HU | reason |\n"
@@ -276,7 +325,12 @@ std::string FormatFiducialsReport(const CtFiducialsResult& r, const std::string&
   o << "\n## Ids\n\n";
   if (r.labelled) {
     o << "Labelled with the model `" << r.model_csv << "` by pairwise distances ("
-      << r.labelling.assignments << " consistent assignment(s)); rigid fit model <- CT: RMS "
+      << r.labelling.assignments << " consistent assignment(s)";
+    if (r.candidates > 0) {
+      o << "; the " << r.detection.markers.size() << " markers selected among "
+        << r.candidates << " marker-like candidates, the others listed as rejected";
+    }
+    o << "); rigid fit model <- CT: RMS "
       << F("%.4f", r.labelling.rms_mm) << " mm, max " << F("%.4f", r.labelling.max_mm) << " mm";
     if (r.labelling.second_best_rms_mm >= 0) {
       o << "; next best assignment RMS " << F("%.3f", r.labelling.second_best_rms_mm) << " mm";
@@ -307,7 +361,10 @@ std::string FormatFiducialsReport(const CtFiducialsResult& r, const std::string&
        "propagated through the weighted centroid, the background level's error, and the "
        "sub-voxel sampling error of a "
     << F("%.3g", d.diameter_mm)
-    << " mm ball box-filtered over each voxel (variance over a uniform sub-voxel phase)"
+    << " mm ball box-filtered over each voxel (variance over a uniform sub-voxel phase), "
+       "multiplied by max(1, chi2 / 3) when centroid and ball fit disagree more than expected; "
+       "for a ball-fit centre, the fit's covariance (its residual scale, at least that of the "
+       "voxels the ball's surface cuts) plus the same sampling term"
     << (r.extra_sigma_mm > 0
             ? ", plus an isotropic (" + F("%.4g", r.extra_sigma_mm) + " mm)^2 for what the model "
               "leaves out"

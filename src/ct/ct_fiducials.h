@@ -4,7 +4,10 @@
 // object frame -> CSV + markdown report.
 //
 // Ids. With a model CSV (marker_labelling.h), marker k is the model's point k (the labelling is
-// by pairwise distances, so it is the same physical marker in every scan). Without a model, the
+// by pairwise distances, so it is the same physical marker in every scan). With more
+// marker-like candidates than model points, the subset that fits the model is selected and the
+// others are listed as rejected; the expected count (given, else the model's) is checked on the
+// labelled markers. Without a model, the
 // markers are numbered 1..n in order of increasing patient z, then y, then x (DICOM LPS): a
 // documented but scan-dependent rule (two markers at nearly the same z can swap between scans;
 // use a model when ids must be stable).
@@ -60,6 +63,7 @@ struct CtFiducialsResult {
   MarkerDetection detection;            // markers with final ids, sorted by id
   bool labelled = false;
   Labelling labelling;                  // when labelled; model_index re-ordered with the markers
+  int candidates = 0;                   // > 0: markers selected among this many candidates
   std::vector<ModelPoint> model;
   std::string frame = "patient";
   bool has_object_frame = false;

@@ -172,4 +172,75 @@ Status VoxelisePhantom(const CtPhantom& phantom,
   return Status::Ok();
 }
 
+Status EmbedMarkers(const std::vector<CtMarker>& markers,
+                    double diameter_mm,
+                    double marker_hu,
+                    const CtVoxeliseOptions& options,
+                    CtVolume* volume) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error("CT marker embedding: " + error);
+  if (!(diameter_mm > 0) || !std::isfinite(marker_hu)) {
+    return Status::Error("CT marker embedding: diameter must be > 0 mm and HU finite");
+  }
+  CtVolume& v = *volume;
+  if (v.hu.size() != static_cast<size_t>(v.columns) * v.rows * v.slices || v.hu.empty()) {
+    return Status::Error("CT marker embedding: empty or inconsistent volume");
+  }
+  const Eigen::Matrix3d A = v.PatientFromIndexLinear();
+  if (std::abs(A.determinant()) < 1e-12) {
+    return Status::Error("CT marker embedding: degenerate volume axes");
+  }
+  const Eigen::Matrix3d A_inv = A.inverse();
+  const double thickness = v.slice_thickness_mm > 0 ? v.slice_thickness_mm : v.spacing_mm.z();
+  const Eigen::Vector3d extent(v.spacing_mm.x(), v.spacing_mm.y(), thickness);
+  const double half_diag = 0.5 * extent.norm();
+  const double radius = 0.5 * diameter_mm;
+  const int S = options.marker_supersampling;
+  const Eigen::Vector3d X = v.axes.col(0), Y = v.axes.col(1), Z = v.axes.col(2);
+  const int dims[3] = {v.columns, v.rows, v.slices};
+  for (size_t mi = 0; mi < markers.size(); ++mi) {
+    const Eigen::Vector3d c = markers[mi].centre_mm;
+    if (!c.allFinite()) return Status::Error("CT marker embedding: non-finite marker centre");
+    const Eigen::Vector3d idx = A_inv * (c - v.origin_mm);
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      const double r = A_inv.row(a).norm() * (radius + half_diag) + 1;
+      lo[a] = std::max(0, static_cast<int>(std::floor(idx[a] - r)));
+      hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(idx[a] + r)));
+    }
+    std::mt19937_64 rng(options.seed * 0x9E3779B97F4A7C15ull + 0x51ED2701ull * (mi + 1));
+    std::normal_distribution<double> noise(0.0, options.noise_hu);
+    for (int k = lo[2]; k <= hi[2]; ++k) {
+      for (int j = lo[1]; j <= hi[1]; ++j) {
+        for (int i = lo[0]; i <= hi[0]; ++i) {
+          const Eigen::Vector3d p = v.PatientFromIndex(Eigen::Vector3d(i, j, k));
+          const double d = (p - c).norm();
+          double f = 0;
+          if (d < radius - half_diag) {
+            f = 1;
+          } else if (d <= radius + half_diag) {
+            int inside = 0;
+            for (int a = 0; a < S; ++a) {
+              const double oa = ((a + 0.5) / S - 0.5) * extent.x();
+              for (int b = 0; b < S; ++b) {
+                const double ob = ((b + 0.5) / S - 0.5) * extent.y();
+                for (int e = 0; e < S; ++e) {
+                  const double oc = ((e + 0.5) / S - 0.5) * extent.z();
+                  inside += (p + oa * X + ob * Y + oc * Z - c).squaredNorm() <= radius * radius;
+                }
+              }
+            }
+            f = static_cast<double>(inside) / (S * S * S);
+          }
+          if (f <= 0) continue;
+          float& out = v.hu[v.Index(i, j, k)];
+          const double n = options.noise_hu > 0 ? noise(rng) : 0.0;
+          out = static_cast<float>((1 - f) * out + f * marker_hu + f * n);
+        }
+      }
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace carmba

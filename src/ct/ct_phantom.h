@@ -55,4 +55,15 @@ Status VoxelisePhantom(const CtPhantom& phantom,
                        const CtVoxeliseOptions& options,
                        CtVolume* volume);
 
+// Embeds spherical markers into an existing volume (a real CT as the background): each voxel
+// becomes (1 - f) v + f marker_hu + f n, where f is the fraction of the voxel's extent (as in
+// VoxelisePhantom) inside any sphere, estimated by S x S x S supersampling for voxels cut by a
+// surface, and n is Gaussian noise of sigma noise_hu (seeded per marker from options.seed; the
+// background's own noise is kept in the (1 - f) part). A marker displaces what it overlaps.
+Status EmbedMarkers(const std::vector<CtMarker>& markers,
+                    double diameter_mm,
+                    double marker_hu,
+                    const CtVoxeliseOptions& options,
+                    CtVolume* volume);
+
 }  // namespace carmba

@@ -1,5 +1,7 @@
 #include "ct/marker_detection.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -27,6 +29,22 @@ bool MarkerDetectionOptions::Check(std::string* error) const {
   }
   if (!(max_core_fraction > 0 && max_core_fraction <= 1)) {
     *error = "max_core_fraction must be in (0, 1]";
+    return false;
+  }
+  if (!std::isfinite(min_metal_hu)) {
+    *error = "min_metal_hu must be a finite HU value";
+    return false;
+  }
+  if (!(min_inner_fraction >= 0 && min_inner_fraction <= 1)) {
+    *error = "min_inner_fraction must be in [0, 1]";
+    return false;
+  }
+  if (!(contamination_chi2 > 0)) {
+    *error = "contamination_chi2 must be > 0";
+    return false;
+  }
+  if (max_seeds_per_component < 1) {
+    *error = "max_seeds_per_component must be >= 1";
     return false;
   }
   return true;
@@ -85,10 +103,245 @@ double Median(std::vector<double>* v) {
   return (*v)[m];
 }
 
+
+// A voxel of a fit: offset of its centre from the reference point (patient-frame mm), HU.
+struct FitVoxel {
+  Eigen::Vector3d d;
+  double v;
+};
+
+// Fraction of the voxel centred at d (patient-frame mm offsets) inside the ball of radius R
+// centred at c: the voxel is the parallelepiped sum_a t_a e_a axes.col(a), |t_a| <= 1/2. Value:
+// for voxels cut by the surface, a sub-grid of lines along axes.col(2) (at least S per axis,
+// at most ~0.05 mm apart), each line's chord through the ball exact. Its
+// gradient with respect to c, from the tangent-plane approximation: the voxel's projection on
+// the surface normal n is the sum of three uniforms of widths w_a = |n . axes.col(a)| e_a, whose
+// CDF at t = -s + (w_1 + w_2 + w_3) / 2, s = |d - c| - R, is
+//   F(t) = sum_{S in subsets of {1,2,3}} (-1)^|S| (t - sum_{a in S} w_a)_+^3 / (6 w_1 w_2 w_3),
+// so df/dc = F'(t) n with F'(t) = sum (-1)^|S| (t - sum_S w)_+^2 / (2 w_1 w_2 w_3).
+double BallFraction(const Eigen::Vector3d& d,
+                    const Eigen::Vector3d& c,
+                    const Eigen::Matrix3d& axes,
+                    const Eigen::Vector3d& e,
+                    double R,
+                    int S,
+                    Eigen::Vector3d* df_dc) {
+  const Eigen::Vector3d q = d - c;
+  const double dist = q.norm();
+  const Eigen::Vector3d n = dist > 1e-9 ? Eigen::Vector3d(q / dist) : Eigen::Vector3d::UnitX();
+  Eigen::Vector3d w = (axes.transpose() * n).cwiseAbs().cwiseProduct(e);
+  w = w.cwiseMax(1e-3 * e.maxCoeff());
+  const double t = -(dist - R) + 0.5 * w.sum();
+  double dF = 0;
+  for (int subset = 0; subset < 8; ++subset) {
+    double shift = 0;
+    int sign = 1;
+    for (int a = 0; a < 3; ++a) {
+      if (subset & (1 << a)) {
+        shift += w[a];
+        sign = -sign;
+      }
+    }
+    const double x = std::max(0.0, t - shift);
+    dF += sign * x * x;
+  }
+  dF /= 2 * w.prod();
+  *df_dc = dF * n;
+  const double half_diag = 0.5 * (axes * e.asDiagonal()).colwise().norm().norm();
+  if (dist <= R - half_diag) return 1.0;
+  if (dist >= R + half_diag) return 0.0;
+  // In-plane sub-samples at most ~0.05 mm apart; along the third axis the chord of the ball
+  // through each sub-sample's line is exact.
+  const Eigen::Vector3d X = e.x() * axes.col(0), Y = e.y() * axes.col(1), u = axes.col(2);
+  const int sx = std::max(S, static_cast<int>(std::ceil(e.x() / 0.05)));
+  const int sy = std::max(S, static_cast<int>(std::ceil(e.y() / 0.05)));
+  double inside = 0;
+  for (int a = 0; a < sx; ++a) {
+    const Eigen::Vector3d pa = q + ((a + 0.5) / sx - 0.5) * X;
+    for (int b = 0; b < sy; ++b) {
+      const Eigen::Vector3d p = pa + ((b + 0.5) / sy - 0.5) * Y;
+      // |p + t u|^2 <= R^2 for t in [-beta - root, -beta + root].
+      const double beta = p.dot(u), gamma = p.squaredNorm() - R * R;
+      const double disc = beta * beta - gamma;
+      if (disc <= 0) continue;
+      const double root = std::sqrt(disc);
+      const double lo = std::max(-beta - root, -0.5 * e.z()), hi = std::min(-beta + root, 0.5 * e.z());
+      if (hi > lo) inside += (hi - lo) / e.z();
+    }
+  }
+  return inside / (sx * sy);
+}
+
+struct BallFitResult {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // mm, same frame as FitVoxel::d
+  double metal_hu = 0, background_hu = 0;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of centre, mm^2
+  double scale_hu = 0;         // robust residual scale
+  double metal_sigma_hu = 0;   // standard deviation of the fitted metal HU
+  double cost = 0;             // sum of the robust loss
+  double outlier_mass = 0;     // sum of |residual| (1 - w) over the voxels, HU
+  double inner_fraction = 0;   // of the voxels with f >= 0.75 f_max, those within 25 % of f (M - b)
+};
+
+// Robust (Cauchy, scale 3 x the MAD-based sigma of the residuals where the ball has f > 0.05)
+// Gauss-Newton fit of
+// v = b + (M - b) f(d; c) with the radius fixed.
+bool FitBall(const std::vector<FitVoxel>& vox,
+             const Eigen::Matrix3d& axes,
+             const Eigen::Vector3d& e,
+             double R,
+             Eigen::Vector3d c,
+             double M,
+             double b,
+             BallFitResult* out) {
+  constexpr int kSupersampling = 8;
+  constexpr int kIterations = 50;
+  const int n = static_cast<int>(vox.size());
+  if (n < 10) return false;
+  std::vector<double> f(n), res(n), w(n);
+  std::vector<Eigen::Vector3d> g(n);
+  double scale = 0;
+  Eigen::Matrix<double, 5, 5> H;
+  auto evaluate = [&]() {
+    for (int i = 0; i < n; ++i) {
+      f[i] = BallFraction(vox[i].d, c, axes, e, R, kSupersampling, &g[i]);
+      res[i] = vox[i].v - (b + (M - b) * f[i]);
+    }
+    // The scale from the voxels the ball touches (their residuals are noise for a marker,
+    // whatever mix of materials surrounds it), or from all when fewer than 10.
+    std::vector<double> a;
+    for (int i = 0; i < n; ++i) {
+      if (f[i] > 0.05) a.push_back(std::abs(res[i]));
+    }
+    if (a.size() < 10) {
+      a.clear();
+      for (int i = 0; i < n; ++i) a.push_back(std::abs(res[i]));
+    }
+    const size_t half = a.size() / 2;
+    std::nth_element(a.begin(), a.begin() + half, a.end());
+    scale = std::max(1.4826 * a[half], 1.0);
+  };
+  for (int it = 0; it < kIterations; ++it) {
+    evaluate();
+    const double k = 3 * scale;
+    H.setZero();
+    Eigen::Matrix<double, 5, 1> rhs = Eigen::Matrix<double, 5, 1>::Zero();
+    for (int i = 0; i < n; ++i) {
+      const double u = res[i] / k;
+      w[i] = 1.0 / (1.0 + u * u);
+      Eigen::Matrix<double, 5, 1> J;
+      J.head<3>() = (M - b) * g[i];
+      J(3) = f[i];
+      J(4) = 1 - f[i];
+      H += w[i] * J * J.transpose();
+      rhs += w[i] * res[i] * J;
+    }
+    Eigen::Matrix<double, 5, 1> step = H.ldlt().solve(rhs);
+    if (!step.allFinite()) return false;
+    const double len = step.head<3>().norm();
+    constexpr double kMaxStepMm = 0.5;
+    if (len > kMaxStepMm) step *= kMaxStepMm / len;
+    c += step.head<3>();
+    // A local fit: the centre stays within R of where it started (a marker's seed is within
+    // its radius of its centre); beyond lies a neighbour's optimum (bone, air), not this one.
+    if (c.norm() > R) c *= R / c.norm();
+    M += step(3);
+    b += step(4);
+    if (step.head<3>().norm() < 1e-5 && it > 3) break;
+  }
+  evaluate();
+  const double k = 3 * scale;
+  double cost = 0, sw = 0, swr2 = 0, outlier = 0;
+  H.setZero();
+  Eigen::Matrix<double, 5, 5> B = Eigen::Matrix<double, 5, 5>::Zero();
+  for (int i = 0; i < n; ++i) {
+    const double u = res[i] / k;
+    w[i] = 1.0 / (1.0 + u * u);
+    cost += std::log1p(u * u);
+    sw += w[i];
+    swr2 += w[i] * res[i] * res[i];
+    outlier += (1 - w[i]) * std::abs(res[i]);
+    Eigen::Matrix<double, 5, 1> J;
+    J.head<3>() = (M - b) * g[i];
+    J(3) = f[i];
+    J(4) = 1 - f[i];
+    H += w[i] * J * J.transpose();
+    B += (w[i] * res[i]) * (w[i] * res[i]) * J * J.transpose();
+  }
+  if (!(sw > 6) || !(M > b)) return false;
+  // Covariance: the larger (in the centre block's trace) of the model-based s^2 H^-1 and the
+  // sandwich H^-1 B H^-1 (Huber-White), which holds when the residuals are not identically
+  // distributed: bone or air mixed into the marker's voxels leaves large residuals exactly
+  // where the centre is decided.
+  // The scale: the robust residual variance, or the plain mean square of the residuals of the
+  // voxels the ball's surface cuts (0 < f < 1: the ones that decide the centre) when larger --
+  // bone or air mixed into them biases the centre by about what their residuals show.
+  double edge_ss = 0;
+  int edge_n = 0;
+  for (int i = 0; i < n; ++i) {
+    if (f[i] <= 0 || f[i] >= 1) continue;
+    edge_ss += res[i] * res[i];
+    ++edge_n;
+  }
+  const double s2 = std::max(swr2 / (sw - 5), edge_n > 5 ? edge_ss / (edge_n - 5) : 0.0);
+  const Eigen::Matrix<double, 5, 5> H_inv = H.inverse();
+  Eigen::Matrix<double, 5, 5> cov = s2 * H_inv;
+  const Eigen::Matrix<double, 5, 5> sandwich = n / (n - 5.0) * H_inv * B * H_inv;
+  if (sandwich.topLeftCorner<3, 3>().trace() > cov.topLeftCorner<3, 3>().trace()) cov = sandwich;
+  if (!cov.allFinite()) return false;
+  out->centre = c;
+  out->metal_hu = M;
+  out->background_hu = b;
+  out->covariance = cov.topLeftCorner<3, 3>();
+  out->metal_sigma_hu = std::sqrt(std::max(0.0, cov(3, 3)));
+  out->scale_hu = scale;
+  out->cost = cost;
+  out->outlier_mass = outlier;
+  int inner = 0, inner_ok = 0;
+  const double f_max = *std::max_element(f.begin(), f.end());
+  for (int i = 0; i < n; ++i) {
+    if (f[i] < 0.75 * f_max) continue;
+    ++inner;
+    inner_ok += std::abs(res[i]) <= 0.25 * (M - b) * f[i];
+  }
+  out->inner_fraction = inner ? static_cast<double>(inner_ok) / inner : 0.0;
+  return true;
+}
+
+// The least, over sub-voxel positions (a 6 x 6 x 6 grid of phases), of the largest voxel
+// fraction a ball of radius R reaches: a marker's peak is at least b + this x (M - b).
+double MinPeakFraction(const CtVolume& vol, double R) {
+  const Eigen::Matrix3d A = vol.PatientFromIndexLinear();
+  const double thickness = vol.slice_thickness_mm > 0 ? vol.slice_thickness_mm : vol.spacing_mm.z();
+  const Eigen::Vector3d e(vol.spacing_mm.x(), vol.spacing_mm.y(), thickness);
+  constexpr int kPhases = 6;
+  double least = 1;
+  Eigen::Vector3d unused;
+  for (int a = 0; a < kPhases; ++a) {
+    for (int b = 0; b < kPhases; ++b) {
+      for (int c = 0; c < kPhases; ++c) {
+        const Eigen::Vector3d centre = A * (Eigen::Vector3d(a, b, c) / kPhases);
+        double most = 0;
+        for (int k = -1; k <= 2; ++k) {
+          for (int j = -1; j <= 2; ++j) {
+            for (int i = -1; i <= 2; ++i) {
+              most = std::max(most, BallFraction(A * Eigen::Vector3d(i, j, k), centre, vol.axes,
+                                                 e, R, 4, &unused));
+            }
+          }
+        }
+        least = std::min(least, most);
+      }
+    }
+  }
+  return least;
+}
+
 // Refines one marker's centre (steps 4-5 of the header). Returns false if there is no contrast.
 bool Refine(const CtVolume& vol,
             const MarkerDetectionOptions& opt,
             double core_radius_mm,
+            double min_peak_fraction,
             DetectedMarker* m) {
   const Eigen::Vector3d h = vol.spacing_mm;
   const double thickness = vol.slice_thickness_mm > 0 ? vol.slice_thickness_mm : h.z();
@@ -96,9 +349,16 @@ bool Refine(const CtVolume& vol,
   const double radius = std::max(0.5 * opt.diameter_mm, core_radius_mm);
   constexpr double kShellGapMm = 0.5;
   Eigen::Vector3d c = m->centre_index;
+  const Eigen::Vector3d seed_index = c;
   std::vector<double> shell;
   std::vector<std::pair<Eigen::Vector3d, double>> roi;  // mm offset from c, HU
   double b = 0, sigma = 0, W = 0;
+  bool centroid_ok = true;
+  Eigen::Matrix3d sampling = Eigen::Matrix3d::Zero();
+  for (int a = 0; a < 3; ++a) {
+    sampling(a, a) = SamplingVarianceMm2(0.5 * opt.diameter_mm, h[a], e[a]);
+  }
+  m->covariance_sampling_mm2 = vol.axes * sampling * vol.axes.transpose();
   for (int it = 0; it <= opt.iterations; ++it) {
     const double margin = opt.roi_margin_mm + (it == 0 ? 0.5 * e.maxCoeff() : 0.0);
     const double r_roi = radius + margin;
@@ -127,7 +387,10 @@ bool Refine(const CtVolume& vol,
         }
       }
     }
-    if (shell.size() < 8 || roi.empty()) return false;
+    if (shell.size() < 8 || roi.empty()) {
+      centroid_ok = false;
+      break;
+    }
     b = Median(&shell);
     std::vector<double> dev(shell.size());
     for (size_t s = 0; s < shell.size(); ++s) dev[s] = std::abs(shell[s] - b);
@@ -138,7 +401,10 @@ bool Refine(const CtVolume& vol,
       W += v - b;
       moment += (v - b) * d;
     }
-    if (!(W > 0)) return false;
+    if (!(W > 0)) {
+      centroid_ok = false;
+      break;
+    }
     const Eigen::Vector3d shift_mm = moment / W;
     c += shift_mm.cwiseQuotient(h);
     if (it == opt.iterations) {
@@ -154,17 +420,98 @@ bool Refine(const CtVolume& vol,
       Eigen::Matrix3d noise = sigma * sigma * S / (W * W) +
                               sigma * sigma / static_cast<double>(shell.size()) * g *
                                   g.transpose();
-      Eigen::Matrix3d sampling = Eigen::Matrix3d::Zero();
-      for (int a = 0; a < 3; ++a) {
-        sampling(a, a) = SamplingVarianceMm2(0.5 * opt.diameter_mm, h[a], e[a]);
-      }
       m->covariance_noise_mm2 = vol.axes * noise * vol.axes.transpose();
-      m->covariance_sampling_mm2 = vol.axes * sampling * vol.axes.transpose();
       m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
     }
   }
   m->centre_index = c;
   m->centre_mm = vol.PatientFromIndex(c);
+  {
+    // Robust partial-volume ball fit over the voxels within R + e_max of a start point, started
+    // from the peak voxel, the seed and the centroid, each re-fitted once over the region around
+    // its first result; the fit with the lower mean robust cost is kept.
+    const double r_fit = 0.5 * opt.diameter_mm + e.maxCoeff();
+    const Eigen::Matrix3d A = vol.PatientFromIndexLinear(), A_inv = A.inverse();
+    const int dims[3] = {vol.columns, vol.rows, vol.slices};
+    auto fit_from = [&](Eigen::Vector3d start, BallFitResult* fit, int* n_vox) {
+      for (int pass = 0; pass < 2; ++pass) {
+        std::vector<FitVoxel> vox;
+        int lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+          const double reach = r_fit / h[a];
+          lo[a] = std::max(0, static_cast<int>(std::floor(start[a] - reach)));
+          hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(start[a] + reach)));
+        }
+        for (int k = lo[2]; k <= hi[2]; ++k) {
+          for (int j = lo[1]; j <= hi[1]; ++j) {
+            for (int i = lo[0]; i <= hi[0]; ++i) {
+              const Eigen::Vector3d d = A * (Eigen::Vector3d(i, j, k) - start);
+              if (d.norm() <= r_fit) vox.push_back({d, vol.At(i, j, k)});
+            }
+          }
+        }
+        if (!FitBall(vox, vol.axes, e, 0.5 * opt.diameter_mm, Eigen::Vector3d::Zero(),
+                     m->peak_hu, b, fit)) {
+          return false;
+        }
+        *n_vox = static_cast<int>(vox.size());
+        start += A_inv * fit->centre;
+        fit->centre = start;  // now in continuous voxel indices
+      }
+      // The peak voxel of a ball lies within half a voxel diagonal of its centre: a fit that
+      // ended farther away found a neighbour (bone, air) instead.
+      return (A * (start - m->peak_index)).norm() <= 0.5 * opt.diameter_mm + 0.5 * e.norm();
+    };
+    BallFitResult fit, other;
+    int n_fit = 0, n_other = 0;
+    // "Peak HU consistent with metal": below what the ball of min_metal_hu gives at its least
+    // favourable sub-voxel position, no fit is tried.
+    m->peak_needed_hu = b + min_peak_fraction * (opt.min_metal_hu - b);
+    const bool peak_ok = m->peak_hu >= m->peak_needed_hu;
+    m->fit_ok = peak_ok && fit_from(m->peak_index, &fit, &n_fit);
+    std::vector<Eigen::Vector3d> starts = {seed_index};
+    if (centroid_ok) starts.push_back(c);
+    for (const Eigen::Vector3d& start : starts) {
+      if (peak_ok && fit_from(start, &other, &n_other) &&
+          (!m->fit_ok || other.cost / n_other < fit.cost / n_fit)) {
+        fit = other;
+        n_fit = n_other;
+        m->fit_ok = true;
+      }
+    }
+    if (!centroid_ok && !m->fit_ok) return false;
+    if (m->fit_ok) {
+      const Eigen::Vector3d cf = fit.centre;
+      m->fit_centre_mm = vol.PatientFromIndex(cf);
+      m->fit_covariance_mm2 = fit.covariance;  // patient frame already
+      m->fit_metal_hu = fit.metal_hu;
+      m->fit_metal_sigma_hu = fit.metal_sigma_hu;
+      m->fit_background_hu = fit.background_hu;
+      m->fit_scale_hu = fit.scale_hu;
+      m->fit_outlier_mass = fit.outlier_mass;
+      m->fit_voxels = n_fit;
+      m->fit_inner_fraction = fit.inner_fraction;
+      // Contamination: the weighted centroid and the robust fit disagree beyond their
+      // covariances (bone or air in the region of interest or its shell pulls the centroid).
+      // Without a centroid (the surroundings outweigh the marker), the fit.
+      const Eigen::Vector3d delta = m->centre_mm - m->fit_centre_mm;
+      const Eigen::Matrix3d C = m->covariance_mm2 + m->fit_covariance_mm2;
+      m->contamination_chi2 = centroid_ok ? delta.dot(C.ldlt().solve(delta)) : -1;
+      if (!centroid_ok || m->contamination_chi2 > opt.contamination_chi2) {
+        m->contaminated = true;
+        m->centroid_mm = m->centre_mm;
+        m->centre_mm = m->fit_centre_mm;
+        m->centre_index = cf;
+        m->covariance_noise_mm2 = m->fit_covariance_mm2;
+        m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
+      } else {
+        // Consistent within the threshold: the centroid, its covariance widened by the Birge
+        // ratio of the disagreement when it exceeds its expectation (3).
+        m->centroid_mm = m->centre_mm;
+        m->covariance_mm2 *= std::max(1.0, m->contamination_chi2 / 3.0);
+      }
+    }
+  }
   m->background_hu = b;
   m->noise_hu = sigma;
   m->roi_voxels = static_cast<int>(roi.size());
@@ -237,20 +584,28 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
     if (!groups.count(r)) roots.push_back(r);
     groups[r].push_back(static_cast<int>(p));
   }
-  // 3. Size and border filter; 4-5. centres.
+  // 3. Size and border filter, seeds; 4-5. centres; 6. ball fit, validation, contamination.
   const double voxel_mm3 = vol.VoxelVolumeMm3();
   const double nominal_mm3 = M_PI / 6.0 * std::pow(opt.diameter_mm, 3);
+  const double radius = 0.5 * opt.diameter_mm;
+  const Eigen::Matrix3d A = vol.PatientFromIndexLinear();
+  const double min_peak_fraction = MinPeakFraction(vol, radius);
+  std::vector<DetectedMarker> accepted;
   for (int r : roots) {
     const auto& members = groups[r];
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     Eigen::Vector3i lo = ijk(core[members[0]]), hi = lo;
     double peak = -1e30;
+    Eigen::Vector3d peak_at = Eigen::Vector3d::Zero();
     for (int p : members) {
       const Eigen::Vector3i q = ijk(core[p]);
       sum += q.cast<double>();
       lo = lo.cwiseMin(q);
       hi = hi.cwiseMax(q);
-      peak = std::max(peak, static_cast<double>(vol.hu[core[p]]));
+      if (vol.hu[core[p]] > peak) {
+        peak = vol.hu[core[p]];
+        peak_at = q.cast<double>();
+      }
     }
     const Eigen::Vector3d centroid = sum / members.size();
     const double volume = members.size() * voxel_mm3;
@@ -259,13 +614,11 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
     rej.volume_mm3 = volume;
     rej.peak_hu = peak;
     rej.voxels = static_cast<int>(members.size());
-    char why[160] = "";
+    char why[200] = "";
+    const bool large = volume > opt.max_volume_fraction * nominal_mm3;
     if (volume < opt.min_volume_fraction * nominal_mm3) {
       std::snprintf(why, sizeof(why), "too small: %.3f mm^3 < %.2f x %.3f mm^3", volume,
                     opt.min_volume_fraction, nominal_mm3);
-    } else if (volume > opt.max_volume_fraction * nominal_mm3) {
-      std::snprintf(why, sizeof(why), "too large: %.3f mm^3 > %.2f x %.3f mm^3", volume,
-                    opt.max_volume_fraction, nominal_mm3);
     } else if (lo.minCoeff() == 0 || hi.x() == vol.columns - 1 || hi.y() == vol.rows - 1 ||
                hi.z() == vol.slices - 1) {
       std::snprintf(why, sizeof(why), "touches the border of the volume");
@@ -275,21 +628,127 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
       out.rejected.push_back(rej);
       continue;
     }
-    DetectedMarker m;
-    m.core_voxels = static_cast<int>(members.size());
-    m.volume_mm3 = volume;
-    m.peak_hu = peak;
-    m.core_centroid_mm = vol.PatientFromIndex(centroid);
-    m.bbox_centre_mm = vol.PatientFromIndex(0.5 * (lo + hi).cast<double>());
-    m.centre_index = centroid;
-    const double core_radius = std::cbrt(3.0 * volume / (4.0 * M_PI));
-    if (!Refine(vol, opt, core_radius, &m)) {
-      rej.reason = "no contrast against its surroundings (weighted mass <= 0) or no background";
-      out.rejected.push_back(rej);
-      continue;
+    // Seeds: the component itself when it is marker-sized; else (a marker touching bone or
+    // another dense structure above the threshold) its local maxima, strongest first, at least
+    // one diameter apart, each started with the nominal radius.
+    struct Seed {
+      Eigen::Vector3d index;
+      double core_radius_mm;
+      double peak_hu;
+      Eigen::Vector3d peak_index;
+    };
+    std::vector<Seed> seeds;
+    if (!large) {
+      seeds.push_back({centroid, std::cbrt(3.0 * volume / (4.0 * M_PI)), peak, peak_at});
+    } else {
+      std::vector<std::pair<double, Eigen::Vector3i>> maxima;
+      for (int p : members) {
+        const Eigen::Vector3i q = ijk(core[p]);
+        const float v = vol.hu[core[p]];
+        bool is_max = true;
+        for (int dk = -1; dk <= 1 && is_max; ++dk) {
+          for (int dj = -1; dj <= 1 && is_max; ++dj) {
+            for (int di = -1; di <= 1 && is_max; ++di) {
+              const int i = q.x() + di, j = q.y() + dj, k = q.z() + dk;
+              if (i < 0 || j < 0 || k < 0 || i >= vol.columns || j >= vol.rows ||
+                  k >= vol.slices) {
+                continue;
+              }
+              const float w = vol.At(i, j, k);
+              // Ties: the first in memory order is the maximum.
+              if (w > v || (w == v && vol.Index(i, j, k) < core[p])) is_max = false;
+            }
+          }
+        }
+        if (is_max) maxima.emplace_back(v, q);
+      }
+      std::sort(maxima.begin(), maxima.end(),
+                [](const auto& a, const auto& b) { return a.first > b.first; });
+      for (const auto& [v, q] : maxima) {
+        const Eigen::Vector3d x = q.cast<double>();
+        bool far = true;
+        for (const auto& s : seeds) far = far && (A * (x - s.index)).norm() >= radius;
+        if (far) seeds.push_back({x, radius, v, x});
+        if (static_cast<int>(seeds.size()) >= opt.max_seeds_per_component) break;
+      }
     }
-    m.id = static_cast<int>(out.markers.size()) + 1;
-    out.markers.push_back(m);
+    int kept = 0;
+    std::string last_reason;
+    for (const auto& seed : seeds) {
+      const Eigen::Vector3d seed_mm = vol.PatientFromIndex(seed.index);
+      bool taken = false;
+      for (const auto& a : accepted) taken = taken || (a.centre_mm - seed_mm).norm() < opt.diameter_mm;
+      if (taken) continue;
+      DetectedMarker m;
+      m.core_voxels = static_cast<int>(members.size());
+      m.volume_mm3 = large ? 0 : volume;
+      m.peak_hu = seed.peak_hu;
+      m.core_centroid_mm = vol.PatientFromIndex(large ? seed.index : centroid);
+      m.bbox_centre_mm = large ? m.core_centroid_mm
+                               : vol.PatientFromIndex(0.5 * (lo + hi).cast<double>());
+      m.centre_index = seed.index;
+      m.peak_index = seed.peak_index;
+      m.merged = large;
+      if (!Refine(vol, opt, seed.core_radius_mm, min_peak_fraction, &m)) {
+        last_reason = "no contrast against its surroundings (weighted mass <= 0) or no background";
+        continue;
+      }
+      char b[200] = "";
+      if (m.peak_hu < m.peak_needed_hu) {
+        std::snprintf(b, sizeof(b),
+                      "peak %.0f HU < %.0f HU, the least a %.3g mm ball of %.0f HU gives in these "
+                      "voxels over its %.0f HU background (not metal: bone?)",
+                      m.peak_hu, m.peak_needed_hu, opt.diameter_mm, opt.min_metal_hu,
+                      m.background_hu);
+      } else if (!m.fit_ok) {
+        std::snprintf(b, sizeof(b), "the partial-volume ball fit failed");
+      } else if (m.fit_metal_hu < opt.min_metal_hu) {
+        std::snprintf(b, sizeof(b), "fitted ball HU %.0f < %.0f (not metal: bone?)",
+                      m.fit_metal_hu, opt.min_metal_hu);
+      } else if (m.fit_inner_fraction < opt.min_inner_fraction) {
+        std::snprintf(b, sizeof(b),
+                      "not ball-shaped: %.0f%% of the voxels inside the fitted %.3g mm ball are "
+                      "within 25%% of its contrast (< %.0f%%)",
+                      100 * m.fit_inner_fraction, opt.diameter_mm, 100 * opt.min_inner_fraction);
+      } else if ((m.fit_centre_mm - m.core_centroid_mm).norm() > radius + 0.5 * A.colwise().norm().maxCoeff()) {
+        std::snprintf(b, sizeof(b), "the fitted ball is %.2f mm from its seed",
+                      (m.fit_centre_mm - m.core_centroid_mm).norm());
+      }
+      if (b[0]) {
+        last_reason = b;
+        continue;
+      }
+      ++kept;
+      accepted.push_back(m);
+    }
+    if (kept == 0) {
+      if (large) {
+        std::snprintf(why, sizeof(why),
+                      "too large: %.3f mm^3 > %.2f x %.3f mm^3, and no ball-shaped metal peak in "
+                      "it (%zu seed(s)%s%s)",
+                      volume, opt.max_volume_fraction, nominal_mm3, seeds.size(),
+                      last_reason.empty() ? "" : "; last: ", last_reason.c_str());
+        rej.reason = why;
+      } else {
+        rej.reason = last_reason;
+      }
+      out.rejected.push_back(rej);
+    }
+  }
+  // Two seeds of one marker (a merged component's maxima): keep the better fit.
+  std::vector<bool> dropped(accepted.size(), false);
+  for (size_t a = 0; a < accepted.size(); ++a) {
+    for (size_t b = a + 1; b < accepted.size(); ++b) {
+      if (dropped[a] || dropped[b]) continue;
+      if ((accepted[a].centre_mm - accepted[b].centre_mm).norm() >= radius) continue;
+      const bool a_better = accepted[a].fit_inner_fraction >= accepted[b].fit_inner_fraction;
+      dropped[a_better ? b : a] = true;
+    }
+  }
+  for (size_t a = 0; a < accepted.size(); ++a) {
+    if (dropped[a]) continue;
+    accepted[a].id = static_cast<int>(out.markers.size()) + 1;
+    out.markers.push_back(accepted[a]);
   }
   const int found = static_cast<int>(out.markers.size());
   if (found == 0 || (opt.expected_count > 0 && found != opt.expected_count)) {

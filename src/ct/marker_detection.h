@@ -1,24 +1,27 @@
-// Spherical metal markers in a CT volume: segmentation, sub-voxel centres, covariance.
+// Spherical metal markers in a CT volume: segmentation, sub-voxel centres, covariance. Made to
+// work in real anatomy with default settings (bone, teeth, air next to the markers).
 //
-// 1. Threshold: voxels with HU >= threshold_hu form the markers' cores (default 1000 HU, as in
-//    the thesis: above soft tissue and plastics, below steel and titanium; raise it when dense
-//    bone surrounds the markers).
+// 1. Threshold: voxels with HU >= threshold_hu are candidate cores (default 1500 HU: below any
+//    metal marker's peak, above soft tissue; dense bone and teeth pass and are sorted out by
+//    3.-6.). More than max_core_fraction of all voxels above it is refused as a wrong threshold.
 // 2. 3-D connected components of the core voxels (26-connectivity, union-find; no ITK).
-// 3. Size filter: a component is a marker when its core volume (voxel count x voxel volume) is
-//    within [min_volume_fraction, max_volume_fraction] x the nominal sphere volume pi d^3 / 6 and
-//    it does not touch the volume's border. Rejected components are kept with the reason.
+// 3. Seeds. A component smaller than min_volume_fraction x the nominal sphere volume pi d^3 / 6,
+//    or touching the volume's border, is rejected. One up to max_volume_fraction x nominal is one
+//    seed (its core centroid). A larger one (a marker touching bone or teeth above the threshold,
+//    or bone alone) is seeded at its local maxima, strongest first, at least d/2 apart (at most
+//    max_seeds_per_component), each skipped within d of a marker already accepted.
 // 4. Centre: the intensity-weighted centroid c = sum_i w_i p_i / W, W = sum_i w_i,
 //    w_i = HU_i - b, over the region of interest of voxels whose box (voxel extent along the
 //    volume axes) comes within R_roi = max(d/2, r_core) + roi_margin_mm of the current centre,
 //    where r_core is the radius of a sphere of the core's volume. b is the local background: the
 //    median HU of a shell of voxels beyond the ROI (0.5 .. 0.5 + shell_mm mm outside it); sigma_b, the
-//    local noise, is 1.4826 x the shell's median absolute deviation. Started at the core's
-//    centroid, the ROI is re-centred and the centroid recomputed `iterations` times. Because
-//    every voxel is a box average of the object (partial volume), the weighted centroid is the
-//    object's centre up to the sampling (aliasing) error below; the thesis's bounding-box centre
-//    of the core voxels is computed too (for the report).
-// 5. Covariance (3x3, mm^2, patient frame) = noise term + background term + sampling term, in
-//    the volume's axis frame, rotated to patient coordinates:
+//    local noise, is 1.4826 x the shell's median absolute deviation. Started at the seed, the
+//    ROI is re-centred and the centroid recomputed `iterations` times. Because every voxel is a
+//    box average of the object (partial volume), the weighted centroid is the object's centre up
+//    to the sampling (aliasing) error below -- when its surroundings are uniform. The thesis's
+//    bounding-box centre of the core voxels is computed too (for the report).
+// 5. Covariance of the centroid (3x3, mm^2, patient frame) = noise term + background term +
+//    sampling term, in the volume's axis frame, rotated to patient coordinates:
 //    - noise: sigma_b^2 sum_i (p_i - c)(p_i - c)^T / W^2 (independent voxel noise);
 //    - background: sigma_b^2 / N_shell g g^T, g = sum_i (p_i - c) / W (error of b);
 //    - sampling: along each volume axis a, the centroid error of a ball of the nominal diameter
@@ -27,11 +30,34 @@
 //      it depends only on the 1-D projection of the ball, pi (R^2 - x^2)). Treating the phase
 //      as uniform, its variance is computed numerically over 64 phases. This is the error over
 //      "where the marker happens to sit in the voxel grid"; it dominates with thick slices.
-//    The model neglects correlated noise, beam hardening and streaks near metal, and marker
-//    diameters different from the nominal one.
-// Sheared (gantry-tilted) volumes: the ROI distances and the covariance's axis frame treat the
-// volume axes as orthogonal (an approximation of the order of the shear angle); the centre, a
-// weighted mean of voxel indices mapped through the affine voxel-to-patient map, is unaffected.
+// 6. Partial-volume ball fit and validation. A seed whose peak is below b + f_min (min_metal_hu
+//    - b), f_min the least largest-voxel fraction of the nominal ball over sub-voxel positions,
+//    is not metal. Otherwise the model v_i = b' + (M - b') f_i(c) (f_i the fraction of voxel i
+//    inside the ball of the nominal diameter centred at c, exact along the slice axis and
+//    sub-sampled in-plane) is fitted by robust (Cauchy) Gauss-Newton over the voxels within
+//    d/2 + the largest voxel extent, from the peak voxel, the seed and the centroid (each
+//    re-fitted once around its result, kept within d/2 per pass and within d/2 + half a voxel
+//    diagonal of the peak; the lowest mean robust cost wins). Bone or air beside the marker are
+//    outliers to it. A candidate is a marker when the fit converged, its M >= min_metal_hu
+//    (metal, not bone; partial volume removed), the voxels most inside the ball (f >= 0.75 x the
+//    largest f) agree with the fit within 25 % of their contrast in at least min_inner_fraction
+//    of cases (ball-shaped), and the fitted centre is within d/2 + half a voxel extent of the seed.
+//    Fit covariance: s^2 H^-1 over (c, M, b') with H = sum_i w_i J_i J_i^T, s^2 the larger of
+//    the robust residual variance and the mean square residual of the voxels the surface cuts
+//    (0 < f < 1: bone or air mixed into them shows there), plus the sampling term of 5.
+// 7. Contamination. chi2 = (c_centroid - c_fit)^T (C_centroid + C_fit)^-1 (c_centroid - c_fit).
+//    Above contamination_chi2 (default 11.34, 1 % of uncontaminated markers) the surroundings pull
+//    the centroid: the centre is the fit's, with the fit's covariance. Otherwise the centre is
+//    the centroid, its covariance multiplied by max(1, chi2 / 3) (the Birge ratio of the two
+//    estimates' disagreement). When the centroid has no mass (W <= 0: the surroundings outweigh
+//    the marker) the fit is used.
+//    Neither model includes correlated noise, beam hardening and streaks near metal, the
+//    scanner's point-spread function (the fit's partial-volume model is the simulator's box
+//    model), or marker diameters different from the nominal one.
+// Sheared (gantry-tilted) volumes: the centroid's ROI distances and covariance axis frame treat
+// the volume axes as orthogonal (an approximation of the order of the shear angle); the
+// centroid, a weighted mean of voxel indices mapped through the affine voxel-to-patient map, is
+// unaffected; the ball fit works in patient coordinates with sheared voxels.
 #pragma once
 
 #include <Eigen/Core>
@@ -44,7 +70,7 @@
 namespace carmba {
 
 struct MarkerDetectionOptions {
-  double threshold_hu = 1000;        // core threshold, HU (the thesis kept > 1000 HU)
+  double threshold_hu = 1500;        // candidate threshold, HU (the thesis kept > 1000 HU)
   double diameter_mm = 2.0;          // nominal marker diameter
   int expected_count = 0;            // markers expected; 0: any number >= 1
   double min_volume_fraction = 0.1;  // accepted core volume, x nominal sphere volume
@@ -54,6 +80,16 @@ struct MarkerDetectionOptions {
   int iterations = 3;                // re-centrings of the ROI
   // Refuse when more than this fraction of all voxels is above the threshold (wrong threshold).
   double max_core_fraction = 0.01;
+  // A marker's fitted ball HU (partial volume removed) is at least this: metal, not bone.
+  double min_metal_hu = 2500;
+  // Of the voxels most inside the fitted ball (fraction >= 0.75 x the largest), at least this
+  // share must be within 25 % of their fitted contrast (ball-shaped, not a hot bone ridge).
+  double min_inner_fraction = 0.8;
+  // Centroid and fit disagreeing by more than this chi-square (3 dof; 11.34: 1 % false alarms)
+  // means contamination: the fit's centre is used.
+  double contamination_chi2 = 11.34;
+  // Local maxima tried in a component larger than max_volume_fraction x nominal.
+  int max_seeds_per_component = 200;
 
   bool Check(std::string* error) const;
 };
@@ -65,6 +101,7 @@ struct DetectedMarker {
   Eigen::Vector3d bbox_centre_mm;      // centre of the core's bounding box (thesis method)
   Eigen::Vector3d core_centroid_mm;    // unweighted centroid of the core voxels
   Eigen::Vector3d centre_index;        // weighted centroid in continuous voxel indices (i, j, k)
+  Eigen::Vector3d peak_index = Eigen::Vector3d::Zero();  // the voxel of peak_hu
   double volume_mm3 = 0;               // core volume (voxels >= threshold x voxel volume)
   double peak_hu = 0;                  // maximum HU in the core
   double background_hu = 0;            // b
@@ -74,6 +111,19 @@ struct DetectedMarker {
   int roi_voxels = 0;
   Eigen::Matrix3d covariance_noise_mm2;     // the noise + background part
   Eigen::Matrix3d covariance_sampling_mm2;  // the sampling part
+  // Robust partial-volume ball fit (see 6.).
+  bool fit_ok = false;
+  Eigen::Vector3d fit_centre_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d fit_covariance_mm2 = Eigen::Matrix3d::Zero();
+  double fit_metal_hu = 0, fit_background_hu = 0, fit_scale_hu = 0, fit_outlier_mass = 0;
+  double fit_inner_fraction = 0;
+  double fit_metal_sigma_hu = 0;  // standard deviation of fit_metal_hu
+  int fit_voxels = 0;
+  double contamination_chi2 = 0;  // (centroid - fit)^T (C_centroid + C_fit)^-1 (centroid - fit)
+  bool contaminated = false;      // contamination_chi2 > threshold: centre_mm is the fit's
+  Eigen::Vector3d centroid_mm = Eigen::Vector3d::Zero();  // the weighted centroid
+  bool merged = false;            // seeded from a local maximum of a larger component
+  double peak_needed_hu = 0;      // the least peak of a min_metal_hu ball over background_hu
 };
 
 struct RejectedComponent {
@@ -90,7 +140,7 @@ struct MarkerDetection {
   int core_voxels = 0;                      // voxels >= threshold
 };
 
-// Runs steps 1-5. Errors: no marker found, a count different from options.expected_count (the
+// Runs steps 1-7. Errors: no marker found, a count different from options.expected_count (the
 // message lists what was found and rejected), or too many voxels above the threshold.
 StatusOr<MarkerDetection> DetectMarkers(const CtVolume& volume,
                                         const MarkerDetectionOptions& options);

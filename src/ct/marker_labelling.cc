@@ -88,14 +88,126 @@ bool FitRigid(const std::vector<Eigen::Vector3d>& source,
   return true;
 }
 
+namespace {
+
+std::string P3(const Eigen::Vector3d& v) {
+  char b[96];
+  std::snprintf(b, sizeof(b), "(%.2f, %.2f, %.2f)", v.x(), v.y(), v.z());
+  return b;
+}
+
+// More candidates than model points: hypothesise and verify. A depth-first search assigns to
+// model point j a candidate i whose distances to the candidates of the model points before j
+// all match the model's within the tolerance; each complete assignment (every model point
+// matched) is verified by the RMS of the proper rigid fit. Unused candidates get -1.
+StatusOr<Labelling> SelectAndLabel(const std::vector<Eigen::Vector3d>& found,
+                                   const std::vector<ModelPoint>& model,
+                                   double tolerance_mm) {
+  const int n = static_cast<int>(found.size()), m = static_cast<int>(model.size());
+  std::vector<int> cand(m, -1);  // per model point, its candidate
+  std::vector<bool> used(n, false);
+  int deepest = 0, complete = 0;
+  constexpr int kMaxAssignments = 100000;
+  struct Hypothesis {
+    double rms;
+    std::vector<int> cand;
+    RigidTransform T;
+  };
+  std::vector<Hypothesis> best;  // the two best, by RMS
+  std::function<void(int)> search = [&](int j) {
+    if (complete >= kMaxAssignments) return;
+    deepest = std::max(deepest, j);
+    if (j == m) {
+      ++complete;
+      std::vector<Eigen::Vector3d> src, dst;
+      for (int a = 0; a < m; ++a) {
+        src.push_back(found[cand[a]]);
+        dst.push_back(model[a].p_in_object);
+      }
+      RigidTransform T;
+      if (!FitRigid(src, dst, &T)) return;
+      double ss = 0;
+      for (int a = 0; a < m; ++a) ss += (T * src[a] - dst[a]).squaredNorm();
+      best.push_back({std::sqrt(ss / m), cand, T});
+      std::sort(best.begin(), best.end(),
+                [](const Hypothesis& a, const Hypothesis& b) { return a.rms < b.rms; });
+      if (best.size() > 2) best.resize(2);
+      return;
+    }
+    for (int i = 0; i < n; ++i) {
+      if (used[i]) continue;
+      bool ok = true;
+      for (int a = 0; a < j && ok; ++a) {
+        const double d = (found[i] - found[cand[a]]).norm();
+        const double D = (model[j].p_in_object - model[a].p_in_object).norm();
+        ok = std::abs(d - D) <= tolerance_mm;
+      }
+      if (!ok) continue;
+      used[i] = true;
+      cand[j] = i;
+      search(j + 1);
+      used[i] = false;
+      cand[j] = -1;
+    }
+  };
+  search(0);
+  char b[400];
+  if (best.empty() || best[0].rms > tolerance_mm) {
+    std::snprintf(b, sizeof(b),
+                  "no subset of the %d candidates matches the %d model points: %s (at most %d "
+                  "model points matched within %.2f mm); candidates at",
+                  n, m,
+                  best.empty() ? "no assignment keeps every pairwise distance"
+                               : "the distances match only a mirror image (no proper rigid fit)",
+                  deepest, tolerance_mm);
+    std::string msg = b;
+    for (int i = 0; i < n && i < 30; ++i) msg += " " + P3(found[i]);
+    if (n > 30) msg += " ...";
+    return Status::Error(msg);
+  }
+  const Hypothesis& h = best[0];
+  if (best.size() > 1 && best[1].rms <= std::max(2 * h.rms, tolerance_mm / 4)) {
+    std::snprintf(b, sizeof(b),
+                  "ambiguous selection of %d of the %d candidates for the model: two assignments "
+                  "fit with RMS %.3f and %.3f mm; best uses",
+                  m, n, h.rms, best[1].rms);
+    std::string msg = b;
+    for (int a = 0; a < m; ++a) {
+      msg += " " + std::to_string(model[a].id) + ":" + P3(found[h.cand[a]]);
+    }
+    msg += "; next uses";
+    for (int a = 0; a < m; ++a) {
+      msg += " " + std::to_string(model[a].id) + ":" + P3(found[best[1].cand[a]]);
+    }
+    return Status::Error(msg);
+  }
+  Labelling lab;
+  lab.model_index.assign(n, -1);
+  lab.residual_mm.assign(n, 0.0);
+  lab.object_from_ct = h.T;
+  lab.rms_mm = h.rms;
+  lab.assignments = complete;
+  lab.second_best_rms_mm = best.size() > 1 ? best[1].rms : -1;
+  for (int a = 0; a < m; ++a) {
+    const int i = h.cand[a];
+    lab.model_index[i] = a;
+    lab.residual_mm[i] = (h.T * found[i] - model[a].p_in_object).norm();
+    lab.max_mm = std::max(lab.max_mm, lab.residual_mm[i]);
+  }
+  lab.selected = m;
+  return lab;
+}
+
+}  // namespace
+
 StatusOr<Labelling> LabelMarkers(const std::vector<Eigen::Vector3d>& found,
                                  const std::vector<ModelPoint>& model,
                                  double tolerance_mm) {
   const int n = static_cast<int>(found.size()), m = static_cast<int>(model.size());
   if (!(tolerance_mm > 0)) return Status::Error("labelling tolerance must be > 0 mm");
-  if (n < 3 || n > m) {
-    return Status::Error("labelling needs 3 .. " + std::to_string(m) +
-                         " found markers (the model's count), got " + std::to_string(n));
+  if (n > m && m >= 3) return SelectAndLabel(found, model, tolerance_mm);
+  if (n < 3) {
+    return Status::Error("labelling needs at least 3 found markers, got " + std::to_string(n));
   }
   std::vector<int> assign(n, -1);
   std::vector<bool> used(m, false);

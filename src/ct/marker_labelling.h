@@ -44,19 +44,24 @@ bool FitRigid(const std::vector<Eigen::Vector3d>& source,
               RigidTransform* target_from_source);
 
 struct Labelling {
-  std::vector<int> model_index;      // per found marker, its index into the model
+  std::vector<int> model_index;      // per found marker, its index into the model (-1: not used)
   RigidTransform object_from_ct;     // the rigid fit model <- CT
   std::vector<double> residual_mm;   // per found marker, |object_from_ct * c - model|
   double rms_mm = 0;
   double max_mm = 0;
   double second_best_rms_mm = -1;    // -1 when the assignment is unique
   int assignments = 0;               // complete assignments consistent with the distances
+  int selected = 0;                  // > 0: found more candidates than model points, these used
 };
 
-// Labels `found` (CT centres, mm) with the model's points. Needs 3 <= found.size() <=
-// model.size(). Errors: no consistent assignment within tolerance_mm (saying how many markers
-// could be matched), a best fit RMS above tolerance_mm (a mirror image), an ambiguous
-// (symmetric) model.
+// Labels `found` (CT centres, mm) with the model's points. With 3 <= found.size() <=
+// model.size(), every found marker is labelled. With more candidates than model points (bone,
+// teeth or stray metal among them), the subset that fits is selected (hypothesise and verify:
+// the same pairwise-distance search with the roles swapped, every model point matched, each
+// complete assignment verified by its rigid fit); the others get model_index -1. Errors: no
+// consistent assignment within tolerance_mm (saying how many could be matched; with more
+// candidates, listing them), a best fit RMS above tolerance_mm (a mirror image), an ambiguous
+// (symmetric) model or selection (listing the two best assignments' candidates).
 StatusOr<Labelling> LabelMarkers(const std::vector<Eigen::Vector3d>& found,
                                  const std::vector<ModelPoint>& model,
                                  double tolerance_mm);

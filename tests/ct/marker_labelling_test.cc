@@ -106,6 +106,74 @@ TEST(MarkerLabelling, SymmetricModelIsAmbiguous) {
       << lab.status().message();
 }
 
+// The case: a model of 6 markers, 19 candidates (the 6 plus bone, teeth or stray metal
+// that passed detection): the 6 that fit are selected and labelled, the others set aside.
+TEST(MarkerLabelling, ExtraCandidatesAreSetAside) {
+  auto full = ThesisModel();
+  const std::vector<ModelPoint> model(full.begin(), full.begin() + 6);
+  const RigidTransform ct_from_object = SomeMotion();
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> noise(0, kNoiseMm);
+  std::uniform_real_distribution<double> u(-60, 60);
+  for (int trial = 0; trial < 10; ++trial) {
+    std::vector<Eigen::Vector3d> found;
+    std::vector<int> truth;  // model index per candidate, -1 for the extras
+    for (int j = 0; j < 6; ++j) {
+      found.push_back(ct_from_object * model[j].p_in_object +
+                      Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+      truth.push_back(j);
+    }
+    const Eigen::Vector3d centre = ct_from_object * Eigen::Vector3d::Zero();
+    for (int x = 0; x < 13; ++x) {
+      found.push_back(centre + Eigen::Vector3d(u(rng), u(rng), u(rng)));
+      truth.push_back(-1);
+    }
+    std::vector<int> order(found.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+    std::shuffle(order.begin(), order.end(), rng);
+    std::vector<Eigen::Vector3d> shuffled;
+    std::vector<int> expected;
+    for (int i : order) {
+      shuffled.push_back(found[i]);
+      expected.push_back(truth[i]);
+    }
+    auto lab = LabelMarkers(shuffled, model, kToleranceMm);
+    ASSERT_TRUE(lab.ok()) << "trial " << trial << ": " << lab.status().message();
+    EXPECT_EQ(lab->selected, 6);
+    for (size_t a = 0; a < shuffled.size(); ++a) EXPECT_EQ(lab->model_index[a], expected[a]);
+    EXPECT_LT(lab->rms_mm, 3 * kNoiseMm);
+  }
+}
+
+TEST(MarkerLabelling, AmbiguousSelectionListsTheCandidates) {
+  auto full = ThesisModel();
+  const std::vector<ModelPoint> model(full.begin(), full.begin() + 5);
+  // The pattern twice, 200 mm apart: both copies fit equally.
+  std::vector<Eigen::Vector3d> found;
+  for (const auto& shift : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(200, 0, 0)}) {
+    for (const auto& m : model) found.push_back(m.p_in_object + shift);
+  }
+  auto lab = LabelMarkers(found, model, kToleranceMm);
+  ASSERT_FALSE(lab.ok());
+  const std::string msg = lab.status().message();
+  EXPECT_NE(msg.find("ambiguous selection of 5 of the 10 candidates"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("best uses"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("next uses"), std::string::npos) << msg;
+}
+
+TEST(MarkerLabelling, NoFittingSubsetListsTheCandidates) {
+  auto full = ThesisModel();
+  const std::vector<ModelPoint> model(full.begin(), full.begin() + 4);
+  std::vector<Eigen::Vector3d> found;
+  for (int i = 0; i < 7; ++i) found.push_back(Eigen::Vector3d(100.0 * i, 3.0 * i * i, 0));
+  auto lab = LabelMarkers(found, model, kToleranceMm);
+  ASSERT_FALSE(lab.ok());
+  const std::string msg = lab.status().message();
+  EXPECT_NE(msg.find("no subset of the 7 candidates matches the 4 model points"),
+            std::string::npos) << msg;
+  EXPECT_NE(msg.find("(600.00, 108.00, 0.00)"), std::string::npos) << msg;
+}
+
 TEST(MarkerLabelling, FitRigidRefusesCollinearPoints) {
   std::vector<Eigen::Vector3d> p = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {5, 5, 5}};
   RigidTransform T;
