@@ -25,8 +25,77 @@ import numpy as np
 import mrcal
 
 
+def joint(inp):
+    """The joint problem's cross-check (IN.json with mode 'joint', written by `carmba solve` for a
+    joint problem): plate views as board observations by the camera at the reference, object views
+    as observations of fixed points (the markers at their CT positions, object frame = reference)
+    by one camera extrinsics per object view, ONE intrinsics (LENSMODEL_OPENCV5, all free). Pixel
+    weights: 1 for the plate, sigma_plate / sigma_object for the markers (mrcal weights residuals
+    by the observation's weight; carmba whitens by sigma: the same optimum). Seeded from carmba's
+    INITIAL values; mrcal's optimum is compared with carmba's."""
+    W, H = inp['image_size']
+    rows, cols = inp['grid']['rows'], inp['grid']['cols']
+    spacing = inp['grid']['spacing_mm']
+    plate = inp['plate_views']
+    nv = len(plate)
+    obs = np.zeros((nv, rows, cols, 3))
+    obs[..., 2] = -1.0
+    for i, v in enumerate(plate):
+        for pid, u, vv in v:
+            obs[i, pid // cols, pid % cols] = (u, vv, 1.0)
+    w = inp['weight_object']
+    points = np.array(inp['points'], dtype=float)
+    obs_p, idx_p = [], []
+    for iext, v in enumerate(inp['object_views']):
+        for ipoint, u, vv in v:
+            obs_p.append((u, vv, w))
+            idx_p.append((ipoint, 0, iext))
+    init = inp['initial']
+    inputs = dict(intrinsics=np.array([init['intrinsics']], dtype=float),
+                  extrinsics_rt_fromref=np.array(init['object_poses'], dtype=float),
+                  frames_rt_toref=np.array(init['plate_poses'], dtype=float),
+                  points=points,
+                  observations_board=obs, indices_frame_camintrinsics_camextrinsics=np.array(
+                      [[i, 0, -1] for i in range(nv)], dtype=np.int32),
+                  observations_point=np.array(obs_p, dtype=float),
+                  indices_point_camintrinsics_camextrinsics=np.array(idx_p, dtype=np.int32),
+                  Npoints_fixed=len(points),
+                  lensmodel='LENSMODEL_OPENCV5', imagersizes=np.array([[W, H]], dtype=np.int32),
+                  calobject_warp=None,
+                  do_optimize_intrinsics_core=True, do_optimize_intrinsics_distortions=True,
+                  do_optimize_extrinsics=True, do_optimize_frames=True,
+                  do_optimize_calobject_warp=False, do_apply_regularization=False,
+                  do_apply_outlier_rejection=False, calibration_object_spacing=spacing,
+                  point_min_range=1.0, point_max_range=1.0e6, verbose=False)
+    t0 = time.time()
+    stats = mrcal.optimize(**inputs)
+    t_solve = time.time() - t0
+    ours = dict(inputs)
+    c = inp['carmba']
+    ours['intrinsics'] = np.array([c['intrinsics']], dtype=float)
+    ours['extrinsics_rt_fromref'] = np.array(c['object_poses'], dtype=float)
+    ours['frames_rt_toref'] = np.array(c['plate_poses'], dtype=float)
+    x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
+    n_meas = int(np.count_nonzero(obs[..., 2] > 0) + len(obs_p)) * 2
+    return {
+        'mode': 'joint',
+        'solve_seconds': t_solve,
+        'intrinsics': inputs['intrinsics'][0].tolist(),
+        'rms_px': float(stats['rms_reproj_error__pixels']),
+        'rms_px_of_carmba_solution': float(np.sqrt(np.sum(x[:n_meas] ** 2) / n_meas)),
+        'rms_px_of_mrcal_solution': float(np.sqrt(np.sum(
+            mrcal.optimizer_callback(**inputs, no_jacobian=True,
+                                     no_factorization=True)[1][:n_meas] ** 2) / n_meas)),
+        'noutliers': int(stats['Noutliers']),
+        'mrcal_version': getattr(mrcal, '__version__', '2.2'),
+    }
+
+
 def main():
     inp = json.load(open(sys.argv[1]))
+    if inp.get('mode') == 'joint':
+        json.dump(joint(inp), open(sys.argv[2], 'w'), indent=1)
+        return
     W, H = inp['image_size']
     rows, cols = inp['grid']['rows'], inp['grid']['cols']
     spacing = inp['grid']['spacing_mm']

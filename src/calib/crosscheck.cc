@@ -137,6 +137,12 @@ StatusOr<nlohmann::json> RunMrcalCrossCheck(
   nlohmann::json o = nlohmann::json::object();
   for (const auto& [name, x] : others) o[name] = x;
   in["others"] = o;
+  return RunMrcalScript(in, opt);
+}
+
+StatusOr<nlohmann::json> RunMrcalScript(const nlohmann::json& in,
+                                        const MrcalCrossCheckOptions& opt) {
+  CARMBA_RETURN_IF_ERROR(MakeDirs(opt.work_dir));
   const std::string script = JoinPath(opt.work_dir, "mrcal_crosscheck.py");
   const std::string in_path = JoinPath(opt.work_dir, "mrcal_in.json");
   const std::string out_path = JoinPath(opt.work_dir, "mrcal_out.json");
@@ -163,5 +169,6 @@ StatusOr<nlohmann::json> RunMrcalCrossCheck(
     return Status::Error(out_path + ": invalid JSON from the mrcal script: " + e.what());
   }
 }
+
 
 }  // namespace carmba

@@ -50,6 +50,11 @@ StatusOr<nlohmann::json> RunMrcalCrossCheck(
     const std::map<std::string, std::array<double, kNumIntrinsics>>& others,
     const MrcalCrossCheckOptions& options);
 
+// Writes `in` as the script's IN.json into options.work_dir, runs the embedded script and returns
+// its OUT.json. Errors: the script's last stderr line.
+StatusOr<nlohmann::json> RunMrcalScript(const nlohmann::json& in,
+                                        const MrcalCrossCheckOptions& options);
+
 // The embedded script text.
 const char* MrcalCrossCheckScript();
 

@@ -2,6 +2,9 @@
 // report.md into --out (created if needed). On any error nothing is written.
 #include <gflags/gflags.h>
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <iostream>
 
 #include "cli/command.h"
@@ -23,8 +26,21 @@ int RunJoint() {
   if (!config.ok()) return cli::Fail("solve", config.status());
   auto solution = SolveJointProblem(*problem, *config);
   if (!solution.ok()) return cli::Fail("solve", solution.status());
-  const nlohmann::json j = JointSolutionToJson(*problem, *config, *solution);
-  const std::string report = JointReportMarkdown(*problem, *config, *solution);
+  // The mrcal cross-check (a failure is reported, not an error of the solve).
+  const std::string work = FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid());
+  auto mrcal = JointMrcalCrossCheck(*problem, *solution, work);
+  {
+    std::error_code ec;
+    std::filesystem::remove_all(work, ec);
+  }
+  nlohmann::json j = JointSolutionToJson(*problem, *config, *solution);
+  if (mrcal.ok()) {
+    j["mrcal_crosscheck"] = *mrcal;
+  } else {
+    j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
+  }
+  const std::string report = JointReportMarkdown(*problem, *config, *solution) +
+                             JointMrcalMarkdown(j["mrcal_crosscheck"]);
   // Both files or neither; other files in an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();

@@ -113,6 +113,21 @@ std::string JointReportMarkdown(const JointProblem& problem,
                                 const SolverConfig& config,
                                 const JointSolution& solution);
 
+// Cross-check with mrcal 2.2 (scripts/mrcal_crosscheck.py, joint mode, through /usr/bin/python3):
+// the joint problem with the markers held at their CT positions and all nine intrinsics free,
+// solved by the engine and by mrcal.optimize (plate views as boards, object views as fixed
+// points seen by one camera extrinsics per view, one intrinsics; pixel weights 1 and
+// sigma_plate / sigma_object), both from the same initial values. Returns carmba's and mrcal's
+// intrinsics, RMS and their differences (relative for fx, fy, cx, cy; in sigmas for all nine).
+// Errors: more than one intrinsics group, a view kind missing, mrcal failing (its message).
+StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
+                                              const JointSolution& solution,
+                                              const std::string& work_dir);
+
+// The report's section on the cross-check (its JSON as JointMrcalCrossCheck returns it, or
+// {"error": ...}).
+std::string JointMrcalMarkdown(const nlohmann::json& crosscheck);
+
 // The options of the engine from a solver config (one vocabulary for pose and joint).
 ba::BaOptions BaOptionsFromConfig(const SolverConfig& config);
 

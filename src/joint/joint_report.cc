@@ -346,4 +346,35 @@ std::string JointReportMarkdown(const JointProblem& problem,
   return o.str();
 }
 
+std::string JointMrcalMarkdown(const nlohmann::json& c) {
+  std::ostringstream o;
+  o << "\n## Cross-check with mrcal\n\n";
+  if (c.contains("error")) {
+    o << "Not run: " << c.at("error").get<std::string>() << ".\n";
+    return o.str();
+  }
+  o << "The same plate and marker observations solved by carmba's engine and by mrcal "
+    << c.at("mrcal").value("mrcal_version", std::string("2.2")) << "'s `mrcal.optimize` ("
+    << c.at("what").get<std::string>() << "; mrcal cannot hold single distortion terms or tie "
+       "points to priors, so this variant differs from the solve above).\n\n"
+       "| | fx | fy | cx | cy | k1 | k2 | p1 | p2 | k3 | RMS (mrcal's definition, px) |\n"
+       "|---|---|---|---|---|---|---|---|---|---|---|\n";
+  auto row = [&](const std::string& who, const nlohmann::json& x, double rms) {
+    o << "| " << who << " |";
+    for (const auto& v : x) o << " " << Fmt("%.8g", v.get<double>()) << " |";
+    o << " " << Fmt("%.8g", rms) << " |\n";
+  };
+  row("carmba", c.at("carmba").at("intrinsics"), c.at("rms_px_carmba_in_mrcal").get<double>());
+  row("mrcal", c.at("mrcal").at("intrinsics"), c.at("rms_px_mrcal").get<double>());
+  o << "| relative difference |";
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    o << " " << Fmt("%.1e", c.at("relative_difference").at(kIntrinsicNames[i]).get<double>()) << " |";
+  }
+  o << " " << Fmt("%.1e", std::abs(c.at("rms_px_mrcal").get<double>() / c.at("rms_px_carmba_in_mrcal").get<double>() - 1)) << " |\n";
+  o << "\nLargest difference: " << Fmt("%.2e", c.at("max_relative_difference_fx_fy_cx_cy").get<double>())
+    << " relative in fx, fy, cx, cy; " << Fmt("%.2e", c.at("max_difference_in_sigmas").get<double>())
+    << " sigma over all nine intrinsics.\n";
+  return o.str();
+}
+
 }  // namespace carmba

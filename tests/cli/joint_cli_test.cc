@@ -81,6 +81,17 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   for (const auto& s : row.at("sources")) share += s.at("share").get<double>();
   EXPECT_NEAR(share, 1.0, 1e-9);
   EXPECT_EQ(j.at("two_step_comparison").size(), 3u);
+  // mrcal reaches the same optimum (markers held, all intrinsics free, same initial values).
+  const auto& mc = j.at("mrcal_crosscheck");
+  ASSERT_FALSE(mc.contains("error")) << mc.dump();
+  std::printf("mrcal: max relative difference fx..cy %.2e, max %.2e sigma; RMS %.9g vs %.9g\n",
+              mc.at("max_relative_difference_fx_fy_cx_cy").get<double>(),
+              mc.at("max_difference_in_sigmas").get<double>(), mc.at("rms_px_mrcal").get<double>(),
+              mc.at("rms_px_carmba_in_mrcal").get<double>());
+  EXPECT_LT(mc.at("max_relative_difference_fx_fy_cx_cy").get<double>(), 1e-6);
+  EXPECT_LT(mc.at("max_difference_in_sigmas").get<double>(), 1e-4);
+  EXPECT_NEAR(mc.at("rms_px_mrcal").get<double>(), mc.at("rms_px_carmba_in_mrcal").get<double>(),
+              1e-9 * mc.at("rms_px_mrcal").get<double>());
   std::ifstream rep(dir.File("out/report.md"));
   std::stringstream rs;
   rs << rep.rdbuf();

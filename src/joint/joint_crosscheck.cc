@@ -1,0 +1,110 @@
+// The joint problem's mrcal cross-check (joint_problem.h).
+#include <algorithm>
+#include <cmath>
+
+#include "calib/crosscheck.h"
+#include "joint/joint_problem.h"
+
+namespace carmba {
+
+StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
+                                              const JointSolution& solution,
+                                              const std::string& work_dir) {
+  const ba::BaProblem& joint = solution.ba_problem;
+  if (joint.groups.size() != 1 || problem.plate.views.empty() || problem.object_views.empty()) {
+    return Status::Error("the mrcal cross-check needs one intrinsics group and both plate and "
+                         "object views");
+  }
+  // carmba's variant: markers held at their CT centres, all nine intrinsics free, no priors, the
+  // same initial values (joint.* hold the initial values, the solution is in solution.result).
+  ba::BaProblem variant = joint;
+  variant.markers_free = false;
+  variant.groups[0].free.fill(true);
+  variant.groups[0].has_prior = false;
+  variant.plate.free = false;
+  ba::BaOptions options;
+  options.function_tolerance = 1e-15;
+  options.gradient_tolerance = 1e-15;
+  options.parameter_tolerance = 1e-15;
+  options.max_iterations = 200;
+  auto r = ba::SolveBundleAdjustment(variant, options);
+  if (!r.ok()) return Status::Error("carmba, markers held: " + r.status().message());
+  const ba::StateLayout& L = *r->layout;
+
+  nlohmann::json in;
+  in["mode"] = "joint";
+  in["image_size"] = {joint.groups[0].width, joint.groups[0].height};
+  in["grid"] = {{"rows", problem.plate.grid.rows},
+                {"cols", problem.plate.grid.cols},
+                {"spacing_mm", problem.plate.grid.spacing_mm}};
+  std::map<int, int> point_index;
+  nlohmann::json points = nlohmann::json::array();
+  for (size_t m = 0; m < joint.markers.size(); ++m) {
+    point_index[joint.markers[m].id] = static_cast<int>(m);
+    const auto& p = joint.markers[m].p_ct;
+    points.push_back({p.x(), p.y(), p.z()});
+  }
+  in["points"] = points;
+  nlohmann::json plate_views = nlohmann::json::array(), object_views = nlohmann::json::array();
+  nlohmann::json init_plate = nlohmann::json::array(), init_object = nlohmann::json::array();
+  nlohmann::json sol_plate = nlohmann::json::array(), sol_object = nlohmann::json::array();
+  auto pose_json = [](const double* p) { return nlohmann::json(std::vector<double>(p, p + 6)); };
+  for (size_t v = 0; v < variant.views.size(); ++v) {
+    const ba::BaView& view = variant.views[v];
+    nlohmann::json obs = nlohmann::json::array();
+    for (size_t i = 0; i < view.point_ids.size(); ++i) {
+      const int id = view.kind == ba::ViewKind::kPlate ? view.point_ids[i] : point_index.at(view.point_ids[i]);
+      obs.push_back({id, view.uv_px[i].x(), view.uv_px[i].y()});
+    }
+    const double* sol = r->block(L.view_block(static_cast<int>(v)));
+    if (view.kind == ba::ViewKind::kPlate) {
+      plate_views.push_back(obs);
+      init_plate.push_back(pose_json(view.initial.data()));
+      sol_plate.push_back(pose_json(sol));
+    } else {
+      object_views.push_back(obs);
+      init_object.push_back(pose_json(view.initial.data()));
+      sol_object.push_back(pose_json(sol));
+    }
+  }
+  in["plate_views"] = plate_views;
+  in["object_views"] = object_views;
+  in["weight_object"] = problem.plate_sigma_px / problem.object_sigma_px;
+  const double* x = r->block(L.group_block(0));
+  in["initial"] = {{"intrinsics", joint.groups[0].initial},
+                   {"plate_poses", init_plate},
+                   {"object_poses", init_object}};
+  in["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},
+                  {"plate_poses", sol_plate},
+                  {"object_poses", sol_object}};
+  MrcalCrossCheckOptions mo;
+  mo.work_dir = work_dir;
+  auto out = RunMrcalScript(in, mo);
+  if (!out.ok()) return out.status();
+  const Eigen::MatrixXd C = r->Covariance({L.group_block(0)});
+  double max_rel_core = 0, max_sigmas = 0;
+  nlohmann::json rel = nlohmann::json::object();
+  std::vector<double> mrcal_intr = out->at("intrinsics").get<std::vector<double>>();
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    const double d = std::abs(x[i] - mrcal_intr[i]);
+    if (i < 4) max_rel_core = std::max(max_rel_core, d / std::abs(x[i]));
+    rel[kIntrinsicNames[i]] = x[i] != 0 ? d / std::abs(x[i]) : d;
+    const double sigma = std::sqrt(std::max(C(i, i), 0.0));
+    if (sigma > 0) max_sigmas = std::max(max_sigmas, d / sigma);
+  }
+  nlohmann::json j;
+  j["what"] = "markers held at their CT centres, all nine intrinsics free, one intrinsics, "
+              "seeded from carmba's initial values";
+  j["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},
+                 {"iterations", r->iterations},
+                 {"termination", r->termination}};
+  j["mrcal"] = *out;
+  j["max_relative_difference_fx_fy_cx_cy"] = max_rel_core;
+  j["max_difference_in_sigmas"] = max_sigmas;
+  j["relative_difference"] = rel;
+  j["rms_px_mrcal"] = out->at("rms_px_of_mrcal_solution");
+  j["rms_px_carmba_in_mrcal"] = out->at("rms_px_of_carmba_solution");
+  return j;
+}
+
+}  // namespace carmba
