@@ -9,6 +9,7 @@
 #include <cmath>
 #include <memory>
 
+#include "ba/schur_lm.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
 
@@ -16,11 +17,20 @@ namespace carmba {
 
 namespace {
 
-using Mat6 = Eigen::Matrix<double, 6, 6>;
-using Vec6 = Eigen::Matrix<double, 6, 1>;
-using Mat9 = Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics>;
-using Vec9 = Eigen::Matrix<double, kNumIntrinsics, 1>;
-using Mat69 = Eigen::Matrix<double, 6, kNumIntrinsics>;
+using ba::InvertSpd6;
+using ba::LeftJacobianOf;
+using ba::LineariseView;
+using ba::LmReport;
+using ba::Mat6;
+using ba::Mat69;
+using ba::Mat9;
+using ba::RobustWeight;
+using ba::RobustWeighting;
+using ba::RotationOf;
+using ba::SchurLevenbergMarquardt;
+using ba::Vec6;
+using ba::Vec9;
+using ba::ViewSystem;
 using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
@@ -173,179 +183,6 @@ void PoseFromHomography(const Eigen::Matrix3d& H, const double* intr, std::array
   (*pose)[3] = t.x(), (*pose)[4] = t.y(), (*pose)[5] = t.z();
 }
 
-// Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2).
-double RobustWeight(const std::string& loss, double scale_whitened, double s) {
-  if (loss == "huber") {
-    ceres::HuberLoss l(scale_whitened);
-    double rho[3];
-    l.Evaluate(s, rho);
-    return rho[1];
-  }
-  if (loss == "cauchy") {
-    ceres::CauchyLoss l(scale_whitened);
-    double rho[3];
-    l.Evaluate(s, rho);
-    return rho[1];
-  }
-  return 1.0;
-}
-
-// Rotation matrix and SO(3) left Jacobian of a rotation vector (camera/camera_model.h).
-Eigen::Matrix3d RotationOf(const double* rvec) {
-  double r[9];
-  ceres::AngleAxisToRotationMatrix(rvec, ceres::RowMajorAdapter3x3(r));
-  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
-}
-
-Eigen::Matrix3d LeftJacobianOf(const double* rvec) {
-  double jl[9];
-  SO3LeftJacobian(rvec, jl);
-  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jl);
-}
-
-// Inverse of a symmetric positive definite 6x6 matrix by Cholesky, A = L L^T, A^-1 = L^-T L^-1;
-// false if a pivot is not positive (as Eigen::LLT reports). Plain loops over fixed sizes: Eigen's
-// LLT::solve goes through its blocked triangular solver, costly at this size.
-bool InvertSpd6(const Mat6& A, Mat6* inv) {
-  double L[6][6] = {}, M[6][6] = {};
-  for (int j = 0; j < 6; ++j) {
-    double d = A(j, j);
-    for (int p = 0; p < j; ++p) d -= L[j][p] * L[j][p];
-    if (!(d > 0)) return false;
-    L[j][j] = std::sqrt(d);
-    const double inv_ljj = 1.0 / L[j][j];
-    for (int i = j + 1; i < 6; ++i) {
-      double s = A(i, j);
-      for (int p = 0; p < j; ++p) s -= L[i][p] * L[j][p];
-      L[i][j] = s * inv_ljj;
-    }
-  }
-  // M = L^-1 (lower triangular).
-  for (int j = 0; j < 6; ++j) {
-    M[j][j] = 1.0 / L[j][j];
-    for (int i = j + 1; i < 6; ++i) {
-      double s = 0;
-      for (int p = j; p < i; ++p) s -= L[i][p] * M[p][j];
-      M[i][j] = s / L[i][i];
-    }
-  }
-  for (int i = 0; i < 6; ++i) {
-    for (int j = i; j < 6; ++j) {
-      double s = 0;
-      for (int p = j; p < 6; ++p) s += M[p][i] * M[p][j];
-      (*inv)(i, j) = (*inv)(j, i) = s;
-    }
-  }
-  return true;
-}
-
-// Robust weighting of a point's residual: w = rho'(|e|^2 / sigma^2).
-struct RobustWeighting {
-  std::string loss;
-  double scale_whitened = 1;
-  double inv_sigma2 = 1;
-  double operator()(double e2_px) const { return RobustWeight(loss, scale_whitened, e2_px * inv_sigma2); }
-};
-
-// The Gauss-Newton blocks of one view at (intrinsics, pose), in pixels (unwhitened), with
-// e_j = project - observed and weights w_j (1 without a robust loss):
-//   Hpp = sum w J_pose^T J_pose (6x6),  Hpc = sum w J_pose^T J_intr (6x9),  gp = sum w J_pose^T e;
-// the view's share of the intrinsics blocks is added to Hcc (sum w J_intr^T J_intr) and gc.
-// Per point, the pose columns are taken for a small rotation w of the camera frame,
-//   d(R p)/dw = -[R p]x,  so row a of J_uv_p_in_cam gives the row (R p) x a,
-// and mapped to the rotation vector once per view, J_uv_rvec = J_uv_w J_l(rvec) (the chain rule
-// of ProjectPointWithJac). All sizes are fixed: no heap allocation.
-struct ViewSystem {
-  Mat6 Hpp;
-  Mat69 Hpc;
-  Vec6 gp;
-};
-
-bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
-                   const std::vector<Eigen::Vector2d>& uv,
-                   const double* intr,
-                   const double* pose,
-                   const RobustWeighting* robust,
-                   ViewSystem* out,
-                   Mat9* Hcc,
-                   Vec9* gc) {
-  const Eigen::Matrix3d R = RotationOf(pose);
-  const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
-  // Accumulated for [w, t] and the intrinsics.
-  Mat6 Hpp = Mat6::Zero();
-  Mat69 Hpc = Mat69::Zero();
-  Mat9 Hcc_view = Mat9::Zero();
-  Vec6 gp = Vec6::Zero();
-  Vec9 gc_view = Vec9::Zero();
-  for (size_t j = 0; j < plate.size(); ++j) {
-    const Eigen::Vector3d Rp = R * plate[j];
-    const Eigen::Vector3d pc = Rp + t;
-    double q[2], Ji[2 * kNumIntrinsics], Jpc[6];
-    if (!ProjectCamPointWithJac(intr, pc.data(), q, Ji, Jpc)) return false;
-    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
-    for (int r = 0; r < 2; ++r) {
-      const double* a = Jpc + 3 * r;
-      Jp(r, 0) = Rp.y() * a[2] - Rp.z() * a[1];
-      Jp(r, 1) = Rp.z() * a[0] - Rp.x() * a[2];
-      Jp(r, 2) = Rp.x() * a[1] - Rp.y() * a[0];
-      Jp(r, 3) = a[0], Jp(r, 4) = a[1], Jp(r, 5) = a[2];
-    }
-    const Eigen::Map<const Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>> Jc(Ji);
-    Eigen::Vector2d e(q[0] - uv[j].x(), q[1] - uv[j].y());
-    // Blocks by lazy (coefficient-wise, fixed-size) products: Eigen's default product sends
-    // these sizes to its general GEMM.
-    if (robust) {
-      const double w = (*robust)(e.squaredNorm());
-      const Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jpw = w * Jp;
-      const Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor> Jcw = w * Jc;
-      Hpp.noalias() += Jpw.transpose().lazyProduct(Jp);
-      Hpc.noalias() += Jpw.transpose().lazyProduct(Jc);
-      Hcc_view.noalias() += Jcw.transpose().lazyProduct(Jc);
-      gp.noalias() += Jpw.transpose().lazyProduct(e);
-      gc_view.noalias() += Jcw.transpose().lazyProduct(e);
-    } else {
-      Hpp.noalias() += Jp.transpose().lazyProduct(Jp);
-      Hpc.noalias() += Jp.transpose().lazyProduct(Jc);
-      Hcc_view.noalias() += Jc.transpose().lazyProduct(Jc);
-      gp.noalias() += Jp.transpose().lazyProduct(e);
-      gc_view.noalias() += Jc.transpose().lazyProduct(e);
-    }
-  }
-  // [w, t] -> [rvec, t]: the rotation rows and columns times J_l.
-  const Eigen::Matrix3d Jl = LeftJacobianOf(pose);
-  out->Hpp.topLeftCorner<3, 3>().noalias() = Jl.transpose() * Hpp.topLeftCorner<3, 3>() * Jl;
-  out->Hpp.topRightCorner<3, 3>().noalias() = Jl.transpose() * Hpp.topRightCorner<3, 3>();
-  out->Hpp.bottomLeftCorner<3, 3>() = out->Hpp.topRightCorner<3, 3>().transpose();
-  out->Hpp.bottomRightCorner<3, 3>() = Hpp.bottomRightCorner<3, 3>();
-  out->Hpc.topRows<3>().noalias() = Jl.transpose().lazyProduct(Hpc.topRows<3>());
-  out->Hpc.bottomRows<3>() = Hpc.bottomRows<3>();
-  out->gp.head<3>().noalias() = Jl.transpose() * gp.head<3>();
-  out->gp.tail<3>() = gp.tail<3>();
-  *Hcc += Hcc_view;
-  *gc += gc_view;
-  return true;
-}
-
-// Sum of squared residuals (px^2) of one view; false if a point is behind the source.
-bool ViewCost(const std::vector<Eigen::Vector3d>& plate,
-              const std::vector<Eigen::Vector2d>& uv,
-              const double* intr,
-              const double* pose,
-              double* cost) {
-  const Eigen::Matrix3d R = RotationOf(pose);
-  const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
-  double c = 0;
-  for (size_t j = 0; j < plate.size(); ++j) {
-    const Eigen::Vector3d pc = R * plate[j] + t;
-    double q[2];
-    if (!ProjectCamPoint(intr, pc.data(), q)) return false;
-    const double du = q[0] - uv[j].x(), dv = q[1] - uv[j].y();
-    c += du * du + dv * dv;
-  }
-  *cost += c;
-  return true;
-}
-
 // The normal-equation blocks of the solved problem (unwhitened pixel units, robust-weighted),
 // in the 9 intrinsics; the free parameters are delta with intrinsics = x0 + A delta.
 struct NormalBlocks {
@@ -485,134 +322,6 @@ ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
   return ps;
 }
 
-// carmba's own Levenberg-Marquardt for the plain (non-robust) calibration: per iteration the
-// normal equations are built view by view (LineariseView) and the poses are eliminated by the
-// Schur complement, the same algebra as Ceres's DENSE_SCHUR without its per-block overhead:
-//   (Hpp_i + lambda D_i) dp_i = -(gp_i + Hpc_i A dc)  for every view i,
-//   (A^T Hcc A + lambda D_c - A^T sum_i Hpc_i^T (Hpp_i + lambda D_i)^-1 Hpc_i A) dc
-//       = -(A^T gc - A^T sum_i Hpc_i^T (Hpp_i + lambda D_i)^-1 gp_i),
-// with Marquardt's damping D = diag(H). The reduction is done in the 9 intrinsics (fixed sizes)
-// and projected on the free parameters once per step. A step is kept if the cost drops (then
-// lambda / 3); a rejected step (lambda x 4) costs one cost evaluation and one reduction, the
-// Jacobians are reused.
-struct LmReport {
-  int iterations = 0;
-  std::string termination;
-};
-
-Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& plate,
-                               const ObservationSet& obs,
-                               const Eigen::MatrixXd& A,
-                               int max_iterations,
-                               double function_tolerance,
-                               std::array<double, kNumIntrinsics>* x,
-                               std::vector<std::array<double, 6>>* poses,
-                               LmReport* report) {
-  const int nv = static_cast<int>(plate.size());
-  const int k = static_cast<int>(A.cols());
-  const Eigen::MatrixXd At = A.transpose();
-  std::vector<ViewSystem> sys(nv);
-  std::vector<Mat69> Y(nv);  // (Hpp_i + lambda D_i)^-1 Hpc_i
-  std::vector<Vec6> y(nv);   // (Hpp_i + lambda D_i)^-1 gp_i
-  std::vector<std::array<double, 6>> p_new(nv);
-  Eigen::MatrixXd Hcc(k, k), S(k, k);
-  Eigen::VectorXd gc(k), b(k), dc = Eigen::VectorXd::Zero(k);
-  auto total_cost = [&](const std::array<double, kNumIntrinsics>& xi,
-                        const std::vector<std::array<double, 6>>& pi,
-                        double* c) {
-    *c = 0;
-    for (int v = 0; v < nv; ++v) {
-      if (!ViewCost(plate[v], obs.views[v].uv_px, xi.data(), pi[v].data(), c)) return false;
-    }
-    return true;
-  };
-  double cost = 0;
-  if (!total_cost(*x, *poses, &cost)) {
-    return Status::Error("initialisation puts grid points behind the source (bad detections?)");
-  }
-  double lambda = 1e-4;
-  report->termination = "NO_CONVERGENCE";
-  for (int it = 0; it < max_iterations; ++it) {
-    report->iterations = it + 1;
-    // Linearise.
-    Mat9 Hcc9 = Mat9::Zero();
-    Vec9 gc9 = Vec9::Zero();
-    for (int v = 0; v < nv; ++v) {
-      if (!LineariseView(plate[v], obs.views[v].uv_px, x->data(), (*poses)[v].data(), nullptr,
-                         &sys[v], &Hcc9, &gc9)) {
-        return Status::Error("a grid point moved behind the source during the adjustment");
-      }
-    }
-    Hcc.noalias() = At * Hcc9 * A;
-    gc.noalias() = At * gc9;
-    // Damped steps until the cost drops (re-using the linearisation).
-    bool accepted = false;
-    for (int tries = 0; tries < 20 && !accepted; ++tries) {
-      Mat9 reduction = Mat9::Zero();
-      Vec9 reduction_g = Vec9::Zero();
-      bool singular = false;
-      for (int v = 0; v < nv; ++v) {
-        Mat6 D = sys[v].Hpp, D_inv;
-        D.diagonal() *= (1.0 + lambda);
-        if (!InvertSpd6(D, &D_inv)) {
-          singular = true;
-          break;
-        }
-        Y[v].noalias() = D_inv.lazyProduct(sys[v].Hpc);
-        y[v].noalias() = D_inv.lazyProduct(sys[v].gp);
-        reduction.noalias() += sys[v].Hpc.transpose().lazyProduct(Y[v]);
-        reduction_g.noalias() += sys[v].Hpc.transpose().lazyProduct(y[v]);
-      }
-      if (!singular && k > 0) {
-        S = Hcc;
-        S.diagonal() *= (1.0 + lambda);
-        S.noalias() -= At * reduction * A;
-        b = gc;
-        b.noalias() -= At * reduction_g;
-        Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
-        if (ldlt.info() != Eigen::Success) {
-          singular = true;
-        } else {
-          dc = -ldlt.solve(b);
-          if (!dc.allFinite()) singular = true;
-        }
-      }
-      if (singular) {
-        lambda *= 10;
-        continue;
-      }
-      std::array<double, kNumIntrinsics> x_new = *x;
-      const Vec9 dx = A * dc;
-      for (int i = 0; i < kNumIntrinsics; ++i) x_new[i] += dx(i);
-      for (int v = 0; v < nv; ++v) {
-        const Vec6 dp = -(y[v] + Y[v] * dx);
-        for (int i = 0; i < 6; ++i) p_new[v][i] = (*poses)[v][i] + dp(i);
-      }
-      double cost_new = 0;
-      const bool ok_new = total_cost(x_new, p_new, &cost_new);
-      if (ok_new && cost_new < cost) {
-        const double rel = (cost - cost_new) / cost;
-        *x = x_new;
-        poses->swap(p_new);
-        cost = cost_new;
-        lambda = std::max(lambda / 3.0, 1e-12);
-        accepted = true;
-        if (rel < function_tolerance) {
-          report->termination = "CONVERGENCE";
-          return Status::Ok();
-        }
-      } else {
-        lambda *= 4;
-      }
-    }
-    if (!accepted) {
-      // No damped step lowers the cost: at the minimum to machine precision.
-      report->termination = "CONVERGENCE";
-      return Status::Ok();
-    }
-  }
-  return Status::Ok();
-}
 }  // namespace
 
 bool CalibrationOptions::Check(std::string* error) const {
@@ -905,10 +614,12 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   };
   ceres::Solver::Summary summary;
   const bool own_lm = opt.solver == "lm" && opt.robust_loss == "none";
+  std::vector<std::vector<Eigen::Vector2d>> uv_views;
+  for (const auto& v : obs.views) uv_views.push_back(v.uv_px);
   LmReport lm_report;
   auto run_stage = [&](const Eigen::MatrixXd& A, bool coarse) -> Status {
     if (!own_lm) return solve(A, coarse, &summary);
-    return SchurLevenbergMarquardt(plate, obs, A, opt.max_iterations, coarse ? 1e-6 : 1e-10, &x,
+    return SchurLevenbergMarquardt(plate, uv_views, A, opt.max_iterations, coarse ? 1e-6 : 1e-10, &x,
                                    &r.cam_from_plate, &lm_report);
   };
   {
@@ -952,7 +663,8 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     const Eigen::Matrix3d R = RotationOf(r.cam_from_plate[v].data());
     const Eigen::Vector3d t(r.cam_from_plate[v][3], r.cam_from_plate[v][4], r.cam_from_plate[v][5]);
     for (size_t j = 0; j < view.uv_px.size(); ++j) {
-      double uv[2];
+      // A point behind the source (not at a solution that passed the solver) reads as NaN.
+      double uv[2] = {std::nan(""), std::nan("")};
       const Eigen::Vector3d pc = R * plate[v][j] + t;
       ProjectCamPoint(x.data(), pc.data(), uv);
       PointResidual pr;
