@@ -73,7 +73,7 @@ namespace {
 //               I - plane. Minus 5 % of the peak, clipped at zero.
 // Iterated until the centre moves less than 1e-3 px.
 bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
-                    cv::Point2d* c) {
+                    cv::Point2d* c, double* r_half_px) {
   const int w = std::max(3, static_cast<int>(std::ceil(0.5 * nn_px)));
   double rho = -1, ring_width = 3;
   int rw = w;  // half-size of the pixel box scanned: rho + ring
@@ -112,6 +112,7 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
       for (float v : vals) area += dark ? v < half : v > half;
       if (area == 0 || !(dark ? median > extreme : median < extreme)) return false;
       const double r_half = std::sqrt(area / M_PI);
+      *r_half_px = r_half;
       // Tails and ring between the blob (edge r_half) and its neighbours (edge nn_px - r_half).
       const double gap = nn_px - 2.0 * r_half;
       // The disc no larger than needed (the centroid's noise grows with its area): within
@@ -351,6 +352,68 @@ cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, c
   return cv::Size(cmax - cmin + 1, rmax - rmin + 1);
 }
 
+// A grid returned by cv::findCirclesGrid is taken only when its points are distinct (no two
+// closer than half the median distance of row neighbours: OpenCV's clustering finder can repeat
+// a column when a blob is missing) and lie on a lattice (a homography from the plate explains
+// each to within 30 % of that distance, as the final check does). Otherwise the next finder, or
+// the next search image, is tried.
+bool PlausibleGrid(const std::vector<cv::Point2f>& pts, const GridSpec& g) {
+  std::vector<double> steps;
+  for (int r = 0; r < g.rows; ++r) {
+    for (int c = 0; c + 1 < g.cols; ++c) steps.push_back(cv::norm(pts[r * g.cols + c + 1] - pts[r * g.cols + c]));
+  }
+  if (steps.empty()) return true;
+  std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+  const double step = steps[steps.size() / 2];
+  for (size_t i = 0; i < pts.size(); ++i) {
+    for (size_t j = i + 1; j < pts.size(); ++j) {
+      if (cv::norm(pts[i] - pts[j]) < 0.5 * step) return false;
+    }
+  }
+  std::vector<cv::Point2f> plate;
+  for (int id = 0; id < g.NumPoints(); ++id) plate.push_back(LatticeNode(g, id / g.cols, id % g.cols));
+  const cv::Mat H = cv::findHomography(plate, pts, 0);
+  if (H.empty()) return false;
+  std::vector<cv::Point2f> mapped;
+  cv::perspectiveTransform(plate, mapped, H);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    if (cv::norm(mapped[i] - pts[i]) > 0.3 * step) return false;
+  }
+  return true;
+}
+
+// The 8-bit search image for dark blobs with the slowly varying brightness divided out: 255 x
+// the ratio of the (lightly blurred) image to its local background, the morphological closing of
+// the image (its upper envelope over dark features narrower than ~2.4 blob diameters), computed
+// on a half-resolution grid and smoothed. Image-intensifier fall-off, heel effect, glare and
+// anatomy larger than the blobs become a flat level of 255; a sphere's level is its contrast,
+// wherever it lies, so one set of thresholds finds spheres on bright and on dark parts of the
+// field. Outside `mask`: 255.
+cv::Mat FlatFieldedSearchImage(const cv::Mat& f, const cv::Mat& mask, double blob_diameter_px) {
+  cv::Mat half, background;
+  cv::resize(f, half, cv::Size((f.cols + 1) / 2, (f.rows + 1) / 2), 0, 0, cv::INTER_AREA);
+  const int k = 2 * static_cast<int>(std::ceil(0.6 * std::max(blob_diameter_px, 2.0))) + 1;
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+  cv::morphologyEx(half, background, cv::MORPH_CLOSE, kernel, cv::Point(-1, -1), 1,
+                   cv::BORDER_REPLICATE);
+  cv::blur(background, background, cv::Size(k, k), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+  cv::resize(background, background, f.size(), 0, 0, cv::INTER_LINEAR);
+  cv::Mat blurred;
+  cv::GaussianBlur(f, blurred, cv::Size(5, 5), 1.0);
+  cv::Mat out(f.size(), CV_8U);
+  for (int y = 0; y < f.rows; ++y) {
+    const float* b = blurred.ptr<float>(y);
+    const float* g = background.ptr<float>(y);
+    const uint8_t* m = mask.ptr<uint8_t>(y);
+    uint8_t* o = out.ptr<uint8_t>(y);
+    for (int x = 0; x < f.cols; ++x) {
+      const float ratio = m[x] && g[x] > 0 ? b[x] / g[x] : 1.0f;
+      o[x] = cv::saturate_cast<uint8_t>(255.0f * ratio);
+    }
+  }
+  return out;
+}
+
 // A SimpleBlobDetector that drops blobs touching the field-of-view border (the vignetted rim next
 // to the masked-out area looks like a chain of dark blobs). findCirclesGrid calls detect() once
 // per attempt on the same image: the blobs are found once and reused.
@@ -441,35 +504,50 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
                cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y),
                static_cast<int>(o.fov_circle_px[2] - o.fov_margin_px), cv::Scalar(255), cv::FILLED);
   } else if (o.auto_fov_mask) {
-    // The intensifier's field: pixels above 15 % of the range; if a sizeable dark border exists,
-    // take the largest bright component's enclosing circle.
-    cv::Mat bright = f > (lo + 0.15 * (hi - lo));
-    const double inside = cv::countNonZero(bright) / static_cast<double>(f.total());
-    if (inside < 0.9 && inside > 0.2) {
+    // The intensifier's field: the largest component above 15 % of the range, its convex hull
+    // and the hull's enclosing circle, when a sizeable dark border exists. Dark anatomy at the
+    // rim can fall below 15 % and cut into that region (a chord instead of the rim): when an
+    // unexposed border exists (at least 10 % of the image within 2 % of the range of the darkest
+    // level) and the hull above 5 % of the range is more than 3 % larger (a rim band 1 px wide
+    // is ~0.8 %), the 5 % hull is the field.
+    auto field_hull = [&f, lo, hi](double level, std::vector<cv::Point>* hull) {
+      const cv::Mat bright = f > (lo + level * (hi - lo));
+      const double inside = cv::countNonZero(bright) / static_cast<double>(f.total());
+      if (!(inside < 0.9 && inside > 0.2)) return false;
       std::vector<std::vector<cv::Point>> contours;
       cv::findContours(bright, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+      if (contours.empty()) return false;
       size_t best = 0;
       for (size_t i = 1; i < contours.size(); ++i) {
         if (cv::contourArea(contours[i]) > cv::contourArea(contours[best])) best = i;
       }
-      if (!contours.empty()) {
-        std::vector<cv::Point> hull;
-        cv::convexHull(contours[best], hull);
-        cv::Point2f c;
-        float rad;
-        cv::minEnclosingCircle(hull, c, rad);
-        // An intensifier field clipped by the image edge: the enclosing circle still bounds it;
-        // intersect with the hull so corners outside the field stay masked.
-        mask.setTo(0);
-        cv::fillConvexPoly(mask, hull, cv::Scalar(255));
-        cv::Mat circle_mask(f.size(), CV_8U, cv::Scalar(0));
-        cv::circle(circle_mask, c, static_cast<int>(rad - o.fov_margin_px), cv::Scalar(255),
-                   cv::FILLED);
-        cv::bitwise_and(mask, circle_mask, mask);
-        have_circle = true;
-        fov_c = c;
-        fov_r = rad;
-      }
+      cv::convexHull(contours[best], *hull);
+      return true;
+    };
+    std::vector<cv::Point> hull, hull_low;
+    bool have_hull = field_hull(0.15, &hull);
+    const double border =
+        1.0 - cv::countNonZero(f > (lo + 0.02 * (hi - lo))) / static_cast<double>(f.total());
+    if (border >= 0.1 && field_hull(0.05, &hull_low) &&
+        (!have_hull || cv::contourArea(hull_low) > 1.03 * cv::contourArea(hull))) {
+      hull = hull_low;
+      have_hull = true;
+    }
+    if (have_hull) {
+      cv::Point2f c;
+      float rad;
+      cv::minEnclosingCircle(hull, c, rad);
+      // An intensifier field clipped by the image edge: the enclosing circle still bounds it;
+      // intersect with the hull so corners outside the field stay masked.
+      mask.setTo(0);
+      cv::fillConvexPoly(mask, hull, cv::Scalar(255));
+      cv::Mat circle_mask(f.size(), CV_8U, cv::Scalar(0));
+      cv::circle(circle_mask, c, static_cast<int>(rad - o.fov_margin_px), cv::Scalar(255),
+                 cv::FILLED);
+      cv::bitwise_and(mask, circle_mask, mask);
+      have_circle = true;
+      fov_c = c;
+      fov_r = rad;
     }
   }
   // 8-bit working image stretched over the 1..99 % range inside the mask. The outside is left as
@@ -535,11 +613,14 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   const bool circles = grid.pattern != GridPattern::kChessboard;
   const cv::Size size(grid.cols, grid.rows);
   if (circles) {
-    std::vector<bool> tries;
-    if (o.polarity != "bright") tries.push_back(true);
-    if (o.polarity != "dark") tries.push_back(false);
+    // Searches: (polarity, flat-fielded). The flat-fielded search runs only when the plain one
+    // of that polarity fails (see FlatFieldedSearchImage).
+    std::vector<std::pair<bool, bool>> tries;
+    if (o.polarity != "bright") tries.push_back({true, false}), tries.push_back({true, true});
+    if (o.polarity != "dark") tries.push_back({false, false});
     int most_blobs = 0;
-    for (bool d : tries) {
+    std::vector<cv::KeyPoint> plain_dark_blobs;
+    for (const auto& [d, flat] : tries) {
       cv::SimpleBlobDetector::Params p;
       p.blobColor = d ? 0 : 255;
       p.filterByArea = true;
@@ -550,11 +631,25 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       p.filterByInertia = true;
       p.minInertiaRatio = 0.3f;
       // 10 .. 245 in steps of 20, trimmed at the field's 35th (dark) / 65th (bright) percentile but
-      // keeping at least 4 levels.
+      // keeping at least 4 levels. On the flat-fielded image the levels are contrasts: up to 235
+      // (8 % below the local background; the field's noise stays above).
       p.minThreshold = d ? 10.0f : static_cast<float>(std::clamp(work_p65, 10.0, 165.0));
       p.maxThreshold = d ? static_cast<float>(std::clamp(work_p35 + 1.0, 90.0, 245.0)) : 245.0f;
+      if (flat) p.maxThreshold = 236.0f;
       p.thresholdStep = 20;
       p.minDistBetweenBlobs = 3;
+      cv::Mat search = work_search;
+      if (flat) {
+        // The blob size from the plain search's blobs (their median diameter), else a guess.
+        std::vector<float> sizes;
+        for (const auto& k : plain_dark_blobs) sizes.push_back(k.size);
+        double diameter_px = 0.04 * std::min(f.cols, f.rows);
+        if (sizes.size() >= 3) {
+          std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
+          diameter_px = sizes[sizes.size() / 2];
+        }
+        search = FlatFieldedSearchImage(f, mask, diameter_px);
+      }
       auto detector =
           cv::makePtr<MaskedBlobDetector>(cv::SimpleBlobDetector::create(p), mask);
       const int flags = grid.pattern == GridPattern::kAsymmetricCircles
@@ -574,10 +669,13 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
         if (ran && detector->last_count() < grid.NumPoints()) break;
         ran = true;
         const cv::Size try_size = transposed ? cv::Size(grid.rows, grid.cols) : size;
+        GridSpec try_grid = grid;
+        try_grid.rows = try_size.height;
+        try_grid.cols = try_size.width;
         std::vector<cv::Point2f> f2;
-        ok = cv::findCirclesGrid(work_search, try_size, f2,
+        ok = cv::findCirclesGrid(search, try_size, f2,
                                  flags | (clustering ? cv::CALIB_CB_CLUSTERING : 0), detector) &&
-             static_cast<int>(f2.size()) == grid.NumPoints();
+             static_cast<int>(f2.size()) == grid.NumPoints() && PlausibleGrid(f2, try_grid);
         most_blobs = std::max(most_blobs, detector->last_count());
         if (!ok) continue;
         if (transposed) {
@@ -590,6 +688,7 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
           found = f2;
         }
       }
+      if (d && !flat) plain_dark_blobs = detector->last_keypoints();
       if (ok) {
         centres = found;
         blobs = detector->last_keypoints();
@@ -646,8 +745,19 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
       cv::Point2d q = pts[i];
       // The disc cap as before the large-circle fix (disc + ring within ceil(0.35 pitch)): small
       // circles keep their results (same noise), large ones go beyond it with 1 px tails.
-      if (RefineCentroid(f, refine_valid, dark, nn, std::max(3.0, std::ceil(0.35 * pitch)) - 3.0, &q) &&
-          cv::norm(q - pts[i]) < 0.3 * pitch) {
+      // The blob finder's centre is good to a fraction of a pixel: a refined centre that moved
+      // by more than half the blob's radius (the blob finder's, else the measured one; at least
+      // 1.5 px) was pulled off the blob (a strong background edge in its ring) and is dropped
+      // rather than kept wrong.
+      double r_half = 0, blob_r = 0, blob_d = 0.3 * pitch;
+      for (const cv::KeyPoint& k : blobs) {
+        const double dk = cv::norm(cv::Point2d(k.pt) - pts[i]);
+        if (dk < blob_d) blob_d = dk, blob_r = 0.5 * k.size;
+      }
+      if (RefineCentroid(f, refine_valid, dark, nn, std::max(3.0, std::ceil(0.35 * pitch)) - 3.0, &q,
+                         &r_half) &&
+          cv::norm(q - pts[i]) <
+              std::min(0.3 * pitch, std::max(1.5, 0.5 * (blob_r > 0 ? blob_r : r_half)))) {
         pts[i] = q;
       } else {
         refined_ok[i] = false;  // no blob there (OpenCV fills a missing blob from the grid model)
