@@ -1,14 +1,21 @@
 // Detection of calibration grids in X-ray images (and photographs).
 //
-// Pipeline per image:
+// Pipeline per image (DetectGrid calls one function per step, in grid_detector.cc):
 //   1. To a float grey image (8- or 16-bit, grey or colour), then an 8-bit working copy stretched
 //      between the 1st and 99th percentile of the pixels inside the field of view.
 //   2. Region of interest: an optional crop [x, y, w, h] and a circular mask. The image
-//      intensifier's circular field of view is found automatically (the largest bright region,
-//      its enclosing circle shrunk by a margin) or given as [cx, cy, r]; outside it the image is
-//      filled with the median inside value so the dark border does not look like a blob.
+//      intensifier's circular field of view is found automatically or given as [cx, cy, r]; blobs
+//      touching its border are dropped. Found: the largest region above 15 % of the image's
+//      range, its convex hull and the hull's enclosing circle shrunk by a margin; when dark
+//      anatomy at the rim cuts that region (its hull covers < 97 % of its circle) and an
+//      unexposed border exists, the region above 5 % of the range if it is > 3 % larger.
 //   3. circles / acircles: cv::findCirclesGrid with a SimpleBlobDetector tuned for small dark
 //      (metal on bright, X-ray) or bright blobs; polarity "auto" tries dark first, then bright.
+//      When the dark search fails, it is repeated on a flat-fielded image (the image divided by
+//      its morphological closing over ~2.4 blob diameters): the intensifier's fall-off, the heel
+//      effect, glare and anatomy otherwise put spheres on bright parts of the field above every
+//      threshold and merge spheres on dark parts with their surroundings. A grid OpenCV returns
+//      is taken only when its points are distinct and lie on a lattice (else the next finder).
 //      chessboard: cv::findChessboardCorners + cornerSubPix.
 //   4. Sub-pixel centres of circles, on the float image, iterated from the blob centre: the blob's
 //      size from its half-contrast area in a window of half the distance to the nearest grid
@@ -20,8 +27,11 @@
 //      attenuation, independent of vignetting and other brightness gradients; bright:
 //      I - background). Only the fully exposed field of view is used: the intensifier's rim
 //      fall-off (found from the median radial profile) is excluded, and a blob whose ring reaches
-//      it is dropped. Against the simulator's truth: ~0.004 px RMS systematic error
-//      (tests/detect/simulated_scene_test.cc).
+//      it is dropped; so is a centre the refinement moved by more than half the blob's radius
+//      (at least 1.5 px: a strong anatomical edge in the ring). Against the simulator's truth:
+//      ~0.004 px RMS systematic error (tests/detect/simulated_scene_test.cc), ~0.012 px over a
+//      real anatomical background (tests/detect/recall_test.cc). The points kept must lie on a
+//      grid (a homography from the plate within 30 % of the pitch).
 //   5. Ids: row-major in the grid (detect/observations.h). For symmetric grids and chessboards,
 //      whose ordering is only defined up to the grid's symmetry, the ordering is made right-handed
 //      in the image (row direction x column direction > 0): an X-ray sees the plate from either
