@@ -5,6 +5,7 @@
 #include "calib/conditioning.h"
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -146,7 +147,17 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
   o << "; solver: " << r.termination << " after " << r.iterations << " iterations, "
     << F(r.solve_seconds * 1e3, 1) << " ms; covariance " << F(r.covariance_seconds * 1e3, 1)
     << " ms\n";
-  if (!run.skipped.empty()) {
+  if (!run.detections.empty()) {
+    o << "\n## Detection per image\n\n";
+    o << "Overlays (found points with ids, rejected blobs and why): `overlays/`.\n\n";
+    o << "| # | image | points found | rejected blobs | status |\n|---|---|---|---|---|\n";
+    for (size_t i = 0; i < run.detections.size(); ++i) {
+      const GridDetection& d = run.detections[i];
+      o << "| " << i << " | " << d.view.image << " | " << d.view.uv_px.size() << " / "
+        << obs.grid.NumPoints() << " | " << d.rejected.size() << " | "
+        << (d.found ? "used" : "skipped: " + d.reason) << " |\n";
+    }
+  } else if (!run.skipped.empty()) {
     o << "\n## Skipped images\n\n";
     for (const auto& s : run.skipped) o << "- " << s << "\n";
   }
@@ -375,6 +386,27 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
   }
   Status s = WriteObservationsCsv(run.observations, JoinPath(tmp, "observations.csv"));
   if (!s.ok()) return fail(s);
+  if (!run.detections.empty()) {
+    const std::string dir = JoinPath(tmp, "overlays");
+    Status made = MakeDirs(dir);
+    if (!made.ok()) return fail(made);
+    for (size_t i = 0; i < run.detections.size(); ++i) {
+      const GridDetection& d = run.detections[i];
+      auto image = ReadImageFile(d.view.image);
+      if (!image.ok()) return fail(image.status());
+      std::string stem = fs::path(d.view.image).stem().string();
+      char prefix[32];
+      std::snprintf(prefix, sizeof(prefix), "%03zu_", i);
+      const std::string path = JoinPath(dir, prefix + stem + ".png");
+      try {
+        if (!cv::imwrite(path, DrawDetectionOverlay(*image, run.observations.grid, d))) {
+          return fail(Status::Error(path + ": cannot write the overlay"));
+        }
+      } catch (const cv::Exception& e) {
+        return fail(Status::Error(path + ": cannot write the overlay: " + e.what()));
+      }
+    }
+  }
   if (!mrcal_work_dir.empty() && IsDirectory(mrcal_work_dir)) {
     fs::copy(mrcal_work_dir, JoinPath(tmp, "mrcal"), fs::copy_options::recursive, ec);
     if (ec) return fail(Status::Error("copying " + mrcal_work_dir + ": " + ec.message()));
@@ -389,6 +421,7 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
   }
   if (!fs::is_directory(out_dir)) return fail(Status::Error(out_dir + ": exists and is not a directory"));
   if (fs::exists(JoinPath(out_dir, "mrcal"))) fs::remove_all(JoinPath(out_dir, "mrcal"), ec);
+  if (fs::exists(JoinPath(out_dir, "overlays"))) fs::remove_all(JoinPath(out_dir, "overlays"), ec);
   for (const auto& e : fs::directory_iterator(tmp)) {
     fs::rename(e.path(), fs::path(out_dir) / e.path().filename(), ec);
     if (ec) return fail(Status::Error("cannot write into " + out_dir + ": " + ec.message()));

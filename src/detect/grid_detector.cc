@@ -621,7 +621,8 @@ bool MakeWorkingImage(const cv::Mat& f, const cv::Mat& mask, WorkingImage* w, st
 
 struct GridCandidate {
   std::vector<cv::Point2f> centres;  // row-major, OpenCV's ordering
-  std::vector<cv::KeyPoint> blobs;   // the blobs of the search that found the grid
+  std::vector<cv::KeyPoint> blobs;   // the blobs of the search that found the grid (or, when none
+                                     // did, of the search with the most blobs)
   bool dark = true;
 };
 
@@ -692,6 +693,7 @@ bool FindCircleGrid(const cv::Mat& f, const WorkingImage& w, const cv::Mat& mask
       ok = cv::findCirclesGrid(search, try_size, f2,
                                flags | (clustering ? cv::CALIB_CB_CLUSTERING : 0), detector) &&
            static_cast<int>(f2.size()) == grid.NumPoints() && PlausibleGrid(f2, try_grid);
+      if (detector->last_count() > most_blobs) out->blobs = detector->last_keypoints();
       most_blobs = std::max(most_blobs, detector->last_count());
       if (!ok) continue;
       if (transposed) {
@@ -872,6 +874,32 @@ void MakeRightHanded(const GridSpec& grid, const cv::Mat& H, std::vector<cv::Poi
   std::sort(kept->begin(), kept->end());
 }
 
+// The blobs and grid points not among `kept`, and why (RejectedBlob in the header).
+void ListRejected(const GridSpec& grid, const GridCandidate& cand, const std::vector<cv::Point2d>& pts,
+                  const std::vector<bool>& refined_ok, const std::vector<int>& kept, double pitch_px,
+                  cv::Point offset, std::vector<RejectedBlob>* rejected) {
+  const cv::Point2d off(offset.x, offset.y);
+  std::vector<bool> is_kept(grid.NumPoints(), false), has_blob(grid.NumPoints(), false);
+  for (int id : kept) is_kept[id] = true;
+  auto why_dropped = [&refined_ok](int id) {
+    return refined_ok[id] ? "on the field-of-view border" : "no blob / refinement failed";
+  };
+  for (const cv::KeyPoint& k : cand.blobs) {
+    int nearest = -1;
+    double best = 0.3 * pitch_px;
+    for (int id = 0; id < grid.NumPoints(); ++id) {
+      const double dk = cv::norm(cv::Point2d(cand.centres[id]) - cv::Point2d(k.pt));
+      if (dk < best) best = dk, nearest = id;
+    }
+    if (nearest >= 0) has_blob[nearest] = true;
+    if (nearest >= 0 && is_kept[nearest]) continue;
+    rejected->push_back({cv::Point2d(k.pt) + off, k.size, nearest < 0 ? "not on the grid" : why_dropped(nearest)});
+  }
+  for (int id = 0; id < grid.NumPoints(); ++id) {
+    if (!is_kept[id] && !has_blob[id]) rejected->push_back({pts[id] + off, 0.0, why_dropped(id)});
+  }
+}
+
 }  // namespace
 
 GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& o) {
@@ -889,6 +917,9 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   GridCandidate cand;
   if (circles ? !FindCircleGrid(f, work, fov.mask, grid, o, &det, &cand)
               : !FindChessboard(work.work, grid, &cand, &det.reason)) {
+    for (const cv::KeyPoint& k : cand.blobs) {
+      det.rejected.push_back({cv::Point2d(k.pt.x + offset.x, k.pt.y + offset.y), k.size, "no grid"});
+    }
     return det;
   }
   // 4: sub-pixel centres, the points kept.
@@ -898,7 +929,9 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   const double pitch_px = GridPitchPx(grid, pts);
   std::vector<int> kept;
   cv::Mat H;
-  if (!KeepPointsOnGrid(grid, pts, refined_ok, fov.mask, pitch_px, &kept, &H, &det.reason)) return det;
+  const bool kept_ok = KeepPointsOnGrid(grid, pts, refined_ok, fov.mask, pitch_px, &kept, &H, &det.reason);
+  if (circles) ListRejected(grid, cand, pts, refined_ok, kept, pitch_px, offset, &det.rejected);
+  if (!kept_ok) return det;
   // 6: not a sub-window of a larger plate.
   if (circles && !PlateNotLarger(grid, pts, kept, cand.blobs, fov.mask, pitch_px, &det.reason)) {
     return det;
@@ -930,11 +963,59 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
   return m;
 }
 
+cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const GridDetection& d) {
+  cv::Mat grey, f, shown, out;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
+  } else {
+    grey = image;
+  }
+  grey.convertTo(f, CV_32F);
+  std::vector<float> vals(f.begin<float>(), f.end<float>());
+  double lo = 0, hi = 1;
+  if (!vals.empty()) {
+    const size_t k01 = vals.size() / 100, k99 = vals.size() - 1 - vals.size() / 100;
+    std::nth_element(vals.begin(), vals.begin() + k01, vals.end());
+    lo = vals[k01];
+    std::nth_element(vals.begin(), vals.begin() + k99, vals.end());
+    hi = vals[k99];
+  }
+  if (!(hi > lo)) hi = lo + 1;
+  f.convertTo(shown, CV_8U, 255.0 / (hi - lo), -255.0 * lo / (hi - lo));
+  cv::cvtColor(shown, out, cv::COLOR_GRAY2BGR);
+  const double scale = std::max(0.35, std::min(out.cols, out.rows) / 1400.0);
+  const cv::Scalar green(0, 200, 0), red(0, 0, 255), yellow(0, 220, 255);
+  for (size_t i = 0; i < d.view.uv_px.size(); ++i) {
+    const cv::Point2d p(d.view.uv_px[i].x(), d.view.uv_px[i].y());
+    cv::circle(out, p, 6, green, 1, cv::LINE_AA);
+    cv::putText(out, std::to_string(d.view.point_ids[i]), p + cv::Point2d(6, -6),
+                cv::FONT_HERSHEY_SIMPLEX, scale, green, 1, cv::LINE_AA);
+  }
+  for (const RejectedBlob& b : d.rejected) {
+    cv::drawMarker(out, b.uv_px, red, cv::MARKER_CROSS, 10, 1, cv::LINE_AA);
+    if (b.why != "no grid") {
+      cv::putText(out, b.why, b.uv_px + cv::Point2d(6, 12), cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale,
+                  red, 1, cv::LINE_AA);
+    }
+  }
+  const std::string head =
+      d.found ? "found " + std::to_string(d.view.uv_px.size()) + " of " +
+                    std::to_string(grid.NumPoints()) + " points" +
+                    (d.rejected.empty() ? "" : ", " + std::to_string(d.rejected.size()) + " rejected")
+              : "not found: " + d.reason;
+  cv::putText(out, head, cv::Point(4, static_cast<int>(4 + 28 * scale)), cv::FONT_HERSHEY_SIMPLEX,
+              scale, d.found ? green : yellow, 1, cv::LINE_AA);
+  return out;
+}
+
 StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
                                            const GridSpec& grid,
                                            const DetectionOptions& options,
                                            std::vector<std::string>* skipped,
-                                           double* seconds_per_image) {
+                                           double* seconds_per_image,
+                                           std::vector<GridDetection>* detections) {
   std::string err;
   if (!options.Check(&err)) return Status::Error("detection options: " + err);
   if (!grid.Check(&err)) return Status::Error(err);
@@ -955,6 +1036,8 @@ StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files
     const auto t0 = std::chrono::steady_clock::now();
     GridDetection d = DetectGrid(*img, grid, options);
     total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    d.view.image = file;
+    if (detections) detections->push_back(d);
     if (!d.found) {
       skipped->push_back(file + ": " + d.reason);
       continue;

@@ -79,13 +79,30 @@ struct DetectionOptions {
 class YamlMap;
 void ReadDetectionOptions(YamlMap& map, DetectionOptions* options);
 
+// A candidate blob or grid point that is not among the detected points, and why (full-image
+// pixel coordinates): "not on the grid" (a blob of the search that found the grid but is no grid
+// point), "on the field-of-view border", "no blob / refinement failed" (OpenCV's grid point
+// where the refinement found no blob or was pulled off it), or, when no grid was found, the
+// reason for the blobs of the search with the most blobs.
+struct RejectedBlob {
+  cv::Point2d uv_px;
+  double diameter_px = 0;  // the blob finder's size (0 for a grid point without a blob)
+  std::string why;
+};
+
 struct GridDetection {
   bool found = false;
   std::string reason;   // why not found (empty when found)
   int num_blobs = -1;   // candidate blobs seen (circle grids)
   std::string polarity; // the polarity that worked
   ViewObservations view;
+  std::vector<RejectedBlob> rejected;  // circle grids: what was not used, and why
 };
+
+// An 8-bit colour picture of a detection for checking by eye: the image stretched to its 1..99 %
+// range, found points as green circles with their ids, rejected blobs as red crosses with the
+// reason, and a first line saying found (points of the grid) or the reason it was not.
+cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const GridDetection& d);
 
 // Detects `grid` in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
 GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& options);
@@ -95,10 +112,12 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path);
 
 // Detects the grid in every file. Views where it is found go into the set; the others are listed
 // as "file: reason" in `skipped`. Errors: unreadable image, images of different sizes.
+// `detections` (optional): every file's detection in order, view.image set to the file.
 StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
                                            const GridSpec& grid,
                                            const DetectionOptions& options,
                                            std::vector<std::string>* skipped,
-                                           double* seconds_per_image = nullptr);
+                                           double* seconds_per_image = nullptr,
+                                           std::vector<GridDetection>* detections = nullptr);
 
 }  // namespace carmba
