@@ -5,6 +5,7 @@
 #include "calib/conditioning.h"
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -146,7 +147,17 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
   o << "; solver: " << r.termination << " after " << r.iterations << " iterations, "
     << F(r.solve_seconds * 1e3, 1) << " ms; covariance " << F(r.covariance_seconds * 1e3, 1)
     << " ms\n";
-  if (!run.skipped.empty()) {
+  if (!run.detections.empty()) {
+    o << "\n## Detection per image\n\n";
+    o << "Overlays (found points with ids, rejected blobs and why): `overlays/`.\n\n";
+    o << "| # | image | points found | rejected blobs | status |\n|---|---|---|---|---|\n";
+    for (size_t i = 0; i < run.detections.size(); ++i) {
+      const GridDetection& d = run.detections[i];
+      o << "| " << i << " | " << d.view.image << " | " << d.view.uv_px.size() << " / "
+        << obs.grid.NumPoints() << " | " << d.rejected.size() << " | "
+        << (d.found ? "used" : "skipped: " + d.reason) << " |\n";
+    }
+  } else if (!run.skipped.empty()) {
     o << "\n## Skipped images\n\n";
     for (const auto& s : run.skipped) o << "- " << s << "\n";
   }
@@ -371,6 +382,29 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
     CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(tmp, name), text));
   }
   CARMBA_RETURN_IF_ERROR(WriteObservationsCsv(run.observations, JoinPath(tmp, "observations.csv")));
+  if (!run.detections.empty()) {
+    const std::string dir = JoinPath(tmp, "overlays");
+    CARMBA_RETURN_IF_ERROR(MakeDirs(dir));
+    for (size_t i = 0; i < run.detections.size(); ++i) {
+      const GridDetection& d = run.detections[i];
+      auto image = ReadImageFile(d.view.image);
+      if (!image.ok()) return image.status();
+      std::string stem = fs::path(d.view.image).stem().string();
+      for (char& c : stem) {
+        if (c == '#') c = '_';  // a frame of a multi-frame DICOM file
+      }
+      char prefix[32];
+      std::snprintf(prefix, sizeof(prefix), "%03zu_", i);
+      const std::string path = JoinPath(dir, prefix + stem + ".png");
+      try {
+        if (!cv::imwrite(path, DrawDetectionOverlay(*image, run.observations.grid, d))) {
+          return Status::Error(path + ": cannot write the overlay");
+        }
+      } catch (const cv::Exception& e) {
+        return Status::Error(path + ": cannot write the overlay: " + e.what());
+      }
+    }
+  }
   if (!mrcal_work_dir.empty() && IsDirectory(mrcal_work_dir)) {
     fs::copy(mrcal_work_dir, JoinPath(tmp, "mrcal"), fs::copy_options::recursive, ec);
     if (ec) return Status::Error("copying " + mrcal_work_dir + ": " + ec.message());

@@ -7,7 +7,11 @@
 //                        distortion_coefficients, avg_reprojection_error (OpenCV's sqrt(2) figure)
 //   observations.csv     detect/observations.h
 //   corners.vnl          mrcal's corners format
-//   report.md            the calibration, its statistics and the mrcal / OpenCV cross-checks
+//   report.md            the calibration, its statistics and the mrcal / OpenCV cross-checks;
+//                        per image: points found, used or skipped and why
+//   overlays/NNN_<image stem>.png   per image (when detected here, not from --observations):
+//                        detect/grid_detector.h DrawDetectionOverlay (found points with ids,
+//                        rejected blobs and why)
 //   mrcal/               the mrcal cross-check's script, input and output, and
 //                        camera_with_optimization_inputs.cameramodel: carmba's solution with
 //                        mrcal's optimization_inputs, for mrcal's uncertainty tools
@@ -23,6 +27,7 @@
 
 #include "calib/calibrate.h"
 #include "calib/crosscheck.h"
+#include "detect/grid_detector.h"
 
 namespace carmba {
 
@@ -31,6 +36,7 @@ struct CalibrationRun {
   CalibrationOptions options;
   CalibrationResult result;
   std::vector<std::string> skipped;  // "image: reason", images without a usable grid
+  std::vector<GridDetection> detections;  // per image in order (empty with --observations)
   std::optional<OpenCvReference> opencv;
   std::string opencv_error;          // why OpenCV did not run (if it did not)
   std::optional<nlohmann::json> mrcal;

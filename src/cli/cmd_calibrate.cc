@@ -142,7 +142,7 @@ int RunCalibrate() {
     auto files = ListImageFiles(images);
     if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
     double per_image = 0;
-    auto obs = DetectGridInFiles(*files, grid, detect, &run.skipped, &per_image);
+    auto obs = DetectGridInFiles(*files, grid, detect, &run.skipped, &per_image, &run.detections);
     if (!obs.ok()) return cli::Fail(kCmd, obs.status());
     run.observations = *obs;
     for (const auto& s : run.skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";

@@ -92,7 +92,7 @@ namespace {
 //               I - plane. Minus 5 % of the peak, clipped at zero.
 // Iterated until the centre moves less than 1e-3 px.
 bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
-                    cv::Point2d* c) {
+                    cv::Point2d* c, double* r_half_px) {
   const int w = std::max(3, static_cast<int>(std::ceil(0.5 * nn_px)));
   double rho = -1, ring_width = 3;
   int rw = w;  // half-size of the pixel box scanned: rho + ring
@@ -131,6 +131,7 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
       for (float v : vals) area += dark ? v < half : v > half;
       if (area == 0 || !(dark ? median > extreme : median < extreme)) return false;
       const double r_half = std::sqrt(area / M_PI);
+      *r_half_px = r_half;
       // Tails and ring between the blob (edge r_half) and its neighbours (edge nn_px - r_half).
       const double gap = nn_px - 2.0 * r_half;
       // The disc no larger than needed (the centroid's noise grows with its area): within
@@ -370,6 +371,68 @@ cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, c
   return cv::Size(cmax - cmin + 1, rmax - rmin + 1);
 }
 
+// A grid returned by cv::findCirclesGrid is taken only when its points are distinct (no two
+// closer than half the median distance of row neighbours: OpenCV's clustering finder can repeat
+// a column when a blob is missing) and lie on a lattice (a homography from the plate explains
+// each to within 30 % of that distance, as the final check does). Otherwise the next finder, or
+// the next search image, is tried.
+bool PlausibleGrid(const std::vector<cv::Point2f>& pts, const GridSpec& g) {
+  std::vector<double> steps;
+  for (int r = 0; r < g.rows; ++r) {
+    for (int c = 0; c + 1 < g.cols; ++c) steps.push_back(cv::norm(pts[r * g.cols + c + 1] - pts[r * g.cols + c]));
+  }
+  if (steps.empty()) return true;
+  std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+  const double step = steps[steps.size() / 2];
+  for (size_t i = 0; i < pts.size(); ++i) {
+    for (size_t j = i + 1; j < pts.size(); ++j) {
+      if (cv::norm(pts[i] - pts[j]) < 0.5 * step) return false;
+    }
+  }
+  std::vector<cv::Point2f> plate;
+  for (int id = 0; id < g.NumPoints(); ++id) plate.push_back(LatticeNode(g, id / g.cols, id % g.cols));
+  const cv::Mat H = cv::findHomography(plate, pts, 0);
+  if (H.empty()) return false;
+  std::vector<cv::Point2f> mapped;
+  cv::perspectiveTransform(plate, mapped, H);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    if (cv::norm(mapped[i] - pts[i]) > 0.3 * step) return false;
+  }
+  return true;
+}
+
+// The 8-bit search image for dark blobs with the slowly varying brightness divided out: 255 x
+// the ratio of the (lightly blurred) image to its local background, the morphological closing of
+// the image (its upper envelope over dark features narrower than ~2.4 blob diameters), computed
+// on a half-resolution grid and smoothed. Image-intensifier fall-off, heel effect, glare and
+// anatomy larger than the blobs become a flat level of 255; a sphere's level is its contrast,
+// wherever it lies, so one set of thresholds finds spheres on bright and on dark parts of the
+// field. Outside `mask`: 255.
+cv::Mat FlatFieldedSearchImage(const cv::Mat& f, const cv::Mat& mask, double blob_diameter_px) {
+  cv::Mat half, background;
+  cv::resize(f, half, cv::Size((f.cols + 1) / 2, (f.rows + 1) / 2), 0, 0, cv::INTER_AREA);
+  const int k = 2 * static_cast<int>(std::ceil(0.6 * std::max(blob_diameter_px, 2.0))) + 1;
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+  cv::morphologyEx(half, background, cv::MORPH_CLOSE, kernel, cv::Point(-1, -1), 1,
+                   cv::BORDER_REPLICATE);
+  cv::blur(background, background, cv::Size(k, k), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+  cv::resize(background, background, f.size(), 0, 0, cv::INTER_LINEAR);
+  cv::Mat blurred;
+  cv::GaussianBlur(f, blurred, cv::Size(5, 5), 1.0);
+  cv::Mat out(f.size(), CV_8U);
+  for (int y = 0; y < f.rows; ++y) {
+    const float* b = blurred.ptr<float>(y);
+    const float* g = background.ptr<float>(y);
+    const uint8_t* m = mask.ptr<uint8_t>(y);
+    uint8_t* o = out.ptr<uint8_t>(y);
+    for (int x = 0; x < f.cols; ++x) {
+      const float ratio = m[x] && g[x] > 0 ? b[x] / g[x] : 1.0f;
+      o[x] = cv::saturate_cast<uint8_t>(255.0f * ratio);
+    }
+  }
+  return out;
+}
+
 // A SimpleBlobDetector that drops blobs touching the field-of-view border (the vignetted rim next
 // to the masked-out area looks like a chain of dark blobs). findCirclesGrid calls detect() once
 // per attempt on the same image: the blobs are found once and reused.
@@ -406,19 +469,13 @@ class MaskedBlobDetector : public cv::Feature2D {
   cv::Size size_;
 };
 
-}  // namespace
+// ---- DetectGrid's steps (grid_detector.h, "Pipeline per image"). Each returns false with the
+// reason in `reason` when the view cannot be used.
 
-GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& o) {
-  GridDetection det;
-  std::string err;
-  if (!o.Check(&err) || !grid.Check(&err)) {
-    det.reason = err;
-    return det;
-  }
-  if (image.empty()) {
-    det.reason = "empty image";
-    return det;
-  }
+// Step 1a: the (cropped) image as float grey levels; `offset` is the crop's corner.
+bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv::Point* offset,
+                 std::string* reason) {
+  if (image.empty()) return *reason = "empty image", false;
   cv::Mat grey;
   if (image.channels() == 3) {
     cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
@@ -427,72 +484,120 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   } else {
     grey = image;
   }
-  cv::Mat f;
-  grey.convertTo(f, CV_32F);
-  cv::Point offset(0, 0);
+  grey.convertTo(*f, CV_32F);
+  *offset = cv::Point(0, 0);
   if (!o.roi_px.empty()) {
     cv::Rect roi(o.roi_px[0], o.roi_px[1], o.roi_px[2], o.roi_px[3]);
-    if ((roi & cv::Rect(0, 0, f.cols, f.rows)) != roi) {
-      det.reason = "roi_px outside the image";
-      return det;
-    }
-    f = f(roi).clone();
-    offset = roi.tl();
+    if ((roi & cv::Rect(0, 0, f->cols, f->rows)) != roi) return *reason = "roi_px outside the image", false;
+    *f = (*f)(roi).clone();
+    *offset = roi.tl();
   }
-  // Field-of-view mask.
-  cv::Mat mask(f.size(), CV_8U, cv::Scalar(255));
   double lo, hi;
-  cv::minMaxLoc(f, &lo, &hi);
-  if (!(hi > lo)) {
-    det.reason = "image has no contrast";
-    return det;
+  cv::minMaxLoc(*f, &lo, &hi);
+  if (!(hi > lo)) return *reason = "image has no contrast", false;
+  return true;
+}
+
+struct FieldOfView {
+  cv::Mat mask;              // CV_8U, 255 inside the field (shrunk by the margin)
+  bool have_circle = false;  // the circle is known (given, or found)
+  cv::Point2d centre;
+  double radius = 0;
+  cv::Mat refine_valid;      // the fully exposed part of the mask (sub-pixel refinement)
+};
+
+// The largest component above `level` (fraction of the range lo..hi) and its convex hull, when
+// it covers 20-90 % of the image (a dark border exists).
+bool FieldHull(const cv::Mat& f, double lo, double hi, double level, std::vector<cv::Point>* hull) {
+  const cv::Mat bright = f > (lo + level * (hi - lo));
+  const double inside = cv::countNonZero(bright) / static_cast<double>(f.total());
+  if (!(inside < 0.9 && inside > 0.2)) return false;
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(bright, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  if (contours.empty()) return false;
+  size_t best = 0;
+  for (size_t i = 1; i < contours.size(); ++i) {
+    if (cv::contourArea(contours[i]) > cv::contourArea(contours[best])) best = i;
   }
-  // The field-of-view circle when known (given, or found), for the rim below.
-  bool have_circle = false;
-  cv::Point2d fov_c;
-  double fov_r = 0;
+  cv::convexHull(contours[best], *hull);
+  return true;
+}
+
+// Step 2: region of interest and field of view (header).
+FieldOfView FindFieldOfView(const cv::Mat& f, const DetectionOptions& o, cv::Point offset) {
+  FieldOfView fov;
+  fov.mask = cv::Mat(f.size(), CV_8U, cv::Scalar(255));
   if (!o.fov_circle_px.empty()) {
-    have_circle = true;
-    fov_c = cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y);
-    fov_r = o.fov_circle_px[2];
-    mask.setTo(0);
-    cv::circle(mask,
-               cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y),
-               static_cast<int>(o.fov_circle_px[2] - o.fov_margin_px), cv::Scalar(255), cv::FILLED);
+    fov.have_circle = true;
+    fov.centre = cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y);
+    fov.radius = o.fov_circle_px[2];
+    fov.mask.setTo(0);
+    cv::circle(fov.mask, fov.centre, static_cast<int>(fov.radius - o.fov_margin_px), cv::Scalar(255),
+               cv::FILLED);
   } else if (o.auto_fov_mask) {
-    // The intensifier's field: pixels above 15 % of the range; if a sizeable dark border exists,
-    // take the largest bright component's enclosing circle.
-    cv::Mat bright = f > (lo + 0.15 * (hi - lo));
-    const double inside = cv::countNonZero(bright) / static_cast<double>(f.total());
-    if (inside < 0.9 && inside > 0.2) {
-      std::vector<std::vector<cv::Point>> contours;
-      cv::findContours(bright, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-      size_t best = 0;
-      for (size_t i = 1; i < contours.size(); ++i) {
-        if (cv::contourArea(contours[i]) > cv::contourArea(contours[best])) best = i;
-      }
-      if (!contours.empty()) {
-        std::vector<cv::Point> hull;
-        cv::convexHull(contours[best], hull);
-        cv::Point2f c;
-        float rad;
+    // The intensifier's field: the largest component above 15 % of the range, its convex hull
+    // and the hull's enclosing circle, when a sizeable dark border exists. Dark anatomy at the
+    // rim can fall below 15 % and cut into that region (a chord instead of the rim, the hull
+    // then covering less than 97 % of its enclosing circle): when an unexposed border exists
+    // (at least 10 % of the image within 2 % of the range of the darkest level) and the hull
+    // above 5 % of the range is more than 3 % larger (a rim band 1 px wide is ~0.8 %), the 5 %
+    // hull is the field.
+    double lo, hi;
+    cv::minMaxLoc(f, &lo, &hi);
+    std::vector<cv::Point> hull, hull_low;
+    bool have_hull = FieldHull(f, lo, hi, 0.15, &hull);
+    cv::Point2f c;
+    float rad = 0;
+    if (have_hull) cv::minEnclosingCircle(hull, c, rad);
+    const bool cut = !have_hull || cv::contourArea(hull) < 0.97 * M_PI * rad * rad;
+    if (cut) {
+      const double border =
+          1.0 - cv::countNonZero(f > (lo + 0.02 * (hi - lo))) / static_cast<double>(f.total());
+      if (border >= 0.1 && FieldHull(f, lo, hi, 0.05, &hull_low) &&
+          (!have_hull || cv::contourArea(hull_low) > 1.03 * cv::contourArea(hull))) {
+        hull = hull_low;
+        have_hull = true;
         cv::minEnclosingCircle(hull, c, rad);
-        // An intensifier field clipped by the image edge: the enclosing circle still bounds it;
-        // intersect with the hull so corners outside the field stay masked.
-        mask.setTo(0);
-        cv::fillConvexPoly(mask, hull, cv::Scalar(255));
-        cv::Mat circle_mask(f.size(), CV_8U, cv::Scalar(0));
-        cv::circle(circle_mask, c, static_cast<int>(rad - o.fov_margin_px), cv::Scalar(255),
-                   cv::FILLED);
-        cv::bitwise_and(mask, circle_mask, mask);
-        have_circle = true;
-        fov_c = c;
-        fov_r = rad;
       }
     }
+    if (have_hull) {
+      // An intensifier field clipped by the image edge: the enclosing circle still bounds it;
+      // intersect with the hull so corners outside the field stay masked.
+      fov.mask.setTo(0);
+      cv::fillConvexPoly(fov.mask, hull, cv::Scalar(255));
+      cv::Mat circle_mask(f.size(), CV_8U, cv::Scalar(0));
+      cv::circle(circle_mask, c, static_cast<int>(rad - o.fov_margin_px), cv::Scalar(255),
+                 cv::FILLED);
+      cv::bitwise_and(fov.mask, circle_mask, fov.mask);
+      fov.have_circle = true;
+      fov.centre = c;
+      fov.radius = rad;
+    }
   }
-  // 8-bit working image stretched over the 1..99 % range inside the mask. The outside is left as
-  // it is: blobs there or on the rim are dropped by their distance to the mask border.
+  // Sub-pixel refinement uses only the fully exposed field (not the intensifier's fall-off rim,
+  // whose steep gradient no local background plane follows); a blob whose window reaches the rim
+  // is dropped.
+  fov.refine_valid = fov.mask;
+  if (fov.have_circle) {
+    const double exposed = FullyExposedRadius(f, fov.centre, fov.radius);
+    fov.refine_valid = cv::Mat(f.size(), CV_8U, cv::Scalar(0));
+    cv::circle(fov.refine_valid, fov.centre,
+               static_cast<int>(std::min(exposed, fov.radius - o.fov_margin_px)), cv::Scalar(255),
+               cv::FILLED);
+    cv::bitwise_and(fov.refine_valid, fov.mask, fov.refine_valid);
+  }
+  return fov;
+}
+
+struct WorkingImage {
+  cv::Mat work;    // CV_8U, 1..99 % of the field stretched to 0..255
+  cv::Mat search;  // `work` lightly blurred, for the blob search
+  double p35 = 0, p65 = 0;  // the field's 35th / 65th percentiles on the working scale
+};
+
+// Step 1b: the 8-bit working image stretched over the 1..99 % range inside the mask. The outside
+// is left as it is: blobs there or on the rim are dropped by their distance to the mask border.
+bool MakeWorkingImage(const cv::Mat& f, const cv::Mat& mask, WorkingImage* w, std::string* reason) {
   // (Every second pixel of every second row: percentiles to well under the stretch's needs.)
   std::vector<float> vals;
   vals.reserve(f.total() / 4 + 1);
@@ -505,8 +610,7 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
     }
   }
   if (vals.size() * step * step < 100) {
-    det.reason = "field of view / region of interest is (almost) empty";
-    return det;
+    return *reason = "field of view / region of interest is (almost) empty", false;
   }
   // Percentiles by nested selection: each nth_element works only on the part of the array that
   // the previous one left on the percentile's side.
@@ -521,242 +625,338 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   const double p65 = vals[k65];
   std::nth_element(vals.begin() + k65 + 1, vals.begin() + k99, vals.end());
   const double p99 = vals[k99];
+  if (!(p99 > p01)) return *reason = "no contrast inside the field of view", false;
   // The 35th / 65th percentiles on the working scale bound the blob search's thresholds: a dark
   // blob is darker than most of the field (its levels lie below the 35th percentile), a bright
   // one brighter. Thresholds beyond only cut the background into noise contours.
-  const double work_p35 = 255.0 * (p35 - p01) / (p99 - p01);
-  const double work_p65 = 255.0 * (p65 - p01) / (p99 - p01);
-  if (!(p99 > p01)) {
-    det.reason = "no contrast inside the field of view";
-    return det;
-  }
-  cv::Mat work;
-  f.convertTo(work, CV_8U, 255.0 / (p99 - p01), -255.0 * p01 / (p99 - p01));
+  w->p35 = 255.0 * (p35 - p01) / (p99 - p01);
+  w->p65 = 255.0 * (p65 - p01) / (p99 - p01);
+  f.convertTo(w->work, CV_8U, 255.0 / (p99 - p01), -255.0 * p01 / (p99 - p01));
   // A light blur for the blob search only (noise speckles otherwise form small blobs at
   // thresholds near the background level); centres are refined on the unblurred image.
-  cv::Mat work_search;
-  cv::GaussianBlur(work, work_search, cv::Size(5, 5), 1.0);
+  cv::GaussianBlur(w->work, w->search, cv::Size(5, 5), 1.0);
+  return true;
+}
 
-  // Sub-pixel refinement uses only the fully exposed field (not the intensifier's fall-off rim, whose
-  // steep gradient no local background plane follows); a blob whose window reaches the rim is
-  // dropped.
-  cv::Mat refine_valid = mask;
-  if (have_circle) {
-    const double exposed = FullyExposedRadius(f, fov_c, fov_r);
-    refine_valid = cv::Mat(f.size(), CV_8U, cv::Scalar(0));
-    cv::circle(refine_valid, fov_c, static_cast<int>(std::min(exposed, fov_r - o.fov_margin_px)),
-               cv::Scalar(255), cv::FILLED);
-    cv::bitwise_and(refine_valid, mask, refine_valid);
-  }
-  std::vector<cv::Point2f> centres;
-  std::vector<cv::KeyPoint> blobs;  // the blobs of the polarity that found the grid
+struct GridCandidate {
+  std::vector<cv::Point2f> centres;  // row-major, OpenCV's ordering
+  std::vector<cv::KeyPoint> blobs;   // the blobs of the search that found the grid (or, when none
+                                     // did, of the search with the most blobs)
   bool dark = true;
-  const bool circles = grid.pattern != GridPattern::kChessboard;
-  const cv::Size size(grid.cols, grid.rows);
-  if (circles) {
-    std::vector<bool> tries;
-    if (o.polarity != "bright") tries.push_back(true);
-    if (o.polarity != "dark") tries.push_back(false);
-    int most_blobs = 0;
-    for (bool d : tries) {
-      cv::SimpleBlobDetector::Params p;
-      p.blobColor = d ? 0 : 255;
-      p.filterByArea = true;
-      p.minArea = static_cast<float>(o.min_blob_area_px);
-      p.maxArea = static_cast<float>(o.max_blob_area_px);
-      p.filterByConvexity = true;
-      p.minConvexity = 0.8f;
-      p.filterByInertia = true;
-      p.minInertiaRatio = 0.3f;
-      // 10 .. 245 in steps of 20, trimmed at the field's 35th (dark) / 65th (bright) percentile but
-      // keeping at least 4 levels.
-      p.minThreshold = d ? 10.0f : static_cast<float>(std::clamp(work_p65, 10.0, 165.0));
-      p.maxThreshold = d ? static_cast<float>(std::clamp(work_p35 + 1.0, 90.0, 245.0)) : 245.0f;
-      p.thresholdStep = 20;
-      p.minDistBetweenBlobs = 3;
-      auto detector =
-          cv::makePtr<MaskedBlobDetector>(cv::SimpleBlobDetector::create(p), mask);
-      const int flags = grid.pattern == GridPattern::kAsymmetricCircles
-                            ? cv::CALIB_CB_ASYMMETRIC_GRID
-                            : cv::CALIB_CB_SYMMETRIC_GRID;
-      // OpenCV's symmetric grid finder depends on the order of the pattern size: try the
-      // transposed size too (then transpose the ordering back), with and without clustering.
-      // Clustering first: it is the cheaper finder (k-means on the blob positions instead of
-      // OpenCV's graph search) and succeeds among stray noise blobs where the other often fails.
-      std::vector<cv::Point2f> found;
-      bool ok = false, ran = false;
-      for (int attempt = 0; attempt < 4 && !ok; ++attempt) {
-        const bool transposed = attempt % 2 == 1;
-        const bool clustering = attempt < 2;
-        if (transposed && (grid.rows == grid.cols || grid.pattern != GridPattern::kCircles)) continue;
-        if (clustering && grid.pattern != GridPattern::kCircles) continue;
-        if (ran && detector->last_count() < grid.NumPoints()) break;
-        ran = true;
-        const cv::Size try_size = transposed ? cv::Size(grid.rows, grid.cols) : size;
-        std::vector<cv::Point2f> f2;
-        ok = cv::findCirclesGrid(work_search, try_size, f2,
-                                 flags | (clustering ? cv::CALIB_CB_CLUSTERING : 0), detector) &&
-             static_cast<int>(f2.size()) == grid.NumPoints();
-        most_blobs = std::max(most_blobs, detector->last_count());
-        if (!ok) continue;
-        if (transposed) {
-          // f2[r' * rows + c'] is plate point (row c', col r').
-          found.assign(f2.size(), cv::Point2f());
-          for (int rp = 0; rp < grid.cols; ++rp) {
-            for (int cp = 0; cp < grid.rows; ++cp) found[cp * grid.cols + rp] = f2[rp * grid.rows + cp];
-          }
-        } else {
-          found = f2;
-        }
-      }
-      if (ok) {
-        centres = found;
-        blobs = detector->last_keypoints();
-        dark = d;
-        det.polarity = d ? "dark" : "bright";
-        break;
-      }
-    }
-    det.num_blobs = most_blobs;
-    if (centres.empty()) {
-      if (most_blobs < grid.NumPoints()) {
-        det.reason = "too few blobs: " + std::to_string(most_blobs) + " found, " +
-                     std::to_string(grid.NumPoints()) +
-                     " needed (grid partly outside the field of view, wrong polarity or size?)";
-      } else {
-        det.reason = std::to_string(most_blobs) + " blobs but no " + std::to_string(grid.rows) +
-                     " x " + std::to_string(grid.cols) +
-                     " grid ordering among them (ambiguous ordering, extra blobs or grid partly "
-                     "outside the field of view)";
-      }
-      return det;
-    }
-  } else {
-    std::vector<cv::Point2f> found;
-    if (!cv::findChessboardCorners(work, size, found,
-                                   cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE) ||
-        static_cast<int>(found.size()) != grid.NumPoints()) {
-      det.reason = "no " + std::to_string(grid.rows) + " x " + std::to_string(grid.cols) +
-                   " chessboard (inner corners) found";
-      return det;
-    }
-    cv::cornerSubPix(work, found, cv::Size(5, 5), cv::Size(-1, -1),
-                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 0.001));
-    centres = found;
-  }
+};
 
-  // Sub-pixel centroids (circles) on the float image.
-  std::vector<cv::Point2d> pts(centres.begin(), centres.end());
-  std::vector<bool> refined_ok(pts.size(), true);
-  if (circles && o.refine) {
-    double pitch = 1e30;
-    for (int r = 0; r < grid.rows; ++r) {
-      for (int c = 0; c + 1 < grid.cols; ++c) {
-        pitch = std::min(pitch, cv::norm(centres[r * grid.cols + c + 1] - centres[r * grid.cols + c]));
+// Step 3 (circles): the blob search and OpenCV's grid finders (header). Fills det->num_blobs and
+// det->polarity.
+bool FindCircleGrid(const cv::Mat& f, const WorkingImage& w, const cv::Mat& mask,
+                    const GridSpec& grid, const DetectionOptions& o, GridDetection* det,
+                    GridCandidate* out) {
+  // Searches: (polarity, flat-fielded). The flat-fielded search runs only when the plain one of
+  // that polarity fails (see FlatFieldedSearchImage).
+  std::vector<std::pair<bool, bool>> tries;
+  if (o.polarity != "bright") tries.push_back({true, false}), tries.push_back({true, true});
+  if (o.polarity != "dark") tries.push_back({false, false});
+  const cv::Size size(grid.cols, grid.rows);
+  int most_blobs = 0;
+  std::vector<cv::KeyPoint> plain_dark_blobs;
+  for (const auto& [d, flat] : tries) {
+    cv::SimpleBlobDetector::Params p;
+    p.blobColor = d ? 0 : 255;
+    p.filterByArea = true;
+    p.minArea = static_cast<float>(o.min_blob_area_px);
+    p.maxArea = static_cast<float>(o.max_blob_area_px);
+    p.filterByConvexity = true;
+    p.minConvexity = 0.8f;
+    p.filterByInertia = true;
+    p.minInertiaRatio = 0.3f;
+    // 10 .. 245 in steps of 20, trimmed at the field's 35th (dark) / 65th (bright) percentile but
+    // keeping at least 4 levels. On the flat-fielded image the levels are contrasts: up to 235
+    // (8 % below the local background; the field's noise stays above).
+    p.minThreshold = d ? 10.0f : static_cast<float>(std::clamp(w.p65, 10.0, 165.0));
+    p.maxThreshold = d ? static_cast<float>(std::clamp(w.p35 + 1.0, 90.0, 245.0)) : 245.0f;
+    if (flat) p.maxThreshold = 236.0f;
+    p.thresholdStep = 20;
+    p.minDistBetweenBlobs = 3;
+    cv::Mat search = w.search;
+    if (flat) {
+      // The blob size from the plain search's blobs (their median diameter), else a guess.
+      std::vector<float> sizes;
+      for (const auto& k : plain_dark_blobs) sizes.push_back(k.size);
+      double diameter_px = 0.04 * std::min(f.cols, f.rows);
+      if (sizes.size() >= 3) {
+        std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
+        diameter_px = sizes[sizes.size() / 2];
       }
+      search = FlatFieldedSearchImage(f, mask, diameter_px);
     }
-    if (grid.pattern == GridPattern::kAsymmetricCircles) pitch *= 0.5;
-    for (size_t i = 0; i < pts.size(); ++i) {
-      // The distance to the nearest other grid point bounds the blob's window and ring.
-      double nn = 1e30;
-      for (size_t j = 0; j < pts.size(); ++j) {
-        if (j != i) nn = std::min(nn, cv::norm(pts[j] - pts[i]));
-      }
-      cv::Point2d q = pts[i];
-      // The disc cap as before the large-circle fix (disc + ring within ceil(0.35 pitch)): small
-      // circles keep their results (same noise), large ones go beyond it with 1 px tails.
-      if (RefineCentroid(f, refine_valid, dark, nn, std::max(3.0, std::ceil(0.35 * pitch)) - 3.0, &q) &&
-          cv::norm(q - pts[i]) < 0.3 * pitch) {
-        pts[i] = q;
-      } else {
-        refined_ok[i] = false;  // no blob there (OpenCV fills a missing blob from the grid model)
-      }
-    }
-  }
-  // Points whose blob touches the field-of-view border are dropped (their centre is pulled by
-  // the rim); the view keeps the others.
-  std::vector<int> kept;
-  {
-    double pitch_px = 1e30;
-    for (int r = 0; r < grid.rows; ++r) {
-      for (int c = 0; c + 1 < grid.cols; ++c) {
-        pitch_px = std::min(pitch_px, cv::norm(pts[r * grid.cols + c + 1] - pts[r * grid.cols + c]));
-      }
-    }
-    if (grid.pattern == GridPattern::kAsymmetricCircles) pitch_px *= 0.5;
-    for (int id = 0; id < grid.NumPoints(); ++id) {
-      const int x = static_cast<int>(std::lround(pts[id].x)), y = static_cast<int>(std::lround(pts[id].y));
-      if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) continue;
-      if (circles && !ClearOfMaskBorder(mask, pts[id], 0.2 * pitch_px)) continue;
-      if (!circles && !mask.at<uint8_t>(y, x)) continue;
-      if (!refined_ok[id]) continue;
-      kept.push_back(id);
-    }
-    if (static_cast<int>(kept.size()) < std::max(4, grid.NumPoints() / 2)) {
-      det.reason = "grid partly outside the field of view (" + std::to_string(kept.size()) + " of " +
-                   std::to_string(grid.NumPoints()) + " points clear of its border)";
-      return det;
-    }
-    // The points must lie on a grid: a homography from the plate explains them to within 30 % of
-    // the pitch (lens distortion over a plate stays below that; a wrong blob does not).
-    std::vector<cv::Point2f> plate_xy, image_xy;
-    for (int id : kept) {
-      const Eigen::Vector3d P = grid.PointInPlate(id);
-      plate_xy.emplace_back(P.x(), P.y());
-      image_xy.emplace_back(pts[id]);
-    }
-    const cv::Mat Hm = cv::findHomography(plate_xy, image_xy, 0);
-    if (Hm.empty()) {
-      det.reason = "ambiguous grid ordering (no homography from the plate)";
-      return det;
-    }
-    std::vector<cv::Point2f> mapped;
-    cv::perspectiveTransform(plate_xy, mapped, Hm);
-    double worst = 0;
-    for (size_t i = 0; i < mapped.size(); ++i) worst = std::max(worst, cv::norm(mapped[i] - image_xy[i]));
-    if (worst > 0.3 * pitch_px) {
-      det.reason = "ambiguous grid ordering: a point is " + std::to_string(worst) +
-                   " px off the fitted grid (a wrong blob?)";
-      return det;
-    }
-    // A plate larger than the requested pattern: OpenCV picks some sub-window of it, a different
-    // one in different views, so point ids would not be consistent across views.
-    if (circles) {
-      const cv::Size plate = LatticeExtent(grid, pts, kept, blobs, mask, pitch_px);
-      if (plate.width > grid.cols || plate.height > grid.rows) {
-        det.reason = "ambiguous: more grid points than " + std::to_string(grid.rows) + "x" +
-                     std::to_string(grid.cols) + " (the plate has at least " +
-                     std::to_string(std::max(plate.height, grid.rows)) + "x" +
-                     std::to_string(std::max(plate.width, grid.cols)) +
-                     "; give its full --rows and --cols)";
-        return det;
-      }
-    }
-    // Right-handed ordering in the image for symmetric patterns: the plate's x and y axes map to
-    // image directions with a positive cross product (Jacobian of H at the grid's first point).
-    if (grid.pattern != GridPattern::kAsymmetricCircles) {
-      const Eigen::Vector3d P0 = grid.PointInPlate(kept[0]);
-      const double h[9] = {Hm.at<double>(0, 0), Hm.at<double>(0, 1), Hm.at<double>(0, 2),
-                           Hm.at<double>(1, 0), Hm.at<double>(1, 1), Hm.at<double>(1, 2),
-                           Hm.at<double>(2, 0), Hm.at<double>(2, 1), Hm.at<double>(2, 2)};
-      const double w = h[6] * P0.x() + h[7] * P0.y() + h[8];
-      const double u = (h[0] * P0.x() + h[1] * P0.y() + h[2]) / w;
-      const double v = (h[3] * P0.x() + h[4] * P0.y() + h[5]) / w;
-      const double du_dx = (h[0] - u * h[6]) / w, du_dy = (h[1] - u * h[7]) / w;
-      const double dv_dx = (h[3] - v * h[6]) / w, dv_dy = (h[4] - v * h[7]) / w;
-      if (du_dx * dv_dy - du_dy * dv_dx < 0) {
-        std::vector<cv::Point2d> flipped(pts.size());
-        for (int r = 0; r < grid.rows; ++r) {
-          for (int c = 0; c < grid.cols; ++c) {
-            flipped[r * grid.cols + c] = pts[r * grid.cols + (grid.cols - 1 - c)];
-          }
+    auto detector = cv::makePtr<MaskedBlobDetector>(cv::SimpleBlobDetector::create(p), mask);
+    const int flags = grid.pattern == GridPattern::kAsymmetricCircles ? cv::CALIB_CB_ASYMMETRIC_GRID
+                                                                      : cv::CALIB_CB_SYMMETRIC_GRID;
+    // OpenCV's symmetric grid finder depends on the order of the pattern size: try the
+    // transposed size too (then transpose the ordering back), with and without clustering.
+    // Clustering first: it is the cheaper finder (k-means on the blob positions instead of
+    // OpenCV's graph search) and succeeds among stray noise blobs where the other often fails.
+    std::vector<cv::Point2f> found;
+    bool ok = false, ran = false;
+    for (int attempt = 0; attempt < 4 && !ok; ++attempt) {
+      const bool transposed = attempt % 2 == 1;
+      const bool clustering = attempt < 2;
+      if (transposed && (grid.rows == grid.cols || grid.pattern != GridPattern::kCircles)) continue;
+      if (clustering && grid.pattern != GridPattern::kCircles) continue;
+      if (ran && detector->last_count() < grid.NumPoints()) break;
+      ran = true;
+      const cv::Size try_size = transposed ? cv::Size(grid.rows, grid.cols) : size;
+      GridSpec try_grid = grid;
+      try_grid.rows = try_size.height;
+      try_grid.cols = try_size.width;
+      std::vector<cv::Point2f> f2;
+      ok = cv::findCirclesGrid(search, try_size, f2,
+                               flags | (clustering ? cv::CALIB_CB_CLUSTERING : 0), detector) &&
+           static_cast<int>(f2.size()) == grid.NumPoints() && PlausibleGrid(f2, try_grid);
+      if (detector->last_count() > most_blobs) out->blobs = detector->last_keypoints();
+      most_blobs = std::max(most_blobs, detector->last_count());
+      if (!ok) continue;
+      if (transposed) {
+        // f2[r' * rows + c'] is plate point (row c', col r').
+        found.assign(f2.size(), cv::Point2f());
+        for (int rp = 0; rp < grid.cols; ++rp) {
+          for (int cp = 0; cp < grid.rows; ++cp) found[cp * grid.cols + rp] = f2[rp * grid.rows + cp];
         }
-        pts = flipped;
-        for (int& id : kept) id = (id / grid.cols) * grid.cols + (grid.cols - 1 - id % grid.cols);
-        std::sort(kept.begin(), kept.end());
+      } else {
+        found = f2;
       }
     }
+    if (d && !flat) plain_dark_blobs = detector->last_keypoints();
+    if (ok) {
+      out->centres = found;
+      out->blobs = detector->last_keypoints();
+      out->dark = d;
+      det->polarity = d ? "dark" : "bright";
+      det->num_blobs = most_blobs;
+      return true;
+    }
   }
+  det->num_blobs = most_blobs;
+  if (most_blobs < grid.NumPoints()) {
+    det->reason = "too few blobs: " + std::to_string(most_blobs) + " found, " +
+                  std::to_string(grid.NumPoints()) +
+                  " needed (grid partly outside the field of view, wrong polarity or size?)";
+  } else {
+    det->reason = std::to_string(most_blobs) + " blobs but no " + std::to_string(grid.rows) +
+                  " x " + std::to_string(grid.cols) +
+                  " grid ordering among them (ambiguous ordering, extra blobs or grid partly "
+                  "outside the field of view)";
+  }
+  return false;
+}
+
+// Step 3 (chessboard): OpenCV's corners, refined by cornerSubPix on the working image.
+bool FindChessboard(const cv::Mat& work, const GridSpec& grid, GridCandidate* out, std::string* reason) {
+  std::vector<cv::Point2f> found;
+  if (!cv::findChessboardCorners(work, cv::Size(grid.cols, grid.rows), found,
+                                 cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE) ||
+      static_cast<int>(found.size()) != grid.NumPoints()) {
+    *reason = "no " + std::to_string(grid.rows) + " x " + std::to_string(grid.cols) +
+              " chessboard (inner corners) found";
+    return false;
+  }
+  cv::cornerSubPix(work, found, cv::Size(5, 5), cv::Size(-1, -1),
+                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 0.001));
+  out->centres = found;
+  return true;
+}
+
+// The smallest distance between row neighbours (half of it for acircles: the lattice step).
+double GridPitchPx(const GridSpec& grid, const std::vector<cv::Point2d>& pts) {
+  double pitch = 1e30;
+  for (int r = 0; r < grid.rows; ++r) {
+    for (int c = 0; c + 1 < grid.cols; ++c) {
+      pitch = std::min(pitch, cv::norm(pts[r * grid.cols + c + 1] - pts[r * grid.cols + c]));
+    }
+  }
+  return grid.pattern == GridPattern::kAsymmetricCircles ? 0.5 * pitch : pitch;
+}
+
+// Step 4: sub-pixel centres of circles on the float image (RefineCentroid). `refined_ok[i]` is
+// false where the refinement failed or was pulled off the blob.
+void RefineCentres(const cv::Mat& f, const cv::Mat& refine_valid, const GridSpec& grid,
+                   const GridCandidate& cand, std::vector<cv::Point2d>* pts,
+                   std::vector<bool>* refined_ok) {
+  const double pitch = GridPitchPx(grid, std::vector<cv::Point2d>(cand.centres.begin(), cand.centres.end()));
+  for (size_t i = 0; i < pts->size(); ++i) {
+    // The distance to the nearest other grid point bounds the blob's window and ring.
+    double nn = 1e30;
+    for (size_t j = 0; j < pts->size(); ++j) {
+      if (j != i) nn = std::min(nn, cv::norm((*pts)[j] - (*pts)[i]));
+    }
+    cv::Point2d q = (*pts)[i];
+    // The blob finder's centre is good to a fraction of a pixel: a refined centre that moved by
+    // more than half the blob's radius (the blob finder's, else the measured one; at least
+    // 1.5 px) was pulled off the blob (a strong background edge in its ring) and is dropped
+    // rather than kept wrong.
+    double r_half = 0, blob_r = 0, blob_d = 0.3 * pitch;
+    for (const cv::KeyPoint& k : cand.blobs) {
+      const double dk = cv::norm(cv::Point2d(k.pt) - (*pts)[i]);
+      if (dk < blob_d) blob_d = dk, blob_r = 0.5 * k.size;
+    }
+    // The disc cap as before the large-circle fix (disc + ring within ceil(0.35 pitch)): small
+    // circles keep their results (same noise), large ones go beyond it with 1 px tails.
+    if (RefineCentroid(f, refine_valid, cand.dark, nn, std::max(3.0, std::ceil(0.35 * pitch)) - 3.0,
+                       &q, &r_half) &&
+        cv::norm(q - (*pts)[i]) <
+            std::min(0.3 * pitch, std::max(1.5, 0.5 * (blob_r > 0 ? blob_r : r_half)))) {
+      (*pts)[i] = q;
+    } else {
+      (*refined_ok)[i] = false;  // no blob there (OpenCV fills a missing blob from the grid model)
+    }
+  }
+}
+
+// Step 4 (end): the points kept. Points whose blob touches the field-of-view border are dropped
+// (their centre is pulled by the rim); the view keeps the others if they are at least half the
+// grid and lie on a grid: a homography from the plate (returned in `H`) explains them to within
+// 30 % of the pitch (lens distortion over a plate stays below that; a wrong blob does not).
+bool KeepPointsOnGrid(const GridSpec& grid, const std::vector<cv::Point2d>& pts,
+                      const std::vector<bool>& refined_ok, const cv::Mat& mask, double pitch_px,
+                      std::vector<int>* kept, cv::Mat* H, std::string* reason) {
+  const bool circles = grid.pattern != GridPattern::kChessboard;
+  for (int id = 0; id < grid.NumPoints(); ++id) {
+    const int x = static_cast<int>(std::lround(pts[id].x)), y = static_cast<int>(std::lround(pts[id].y));
+    if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) continue;
+    if (circles && !ClearOfMaskBorder(mask, pts[id], 0.2 * pitch_px)) continue;
+    if (!circles && !mask.at<uint8_t>(y, x)) continue;
+    if (!refined_ok[id]) continue;
+    kept->push_back(id);
+  }
+  if (static_cast<int>(kept->size()) < std::max(4, grid.NumPoints() / 2)) {
+    *reason = "grid partly outside the field of view (" + std::to_string(kept->size()) + " of " +
+              std::to_string(grid.NumPoints()) + " points clear of its border)";
+    return false;
+  }
+  std::vector<cv::Point2f> plate_xy, image_xy;
+  for (int id : *kept) {
+    const Eigen::Vector3d P = grid.PointInPlate(id);
+    plate_xy.emplace_back(P.x(), P.y());
+    image_xy.emplace_back(pts[id]);
+  }
+  *H = cv::findHomography(plate_xy, image_xy, 0);
+  if (H->empty()) return *reason = "ambiguous grid ordering (no homography from the plate)", false;
+  std::vector<cv::Point2f> mapped;
+  cv::perspectiveTransform(plate_xy, mapped, *H);
+  double worst = 0;
+  for (size_t i = 0; i < mapped.size(); ++i) worst = std::max(worst, cv::norm(mapped[i] - image_xy[i]));
+  if (worst > 0.3 * pitch_px) {
+    *reason = "ambiguous grid ordering: a point is " + std::to_string(worst) +
+              " px off the fitted grid (a wrong blob?)";
+    return false;
+  }
+  return true;
+}
+
+// Step 6: a plate larger than the requested pattern. OpenCV picks some sub-window of it, a
+// different one in different views, so point ids would not be consistent across views.
+bool PlateNotLarger(const GridSpec& grid, const std::vector<cv::Point2d>& pts,
+                    const std::vector<int>& kept, const std::vector<cv::KeyPoint>& blobs,
+                    const cv::Mat& mask, double pitch_px, std::string* reason) {
+  const cv::Size plate = LatticeExtent(grid, pts, kept, blobs, mask, pitch_px);
+  if (plate.width > grid.cols || plate.height > grid.rows) {
+    *reason = "ambiguous: more grid points than " + std::to_string(grid.rows) + "x" +
+              std::to_string(grid.cols) + " (the plate has at least " +
+              std::to_string(std::max(plate.height, grid.rows)) + "x" +
+              std::to_string(std::max(plate.width, grid.cols)) + "; give its full --rows and --cols)";
+    return false;
+  }
+  return true;
+}
+
+// Step 5: right-handed ordering in the image for symmetric patterns: the plate's x and y axes map
+// to image directions with a positive cross product (Jacobian of H at the grid's first kept
+// point); otherwise the columns are reversed.
+void MakeRightHanded(const GridSpec& grid, const cv::Mat& H, std::vector<cv::Point2d>* pts,
+                     std::vector<int>* kept) {
+  if (grid.pattern == GridPattern::kAsymmetricCircles) return;
+  const Eigen::Vector3d P0 = grid.PointInPlate((*kept)[0]);
+  const double h[9] = {H.at<double>(0, 0), H.at<double>(0, 1), H.at<double>(0, 2),
+                       H.at<double>(1, 0), H.at<double>(1, 1), H.at<double>(1, 2),
+                       H.at<double>(2, 0), H.at<double>(2, 1), H.at<double>(2, 2)};
+  const double w = h[6] * P0.x() + h[7] * P0.y() + h[8];
+  const double u = (h[0] * P0.x() + h[1] * P0.y() + h[2]) / w;
+  const double v = (h[3] * P0.x() + h[4] * P0.y() + h[5]) / w;
+  const double du_dx = (h[0] - u * h[6]) / w, du_dy = (h[1] - u * h[7]) / w;
+  const double dv_dx = (h[3] - v * h[6]) / w, dv_dy = (h[4] - v * h[7]) / w;
+  if (du_dx * dv_dy - du_dy * dv_dx >= 0) return;
+  std::vector<cv::Point2d> flipped(pts->size());
+  for (int r = 0; r < grid.rows; ++r) {
+    for (int c = 0; c < grid.cols; ++c) flipped[r * grid.cols + c] = (*pts)[r * grid.cols + (grid.cols - 1 - c)];
+  }
+  *pts = flipped;
+  for (int& id : *kept) id = (id / grid.cols) * grid.cols + (grid.cols - 1 - id % grid.cols);
+  std::sort(kept->begin(), kept->end());
+}
+
+// The blobs and grid points not among `kept`, and why (RejectedBlob in the header).
+void ListRejected(const GridSpec& grid, const GridCandidate& cand, const std::vector<cv::Point2d>& pts,
+                  const std::vector<bool>& refined_ok, const std::vector<int>& kept, double pitch_px,
+                  cv::Point offset, std::vector<RejectedBlob>* rejected) {
+  const cv::Point2d off(offset.x, offset.y);
+  std::vector<bool> is_kept(grid.NumPoints(), false), has_blob(grid.NumPoints(), false);
+  for (int id : kept) is_kept[id] = true;
+  auto why_dropped = [&refined_ok](int id) {
+    return refined_ok[id] ? "on the field-of-view border" : "no blob / refinement failed";
+  };
+  for (const cv::KeyPoint& k : cand.blobs) {
+    int nearest = -1;
+    double best = 0.3 * pitch_px;
+    for (int id = 0; id < grid.NumPoints(); ++id) {
+      const double dk = cv::norm(cv::Point2d(cand.centres[id]) - cv::Point2d(k.pt));
+      if (dk < best) best = dk, nearest = id;
+    }
+    if (nearest >= 0) has_blob[nearest] = true;
+    if (nearest >= 0 && is_kept[nearest]) continue;
+    rejected->push_back({cv::Point2d(k.pt) + off, k.size, nearest < 0 ? "not on the grid" : why_dropped(nearest)});
+  }
+  for (int id = 0; id < grid.NumPoints(); ++id) {
+    if (!is_kept[id] && !has_blob[id]) rejected->push_back({pts[id] + off, 0.0, why_dropped(id)});
+  }
+}
+
+}  // namespace
+
+GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& o) {
+  GridDetection det;
+  if (!o.Check(&det.reason) || !grid.Check(&det.reason)) return det;
+  // 1, 2: grey levels, field of view, working image.
+  cv::Mat f;
+  cv::Point offset;
+  if (!ToFloatGrey(image, o, &f, &offset, &det.reason)) return det;
+  const FieldOfView fov = FindFieldOfView(f, o, offset);
+  WorkingImage work;
+  if (!MakeWorkingImage(f, fov.mask, &work, &det.reason)) return det;
+  // 3: the grid among the blobs (or the chessboard's corners).
+  const bool circles = grid.pattern != GridPattern::kChessboard;
+  GridCandidate cand;
+  if (circles ? !FindCircleGrid(f, work, fov.mask, grid, o, &det, &cand)
+              : !FindChessboard(work.work, grid, &cand, &det.reason)) {
+    for (const cv::KeyPoint& k : cand.blobs) {
+      det.rejected.push_back({cv::Point2d(k.pt.x + offset.x, k.pt.y + offset.y), k.size, "no grid"});
+    }
+    return det;
+  }
+  // 4: sub-pixel centres, the points kept.
+  std::vector<cv::Point2d> pts(cand.centres.begin(), cand.centres.end());
+  std::vector<bool> refined_ok(pts.size(), true);
+  if (circles && o.refine) RefineCentres(f, fov.refine_valid, grid, cand, &pts, &refined_ok);
+  const double pitch_px = GridPitchPx(grid, pts);
+  std::vector<int> kept;
+  cv::Mat H;
+  const bool kept_ok = KeepPointsOnGrid(grid, pts, refined_ok, fov.mask, pitch_px, &kept, &H, &det.reason);
+  if (circles) ListRejected(grid, cand, pts, refined_ok, kept, pitch_px, offset, &det.rejected);
+  if (!kept_ok) return det;
+  // 6: not a sub-window of a larger plate.
+  if (circles && !PlateNotLarger(grid, pts, kept, cand.blobs, fov.mask, pitch_px, &det.reason)) {
+    return det;
+  }
+  // 5: ids, right-handed.
+  MakeRightHanded(grid, H, &pts, &kept);
   for (int id : kept) {
     det.view.point_ids.push_back(id);
     det.view.uv_px.emplace_back(pts[id].x + offset.x, pts[id].y + offset.y);
@@ -818,11 +1018,59 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path) {
   return views;
 }
 
+cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const GridDetection& d) {
+  cv::Mat grey, f, shown, out;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
+  } else {
+    grey = image;
+  }
+  grey.convertTo(f, CV_32F);
+  std::vector<float> vals(f.begin<float>(), f.end<float>());
+  double lo = 0, hi = 1;
+  if (!vals.empty()) {
+    const size_t k01 = vals.size() / 100, k99 = vals.size() - 1 - vals.size() / 100;
+    std::nth_element(vals.begin(), vals.begin() + k01, vals.end());
+    lo = vals[k01];
+    std::nth_element(vals.begin(), vals.begin() + k99, vals.end());
+    hi = vals[k99];
+  }
+  if (!(hi > lo)) hi = lo + 1;
+  f.convertTo(shown, CV_8U, 255.0 / (hi - lo), -255.0 * lo / (hi - lo));
+  cv::cvtColor(shown, out, cv::COLOR_GRAY2BGR);
+  const double scale = std::max(0.35, std::min(out.cols, out.rows) / 1400.0);
+  const cv::Scalar green(0, 200, 0), red(0, 0, 255), yellow(0, 220, 255);
+  for (size_t i = 0; i < d.view.uv_px.size(); ++i) {
+    const cv::Point2d p(d.view.uv_px[i].x(), d.view.uv_px[i].y());
+    cv::circle(out, p, 6, green, 1, cv::LINE_AA);
+    cv::putText(out, std::to_string(d.view.point_ids[i]), p + cv::Point2d(6, -6),
+                cv::FONT_HERSHEY_SIMPLEX, scale, green, 1, cv::LINE_AA);
+  }
+  for (const RejectedBlob& b : d.rejected) {
+    cv::drawMarker(out, b.uv_px, red, cv::MARKER_CROSS, 10, 1, cv::LINE_AA);
+    if (b.why != "no grid") {
+      cv::putText(out, b.why, b.uv_px + cv::Point2d(6, 12), cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale,
+                  red, 1, cv::LINE_AA);
+    }
+  }
+  const std::string head =
+      d.found ? "found " + std::to_string(d.view.uv_px.size()) + " of " +
+                    std::to_string(grid.NumPoints()) + " points" +
+                    (d.rejected.empty() ? "" : ", " + std::to_string(d.rejected.size()) + " rejected")
+              : "not found: " + d.reason;
+  cv::putText(out, head, cv::Point(4, static_cast<int>(4 + 28 * scale)), cv::FONT_HERSHEY_SIMPLEX,
+              scale, d.found ? green : yellow, 1, cv::LINE_AA);
+  return out;
+}
+
 StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
                                            const GridSpec& grid,
                                            const DetectionOptions& options,
                                            std::vector<std::string>* skipped,
-                                           double* seconds_per_image) {
+                                           double* seconds_per_image,
+                                           std::vector<GridDetection>* detections) {
   std::string err;
   if (!options.Check(&err)) return Status::Error("detection options: " + err);
   if (!grid.Check(&err)) return Status::Error(err);
@@ -848,11 +1096,12 @@ StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files
       const auto t0 = std::chrono::steady_clock::now();
       GridDetection d = DetectGrid(*img, grid, options);
       total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      d.view.image = file;
+      if (detections) detections->push_back(d);
       if (!d.found) {
         skipped->push_back(file + ": " + d.reason);
         continue;
       }
-      d.view.image = file;
       obs.views.push_back(d.view);
     }
   }

@@ -1,14 +1,21 @@
 // Detection of calibration grids in X-ray images (and photographs).
 //
-// Pipeline per image:
+// Pipeline per image (DetectGrid calls one function per step, in grid_detector.cc):
 //   1. To a float grey image (8- or 16-bit, grey or colour), then an 8-bit working copy stretched
 //      between the 1st and 99th percentile of the pixels inside the field of view.
 //   2. Region of interest: an optional crop [x, y, w, h] and a circular mask. The image
-//      intensifier's circular field of view is found automatically (the largest bright region,
-//      its enclosing circle shrunk by a margin) or given as [cx, cy, r]; outside it the image is
-//      filled with the median inside value so the dark border does not look like a blob.
+//      intensifier's circular field of view is found automatically or given as [cx, cy, r]; blobs
+//      touching its border are dropped. Found: the largest region above 15 % of the image's
+//      range, its convex hull and the hull's enclosing circle shrunk by a margin; when dark
+//      anatomy at the rim cuts that region (its hull covers < 97 % of its circle) and an
+//      unexposed border exists, the region above 5 % of the range if it is > 3 % larger.
 //   3. circles / acircles: cv::findCirclesGrid with a SimpleBlobDetector tuned for small dark
 //      (metal on bright, X-ray) or bright blobs; polarity "auto" tries dark first, then bright.
+//      When the dark search fails, it is repeated on a flat-fielded image (the image divided by
+//      its morphological closing over ~2.4 blob diameters): the intensifier's fall-off, the heel
+//      effect, glare and anatomy otherwise put spheres on bright parts of the field above every
+//      threshold and merge spheres on dark parts with their surroundings. A grid OpenCV returns
+//      is taken only when its points are distinct and lie on a lattice (else the next finder).
 //      chessboard: cv::findChessboardCorners + cornerSubPix.
 //   4. Sub-pixel centres of circles, on the float image, iterated from the blob centre: the blob's
 //      size from its half-contrast area in a window of half the distance to the nearest grid
@@ -20,8 +27,11 @@
 //      attenuation, independent of vignetting and other brightness gradients; bright:
 //      I - background). Only the fully exposed field of view is used: the intensifier's rim
 //      fall-off (found from the median radial profile) is excluded, and a blob whose ring reaches
-//      it is dropped. Against the simulator's truth: ~0.004 px RMS systematic error
-//      (tests/detect/simulated_scene_test.cc).
+//      it is dropped; so is a centre the refinement moved by more than half the blob's radius
+//      (at least 1.5 px: a strong anatomical edge in the ring). Against the simulator's truth:
+//      ~0.004 px RMS systematic error (tests/detect/simulated_scene_test.cc), ~0.012 px over a
+//      real anatomical background (tests/detect/recall_test.cc). The points kept must lie on a
+//      grid (a homography from the plate within 30 % of the pitch).
 //   5. Ids: row-major in the grid (detect/observations.h). For symmetric grids and chessboards,
 //      whose ordering is only defined up to the grid's symmetry, the ordering is made right-handed
 //      in the image (row direction x column direction > 0): an X-ray sees the plate from either
@@ -71,13 +81,30 @@ struct DetectionOptions {
 class YamlMap;
 void ReadDetectionOptions(YamlMap& map, DetectionOptions* options);
 
+// A candidate blob or grid point that is not among the detected points, and why (full-image
+// pixel coordinates): "not on the grid" (a blob of the search that found the grid but is no grid
+// point), "on the field-of-view border", "no blob / refinement failed" (OpenCV's grid point
+// where the refinement found no blob or was pulled off it), or, when no grid was found, the
+// reason for the blobs of the search with the most blobs.
+struct RejectedBlob {
+  cv::Point2d uv_px;
+  double diameter_px = 0;  // the blob finder's size (0 for a grid point without a blob)
+  std::string why;
+};
+
 struct GridDetection {
   bool found = false;
   std::string reason;   // why not found (empty when found)
   int num_blobs = -1;   // candidate blobs seen (circle grids)
   std::string polarity; // the polarity that worked
   ViewObservations view;
+  std::vector<RejectedBlob> rejected;  // circle grids: what was not used, and why
 };
+
+// An 8-bit colour picture of a detection for checking by eye: the image stretched to its 1..99 %
+// range, found points as green circles with their ids, rejected blobs as red crosses with the
+// reason, and a first line saying found (points of the grid) or the reason it was not.
+cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const GridDetection& d);
 
 // Detects `grid` in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
 GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& options);
@@ -103,10 +130,12 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path);
 // Detects the grid in every view of every file (ReadImageViews: a multi-frame DICOM file gives
 // one view per frame, named `file#frameN`). Views where it is found go into the set; the others
 // are listed as "view: reason" in `skipped`. Errors: unreadable image, images of different sizes.
+// `detections` (optional): every view's detection in order, view.image set to the view's name.
 StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
                                            const GridSpec& grid,
                                            const DetectionOptions& options,
                                            std::vector<std::string>* skipped,
-                                           double* seconds_per_image = nullptr);
+                                           double* seconds_per_image = nullptr,
+                                           std::vector<GridDetection>* detections = nullptr);
 
 }  // namespace carmba

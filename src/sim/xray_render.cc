@@ -24,6 +24,11 @@ bool RenderOptions::Check(std::string* error) const {
                       fov_center_v_px,
                       outside_fov_gray,
                       vignetting,
+                      vignetting_power,
+                      heel,
+                      heel_direction_deg,
+                      glare_fraction,
+                      glare_sigma_px,
                       fov_edge_px};
   for (double x : v) {
     if (!std::isfinite(x)) return *error = "render options: non-finite value", false;
@@ -41,6 +46,16 @@ bool RenderOptions::Check(std::string* error) const {
   if (fov_radius_px < 0) return *error = "fov_radius_px must be >= 0", false;
   if (outside_fov_gray < 0) return *error = "outside_fov_gray must be >= 0", false;
   if (!(vignetting >= 0 && vignetting < 1)) return *error = "vignetting must be in [0, 1)", false;
+  if (!(vignetting_power >= 0.5 && vignetting_power <= 16)) {
+    return *error = "vignetting_power must be in [0.5, 16]", false;
+  }
+  if (!(heel >= 0 && heel <= 0.5)) return *error = "heel must be in [0, 0.5]", false;
+  if (!(glare_fraction >= 0 && glare_fraction <= 0.9)) {
+    return *error = "glare fraction must be in [0, 0.9]", false;
+  }
+  if (!(glare_sigma_px >= 1 && glare_sigma_px <= 1000)) {
+    return *error = "glare sigma_px must be in [1, 1000] px", false;
+  }
   if (fov_edge_px < 0) return *error = "fov edge must be >= 0", false;
   if (!background_gain.empty() && background_gain.type() != CV_32F) {
     return *error = "background_gain must be CV_32F", false;
@@ -225,6 +240,41 @@ inline bool BoxInterval(const CamBox& b, const Eigen::Vector3d& d, double* t0, d
 
 constexpr int kTile = 16;
 
+// Step 5 of the model (header): I <- (1 - g) I + g * (I * coverage) (x) G inside the FOV. The
+// Gaussian is applied on a grid reduced by up to sigma / 4 (at least 4 samples per sigma), then
+// interpolated back: the glare is smooth at that scale.
+void AddVeilingGlare(const cv::Mat& coverage, const RenderOptions& o, cv::Mat* image) {
+  const double g = o.glare_fraction;
+  cv::Mat light = image->mul(coverage);
+  const int factor = std::max(1, static_cast<int>(o.glare_sigma_px / 4.0));
+  cv::Mat small, spread;
+  if (factor > 1) {
+    cv::resize(light,
+               small,
+               cv::Size((light.cols + factor - 1) / factor, (light.rows + factor - 1) / factor),
+               0,
+               0,
+               cv::INTER_AREA);
+  } else {
+    small = light;
+  }
+  const double sigma = o.glare_sigma_px * small.cols / static_cast<double>(light.cols);
+  cv::GaussianBlur(small, small, cv::Size(0, 0), sigma, sigma, cv::BORDER_CONSTANT);
+  if (factor > 1) {
+    cv::resize(small, spread, light.size(), 0, 0, cv::INTER_LINEAR);
+  } else {
+    spread = small;
+  }
+  for (int v = 0; v < image->rows; ++v) {
+    float* row = image->ptr<float>(v);
+    const float* cov = coverage.ptr<float>(v);
+    const float* sp = spread.ptr<float>(v);
+    for (int u = 0; u < image->cols; ++u) {
+      if (cov[u] > 0) row[u] = static_cast<float>((1.0 - g) * row[u] + g * cov[u] * sp[u]);
+    }
+  }
+}
+
 }  // namespace
 
 StatusOr<cv::Mat> RenderXray(const Camera& camera,
@@ -289,6 +339,10 @@ StatusOr<cv::Mat> RenderXray(const Camera& camera,
   const Fov fov = FovOf(camera, options);
   const double edge_px = fov.circular ? options.fov_edge_px : 0.0;
   cv::Mat expected(H, W, CV_32F);
+  cv::Mat coverage;  // fraction of the pixel inside the FOV (for the glare)
+  if (options.glare_fraction > 0) coverage.create(H, W, CV_32F);
+  const double heel_cu = std::cos(options.heel_direction_deg * M_PI / 180.0) / fov.r;
+  const double heel_cv = std::sin(options.heel_direction_deg * M_PI / 180.0) / fov.r;
   std::vector<double> box_t0(boxes.size()), box_t1(boxes.size());
   std::vector<char> box_hit(boxes.size());
   std::vector<int> tile_spheres;
@@ -334,7 +388,13 @@ StatusOr<cv::Mat> RenderXray(const Camera& camera,
           double value = options.outside_fov_gray * (SS - n_inside) / SS;
           if (n_inside > 0) {
             const float r2 = grid->radius2(u, v);
-            double gain = options.white_level * (1.0 - options.vignetting * r2);
+            const double fall = options.vignetting_power == 2.0
+                                    ? r2
+                                    : std::pow(static_cast<double>(r2), 0.5 * options.vignetting_power);
+            double gain = options.white_level * (1.0 - options.vignetting * fall);
+            if (options.heel > 0) {
+              gain *= 1.0 + options.heel * ((u - fov.u) * heel_cu + (v - fov.v) * heel_cv);
+            }
             if (edge_px > 0) {
               gain *= std::clamp((fov.r * (1.0 - std::sqrt(r2))) / edge_px, 0.0, 1.0);
             }
@@ -344,6 +404,7 @@ StatusOr<cv::Mat> RenderXray(const Camera& camera,
             value += gain * sum / SS;
           }
           row[u] = static_cast<float>(value);
+          if (!coverage.empty()) coverage.at<float>(v, u) = static_cast<float>(n_inside) / SS;
         }
       }
     }
@@ -363,6 +424,7 @@ StatusOr<cv::Mat> RenderXray(const Camera& camera,
       }
     }
   }
+  if (options.glare_fraction > 0) AddVeilingGlare(coverage, options, &image);
   if (options.blur_sigma_px > 0) {
     cv::GaussianBlur(image,
                      image,

@@ -11,14 +11,24 @@
 //  3. Circular field of view (image intensifier): sub-pixels outside the circle get
 //     `outside_fov_gray`; the pixel is the mean over its sub-pixels (an anti-aliased edge).
 //     Inside, the expected grey level is
-//         E = white_level * mean(T) * (1 - vignetting * (r / R)^2) * background_gain(u, v)
+//         E = white_level * mean(T) * (1 - vignetting * (r / R)^vignetting_power)
+//             * (1 + heel * ((u - u_c) cos(a) + (v - v_c) sin(a)) / R) * background_gain(u, v)
 //             * clamp((R - r) / fov_edge_px, 0, 1)          (the last factor only if edge > 0)
-//     with r the distance of the pixel centre to the FOV centre and R the FOV radius.
+//     with r the distance of the pixel centre to the FOV centre (u_c, v_c), R the FOV radius and
+//     a = heel_direction_deg: the image intensifier's fall-off towards the rim (vignetting,
+//     quadratic by default) and the anode heel effect, a linear gradient of +-heel across the
+//     field, brightest in direction a (image x right, y down, degrees).
 //  4. Quantum noise: N ~ Poisson(E / white_level * photons_per_pixel), grey = N * white_level /
 //     photons_per_pixel (skipped when photons_per_pixel == 0).
-//  5. Detector blur: Gaussian, sigma `blur_sigma_px` (applied after the quanta are detected, as
+//  5. Veiling glare: light scattered inside the intensifier's output optics. Inside the field of
+//     view the grey level becomes (1 - g) I + g * (I * coverage) (x) G, with g = glare_fraction,
+//     G a normalised Gaussian of sigma glare_sigma_px and coverage the pixel's fraction inside
+//     the FOV: a fraction g of the light is spread over the field, lifting the dark parts and
+//     lowering the contrast of small objects by about g. (Large sigmas are blurred on a
+//     reduced grid; the glare is smooth at that scale.)
+//  6. Detector blur: Gaussian, sigma `blur_sigma_px` (applied after the quanta are detected, as
 //     in an image intensifier's phosphor and optics; it also smooths the noise).
-//  6. Read noise: additive Gaussian, sigma `read_noise_gray`.
+//  7. Read noise: additive Gaussian, sigma `read_noise_gray`.
 // The result is a CV_32F image of grey levels; ToOutputImage() rounds and saturates to 8 or 16
 // bits. Metal (large mu) appears DARK on a bright background, as in fluoroscopy displays.
 //
@@ -50,6 +60,11 @@ struct RenderOptions {
   double fov_center_v_px = -1.0;  // < 0 = image centre ((height - 1) / 2)
   double outside_fov_gray = 0.0;  // grey level outside the field of view
   double vignetting = 0.0;        // relative intensity loss at the FOV edge, in [0, 1)
+  double vignetting_power = 2.0;  // profile exponent p of the loss (r / R)^p, in [0.5, 16]
+  double heel = 0.0;              // heel-effect gradient: +-heel at the FOV rim, in [0, 0.5]
+  double heel_direction_deg = 0;  // image direction of the brighter side (0 = +x, 90 = +y)
+  double glare_fraction = 0.0;    // veiling glare g, fraction of the light spread, in [0, 0.9]
+  double glare_sigma_px = 50.0;   // spread of the glare (Gaussian sigma, px), in [1, 1000]
   double fov_edge_px = 0.0;  // width of the linear fall-off to 0 inside the FOV edge; 0 = sharp
   cv::Mat background_gain;   // optional CV_32F, image-sized, multiplicative, values in (0, 1]
   uint64_t seed = 1;

@@ -173,6 +173,23 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     im.Fail("supersampling", "expected an integer in 1..16");
   }
   if (im.status().ok() && r.vignetting >= 1) im.Fail("vignetting", "expected a value in [0, 1)");
+  im.GetPositive("vignetting_power", &r.vignetting_power);
+  if (im.status().ok() && !(r.vignetting_power >= 0.5 && r.vignetting_power <= 16)) {
+    im.Fail("vignetting_power", "expected a value in [0.5, 16]");
+  }
+  YamlMap& heel = im.Map("heel");
+  heel.GetNonNegative("gradient", &r.heel, im.Has("heel"));
+  heel.Get("direction_deg", &r.heel_direction_deg);
+  if (heel.status().ok() && r.heel > 0.5) heel.Fail("gradient", "expected a value in [0, 0.5]");
+  YamlMap& glare = im.Map("glare");
+  glare.GetNonNegative("fraction", &r.glare_fraction, im.Has("glare"));
+  glare.GetPositive("sigma_px", &r.glare_sigma_px);
+  if (glare.status().ok() && r.glare_fraction > 0.9) {
+    glare.Fail("fraction", "expected a value in [0, 0.9]");
+  }
+  if (glare.status().ok() && !(r.glare_sigma_px >= 1 && r.glare_sigma_px <= 1000)) {
+    glare.Fail("sigma_px", "expected 1..1000 px");
+  }
   if (im.status().ok() && r.blur_sigma_px > 50) im.Fail("blur_sigma_px", "expected 0..50 px");
   if (im.status().ok() && r.white_level > 1e6) im.Fail("white_level", "expected at most 1e6");
   YamlMap& fov = im.Map("fov");

@@ -24,6 +24,9 @@
 //   imaging:                         # sim/xray_render.h RenderOptions
 //     supersampling: 3, white_level: 220, photons_per_pixel: 3000, read_noise_gray: 0.8,
 //     blur_sigma_px: 0.6, vignetting: 0.2, outside_fov_gray: 0,
+//     vignetting_power: 2,           # fall-off profile 1 - vignetting (r / R)^power
+//     heel: {gradient: 0.08, direction_deg: 0}   # +-8 % across the field, brighter towards +x
+//     glare: {fraction: 0.1, sigma_px: 60}       # veiling glare (xray_render.h step 5)
 //     fov: {circular: true, radius_px: 204, center_px: [203.5, 203.5], edge_px: 6}
 //     background: {file: /usr/share/doc/libgdcm3.0/examples/00191113.dcm, strength: 0.3,
 //                  crop: 0.6}

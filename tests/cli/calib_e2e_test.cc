@@ -3,6 +3,8 @@
 // chessboard photos, and bad inputs (each: clear one-line error, non-zero exit, no output).
 #include <gtest/gtest.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include <iostream>
 #include <unistd.h>
 
@@ -124,6 +126,22 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
   EXPECT_EQ(report.find("FAIL"), std::string::npos) << report;
   EXPECT_NE(report.find("## Against the truth"), std::string::npos);
   EXPECT_NE(report.find("| whole image | 441 |"), std::string::npos) << report;
+  // Per image: a row of the detection table and an overlay picture of the image's size.
+  EXPECT_NE(report.find("## Detection per image"), std::string::npos);
+  const int rows = truth["object"]["rows"].get<int>(), cols = truth["object"]["cols"].get<int>();
+  for (size_t i = 0; i < truth["views"].size(); ++i) {
+    const std::string file = truth["views"][i]["file"].get<std::string>();
+    EXPECT_NE(report.find(sim + "/" + file + " | "), std::string::npos) << file;
+    char name[64];
+    std::snprintf(name, sizeof(name), "%03zu_", i);
+    const std::string overlay =
+        out + "/overlays/" + name + fs::path(file).stem().string() + ".png";
+    const cv::Mat o = cv::imread(overlay, cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(o.empty()) << overlay;
+    EXPECT_EQ(o.type(), CV_8UC3);
+    EXPECT_EQ(o.cols, truth["camera"]["image_size"][0].get<int>());
+  }
+  EXPECT_NE(report.find(" / " + std::to_string(rows * cols) + " | "), std::string::npos);
 }
 
 TEST(CalibE2E, ThesisCalibrationScene) {

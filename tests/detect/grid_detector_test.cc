@@ -224,6 +224,43 @@ TEST(GridDetectorTest, ReasonsWhenNotFound) {
   EXPECT_FALSE(d.found);
 }
 
+// What was not used is listed with the reason, and the overlay shows found points (green) and
+// rejected blobs (red).
+TEST(GridDetectorTest, RejectedBlobsAndOverlay) {
+  GridSpec g;
+  // A stray disc well off the lattice (between grid points, 0.5 pitch from each line).
+  Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 7, {Eigen::Vector3d(30, 30, 0)});
+  GridDetection d = DetectGrid(r.image, g, DetectionOptions());
+  ASSERT_TRUE(d.found) << d.reason;
+  EXPECT_EQ(d.view.uv_px.size(), 25u);
+  ASSERT_EQ(d.rejected.size(), 1u);
+  EXPECT_EQ(d.rejected[0].why, "not on the grid");
+  const cv::Point2d stray = PlateToPixel(Eigen::Vector3d(30, 30, 0), 408, 2.2);
+  EXPECT_LT(cv::norm(d.rejected[0].uv_px - stray), 1.0);
+  const cv::Mat overlay = DrawDetectionOverlay(r.image, g, d);
+  ASSERT_EQ(overlay.type(), CV_8UC3);
+  ASSERT_EQ(overlay.size(), r.image.size());
+  auto colour_near = [&overlay](cv::Point2d p, int channel) {
+    int n = 0;
+    for (int y = static_cast<int>(p.y) - 8; y <= p.y + 8; ++y) {
+      for (int x = static_cast<int>(p.x) - 8; x <= p.x + 8; ++x) {
+        const cv::Vec3b c = overlay.at<cv::Vec3b>(y, x);
+        n += c[channel] > 150 && c[channel] > c[(channel + 1) % 3] + 80 && c[channel] > c[(channel + 2) % 3] + 80;
+      }
+    }
+    return n;
+  };
+  EXPECT_GT(colour_near(r.centres[12], 1), 0);  // green circle
+  EXPECT_GT(colour_near(stray, 2), 0);          // red cross
+  EXPECT_EQ(colour_near(stray, 1), 0);
+  // Not found: the blobs of the search, with the reason.
+  GridSpec bigger = g;
+  bigger.rows = 6;
+  d = DetectGrid(r.image, bigger, DetectionOptions());
+  ASSERT_FALSE(d.found);
+  EXPECT_EQ(d.rejected.size(), 26u);
+}
+
 TEST(GridDetectorTest, RoiKeepsFullImageCoordinates) {
   GridSpec g;
   Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 5);

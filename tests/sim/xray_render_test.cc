@@ -220,6 +220,69 @@ TEST(XrayRender, FieldOfViewEdgeFallsOffLinearly) {
   EXPECT_FLOAT_EQ(img->at<float>(50, 50 + 45), 0.0f);
 }
 
+// The intensifier's fall-off profile and the heel gradient follow the formula of the header
+// (step 3) on an empty, noise-free field.
+TEST(XrayRender, VignettingProfileAndHeelGradient) {
+  const Camera cam = MakeCamera(101, 1000, 0.0);
+  Phantom empty;
+  RenderOptions o = Noiseless(1);
+  o.circular_fov = true;
+  o.fov_radius_px = 40;  // centre (50, 50)
+  o.vignetting = 0.22;
+  o.vignetting_power = 3;
+  o.heel = 0.08;
+  o.heel_direction_deg = 90;  // brighter towards +y (down)
+  auto img = RenderXray(cam, {{&empty, Rigid3()}}, o);
+  ASSERT_TRUE(img.ok()) << img.status().message();
+  auto expect = [&](int u, int v) {
+    const double r = std::hypot(u - 50.0, v - 50.0) / 40.0;
+    return 200.0 * (1 - 0.22 * std::pow(r, 3)) * (1 + 0.08 * (v - 50.0) / 40.0);
+  };
+  for (const auto& [u, v] : std::vector<std::pair<int, int>>{{50, 50}, {80, 50}, {50, 85}, {50, 15}, {70, 70}}) {
+    EXPECT_NEAR(img->at<float>(v, u), expect(u, v), kTolRelative * 200) << u << ", " << v;
+  }
+  // +-8 % at the rim along the heel direction (the fall-off the same on both sides).
+  EXPECT_NEAR(img->at<float>(90, 50) / img->at<float>(10, 50), 1.08 / 0.92, 1e-5);
+  o.vignetting_power = 0.1;
+  EXPECT_FALSE(RenderXray(cam, {{&empty, Rigid3()}}, o).ok());
+  o.vignetting_power = 2;
+  o.heel = 0.6;
+  EXPECT_FALSE(RenderXray(cam, {{&empty, Rigid3()}}, o).ok());
+}
+
+// Veiling glare spreads a fraction g of the light over the field: an opaque object's shadow is
+// lifted to about g times the surrounding level, a uniform field (away from the FOV rim) keeps
+// its level, and outside the FOV nothing is added.
+TEST(XrayRender, VeilingGlareLiftsShadowsAndKeepsUniformFields) {
+  const Camera cam = MakeCamera(161, 1000, 0.0);
+  Phantom ph;
+  SpherePrimitive s;
+  s.radius_mm = 4;  // ~7 px radius at 600 mm
+  s.mu_per_mm = 50;  // opaque
+  ph.spheres.push_back(s);
+  const Rigid3 pose = Rigid3::FromRvec({0, 0, 0}, {0, 0, 600});
+  RenderOptions o = Noiseless(2);
+  o.circular_fov = true;
+  o.fov_radius_px = 75;
+  auto plain = RenderXray(cam, {{&ph, pose}}, o);
+  o.glare_fraction = 0.2;
+  o.glare_sigma_px = 30;
+  auto glared = RenderXray(cam, {{&ph, pose}}, o);
+  ASSERT_TRUE(plain.ok() && glared.ok()) << glared.status().message();
+  const int uc = static_cast<int>(std::lround(cam.params[2])), vc = static_cast<int>(std::lround(cam.params[3]));
+  EXPECT_LT(plain->at<float>(vc, uc), 1e-3);
+  // The shadow's centre: g times the spread light, a little less than g * 200 (the FOV's edge
+  // and the shadow itself are in the kernel).
+  EXPECT_GT(glared->at<float>(vc, uc), 0.6 * 0.2 * 200);
+  EXPECT_LT(glared->at<float>(vc, uc), 0.2 * 200);
+  // The open field 35 px from the shadow keeps its level to a few percent (the shadow and the
+  // rim take a little of the spread light).
+  EXPECT_NEAR(glared->at<float>(vc, uc + 35), plain->at<float>(vc, uc + 35), 0.06 * 200);
+  EXPECT_EQ(glared->at<float>(0, 0), 0.0f);  // outside the FOV
+  o.glare_fraction = 0.95;
+  EXPECT_FALSE(RenderXray(cam, {{&ph, pose}}, o).ok());
+}
+
 TEST(XrayRender, QuantumNoiseHasPoissonVariance) {
   const Camera cam = MakeCamera(200, 1500, 0.0);
   Phantom empty;

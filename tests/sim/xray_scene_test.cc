@@ -188,6 +188,33 @@ TEST(XrayScene, BadScenesAreRejectedWithOneLineErrors) {
       {"fov: {circular: true}",
        "fov: {circular: true}\n  background: {file: /no/such.png}",
        "/no/such.png: no such file"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  vignetting_power: 0.1",
+       "key 'imaging.vignetting_power': expected a value in [0.5, 16]"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  heel: {gradient: 0.7}",
+       "key 'imaging.heel.gradient': expected a value in [0, 0.5]"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  heel: {direction_deg: 30}",
+       "key 'imaging.heel.gradient': missing"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  heel: {gradient: 0.1, side: 3}",
+       "unknown key 'imaging.heel.side'"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  heel: {gradient: 0.1, direction_deg: x}",
+       "key 'imaging.heel.direction_deg'"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  glare: {fraction: -0.1}",
+       "key 'imaging.glare.fraction': expected a non-negative number"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  glare: {fraction: 0.95}",
+       "key 'imaging.glare.fraction': expected a value in [0, 0.9]"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  glare: {fraction: 0.1, sigma_px: 0.5}",
+       "key 'imaging.glare.sigma_px': expected 1..1000 px"},
+      {"fov: {circular: true}",
+       "fov: {circular: true}\n  glare: {sigma_px: 20}",
+       "key 'imaging.glare.fraction': missing"},
   };
   int i = 0;
   for (const auto& c : cases) {
@@ -209,6 +236,28 @@ TEST(XrayScene, BadScenesAreRejectedWithOneLineErrors) {
     }
     EXPECT_TRUE(found) << "expected '" << c.expected << "' in: " << msg;
   }
+}
+
+TEST(XrayScene, IntensifierEffectsParse) {
+  const std::string text = Corrupt("fov: {circular: true}",
+                                   "fov: {circular: true}\n  vignetting: 0.22\n"
+                                   "  vignetting_power: 3\n"
+                                   "  heel: {gradient: 0.08, direction_deg: -30}\n"
+                                   "  glare: {fraction: 0.12, sigma_px: 40}");
+  auto scene = LoadXrayScene(WriteScene(text, "effects"));
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  EXPECT_EQ(scene->render.vignetting, 0.22);
+  EXPECT_EQ(scene->render.vignetting_power, 3.0);
+  EXPECT_EQ(scene->render.heel, 0.08);
+  EXPECT_EQ(scene->render.heel_direction_deg, -30.0);
+  EXPECT_EQ(scene->render.glare_fraction, 0.12);
+  EXPECT_EQ(scene->render.glare_sigma_px, 40.0);
+  // Defaults: quadratic fall-off, no heel, no glare.
+  auto base = LoadXrayScene(WriteScene(kBase, "effects_default"));
+  ASSERT_TRUE(base.ok());
+  EXPECT_EQ(base->render.vignetting_power, 2.0);
+  EXPECT_EQ(base->render.heel, 0.0);
+  EXPECT_EQ(base->render.glare_fraction, 0.0);
 }
 
 TEST(XrayScene, MissingFileAndSyntaxError) {
