@@ -6,9 +6,11 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "ba/priors.h"
 #include "ba/reprojection_error.h"
+#include "ba/schur_lm.h"
 #include "util/stats.h"
 
 namespace carmba {
@@ -43,13 +45,20 @@ ceres::LossFunction* MakeLoss(const BaOptions& o, double sigma_px) {
 }
 
 bool LinearSolverType(const std::string& name, ceres::LinearSolverType* t) {
-  if (name == "dense_qr") *t = ceres::DENSE_QR;
-  else if (name == "dense_normal_cholesky") *t = ceres::DENSE_NORMAL_CHOLESKY;
-  else if (name == "dense_schur") *t = ceres::DENSE_SCHUR;
-  else if (name == "sparse_schur") *t = ceres::SPARSE_SCHUR;
-  else if (name == "sparse_normal_cholesky") *t = ceres::SPARSE_NORMAL_CHOLESKY;
-  else if (name == "iterative_schur") *t = ceres::ITERATIVE_SCHUR;
-  else return false;
+  if (name == "dense_qr")
+    *t = ceres::DENSE_QR;
+  else if (name == "dense_normal_cholesky")
+    *t = ceres::DENSE_NORMAL_CHOLESKY;
+  else if (name == "dense_schur")
+    *t = ceres::DENSE_SCHUR;
+  else if (name == "sparse_schur")
+    *t = ceres::SPARSE_SCHUR;
+  else if (name == "sparse_normal_cholesky")
+    *t = ceres::SPARSE_NORMAL_CHOLESKY;
+  else if (name == "iterative_schur")
+    *t = ceres::ITERATIVE_SCHUR;
+  else
+    return false;
   return true;
 }
 
@@ -64,12 +73,27 @@ struct BuiltBlock {
   int zero_rows = 0;  // rows that are zero by construction (the split point prior's third block)
 };
 
+// The residual blocks as built (owned here: a Ceres problem built on them must not take
+// ownership) and the parameter buffer.
 struct Assembly {
   std::vector<BuiltBlock> built;
   std::vector<double> buffer;
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  std::vector<std::unique_ptr<ceres::LossFunction>> losses;
 };
 
-// Adds the residual blocks of `problem` to `cp` (skipping observations in `dropped`).
+ceres::Problem::Options ProblemOptions(ceres::Context* context) {
+  ceres::Problem::Options popts;
+  popts.context = context;
+  popts.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  popts.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  popts.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  popts.disable_all_safety_checks = true;
+  return popts;
+}
+
+// Builds the residual blocks of `problem` (skipping observations in `dropped`) and adds them to
+// `cp` unless it is null (the carmba_lm back end evaluates them without Ceres).
 Status Assemble(const BaProblem& problem,
                 const StateLayout& layout,
                 const BaOptions& o,
@@ -77,8 +101,13 @@ Status Assemble(const BaProblem& problem,
                 Assembly* as,
                 ceres::Problem* cp) {
   auto ptr = [&](int b) { return as->buffer.data() + layout.block(b).offset; };
+  auto own = [&](ceres::CostFunction* c, ceres::LossFunction* l) {
+    as->costs.emplace_back(c);
+    if (l) as->losses.emplace_back(l);
+  };
   std::map<int, int> marker_index;
-  for (size_t m = 0; m < problem.markers.size(); ++m) marker_index[problem.markers[m].id] = static_cast<int>(m);
+  for (size_t m = 0; m < problem.markers.size(); ++m)
+    marker_index[problem.markers[m].id] = static_cast<int>(m);
   for (size_t v = 0; v < problem.views.size(); ++v) {
     const BaView& view = problem.views[v];
     const int pose_b = layout.view_block(static_cast<int>(v));
@@ -93,17 +122,24 @@ Status Assemble(const BaProblem& problem,
           o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.sigma_px)
                                : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px);
       ceres::LossFunction* loss = MakeLoss(o, view.sigma_px);
-      cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
-      as->built.push_back({cost, loss,
-                           view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels,
-                           {pose_b, point_b, intr_b}, static_cast<int>(v), static_cast<int>(i)});
+      own(cost, loss);
+      if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
+      as->built.push_back(
+          {cost,
+           loss,
+           view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels,
+           {pose_b, point_b, intr_b},
+           static_cast<int>(v),
+           static_cast<int>(i)});
     }
   }
   auto add_point_prior = [&](int b, const Eigen::Vector3d& p, const Eigen::Matrix3d& S, Source s) {
     const auto [rows01, row2] = PointPriorRows::Split(p, S);
     if (o.analytic_jacobians) {
-      cp->AddResidualBlock(rows01, nullptr, ptr(b));
-      cp->AddResidualBlock(row2, nullptr, ptr(b));
+      own(rows01, nullptr);
+      own(row2, nullptr);
+      if (cp) cp->AddResidualBlock(rows01, nullptr, ptr(b));
+      if (cp) cp->AddResidualBlock(row2, nullptr, ptr(b));
       as->built.push_back({rows01, nullptr, s, {b}});
       as->built.push_back({row2, nullptr, s, {b}, -1, -1, 1});
     } else {
@@ -114,7 +150,8 @@ Status Assemble(const BaProblem& problem,
       int zero_rows = 0;
       for (const auto& A : {top, last}) {
         ceres::CostFunction* c = PointPriorRowsAutoDiff::Create(p, A);
-        cp->AddResidualBlock(c, nullptr, ptr(b));
+        own(c, nullptr);
+        if (cp) cp->AddResidualBlock(c, nullptr, ptr(b));
         as->built.push_back({c, nullptr, s, {b}, -1, -1, zero_rows});
         zero_rows = 1;
       }
@@ -127,14 +164,16 @@ Status Assemble(const BaProblem& problem,
         return Status::Error("marker " + std::to_string(problem.markers[m].id) +
                              ": CT covariance is not symmetric positive definite");
       }
-      add_point_prior(layout.marker_block(static_cast<int>(m)), problem.markers[m].p_ct, S,
-                      Source::kCt);
+      add_point_prior(
+          layout.marker_block(static_cast<int>(m)), problem.markers[m].p_ct, S, Source::kCt);
     }
   }
   if (problem.plate.free && problem.plate.sigma_mm > 0) {
     const Eigen::Matrix3d S = Eigen::Matrix3d::Identity() / problem.plate.sigma_mm;
     for (size_t p = 0; p < problem.plate.points.size(); ++p) {
-      add_point_prior(layout.plate_point_block(static_cast<int>(p)), problem.plate.points[p], S,
+      add_point_prior(layout.plate_point_block(static_cast<int>(p)),
+                      problem.plate.points[p],
+                      S,
                       Source::kPlateManufacturing);
     }
   }
@@ -152,10 +191,12 @@ Status Assemble(const BaProblem& problem,
             ? static_cast<ceres::CostFunction*>(
                   new IntrinsicsPriorError(grp.prior.mean.data(), grp.prior.indices, S))
             : IntrinsicsPriorAutoDiff::Create(grp.prior.mean.data(), grp.prior.indices, S);
-    cp->AddResidualBlock(c, nullptr, ptr(b));
+    own(c, nullptr);
+    if (cp) cp->AddResidualBlock(c, nullptr, ptr(b));
     as->built.push_back({c, nullptr, Source::kIntrinsicsPrior, {b}});
   }
   // Held parameters.
+  if (!cp) return Status::Ok();
   for (const BlockInfo& b : layout.blocks()) {
     double* p = as->buffer.data() + b.offset;
     if (!cp->HasParameterBlock(p)) continue;
@@ -207,9 +248,69 @@ bool EvaluateBlock(const BuiltBlock& bb,
   return true;
 }
 
+// The carmba_lm back end serves calibration-structured problems: one intrinsics group, plate
+// views only with one pixel sigma, plate points held, no prior, trivial loss, no rejection.
+Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
+  std::string why;
+  auto need = [&](bool ok, const char* what) {
+    if (!ok && why.empty()) why = what;
+  };
+  need(p.groups.size() == 1, "one intrinsics group");
+  for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
+  for (const auto& v : p.views) need(v.sigma_px == p.views[0].sigma_px, "one pixel sigma for all views");
+  need(!p.plate.free, "plate points held");
+  need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
+  need(o.loss == "trivial", "the trivial loss");
+  need(o.reject_sigma == 0, "no outlier rejection");
+  if (!why.empty()) {
+    return Status::Error("backend carmba_lm (calibration problems) needs " + why +
+                         "; use backend: ceres");
+  }
+  return Status::Ok();
+}
+
+Status SolveWithCarmbaLm(const BaProblem& p,
+                         const StateLayout& layout,
+                         const BaOptions& o,
+                         std::vector<double>* buffer,
+                         BaResult* res) {
+  std::vector<std::vector<Eigen::Vector3d>> plate(p.views.size());
+  std::vector<std::vector<Eigen::Vector2d>> uv(p.views.size());
+  std::vector<std::array<double, 6>> poses(p.views.size());
+  for (size_t v = 0; v < p.views.size(); ++v) {
+    for (int id : p.views[v].point_ids) plate[v].push_back(p.plate.points[id]);
+    uv[v] = p.views[v].uv_px;
+    const double* pose =
+        buffer->data() + layout.block(layout.view_block(static_cast<int>(v))).offset;
+    std::copy(pose, pose + 6, poses[v].begin());
+  }
+  const BlockInfo& g = layout.block(layout.group_block(0));
+  std::array<double, kNumIntrinsics> x;
+  std::copy(buffer->data() + g.offset, buffer->data() + g.offset + kNumIntrinsics, x.begin());
+  Eigen::MatrixXd A =
+      Eigen::MatrixXd::Zero(kNumIntrinsics, static_cast<Eigen::Index>(g.free.size()));
+  for (size_t c = 0; c < g.free.size(); ++c) A(g.free[c], static_cast<Eigen::Index>(c)) = 1.0;
+  LmReport report;
+  CARMBA_RETURN_IF_ERROR(SchurLevenbergMarquardt(
+      plate, uv, A, o.max_iterations, o.function_tolerance, &x, &poses, &report));
+  std::copy(x.begin(), x.end(), buffer->data() + g.offset);
+  for (size_t v = 0; v < p.views.size(); ++v) {
+    double* pose = buffer->data() + layout.block(layout.view_block(static_cast<int>(v))).offset;
+    std::copy(poses[v].begin(), poses[v].end(), pose);
+  }
+  res->iterations += report.iterations;
+  res->termination = report.termination + " (carmba LM)";
+  res->converged = report.termination == "CONVERGENCE";
+  return Status::Ok();
+}
+
 }  // namespace
 
 bool BaOptions::Check(std::string* error) const {
+  if (backend != "ceres" && backend != "carmba_lm") {
+    *error = "backend '" + backend + "' is unknown (ceres, carmba_lm)";
+    return false;
+  }
   ceres::LinearSolverType t;
   if (!LinearSolverType(linear_solver, &t)) {
     *error = "linear_solver '" + linear_solver + "' is unknown";
@@ -243,28 +344,28 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
   res.layout = std::make_shared<StateLayout>(problem);
   const StateLayout& layout = *res.layout;
   std::vector<std::vector<char>> dropped(problem.views.size());
-  for (size_t v = 0; v < problem.views.size(); ++v) dropped[v].assign(problem.views[v].point_ids.size(), 0);
+  for (size_t v = 0; v < problem.views.size(); ++v)
+    dropped[v].assign(problem.views[v].point_ids.size(), 0);
   std::vector<double> state = InitialState(problem, layout);
+  const bool use_lm = o.backend == "carmba_lm";
+  if (use_lm) CARMBA_RETURN_IF_ERROR(CheckCarmbaLm(problem, o));
 
   static thread_local std::unique_ptr<ceres::Context> context(ceres::Context::Create());
   constexpr int kMaxRejectionPasses = 100;
   for (int pass = 0; pass <= kMaxRejectionPasses; ++pass) {
     Assembly as;
     as.buffer = state;
-    ceres::Problem::Options popts;
-    popts.context = context.get();
-    popts.disable_all_safety_checks = true;
-    ceres::Problem cp(popts);
-    CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, dropped, &as, &cp));
+    ceres::Problem cp(ProblemOptions(context.get()));
+    CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, dropped, &as, use_lm ? nullptr : &cp));
     // Initial cost, evaluated directly.
     double chi2_0 = 0;
     for (const auto& bb : as.built) {
       Eigen::VectorXd r;
       if (!EvaluateBlock(bb, layout, as.buffer, &r, nullptr)) {
-        const std::string what =
-            bb.view >= 0 ? "view '" + problem.views[bb.view].id + "' point " +
-                               std::to_string(problem.views[bb.view].point_ids[bb.obs])
-                         : std::string("a prior");
+        const std::string what = bb.view >= 0
+                                     ? "view '" + problem.views[bb.view].id + "' point " +
+                                           std::to_string(problem.views[bb.view].point_ids[bb.obs])
+                                     : std::string("a prior");
         return Status::Error("the initial state gives a non-finite residual at " + what +
                              " (behind the source? a wrong initial pose?)");
       }
@@ -272,46 +373,58 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
     }
     if (pass == 0) res.initial_cost = 0.5 * chi2_0;
 
-    ceres::Solver::Options so;
-    LinearSolverType(o.linear_solver, &so.linear_solver_type);
-    so.max_num_iterations = o.max_iterations;
-    so.function_tolerance = o.function_tolerance;
-    so.gradient_tolerance = o.gradient_tolerance;
-    so.parameter_tolerance = o.parameter_tolerance;
-    so.num_threads = o.num_threads;
-    so.logging_type = ceres::SILENT;
-    if (so.linear_solver_type == ceres::DENSE_SCHUR || so.linear_solver_type == ceres::SPARSE_SCHUR ||
-        so.linear_solver_type == ceres::ITERATIVE_SCHUR) {
-      auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-      bool any_point = false;
-      for (const BlockInfo& b : layout.blocks()) {
-        const bool point = b.kind == BlockKind::kMarker || b.kind == BlockKind::kPlatePoint;
-        any_point |= point && !b.constant && cp.HasParameterBlock(as.buffer.data() + b.offset);
-      }
-      for (const BlockInfo& b : layout.blocks()) {
-        double* p = as.buffer.data() + b.offset;
-        if (!cp.HasParameterBlock(p) || cp.IsParameterBlockConstant(p)) continue;
-        int group = 0;
-        switch (b.kind) {
-          case BlockKind::kMarker:
-          case BlockKind::kPlatePoint: group = 0; break;
-          case BlockKind::kPlatePose:
-          case BlockKind::kObjectPose: group = any_point ? 1 : 0; break;
-          case BlockKind::kIntrinsics: group = any_point ? 2 : 1; break;
+    if (use_lm) {
+      CARMBA_RETURN_IF_ERROR(SolveWithCarmbaLm(problem, layout, o, &as.buffer, &res));
+      state = as.buffer;
+    } else {
+      ceres::Solver::Options so;
+      LinearSolverType(o.linear_solver, &so.linear_solver_type);
+      so.max_num_iterations = o.max_iterations;
+      so.function_tolerance = o.function_tolerance;
+      so.gradient_tolerance = o.gradient_tolerance;
+      so.parameter_tolerance = o.parameter_tolerance;
+      so.num_threads = o.num_threads;
+      so.logging_type = ceres::SILENT;
+      if (so.linear_solver_type == ceres::DENSE_SCHUR ||
+          so.linear_solver_type == ceres::SPARSE_SCHUR ||
+          so.linear_solver_type == ceres::ITERATIVE_SCHUR) {
+        auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+        bool any_point = false;
+        for (const BlockInfo& b : layout.blocks()) {
+          const bool point = b.kind == BlockKind::kMarker || b.kind == BlockKind::kPlatePoint;
+          any_point |= point && !b.constant && cp.HasParameterBlock(as.buffer.data() + b.offset);
         }
-        ordering->AddElementToGroup(p, group);
+        for (const BlockInfo& b : layout.blocks()) {
+          double* p = as.buffer.data() + b.offset;
+          if (!cp.HasParameterBlock(p) || cp.IsParameterBlockConstant(p)) continue;
+          int group = 0;
+          switch (b.kind) {
+            case BlockKind::kMarker:
+            case BlockKind::kPlatePoint:
+              group = 0;
+              break;
+            case BlockKind::kPlatePose:
+            case BlockKind::kObjectPose:
+              group = any_point ? 1 : 0;
+              break;
+            case BlockKind::kIntrinsics:
+              group = any_point ? 2 : 1;
+              break;
+          }
+          ordering->AddElementToGroup(p, group);
+        }
+        so.linear_solver_ordering = ordering;
       }
-      so.linear_solver_ordering = ordering;
+      ceres::Solver::Summary summary;
+      ceres::Solve(so, &cp, &summary);
+      res.iterations += static_cast<int>(summary.iterations.size()) - 1;
+      res.termination = ceres::TerminationTypeToString(summary.termination_type);
+      res.converged = summary.termination_type == ceres::CONVERGENCE;
+      if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
+        return Status::Error("bundle adjustment failed: " + summary.message);
+      }
+      state = as.buffer;
     }
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &cp, &summary);
-    res.iterations += static_cast<int>(summary.iterations.size()) - 1;
-    res.termination = ceres::TerminationTypeToString(summary.termination_type);
-    res.converged = summary.termination_type == ceres::CONVERGENCE;
-    if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
-      return Status::Error("bundle adjustment failed: " + summary.message);
-    }
-    state = as.buffer;
 
     // Residuals, outliers, statistics and the linearisation at the solution.
     auto lin = std::make_shared<Linearization>();
@@ -332,7 +445,8 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       Eigen::VectorXd r;
       LinearizedBlock lb;
       if (!EvaluateBlock(bb, layout, state, &r, &lb)) {
-        return Status::Error("a residual is not finite at the solution (a point behind the source?)");
+        return Status::Error(
+            "a residual is not finite at the solution (a point behind the source?)");
       }
       res.chi2 += r.squaredNorm();
       res.num_residuals += static_cast<int>(r.size()) - bb.zero_rows;
@@ -342,8 +456,12 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       const double n_sigma = r.norm();
       view_ss[bb.view] += r.squaredNorm() * view.sigma_px * view.sigma_px;
       view_n[bb.view] += 1;
-      BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[bb.obs], n_sigma,
-                    r[0] * view.sigma_px, r[1] * view.sigma_px};
+      BaOutlier out{view.id,
+                    view.kind == ViewKind::kPlate,
+                    view.point_ids[bb.obs],
+                    n_sigma,
+                    r[0] * view.sigma_px,
+                    r[1] * view.sigma_px};
       if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
       if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
           n_sigma > worst_sigma) {
@@ -358,8 +476,9 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       dropped[worst_view][worst_obs] = 1;
       res.rejected.push_back(worst_out);
     }
-    std::sort(res.outliers.begin(), res.outliers.end(),
-              [](const BaOutlier& a, const BaOutlier& b) { return a.residual_sigma > b.residual_sigma; });
+    std::sort(res.outliers.begin(), res.outliers.end(), [](const BaOutlier& a, const BaOutlier& b) {
+      return a.residual_sigma > b.residual_sigma;
+    });
     if (any_rejected) {
       for (size_t v = 0; v < problem.views.size(); ++v) {
         const auto left = std::count(dropped[v].begin(), dropped[v].end(), 0);
@@ -417,7 +536,7 @@ StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
   const StateLayout& layout = *result.layout;
   Assembly as;
   as.buffer = result.state;
-  ceres::Problem cp;
+  ceres::Problem cp(ProblemOptions(nullptr));
   CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, result.dropped, &as, &cp));
   ceres::Covariance::Options co;
   if (algorithm == "dense_svd") {

@@ -95,6 +95,7 @@ ba::BaOptions BaOptionsFromConfig(const SolverConfig& c) {
   o.covariance_aposteriori = c.covariance_aposteriori;
   o.outlier_sigma = c.outlier_sigma;
   o.reject_sigma = c.reject_sigma;
+  o.backend = c.backend;
   return o;
 }
 

@@ -57,6 +57,7 @@
 //                                                 # aposteriori scales by s0^2
 //   num_threads: 1
 //   fix: [p1, p2, k3]             # joint problems: intrinsics held (default: none)
+//   backend: ceres                # or carmba_lm (calibration-structured problems only)
 //   outliers: {list_sigma: 4, reject_sigma: 0}   # list above 4 sigma; reject_sigma > 0 drops
 //                                 # the worst above it and solves again, until none is left
 // A calibration config given here (it has keys such as robust_loss, detection, crosscheck) is an
@@ -157,6 +158,9 @@ struct SolverConfig {
   // drops them one at a time and solves again (ba/bundle_adjuster.h).
   double outlier_sigma = 4.0;
   double reject_sigma = 0;
+  // The engine's minimiser: ceres, or carmba_lm for calibration-structured problems
+  // (ba/bundle_adjuster.h).
+  std::string backend = "ceres";
 
   bool Check(std::string* error) const;
 };

@@ -434,6 +434,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
       root.Fail("fix", "'" + n + "' is not an intrinsic (fx fy cx cy k1 k2 p1 p2 k3)");
     }
   }
+  root.GetEnum("backend", {"ceres", "carmba_lm"}, &c.backend);
   YamlMap& outliers = root.Map("outliers");
   outliers.GetPositive("list_sigma", &c.outlier_sigma);
   outliers.GetNonNegative("reject_sigma", &c.reject_sigma);

@@ -302,3 +302,48 @@ TEST(BaOutliers, ListedAndRejected) {
 }  // namespace
 }  // namespace ba
 }  // namespace carmba
+
+namespace carmba {
+namespace ba {
+namespace {
+
+// carmba's own Levenberg-Marquardt as the engine's back end reaches Ceres's optimum on a
+// calibration problem (plate views only), and refuses problems outside its structure.
+TEST(BaBackend, CarmbaLmReachesTheCeresOptimum) {
+  SyntheticJointSpec spec;
+  spec.num_plate_views = 12;
+  spec.object_angles_deg.clear();
+  SyntheticJoint sj = MakeSyntheticJoint(spec, NoiseSwitches(), 21);
+  sj.problem.markers.clear();
+  // Start away from the optimum.
+  sj.problem.groups[0].initial[kFx] *= 1.02;
+  sj.problem.groups[0].initial[kCx] += 3;
+  for (auto& v : sj.problem.views) v.initial[5] += 5;
+  BaOptions ceres_options, lm_options;
+  lm_options.backend = "carmba_lm";
+  auto a = SolveBundleAdjustment(sj.problem, ceres_options);
+  auto b = SolveBundleAdjustment(sj.problem, lm_options);
+  ASSERT_TRUE(a.ok()) << a.status().message();
+  ASSERT_TRUE(b.ok()) << b.status().message();
+  EXPECT_TRUE(b->converged) << b->termination;
+  EXPECT_NEAR(a->chi2, b->chi2, 1e-8 * a->chi2);
+  const Eigen::MatrixXd C = a->Covariance({a->layout->group_block(0)});
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    const double sigma = std::sqrt(std::max(C(i, i), 0.0));
+    if (sigma == 0) continue;
+    EXPECT_NEAR(a->state[i], b->state[i], 1e-4 * sigma) << "intrinsic " << i;
+  }
+  // Outside its structure: an object view.
+  SyntheticJoint joint = MakeSyntheticJoint(SyntheticJointSpec(), NoiseSwitches(), 1);
+  auto c = SolveBundleAdjustment(joint.problem, lm_options);
+  ASSERT_FALSE(c.ok());
+  EXPECT_NE(c.status().message().find("backend carmba_lm (calibration problems) needs plate views only"),
+            std::string::npos)
+      << c.status().message();
+  lm_options.backend = "levmar";
+  EXPECT_FALSE(SolveBundleAdjustment(sj.problem, lm_options).ok());
+}
+
+}  // namespace
+}  // namespace ba
+}  // namespace carmba

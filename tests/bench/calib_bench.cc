@@ -130,10 +130,11 @@ void BM_CalibMrcalC(benchmark::State& state) {
   state.counters["cx_px"] = cx;
 }
 
-// Calibration through the bundle-adjustment engine (src/ba, Ceres DENSE_SCHUR with the analytic
-// per-point reprojection blocks, plate poses eliminated in the Schur covariance of the
-// intrinsics), seeded like mrcal with carmba's closed-form initial values (outside the timed
-// region); solve + covariance timed.
+// Calibration through the bundle-adjustment engine (src/ba; range(1): 0 = backend ceres, Ceres
+// DENSE_SCHUR with the analytic per-point reprojection blocks; 1 = backend carmba_lm; the
+// covariance of the intrinsics from the engine's Schur module, plate poses eliminated), seeded
+// like mrcal with carmba's closed-form initial values (outside the timed region); solve +
+// covariance timed.
 void BM_CalibEngine(benchmark::State& state) {
   const ObservationSet& obs = Views(static_cast<int>(state.range(0)));
   auto seed = Calibrate(obs, CalibrationOptions());  // for its closed-form initial values only
@@ -159,6 +160,8 @@ void BM_CalibEngine(benchmark::State& state) {
     p.views.push_back(view);
   }
   ba::BaOptions o;
+  if (state.range(1) == 1) o.backend = "carmba_lm";
+  state.SetLabel(o.backend);
   o.function_tolerance = 1e-10;
   o.gradient_tolerance = 1e-14;
   o.parameter_tolerance = 1e-10;
@@ -219,6 +222,13 @@ BENCHMARK(BM_CalibCarmba)
     ->Args({1000, 1})
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CalibMrcalC)->Arg(16)->Arg(200)->Arg(1000)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_CalibEngine)->Arg(16)->Arg(200)->Arg(1000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CalibEngine)
+    ->Args({16, 0})
+    ->Args({200, 0})
+    ->Args({1000, 0})
+    ->Args({16, 1})
+    ->Args({200, 1})
+    ->Args({1000, 1})
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CalibOpenCv)->Arg(16)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CalibOpenCv)->Arg(200)->Iterations(1)->Unit(benchmark::kMillisecond);
