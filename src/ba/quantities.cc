@@ -1,7 +1,5 @@
 #include "ba/quantities.h"
 
-#include <ceres/jet.h>
-
 #include <cmath>
 
 #include "geometry/rotation.h"
@@ -15,19 +13,6 @@ void SetRow(const StateLayout& L, int b, const double* g, int row, Eigen::Matrix
   const BlockInfo& bi = L.block(b);
   if (bi.constant) return;
   for (size_t i = 0; i < bi.free.size(); ++i) (*G)(row, bi.free_offset + i) += g[bi.free[i]];
-}
-
-template <typename F>
-double PairMetric(const double* a, const double* b, F f, double* ga, double* gb) {
-  using J = ceres::Jet<double, 12>;
-  J pa[6], pb[6];
-  for (int i = 0; i < 6; ++i) {
-    pa[i] = J(a[i], i);
-    pb[i] = J(b[i], 6 + i);
-  }
-  const J v = f(pa, pb);
-  for (int i = 0; i < 6; ++i) ga[i] = v.v[i], gb[i] = v.v[6 + i];
-  return v.a;
 }
 
 }  // namespace
@@ -101,17 +86,18 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
   for (const auto& [ia, ib] : pairs) {
     const int ba = L.view_block(ia), bb = L.view_block(ib);
     const std::string name = "pair " + problem.views[ia].id + "/" + problem.views[ib].id;
-    double ga[6], gb[6];
-    const double rr = PairMetric(result.block(ba), result.block(bb),
-                                 [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, ga, gb);
-    for (int i = 0; i < 6; ++i) ga[i] *= kRadToDeg, gb[i] *= kRadToDeg;
-    qs.push_back({name + " relative rotation", "deg", rr * kRadToDeg});
-    grads.push_back({{ba, std::vector<double>(ga, ga + 6)}, {bb, std::vector<double>(gb, gb + 6)}});
-    const double vd = PairMetric(result.block(ba), result.block(bb),
-                                 [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, ga, gb);
-    for (int i = 0; i < 6; ++i) ga[i] *= kRadToDeg, gb[i] *= kRadToDeg;
-    qs.push_back({name + " view directions", "deg", vd * kRadToDeg});
-    grads.push_back({{ba, std::vector<double>(ga, ga + 6)}, {bb, std::vector<double>(gb, gb + 6)}});
+    double g[12];
+    auto add_pair = [&](const std::string& what, double value_rad) {
+      for (double& x : g) x *= kRadToDeg;
+      qs.push_back({name + " " + what, "deg", value_rad * kRadToDeg});
+      grads.push_back({{ba, std::vector<double>(g, g + 6)}, {bb, std::vector<double>(g + 6, g + 12)}});
+    };
+    add_pair("relative rotation",
+             PairMetricWithGradient(result.block(ba), result.block(bb),
+                                    [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g));
+    add_pair("view directions",
+             PairMetricWithGradient(result.block(ba), result.block(bb),
+                                    [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, g));
   }
   QuantitySet out;
   out.quantities = qs;

@@ -76,18 +76,10 @@ bool InvertSpd6(const Mat6& A, Mat6* inv) {
   return true;
 }
 
-
-
-// The Gauss-Newton blocks of one view at (intrinsics, pose), in pixels (unwhitened), with
-// e_j = project - observed and weights w_j (1 without a robust loss):
-//   Hpp = sum w J_pose^T J_pose (6x6),  Hpc = sum w J_pose^T J_intr (6x9),  gp = sum w J_pose^T e;
-// the view's share of the intrinsics blocks is added to Hcc (sum w J_intr^T J_intr) and gc.
 // Per point, the pose columns are taken for a small rotation w of the camera frame,
 //   d(R p)/dw = -[R p]x,  so row a of J_uv_p_in_cam gives the row (R p) x a,
 // and mapped to the rotation vector once per view, J_uv_rvec = J_uv_w J_l(rvec) (the chain rule
 // of ProjectPointWithJac). All sizes are fixed: no heap allocation.
-
-
 bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
                    const std::vector<Eigen::Vector2d>& uv,
                    const double* intr,

@@ -22,7 +22,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include "ct/gdcm_quiet.h"
+#include "util/gdcm_quiet.h"
 #include "util/dicom_structure.h"
 #include "util/file_util.h"
 #include "util/quiet_stderr.h"

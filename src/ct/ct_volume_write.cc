@@ -16,7 +16,7 @@
 #include <unistd.h>
 
 #include "ct/ct_volume.h"
-#include "ct/gdcm_quiet.h"
+#include "util/gdcm_quiet.h"
 #include "util/file_util.h"
 
 namespace carmba {

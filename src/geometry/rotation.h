@@ -13,6 +13,7 @@
 // Both are templates so that ceres::Jet gives their derivatives for covariance propagation.
 #pragma once
 
+#include <ceres/jet.h>
 #include <ceres/rotation.h>
 
 #include <Eigen/Dense>
@@ -58,6 +59,21 @@ T RelativeRotationAngle(const T* pose_a, const T* pose_b) {
   const T sin_t = sqrt(s0 * s0 + s1 * s1 + s2 * s2) / T(2);
   const T cos_t = (M[0] + M[4] + M[8] - T(1)) / T(2);
   return atan2(sin_t, cos_t);
+}
+
+// A metric of two poses (ViewDirectionAngle, RelativeRotationAngle, ...) and its gradient with
+// respect to their 12 parameters (a's six, then b's), by ceres::Jet: for covariance propagation.
+template <typename F>
+double PairMetricWithGradient(const double* pose_a, const double* pose_b, F f, double* grad12) {
+  using J = ceres::Jet<double, 12>;
+  J pa[6], pb[6];
+  for (int i = 0; i < 6; ++i) {
+    pa[i] = J(pose_a[i], i);
+    pb[i] = J(pose_b[i], 6 + i);
+  }
+  const J v = f(pa, pb);
+  for (int i = 0; i < 12; ++i) grad12[i] = v.v[i];
+  return v.a;
 }
 
 // Angle (rad) between inv(Ra)(0,0,1) and inv(Rb)(0,0,1) for general 3x3 matrices (the thesis's

@@ -20,21 +20,12 @@
 #include <sstream>
 
 #include "util/dicom_structure.h"
+#include "util/gdcm_quiet.h"
 #include "util/file_util.h"
 #include "util/quiet_stderr.h"
 
 namespace carmba {
 namespace {
-
-void SilenceGdcm() {
-  static const bool done = [] {
-    gdcm::Trace::SetDebug(false);
-    gdcm::Trace::SetWarning(false);
-    gdcm::Trace::SetError(false);
-    return true;
-  }();
-  (void)done;
-}
 
 std::string Trim(std::string s) {
   while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();

@@ -199,21 +199,7 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
     root.Raw("config");
     root.Fail("config", "a problem does not name its config: give --config to `carmba solve`");
   }
-  auto pairs = root.MapList("validation");
-  for (YamlMap* pm : pairs) {
-    ValidationPair vp;
-    YAML::Node a = pm->Raw("a"), b = pm->Raw("b");
-    if (!a.IsScalar() || !b.IsScalar()) {
-      pm->Fail("a", "expected view ids a and b");
-    } else {
-      vp.a = a.Scalar();
-      vp.b = b.Scalar();
-    }
-    double e = NAN;
-    pm->Get("expected_deg", &e);
-    if (std::isfinite(e)) vp.expected_deg = e;
-    p.validation.push_back(vp);
-  }
+  ReadValidationPairs(root, &p.validation);
   const bool has_plate = root.Has("plate_views"), has_object = root.Has("object_views");
   YamlMap& plate = root.Map("plate_views");
   YamlMap& object = root.Map("object_views");

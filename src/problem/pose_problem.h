@@ -167,6 +167,11 @@ struct SolverConfig {
 
 StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path);
 
+// Reads the `validation` list of a problem file ({a: VIEW, b: VIEW, expected_deg: X} entries)
+// into `out`; errors are recorded in `root` (YamlMap::Finish reports them).
+class YamlMap;
+void ReadValidationPairs(YamlMap& root, std::vector<ValidationPair>* out);
+
 // Reads markers (fiducials) from a CSV: ids in `id_column`, positions (mm) in `columns`, and the
 // covariance from the columns cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz (mm^2, as `carmba
 // ct-fiducials` writes them) or, when sigma_mm > 0, isotropic sigma_mm. Without either the error

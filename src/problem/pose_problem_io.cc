@@ -191,6 +191,23 @@ Status ReadTruth(const std::string& path, PoseProblem* p) {
 
 }  // namespace
 
+void ReadValidationPairs(YamlMap& root, std::vector<ValidationPair>* out) {
+  for (YamlMap* pm : root.MapList("validation")) {
+    ValidationPair vp;
+    YAML::Node a = pm->Raw("a"), b = pm->Raw("b");
+    if (!a.IsScalar() || !b.IsScalar()) {
+      pm->Fail("a", "expected view ids a and b");
+    } else {
+      vp.a = a.Scalar();
+      vp.b = b.Scalar();
+    }
+    double e = NAN;
+    pm->GetInRange("expected_deg", &e, plausible::kAngleDeg);
+    if (std::isfinite(e)) vp.expected_deg = e;
+    out->push_back(vp);
+  }
+}
+
 StatusOr<std::vector<Marker>> ReadMarkersCsv(const std::string& path,
                                              const std::string& id_column,
                                              const std::vector<std::string>& columns,
@@ -333,21 +350,7 @@ StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path) {
   YamlMap& markers = root.Map("markers", true);
   YamlMap& observations = root.Map("observations", true);
   YamlMap& reference = root.Map("reference");
-  auto pairs = root.MapList("validation");
-  for (YamlMap* pm : pairs) {
-    ValidationPair vp;
-    YAML::Node a = pm->Raw("a"), b = pm->Raw("b");
-    if (!a.IsScalar() || !b.IsScalar()) {
-      pm->Fail("a", "expected view ids a and b");
-    } else {
-      vp.a = a.Scalar();
-      vp.b = b.Scalar();
-    }
-    double e = NAN;
-    pm->GetInRange("expected_deg", &e, plausible::kAngleDeg);
-    if (std::isfinite(e)) vp.expected_deg = e;
-    p.validation.push_back(vp);
-  }
+  ReadValidationPairs(root, &p.validation);
   if (!root.status().ok()) return root.status();
   p.handedness = handedness == "mirrored" ? Handedness::kMirrored : Handedness::kAsGiven;
   CARMBA_RETURN_IF_ERROR(ReadMarkers(markers, base, &p));

@@ -120,20 +120,6 @@ double ViewRms(const PoseProblem& problem,
   return std::sqrt(ss / n);
 }
 
-// Value and gradient (w.r.t. the 12 parameters of two poses) of a pair metric.
-template <typename F>
-double PairMetric(const Pose6& a, const Pose6& b, F f, Eigen::Matrix<double, 12, 1>* grad) {
-  using J = ceres::Jet<double, 12>;
-  J pa[6], pb[6];
-  for (int i = 0; i < 6; ++i) {
-    pa[i] = J(a[i], i);
-    pb[i] = J(b[i], 6 + i);
-  }
-  const J v = f(pa, pb);
-  *grad = v.v;
-  return v.a;
-}
-
 }  // namespace
 
 StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const SolverConfig& config) {
@@ -321,13 +307,15 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
       C.bottomRightCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ib, 6 * ib);
     }
     Eigen::Matrix<double, 12, 1> g;
-    const double vd = PairMetric(poses[ia], poses[ib],
-                                 [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, &g);
+    const double vd = PairMetricWithGradient(
+        poses[ia].data(), poses[ib].data(),
+        [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, g.data());
     ps.angle_view_dirs_deg = vd * kRadToDeg;
     ps.sigma_view_dirs_deg =
         sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");
-    const double rr = PairMetric(poses[ia], poses[ib],
-                                 [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, &g);
+    const double rr = PairMetricWithGradient(
+        poses[ia].data(), poses[ib].data(),
+        [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g.data());
     ps.relative_rotation_deg = rr * kRadToDeg;
     ps.sigma_relative_rotation_deg =
         sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
@@ -272,15 +273,22 @@ TEST(GridDetectorTest, RoiKeepsFullImageCoordinates) {
 }
 
 TEST(GridDetectorTest, UnderTenMillisecondsPer408Image) {
-  // Median of 15 runs (the machine is shared).
+  // Median of 15 runs of the process's CPU time (all its threads; ctest runs each test in its own
+  // process): the target is per core, and ctest runs other tests beside this one (wall time
+  // failed under load with the same work).
   constexpr double kBudgetMs = 10.0;
   GridSpec g;
   Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 6);
+  auto cpu_ms = [] {
+    timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  };
   std::vector<double> ms;
   for (int i = 0; i < 15; ++i) {
-    const auto t0 = std::chrono::steady_clock::now();
+    const double t0 = cpu_ms();
     GridDetection d = DetectGrid(r.image, g, DetectionOptions());
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    ms.push_back(cpu_ms() - t0);
     ASSERT_TRUE(d.found);
   }
   std::sort(ms.begin(), ms.end());

@@ -1,5 +1,5 @@
 // GDCM's own warnings go to stderr; carmba's are Status messages. Shared by the CT series reader
-// and writer (ct_volume_read.cc, ct_volume_write.cc).
+// and writer (ct/ct_volume_read.cc, ct_volume_write.cc) and the X-ray image reader (io/dicom_xray.cc).
 #pragma once
 
 #include <gdcmTrace.h>
