@@ -177,6 +177,30 @@ TEST_F(JointBadInput, ValidProblemSolves) {
   EXPECT_EQ(j.at("validation").size(), 1u);
 }
 
+TEST_F(JointBadInput, PerGroupIntrinsics) {
+  problem_ += "intrinsics: {model: per_group, groups: groups.csv}\n";
+  groups_ = "view,group\nplate00,a\nplate01,a\nplate02,a\n3,b\n4,b\nplate05,b\n"
+            "+000,a\n+030,b\n+090,b\n";
+  config_ = "name: c\nfix: [k1, k2, p1, p2, k3]\n";  // 3 plate views per group: pinhole
+  const auto r = Solve();
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = ReadJson(dir_.File("out/result.json"));
+  ASSERT_TRUE(j.at("intrinsics").is_array());
+  ASSERT_EQ(j.at("intrinsics").size(), 2u);
+  EXPECT_EQ(j.at("intrinsics")[0].at("group"), "a");
+  EXPECT_EQ(j.at("intrinsics")[1].at("group"), "b");
+  for (const auto& g : j.at("intrinsics")) {
+    EXPECT_NEAR(g.at("fx").get<double>(), 2000.0, 5 * g.at("sigmas").at("fx").get<double>() + 1);
+  }
+  // The state layout names each group's parameters.
+  EXPECT_EQ(j.at("state_layout")[0], "a fx");
+  for (const auto& v : j.at("views")) {
+    if (v.at("id") == "+030") {
+      EXPECT_EQ(v.at("group"), "b");
+    }
+  }
+}
+
 TEST_F(JointBadInput, MarkerNotInFiducials) {
   object_ += "+090,42,200.0,200.0\n";
   ExpectError("observes marker 42, which is not in the fiducials");
