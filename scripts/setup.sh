@@ -18,6 +18,10 @@ PKGS=(
 if [[ "${CARMBA_WITH_DOCS_DATA:-1}" == 1 ]]; then
   PKGS+=(opencv-doc)
 fi
+# clang with its runtimes (libFuzzer, ASan, UBSan) for the fuzz harnesses (tests/fuzz/).
+if [[ "${CARMBA_WITH_FUZZ:-1}" == 1 ]]; then
+  PKGS+=(clang libclang-rt-14-dev)
+fi
 if [[ "${CARMBA_WITH_BROWSER:-0}" == 1 ]]; then
   PKGS+=(chromium)
 fi

@@ -8,3 +8,16 @@ CARMBA_WITH_BROWSER=${CARMBA_WITH_BROWSER:-1} bash scripts/setup.sh
 bash scripts/build.sh
 BUILD_DIR=${CARMBA_BUILD_DIR:-build}
 ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}" --timeout 900
+# The fuzz harnesses (tests/fuzz/): the libraries with ASan + UBSan and libFuzzer's coverage,
+# built with clang in their own directory (only the libraries and the harnesses, not the test
+# suite), then each harness fuzzes for 20 s from the shipped files. Skipped without clang
+# (CARMBA_FUZZ=0 skips it too).
+if [[ "${CARMBA_FUZZ:-1}" == 1 ]] && command -v clang++ >/dev/null; then
+  FUZZ_DIR=${CARMBA_FUZZ_BUILD_DIR:-build-fuzz}
+  CC=clang CXX=clang++ cmake -S . -B "$FUZZ_DIR" -DCARMBA_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    >/dev/null
+  cmake --build "$FUZZ_DIR" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz
+  ctest --test-dir "$FUZZ_DIR" -L fuzz --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}"
+else
+  echo "test.sh: clang++ not found (or CARMBA_FUZZ=0): fuzz harnesses skipped"
+fi
