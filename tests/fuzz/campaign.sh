@@ -12,6 +12,7 @@ shift || true
 RUNS=${RUNS:-1000000}
 MAX_TIME=${MAX_TIME:-900}
 OUT=$BUILD_DIR/campaign
+export LSAN_OPTIONS=suppressions=$PWD/tests/fuzz/lsan.supp
 mkdir -p "$OUT"
 ctest --test-dir "$BUILD_DIR" -L fuzz -N -V | sed -n 's/^[0-9]*: Test command: //p' | tr -d '"' |
 while read -r cmd; do
