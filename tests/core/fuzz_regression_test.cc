@@ -8,6 +8,7 @@
 
 #include "camera/camera.h"
 #include "util/file_util.h"
+#include "util/yaml_reader.h"
 
 namespace carmba {
 namespace {
@@ -34,6 +35,23 @@ TEST_F(FuzzRegression, CameraJsonNumberOutOfRangeIsAnError) {
   ASSERT_FALSE(c.ok());
   EXPECT_NE(c.status().message().find(path + ": invalid JSON"), std::string::npos)
       << c.status().message();
+}
+
+// fuzz_ct_scene: a complex key (`? [a, b]`) made YamlMap::Finish() call as<std::string>() on a
+// sequence, which throws YAML::TypedBadConversion (std::terminate in every YAML reader).
+TEST_F(FuzzRegression, YamlComplexKeyIsAnErrorNamingItsLine) {
+  for (const char* key : {"? [a, b]\n: 2\n", "? {a: 1}\n: 2\n"}) {
+    const std::string path = Write("complex_key.yaml", std::string("name: x\n") + key);
+    YamlMap m = YamlMap::Load(path);
+    ASSERT_TRUE(m.status().ok()) << m.status().message();
+    std::string name;
+    m.Get("name", &name);
+    const Status s = m.Finish();
+    ASSERT_FALSE(s.ok()) << key;
+    EXPECT_NE(s.message().find(path + ":2: top level: expected keys that are names"),
+              std::string::npos)
+        << s.message();
+  }
 }
 
 }  // namespace
