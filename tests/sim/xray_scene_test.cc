@@ -188,6 +188,8 @@ TEST(XrayScene, BadScenesAreRejectedWithOneLineErrors) {
       {"fov: {circular: true}",
        "fov: {circular: true}\n  background: {file: /no/such.png}",
        "/no/such.png: no such file"},
+      // Found by fuzz_xray_scene: a complex key threw YAML::TypedBadConversion (std::terminate).
+      {"seed: 4", "seed: 4\nmaterials: {? [a, b] : 1}", "key 'materials': expected material names"},
   };
   int i = 0;
   for (const auto& c : cases) {
