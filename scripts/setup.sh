@@ -22,6 +22,11 @@ fi
 if [[ "${CARMBA_WITH_SKULL_CT:-1}" == 1 ]]; then
   PKGS+=(invesalius-examples)
 fi
+# clang with its runtimes (libFuzzer, ASan, UBSan) for the fuzz harnesses (tests/fuzz/); off by
+# default: their sanitizer build adds ~11 min (CARMBA_WITH_FUZZ=1, with CARMBA_FUZZ=1 for test.sh).
+if [[ "${CARMBA_WITH_FUZZ:-0}" == 1 ]]; then
+  PKGS+=(clang libclang-rt-14-dev)
+fi
 if [[ "${CARMBA_WITH_BROWSER:-0}" == 1 ]]; then
   PKGS+=(chromium)
 fi

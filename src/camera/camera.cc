@@ -168,6 +168,9 @@ StatusOr<Camera> ReadCameraJson(const std::string& path) {
   } catch (const nlohmann::json::parse_error& e) {
     return Status::Error(path + ": invalid JSON at byte " + std::to_string(e.byte) +
                          ", expected a camera object");
+  } catch (const nlohmann::json::exception& e) {
+    // Not a syntax error: e.g. out_of_range for a number beyond a double (1e999).
+    return Status::Error(path + ": invalid JSON (" + e.what() + "), expected a camera object");
   }
   return CameraFromJson(j, path);
 }

@@ -221,7 +221,11 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     } else {
       YamlMap& mm = scene.Map("materials");
       for (const auto& kv : mats) {
-        const std::string name = kv.first.as<std::string>();
+        if (!kv.first.IsScalar()) {  // `? [a, b]`: as<std::string>() would throw
+          scene.Fail("materials", "expected material names as keys");
+          break;
+        }
+        const std::string name = kv.first.Scalar();
         double mu = 0;
         mm.GetNonNegative(name, &mu, true);
         materials[name] = mu;

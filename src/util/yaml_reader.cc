@@ -320,7 +320,15 @@ Status YamlMap::Finish() {
   }
   if (node_ && node_.IsMap()) {
     for (const auto& kv : node_) {
-      const std::string k = kv.first.as<std::string>();
+      // A complex key (`? [a, b]`, `? {a: 1}`) is no key of ours; as<std::string>() would throw.
+      if (!kv.first.IsScalar()) {
+        return status_ = Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
+                                       ": " + (prefix_.empty() ? std::string("top level")
+                                                               : "key '" + prefix_ + "'") +
+                                       ": expected keys that are names, got " + Show(kv.first) +
+                                       " as a key");
+      }
+      const std::string k = kv.first.Scalar();
       if (!known_.count(k)) {
         std::string list;
         for (const auto& kk : known_) list += (list.empty() ? "" : ", ") + kk;

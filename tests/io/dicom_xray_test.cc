@@ -446,6 +446,26 @@ TEST(DicomXray, TruncatedAndNonDicomFilesAreErrors) {
   ExpectError(ReadDicomXray(dir.File("missing.dcm")), {"missing.dcm"});
 }
 
+// Found by fuzz_dicom_xray: an unknown VR ("UM") in the file meta group made GDCM abort on an
+// assertion (ReadExplicitDataElement); the structure check refuses it first.
+TEST(DicomXray, UnknownVrIsAnErrorNotAnAbort) {
+  TempDir dir;
+  const std::string path = dir.File("vr.dcm");
+  ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 3)}, WithGeometry()).ok());
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  // (0002,0010) Transfer Syntax UID, explicit VR "UI" -> "UM".
+  const std::string tag("\x02\x00\x10\x00UI", 6);
+  const size_t at = bytes.find(tag);
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 5] = 'M';
+  { std::ofstream(path, std::ios::binary) << bytes; }
+  ExpectError(ReadDicomXray(path), {"vr.dcm", "invalid VR 'UM'"});
+}
+
 TEST(DicomXray, FrameNames) {
   EXPECT_EQ(DicomFrameName("a/b.dcm", 0, 1), "a/b.dcm");
   EXPECT_EQ(DicomFrameName("a/b.dcm", 2, 4), "a/b.dcm#frame3");

@@ -215,6 +215,8 @@ TEST(XrayScene, BadScenesAreRejectedWithOneLineErrors) {
       {"fov: {circular: true}",
        "fov: {circular: true}\n  glare: {sigma_px: 20}",
        "key 'imaging.glare.fraction': missing"},
+      // Found by fuzz_xray_scene: a complex key threw YAML::TypedBadConversion (std::terminate).
+      {"seed: 4", "seed: 4\nmaterials: {? [a, b] : 1}", "key 'materials': expected material names"},
   };
   int i = 0;
   for (const auto& c : cases) {

@@ -1,0 +1,9 @@
+// libFuzzer harness: carmba::LoadStudySpec (study/study_spec.h): a study YAML in configs/studies/ (references ../../problems and ../*.yaml resolve).
+#include "fuzz_util.h"
+#include "study/study_spec.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string path = carmba::fuzz::WriteInput("configs/studies/fuzz_study.yaml", data, size);
+  (void)carmba::LoadStudySpec(path);
+  return 0;
+}
