@@ -286,7 +286,11 @@ std::string JointReportMarkdown(const JointProblem& problem,
     o << "\n";
   }
   o << "\n## Error budget\n\nShare of each quantity's variance from each independent noise source "
-       "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %).\n\n"
+       "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %). "
+       "Rotations are small rotations about the camera axes (their value is 0 by definition); "
+       "`centre projection` is where the ray of the image centre, held fixed at the object "
+       "distance, projects with the estimated intrinsics (its value is the image centre, its "
+       "sigma the calibration's own uncertainty there).\n\n"
        "| quantity | unit | value | sigma |";
   for (int k = 0; k < ba::kNumSources; ++k) o << " " << ba::SourceName(static_cast<ba::Source>(k)) << " |";
   o << "\n|---|---|---|---|";
