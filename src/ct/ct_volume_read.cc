@@ -22,9 +22,9 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include "util/gdcm_quiet.h"
 #include "util/dicom_structure.h"
 #include "util/file_util.h"
+#include "util/gdcm_util.h"
 #include "util/quiet_stderr.h"
 
 namespace carmba {
@@ -32,27 +32,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using gdcm_util::GetString;
+using gdcm_util::Trim;
+
 std::string Fmt(double v, int precision = 6) {
   char b[64];
   std::snprintf(b, sizeof(b), "%.*f", precision, v);
   return b;
-}
-
-std::string Trim(std::string s) {
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
-  size_t b = 0;
-  while (b < s.size() && s[b] == ' ') ++b;
-  return s.substr(b);
-}
-
-// The string value of an element, or "" when absent or empty.
-std::string GetString(const gdcm::DataSet& ds, uint16_t group, uint16_t element) {
-  const gdcm::Tag tag(group, element);
-  if (!ds.FindDataElement(tag)) return "";
-  const gdcm::DataElement& de = ds.GetDataElement(tag);
-  const gdcm::ByteValue* bv = de.GetByteValue();
-  if (!bv || bv->GetLength() == 0) return "";
-  return Trim(std::string(bv->GetPointer(), bv->GetLength()));
 }
 
 // A backslash-separated list of decimal numbers (DS/IS); false when absent, malformed or of the

@@ -16,7 +16,7 @@
 #include <unistd.h>
 
 #include "ct/ct_volume.h"
-#include "util/gdcm_quiet.h"
+#include "util/gdcm_util.h"
 #include "util/file_util.h"
 
 namespace carmba {
@@ -34,26 +34,15 @@ std::string FormatDicomDecimal(double value) {
 
 namespace {
 
+using gdcm_util::PutString;
+using gdcm_util::PutUS;
+
 bool ValidUid(const std::string& uid) {
   if (uid.empty() || uid.size() > 64) return false;
   for (char c : uid) {
     if (!(c == '.' || (c >= '0' && c <= '9'))) return false;
   }
   return uid.front() != '.' && uid.back() != '.';
-}
-
-void PutString(gdcm::DataSet* ds, uint16_t g, uint16_t e, gdcm::VR vr, std::string value) {
-  if (value.size() % 2) value.push_back(vr == gdcm::VR::UI ? '\0' : ' ');
-  gdcm::DataElement de(gdcm::Tag(g, e));
-  de.SetVR(vr);
-  de.SetByteValue(value.data(), static_cast<uint32_t>(value.size()));
-  ds->Replace(de);
-}
-
-template <uint16_t G, uint16_t E>
-void PutUS(gdcm::DataSet* ds, uint16_t v) {
-  gdcm::Attribute<G, E> a = {v};
-  ds->Replace(a.GetAsDataElement());
 }
 
 }  // namespace

@@ -20,33 +20,23 @@
 #include <sstream>
 
 #include "util/dicom_structure.h"
-#include "util/gdcm_quiet.h"
 #include "util/file_util.h"
+#include "util/gdcm_util.h"
 #include "util/quiet_stderr.h"
 
 namespace carmba {
 namespace {
 
-std::string Trim(std::string s) {
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
-  size_t b = 0;
-  while (b < s.size() && s[b] == ' ') ++b;
-  return s.substr(b);
-}
+using gdcm_util::GetString;
+using gdcm_util::PutString;
+using gdcm_util::PutUS;
+using gdcm_util::Trim;
+
 
 std::string TagName(uint16_t g, uint16_t e) {
   char b[16];
   std::snprintf(b, sizeof(b), "(%04x,%04x)", g, e);
   return b;
-}
-
-// The string value of an element, or "" when absent or empty.
-std::string GetString(const gdcm::DataSet& ds, uint16_t g, uint16_t e) {
-  const gdcm::Tag tag(g, e);
-  if (!ds.FindDataElement(tag)) return "";
-  const gdcm::ByteValue* bv = ds.GetDataElement(tag).GetByteValue();
-  if (!bv || bv->GetLength() == 0) return "";
-  return Trim(std::string(bv->GetPointer(), bv->GetLength()));
 }
 
 // The decimal values (DS / IS) of an element: empty when absent or empty; an error naming the
@@ -355,20 +345,6 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
 // Writing.
 
 namespace {
-
-void PutString(gdcm::DataSet* ds, uint16_t g, uint16_t e, gdcm::VR vr, std::string value) {
-  if (value.size() % 2) value.push_back(vr == gdcm::VR::UI ? '\0' : ' ');
-  gdcm::DataElement de(gdcm::Tag(g, e));
-  de.SetVR(vr);
-  de.SetByteValue(value.data(), static_cast<uint32_t>(value.size()));
-  ds->Replace(de);
-}
-
-template <uint16_t G, uint16_t E>
-void PutUS(gdcm::DataSet* ds, uint16_t v) {
-  gdcm::Attribute<G, E> a = {v};
-  ds->Replace(a.GetAsDataElement());
-}
 
 std::string Decimal(double value) {
   for (int precision = 12; precision >= 1; --precision) {
