@@ -378,6 +378,17 @@ std::string JointMrcalMarkdown(const nlohmann::json& c) {
   o << "\nLargest difference: " << Fmt("%.2e", c.at("max_relative_difference_fx_fy_cx_cy").get<double>())
     << " relative in fx, fy, cx, cy; " << Fmt("%.2e", c.at("max_difference_in_sigmas").get<double>())
     << " sigma over all nine intrinsics.\n";
+  if (c.contains("max_relative_move_of_mrcal_seeded_at_carmba")) {
+    const double rms_m = c.at("rms_px_mrcal").get<double>();
+    const double rms_c = c.at("rms_px_carmba_in_mrcal").get<double>();
+    o << "\nmrcal seeded at carmba's optimum stays there: it moves the nine intrinsics by at most "
+      << Fmt("%.1e", c.at("max_relative_move_of_mrcal_seeded_at_carmba").get<double>())
+      << " relative. Its own solve from the initial values stops "
+      << (rms_c <= rms_m ? "slightly short of it (carmba's solution has the lower cost in mrcal's "
+                           "own residuals, by " + Fmt("%.1e", rms_m - rms_c) + " px RMS)"
+                         : "at it")
+      << "; the distortion terms' differences above are that stopping tolerance.\n";
+  }
   return o.str();
 }
 
