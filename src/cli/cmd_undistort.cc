@@ -19,28 +19,17 @@ using namespace carmba;
 
 // The camera from camera.json, or from a joint solve's result.json (its `intrinsics` object).
 StatusOr<Camera> LoadCamera(const std::string& path) {
-  auto text = ReadFile(path);
-  if (!text.ok()) return text.status();
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(*text);
-  } catch (const std::exception& e) {
-    return Status::Error(path + ": not valid JSON: " + std::string(e.what()));
-  }
-  std::string where = path;
+  auto parsed = ReadJsonFile(path, "a camera.json or a joint result.json");
+  if (!parsed.ok()) return parsed.status();
+  const nlohmann::json& j = *parsed;
   if (j.is_object() && j.contains("intrinsics")) {
     if (!j["intrinsics"].is_object()) {
       return Status::Error(path + ": key 'intrinsics': one camera expected (per-group intrinsics: "
                                   "save one group's object as a camera.json)");
     }
-    j = j["intrinsics"];
-    where = path + ": intrinsics";
+    return CameraFromJson(j["intrinsics"], path + ": intrinsics");  // checks the ranges too
   }
-  auto cam = CameraFromJson(j, where);
-  if (!cam.ok()) return cam.status();
-  const Status s = cam->Check();
-  if (!s.ok()) return s.WithContext(where);
-  return cam;
+  return CameraFromJson(j, path);
 }
 
 // Output name of a view: the file's stem (+ _frameN for a frame of a multi-frame DICOM file),

@@ -73,6 +73,29 @@ Eigen::Vector3d PrincipalAxisInCt(const ViewGeometry& v) {
   return a;
 }
 
+ViewGeometry ViewLookingAt(const std::string& id,
+                           const Camera& camera,
+                           const Eigen::Vector3d& source,
+                           const Eigen::Vector3d& target,
+                           double roll_rad) {
+  const Eigen::Vector3d z = (target - source).normalized();
+  const Eigen::Vector3d hint =
+      std::abs(z.z()) < 0.9 ? Eigen::Vector3d(0, 0, -1) : Eigen::Vector3d(0, 1, 0);
+  const Eigen::Vector3d x = hint.cross(z).normalized();
+  Eigen::Matrix3d R;
+  R.row(0) = x.transpose();
+  R.row(1) = z.cross(x).transpose();
+  R.row(2) = z.transpose();
+  R = Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
+  ViewGeometry v;
+  v.id = id;
+  v.camera = camera;
+  const Eigen::AngleAxisd aa(R);
+  v.cam_from_ct.head<3>() = aa.angle() * aa.axis();
+  v.cam_from_ct.tail<3>() = -R * source;
+  return v;
+}
+
 bool ProjectWithMatrix(const Matrix34& P, const Eigen::Vector3d& p_ct, Eigen::Vector2d* uv) {
   const Eigen::Vector3d h = P * p_ct.homogeneous();
   if (!(h[2] > 0) || !h.allFinite()) return false;
@@ -142,14 +165,9 @@ nlohmann::json GeometryToJson(const GeometrySet& set) {
 }
 
 StatusOr<GeometrySet> ReadGeometryJson(const std::string& path) {
-  auto text = ReadFile(path);
-  if (!text.ok()) return text.status();
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(*text);
-  } catch (const std::exception& e) {
-    return Status::Error(path + ": not valid JSON: " + std::string(e.what()));
-  }
+  auto parsed = ReadJsonFile(path, "a carmba geometry.json");
+  if (!parsed.ok()) return parsed.status();
+  const nlohmann::json& j = *parsed;
   if (!j.is_object() || j.value("format", std::string()) != "carmba-geometry") {
     return Status::Error(path + ": key 'format': expected \"carmba-geometry\" (a geometry.json "
                                 "written by carmba solve)");
@@ -177,10 +195,8 @@ StatusOr<GeometrySet> ReadGeometryJson(const std::string& path) {
     }
     v.id = vj["id"].get<std::string>();
     if (!vj.contains("camera")) return Status::Error(where + ".camera: missing");
-    auto cam = CameraFromJson(vj["camera"], where + ".camera");
+    auto cam = CameraFromJson(vj["camera"], where + ".camera");  // checks the ranges too
     if (!cam.ok()) return cam.status();
-    const Status cs = cam->Check();
-    if (!cs.ok()) return cs.WithContext(where + ".camera");
     v.camera = *cam;
     if (!vj.contains("cam_from_ct") || !vj["cam_from_ct"].is_object()) {
       return Status::Error(where + ".cam_from_ct: expected {\"rvec\": [3], \"t_mm\": [3]}");

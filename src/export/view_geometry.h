@@ -75,6 +75,15 @@ Matrix34 ProjectionMatrix(const ViewGeometry& view);
 Eigen::Vector3d SourceInCt(const ViewGeometry& view);
 // The principal axis (unit, from the source towards the detector) in the CT frame.
 Eigen::Vector3d PrincipalAxisInCt(const ViewGeometry& view);
+// A view with `camera` whose source is at `source_ct_mm` and whose principal axis passes through
+// `target_ct_mm`, its image x axis horizontal in the CT frame (perpendicular to CT z; to CT y when
+// looking along z) and then rolled by `roll_rad` about the axis. (Synthetic geometries, tests.)
+ViewGeometry ViewLookingAt(const std::string& id,
+                           const Camera& camera,
+                           const Eigen::Vector3d& source_ct_mm,
+                           const Eigen::Vector3d& target_ct_mm,
+                           double roll_rad);
+
 // Projects a CT point (mm) with P; false if it is not in front of the source.
 bool ProjectWithMatrix(const Matrix34& P, const Eigen::Vector3d& p_ct, Eigen::Vector2d* uv);
 

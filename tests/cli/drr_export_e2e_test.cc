@@ -33,29 +33,6 @@ namespace {
 // The brief's requirement: blobs within 0.2 px of carmba's projection.
 constexpr double kBlobTolPx = 0.2;
 
-ViewGeometry LookAt(const std::string& id,
-                    const Camera& cam,
-                    const Eigen::Vector3d& source,
-                    const Eigen::Vector3d& target,
-                    double roll_rad) {
-  const Eigen::Vector3d z = (target - source).normalized();
-  const Eigen::Vector3d hint =
-      std::abs(z.z()) < 0.9 ? Eigen::Vector3d(0, 0, -1) : Eigen::Vector3d(0, 1, 0);
-  const Eigen::Vector3d x = hint.cross(z).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x.transpose();
-  R.row(1) = y.transpose();
-  R.row(2) = z.transpose();
-  R = Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
-  ViewGeometry v;
-  v.id = id;
-  v.camera = cam;
-  const Eigen::AngleAxisd aa(R);
-  v.cam_from_ct.head<3>() = aa.angle() * aa.axis();
-  v.cam_from_ct.tail<3>() = -R * source;
-  return v;
-}
 
 struct Blob {
   Eigen::Vector2d uv;
@@ -140,10 +117,10 @@ TEST(DrrExportE2e, PlastimatchDrrBlobsLieWhereCarmbaProjectsTheMarkers) {
     const double a = az_deg * M_PI / 180, e = el_deg * M_PI / 180;
     return Eigen::Vector3d(std::cos(e) * std::sin(a), std::cos(e) * std::cos(a), std::sin(e));
   };
-  set.views.push_back(LookAt("pa", cam, centroid - sod * dir(0, 0), centroid + Eigen::Vector3d(3, 0, 2), 0.1));
-  set.views.push_back(LookAt("lao35_cran15", cam, centroid - sod * dir(35, 15), centroid, -0.4));
-  set.views.push_back(LookAt("rao60", wide, centroid - sod * dir(-60, -5), centroid + Eigen::Vector3d(0, 4, -3), 2.0));
-  set.views.push_back(LookAt("axial", cam, centroid - sod * dir(20, 70), centroid, 0.7));
+  set.views.push_back(ViewLookingAt("pa", cam, centroid - sod * dir(0, 0), centroid + Eigen::Vector3d(3, 0, 2), 0.1));
+  set.views.push_back(ViewLookingAt("lao35_cran15", cam, centroid - sod * dir(35, 15), centroid, -0.4));
+  set.views.push_back(ViewLookingAt("rao60", wide, centroid - sod * dir(-60, -5), centroid + Eigen::Vector3d(0, 4, -3), 2.0));
+  set.views.push_back(ViewLookingAt("axial", cam, centroid - sod * dir(20, 70), centroid, 0.7));
   tmp.Write("geometry.json", GeometryToJson(set).dump(2));
 
   auto exp = test::RunCarmba("export-geometry --result " + tmp.File("geometry.json") +

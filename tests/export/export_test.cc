@@ -43,28 +43,6 @@ Camera ThesisCamera() {
   return c;
 }
 
-// A view looking from `source` at `target` (CT mm), rolled by `roll_rad` about its axis.
-ViewGeometry LookAt(const std::string& id,
-                    const Camera& cam,
-                    const Eigen::Vector3d& source,
-                    const Eigen::Vector3d& target,
-                    double roll_rad) {
-  const Eigen::Vector3d z = (target - source).normalized();
-  Eigen::Vector3d hint = std::abs(z.z()) < 0.9 ? Eigen::Vector3d(0, 0, -1) : Eigen::Vector3d(0, 1, 0);
-  Eigen::Vector3d x = hint.cross(z).normalized();
-  Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x.transpose();
-  R.row(1) = y.transpose();
-  R.row(2) = z.transpose();
-  R = Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
-  ViewGeometry v;
-  v.id = id;
-  v.camera = cam;
-  v.cam_from_ct.head<3>() = Eigen::AngleAxisd(R).angle() * Eigen::AngleAxisd(R).axis();
-  v.cam_from_ct.tail<3>() = -R * source;
-  return v;
-}
 
 // Random C-arm-like views around an isocentre far from the CT origin.
 GeometrySet RandomViews(uint64_t seed, int n, const Camera& cam) {
@@ -76,7 +54,7 @@ GeometrySet RandomViews(uint64_t seed, int n, const Camera& cam) {
     const Eigen::Vector3d dir = Eigen::Vector3d(U(rng), U(rng), U(rng)).normalized();
     const Eigen::Vector3d src = iso + dir * (600 + 200 * std::abs(U(rng))) +
                                 Eigen::Vector3d(U(rng), U(rng), U(rng)) * 30;
-    set.views.push_back(LookAt("v" + std::to_string(k), cam, src, iso + 20 * Eigen::Vector3d(U(rng), U(rng), U(rng)), 3 * U(rng)));
+    set.views.push_back(ViewLookingAt("v" + std::to_string(k), cam, src, iso + 20 * Eigen::Vector3d(U(rng), U(rng), U(rng)), 3 * U(rng)));
   }
   set.reference_point_ct_mm = iso;
   return set;
@@ -374,7 +352,7 @@ TEST(ViewGeometry, IsocentreIsTheAxesIntersection) {
   // Views aimed exactly at one point: the least-squares intersection is that point.
   const Eigen::Vector3d iso(10, -120, -600);
   for (size_t k = 0; k < set.views.size(); ++k) {
-    set.views[k] = LookAt(set.views[k].id, set.views[k].camera, SourceInCt(set.views[k]), iso, 0.3 * k);
+    set.views[k] = ViewLookingAt(set.views[k].id, set.views[k].camera, SourceInCt(set.views[k]), iso, 0.3 * k);
   }
   set.reference_point_ct_mm.reset();
   auto c = GeometryIsocentre(set);
