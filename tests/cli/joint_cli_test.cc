@@ -199,6 +199,15 @@ TEST_F(JointBadInput, PerGroupIntrinsics) {
   }
   // The state layout names each group's parameters.
   EXPECT_EQ(j.at("state_layout")[0], "a fx");
+  // geometry.json: the object views, each with the intrinsics of its own group.
+  const nlohmann::json g = ReadJson(dir_.File("out/geometry.json"));
+  ASSERT_EQ(g.at("views").size(), 3u);
+  for (const auto& gv : g.at("views")) {
+    const int group = gv.at("id") == "+000" ? 0 : 1;
+    EXPECT_EQ(gv.at("camera").at("fx").get<double>(),
+              j.at("intrinsics")[group].at("fx").get<double>())
+        << gv.at("id");
+  }
   for (const auto& v : j.at("views")) {
     if (v.at("id") == "+030") {
       EXPECT_EQ(v.at("group"), "b");
