@@ -119,9 +119,9 @@ Status Assemble(const BaProblem& problem,
                               : layout.marker_block(marker_index.at(view.point_ids[i]));
       const Eigen::Vector2d& q = view.uv_px[i];
       ceres::CostFunction* cost =
-          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.sigma_px)
-                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px);
-      ceres::LossFunction* loss = MakeLoss(o, view.sigma_px);
+          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.SigmaPx(i))
+                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i));
+      ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
       as->built.push_back(
@@ -257,7 +257,9 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   };
   need(p.groups.size() == 1, "one intrinsics group");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
-  for (const auto& v : p.views) need(v.sigma_px == p.views[0].sigma_px, "one pixel sigma for all views");
+  for (const auto& v : p.views) {
+    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty(), "one pixel sigma for all views");
+  }
   need(!p.plate.free, "plate points held");
   need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
   need(o.loss == "trivial", "the trivial loss");
@@ -454,14 +456,15 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       if (bb.view < 0) continue;
       const BaView& view = problem.views[bb.view];
       const double n_sigma = r.norm();
-      view_ss[bb.view] += r.squaredNorm() * view.sigma_px * view.sigma_px;
+      const double sigma = view.SigmaPx(bb.obs);
+      view_ss[bb.view] += r.squaredNorm() * sigma * sigma;
       view_n[bb.view] += 1;
       BaOutlier out{view.id,
                     view.kind == ViewKind::kPlate,
                     view.point_ids[bb.obs],
                     n_sigma,
-                    r[0] * view.sigma_px,
-                    r[1] * view.sigma_px};
+                    r[0] * sigma,
+                    r[1] * sigma};
       if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
       if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
           n_sigma > worst_sigma) {
