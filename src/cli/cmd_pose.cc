@@ -117,9 +117,10 @@ int RunPose() {
     if (!s.ok()) break;
     std::optional<Pose6> pose;
     if (solved.count(v.name)) pose = solved.at(v.name);
-    std::string name = OverlayFileName(v.name);
+    const std::string first = OverlayFileName(v.name);
+    std::string name = first;
     for (int k = 2; !names.insert(name).second; ++k) {
-      name = OverlayFileName(v.name).substr(0, name.size() - 4) + "_" + std::to_string(k) + ".png";
+      name = first.substr(0, first.size() - 4) + "_" + std::to_string(k) + ".png";
     }
     const cv::Mat overlay = DrawMarkerOverlay(v, *camera, *markers, pose);
     if (!cv::imwrite(JoinPath(staged.path(), name), overlay)) {

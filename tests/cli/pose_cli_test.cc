@@ -97,6 +97,29 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
   EXPECT_NE(Slurp(out + "/report.md").find("Marker detection and labelling"), std::string::npos);
 }
 
+// A joint problem file naming object_views: {images, detection} instead of observations (a
+// pose-only problem: the intrinsics held at camera.json by the config).
+TEST_F(PoseCli, JointProblemWithObjectViewImages) {
+  dir_->Write("problem.yaml",
+              "name: pose_from_images\ncamera: camera.json\nfiducials: fiducials.csv\n"
+              "object_views:\n  images: sim/*.png\n  detection: {diameter_mm: 2, source_to_object_mm: 700}\n");
+  dir_->Write("fixed.yaml", "name: fixed_intrinsics\nfix: [fx, fy, cx, cy, k1, k2, p1, p2, k3]\n");
+  const std::string out = dir_->File("joint_out");
+  const auto r = RunCarmba("solve --problem " + dir_->File("problem.yaml") + " --config " + dir_->File("fixed.yaml") +
+                           " --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("0 plate views, 7 object views"), std::string::npos) << r.out;
+  // Images and observations together are an error naming the key.
+  dir_->Write("both.yaml",
+              "name: both\ncamera: camera.json\nfiducials: fiducials.csv\nobject_views:\n  images: sim/*.png\n"
+              "  observations: obs.csv\n  detection: {diameter_mm: 2}\n");
+  const auto b = RunCarmba("solve --problem " + dir_->File("both.yaml") + " --config " + dir_->File("fixed.yaml") +
+                           " --out " + dir_->File("both_out"));
+  EXPECT_NE(b.exit_code, 0);
+  EXPECT_NE(b.err.find("object_views.observations"), std::string::npos) << b.err;
+  EXPECT_FALSE(fs::exists(dir_->File("both_out")));
+}
+
 TEST_F(PoseCli, BadInputIsAOneLineErrorAndNoOutput) {
   struct Case {
     std::string args, expected;
