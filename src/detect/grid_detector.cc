@@ -58,12 +58,16 @@ bool DetectionOptions::Check(std::string* error) const {
   return true;
 }
 
-void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
-  m.GetEnum("polarity", {"dark", "bright", "auto"}, &o->polarity);
+void ReadFieldOfViewOptions(YamlMap& m, DetectionOptions* o) {
   m.Get("roi_px", &o->roi_px);
   m.Get("fov_circle_px", &o->fov_circle_px);
   m.Get("auto_fov_mask", &o->auto_fov_mask);
   m.GetNonNegative("fov_margin_px", &o->fov_margin_px);
+}
+
+void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
+  m.GetEnum("polarity", {"dark", "bright", "auto"}, &o->polarity);
+  ReadFieldOfViewOptions(m, o);
   m.GetPositive("min_blob_area_px", &o->min_blob_area_px);
   m.GetPositive("max_blob_area_px", &o->max_blob_area_px);
   m.Get("refine", &o->refine);

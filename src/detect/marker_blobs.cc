@@ -53,10 +53,7 @@ void ReadMarkerBlobOptions(YamlMap& m, MarkerBlobOptions* o) {
   m.GetPositive("max_elongation", &o->max_elongation);
   m.GetPositive("merge_area_ratio", &o->merge_area_ratio);
   m.GetPositive("merge_distance", &o->merge_distance);
-  m.Get("roi_px", &o->fov.roi_px);
-  m.Get("fov_circle_px", &o->fov.fov_circle_px);
-  m.Get("auto_fov_mask", &o->fov.auto_fov_mask);
-  m.GetNonNegative("fov_margin_px", &o->fov.fov_margin_px);
+  ReadFieldOfViewOptions(m, &o->fov);
 }
 
 namespace {

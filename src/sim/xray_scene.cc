@@ -502,6 +502,23 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   return out;
 }
 
+namespace {
+
+// The XA geometry tags of a view (xray_scene.h, output dcm): angles, SID, SOD, and the pixel
+// spacing SID / fy \ SID / fx that gives back fx, fy through sim/dicom_view.h.
+DicomXrayWriteOptions DicomOptionsOfView(const XrayScene& scene, const CarmGeometry& carm) {
+  DicomXrayWriteOptions o;
+  o.geometry.primary_angle_deg = carm.primary_angle_deg;
+  o.geometry.secondary_angle_deg = carm.secondary_angle_deg;
+  o.geometry.sid_mm = carm.sid_mm;
+  o.geometry.sod_mm = carm.sod_mm;
+  o.geometry.pixel_spacing_row_mm = carm.sid_mm / scene.camera.params[kFy];
+  o.geometry.pixel_spacing_col_mm = carm.sid_mm / scene.camera.params[kFx];
+  return o;
+}
+
+}  // namespace
+
 Status SimulateXrayScene(const XrayScene& scene,
                          const std::string& out_dir,
                          nlohmann::json* truth) {
@@ -551,14 +568,7 @@ Status SimulateXrayScene(const XrayScene& scene,
     }
     const std::string file = JoinPath(out_dir, view->truth["file"].get<std::string>());
     if (scene.format == "dcm") {
-      const CarmGeometry& carm = scene.views[i].carm;
-      DicomXrayWriteOptions o;
-      o.geometry.primary_angle_deg = carm.primary_angle_deg;
-      o.geometry.secondary_angle_deg = carm.secondary_angle_deg;
-      o.geometry.sid_mm = carm.sid_mm;
-      o.geometry.sod_mm = carm.sod_mm;
-      o.geometry.pixel_spacing_row_mm = carm.sid_mm / scene.camera.params[kFy];
-      o.geometry.pixel_spacing_col_mm = carm.sid_mm / scene.camera.params[kFx];
+      DicomXrayWriteOptions o = DicomOptionsOfView(scene, scene.views[i].carm);
       o.sop_instance_uid = o.series_uid + "." + std::to_string(i + 1);
       CARMBA_RETURN_IF_ERROR(WriteDicomXray(file, {view->image}, o));
     } else {
@@ -568,13 +578,7 @@ Status SimulateXrayScene(const XrayScene& scene,
   }
   if (scene.multiframe) {
     const CarmGeometry& first = scene.views[0].carm;
-    DicomXrayWriteOptions o;
-    o.geometry.primary_angle_deg = first.primary_angle_deg;
-    o.geometry.secondary_angle_deg = first.secondary_angle_deg;
-    o.geometry.sid_mm = first.sid_mm;
-    o.geometry.sod_mm = first.sod_mm;
-    o.geometry.pixel_spacing_row_mm = first.sid_mm / scene.camera.params[kFy];
-    o.geometry.pixel_spacing_col_mm = first.sid_mm / scene.camera.params[kFx];
+    DicomXrayWriteOptions o = DicomOptionsOfView(scene, first);
     for (const XrayView& v : scene.views) {
       if (v.carm.sid_mm != first.sid_mm || v.carm.sod_mm != first.sod_mm) {
         return Status::Error(scene.path + ": view '" + v.name +

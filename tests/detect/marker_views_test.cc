@@ -13,6 +13,7 @@
 #include <fstream>
 #include <iostream>
 #include <random>
+#include <sstream>
 
 #include "detect/marker_blobs.h"
 #include "detect/marker_views.h"
@@ -444,6 +445,44 @@ TEST(MarkerViews, MissingOrCorruptImageIsAnErrorNamingIt) {
     ASSERT_FALSE(views.ok()) << f;
     EXPECT_EQ(views.status().message().rfind(f, 0), 0u) << views.status().message();
     EXPECT_EQ(views.status().message().find('\n'), std::string::npos);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// The simulator's clutter / partial / multiframe keys: bad values are one-line errors naming the
+// key (one corruption at a time, from the shipped scene).
+TEST(MarkerScene, BadClutterKeysAreRejected) {
+  std::ifstream in(kScene);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string good = ss.str();
+  // The scene's relative marker CSV made absolute, so that the variants can live in a temp dir.
+  const std::string rel = "../../data/thesis/";
+  good.replace(good.find(rel), rel.size(), std::string(CARMBA_SOURCE_DIR) + "/data/thesis/");
+  struct Case {
+    std::string from, to, expected;
+  };
+  const std::vector<Case> cases = {
+      {"diameter_mm: 2.0, material: steel}\n    - {center_mm: [-5",
+       "diameter_mm: 2.0, material: unobtainium}\n    - {center_mm: [-5", "unknown material 'unobtainium'"},
+      {"to_mm: [15, -40, 60]", "to_mm: [-75, -35, -5]", "non-zero length"},
+      {"{center_mm: [-35, -8, 20], diameter_mm: 2.0", "{center_mm: [-35, -8], diameter_mm: 2.0", "center_mm"},
+      {"output: {format: png, bit_depth: 16}", "output: {format: png, bit_depth: 16, multiframe: true}",
+       "only with format: dcm"},
+      {"object_center_mm: [-40, 0, -46], partial: true}", "object_center_mm: [-40, 0, -46]}", "outside"},
+  };
+  const std::string dir = TempDir("scene");
+  for (const Case& c : cases) {
+    std::string text = good;
+    const size_t at = text.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    text.replace(at, c.from.size(), c.to);
+    const std::string path = JoinPath(dir, "bad.yaml");
+    { std::ofstream(path) << text; }
+    auto scene = sim::LoadXrayScene(path);
+    ASSERT_FALSE(scene.ok()) << c.to;
+    EXPECT_NE(scene.status().message().find(c.expected), std::string::npos) << scene.status().message();
+    EXPECT_EQ(scene.status().message().find('\n'), std::string::npos);
   }
   std::filesystem::remove_all(dir);
 }
