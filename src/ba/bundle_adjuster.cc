@@ -152,7 +152,7 @@ Status Assemble(const BaProblem& problem,
     const int pose_b = layout.view_block(static_cast<int>(v));
     const int intr_b = layout.group_block(view.group);
     if (view.kind == ViewKind::kPlate && !problem.plate.free && o.loss == "trivial" &&
-        o.analytic_jacobians) {
+        o.analytic_jacobians && view.obs_sigma_px.empty()) {
       // The held plate without a loss: the whole view in one block (ba/reprojection_error.h).
       std::vector<Eigen::Vector3d> p;
       std::vector<Eigen::Vector2d> uv;
@@ -179,9 +179,9 @@ Status Assemble(const BaProblem& problem,
                               : layout.marker_block(marker_index.at(view.point_ids[i]));
       const Eigen::Vector2d& q = view.uv_px[i];
       ceres::CostFunction* cost =
-          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.sigma_px)
-                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px);
-      ceres::LossFunction* loss = MakeLoss(o, view.sigma_px);
+          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.SigmaPx(i))
+                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i));
+      ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
       as->built.emplace_back(
@@ -334,7 +334,9 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   };
   need(p.groups.size() == 1, "one intrinsics group");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
-  for (const auto& v : p.views) need(v.sigma_px == p.views[0].sigma_px, "one pixel sigma for all views");
+  for (const auto& v : p.views) {
+    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty(), "one pixel sigma for all views");
+  }
   need(!p.plate.free, "plate points held");
   need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
   need(o.loss == "trivial", "the trivial loss");
@@ -534,14 +536,15 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       // One observation's whitened residual r2.
       auto observe = [&](int obs, const Eigen::Vector2d& r2) {
         const double n_sigma = r2.norm();
-        view_ss[bb.view] += r2.squaredNorm() * view.sigma_px * view.sigma_px;
+        const double sigma = view.SigmaPx(obs);
+        view_ss[bb.view] += r2.squaredNorm() * sigma * sigma;
         view_n[bb.view] += 1;
         BaOutlier out{view.id,
                       view.kind == ViewKind::kPlate,
                       view.point_ids[obs],
                       n_sigma,
-                      r2[0] * view.sigma_px,
-                      r2[1] * view.sigma_px};
+                      r2[0] * sigma,
+                      r2[1] * sigma};
         if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
         if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
             n_sigma > worst_sigma) {

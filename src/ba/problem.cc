@@ -83,6 +83,14 @@ Status BaProblem::Check() const {
     if (v.point_ids.size() != v.uv_px.size()) {
       return Status::Error("view '" + v.id + "': ids and pixels differ in number");
     }
+    if (!v.obs_sigma_px.empty() && v.obs_sigma_px.size() != v.uv_px.size()) {
+      return Status::Error("view '" + v.id + "': per-observation sigmas and pixels differ in number");
+    }
+    for (double s : v.obs_sigma_px) {
+      if (!(s > 0) || !std::isfinite(s)) {
+        return Status::Error("view '" + v.id + "': a per-observation sigma_px is not > 0");
+      }
+    }
     if (v.point_ids.size() < 4) {
       return Status::Error("view '" + v.id + "': " + std::to_string(v.point_ids.size()) +
                            " observation(s), at least 4 needed");

@@ -72,6 +72,11 @@ struct BaView {
   std::vector<int> point_ids;         // plate point ids (plate view) or marker ids (object view)
   std::vector<Eigen::Vector2d> uv_px;
   double sigma_px = 1.0;              // pixel noise, 1 sigma per coordinate
+  // Per-observation pixel noise (1 sigma per coordinate, isotropic), parallel to uv_px; empty =
+  // sigma_px for all. E.g. detected marker blobs with a covariance each (detect/marker_blobs.h:
+  // the square root of the larger eigenvalue of the blob's 2x2 covariance).
+  std::vector<double> obs_sigma_px;
+  double SigmaPx(size_t i) const { return obs_sigma_px.empty() ? sigma_px : obs_sigma_px[i]; }
 };
 
 struct BaMarker {

@@ -17,6 +17,11 @@
 //   object_views:
 //     observations: object/observations.csv  # long: view, marker, u_px, v_px
 //     sigma_px: 0.3
+//     # or images: DIR_OR_GLOB (PNG/TIFF/DICOM, multi-frame DICOM: a view per frame) with
+//     # detection: {diameter_mm: 2, ...} (detect/marker_views.h ReadObjectViewsOptions): marker
+//     # blobs detected and labelled with the fiducials through `camera` (required then); each
+//     # observation's sigma from its blob's covariance (sigma_px, if given, is not used); views
+//     # with fewer than 4 markers found are skipped (listed in skipped_object_views)
 //   fiducials: fiducials.csv          # as `carmba ct-fiducials` writes it: id, x_mm, y_mm, z_mm,
 //                                     # cov_xx..cov_zz (the CT prior); or a map
 //                                     # {file, id_column, columns, sigma_mm}
@@ -50,6 +55,7 @@ struct JointObjectView {
   std::string id;
   std::vector<int> marker_ids;
   std::vector<Eigen::Vector2d> uv_px;
+  std::vector<double> sigma_px;  // per observation (detected blobs); empty = object_sigma_px
 };
 
 struct JointTruth {
@@ -69,7 +75,8 @@ struct JointProblem {
   std::vector<std::string> skipped_images;  // plate images without a usable grid ("file: why")
   // Object views.
   std::vector<JointObjectView> object_views;
-  double object_sigma_px = 0;
+  double object_sigma_px = 0;  // from images: the median of the per-observation sigmas
+  std::vector<std::string> skipped_object_views;  // object images not labelled ("view: why")
   std::vector<Marker> fiducials;
   // Intrinsics.
   std::optional<Camera> camera;

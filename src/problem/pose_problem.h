@@ -92,6 +92,9 @@ struct Marker {
 struct Observation {
   int marker_id = 0;
   Eigen::Vector2d uv_px;
+  // This observation's pixel sigma (px, per coordinate); 0 = the problem's sigma_px. Set for
+  // detected marker blobs (detect/marker_views.h).
+  double sigma_px = 0;
 };
 
 struct PoseView {

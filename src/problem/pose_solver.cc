@@ -166,11 +166,14 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     view.id = problem.views[v].id;
     view.kind = ba::ViewKind::kObject;
     view.sigma_px = problem.sigma_px;
+    bool per_observation = false;
+    for (const auto& o : problem.views[v].observations) per_observation |= o.sigma_px > 0;
     for (const auto& o : problem.views[v].observations) {
       pts.push_back(markers.at(o.marker_id));
       uv.push_back(o.uv_px);
       view.point_ids.push_back(o.marker_id);
       view.uv_px.push_back(o.uv_px);
+      if (per_observation) view.obs_sigma_px.push_back(o.sigma_px > 0 ? o.sigma_px : problem.sigma_px);
     }
     auto init = InitialObjectPose(problem.camera, config.initializer, pts, uv);
     if (!init.ok()) {
