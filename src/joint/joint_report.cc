@@ -5,6 +5,7 @@
 
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
+#include "report/relative_tre_report.h"
 
 namespace carmba {
 namespace {
@@ -141,6 +142,8 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     val.push_back(pj);
   }
   j["validation"] = val;
+  j["relative_poses"] = RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) j["tre"] = TreJson(*s.tre);
   nlohmann::json markers = nlohmann::json::array();
   for (size_t m = 0; m < s.ba_problem.markers.size(); ++m) {
     const int b = L.marker_block(static_cast<int>(m));
@@ -285,6 +288,8 @@ std::string JointReportMarkdown(const JointProblem& problem,
     }
     o << "\n";
   }
+  o << RelativePosesMarkdown(s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) o << TreMarkdown(*s.tre);
   o << "\n## Error budget\n\nShare of each quantity's variance from each independent noise source "
        "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %). "
        "Rotations are small rotations about the camera axes (their value is 0 by definition); "
