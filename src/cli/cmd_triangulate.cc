@@ -222,8 +222,9 @@ int RunTriangulate() {
   nlohmann::json jpoints = nlohmann::json::array();
   std::ostringstream csv;
   csv << "# carmba triangulate --problem " << FLAGS_problem << " --config " << FLAGS_config
-      << "\n# positions in the CT frame (mm), covariance mm^2 (the solve's poses and "
-      << (intrinsics_free ? "intrinsics" : "poses (intrinsics held)") << " and the points' pixels)\n"
+      << "\n# positions in the CT frame (mm), covariance mm^2 (the solve's "
+      << (intrinsics_free ? "poses and intrinsics" : "poses (intrinsics held)")
+      << " and the points' pixels)\n"
       << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
   std::vector<std::string> warnings;
   for (const PointInput& p : *points) {
