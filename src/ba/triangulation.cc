@@ -6,16 +6,12 @@
 
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
+#include "util/report_format.h"
 
 namespace carmba {
 namespace ba {
 namespace {
 
-std::string Fmt(const char* f, double x) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, x);
-  return b;
-}
 
 // Adds M (rows x block size, ambient columns) into the free columns of block b of K.
 void AddToFree(const StateLayout& L, int b, const Eigen::MatrixXd& M, Eigen::MatrixXd* K) {

@@ -1,31 +1,12 @@
 #include "report/relative_tre_report.h"
 
 #include <cmath>
-#include <cstdio>
 #include <sstream>
+
+#include "util/report_format.h"
 
 namespace carmba {
 namespace {
-
-nlohmann::json Num(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); }
-
-nlohmann::json Vec(const Eigen::VectorXd& v) {
-  nlohmann::json j = nlohmann::json::array();
-  for (Eigen::Index i = 0; i < v.size(); ++i) j.push_back(Num(v[i]));
-  return j;
-}
-
-nlohmann::json Rows(const Eigen::MatrixXd& m) {
-  nlohmann::json j = nlohmann::json::array();
-  for (Eigen::Index r = 0; r < m.rows(); ++r) j.push_back(Vec(m.row(r).transpose()));
-  return j;
-}
-
-std::string Fmt(const char* f, double x) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, x);
-  return b;
-}
 
 const Pose6* Find(const std::map<std::string, Pose6>& truth, const std::string& id) {
   auto it = truth.find(id);
@@ -44,26 +25,26 @@ nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
     nlohmann::json j = {{"a", ia},
                         {"b", ib},
                         {"cam_b_from_cam_a",
-                         {{"rvec", Vec(e.cam_b_from_cam_a.head<3>())},
-                          {"t_mm", Vec(e.cam_b_from_cam_a.tail<3>())}}},
-                        {"covariance_6x6", Rows(e.covariance)},
+                         {{"rvec", JsonVec(e.cam_b_from_cam_a.head<3>())},
+                          {"t_mm", JsonVec(e.cam_b_from_cam_a.tail<3>())}}},
+                        {"covariance_6x6", JsonRows(e.covariance)},
                         {"covariance_order", "rx ry rz (rad, rotation vector), tx ty tz (mm)"},
-                        {"angle_deg", Num(e.angle_deg)},
-                        {"sigma_angle_deg", Num(e.sigma_angle_deg)},
-                        {"sigma_rotation_deg", Vec(e.sigma_rotation_deg)},
-                        {"sigma_translation_mm", Vec(e.sigma_translation_mm)},
-                        {"baseline_mm", Num(e.baseline_mm)}};
+                        {"angle_deg", JsonNum(e.angle_deg)},
+                        {"sigma_angle_deg", JsonNum(e.sigma_angle_deg)},
+                        {"sigma_rotation_deg", JsonVec(e.sigma_rotation_deg)},
+                        {"sigma_translation_mm", JsonVec(e.sigma_translation_mm)},
+                        {"baseline_mm", JsonNum(e.baseline_mm)}};
     const Pose6* ta = Find(truth, ia);
     const Pose6* tb = Find(truth, ib);
     if (ta && tb) {
       const ba::RelativePoseError err = ba::CompareRelativePose(e, *ta, *tb);
       Pose6 t;
       ba::RelativePose(ta->data(), tb->data(), t.data());
-      j["truth"] = {{"rvec", Vec(t.head<3>())}, {"t_mm", Vec(t.tail<3>())}};
-      j["rotation_error_deg"] = Num(err.rotation_error_deg);
-      j["rotation_error_sigma"] = Num(err.rotation_mahalanobis);
-      j["angle_error_sigma"] = Num(err.angle_error_sigma);
-      j["nees"] = Num(err.nees);
+      j["truth"] = {{"rvec", JsonVec(t.head<3>())}, {"t_mm", JsonVec(t.tail<3>())}};
+      j["rotation_error_deg"] = JsonNum(err.rotation_error_deg);
+      j["rotation_error_sigma"] = JsonNum(err.rotation_mahalanobis);
+      j["angle_error_sigma"] = JsonNum(err.angle_error_sigma);
+      j["nees"] = JsonNum(err.nees);
     }
     a.push_back(j);
   }
@@ -121,21 +102,21 @@ std::string RelativePosesMarkdown(const ba::BaProblem& problem,
 nlohmann::json TreJson(const ba::TreResult& t) {
   nlohmann::json markers = nlohmann::json::array();
   for (const auto& m : t.markers) {
-    nlohmann::json j = {{"id", m.marker_id}, {"p_ct_mm", Vec(m.p_ct)}};
+    nlohmann::json j = {{"id", m.marker_id}, {"p_ct_mm", JsonVec(m.p_ct)}};
     if (!m.skipped.empty()) {
       j["skipped"] = m.skipped;
     } else {
-      j["p_triangulated_mm"] = Vec(m.p_triangulated);
-      j["covariance_mm2"] = Rows(m.covariance);
+      j["p_triangulated_mm"] = JsonVec(m.p_triangulated);
+      j["covariance_mm2"] = JsonRows(m.covariance);
       j["num_views"] = m.num_views;
       j["views_left_out"] = m.num_views_left_out;
-      j["max_ray_angle_deg"] = Num(m.max_ray_angle_deg);
-      j["error_mm"] = Num(m.error_mm);
-      j["predicted_rms_mm"] = Num(m.predicted_rms_mm);
-      j["predicted_tre_mm"] = Num(m.predicted_tre_mm);
-      j["fitzpatrick_tre_mm"] = Num(m.fitzpatrick_tre_mm);
-      j["fitzpatrick_rms_mm"] = Num(m.fitzpatrick_rms_mm);
-      j["mahalanobis2"] = Num(m.mahalanobis2);
+      j["max_ray_angle_deg"] = JsonNum(m.max_ray_angle_deg);
+      j["error_mm"] = JsonNum(m.error_mm);
+      j["predicted_rms_mm"] = JsonNum(m.predicted_rms_mm);
+      j["predicted_tre_mm"] = JsonNum(m.predicted_tre_mm);
+      j["fitzpatrick_tre_mm"] = JsonNum(m.fitzpatrick_tre_mm);
+      j["fitzpatrick_rms_mm"] = JsonNum(m.fitzpatrick_rms_mm);
+      j["mahalanobis2"] = JsonNum(m.mahalanobis2);
     }
     markers.push_back(j);
   }
@@ -143,14 +124,14 @@ nlohmann::json TreJson(const ba::TreResult& t) {
            "leave-one-marker-out: marker k dropped from the solve, triangulated from its pixels, "
            "compared with its CT position (ba/tre.h)"},
           {"evaluated", t.num_evaluated},
-          {"rms_error_mm", Num(t.rms_error_mm)},
-          {"rms_predicted_mm", Num(t.rms_predicted_mm)},
-          {"rms_fitzpatrick_mm", Num(t.rms_fitzpatrick_mm)},
-          {"mean_mahalanobis2_per_dof", Num(t.mean_mahalanobis2_per_dof)},
-          {"fle_mm", Num(t.fle_mm)},
-          {"fle_ct_mm", Num(t.fle_ct_mm)},
-          {"fle_xray_mm", Num(t.fle_xray_mm)},
-          {"time_s", Num(t.time_s)},
+          {"rms_error_mm", JsonNum(t.rms_error_mm)},
+          {"rms_predicted_mm", JsonNum(t.rms_predicted_mm)},
+          {"rms_fitzpatrick_mm", JsonNum(t.rms_fitzpatrick_mm)},
+          {"mean_mahalanobis2_per_dof", JsonNum(t.mean_mahalanobis2_per_dof)},
+          {"fle_mm", JsonNum(t.fle_mm)},
+          {"fle_ct_mm", JsonNum(t.fle_ct_mm)},
+          {"fle_xray_mm", JsonNum(t.fle_xray_mm)},
+          {"time_s", JsonNum(t.time_s)},
           {"markers", markers}};
 }
 
