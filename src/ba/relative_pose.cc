@@ -1,6 +1,7 @@
 #include "ba/relative_pose.h"
 
 #include <cmath>
+#include <map>
 
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
@@ -29,14 +30,20 @@ Pose6 RelativePoseWithJacobian(const Pose6& pose_a,
 RelativePoseEstimate EstimateRelativePose(const BaResult& result, int view_a, int view_b) {
   const StateLayout& L = *result.layout;
   const int ba = L.view_block(view_a), bb = L.view_block(view_b);
-  const Pose6 pa = Eigen::Map<const Pose6>(result.block(ba));
-  const Pose6 pb = Eigen::Map<const Pose6>(result.block(bb));
-  RelativePoseEstimate e;
+  RelativePoseEstimate e = EstimateRelativePose(Eigen::Map<const Pose6>(result.block(ba)),
+                                                Eigen::Map<const Pose6>(result.block(bb)),
+                                                result.Covariance({ba, bb}));  // scaled
   e.view_a = view_a;
   e.view_b = view_b;
+  return e;
+}
+
+RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
+                                          const Pose6& pb,
+                                          const Eigen::Matrix<double, 12, 12>& C) {
+  RelativePoseEstimate e;
   Eigen::Matrix<double, 6, 12> J;
   e.cam_b_from_cam_a = RelativePoseWithJacobian(pa, pb, &J);
-  const Eigen::MatrixXd C = result.Covariance({ba, bb});  // 12 x 12, scaled
   e.covariance = J * C * J.transpose();
   e.covariance = 0.5 * (e.covariance + e.covariance.transpose()).eval();
   Eigen::Matrix<double, 12, 1> g;
@@ -53,6 +60,36 @@ RelativePoseEstimate EstimateRelativePose(const BaResult& result, int view_a, in
   e.sigma_translation_mm = e.covariance.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();
   e.baseline_mm = e.cam_b_from_cam_a.tail<3>().norm();
   return e;
+}
+
+std::vector<RelativePoseEstimate> EstimateRelativePoses(const BaResult& result,
+                                                        const std::vector<std::pair<int, int>>& pairs) {
+  std::map<int, int> slot;  // view -> position in the joint covariance
+  std::vector<int> blocks;
+  for (const auto& [a, b] : pairs) {
+    for (int v : {a, b}) {
+      if (slot.emplace(v, static_cast<int>(blocks.size())).second) {
+        blocks.push_back(result.layout->view_block(v));
+      }
+    }
+  }
+  std::vector<RelativePoseEstimate> out;
+  if (pairs.empty()) return out;
+  const Eigen::MatrixXd C = result.Covariance(blocks);  // scaled
+  for (const auto& [a, b] : pairs) {
+    Eigen::Matrix<double, 12, 12> Cab;
+    const int s[2] = {slot.at(a), slot.at(b)};
+    for (int i = 0; i < 2; ++i) {
+      for (int k = 0; k < 2; ++k) Cab.block<6, 6>(6 * i, 6 * k) = C.block<6, 6>(6 * s[i], 6 * s[k]);
+    }
+    RelativePoseEstimate e =
+        EstimateRelativePose(Eigen::Map<const Pose6>(result.block(result.layout->view_block(a))),
+                             Eigen::Map<const Pose6>(result.block(result.layout->view_block(b))), Cab);
+    e.view_a = a;
+    e.view_b = b;
+    out.push_back(e);
+  }
+  return out;
 }
 
 std::vector<std::pair<int, int>> RelativePosePairs(const BaProblem& problem,

@@ -66,6 +66,16 @@ struct RelativePoseEstimate {
 // The relative pose of object views `view_a`, `view_b` (problem indices) of a solved result with
 // a covariance (scaled by its covariance_scale).
 RelativePoseEstimate EstimateRelativePose(const BaResult& result, int view_a, int view_b);
+// The same from the two poses and their joint 12x12 covariance (a's block first), e.g. blocks of
+// a joint covariance of all poses computed once.
+RelativePoseEstimate EstimateRelativePose(const Pose6& pose_a,
+                                          const Pose6& pose_b,
+                                          const Eigen::Matrix<double, 12, 12>& covariance_ab);
+
+// The relative poses of `pairs` (problem view indices), with the covariance of all the views
+// involved computed once.
+std::vector<RelativePoseEstimate> EstimateRelativePoses(const BaResult& result,
+                                                        const std::vector<std::pair<int, int>>& pairs);
 
 // The pairs a report shows: every pair of object views when there are at most `max_all` of them,
 // else `validation` (view index pairs) alone.

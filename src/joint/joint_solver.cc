@@ -249,9 +249,7 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
   if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
   sol.result = std::move(*r);
   sol.budget = ba::ComputeErrorBudget(bp, sol.result, sol.pairs);
-  for (const auto& [a, b] : ba::RelativePosePairs(bp, sol.pairs)) {
-    sol.relative_poses.push_back(ba::EstimateRelativePose(sol.result, a, b));
-  }
+  sol.relative_poses = ba::EstimateRelativePoses(sol.result, ba::RelativePosePairs(bp, sol.pairs));
   if (config.tre) {
     auto tre = ba::LeaveOneMarkerOut(bp, sol.result, options);
     if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());

@@ -329,9 +329,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     for (const auto& pr : problem.validation) {
       validation_pairs.emplace_back(static_cast<int>(index.at(pr.a)), static_cast<int>(index.at(pr.b)));
     }
-    for (const auto& [a, b] : ba::RelativePosePairs(bp, validation_pairs)) {
-      sol.relative_poses.push_back(ba::EstimateRelativePose(r, a, b));
-    }
+    sol.relative_poses = ba::EstimateRelativePoses(r, ba::RelativePosePairs(bp, validation_pairs));
   }
   sol.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (config.tre) {
