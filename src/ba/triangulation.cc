@@ -4,23 +4,13 @@
 #include <cstdio>
 #include <set>
 
+#include "ba/quantities.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
 #include "util/report_format.h"
 
 namespace carmba {
 namespace ba {
-namespace {
-
-
-// Adds M (rows x block size, ambient columns) into the free columns of block b of K.
-void AddToFree(const StateLayout& L, int b, const Eigen::MatrixXd& M, Eigen::MatrixXd* K) {
-  const BlockInfo& bi = L.block(b);
-  if (bi.constant) return;
-  for (size_t i = 0; i < bi.free.size(); ++i) K->col(bi.free_offset + i) += M.col(bi.free[i]);
-}
-
-}  // namespace
 
 bool TriangulationOptions::Check(std::string* error) const {
   if (!(min_ray_angle_deg >= 0 && min_ray_angle_deg < 90)) {
@@ -164,8 +154,13 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
     const Eigen::Matrix<double, 3, 2> JW = J.transpose() * o.covariance_px2.inverse();
     const Eigen::MatrixXd Bi = Eigen::Map<Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>>(Ji);
     const Eigen::MatrixXd Bp = Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>>(Jpose);
-    AddToFree(L, gb, JW * Bi, &K);
-    AddToFree(L, vb, JW * Bp, &K);
+    // Rows of J_i^T W_i B_i over the free state (tied parameters through the block's basis).
+    const Eigen::Matrix<double, 3, kNumIntrinsics, Eigen::RowMajor> Ki = JW * Bi;
+    const Eigen::Matrix<double, 3, 6, Eigen::RowMajor> Kp = JW * Bp;
+    for (int row = 0; row < 3; ++row) {
+      AddGradientRow(L, gb, Ki.row(row).data(), row, &K);
+      AddGradientRow(L, vb, Kp.row(row).data(), row, &K);
+    }
     const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
     out.residual_px.push_back(r);
     ss += r.squaredNorm();
