@@ -45,6 +45,8 @@
 
 #include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
+#include "ba/relative_pose.h"
+#include "ba/tre.h"
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "problem/pose_problem.h"
@@ -109,6 +111,11 @@ struct JointSolution {
   std::vector<PoseSigmas> comparison;            // joint, two-step, two-step with prior
   std::string comparison_error;                  // why the comparison is missing (if it is)
   std::string initial_intrinsics_from;           // "camera.json", "Zhang + calibration" ...
+  // Relative poses of object views with 6x6 covariances (ba/relative_pose.h: every pair when
+  // there are at most 10 object views, else the validation pairs); the leave-one-marker-out TRE
+  // when the config has tre: true (ba/tre.h).
+  std::vector<ba::RelativePoseEstimate> relative_poses;
+  std::optional<ba::TreResult> tre;
 };
 
 StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config);

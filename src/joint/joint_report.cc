@@ -5,29 +5,11 @@
 
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
+#include "report/relative_tre_report.h"
+#include "util/report_format.h"
 
 namespace carmba {
 namespace {
-
-nlohmann::json Num(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); }
-
-nlohmann::json Vec(const Eigen::VectorXd& v) {
-  nlohmann::json j = nlohmann::json::array();
-  for (Eigen::Index i = 0; i < v.size(); ++i) j.push_back(Num(v[i]));
-  return j;
-}
-
-nlohmann::json Rows(const Eigen::MatrixXd& m) {
-  nlohmann::json j = nlohmann::json::array();
-  for (Eigen::Index r = 0; r < m.rows(); ++r) j.push_back(Vec(m.row(r).transpose()));
-  return j;
-}
-
-std::string Fmt(const char* f, double x) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, x);
-  return b;
-}
 
 // The group's intrinsics as camera.json writes them, with the joint covariance.
 nlohmann::json GroupJson(const JointSolution& s, int g) {
@@ -118,23 +100,23 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     vj["kind"] = bv.kind == ba::ViewKind::kPlate ? "plate" : "object";
     vj["group"] = s.ba_problem.groups[bv.group].name;
     vj[bv.kind == ba::ViewKind::kPlate ? "cam_from_plate" : "cam_from_object"] = {
-        {"rvec", Vec(pose.head<3>())}, {"t_mm", Vec(pose.tail<3>())}};
-    vj["rms_px"] = Num(r.views[v].rms_px);
+        {"rvec", JsonVec(pose.head<3>())}, {"t_mm", JsonVec(pose.tail<3>())}};
+    vj["rms_px"] = JsonNum(r.views[v].rms_px);
     vj["num_observations"] = r.views[v].num_observations;
     if (bv.kind == ba::ViewKind::kObject) {
-      vj["covariance_6x6"] = Rows(r.Covariance({b}));
+      vj["covariance_6x6"] = JsonRows(r.Covariance({b}));
       vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
       static const char* const kAxis[3] = {"x", "y", "z"};
       nlohmann::json sr = nlohmann::json::array(), st = nlohmann::json::array();
       for (int a = 0; a < 3; ++a) {
-        sr.push_back(Num(FindRow(s, "view " + bv.id + " rot " + kAxis[a])->sigma));
-        st.push_back(Num(FindRow(s, "view " + bv.id + " t" + kAxis[a])->sigma));
+        sr.push_back(JsonNum(FindRow(s, "view " + bv.id + " rot " + kAxis[a])->sigma));
+        st.push_back(JsonNum(FindRow(s, "view " + bv.id + " t" + kAxis[a])->sigma));
       }
       vj["sigma_rotation_deg"] = sr;
       vj["sigma_translation_mm"] = st;
       auto it = problem.truth.object_poses.find(bv.id);
       if (it != problem.truth.object_poses.end()) {
-        vj["truth"] = {{"rvec", Vec(it->second.head<3>())}, {"t_mm", Vec(it->second.tail<3>())}};
+        vj["truth"] = {{"rvec", JsonVec(it->second.head<3>())}, {"t_mm", JsonVec(it->second.tail<3>())}};
         vj["rotation_error_deg"] = AngleBetweenRotations(RotationFromRvec(pose.head<3>()),
                                                          RotationFromRvec(it->second.head<3>())) *
                                    kRadToDeg;
@@ -152,10 +134,10 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     const ba::BudgetRow* vd = FindRow(s, name + " view directions");
     nlohmann::json pj = {{"a", vp.a},
                          {"b", vp.b},
-                         {"relative_rotation_deg", Num(rr->quantity.value)},
-                         {"sigma_relative_rotation_deg", Num(rr->sigma)},
-                         {"angle_view_dirs_deg", Num(vd->quantity.value)},
-                         {"sigma_view_dirs_deg", Num(vd->sigma)},
+                         {"relative_rotation_deg", JsonNum(rr->quantity.value)},
+                         {"sigma_relative_rotation_deg", JsonNum(rr->sigma)},
+                         {"angle_view_dirs_deg", JsonNum(vd->quantity.value)},
+                         {"sigma_view_dirs_deg", JsonNum(vd->sigma)},
                          {"expected_deg", vp.expected_deg ? nlohmann::json(*vp.expected_deg)
                                                           : nlohmann::json()}};
     auto ta = problem.truth.object_poses.find(vp.a), tb = problem.truth.object_poses.find(vp.b);
@@ -165,27 +147,29 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     val.push_back(pj);
   }
   j["validation"] = val;
+  j["relative_poses"] = RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) j["tre"] = TreJson(*s.tre);
   nlohmann::json markers = nlohmann::json::array();
   for (size_t m = 0; m < s.ba_problem.markers.size(); ++m) {
     const int b = L.marker_block(static_cast<int>(m));
     markers.push_back({{"id", s.ba_problem.markers[m].id},
-                       {"p_in_object_mm", Vec(Eigen::Map<const Eigen::Vector3d>(r.block(b)))},
-                       {"covariance_mm2", Rows(r.Covariance({b}))}});
+                       {"p_in_object_mm", JsonVec(Eigen::Map<const Eigen::Vector3d>(r.block(b)))},
+                       {"covariance_mm2", JsonRows(r.Covariance({b}))}});
   }
   j["markers"] = markers;
   nlohmann::json outliers = nlohmann::json::array();
   for (const auto& o : r.outliers) {
     outliers.push_back({{"view", o.view},
                         {o.plate ? "point" : "marker", o.id},
-                        {"residual_sigma", Num(o.residual_sigma)},
-                        {"du_px", Num(o.du_px)},
-                        {"dv_px", Num(o.dv_px)}});
+                        {"residual_sigma", JsonNum(o.residual_sigma)},
+                        {"du_px", JsonNum(o.du_px)},
+                        {"dv_px", JsonNum(o.dv_px)}});
   }
   j["outliers"] = outliers;
   nlohmann::json rejected = nlohmann::json::array();
   for (const auto& o : r.rejected) {
     rejected.push_back({{"view", o.view}, {o.plate ? "point" : "marker", o.id},
-                        {"residual_sigma", Num(o.residual_sigma)}});
+                        {"residual_sigma", JsonNum(o.residual_sigma)}});
   }
   j["rejected"] = rejected;
   nlohmann::json layout = nlohmann::json::array();
@@ -196,13 +180,13 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     nlohmann::json src = nlohmann::json::array();
     for (int k = 0; k < ba::kNumSources; ++k) {
       src.push_back({{"source", ba::SourceName(static_cast<ba::Source>(k))},
-                     {"sigma", Num(row.source_sigma[k])},
-                     {"share", Num(row.share[k])}});
+                     {"sigma", JsonNum(row.source_sigma[k])},
+                     {"share", JsonNum(row.share[k])}});
     }
     budget.push_back({{"quantity", row.quantity.name},
                       {"unit", row.quantity.unit},
-                      {"value", Num(row.quantity.value)},
-                      {"sigma", Num(row.sigma)},
+                      {"value", JsonNum(row.quantity.value)},
+                      {"sigma", JsonNum(row.sigma)},
                       {"sources", src}});
   }
   j["error_budget"] = budget;
@@ -212,8 +196,8 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     cj["method"] = c.method;
     nlohmann::json pv = nlohmann::json::array();
     for (size_t k = 0; k < c.sigma_rotation_deg.size(); ++k) {
-      pv.push_back({{"sigma_rotation_deg", Vec(c.sigma_rotation_deg[k])},
-                    {"sigma_translation_mm", Vec(c.sigma_translation_mm[k])}});
+      pv.push_back({{"sigma_rotation_deg", JsonVec(c.sigma_rotation_deg[k])},
+                    {"sigma_translation_mm", JsonVec(c.sigma_translation_mm[k])}});
     }
     cj["object_views"] = pv;
     cj["sigma_relative_rotation_deg"] = c.sigma_relative_rotation_deg;
@@ -222,12 +206,12 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
   }
   j["two_step_comparison"] = cmp;
   if (!s.comparison_error.empty()) j["two_step_comparison_error"] = s.comparison_error;
-  j["statistics"] = {{"rms_plate_px", Num(r.rms_plate_px)},
-                     {"rms_object_px", Num(r.rms_object_px)},
-                     {"sigma0", Num(r.sigma0)},
-                     {"chi2", Num(r.chi2)},
+  j["statistics"] = {{"rms_plate_px", JsonNum(r.rms_plate_px)},
+                     {"rms_object_px", JsonNum(r.rms_object_px)},
+                     {"sigma0", JsonNum(r.sigma0)},
+                     {"chi2", JsonNum(r.chi2)},
                      {"dof", r.dof},
-                     {"chi2_p_value", Num(r.chi2_p_value)},
+                     {"chi2_p_value", JsonNum(r.chi2_p_value)},
                      {"num_residuals", r.num_residuals},
                      {"num_parameters", r.num_free},
                      {"covariance_scale", config.covariance_aposteriori ? "aposteriori" : "apriori"}};
@@ -236,9 +220,9 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                  {"iterations", r.iterations},
                  {"termination", r.termination},
                  {"converged", r.converged},
-                 {"initial_cost", Num(r.initial_cost)},
-                 {"final_cost", Num(r.final_cost)},
-                 {"time_s", Num(r.time_s)}};
+                 {"initial_cost", JsonNum(r.initial_cost)},
+                 {"final_cost", JsonNum(r.final_cost)},
+                 {"time_s", JsonNum(r.time_s)}};
   return j;
 }
 
@@ -309,6 +293,8 @@ std::string JointReportMarkdown(const JointProblem& problem,
     }
     o << "\n";
   }
+  o << RelativePosesMarkdown(s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) o << TreMarkdown(*s.tre);
   o << "\n## Error budget\n\nShare of each quantity's variance from each independent noise source "
        "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %). "
        "Rotations are small rotations about the camera axes (their value is 0 by definition); "

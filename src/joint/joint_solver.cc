@@ -250,6 +250,12 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
   if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
   sol.result = std::move(*r);
   sol.budget = ba::ComputeErrorBudget(bp, sol.result, sol.pairs);
+  sol.relative_poses = ba::EstimateRelativePoses(sol.result, ba::RelativePosePairs(bp, sol.pairs));
+  if (config.tre) {
+    auto tre = ba::LeaveOneMarkerOut(bp, sol.result, options);
+    if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
+    sol.tre = *tre;
+  }
 
   // Two-step comparison: needs both kinds of view.
   if (problem.object_views.empty() || problem.plate.views.empty()) {

@@ -3,6 +3,7 @@
 
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
+#include "report/relative_tre_report.h"
 
 namespace carmba {
 namespace {
@@ -97,6 +98,8 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
                  {"final_cost", Num(s.final_cost)},
                  {"time_s", s.time_s}};
   if (s.has_covariance) j["joint_covariance"] = MatRows(s.joint_covariance);
+  if (s.ba_problem) j["relative_poses"] = RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth_poses);
+  if (s.tre) j["tre"] = TreJson(*s.tre);
   return j;
 }
 

@@ -324,7 +324,26 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
         sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");
     sol.validation.push_back(ps);
   }
+  // Relative poses (every pair of few views, else the validation pairs) and, when asked, the
+  // leave-one-marker-out TRE: both from the engine's covariance.
+  const bool engine_covariance = config.refine && config.covariance_algorithm == "schur" && r.covariance;
+  if (engine_covariance) {
+    std::vector<std::pair<int, int>> validation_pairs;
+    for (const auto& pr : problem.validation) {
+      validation_pairs.emplace_back(static_cast<int>(index.at(pr.a)), static_cast<int>(index.at(pr.b)));
+    }
+    sol.relative_poses = ba::EstimateRelativePoses(r, ba::RelativePosePairs(bp, validation_pairs));
+  }
   sol.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (config.tre) {
+    if (!engine_covariance) {
+      return Status::Error(config.path + ": tre: true needs the refined solve with the engine's "
+                                         "covariance (refine: true, covariance: {algorithm: schur})");
+    }
+    auto tre = ba::LeaveOneMarkerOut(bp, r, options);
+    if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
+    sol.tre = *tre;
+  }
   return sol;
 }
 

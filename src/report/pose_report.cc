@@ -6,6 +6,7 @@
 
 #include "geometry/rotation.h"
 #include "pose/posit.h"
+#include "report/relative_tre_report.h"
 
 namespace carmba {
 namespace {
@@ -251,6 +252,12 @@ std::string PoseReportMarkdown(const PoseProblem& problem,
   o << "- Covariance: " << config.covariance_algorithm << ", "
     << (config.covariance_aposteriori ? "scaled by s0^2 (a-posteriori)" : "a-priori sigmas")
     << "\n";
+  if (s.ba_problem) {
+    o << RelativePosesMarkdown(*s.ba_problem, s.relative_poses, problem.truth_poses);
+    o << "\nThe camera's intrinsics are held (a pose problem): the relative poses' covariances "
+         "leave the calibration's uncertainty out.\n";
+  }
+  if (s.tre) o << TreMarkdown(*s.tre);
   return o.str();
 }
 
