@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "ba/schur_lm.h"
@@ -796,6 +797,32 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& obs,
   ProjectionSigma ps = UncertaintyFromBlocks(obs, result, blocks, u_px, v_px, distance_mm, &ok);
   if (!ok) return Status::Error("pixel cannot be unprojected with the calibrated distortion");
   return ps;
+}
+
+StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
+    const ObservationSet& obs,
+    const CalibrationResult& result,
+    const std::vector<Eigen::Vector2d>& pixels,
+    double distance_mm) {
+  NormalBlocks blocks;
+  const double sigma_solve = result.sigma_estimated ? 1.0 : result.sigma_px;
+  std::vector<std::vector<Eigen::Vector3d>> plate(obs.views.size());
+  for (size_t v = 0; v < obs.views.size(); ++v) {
+    for (int id : obs.views[v].point_ids) plate[v].push_back(obs.grid.PointInPlate(id));
+  }
+  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(plate, obs, result, sigma_solve, &blocks));
+  std::vector<ProjectionSigma> out;
+  for (const auto& q : pixels) {
+    bool ok = false;
+    ProjectionSigma ps = UncertaintyFromBlocks(obs, result, blocks, q.x(), q.y(), distance_mm, &ok);
+    if (!ok) {
+      ps.u_px = q.x();
+      ps.v_px = q.y();
+      ps.sigma_u_px = ps.sigma_v_px = ps.worst_px = std::numeric_limits<double>::quiet_NaN();
+    }
+    out.push_back(ps);
+  }
+  return out;
 }
 
 }  // namespace carmba
