@@ -267,10 +267,11 @@ def error_budget(d, out, notes):
             continue
         ax.barh(y, share, left=left, color=PALETTE[k % len(PALETTE)], label=src, height=0.75)
         left += share
-    labels = ["%s (sigma %.3g %s)" % (r["quantity"], r["sigma"], r["unit"]) for r in rows]
+    labels = ["%s (sigma %.3g%s)" % (r["quantity"], r["sigma"], " " + r["unit"] if r["unit"] else "")
+              for r in rows]
     ax.set_yticks(y)
     ax.set_yticklabels(labels, fontsize=7 if n > 25 else 8)
-    ax.invert_yaxis()
+    ax.set_ylim(n - 0.5, -0.5)  # first row on top, no empty margin
     ax.set_xlim(0, 100)
     ax.set_xlabel("share of the variance (%)")
     ax.set_title("Error budget: where each quantity's uncertainty comes from", pad=24)
@@ -430,6 +431,11 @@ def study_plots(d, out, notes):
                 if not any_line:
                     plt.close(fig)
                     continue
+                if values[0] > 0 and values[-1] / values[0] >= 10:
+                    ax.set_xscale("log")
+                    ax.set_xticks(values)
+                    ax.set_xticklabels(["%g" % v for v in values])
+                    ax.minorticks_off()
                 ax.set_xlabel(var)
                 ax.set_ylabel(e)
                 ax.set_ylim(bottom=0)
@@ -492,16 +498,18 @@ def study_plots(d, out, notes):
                          if len(r) > len(inside) else "")))
     if not drawn:
         notes.append("No run reported residuals: no residual histogram.")
-    # Error budget: per problem and quantity, a bar per config, its height the total predicted
-    # sigma, split by each source's share of the variance.
+    # Error budget: per problem and quantity, a bar per config x sweep point (the group), its
+    # height the total predicted sigma (mean variance over the trials), split by each source's
+    # share of the variance.
     drawn = 0
     for problem in problems:
-        acc = {}  # (config, quantity) -> {source: [sum of sigma^2, count]}
-        quantities, sources = [], []
-        for g in groups:
-            if g["problem"] != problem:
-                continue
-            for entry, s in g.get("budget", []):
+        sel = [g for g in groups if g["problem"] == problem and g.get("budget")]
+        if not sel:
+            continue
+        quantities, sources, var = [], [], []
+        for g in sel:
+            v = {}
+            for entry, sig in g["budget"]:
                 q, _, src = entry.rpartition(".")
                 if not q:
                     q, src = src, "total"
@@ -509,37 +517,46 @@ def study_plots(d, out, notes):
                     quantities.append(q)
                 if src not in sources:
                     sources.append(src)
-                a = acc.setdefault((g["config"], q), {}).setdefault(src, [0.0, 0])
-                a[0] += s * s
-                a[1] += 1
-        if not quantities:
-            continue
-        fig, axes = plt.subplots(1, len(quantities), figsize=(max(5.0, 2.6 * len(quantities) + 1.5),
-                                                               3.6), squeeze=False)
+                v[(q, src)] = sig * sig
+            var.append(v)
+        one_config = len({g["config"] for g in sel}) == 1
+        labels = []
+        sweep_names = {k for g in sel for k in g["sweep"]}
+        single = len(sweep_names) == 1 and one_config
+        for g in sel:
+            sw = ", ".join(("%g" % v) if single else ("%s %g" % (k, v))
+                           for k, v in g["sweep"].items())
+            labels.append(sw if one_config and sw else (g["config"] + ("\n" + sw if sw else "")))
+        x = np.arange(len(sel))
+        width = max(5.0, min(16.0, 0.45 * len(sel) * len(quantities) + 1.5))
+        fig, axes = plt.subplots(1, len(quantities), figsize=(width, 3.8), squeeze=False)
         for ax, q in zip(axes[0], quantities):
-            x = np.arange(len(configs))
-            bottom = np.zeros(len(configs))
-            var = {c: {s: a[0] / a[1] for s, a in acc.get((c, q), {}).items()} for c in configs}
-            total = np.array([math.sqrt(sum(var[c].values())) for c in configs])
+            bottom = np.zeros(len(sel))
             for k, src in enumerate(sources):
-                part = np.array([var[c].get(src, 0) / (total[i] ** 2) * total[i] if total[i] > 0
-                                 else 0 for i, c in enumerate(configs)])
-                ax.bar(x, part, bottom=bottom, color=PALETTE[k % len(PALETTE)],
-                       label=src if ax is axes[0][0] else None, width=0.6)
-                bottom += part
+                part = np.array([math.sqrt(max(v.get((q, src), 0.0), 0.0)) for v in var])
+                total = np.array([math.sqrt(sum(val for (qq, _), val in v.items() if qq == q))
+                                  for v in var])
+                # Each segment's height: the source's share of the variance times the total.
+                seg = np.where(total > 0, part ** 2 / np.where(total > 0, total, 1), 0.0)
+                ax.bar(x, seg, bottom=bottom, color=PALETTE[k % len(PALETTE)],
+                       label=src if ax is axes[0][0] else None, width=0.7)
+                bottom += seg
             ax.set_xticks(x)
-            ax.set_xticklabels(configs, rotation=30 if len(configs) > 3 else 0)
+            ax.set_xticklabels(labels, rotation=0 if single or len(sel) <= 4 else 90, fontsize=7)
+            if single:
+                ax.set_xlabel(next(iter(sweep_names)))
             ax.set_title(q, fontsize=9)
             ax.set_ylabel("predicted 1-sigma")
-        fig.legend(loc="lower center", ncol=min(4, len(sources)), bbox_to_anchor=(0.5, -0.06),
-                   frameon=False)
-        fig.suptitle("%s: predicted error budget" % problem)
+        fig.suptitle("%s: predicted error budget per %s" %
+                     (problem, "sweep point" if one_config else "config and sweep point"))
         fig.tight_layout()
+        fig.legend(loc="upper center", ncol=min(5, len(sources)), bbox_to_anchor=(0.5, 0.0),
+                   frameon=False)
         drawn += 1
         out.append(("error-budget-%d" % drawn, "Error budget " + problem, png(fig),
-                    "Bar height: a quantity's predicted 1-sigma uncertainty (mean variance over "
-                    "trials and sweep points); the colours split it by each noise source's share "
-                    "of the variance."))
+                    "Bar height: a quantity's predicted 1-sigma uncertainty (the runs' budget, "
+                    "mean over the trials); the colours split it by each noise source's share of "
+                    "the variance."))
 
 
 # ------------------------------------------------------------------------------------------------
