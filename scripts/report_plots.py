@@ -1,11 +1,12 @@
 #!/usr/bin/python3
 # The plots of carmba's HTML reports (report.html of `carmba calibrate`, `carmba solve` and
-# `carmba study`), drawn with matplotlib (Agg backend, no display needed).
+# `carmba study`, <stem>.html of `carmba ct-fiducials`), drawn with matplotlib (Agg backend, no
+# display needed).
 #
 #   /usr/bin/python3 scripts/report_plots.py IN.json OUT.json
 #
 # IN.json is written by the command (src/report/plots.h) and holds the data, never a file name:
-#   kind                     "calibration" | "pose" | "joint" | "study"
+#   kind                     "calibration" | "pose" | "joint" | "study" | "ct_fiducials"
 #   image_size               [width, height] px
 #   residual_views           [{id, kind, rms_px, u[], v[], du[], dv[]}]   du = projected - observed
 #   cameras                  [{name, intrinsics[9]}]  (fx fy cx cy k1 k2 p1 p2 k3, px)
@@ -569,6 +570,7 @@ PLOTS = {
     "joint": [residuals_per_view, residual_field, distortion_field, projection_uncertainty,
               error_budget, scenes_3d, markers_3d],
     "study": [study_plots],
+    "ct_fiducials": [markers_3d],
 }
 
 

@@ -24,6 +24,9 @@ void ReportDoc::Table(const std::vector<std::string>& header,
                       const std::vector<std::vector<std::string>>& rows) {
   blocks_.push_back({Kind::kTable, 0, "", header, rows});
 }
+void ReportDoc::Code(const std::string& text) {
+  blocks_.push_back({Kind::kCode, 0, text, {}, {}});
+}
 void ReportDoc::Figures(const std::vector<std::string>& id_prefixes) {
   blocks_.push_back({Kind::kFigures, 0, "", id_prefixes, {}});
 }
@@ -64,6 +67,9 @@ std::string ReportDoc::Markdown() const {
         }
         break;
       }
+      case Kind::kCode:
+        o << "```\n" << b.text << "```\n";
+        break;
       case Kind::kFigures:
         break;
     }
@@ -118,7 +124,7 @@ std::string ReportDoc::Html(const std::string& title,
        "table{border-collapse:collapse;margin:0.5em 0;font-size:0.9em}\n"
        "th,td{border:1px solid #ccc;padding:2px 8px;text-align:left;vertical-align:top}\n"
        "th{background:#f0f0f0}tr:nth-child(even) td{background:#fafafa}\n"
-       "code{background:#f3f3f3;padding:0 3px;font-size:0.95em}\n"
+       "code{background:#f3f3f3;padding:0 3px;font-size:0.95em}pre{background:#f3f3f3;padding:0.5em}\n"
        ".warning{border-left:4px solid #d62728;background:#fff3f3;padding:0.4em 0.8em}\n"
        ".note{border-left:4px solid #ff7f0e;background:#fff8ef;padding:0.4em 0.8em}\n"
        "figure.plot{display:inline-block;margin:0.5em;vertical-align:top;max-width:100%}\n"
@@ -156,6 +162,9 @@ std::string ReportDoc::Html(const std::string& title,
           o << "</tr>\n";
         }
         o << "</table>\n";
+        break;
+      case Kind::kCode:
+        o << "<pre>" << HtmlEscape(b.text) << "</pre>\n";
         break;
       case Kind::kFigures:
         for (size_t k = 0; k < plots.size(); ++k) {

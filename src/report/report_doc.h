@@ -37,6 +37,8 @@ class ReportDoc {
   // A table; `header` may hold empty strings. Each row has header.size() cells.
   void Table(const std::vector<std::string>& header,
              const std::vector<std::vector<std::string>>& rows);
+  // A preformatted block (``` in markdown, <pre> in HTML); `text` ends with a newline.
+  void Code(const std::string& text);
   // Where the plots whose id starts with one of `id_prefixes` go (HTML only).
   void Figures(const std::vector<std::string>& id_prefixes);
   void Append(const ReportDoc& other);
@@ -48,7 +50,7 @@ class ReportDoc {
                    const std::string& plots_note) const;
 
  private:
-  enum class Kind { kHeading, kParagraph, kList, kWarning, kTable, kFigures };
+  enum class Kind { kHeading, kParagraph, kList, kWarning, kTable, kFigures, kCode };
   struct Block {
     Kind kind;
     int level = 0;
