@@ -1,5 +1,6 @@
 #include "report/report_doc.h"
 
+#include <algorithm>
 #include <set>
 #include <sstream>
 
@@ -153,9 +154,15 @@ std::string ReportDoc::Html(const std::string& title,
           << "</p>\n";
         break;
       case Kind::kTable:
-        o << "<table>\n<tr>";
-        for (const auto& h : b.items) o << "<th>" << InlineMarkdownToHtml(h) << "</th>";
-        o << "</tr>\n";
+        o << "<table>\n";
+        // A header of empty cells (a key-value table) is markdown's necessity, not content.
+        if (std::any_of(b.items.begin(), b.items.end(), [](const std::string& h) {
+              return !h.empty();
+            })) {
+          o << "<tr>";
+          for (const auto& h : b.items) o << "<th>" << InlineMarkdownToHtml(h) << "</th>";
+          o << "</tr>\n";
+        }
         for (const auto& r : b.rows) {
           o << "<tr>";
           for (const auto& c : r) o << "<td>" << InlineMarkdownToHtml(c) << "</td>";
