@@ -66,6 +66,14 @@ def distort(intr, x, y):
     return xd, yd
 
 
+def distortion_displacement(intr, U, V):
+    """Where distortion moves the point that the pinhole model puts at pixel (U, V), px."""
+    fx, fy, cx, cy = intr[:4]
+    x, y = (U - cx) / fx, (V - cy) / fy
+    xd, yd = distort(intr, x, y)
+    return fx * (xd - x), fy * (yd - y)
+
+
 def image_axes(ax, size, title):
     w, h = size
     ax.set_xlim(-0.5, w - 0.5)
@@ -171,20 +179,14 @@ def distortion_field(d, out, notes):
                          % cam["name"])
             continue
         w, h = size
-        fx, fy, cx, cy = intr[:4]
+        cx, cy = intr[2:4]
         U, V = np.meshgrid(np.linspace(0, w - 1, 17), np.linspace(0, h - 1, 13))
-        x = (U - cx) / fx
-        y = (V - cy) / fy
-        xd, yd = distort(intr, x, y)
-        du = fx * (xd - x)
-        dv = fy * (yd - y)
+        du, dv = distortion_displacement(intr, U, V)
         norm = np.hypot(du, dv)
         fig, ax = plt.subplots(figsize=(6.6, 5.0))
         Uf, Vf = np.meshgrid(np.linspace(0, w - 1, 120), np.linspace(0, h - 1, 90))
-        xf, yf = (Uf - cx) / fx, (Vf - cy) / fy
-        xdf, ydf = distort(intr, xf, yf)
-        nf = np.hypot(fx * (xdf - xf), fy * (ydf - yf))
-        cs = ax.contourf(Uf, Vf, nf, levels=12, cmap="Blues")
+        cs = ax.contourf(Uf, Vf, np.hypot(*distortion_displacement(intr, Uf, Vf)), levels=12,
+                         cmap="Blues")
         cb = fig.colorbar(cs, ax=ax, shrink=0.85)
         cb.set_label("distortion displacement (px)")
         top = float(np.max(norm))

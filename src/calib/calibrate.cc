@@ -786,17 +786,12 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& obs,
                                                 double u_px,
                                                 double v_px,
                                                 double distance_mm) {
-  NormalBlocks blocks;
-  const double sigma_solve = result.sigma_estimated ? 1.0 : result.sigma_px;
-  std::vector<std::vector<Eigen::Vector3d>> plate(obs.views.size());
-  for (size_t v = 0; v < obs.views.size(); ++v) {
-    for (int id : obs.views[v].point_ids) plate[v].push_back(obs.grid.PointInPlate(id));
+  auto all = ProjectionUncertainties(obs, result, {Eigen::Vector2d(u_px, v_px)}, distance_mm);
+  if (!all.ok()) return all.status();
+  if (!std::isfinite(all->front().worst_px)) {
+    return Status::Error("pixel cannot be unprojected with the calibrated distortion");
   }
-  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(plate, obs, result, sigma_solve, &blocks));
-  bool ok = false;
-  ProjectionSigma ps = UncertaintyFromBlocks(obs, result, blocks, u_px, v_px, distance_mm, &ok);
-  if (!ok) return Status::Error("pixel cannot be unprojected with the calibrated distortion");
-  return ps;
+  return all->front();
 }
 
 StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
