@@ -30,7 +30,9 @@ fi
 if [[ "${CARMBA_WITH_FUZZ:-0}" == 1 ]]; then
   PKGS+=(clang libclang-rt-14-dev)
 fi
-if [[ "${CARMBA_WITH_BROWSER:-0}" == 1 ]]; then
+# Headless Chromium for the tests that render every report.html in a browser
+# (tests/cli/report_browser.h); they skip without it. CARMBA_WITH_BROWSER=0 leaves it out.
+if [[ "${CARMBA_WITH_BROWSER:-1}" == 1 ]]; then
   PKGS+=(chromium)
 fi
 

@@ -7,7 +7,7 @@
 #include "ba/quantities.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
-#include "util/report_format.h"
+#include "report/format.h"
 
 namespace carmba {
 namespace ba {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <set>
 
@@ -633,6 +634,30 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& obs,
     return Status::Error("pixel cannot be unprojected with the calibrated distortion");
   }
   return ps;
+}
+
+StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
+    const ObservationSet& obs,
+    const CalibrationResult& result,
+    const std::vector<Eigen::Vector2d>& pixels,
+    double distance_mm) {
+  if (!result.engine || !result.engine->covariance) {
+    return Status::Error("projection uncertainty: the calibration has no covariance");
+  }
+  if (result.engine->views.size() != obs.views.size()) {
+    return Status::Error("projection uncertainty: the observations are not the calibration's");
+  }
+  std::vector<ProjectionSigma> out;
+  for (const auto& q : pixels) {
+    ProjectionSigma ps;
+    if (!ProjectionSigmaAt(result, q.x(), q.y(), distance_mm, &ps)) {
+      ps.u_px = q.x();
+      ps.v_px = q.y();
+      ps.sigma_u_px = ps.sigma_v_px = ps.worst_px = std::numeric_limits<double>::quiet_NaN();
+    }
+    out.push_back(ps);
+  }
+  return out;
 }
 
 }  // namespace carmba

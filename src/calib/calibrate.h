@@ -170,4 +170,12 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& observatio
                                                 double v_px,
                                                 double distance_mm);
 
+// The same for many pixels at once (the normal blocks built once); a pixel that cannot be
+// unprojected gets NaN sigmas.
+StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
+    const ObservationSet& observations,
+    const CalibrationResult& result,
+    const std::vector<Eigen::Vector2d>& pixels,
+    double distance_mm);
+
 }  // namespace carmba

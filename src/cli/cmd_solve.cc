@@ -1,6 +1,7 @@
-// `carmba solve`: solve a pose problem with a solver configuration; writes result.json,
-// report.md and geometry.json (per view the projection matrix CT mm -> undistorted px,
-// export/view_geometry.h) into --out (created if needed). On any error nothing is written.
+// `carmba solve`: solve a pose problem with a solver configuration; writes result.json, report.md,
+// report.html (with plots, report/plots.h) and geometry.json (per view the projection matrix CT mm
+// -> undistorted px, export/view_geometry.h) into --out (created if needed). On any error nothing
+// is written.
 #include <gflags/gflags.h>
 
 #include <unistd.h>
@@ -12,6 +13,7 @@
 #include "cli/common_flags.h"
 #include "joint/joint_problem.h"
 #include "problem/pose_problem.h"
+#include "report/plots.h"
 #include "report/pose_report.h"
 #include "export/view_geometry.h"
 #include "util/file_util.h"
@@ -64,16 +66,20 @@ int RunJoint() {
   } else {
     j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
   }
-  const std::string report = JointReportMarkdown(*problem, *config, *solution) +
-                             JointMrcalMarkdown(j["mrcal_crosscheck"]);
-  // Both files or neither; other files in an existing --out are kept.
+  ReportDoc doc = JointReportDoc(*problem, *config, *solution);
+  doc.Append(JointMrcalDoc(j["mrcal_crosscheck"]));
+  const ReportFiles report =
+      RenderReport(doc, "carmba joint report: " + problem->name, JointPlotData(*solution));
+  // All files or none; other files in an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
   if (s.ok()) s = WriteGeometry(staged.path(), JointSolutionGeometry(*problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
+  if (!report.warning.empty()) std::cerr << "carmba solve: warning: " << report.warning << std::endl;
   if (!solution->result.converged) {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
               << solution->result.termination << "): the results are not at a minimum" << std::endl;
@@ -83,7 +89,7 @@ int RunJoint() {
             << " object views, RMS " << solution->result.rms_plate_px << " / "
             << solution->result.rms_object_px << " px, " << solution->result.iterations
             << " iterations; wrote " << FLAGS_out << "/result.json and " << FLAGS_out
-            << "/report.md" << std::endl;
+            << "/report.md (and report.html)" << std::endl;
   return 0;
 }
 
@@ -106,13 +112,16 @@ int RunSolve() {
   const PoseComparison comparison = ComparePoseMethods(*problem, *config, *solution);
   nlohmann::json j = PoseSolutionToJson(*problem, *solution);
   j["comparison"] = PoseComparisonToJson(*problem, comparison);
-  const std::string report = PoseReportMarkdown(*problem, *config, *solution, comparison);
+  const ReportFiles report =
+      RenderReport(PoseReportDoc(*problem, *config, *solution, comparison),
+                   "carmba pose report: " + problem->name, PosePlotData(*problem, *solution));
 
-  // Both files or neither (a failed second write used to leave report.md behind); other files in
+  // All files or none (a failed second write used to leave report.md behind); other files in
   // an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
   if (s.ok()) s = WriteGeometry(staged.path(), PoseSolutionGeometry(*problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
@@ -122,13 +131,14 @@ int RunSolve() {
               << solution->termination << "; max_iterations " << config->max_iterations
               << "): the results are not at a minimum" << std::endl;
   }
+  if (!report.warning.empty()) std::cerr << "carmba solve: warning: " << report.warning << std::endl;
   if (!comparison.handedness_warning.empty()) {
     std::cerr << "carmba solve: warning: " << comparison.handedness_warning << std::endl;
   }
   std::cout << "solved " << problem->name << " with " << config->name << ": "
             << solution->views.size() << " views, RMS " << solution->rms_px << " px, "
             << solution->iterations << " iterations; wrote " << FLAGS_out << "/result.json and "
-            << FLAGS_out << "/report.md" << std::endl;
+            << FLAGS_out << "/report.md (and report.html)" << std::endl;
   return 0;
 }
 

@@ -30,7 +30,7 @@
 #include "util/csv.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
-#include "util/report_format.h"
+#include "report/format.h"
 
 DEFINE_string(points, "",
               "CSV of the points' pixels: view,u_px,v_px[,point][,cov_uu,cov_uv,cov_vv | "
@@ -251,23 +251,23 @@ int RunTriangulate() {
       views.push_back({{"view", bp.views[obs[i].view].id},
                        {"u_px", obs[i].uv_px[0]},
                        {"v_px", obs[i].uv_px[1]},
-                       {"residual_px", {JsonNum(t->residual_px[i][0]), JsonNum(t->residual_px[i][1])}}});
+                       {"residual_px", {JsonNumber(t->residual_px[i][0]), JsonNumber(t->residual_px[i][1])}}});
     }
     nlohmann::json by_source;
     for (int s = 0; s < ba::kNumSources; ++s) {
-      by_source[ba::SourceName(static_cast<ba::Source>(s))] = JsonNum(t->solve_trace_by_source[s]);
+      by_source[ba::SourceName(static_cast<ba::Source>(s))] = JsonNumber(t->solve_trace_by_source[s]);
     }
-    by_source["the point's pixels"] = JsonNum(t->covariance_pixels.trace());
+    by_source["the point's pixels"] = JsonNumber(t->covariance_pixels.trace());
     jpoints.push_back({{"id", p.name},
                        {"p_in_ct_mm", {X[0], X[1], X[2]}},
                        {"covariance_mm2", JsonRows(C)},
-                       {"sigma_mm", {JsonNum(std::sqrt(C(0, 0))), JsonNum(std::sqrt(C(1, 1))), JsonNum(std::sqrt(C(2, 2)))}},
-                       {"rms_3d_mm", JsonNum(std::sqrt(C.trace()))},
+                       {"sigma_mm", {JsonNumber(std::sqrt(C(0, 0))), JsonNumber(std::sqrt(C(1, 1))), JsonNumber(std::sqrt(C(2, 2)))}},
+                       {"rms_3d_mm", JsonNumber(std::sqrt(C.trace()))},
                        {"covariance_pixels_mm2", JsonRows(F * t->covariance_pixels * F)},
                        {"covariance_solve_mm2", JsonRows(F * t->covariance_solve * F)},
                        {"variance_by_source_mm2", by_source},
-                       {"max_ray_angle_deg", JsonNum(t->max_ray_angle_deg)},
-                       {"rms_px", JsonNum(t->rms_px)},
+                       {"max_ray_angle_deg", JsonNumber(t->max_ray_angle_deg)},
+                       {"rms_px", JsonNumber(t->rms_px)},
                        {"views", views},
                        {"warning", t->warning.empty() ? nlohmann::json() : nlohmann::json(t->warning)}});
     char line[512];

@@ -50,6 +50,7 @@
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "problem/pose_problem.h"
+#include "report/report_doc.h"
 
 namespace carmba {
 
@@ -128,6 +129,11 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
 // frame of the fiducials); the reference point the fiducials' centroid.
 GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& solution);
 
+// The report (report.md and report.html; report/report_doc.h) and its plot data (report/plots.h).
+ReportDoc JointReportDoc(const JointProblem& problem,
+                         const SolverConfig& config,
+                         const JointSolution& solution);
+nlohmann::json JointPlotData(const JointSolution& solution);
 std::string JointReportMarkdown(const JointProblem& problem,
                                 const SolverConfig& config,
                                 const JointSolution& solution);
@@ -145,6 +151,7 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
 
 // The report's section on the cross-check (its JSON as JointMrcalCrossCheck returns it, or
 // {"error": ...}).
+ReportDoc JointMrcalDoc(const nlohmann::json& crosscheck);
 std::string JointMrcalMarkdown(const nlohmann::json& crosscheck);
 
 // The options of the engine from a solver config (one vocabulary for pose and joint).

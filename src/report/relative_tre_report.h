@@ -1,4 +1,4 @@
-// result.json blocks and report.md sections for the relative C-arm poses (ba/relative_pose.h)
+// result.json blocks and report sections (report.md and report.html) for the relative C-arm poses (ba/relative_pose.h)
 // and the leave-one-marker-out TRE (ba/tre.h), shared by the pose and the joint front ends.
 #pragma once
 
@@ -9,6 +9,7 @@
 
 #include "ba/relative_pose.h"
 #include "ba/tre.h"
+#include "report/report_doc.h"
 
 namespace carmba {
 
@@ -18,12 +19,13 @@ namespace carmba {
 nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
                                  const std::vector<ba::RelativePoseEstimate>& poses,
                                  const std::map<std::string, Pose6>& truth);
-std::string RelativePosesMarkdown(const ba::BaProblem& problem,
-                                  const std::vector<ba::RelativePoseEstimate>& poses,
-                                  const std::map<std::string, Pose6>& truth);
+void AppendRelativePoses(ReportDoc* doc,
+                         const ba::BaProblem& problem,
+                         const std::vector<ba::RelativePoseEstimate>& poses,
+                         const std::map<std::string, Pose6>& truth);
 
 // "tre": FLE, RMS measured / predicted / Fitzpatrick, and per marker.
 nlohmann::json TreJson(const ba::TreResult& tre);
-std::string TreMarkdown(const ba::TreResult& tre);
+void AppendTre(ReportDoc* doc, const ba::TreResult& tre);
 
 }  // namespace carmba

@@ -12,6 +12,7 @@
 
 #include "ba/synthetic.h"
 #include "cli_test_util.h"
+#include "report_browser.h"
 
 namespace carmba::test {
 namespace {
@@ -182,6 +183,14 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   rs << rep.rdbuf();
   EXPECT_NE(rs.str().find("## Error budget"), std::string::npos);
   EXPECT_NE(rs.str().find("## Joint against two-step"), std::string::npos);
+  // report.html: the joint solve's plots, rendered in a browser.
+  const std::string html = SlurpFile(dir.File("out/report.html"));
+  for (const char* id : {"residuals-per-view", "residual-field", "distortion-the-camera",
+                         "projection-uncertainty-the-camera", "error-budget", "poses-plate",
+                         "poses-object", "markers"}) {
+    EXPECT_NE(html.find(std::string("data-plot=\"") + id + "\""), std::string::npos) << id;
+  }
+  ExpectReportRenders(dir.File("out/report.html"), 8);
 }
 
 // A small valid joint problem written from the synthetic generator; each test corrupts one thing.
