@@ -75,6 +75,7 @@
 #include "ba/bundle_adjuster.h"
 #include "camera/camera.h"
 #include "geometry/pose.h"
+#include "util/progress.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -237,8 +238,11 @@ struct PoseSolution {
 };
 
 // Solves a pose problem. Errors: a view whose initialiser fails, a non-finite initial cost,
-// a rank-deficient covariance.
-StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const SolverConfig& config);
+// a rank-deficient covariance. `progress` (optional) is called once per view after its initial
+// pose (the bundle adjustment that follows is one solve over all views).
+StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
+                                        const SolverConfig& config,
+                                        const ProgressFn& progress = nullptr);
 
 // The problem's marker positions in its handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m);
