@@ -27,7 +27,9 @@ int RunStudyCommand() {
   using namespace carmba;
   // --study and --out are required (checked before this runs: cli/command.h). An existing
   // study in --out is continued with --resume, or started over with --force.
-  if (const Status s = cli::CheckOutDir(/*also_allowed=*/FLAGS_resume); !s.ok()) {
+  if (const Status s = cli::CheckOutDir(
+          /*also_allowed=*/FLAGS_resume,
+          "pass --resume to continue that study, --force to start it over"); !s.ok()) {
     return cli::Fail("study", s);
   }
   if (FLAGS_resume && FLAGS_force) {

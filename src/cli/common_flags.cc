@@ -57,8 +57,8 @@ bool CheckJobsFlag(std::string* error) {
   return false;
 }
 
-Status CheckOutDir(bool also_allowed) {
-  return CheckOutputDir(FLAGS_out, "--out", FLAGS_force || also_allowed);
+Status CheckOutDir(bool also_allowed, const std::string& how_to_override) {
+  return CheckOutputDir(FLAGS_out, "--out", FLAGS_force || also_allowed, how_to_override);
 }
 
 Status CheckOutFile() { return CheckOutputFile(FLAGS_out, "--out", FLAGS_force); }

@@ -40,7 +40,8 @@ bool CheckJobsFlag(std::string* error);
 // parent directories are fine (they are created when the result is written); an existing result
 // (a non-empty directory, an existing file) is refused unless --force (or `also_allowed`, e.g.
 // study's --resume).
-Status CheckOutDir(bool also_allowed = false);
+Status CheckOutDir(bool also_allowed = false,
+                   const std::string& how_to_override = "pass --force to write over it");
 Status CheckOutFile();
 
 // Progress of `total` items of `unit` for the command `label`: a bar when stderr is a terminal,

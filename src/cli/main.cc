@@ -226,6 +226,7 @@ Status NormalizeFlags(const Command& cmd,
   for (const auto& f : flags) {
     by_name[f.name] = &f;
     names.push_back("--" + Dashed(f.name));
+    if (f.type == "bool") names.push_back("--no-" + Dashed(f.name));
   }
   const std::string see = " (see 'carmba " + cmd.name + " --help')";
   out->clear();

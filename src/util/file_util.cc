@@ -83,7 +83,10 @@ std::string NearestExistingAncestor(const std::string& p) {
 
 }  // namespace
 
-Status CheckOutputDir(const std::string& dir_in, const std::string& what, bool force) {
+Status CheckOutputDir(const std::string& dir_in,
+                      const std::string& what,
+                      bool force,
+                      const std::string& how_to_override) {
   if (dir_in.empty()) return Status::Error(what + ": expected a directory path, got nothing");
   const std::string dir = StripTrailingSlashes(dir_in);
   if (FileExists(dir)) {
@@ -106,7 +109,8 @@ Status CheckOutputDir(const std::string& dir_in, const std::string& what, bool f
     }
     if (names.size() > 3) list += ", ... " + std::to_string(names.size()) + " entries";
     return Status::Error(what + " " + dir + ": holds a previous result (" + list +
-                         "); pass --force to write over it, or choose a new directory");
+                         "); " + how_to_override +
+                         ", or choose a new directory");
   }
   const std::string a = NearestExistingAncestor(dir);
   if (!IsDirectory(a)) {

@@ -24,7 +24,11 @@ Status WriteFileAtomic(const std::string& path, const std::string& contents);
 // they are writable). Unless `force`, an existing `dir` must be empty (a non-empty one holds a
 // previous result: "--out DIR: holds a previous result (report.md, ...); pass --force to write
 // over it").
-Status CheckOutputDir(const std::string& dir, const std::string& what, bool force);
+// `how_to_override` replaces "pass --force to write over it" in that message.
+Status CheckOutputDir(const std::string& dir,
+                      const std::string& what,
+                      bool force,
+                      const std::string& how_to_override = "pass --force to write over it");
 // CheckOutputFile: `path` names a file: not an existing directory or other non-regular file
 // (renaming onto /dev/null would replace the device); the nearest existing ancestor of its
 // directory passes the checks above. Unless `force`, `path` must not exist.

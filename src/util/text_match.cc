@@ -25,7 +25,12 @@ std::string ClosestMatch(const std::string& name, const std::vector<std::string>
   std::string best;
   int best_d = max_edits + 1;
   for (const auto& c : candidates) {
-    const int d = EditDistance(name, c);
+    int d = EditDistance(name, c);
+    // One is the start of the other ("--output" for "--out"): a plausible misspelling whatever
+    // the length, ranked as the most distant that is still accepted.
+    const bool prefix = name.size() > 3 && c.size() > 3 &&
+                        (name.compare(0, c.size(), c) == 0 || c.compare(0, name.size(), name) == 0);
+    if (prefix) d = std::min(d, max_edits);
     if (d < best_d) {
       best_d = d;
       best = c;
