@@ -31,6 +31,12 @@ std::string G(double v) {
   return b;
 }
 
+// Which pixel sigma the covariance used, as the report says it wherever it shows an uncertainty.
+std::string PixelSigmaKind(const CalibrationResult& r) {
+  return r.sigma_estimated ? "a-posteriori (estimated from the residuals, sqrt(SSR / dof))"
+                           : "a-priori (given: pixel_sigma_px)";
+}
+
 }  // namespace
 
 nlohmann::json CalibrationCameraJson(const CalibrationRun& run) {
@@ -43,6 +49,8 @@ nlohmann::json CalibrationCameraJson(const CalibrationRun& run) {
   j["rms_opencv_px"] = r.rms_opencv_px;
   j["sigma_px"] = r.sigma_px;
   j["sigma_px_estimated"] = r.sigma_estimated;
+  j["sigma_px_kind"] = r.sigma_estimated ? "a-posteriori" : "a-priori";
+  j["warnings"] = AssessConditioning(r, run.observations.width, run.observations.height).warnings;
   j["num_views"] = r.views.size();
   j["num_points"] = r.num_points;
   nlohmann::json views = nlohmann::json::array();
@@ -166,12 +174,14 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
   o << "- RMS per coordinate: **" << F(r.rms_px) << " px** (sqrt(SSR / 2N), mrcal's "
     << "rms_reproj_error__pixels)\n";
   o << "- OpenCV's figure sqrt(SSR / N) = sqrt(2) x the above: " << F(r.rms_opencv_px) << " px\n";
-  o << "- Pixel sigma for the covariance: " << F(r.sigma_px) << " px ("
-    << (r.sigma_estimated ? "estimated, sqrt(SSR / dof)" : "given") << ")\n";
+  o << "- Pixel sigma for the covariance: " << F(r.sigma_px) << " px, " << PixelSigmaKind(r)
+    << "\n";
 
   const nlohmann::json* m = run.mrcal ? &*run.mrcal : nullptr;
   const OpenCvReference* cvr = run.opencv ? &*run.opencv : nullptr;
   o << "\n## Intrinsics (1-sigma marginal over the plate poses)\n\n";
+  o << "Sigmas from the " << PixelSigmaKind(r) << " pixel sigma " << F(r.sigma_px)
+    << " px; mrcal's sigmas (its formula, at its own solution) use the same pixel sigma.\n\n";
   o << "| | carmba | sigma | initial (closed form) |";
   if (m) o << " mrcal | mrcal sigma | sigma ratio carmba/mrcal |";
   if (cvr) o << " OpenCV | OpenCV sigma |";
@@ -195,7 +205,9 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
     if (cond.warnings.empty()) {
       o << "No warnings: the principal point's sigmas are under "
         << F(100 * kPrincipalPointSigmaWarnFraction, 0)
-        << " % of the image, where the linearised covariance matched a seeded Monte Carlo.";
+        << " % of the image, where the linearised covariance matched a seeded Monte Carlo, and no "
+           "two intrinsics correlate beyond "
+        << F(kIntrinsicsCorrelationWarn, 2) << ".";
     }
     for (const auto& w : cond.warnings) o << "- WARNING: " << w << "\n";
     if (!cond.max_pp_distortion_pair.empty()) {
@@ -207,7 +219,9 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
 
   o << "\n## Projection uncertainty at " << F(r.uncertainty_distance_mm, 1) << " mm\n\n";
   o << "A point at this range along the pixel's ray, fixed in the frame averaged over the plate "
-       "poses (mrcal's definition); 1-sigma, px.\n\n";
+       "poses (mrcal's definition); 1-sigma, px, from the "
+    << PixelSigmaKind(r) << " pixel sigma " << F(r.sigma_px)
+    << " px (mrcal's columns: mrcal.projection_uncertainty given the same pixel sigma).\n\n";
   o << "| where | pixel | carmba sigma_u | carmba sigma_v | carmba worst |";
   if (m) o << " mrcal formula at carmba's solution | mrcal at its solution |";
   o << "\n|---|---|---|---|---|" << (m ? "---|---|" : "") << "\n";

@@ -26,6 +26,7 @@
 
 #include "calib/calib_output.h"
 #include "calib/calibrate.h"
+#include "calib/conditioning.h"
 #include "calib/crosscheck.h"
 #include "cli/command.h"
 #include "cli/common_flags.h"
@@ -237,12 +238,17 @@ int RunCalibrate() {
   std::filesystem::remove_all(work, ec);
   if (!s.ok()) return cli::Fail(kCmd, s);
   const auto& r = run.result;
+  for (const auto& w :
+       AssessConditioning(r, run.observations.width, run.observations.height).warnings) {
+    std::cerr << "carmba calibrate: warning: " << w << std::endl;
+  }
   std::cout << "calibrated " << r.views.size() << " views (" << run.skipped.size()
             << " skipped): fx " << r.camera.params[kFx] << " +- " << r.sigma[kFx] << ", fy "
             << r.camera.params[kFy] << " +- " << r.sigma[kFy] << ", cx " << r.camera.params[kCx]
             << " +- " << r.sigma[kCx] << ", cy " << r.camera.params[kCy] << " +- " << r.sigma[kCy]
-            << " px; RMS " << r.rms_px << " px per coordinate (OpenCV figure " << r.rms_opencv_px
-            << ")";
+            << " px (" << (r.sigma_estimated ? "a-posteriori" : "a-priori") << " pixel sigma "
+            << r.sigma_px << " px); RMS " << r.rms_px << " px per coordinate (OpenCV figure "
+            << r.rms_opencv_px << ")";
   if (run.mrcal) std::cout << "; mrcal RMS " << (*run.mrcal)["rms_px"].get<double>();
   std::cout << "; wrote " << FLAGS_out << "/{camera.json, camera.cameramodel, camera_opencv.yml, "
             << "observations.csv, corners.vnl, report.md}" << std::endl;

@@ -54,6 +54,9 @@ int RunJoint() {
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
+  for (const auto& w : JointWarnings(*solution)) {
+    std::cerr << "carmba solve: warning: " << w << std::endl;
+  }
   if (!solution->result.converged) {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
               << solution->result.termination << "): the results are not at a minimum" << std::endl;

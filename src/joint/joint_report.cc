@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "calib/conditioning.h"
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
 
@@ -76,6 +77,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                   {"object_sigma_px", problem.object_sigma_px},
                   {"intrinsics_model", problem.per_group ? "per_group" : "shared"},
                   {"initial_intrinsics_from", s.initial_intrinsics_from}};
+  j["warnings"] = JointWarnings(s);
   if (s.ba_problem.groups.size() == 1) {
     j["intrinsics"] = GroupJson(s, 0);
   } else {
@@ -218,6 +220,17 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
   return j;
 }
 
+std::vector<std::string> JointWarnings(const JointSolution& s) {
+  std::vector<std::string> out;
+  for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
+    const int b = s.result.layout->group_block(static_cast<int>(g));
+    const auto w = IntrinsicsCorrelationWarnings(
+        s.result.Covariance({b}), s.ba_problem.groups.size() > 1 ? s.ba_problem.groups[g].name : "");
+    out.insert(out.end(), w.begin(), w.end());
+  }
+  return out;
+}
+
 std::string JointReportMarkdown(const JointProblem& problem,
                                 const SolverConfig& config,
                                 const JointSolution& s) {
@@ -261,7 +274,22 @@ std::string JointReportMarkdown(const JointProblem& problem,
       o << "\n";
     }
   }
-  o << "\n## Validation pairs (object views)\n\n"
+  {
+    const auto warnings = JointWarnings(s);
+    o << "\nSigmas from the " << (config.covariance_aposteriori ? "a-posteriori" : "a-priori")
+      << " pixel sigmas.";
+    if (warnings.empty()) {
+      o << " No two intrinsics correlate beyond " << Fmt("%.2f", kIntrinsicsCorrelationWarn)
+        << ".\n";
+    } else {
+      o << "\n\n";
+      for (const auto& w : warnings) o << "- **Warning:** " << w << "\n";
+    }
+  }
+  const std::string sigma_note = std::string("Sigmas from the ") +
+                                 (config.covariance_aposteriori ? "a-posteriori" : "a-priori") +
+                                 " pixel sigmas.\n\n";
+  o << "\n## Validation pairs (object views)\n\n" << sigma_note <<
        "| a | b | expected (deg) | relative rotation (deg) | sigma | view directions (deg) | sigma |";
   const bool truth_poses = !problem.truth.object_poses.empty();
   if (truth_poses) o << " true relative rotation | error / sigma |";
@@ -290,7 +318,8 @@ std::string JointReportMarkdown(const JointProblem& problem,
        "Rotations are small rotations about the camera axes (their value is 0 by definition); "
        "`centre projection` is where the ray of the image centre, held fixed at the object "
        "distance, projects with the estimated intrinsics (its value is the image centre, its "
-       "sigma the calibration's own uncertainty there).\n\n"
+       "sigma the calibration's own uncertainty there). "
+    << sigma_note <<
        "| quantity | unit | value | sigma |";
   for (int k = 0; k < ba::kNumSources; ++k) o << " " << ba::SourceName(static_cast<ba::Source>(k)) << " |";
   o << "\n|---|---|---|---|";

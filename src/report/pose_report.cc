@@ -169,10 +169,17 @@ std::string PoseReportMarkdown(const PoseProblem& problem,
       << "): the poses, sigmas and verdicts below are not at a minimum.\n\n";
   }
 
+  // Which pixel sigma the uncertainties below rest on (said wherever an uncertainty is shown).
+  const std::string sigma_used =
+      config.covariance_aposteriori
+          ? "the a-posteriori pixel sigma " + Fmt("%.3g", s.sigma_aposteriori_px) +
+                " px (the a-priori " + Fmt("%.3g", problem.sigma_px) + " px x s0)"
+          : "the a-priori pixel sigma " + Fmt("%.3g", problem.sigma_px) + " px";
   o << "## Validation: angles between views (deg)\n\n";
   o << "Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) and "
        "inv(R_b)(0,0,1)); relative rotation is the angle of R_a^T R_b. "
-    << (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance."
+    << (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance, "
+                        "from " + sigma_used + "."
                       : "This config does not refine (refine: false): the values are the "
                         "initializer's, without uncertainty.")
     << "\n\n";
@@ -217,6 +224,7 @@ std::string PoseReportMarkdown(const PoseProblem& problem,
   o << "Legacy POSIT: " << c.legacy_settings << ".";
   if (!c.legacy_error.empty()) o << " Could not run: " << c.legacy_error << ".";
   o << "\n\n## Poses (cam_from_object) with 1-sigma uncertainty\n\n";
+  o << "Sigmas from " << sigma_used << ".\n\n";
   o << "| view | t (mm) | sigma t (mm) | sigma rotation about camera x, y, z (deg) |\n"
        "|---|---|---|---|\n";
   for (const auto& vs : s.views) {
