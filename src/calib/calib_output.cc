@@ -291,9 +291,10 @@ std::string CalibrationReportMarkdown(const CalibrationRun& run) {
         << (std::abs(q) <= kMrcalSigmaRelTol ? "pass" : "FAIL") << " |\n";
     }
     o << "\nmrcal's RMS evaluated at carmba's solution: "
-      << F((*m)["rms_px_of_carmba_solution"].get<double>(), 6) << " px. carmba's solution with "
-      << "mrcal's optimization inputs (for mrcal's uncertainty tools): "
-         "`mrcal/camera_with_optimization_inputs.cameramodel`.\n";
+      << F((*m)["rms_px_of_carmba_solution"].get<double>(), 6) << " px. `camera.cameramodel` is "
+      << "carmba's solution with mrcal's optimization inputs (the same observations), written by "
+         "mrcal: `mrcal-show-projection-uncertainty camera.cameramodel` works on it (mrcal "
+         "estimates the pixel sigma from the residuals and frees all 9 intrinsics).\n";
   }
 
   o << "\n## Cross-check: OpenCV calibrateCamera\n\n";
@@ -386,9 +387,28 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
   CARMBA_RETURN_IF_ERROR(staged.Begin());
   const std::string& tmp = staged.path();
   std::error_code ec;
+  // camera.cameramodel: with the mrcal cross-check, the model mrcal itself wrote from carmba's
+  // solution and the same observations, with its optimization_inputs (mrcal's uncertainty tools
+  // read them: mrcal-show-projection-uncertainty camera.cameramodel); without, the plain model.
+  std::string cameramodel = MrcalCameraModelText(run.result);
+  const std::string with_inputs =
+      JoinPath(mrcal_work_dir, "camera_with_optimization_inputs.cameramodel");
+  if (!mrcal_work_dir.empty() && FileExists(with_inputs)) {
+    auto text = ReadFile(with_inputs);
+    if (!text.ok()) return text.status();
+    // mrcal prints 10 significant digits; carmba's intrinsics go in at full precision (the
+    // optimization_inputs blob holds them in binary already).
+    const std::string key = "'intrinsics': [";
+    const size_t a = text->find(key);
+    const size_t b = a == std::string::npos ? a : text->find(']', a);
+    if (b == std::string::npos) return Status::Error(with_inputs + ": no 'intrinsics' list");
+    std::string list;
+    for (double v : run.result.camera.params) list += " " + G(v) + ",";
+    cameramodel = text->substr(0, a + key.size()) + list + text->substr(b);
+  }
   const std::pair<std::string, std::string> files[] = {
       {"camera.json", CalibrationCameraJson(run).dump(2) + "\n"},
-      {"camera.cameramodel", MrcalCameraModelText(run.result)},
+      {"camera.cameramodel", cameramodel},
       {"camera_opencv.yml", OpenCvCalibrationYaml(run)},
       {"corners.vnl", CornersVnl(run.observations)},
       {"report.md", CalibrationReportMarkdown(run)}};
