@@ -97,6 +97,16 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   rs << rep.rdbuf();
   EXPECT_NE(rs.str().find("## Error budget"), std::string::npos);
   EXPECT_NE(rs.str().find("## Joint against two-step"), std::string::npos);
+  // The pixel sigma behind the uncertainties is named; correlated intrinsics are warnings in
+  // result.json, the report and on stderr, or the report says there are none.
+  EXPECT_NE(rs.str().find("Sigmas from the a-p"), std::string::npos);
+  ASSERT_TRUE(j.at("warnings").is_array());
+  for (const auto& w : j.at("warnings")) {
+    EXPECT_NE(rs.str().find("- **Warning:** " + w.get<std::string>()), std::string::npos) << w;
+    EXPECT_NE(r.err.find("carmba solve: warning: " + w.get<std::string>()), std::string::npos);
+  }
+  EXPECT_EQ(j.at("warnings").empty(),
+            rs.str().find("No two intrinsics correlate beyond 0.99") != std::string::npos);
 }
 
 // A small valid joint problem written from the synthetic generator; each test corrupts one thing.
