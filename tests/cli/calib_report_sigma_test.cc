@@ -25,10 +25,7 @@ std::string Section(const std::string& md, const std::string& heading) {
 class CalibReportSigma : public ::testing::Test {
  protected:
   void SetUp() override {
-    SyntheticViewsOptions so;
-    GridSpec g;
-    const auto obs = MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
-    ASSERT_TRUE(WriteObservationsCsv(obs, dir_.File("obs.csv")).ok());
+    ASSERT_TRUE(WriteSyntheticGridObservations(dir_.File("obs.csv")));
   }
   CommandResult Calibrate(const std::string& out, const std::string& extra = "") {
     return RunCarmba("calibrate --no-mrcal --no-opencv --observations " + dir_.File("obs.csv") +

@@ -26,10 +26,7 @@ constexpr double kSameFormulaRelTol = 1e-6;
 
 TEST(CameraModelUncertainty, MrcalToolsWorkOnTheTopLevelModel) {
   TempDir dir;
-  SyntheticViewsOptions so;
-  GridSpec g;
-  const auto obs = MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
-  ASSERT_TRUE(WriteObservationsCsv(obs, dir.File("obs.csv")).ok());
+  ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
   const auto r = RunCarmba("calibrate --no-opencv --observations " + dir.File("obs.csv") +
                            " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -90,10 +87,7 @@ print(json.dumps({'max_abs_intrinsics_diff': float(np.max(np.abs(m.intrinsics()[
 // Without the cross-check the model is the plain one (no optimization_inputs), full precision.
 TEST(CameraModelUncertainty, WithoutMrcalThePlainModel) {
   TempDir dir;
-  SyntheticViewsOptions so;
-  GridSpec g;
-  const auto obs = MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
-  ASSERT_TRUE(WriteObservationsCsv(obs, dir.File("obs.csv")).ok());
+  ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
   const auto r = RunCarmba("calibrate --no-mrcal --no-opencv --observations " +
                            dir.File("obs.csv") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;

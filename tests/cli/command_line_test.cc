@@ -108,10 +108,7 @@ TEST(CommandLine, RowsAndColsSayWhatTheyCount) {
 class CommandLineCalibrate : public ::testing::Test {
  protected:
   void SetUp() override {
-    SyntheticViewsOptions so;
-    GridSpec g;
-    const auto obs = MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
-    ASSERT_TRUE(WriteObservationsCsv(obs, dir_.File("obs.csv")).ok());
+    ASSERT_TRUE(WriteSyntheticGridObservations(dir_.File("obs.csv")));
   }
   std::string Calibrate(const std::string& flags, const std::string& out) const {
     return "calibrate --observations " + dir_.File("obs.csv") + " " + flags + " --out " +

@@ -60,10 +60,7 @@ class OutContract : public ::testing::Test {
                  "    synthetic: {camera: " + kSource + "/data/thesis/camera.json, markers: "
                  "thesis}\nconfigs:\n  - {name: c, file: " + kSource +
                  "/configs/posit_ba_analytic.yaml}\n");
-    SyntheticViewsOptions so;
-    GridSpec g;
-    const auto obs = MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
-    ASSERT_TRUE(WriteObservationsCsv(obs, data_->File("grid_obs.csv")).ok());
+    ASSERT_TRUE(WriteSyntheticGridObservations(data_->File("grid_obs.csv")));
     r = RunCarmba("study --study " + data_->File("study.yaml") + " --shard 1/1 --out " +
                   data_->File("shard1"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
