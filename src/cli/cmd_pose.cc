@@ -25,9 +25,9 @@ DEFINE_string(fiducials, "", "CT marker centres with covariances (fiducials.csv 
 
 DEFINE_double(marker_diameter_mm, 0, "Marker diameter (mm), converted to px with the nominal "
                                      "magnification (fx / SOD of the DICOM frame, or "
-                                     "--source_to_object_mm).");
+                                     "--source-to-object-mm).");
 DEFINE_string(diameter_px, "", "Marker diameter range 'min,max' in px (instead of "
-                               "--marker_diameter_mm).");
+                               "--marker-diameter-mm).");
 DEFINE_double(source_to_object_mm, 0, "Source-to-object distance (mm) for images without a "
                                       "Distance Source to Patient tag.");
 DEFINE_string(detection, "", "Optional YAML of marker detection / correspondence options "
@@ -44,7 +44,7 @@ int RunPose() {
   if (FLAGS_camera.empty()) return cli::Fail(kCmd, "--camera is required");
   if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
   {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
   ObjectViewsOptions options;
@@ -68,7 +68,7 @@ int RunPose() {
   }
   std::string err;
   if (!options.Check(&err)) {
-    return cli::Fail(kCmd, err + " (--marker_diameter_mm, --diameter_px or --detection)");
+    return cli::Fail(kCmd, err + " (--marker-diameter-mm, --diameter-px or --detection)");
   }
   auto camera = ReadCameraJson(FLAGS_camera);
   if (!camera.ok()) return cli::Fail(kCmd, camera.status());
@@ -146,7 +146,7 @@ int RunPose() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config");
+CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force");
 CARMBA_REGISTER_COMMAND(pose,
                         "Object poses from X-ray images: marker blobs, automatic labelling with the "
                         "CT fiducials, bundle adjustment.",

@@ -80,6 +80,7 @@
 #include "camera/camera.h"
 #include "export/view_geometry.h"
 #include "geometry/pose.h"
+#include "util/progress.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -252,8 +253,11 @@ struct PoseSolution {
 };
 
 // Solves a pose problem. Errors: a view whose initialiser fails, a non-finite initial cost,
-// a rank-deficient covariance.
-StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const SolverConfig& config);
+// a rank-deficient covariance. `progress` (optional) is called once per view after its initial
+// pose (the bundle adjustment that follows is one solve over all views).
+StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
+                                        const SolverConfig& config,
+                                        const ProgressFn& progress = nullptr);
 
 // The problem's marker positions in its handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m);
