@@ -26,6 +26,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::JoinSet;
+using test::Minus;
 
 const std::string kDoc = std::string(CARMBA_SOURCE_DIR) + "/src/docs/formats.md";
 
@@ -156,13 +157,8 @@ TEST_F(DocsFormats, ExamplesReadAndKeyTablesMatchTheReaders) {
         accepted.insert(k);
       }
     }
-    std::set<std::string> undocumented, not_accepted;
-    for (const auto& k : accepted) {
-      if (!documented.count(k)) undocumented.insert(k);
-    }
-    for (const auto& k : documented) {
-      if (!accepted.count(k)) not_accepted.insert(k);
-    }
+    const std::set<std::string> undocumented = Minus(accepted, documented);
+    const std::set<std::string> not_accepted = Minus(documented, accepted);
     EXPECT_TRUE(undocumented.empty()) << "accepted by the reader, missing from the table: "
                                       << JoinSet(undocumented);
     EXPECT_TRUE(not_accepted.empty())
@@ -211,13 +207,8 @@ TEST_F(DocsFormats, EveryKeyNameInTheReadersIsDocumented) {
       if (!leaf.empty() && leaf[0] != '<') documented.insert(leaf);
     }
   }
-  std::set<std::string> undocumented, unknown;
-  for (const auto& k : in_source) {
-    if (!documented.count(k)) undocumented.insert(k);
-  }
-  for (const auto& k : documented) {
-    if (!in_source.count(k)) unknown.insert(k);
-  }
+  const std::set<std::string> undocumented = Minus(in_source, documented);
+  const std::set<std::string> unknown = Minus(documented, in_source);
   EXPECT_TRUE(undocumented.empty()) << "key names read in src/ but in no table of formats.md: "
                                     << JoinSet(undocumented);
   EXPECT_TRUE(unknown.empty()) << "documented key names that no reader call in src/ names: "

@@ -111,16 +111,13 @@ TEST(DocsOwnData, WalkThroughRunsOnSimulatedData) {
     ASSERT_TRUE(j.is_object()) << "not a JSON object";
     ASSERT_TRUE(formats.tables.count(kind));
     const auto& rows = formats.tables.at(kind);
-    std::set<std::string> documented(rows.begin(), rows.end()), written, undocumented, missing;
+    const std::set<std::string> documented(rows.begin(), rows.end());
+    std::set<std::string> written;
     Flatten(j, "", 2, &written);
-    for (const auto& k : written) {
-      if (!documented.count(k)) undocumented.insert(k);
-    }
-    for (const auto& k : documented) {
-      if (!written.count(k)) missing.insert(k);
-    }
-    EXPECT_TRUE(undocumented.empty()) << "written, not in the table: " << JoinSet(undocumented);
-    EXPECT_TRUE(missing.empty()) << "in the table, not written: " << JoinSet(missing);
+    EXPECT_TRUE(test::Minus(written, documented).empty())
+        << "written, not in the table: " << JoinSet(test::Minus(written, documented));
+    EXPECT_TRUE(test::Minus(documented, written).empty())
+        << "in the table, not written: " << JoinSet(test::Minus(documented, written));
   }
 
   // The answers: intrinsics within 4 sigma of the simulation's truth, every object pose with

@@ -93,6 +93,15 @@ inline MarkdownDoc ReadMarkdownDoc(const std::string& path) {
   return doc;
 }
 
+// The elements of `a` that are not in `b`.
+inline std::set<std::string> Minus(const std::set<std::string>& a, const std::set<std::string>& b) {
+  std::set<std::string> out;
+  for (const auto& x : a) {
+    if (!b.count(x)) out.insert(x);
+  }
+  return out;
+}
+
 // "a, b, c" of a set, for messages.
 inline std::string JoinSet(const std::set<std::string>& s) {
   std::string out;
