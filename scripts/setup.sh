@@ -14,6 +14,9 @@ PKGS=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-numpy python3-matplotlib python3-opencv python3-pydicom
   libgdcm3.0 zlib1g-dev
+  # the real consumer of the exported geometry: the DRR end-to-end test renders with
+  # `plastimatch drr` (tests/cli/drr_export_e2e_test.cc; skipped, saying so, without it)
+  plastimatch
 )
 if [[ "${CARMBA_WITH_DOCS_DATA:-1}" == 1 ]]; then
   PKGS+=(opencv-doc)

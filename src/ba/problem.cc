@@ -1,5 +1,6 @@
 #include "ba/problem.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <set>
@@ -33,6 +34,18 @@ Status BaProblem::Check() const {
     }
     if (!(g.initial[kFx] > 0) || !(g.initial[kFy] > 0)) {
       return Status::Error("group '" + g.name + "': fx and fy must be > 0");
+    }
+    if (g.fy_over_fx != 0) {
+      if (!(g.fy_over_fx > 0) || !std::isfinite(g.fy_over_fx)) {
+        return Status::Error("group '" + g.name + "': fy_over_fx must be > 0 (0: fy free)");
+      }
+      if (std::abs(g.initial[kFy] - g.fy_over_fx * g.initial[kFx]) > 1e-9 * g.initial[kFy]) {
+        return Status::Error("group '" + g.name + "': the initial fy is not fy_over_fx * fx");
+      }
+      if (g.free[kFx] != g.free[kFy]) {
+        return Status::Error("group '" + g.name +
+                             "': with a fixed aspect ratio fx and fy are free or held together");
+      }
     }
     if (g.has_prior) {
       const auto n = static_cast<Eigen::Index>(g.prior.indices.size());
@@ -129,6 +142,8 @@ StateLayout::StateLayout(const BaProblem& problem) {
     b.label = std::move(label);
     b.constant = constant || free.empty();
     if (!b.constant) {
+      b.basis = Eigen::MatrixXd::Zero(size, static_cast<Eigen::Index>(free.size()));
+      for (size_t c = 0; c < free.size(); ++c) b.basis(free[c], static_cast<Eigen::Index>(c)) = 1.0;
       b.free = std::move(free);
       b.free_offset = num_free_;
       for (size_t i = 0; i < b.free.size(); ++i) {
@@ -147,12 +162,21 @@ StateLayout::StateLayout(const BaProblem& problem) {
   };
   const bool one_group = problem.groups.size() == 1;
   for (size_t g = 0; g < problem.groups.size(); ++g) {
+    const IntrinsicsGroup& grp = problem.groups[g];
+    const bool tied = grp.fy_over_fx > 0;
     std::vector<int> free;
     for (int i = 0; i < kNumIntrinsics; ++i) {
-      if (problem.groups[g].free[i]) free.push_back(i);
+      if (grp.free[i] && !(tied && i == kFy)) free.push_back(i);
     }
-    group_block_.push_back(add(BlockKind::kIntrinsics, static_cast<int>(g), kNumIntrinsics,
-                               one_group ? "" : problem.groups[g].name, false, free));
+    const int b = add(BlockKind::kIntrinsics, static_cast<int>(g), kNumIntrinsics,
+                      one_group ? "" : grp.name, false, free);
+    group_block_.push_back(b);
+    BlockInfo& bi = blocks_[b];
+    const auto fx = std::find(bi.free.begin(), bi.free.end(), kFx);
+    if (tied && fx != bi.free.end()) {
+      bi.basis(kFy, fx - bi.free.begin()) = grp.fy_over_fx;
+      bi.selection = false;
+    }
   }
   view_block_.assign(problem.views.size(), -1);
   for (ViewKind kind : {ViewKind::kPlate, ViewKind::kObject}) {
@@ -174,6 +198,14 @@ StateLayout::StateLayout(const BaProblem& problem) {
                                      "plate point " + std::to_string(p), !problem.plate.free,
                                      all(3)));
   }
+}
+
+std::vector<int> BlockInfo::Moving() const {
+  std::vector<int> out;
+  for (int i = 0; i < static_cast<int>(basis.rows()); ++i) {
+    if (!basis.row(i).isZero()) out.push_back(i);
+  }
+  return out;
 }
 
 std::string StateLayout::ParameterName(int b, int i) const {

@@ -55,6 +55,9 @@ struct IntrinsicsGroup {
   int width = 0, height = 0;  // image size, px (0: unknown)
   std::array<double, kNumIntrinsics> initial{};
   std::array<bool, kNumIntrinsics> free{true, true, true, true, true, true, true, true, true};
+  // > 0: a fixed aspect ratio, fy = fy_over_fx * fx. fy is then not a free parameter of its own:
+  // it follows fx (held with it when fx is held); the initial values must satisfy the ratio.
+  double fy_over_fx = 0;
   bool has_prior = false;
   IntrinsicsPrior prior;
 };
@@ -111,6 +114,13 @@ struct BlockInfo {
   bool constant = false;   // held entirely
   std::vector<int> free;   // free parameter indices within the block (empty if constant)
   int free_offset = -1;    // into the free state (-1 if constant)
+  // The block's parameters move as  x = x0 + basis * delta,  delta over `free` (size x |free|).
+  // A column selection (`selection`) unless parameters are tied (fy = r fx: the fx column has r
+  // in fy's row).
+  Eigen::MatrixXd basis;
+  bool selection = true;
+  // Parameters that move (non-zero rows of basis): `free` plus the tied ones.
+  std::vector<int> Moving() const;
 };
 
 class StateLayout {

@@ -1,5 +1,6 @@
-// `carmba solve`: solve a pose problem with a solver configuration; writes result.json and
-// report.md into --out (created if needed). On any error nothing is written.
+// `carmba solve`: solve a pose problem with a solver configuration; writes result.json,
+// report.md and geometry.json (per view the projection matrix CT mm -> undistorted px,
+// export/view_geometry.h) into --out (created if needed). On any error nothing is written.
 #include <gflags/gflags.h>
 
 #include <unistd.h>
@@ -12,10 +13,34 @@
 #include "joint/joint_problem.h"
 #include "problem/pose_problem.h"
 #include "report/pose_report.h"
+#include "export/view_geometry.h"
 #include "util/file_util.h"
 
 
 namespace {
+
+// geometry.json's text, or empty with `why` when a view's image size is unknown (a joint problem
+// whose plate observations carry no image size): the projection matrices need it.
+std::string GeometryText(const carmba::GeometrySet& g, std::string* why) {
+  for (const auto& v : g.views) {
+    if (v.camera.width <= 0 || v.camera.height <= 0) {
+      *why = "view '" + v.id + "': image size unknown";
+      return "";
+    }
+  }
+  return carmba::GeometryToJson(g).dump(2) + "\n";
+}
+
+// Writes geometry.json into the staging directory when it can be built (else a warning).
+carmba::Status WriteGeometry(const std::string& dir, const carmba::GeometrySet& g) {
+  std::string why;
+  const std::string text = GeometryText(g, &why);
+  if (text.empty()) {
+    std::cerr << "carmba solve: warning: no geometry.json: " << why << std::endl;
+    return carmba::Status::Ok();
+  }
+  return carmba::WriteFileAtomic(carmba::JoinPath(dir, "geometry.json"), text);
+}
 
 // A joint problem (plate and/or object views): the engine's joint bundle adjustment.
 int RunJoint() {
@@ -46,6 +71,7 @@ int RunJoint() {
   Status s = staged.Begin();
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok()) s = WriteGeometry(staged.path(), JointSolutionGeometry(*problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (!solution->result.converged) {
@@ -88,6 +114,7 @@ int RunSolve() {
   Status s = staged.Begin();
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok()) s = WriteGeometry(staged.path(), PoseSolutionGeometry(*problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (config->refine && solution->termination != "CONVERGENCE") {
@@ -109,5 +136,8 @@ int RunSolve() {
 
 CARMBA_COMMAND_FLAGS(solve, "problem,config,out");
 CARMBA_REGISTER_COMMAND(solve,
-                        "Solve a pose problem (POSIT + bundle adjustment + covariance).",
+                        "Solve a pose problem (POSIT + bundle adjustment + covariance); writes result.json, "
+                        "report.md and geometry.json (per view the 3x4 projection matrix from CT "
+                        "mm to pixels of the undistorted image; carmba export-geometry converts "
+                        "it for RTK / plastimatch).",
                         RunSolve);

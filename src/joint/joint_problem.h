@@ -109,6 +109,11 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
 nlohmann::json JointSolutionToJson(const JointProblem& problem,
                                    const SolverConfig& config,
                                    const JointSolution& solution);
+// geometry.json's content (export/view_geometry.h): the object views, each with the
+// intrinsics of its group (the full model) and its cam_from_object (the object frame is the CT
+// frame of the fiducials); the reference point the fiducials' centroid.
+GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& solution);
+
 std::string JointReportMarkdown(const JointProblem& problem,
                                 const SolverConfig& config,
                                 const JointSolution& solution);

@@ -100,4 +100,20 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
   return j;
 }
 
+GeometrySet PoseSolutionGeometry(const PoseProblem& problem, const PoseSolution& s) {
+  GeometrySet g;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& m : problem.markers) centroid += m.p_in_object;
+  if (!problem.markers.empty()) g.reference_point_ct_mm = centroid / problem.markers.size();
+  for (const auto& v : s.views) {
+    ViewGeometry vg;
+    vg.id = v.id;
+    vg.camera = problem.camera;  // one camera for all views in a pose problem
+    vg.cam_from_ct = v.cam_from_object;
+    vg.ct_mirrored = problem.handedness == Handedness::kMirrored;
+    g.views.push_back(vg);
+  }
+  return g;
+}
+
 }  // namespace carmba

@@ -77,6 +77,7 @@
 
 #include "ba/bundle_adjuster.h"
 #include "camera/camera.h"
+#include "export/view_geometry.h"
 #include "geometry/pose.h"
 #include "util/status.h"
 
@@ -248,6 +249,11 @@ Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m
 
 // result.json (the schema in the foundation issue: views[], validation[], statistics, solver).
 nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& solution);
+
+// geometry.json's content (export/view_geometry.h): per view the problem's camera and
+// cam_from_ct = cam_from_object (with the mirror when handedness is mirrored), the reference
+// point the CT markers' centroid.
+GeometrySet PoseSolutionGeometry(const PoseProblem& problem, const PoseSolution& solution);
 
 // A synthetic problem with ground truth, for Monte Carlo tests and studies: the markers of
 // `spec.markers` (object frame, mm), views at C-arm angles rotating about the object's axis,

@@ -90,6 +90,11 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
               mc.at("rms_px_carmba_in_mrcal").get<double>());
   EXPECT_LT(mc.at("max_relative_difference_fx_fy_cx_cy").get<double>(), 1e-6);
   EXPECT_LT(mc.at("max_difference_in_sigmas").get<double>(), 1e-4);
+  // mrcal seeded at carmba's optimum stays there: all nine intrinsics within 1e-6 relative.
+  EXPECT_LT(mc.at("max_relative_move_of_mrcal_seeded_at_carmba").get<double>(), 1e-6);
+  // carmba's solution is not worse in mrcal's own cost than mrcal's.
+  EXPECT_LE(mc.at("rms_px_carmba_in_mrcal").get<double>(),
+            mc.at("rms_px_mrcal").get<double>() * (1 + 1e-12));
   EXPECT_NEAR(mc.at("rms_px_mrcal").get<double>(), mc.at("rms_px_carmba_in_mrcal").get<double>(),
               1e-9 * mc.at("rms_px_mrcal").get<double>());
   std::ifstream rep(dir.File("out/report.md"));
@@ -194,6 +199,15 @@ TEST_F(JointBadInput, PerGroupIntrinsics) {
   }
   // The state layout names each group's parameters.
   EXPECT_EQ(j.at("state_layout")[0], "a fx");
+  // geometry.json: the object views, each with the intrinsics of its own group.
+  const nlohmann::json g = ReadJson(dir_.File("out/geometry.json"));
+  ASSERT_EQ(g.at("views").size(), 3u);
+  for (const auto& gv : g.at("views")) {
+    const int group = gv.at("id") == "+000" ? 0 : 1;
+    EXPECT_EQ(gv.at("camera").at("fx").get<double>(),
+              j.at("intrinsics")[group].at("fx").get<double>())
+        << gv.at("id");
+  }
   for (const auto& v : j.at("views")) {
     if (v.at("id") == "+030") {
       EXPECT_EQ(v.at("group"), "b");
