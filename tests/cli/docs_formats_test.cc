@@ -32,7 +32,7 @@ const std::string kDoc = std::string(CARMBA_SOURCE_DIR) + "/src/docs/formats.md"
 
 // Tables of output files: compared with real outputs by DocsOwnData (docs_own_data_test.cc).
 const std::set<std::string> kOutputTables = {"json-camera", "json-result-pose",
-                                             "json-result-joint"};
+                                             "json-result-joint", "json-geometry"};
 
 std::string Slurp(const std::string& path) {
   std::ifstream in(path);

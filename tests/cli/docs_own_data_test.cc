@@ -3,7 +3,8 @@
 // that layout, and the design of its 9 markers), its `yaml` blocks are written to the files they
 // name and every line of its `sh` blocks is run in order in that directory, `carmba` being the
 // built command (and `mkdir -p`). The outputs are then checked: the intrinsics against the simulation's truth,
-// and the keys of camera.json and both result.json files against formats.md's tables.
+// and the keys of camera.json, both result.json files and geometry.json against formats.md's
+// tables.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -104,7 +105,8 @@ TEST(DocsOwnData, WalkThroughRunsOnSimulatedData) {
   const std::map<std::string, std::string> outputs = {
       {"json-camera", "out/calib/camera.json"},
       {"json-result-pose", "out/pose/result.json"},
-      {"json-result-joint", "out/joint/result.json"}};
+      {"json-result-joint", "out/joint/result.json"},
+      {"json-geometry", "out/pose/geometry.json"}};
   for (const auto& [kind, file] : outputs) {
     SCOPED_TRACE(file + " against formats.md table " + kind);
     const nlohmann::json j = ReadJson(dir.File(file));
