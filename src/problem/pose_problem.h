@@ -15,6 +15,9 @@
 // per view it is reported as (rvec, t) and as small rotations about the camera axes (deg) and
 // translations (mm).
 //
+// The reference of both files, every key with its units, is src/docs/formats.md (kept equal to
+// the readers by tests/cli/docs_formats_test.cc); in short:
+//
 // PROBLEM FILE (problems/*.yaml); paths are relative to the problem file:
 //   name: thesis_pose
 //   camera: ../data/thesis/camera.json         # camera.json (camera/camera.h)
