@@ -2,7 +2,7 @@
 // (detect/marker_blobs.h), labelled with the CT fiducials through the calibrated camera
 // (pose/marker_correspondence.h, detect/marker_views.h), and the labelled views are solved as one
 // pose bundle adjustment (problem/pose_problem.h, the engine in ba/) with each blob's pixel sigma.
-// Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md; all or
+// Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md, report.html; all or
 // nothing. Views with fewer than 4 markers found (or no labelling) are skipped with the reason.
 #include <gflags/gflags.h>
 
@@ -16,6 +16,7 @@
 #include "cli/common_flags.h"
 #include "detect/marker_views.h"
 #include "problem/pose_problem.h"
+#include "report/plots.h"
 #include "report/pose_report.h"
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
@@ -104,8 +105,10 @@ int RunPose() {
   nlohmann::json j = PoseSolutionToJson(problem, *solution);
   j["comparison"] = PoseComparisonToJson(problem, comparison);
   j["marker_detection"] = ObjectViewsToJson(*views);
-  const std::string report =
-      PoseReportMarkdown(problem, config, *solution, comparison) + ObjectViewsMarkdown(*views);
+  ReportDoc doc = PoseReportDoc(problem, config, *solution, comparison);
+  AppendObjectViews(&doc, *views);
+  const ReportFiles report =
+      RenderReport(doc, "carmba pose report: " + problem.name, PosePlotData(problem, *solution));
 
   std::map<std::string, Pose6> solved;
   for (const ViewSolution& v : solution->views) solved[v.id] = v.cam_from_object;
@@ -127,10 +130,12 @@ int RunPose() {
       s = Status::Error(JoinPath(FLAGS_out, name) + ": cannot write the overlay");
     }
   }
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail(kCmd, s);
+  if (!report.warning.empty()) std::cerr << "carmba pose: warning: " << report.warning << std::endl;
   for (const ObjectView& v : *views) {
     if (!v.labelled) std::cerr << "carmba pose: skipped " << v.name << ": " << v.skipped << "\n";
   }
@@ -140,7 +145,7 @@ int RunPose() {
   }
   std::cout << "pose: " << problem.views.size() << " of " << views->size() << " views labelled, RMS "
             << solution->rms_px << " px; wrote " << FLAGS_out
-            << "/{observations.csv,result.json,report.md} and the overlays" << std::endl;
+            << "/{observations.csv,result.json,report.md,report.html} and the overlays" << std::endl;
   return 0;
 }
 
