@@ -152,7 +152,7 @@ Status Assemble(const BaProblem& problem,
     const int pose_b = layout.view_block(static_cast<int>(v));
     const int intr_b = layout.group_block(view.group);
     if (view.kind == ViewKind::kPlate && !problem.plate.free && o.loss == "trivial" &&
-        o.analytic_jacobians && view.obs_sigma_px.empty()) {
+        o.analytic_jacobians && view.obs_sigma_px.empty() && view.obs_covariance_px2.empty()) {
       // The held plate without a loss: the whole view in one block (ba/reprojection_error.h).
       std::vector<Eigen::Vector3d> p;
       std::vector<Eigen::Vector2d> uv;
@@ -178,9 +178,15 @@ Status Assemble(const BaProblem& problem,
                               ? layout.plate_point_block(view.point_ids[i])
                               : layout.marker_block(marker_index.at(view.point_ids[i]));
       const Eigen::Vector2d& q = view.uv_px[i];
-      ceres::CostFunction* cost =
-          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.SigmaPx(i))
-                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i));
+      PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(i));
+      if (!view.obs_covariance_px2.empty() &&
+          !PixelWhitening::FromCovariance(view.obs_covariance_px2[i], &w)) {
+        return Status::Error("view '" + view.id + "' point " + std::to_string(view.point_ids[i]) +
+                             ": the pixel covariance is not symmetric positive definite");
+      }
+      ceres::CostFunction* cost = o.analytic_jacobians
+                                      ? ReprojectionError::Create(q.x(), q.y(), w)
+                                      : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
       ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
@@ -310,6 +316,13 @@ bool EvaluateBlock(const BuiltBlock& bb,
   lin->J.reserve(bb.blocks.size());
   for (size_t i = 0; i < bb.blocks.size(); ++i) {
     const BlockInfo& bi = layout.block(bb.blocks[i]);
+    if (!bi.consider.empty()) {  // the considered (held) intrinsics' columns
+      const Eigen::Map<const RowMajor> Ji(jac[i], nr, sizes[i]);
+      lin->consider_block = bb.blocks[i];
+      lin->J_consider.resize(nr, static_cast<Eigen::Index>(bi.consider.size()));
+      for (size_t c = 0; c < bi.consider.size(); ++c) lin->J_consider.col(c) = Ji.col(bi.consider[c]);
+      if (bb.loss) CorrectForLoss(*bb.loss, *r, &lin->J_consider);
+    }
     if (bi.constant) continue;
     const Eigen::Map<const RowMajor> Ji(jac[i], nr, sizes[i]);
     Eigen::MatrixXd Jf(nr, bi.free.size());
@@ -335,7 +348,8 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   need(p.groups.size() == 1, "one intrinsics group");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
   for (const auto& v : p.views) {
-    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty(), "one pixel sigma for all views");
+    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty() && v.obs_covariance_px2.empty(),
+         "one pixel sigma for all views");
   }
   need(!p.plate.free, "plate points held");
   need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
@@ -536,15 +550,14 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       // One observation's whitened residual r2.
       auto observe = [&](int obs, const Eigen::Vector2d& r2) {
         const double n_sigma = r2.norm();
-        const double sigma = view.SigmaPx(obs);
-        view_ss[bb.view] += r2.squaredNorm() * sigma * sigma;
+        PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(obs));
+        if (!view.obs_covariance_px2.empty()) {
+          PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
+        }
+        const Eigen::Vector2d e = w.Unwhiten(r2);  // px
+        view_ss[bb.view] += e.squaredNorm();
         view_n[bb.view] += 1;
-        BaOutlier out{view.id,
-                      view.kind == ViewKind::kPlate,
-                      view.point_ids[obs],
-                      n_sigma,
-                      r2[0] * sigma,
-                      r2[1] * sigma};
+        BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
         if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
         if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
             n_sigma > worst_sigma) {
