@@ -307,6 +307,33 @@ std::string StateLayout::FreeName(int k) const {
   return ParameterName(b, i);
 }
 
+CalibrationUncertainty CalibrationUncertaintyOf(const BaProblem& problem) {
+  bool considered = false;
+  for (const auto& g : problem.groups) {
+    for (bool f : g.free) {
+      if (f) return CalibrationUncertainty::kEstimated;
+    }
+    considered |= !g.consider_indices.empty();
+  }
+  return considered ? CalibrationUncertainty::kConsidered : CalibrationUncertainty::kLeftOut;
+}
+
+const char* CalibrationUncertaintyNote(CalibrationUncertainty c) {
+  switch (c) {
+    case CalibrationUncertainty::kEstimated:
+      return "The intrinsics are estimated in the solve: the covariances include the "
+             "calibration's uncertainty.";
+    case CalibrationUncertainty::kConsidered:
+      return "The intrinsics are held at camera.json's values and its covariance is considered: "
+             "the covariances include the calibration's uncertainty (its share is the source "
+             "'calibration (intrinsics)').";
+    case CalibrationUncertainty::kLeftOut:
+      return "The intrinsics are held and camera.json has no covariance (or consider_calibration: "
+             "false): the covariances leave the calibration's uncertainty out.";
+  }
+  return "";
+}
+
 BaView KeepObservations(const BaView& view, const std::vector<char>& keep) {
   BaView out = view;
   out.point_ids.clear();

@@ -191,6 +191,13 @@ class StateLayout {
   Eigen::MatrixXd consider_covariance_;
 };
 
+// How the calibration's uncertainty enters the covariances: the intrinsics are estimated (some
+// free), held and considered (a covariance, no free one), or held and left out.
+enum class CalibrationUncertainty { kEstimated, kConsidered, kLeftOut };
+CalibrationUncertainty CalibrationUncertaintyOf(const BaProblem& problem);
+// One sentence saying it, for reports and messages.
+const char* CalibrationUncertaintyNote(CalibrationUncertainty c);
+
 // `view` with only the observations i where keep[i] is non-zero (ids, pixels and the
 // per-observation sigmas and covariances alike).
 BaView KeepObservations(const BaView& view, const std::vector<char>& keep);

@@ -214,6 +214,7 @@ Status DetectObjectViews(const ObjectImages& in, const std::string& base, const 
       ov.marker_ids.push_back(o.marker_id);
       ov.uv_px.push_back(o.uv_px);
       ov.sigma_px.push_back(o.sigma_px);
+      ov.covariance_px2.push_back(o.covariance_px2);
       all.push_back(o.sigma_px);
     }
     p->object_views.push_back(ov);
