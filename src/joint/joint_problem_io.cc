@@ -121,7 +121,7 @@ Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p, Obj
     if (!v.ok()) return v.status();
     if (!index.count(id)) {
       index[id] = p->object_views.size();
-      p->object_views.push_back({id, {}, {}, {}});
+      p->object_views.push_back({id, {}, {}, {}, {}});
     }
     JointObjectView& ov = p->object_views[index[id]];
     for (int m2 : ov.marker_ids) {
