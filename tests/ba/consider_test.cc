@@ -28,6 +28,7 @@
 #include "ba/reprojection_error.h"
 #include "ba/synthetic.h"
 #include "ba/triangulation.h"
+#include "synthetic_pixels.h"
 
 namespace carmba {
 namespace ba {
@@ -37,13 +38,6 @@ constexpr double kJacTol = 1e-10;       // analytic vs ceres::Jet: the same arit
 constexpr double kFiniteDiffTol = 1e-6; // central differences: truncation + rounding ~1e-7 rel.
 constexpr double kNeesLow = 0.8, kNeesHigh = 1.25;  // the band
 
-std::vector<int> ObjectViews(const BaProblem& p) {
-  std::vector<int> v;
-  for (size_t i = 0; i < p.views.size(); ++i) {
-    if (p.views[i].kind == ViewKind::kObject) v.push_back(static_cast<int>(i));
-  }
-  return v;
-}
 
 TEST(PixelWhitening, FullCovarianceAnalyticEqualsJetsAndFiniteDifferences) {
   const double pose[6] = {0.2, -0.1, 0.05, 3, -4, 700};
@@ -223,23 +217,6 @@ TEST(Consider, BudgetSplitsTheCalibrationShare) {
 // (their centroid is near (-20, 0, 27)), and 120 mm beyond them along the object's z.
 const Eigen::Vector3d kTipInside(-20, 0, 25), kTipOutside(-20, 0, 145);
 
-std::vector<PixelObservation> TipPixels(const SyntheticJoint& sj,
-                                        const Eigen::Vector3d& tip,
-                                        const std::vector<int>& views,
-                                        double sigma_px,
-                                        std::mt19937_64* rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  std::vector<PixelObservation> obs;
-  for (int v : views) {
-    PixelObservation o;
-    o.view = v;
-    ProjectPoint(sj.true_intrinsics.data(), sj.true_poses[v].data(), tip.data(), o.uv_px.data());
-    o.uv_px += sigma_px * Eigen::Vector2d(g(*rng), g(*rng));
-    o.covariance_px2 = Eigen::Matrix2d::Identity() * sigma_px * sigma_px;
-    obs.push_back(o);
-  }
-  return obs;
-}
 
 double Nees(const Eigen::VectorXd& e, const Eigen::MatrixXd& C) {
   return e.dot(C.ldlt().solve(e)) / static_cast<double>(e.size());
@@ -280,7 +257,7 @@ TEST(Consider, MonteCarloNeesWithAndWithoutTheConsiderTerm) {
     // Two tips seen in all object views: amid the markers, and 120 mm beyond them.
     for (int k = 0; k < 2; ++k) {
       const Eigen::Vector3d tip = k == 0 ? kTipInside : kTipOutside;
-      auto tp = TriangulatePoint(sj.problem, *r, TipPixels(sj, tip, views, kTipSigmaPx, &rng));
+      auto tp = TriangulatePoint(sj.problem, *r, TruePointPixels(sj, tip, views, kTipSigmaPx, &rng));
       ASSERT_TRUE(tp.ok()) << tp.status().message();
       const Eigen::Vector3d et = tp->p_in_object - tip;
       tip_on[k] += Nees(et, tp->covariance);
