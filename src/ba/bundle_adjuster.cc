@@ -11,6 +11,8 @@
 #include "ba/priors.h"
 #include "ba/reprojection_error.h"
 #include "ba/schur_lm.h"
+#include "ba/smooth_intrinsics.h"
+#include "ba/view_intrinsics.h"
 #include "util/stats.h"
 
 namespace carmba {
@@ -112,6 +114,8 @@ Status Assemble(const BaProblem& problem,
     const BaView& view = problem.views[v];
     const int pose_b = layout.view_block(static_cast<int>(v));
     const int intr_b = layout.group_block(view.group);
+    const bool smooth = problem.groups[view.group].smooth;
+    const Eigen::MatrixXd A = smooth ? ViewIntrinsicsMap(problem, static_cast<int>(v)) : Eigen::MatrixXd();
     for (size_t i = 0; i < view.point_ids.size(); ++i) {
       if (dropped[v][i]) continue;
       const int point_b = view.kind == ViewKind::kPlate
@@ -119,8 +123,12 @@ Status Assemble(const BaProblem& problem,
                               : layout.marker_block(marker_index.at(view.point_ids[i]));
       const Eigen::Vector2d& q = view.uv_px[i];
       ceres::CostFunction* cost =
-          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.sigma_px)
-                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px);
+          smooth ? (o.analytic_jacobians
+                        ? static_cast<ceres::CostFunction*>(
+                              new SmoothReprojectionError(q.x(), q.y(), view.sigma_px, A))
+                        : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px, A))
+          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.sigma_px)
+                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px);
       ceres::LossFunction* loss = MakeLoss(o, view.sigma_px);
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
@@ -256,6 +264,7 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
     if (!ok && why.empty()) why = what;
   };
   need(p.groups.size() == 1, "one intrinsics group");
+  need(p.groups.empty() || !p.groups[0].smooth, "intrinsics that do not depend on the angles");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
   for (const auto& v : p.views) need(v.sigma_px == p.views[0].sigma_px, "one pixel sigma for all views");
   need(!p.plate.free, "plate points held");

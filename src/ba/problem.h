@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "ba/smooth_intrinsics.h"
 #include "camera/camera_model.h"
 #include "geometry/pose.h"
 #include "util/status.h"
@@ -57,6 +58,14 @@ struct IntrinsicsGroup {
   std::array<bool, kNumIntrinsics> free{true, true, true, true, true, true, true, true, true};
   bool has_prior = false;
   IntrinsicsPrior prior;
+  // Orientation-dependent intrinsics (ba/smooth_intrinsics.h): the group's block holds the
+  // coefficients of `basis` (4K + 5), each view's intrinsics are A(view angles) c. Coefficient j
+  // is free if its intrinsic is. Every view of the group needs angles; no prior; the plate views
+  // must cover at least K orientations (K distinct angle pairs).
+  bool smooth = false;
+  SmoothBasis basis;
+  std::vector<double> initial_coefficients;  // empty: `initial` at every angle
+  int BlockSize() const { return smooth ? basis.BlockSize() : kNumIntrinsics; }
 };
 
 enum class ViewKind { kPlate, kObject };
@@ -69,6 +78,9 @@ struct BaView {
   std::vector<int> point_ids;         // plate point ids (plate view) or marker ids (object view)
   std::vector<Eigen::Vector2d> uv_px;
   double sigma_px = 1.0;              // pixel noise, 1 sigma per coordinate
+  // C-arm angles (DICOM positioner angles, deg), needed by a smooth intrinsics group.
+  bool has_angles = false;
+  double primary_deg = 0, secondary_deg = 0;
 };
 
 struct BaMarker {
@@ -106,11 +118,12 @@ struct BlockInfo {
   BlockKind kind;
   int index = 0;           // group / view / marker or plate-point index in the problem
   int offset = 0;          // into the parameter buffer
-  int size = 0;            // 9, 6 or 3
+  int size = 0;            // 9 (4K + 5 for smooth intrinsics), 6 or 3
   std::string label;       // "" (one group), "lao30", "plate 3", "view lao+030", "marker 7", ...
   bool constant = false;   // held entirely
   std::vector<int> free;   // free parameter indices within the block (empty if constant)
   int free_offset = -1;    // into the free state (-1 if constant)
+  std::vector<std::string> parameter_names;  // when not the kind's default (smooth intrinsics)
 };
 
 class StateLayout {
