@@ -25,9 +25,10 @@ namespace {
 
 // Analytic and autodiff derivatives of the same expression agree to rounding.
 constexpr double kJacTol = 1e-10;
-// Finite differences (GradientChecker) of a residual whose intrinsics are ~2000 px and whose
-// derivative with respect to k3 is ~1e-7: the relative error of the tiny entries reaches ~1e-6.
-constexpr double kFdTol = 1e-5;
+// Finite differences (GradientChecker, relative error) of a residual whose intrinsics are ~2000 px:
+// the central differences' rounding error is ~1e-13 absolute, which is ~1e-5 relative for the
+// smallest entries (dr/dk3 ~ r^6 ~ 1e-8 near the image centre).
+constexpr double kFdTol = 1e-4;
 // Schur complement vs ceres::Covariance dense SVD: two factorisations of a matrix of condition ~1e9.
 constexpr double kCovTol = 1e-6;
 
@@ -66,8 +67,9 @@ TEST(SmoothIntrinsics, AnalyticJacobianEqualsAutodiffAndFiniteDifferences) {
     for (int k = 0; k < 4; ++k) {
       for (int t = 1; t < b.NumTerms(); ++t) c[k * b.NumTerms() + t] = 5 * u(rng);
     }
-    std::vector<double> pose = {0.2 * u(rng), 0.2 * u(rng), 0.3 * u(rng), 20 * u(rng), 20 * u(rng), 700};
-    std::vector<double> p = {40 * u(rng), 40 * u(rng), 10 * u(rng)};
+    // A wide field (normalised radius up to ~0.3), so that dr/dk3 ~ r^6 is not lost in rounding.
+    std::vector<double> pose = {0.2 * u(rng), 0.2 * u(rng), 0.3 * u(rng), 20 * u(rng), 20 * u(rng), 250};
+    std::vector<double> p = {60 * u(rng), 60 * u(rng), 10 * u(rng)};
     const double* params[3] = {pose.data(), p.data(), c.data()};
     SmoothReprojectionError analytic(150, 210, 0.3, A);
     std::unique_ptr<ceres::CostFunction> twin(SmoothReprojectionErrorAutoDiff::Create(150, 210, 0.3, A));
