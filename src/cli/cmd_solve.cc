@@ -39,13 +39,23 @@ int RunJoint() {
   } else {
     j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
   }
-  const std::string report = JointReportMarkdown(*problem, *config, *solution) +
-                             JointMrcalMarkdown(j["mrcal_crosscheck"]);
+  std::string report = JointReportMarkdown(*problem, *config, *solution) +
+                      JointMrcalMarkdown(j["mrcal_crosscheck"]);
   // Both files or neither; other files in an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok() && j.contains("intrinsics_model") && !problem->angles.empty()) {
+    // The intrinsics against the C-arm angle (linked from the report); a missing matplotlib is
+    // reported, not an error of the solve.
+    const Status plot = WriteIntrinsicsPlot(JoinPath(staged.path(), "result.json"),
+                                            JoinPath(staged.path(), "intrinsics_vs_angle.png"));
+    if (!plot.ok()) {
+      report += "\nThe plot intrinsics_vs_angle.png was not written: " + plot.message() + "\n";
+      std::cerr << "carmba solve: warning: " << plot.message() << std::endl;
+    }
+  }
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (!solution->result.converged) {

@@ -29,8 +29,10 @@ std::string Fmt(const char* f, double x) {
   return b;
 }
 
-// The group's intrinsics as camera.json writes them, with the joint covariance.
+// The group's intrinsics as camera.json writes them, with the joint covariance (a smooth group:
+// its coefficients, FlexModelJson).
 nlohmann::json GroupJson(const JointSolution& s, int g) {
+  if (s.ba_problem.groups[g].smooth) return FlexModelJson(s);
   const ba::StateLayout& L = *s.result.layout;
   const int b = L.group_block(g);
   Camera c;
@@ -120,6 +122,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     views.push_back(vj);
   }
   j["views"] = views;
+  AddFlexJson(problem, s, &j);
   nlohmann::json val = nlohmann::json::array();
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
@@ -250,6 +253,7 @@ std::string JointReportMarkdown(const JointProblem& problem,
   for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
     const int b = r.layout->group_block(static_cast<int>(g));
     const Eigen::MatrixXd C = r.Covariance({b});
+    if (s.ba_problem.groups[g].smooth) continue;  // FlexReportMarkdown
     for (int i = 0; i < kNumIntrinsics; ++i) {
       const double x = r.block(b)[i], sg = std::sqrt(std::max(0.0, C(i, i)));
       o << "| " << s.ba_problem.groups[g].name << " | " << kIntrinsicNames[i] << " | "
@@ -261,6 +265,7 @@ std::string JointReportMarkdown(const JointProblem& problem,
       o << "\n";
     }
   }
+  o << FlexReportMarkdown(problem, s);
   o << "\n## Validation pairs (object views)\n\n"
        "| a | b | expected (deg) | relative rotation (deg) | sigma | view directions (deg) | sigma |";
   const bool truth_poses = !problem.truth.object_poses.empty();
