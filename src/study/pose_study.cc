@@ -347,6 +347,21 @@ bool IsJoint(const StudyProblem& p) {
   return p.synthetic.is_object() && p.synthetic.contains("kind") && p.synthetic["kind"] == "joint";
 }
 
+// One run's record: convergence, errors against the truth, signed errors with their sigmas, values.
+nlohmann::json RunRecord(bool converged,
+                         const std::string& termination,
+                         const nlohmann::json& errors,
+                         const nlohmann::json& signed_errors,
+                         const nlohmann::json& sigmas,
+                         const nlohmann::json& values) {
+  return {{"converged", converged},
+          {"termination", termination},
+          {"errors", errors},
+          {"signed_errors", signed_errors},
+          {"sigmas", sigmas},
+          {"values", values}};
+}
+
 bool IsFlex(const StudyProblem& p) {
   return p.synthetic.is_object() && p.synthetic.contains("kind") && p.synthetic["kind"] == "flex";
 }
@@ -467,14 +482,7 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
       values[std::string("held_out_d2_") + ba::IntrinsicsModelName(sc.model)] = Num(sc.held_out_d2_mean);
     }
   }
-  nlohmann::json out;
-  out["converged"] = r->converged;
-  out["termination"] = r->termination;
-  out["errors"] = errors;
-  out["signed_errors"] = signed_errors;
-  out["sigmas"] = sigmas;
-  out["values"] = values;
-  return out;
+  return RunRecord(r->converged, r->termination, errors, signed_errors, sigmas, values);
 }
 
 std::string BudgetKey(ba::Source s) {
@@ -693,14 +701,7 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   double worst = 0;
   for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
   values["projection_sigma_worst_px"] = Num(worst);
-  nlohmann::json r;
-  r["converged"] = result->converged;
-  r["termination"] = result->termination;
-  r["errors"] = errors;
-  r["signed_errors"] = signed_errors;
-  r["sigmas"] = sigmas;
-  r["values"] = values;
-  return r;
+  return RunRecord(result->converged, result->termination, errors, signed_errors, sigmas, values);
 }
 
 // The predicted error budget of the first view from the engine (ba/quantities.h): the shares of

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
@@ -64,6 +65,17 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
+
+// The text of a file ("" if unreadable) and a JSON file parsed.
+inline std::string ReadTextFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+inline nlohmann::json ReadJsonFile(const std::string& path) {
+  return nlohmann::json::parse(ReadTextFile(path));
+}
 
 inline int CountLines(const std::string& s) {
   int n = 0;

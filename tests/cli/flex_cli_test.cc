@@ -20,18 +20,6 @@ namespace {
 const std::string kSource = CARMBA_SOURCE_DIR;
 constexpr double kSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
 
-nlohmann::json ReadJson(const std::string& path) {
-  std::ifstream in(path);
-  return nlohmann::json::parse(in);
-}
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 std::string Replace(std::string s, const std::string& from, const std::string& to) {
   for (size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + to.size())) {
     s.replace(p, from.size(), to);
@@ -48,7 +36,7 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
                 "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
                 "/fiducials.csv");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json truth = ReadJson(scene + "/truth.json");
+  const nlohmann::json truth = ReadJsonFile(scene + "/truth.json");
   // The simulator's per-view truth follows the flex (camera/carm_flex.h).
   for (const auto& v : truth.at("view_intrinsics")) {
     if (v.at("id") != "plate_pp40_sp00_1") continue;
@@ -57,12 +45,12 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
                 2061.389 * (1 + 0.004 * (1 - std::cos(40 * M_PI / 180))), 1e-9);
   }
   const std::string problem =
-      Replace(ReadText(kSource + "/problems/flex_joint_smooth.yaml"), "../out/sim/flex", scene);
+      Replace(ReadTextFile(kSource + "/problems/flex_joint_smooth.yaml"), "../out/sim/flex", scene);
   dir.Write("problem.yaml", problem);
   const std::string config = " --config " + kSource + "/configs/joint_radial.yaml";
   r = RunCarmba("solve --problem " + dir.File("problem.yaml") + config + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = ReadJson(dir.File("out/result.json"));
+  const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
   std::map<std::string, nlohmann::json> true_intr;
   for (const auto& v : truth.at("view_intrinsics")) true_intr[v.at("id")] = v.at("camera");
   std::map<std::string, nlohmann::json> true_pose;
@@ -103,10 +91,10 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   EXPECT_EQ(j.at("model_selection").at("recommended"), "smooth") << j.at("model_selection").at("why");
   EXPECT_EQ(j.at("model_selection").at("scores").size(), 3u);
   EXPECT_TRUE(std::filesystem::exists(dir.File("out/intrinsics_vs_angle.png")));
-  EXPECT_NE(ReadText(dir.File("out/report.md")).find("](intrinsics_vs_angle.png)"), std::string::npos);
+  EXPECT_NE(ReadTextFile(dir.File("out/report.md")).find("](intrinsics_vs_angle.png)"), std::string::npos);
 
   // Bad input, one corruption at a time: no output, a one-line error.
-  const std::string angles = ReadText(scene + "/views.csv");
+  const std::string angles = ReadTextFile(scene + "/views.csv");
   auto expect_error = [&](const std::string& csv, const std::string& model, const std::string& what) {
     TempDir bad;
     bad.Write("views.csv", csv);

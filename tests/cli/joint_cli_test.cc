@@ -19,11 +19,6 @@ namespace {
 const std::string kSource = CARMBA_SOURCE_DIR;
 constexpr double kSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
 
-nlohmann::json ReadJson(const std::string& path) {
-  std::ifstream in(path);
-  return nlohmann::json::parse(in);
-}
-
 TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   TempDir dir;
   const std::string scene = dir.File("scene");
@@ -46,8 +41,8 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   r = RunCarmba("solve --problem " + dir.File("problem.yaml") + " --config " + kSource +
                 "/configs/joint_radial.yaml --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = ReadJson(dir.File("out/result.json"));
-  const nlohmann::json truth = ReadJson(scene + "/truth.json");
+  const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
+  const nlohmann::json truth = ReadJsonFile(scene + "/truth.json");
   // Intrinsics within 3 sigma of the truth.
   const auto& intr = j.at("intrinsics");
   for (const char* k : {"fx", "fy", "cx", "cy"}) {
@@ -172,7 +167,7 @@ class JointBadInput : public ::testing::Test {
 TEST_F(JointBadInput, ValidProblemSolves) {
   const auto r = Solve();
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = ReadJson(dir_.File("out/result.json"));
+  const nlohmann::json j = ReadJsonFile(dir_.File("out/result.json"));
   EXPECT_EQ(j.at("views").size(), 9u);
   EXPECT_EQ(j.at("validation").size(), 1u);
 }
@@ -184,7 +179,7 @@ TEST_F(JointBadInput, PerGroupIntrinsics) {
   config_ = "name: c\nfix: [k1, k2, p1, p2, k3]\n";  // 3 plate views per group: pinhole
   const auto r = Solve();
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = ReadJson(dir_.File("out/result.json"));
+  const nlohmann::json j = ReadJsonFile(dir_.File("out/result.json"));
   ASSERT_TRUE(j.at("intrinsics").is_array());
   ASSERT_EQ(j.at("intrinsics").size(), 2u);
   EXPECT_EQ(j.at("intrinsics")[0].at("group"), "a");
