@@ -70,16 +70,32 @@ def joint(inp):
     t0 = time.time()
     stats = mrcal.optimize(**inputs)
     t_solve = time.time() - t0
+    # libdogleg stops on its own (relative) thresholds, which on this problem leave the small
+    # distortion terms ~1e-5 (relative) short of the optimum; solving again from its solution (a
+    # fresh trust region; mrcal.optimize updates the inputs in place) converges them. Counted and
+    # reported, not hidden.
+    passes = 1
+    for _ in range(4):
+        before = inputs['intrinsics'].copy()
+        stats = mrcal.optimize(**inputs)
+        passes += 1
+        if np.max(np.abs(inputs['intrinsics'] - before) / np.maximum(np.abs(before), 1e-300)) < 1e-9:
+            break
     ours = dict(inputs)
     c = inp['carmba']
     ours['intrinsics'] = np.array([c['intrinsics']], dtype=float)
     ours['extrinsics_rt_fromref'] = np.array(c['object_poses'], dtype=float)
     ours['frames_rt_toref'] = np.array(c['plate_poses'], dtype=float)
     x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
+    # mrcal seeded AT carmba's optimum: if carmba's point is mrcal's optimum too, mrcal stays there.
+    at_carmba = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in ours.items()}
+    mrcal.optimize(**at_carmba)
     n_meas = int(np.count_nonzero(obs[..., 2] > 0) + len(obs_p)) * 2
     return {
         'mode': 'joint',
         'solve_seconds': t_solve,
+        'optimize_passes': passes,
+        'intrinsics_seeded_at_carmba': at_carmba['intrinsics'][0].tolist(),
         'intrinsics': inputs['intrinsics'][0].tolist(),
         'rms_px': float(stats['rms_reproj_error__pixels']),
         'rms_px_of_carmba_solution': float(np.sqrt(np.sum(x[:n_meas] ** 2) / n_meas)),
@@ -220,6 +236,9 @@ def main():
                 'fit_floor_rms_px': floor}
 
     x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
+    # mrcal seeded AT carmba's optimum: if carmba's point is mrcal's optimum too, mrcal stays there.
+    at_carmba = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in ours.items()}
+    mrcal.optimize(**at_carmba)
     diffs = {'mrcal': diff(model_mrcal.intrinsics()[1])}
     for name, intrinsics in inp.get('others', {}).items():
         diffs[name] = diff(intrinsics)

@@ -14,6 +14,9 @@ PKGS=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-numpy python3-matplotlib python3-opencv python3-pydicom
   libgdcm3.0 zlib1g-dev
+  # the real consumer of the exported geometry: the DRR end-to-end test renders with
+  # `plastimatch drr` (tests/cli/drr_export_e2e_test.cc; skipped, saying so, without it)
+  plastimatch
 )
 if [[ "${CARMBA_WITH_DOCS_DATA:-1}" == 1 ]]; then
   PKGS+=(opencv-doc)
@@ -27,7 +30,9 @@ fi
 if [[ "${CARMBA_WITH_FUZZ:-0}" == 1 ]]; then
   PKGS+=(clang libclang-rt-14-dev)
 fi
-if [[ "${CARMBA_WITH_BROWSER:-0}" == 1 ]]; then
+# Headless Chromium for the tests that render every report.html in a browser
+# (tests/cli/report_browser.h); they skip without it. CARMBA_WITH_BROWSER=0 leaves it out.
+if [[ "${CARMBA_WITH_BROWSER:-1}" == 1 ]]; then
   PKGS+=(chromium)
 fi
 

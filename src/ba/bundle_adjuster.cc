@@ -67,12 +67,17 @@ bool LinearSolverType(const std::string& name, ceres::LinearSolverType* t) {
 // One residual block as built: its cost, loss, source, the layout blocks of its parameters and,
 // for reprojections, which observation it is.
 struct BuiltBlock {
+  BuiltBlock(ceres::CostFunction* c, ceres::LossFunction* l, Source s, std::vector<int> b,
+             int v = -1, int o = -1, int zero = 0)
+      : cost(c), loss(l), source(s), blocks(std::move(b)), view(v), obs(o), zero_rows(zero) {}
   ceres::CostFunction* cost = nullptr;
   ceres::LossFunction* loss = nullptr;
   Source source;
   std::vector<int> blocks;
   int view = -1, obs = -1;
   int zero_rows = 0;  // rows that are zero by construction (the split point prior's third block)
+  // A PlateViewReprojection block: the observations of `view` it holds (2 rows each); obs = -1.
+  std::vector<int> view_obs;
 };
 
 // The residual blocks as built (owned here: a Ceres problem built on them must not take
@@ -82,6 +87,40 @@ struct Assembly {
   std::vector<double> buffer;
   std::vector<std::unique_ptr<ceres::CostFunction>> costs;
   std::vector<std::unique_ptr<ceres::LossFunction>> losses;
+};
+
+// x = x0 + A delta: an affine subspace of a block's parameters (held ones, tied ones such as
+// fy = r fx), the block's StateLayout basis.
+class AffineSubspaceManifold final : public ceres::Manifold {
+ public:
+  explicit AffineSubspaceManifold(const Eigen::MatrixXd& A)
+      : A_(A), pinv_((A.transpose() * A).inverse() * A.transpose()) {}
+  int AmbientSize() const override { return static_cast<int>(A_.rows()); }
+  int TangentSize() const override { return static_cast<int>(A_.cols()); }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    Eigen::Map<Eigen::VectorXd>(x_plus_delta, A_.rows()) =
+        Eigen::Map<const Eigen::VectorXd>(x, A_.rows()) +
+        A_ * Eigen::Map<const Eigen::VectorXd>(delta, A_.cols());
+    return true;
+  }
+  bool PlusJacobian(const double*, double* jacobian) const override {
+    Eigen::Map<RowMat>(jacobian, A_.rows(), A_.cols()) = A_;
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    Eigen::Map<Eigen::VectorXd>(y_minus_x, A_.cols()) =
+        pinv_ * (Eigen::Map<const Eigen::VectorXd>(y, A_.rows()) -
+                 Eigen::Map<const Eigen::VectorXd>(x, A_.rows()));
+    return true;
+  }
+  bool MinusJacobian(const double*, double* jacobian) const override {
+    Eigen::Map<RowMat>(jacobian, A_.cols(), A_.rows()) = pinv_;
+    return true;
+  }
+
+ private:
+  using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  Eigen::MatrixXd A_, pinv_;
 };
 
 ceres::Problem::Options ProblemOptions(ceres::Context* context) {
@@ -116,6 +155,28 @@ Status Assemble(const BaProblem& problem,
     const int intr_b = layout.group_block(view.group);
     const bool smooth = problem.groups[view.group].smooth;
     const Eigen::MatrixXd A = smooth ? ViewIntrinsicsMap(problem, static_cast<int>(v)) : Eigen::MatrixXd();
+    if (view.kind == ViewKind::kPlate && !problem.plate.free && o.loss == "trivial" &&
+        o.analytic_jacobians && view.obs_sigma_px.empty() && !smooth) {
+      // The held plate without a loss: the whole view in one block (ba/reprojection_error.h;
+      // not for a smooth group: the block takes the 9 intrinsics, the group holds coefficients).
+      std::vector<Eigen::Vector3d> p;
+      std::vector<Eigen::Vector2d> uv;
+      std::vector<int> kept;
+      for (size_t i = 0; i < view.point_ids.size(); ++i) {
+        if (dropped[v][i]) continue;
+        p.push_back(problem.plate.points[view.point_ids[i]]);
+        uv.push_back(view.uv_px[i]);
+        kept.push_back(static_cast<int>(i));
+      }
+      if (kept.empty()) continue;
+      auto* cost = new PlateViewReprojection(std::move(p), std::move(uv), view.sigma_px);
+      own(cost, nullptr);
+      if (cp) cp->AddResidualBlock(cost, nullptr, ptr(pose_b), ptr(intr_b));
+      BuiltBlock bb(cost, nullptr, Source::kPlatePixels, {pose_b, intr_b}, static_cast<int>(v));
+      bb.view_obs = std::move(kept);
+      as->built.push_back(std::move(bb));
+      continue;
+    }
     for (size_t i = 0; i < view.point_ids.size(); ++i) {
       if (dropped[v][i]) continue;
       const int point_b = view.kind == ViewKind::kPlate
@@ -125,20 +186,16 @@ Status Assemble(const BaProblem& problem,
       ceres::CostFunction* cost =
           smooth ? (o.analytic_jacobians
                         ? static_cast<ceres::CostFunction*>(
-                              new SmoothReprojectionError(q.x(), q.y(), view.sigma_px, A))
-                        : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px, A))
-          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.sigma_px)
-                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.sigma_px);
-      ceres::LossFunction* loss = MakeLoss(o, view.sigma_px);
+                              new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
+                        : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
+          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.SigmaPx(i))
+                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i));
+      ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
-      as->built.push_back(
-          {cost,
-           loss,
-           view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels,
-           {pose_b, point_b, intr_b},
-           static_cast<int>(v),
-           static_cast<int>(i)});
+      as->built.emplace_back(
+          cost, loss, view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels,
+          std::vector<int>{pose_b, point_b, intr_b}, static_cast<int>(v), static_cast<int>(i));
     }
   }
   auto add_point_prior = [&](int b, const Eigen::Vector3d& p, const Eigen::Matrix3d& S, Source s) {
@@ -210,6 +267,8 @@ Status Assemble(const BaProblem& problem,
     if (!cp->HasParameterBlock(p)) continue;
     if (b.constant) {
       cp->SetParameterBlockConstant(p);
+    } else if (!b.selection) {
+      cp->SetManifold(p, new AffineSubspaceManifold(b.basis));
     } else if (static_cast<int>(b.free.size()) < b.size) {
       std::vector<int> held;
       for (int i = 0; i < b.size; ++i) {
@@ -228,27 +287,46 @@ bool EvaluateBlock(const BuiltBlock& bb,
                    const std::vector<double>& buffer,
                    Eigen::VectorXd* r,
                    LinearizedBlock* lin) {
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const int nr = bb.cost->num_residuals();
   const auto& sizes = bb.cost->parameter_block_sizes();
-  std::vector<const double*> params;
-  for (int b : bb.blocks) params.push_back(buffer.data() + layout.block(b).offset);
-  r->resize(nr);
-  std::vector<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J;
-  std::vector<double*> jac;
-  if (lin) {
-    for (int s : sizes) J.emplace_back(nr, s);
-    for (auto& j : J) jac.push_back(j.data());
+  constexpr size_t kMaxBlocks = 4;  // the residual kinds touch at most 3 blocks
+  if (bb.blocks.size() > kMaxBlocks) return false;
+  const double* params[kMaxBlocks];
+  double* jac[kMaxBlocks];
+  for (size_t i = 0; i < bb.blocks.size(); ++i) {
+    params[i] = buffer.data() + layout.block(bb.blocks[i]).offset;
   }
-  if (!bb.cost->Evaluate(params.data(), r->data(), lin ? jac.data() : nullptr) || !r->allFinite()) {
+  r->resize(nr);
+  // Scratch for the ambient Jacobians (this is called once per residual block per solve).
+  thread_local std::vector<double> scratch;
+  if (lin) {
+    size_t total = 0;
+    for (int s : sizes) total += static_cast<size_t>(nr) * s;
+    if (scratch.size() < total) scratch.resize(total);
+    size_t at = 0;
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      jac[i] = scratch.data() + at;
+      at += static_cast<size_t>(nr) * sizes[i];
+    }
+  }
+  if (!bb.cost->Evaluate(params, r->data(), lin ? jac : nullptr) || !r->allFinite()) {
     return false;
   }
   if (!lin) return true;
   lin->source = bb.source;
+  lin->blocks.reserve(bb.blocks.size());
+  lin->J.reserve(bb.blocks.size());
   for (size_t i = 0; i < bb.blocks.size(); ++i) {
     const BlockInfo& bi = layout.block(bb.blocks[i]);
     if (bi.constant) continue;
+    const Eigen::Map<const RowMajor> Ji(jac[i], nr, sizes[i]);
     Eigen::MatrixXd Jf(nr, bi.free.size());
-    for (size_t c = 0; c < bi.free.size(); ++c) Jf.col(c) = J[i].col(bi.free[c]);
+    if (bi.selection) {
+      for (size_t c = 0; c < bi.free.size(); ++c) Jf.col(c) = Ji.col(bi.free[c]);
+    } else {
+      Jf.noalias() = Ji * bi.basis;
+    }
     if (bb.loss) CorrectForLoss(*bb.loss, *r, &Jf);
     lin->blocks.push_back(bb.blocks[i]);
     lin->J.push_back(std::move(Jf));
@@ -266,7 +344,9 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   need(p.groups.size() == 1, "one intrinsics group");
   need(p.groups.empty() || !p.groups[0].smooth, "intrinsics that do not depend on the angles");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
-  for (const auto& v : p.views) need(v.sigma_px == p.views[0].sigma_px, "one pixel sigma for all views");
+  for (const auto& v : p.views) {
+    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty(), "one pixel sigma for all views");
+  }
   need(!p.plate.free, "plate points held");
   need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
   need(o.loss == "trivial", "the trivial loss");
@@ -296,9 +376,8 @@ Status SolveWithCarmbaLm(const BaProblem& p,
   const BlockInfo& g = layout.block(layout.group_block(0));
   std::array<double, kNumIntrinsics> x;
   std::copy(buffer->data() + g.offset, buffer->data() + g.offset + kNumIntrinsics, x.begin());
-  Eigen::MatrixXd A =
-      Eigen::MatrixXd::Zero(kNumIntrinsics, static_cast<Eigen::Index>(g.free.size()));
-  for (size_t c = 0; c < g.free.size(); ++c) A(g.free[c], static_cast<Eigen::Index>(c)) = 1.0;
+  const Eigen::MatrixXd A =
+      g.constant ? Eigen::MatrixXd::Zero(kNumIntrinsics, 0) : g.basis;
   LmReport report;
   CARMBA_RETURN_IF_ERROR(SchurLevenbergMarquardt(
       plate, uv, A, o.max_iterations, o.function_tolerance, &x, &poses, &report));
@@ -371,10 +450,11 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
     for (const auto& bb : as.built) {
       Eigen::VectorXd r;
       if (!EvaluateBlock(bb, layout, as.buffer, &r, nullptr)) {
-        const std::string what = bb.view >= 0
-                                     ? "view '" + problem.views[bb.view].id + "' point " +
-                                           std::to_string(problem.views[bb.view].point_ids[bb.obs])
-                                     : std::string("a prior");
+        const std::string what =
+            bb.view < 0    ? std::string("a prior")
+            : bb.obs < 0   ? "view '" + problem.views[bb.view].id + "'"
+                           : "view '" + problem.views[bb.view].id + "' point " +
+                               std::to_string(problem.views[bb.view].point_ids[bb.obs]);
         return Status::Error("the initial state gives a non-finite residual at " + what +
                              " (behind the source? a wrong initial pose?)");
       }
@@ -435,6 +515,7 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       state = as.buffer;
     }
 
+    if (!o.evaluate_solution) break;
     // Residuals, outliers, statistics and the linearisation at the solution.
     auto lin = std::make_shared<Linearization>();
     res.outliers.clear();
@@ -462,23 +543,34 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
       if (bb.view < 0) continue;
       const BaView& view = problem.views[bb.view];
-      const double n_sigma = r.norm();
-      view_ss[bb.view] += r.squaredNorm() * view.sigma_px * view.sigma_px;
-      view_n[bb.view] += 1;
-      BaOutlier out{view.id,
-                    view.kind == ViewKind::kPlate,
-                    view.point_ids[bb.obs],
-                    n_sigma,
-                    r[0] * view.sigma_px,
-                    r[1] * view.sigma_px};
-      if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
-      if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
-          n_sigma > worst_sigma) {
-        worst_sigma = n_sigma;
-        worst_view = bb.view;
-        worst_obs = bb.obs;
-        worst_out = out;
-        any_rejected = true;
+      // One observation's whitened residual r2.
+      auto observe = [&](int obs, const Eigen::Vector2d& r2) {
+        const double n_sigma = r2.norm();
+        const double sigma = view.SigmaPx(obs);
+        view_ss[bb.view] += r2.squaredNorm() * sigma * sigma;
+        view_n[bb.view] += 1;
+        BaOutlier out{view.id,
+                      view.kind == ViewKind::kPlate,
+                      view.point_ids[obs],
+                      n_sigma,
+                      r2[0] * sigma,
+                      r2[1] * sigma};
+        if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
+        if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
+            n_sigma > worst_sigma) {
+          worst_sigma = n_sigma;
+          worst_view = bb.view;
+          worst_obs = obs;
+          worst_out = out;
+          any_rejected = true;
+        }
+      };
+      if (bb.obs >= 0) {
+        observe(bb.obs, r.head<2>());
+      } else {
+        for (size_t k = 0; k < bb.view_obs.size(); ++k) {
+          observe(bb.view_obs[k], r.segment<2>(2 * static_cast<Eigen::Index>(k)));
+        }
       }
     }
     if (any_rejected) {
@@ -526,7 +618,7 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
   }
   res.state = state;
   res.dropped = dropped;
-  if (o.compute_covariance) {
+  if (o.compute_covariance && o.evaluate_solution) {
     auto cov = SchurCovariance::Compute(layout, *res.linearization, o.min_reciprocal_condition);
     if (!cov.ok()) return cov.status();
     res.covariance = *cov;

@@ -47,6 +47,9 @@ struct BaOptions {
   double parameter_tolerance = 1e-12;
   int num_threads = 1;
   bool compute_covariance = true;
+  // false: a seeding solve -- return the solved state, iterations and termination only (no
+  // residual statistics, outliers, linearisation or covariance; no rejection pass).
+  bool evaluate_solution = true;
   bool covariance_aposteriori = false;  // scale the covariance by sigma0^2
   double outlier_sigma = 4.0;           // list observations with |r| above this (whitened)
   double reject_sigma = 0;              // > 0: drop observations above it and re-solve

@@ -1,5 +1,6 @@
 #include "ba/problem.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <set>
@@ -46,6 +47,22 @@ Status BaProblem::Check() const {
       return Status::Error("group '" + g.name + "': " + std::to_string(g.initial_coefficients.size()) +
                            " initial coefficients, expected " + std::to_string(g.basis.BlockSize()));
     }
+    if (g.smooth && g.fy_over_fx != 0) {
+      return Status::Error("group '" + g.name + "': a fixed aspect ratio (fy_over_fx) is not "
+                           "supported with the smooth (angle-dependent) model");
+    }
+    if (g.fy_over_fx != 0) {
+      if (!(g.fy_over_fx > 0) || !std::isfinite(g.fy_over_fx)) {
+        return Status::Error("group '" + g.name + "': fy_over_fx must be > 0 (0: fy free)");
+      }
+      if (std::abs(g.initial[kFy] - g.fy_over_fx * g.initial[kFx]) > 1e-9 * g.initial[kFy]) {
+        return Status::Error("group '" + g.name + "': the initial fy is not fy_over_fx * fx");
+      }
+      if (g.free[kFx] != g.free[kFy]) {
+        return Status::Error("group '" + g.name +
+                             "': with a fixed aspect ratio fx and fy are free or held together");
+      }
+    }
     if (g.has_prior) {
       const auto n = static_cast<Eigen::Index>(g.prior.indices.size());
       if (n == 0 || g.prior.covariance.rows() != n || g.prior.covariance.cols() != n ||
@@ -81,6 +98,14 @@ Status BaProblem::Check() const {
     }
     if (v.point_ids.size() != v.uv_px.size()) {
       return Status::Error("view '" + v.id + "': ids and pixels differ in number");
+    }
+    if (!v.obs_sigma_px.empty() && v.obs_sigma_px.size() != v.uv_px.size()) {
+      return Status::Error("view '" + v.id + "': per-observation sigmas and pixels differ in number");
+    }
+    for (double s : v.obs_sigma_px) {
+      if (!(s > 0) || !std::isfinite(s)) {
+        return Status::Error("view '" + v.id + "': a per-observation sigma_px is not > 0");
+      }
     }
     if (v.point_ids.size() < 4) {
       return Status::Error("view '" + v.id + "': " + std::to_string(v.point_ids.size()) +
@@ -182,6 +207,8 @@ StateLayout::StateLayout(const BaProblem& problem) {
     b.label = std::move(label);
     b.constant = constant || free.empty();
     if (!b.constant) {
+      b.basis = Eigen::MatrixXd::Zero(size, static_cast<Eigen::Index>(free.size()));
+      for (size_t c = 0; c < free.size(); ++c) b.basis(free[c], static_cast<Eigen::Index>(c)) = 1.0;
       b.free = std::move(free);
       b.free_offset = num_free_;
       for (size_t i = 0; i < b.free.size(); ++i) {
@@ -201,16 +228,25 @@ StateLayout::StateLayout(const BaProblem& problem) {
   const bool one_group = problem.groups.size() == 1;
   for (size_t g = 0; g < problem.groups.size(); ++g) {
     const IntrinsicsGroup& grp = problem.groups[g];
+    // A smooth group's block holds its basis coefficients (coefficient j free if its intrinsic
+    // is); a fixed aspect ratio ties fy to fx (refused with smooth by Check()).
+    const bool tied = !grp.smooth && grp.fy_over_fx > 0;
     std::vector<int> free;
     for (int i = 0; i < grp.BlockSize(); ++i) {
-      if (grp.free[grp.smooth ? grp.basis.IntrinsicOf(i) : i]) free.push_back(i);
+      const int intrinsic = grp.smooth ? grp.basis.IntrinsicOf(i) : i;
+      if (grp.free[intrinsic] && !(tied && intrinsic == kFy)) free.push_back(i);
     }
-    group_block_.push_back(add(BlockKind::kIntrinsics, static_cast<int>(g), grp.BlockSize(),
-                               one_group ? "" : grp.name, false, free));
+    const int b = add(BlockKind::kIntrinsics, static_cast<int>(g), grp.BlockSize(),
+                      one_group ? "" : grp.name, false, free);
+    group_block_.push_back(b);
+    BlockInfo& bi = blocks_[b];
     if (grp.smooth) {
-      for (int i = 0; i < grp.BlockSize(); ++i) {
-        blocks_.back().parameter_names.push_back(grp.basis.ParameterName(i));
-      }
+      for (int i = 0; i < grp.BlockSize(); ++i) bi.parameter_names.push_back(grp.basis.ParameterName(i));
+    }
+    const auto fx = std::find(bi.free.begin(), bi.free.end(), kFx);
+    if (tied && fx != bi.free.end()) {
+      bi.basis(kFy, fx - bi.free.begin()) = grp.fy_over_fx;
+      bi.selection = false;
     }
   }
   view_block_.assign(problem.views.size(), -1);
@@ -233,6 +269,14 @@ StateLayout::StateLayout(const BaProblem& problem) {
                                      "plate point " + std::to_string(p), !problem.plate.free,
                                      all(3)));
   }
+}
+
+std::vector<int> BlockInfo::Moving() const {
+  std::vector<int> out;
+  for (int i = 0; i < static_cast<int>(basis.rows()); ++i) {
+    if (!basis.row(i).isZero()) out.push_back(i);
+  }
+  return out;
 }
 
 std::string StateLayout::ParameterName(int b, int i) const {

@@ -56,6 +56,9 @@ struct IntrinsicsGroup {
   int width = 0, height = 0;  // image size, px (0: unknown)
   std::array<double, kNumIntrinsics> initial{};
   std::array<bool, kNumIntrinsics> free{true, true, true, true, true, true, true, true, true};
+  // > 0: a fixed aspect ratio, fy = fy_over_fx * fx. fy is then not a free parameter of its own:
+  // it follows fx (held with it when fx is held); the initial values must satisfy the ratio.
+  double fy_over_fx = 0;
   bool has_prior = false;
   IntrinsicsPrior prior;
   // Orientation-dependent intrinsics (ba/smooth_intrinsics.h): the group's block holds the
@@ -81,6 +84,11 @@ struct BaView {
   // C-arm angles (DICOM positioner angles, deg), needed by a smooth intrinsics group.
   bool has_angles = false;
   double primary_deg = 0, secondary_deg = 0;
+  // Per-observation pixel noise (1 sigma per coordinate, isotropic), parallel to uv_px; empty =
+  // sigma_px for all. E.g. detected marker blobs with a covariance each (detect/marker_blobs.h:
+  // the square root of the larger eigenvalue of the blob's 2x2 covariance).
+  std::vector<double> obs_sigma_px;
+  double SigmaPx(size_t i) const { return obs_sigma_px.empty() ? sigma_px : obs_sigma_px[i]; }
 };
 
 struct BaMarker {
@@ -124,6 +132,13 @@ struct BlockInfo {
   std::vector<int> free;   // free parameter indices within the block (empty if constant)
   int free_offset = -1;    // into the free state (-1 if constant)
   std::vector<std::string> parameter_names;  // when not the kind's default (smooth intrinsics)
+  // The block's parameters move as  x = x0 + basis * delta,  delta over `free` (size x |free|).
+  // A column selection (`selection`) unless parameters are tied (fy = r fx: the fx column has r
+  // in fy's row).
+  Eigen::MatrixXd basis;
+  bool selection = true;
+  // Parameters that move (non-zero rows of basis): `free` plus the tied ones.
+  std::vector<int> Moving() const;
 };
 
 class StateLayout {

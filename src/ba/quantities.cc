@@ -8,16 +8,16 @@
 
 namespace carmba {
 namespace ba {
-namespace {
 
-// Writes gradient `g` of block b's ambient parameters into row `row` of G (free columns only).
-void SetRow(const StateLayout& L, int b, const double* g, int row, Eigen::MatrixXd* G) {
+void AddGradientRow(const StateLayout& L, int b, const double* g, int row, Eigen::MatrixXd* G) {
   const BlockInfo& bi = L.block(b);
   if (bi.constant) return;
-  for (size_t i = 0; i < bi.free.size(); ++i) (*G)(row, bi.free_offset + i) += g[bi.free[i]];
+  for (int c = 0; c < static_cast<int>(bi.free.size()); ++c) {
+    double v = 0;
+    for (int i = 0; i < bi.size; ++i) v += g[i] * bi.basis(i, c);
+    (*G)(row, bi.free_offset + c) += v;
+  }
 }
-
-}  // namespace
 
 QuantitySet DerivedQuantities(const BaProblem& problem,
                               const BaResult& result,
@@ -69,7 +69,7 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
       }
       continue;
     }
-    for (int i : bi.free) {
+    for (int i : bi.Moving()) {
       std::vector<double> grad(kNumIntrinsics, 0.0);
       grad[i] = 1.0;
       add(L.ParameterName(b, i), i < 4 ? "px" : "", x[i], b, grad);
@@ -127,7 +127,7 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
   out.quantities = qs;
   out.G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(qs.size()), L.num_free());
   for (size_t q = 0; q < qs.size(); ++q) {
-    for (const auto& [b, g] : grads[q]) SetRow(L, b, g.data(), static_cast<int>(q), &out.G);
+    for (const auto& [b, g] : grads[q]) AddGradientRow(L, b, g.data(), static_cast<int>(q), &out.G);
   }
   return out;
 }

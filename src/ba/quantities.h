@@ -35,6 +35,11 @@ struct QuantitySet {
   Eigen::MatrixXd G;  // q x num_free (derivatives in the quantities' units)
 };
 
+// Adds the gradient `g` of a quantity over block b's ambient parameters (b.size values) to row
+// `row` of G (q x num_free), through the block's basis (held parameters drop out, tied ones add
+// to the parameter they follow). Constant blocks add nothing.
+void AddGradientRow(const StateLayout& layout, int b, const double* g, int row, Eigen::MatrixXd* G);
+
 // `pairs` are view indices (problem order) of object views.
 QuantitySet DerivedQuantities(const BaProblem& problem,
                               const BaResult& result,

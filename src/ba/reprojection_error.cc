@@ -25,6 +25,36 @@ bool ReprojectionError::Evaluate(double const* const* parameters,
   return true;
 }
 
+PlateViewReprojection::PlateViewReprojection(std::vector<Eigen::Vector3d> p_in_plate,
+                                             std::vector<Eigen::Vector2d> uv_px,
+                                             double sigma_px)
+    : p_(std::move(p_in_plate)), uv_(std::move(uv_px)), inv_sigma_(1.0 / sigma_px) {
+  set_num_residuals(2 * static_cast<int>(p_.size()));
+  mutable_parameter_block_sizes()->push_back(6);
+  mutable_parameter_block_sizes()->push_back(kNumIntrinsics);
+}
+
+bool PlateViewReprojection::Evaluate(double const* const* parameters,
+                                     double* residuals,
+                                     double** jacobians) const {
+  const double* pose = parameters[0];
+  const double* intrinsics = parameters[1];
+  double* J_pose = jacobians ? jacobians[0] : nullptr;
+  double* J_intr = jacobians ? jacobians[1] : nullptr;
+  for (size_t i = 0; i < p_.size(); ++i) {
+    double uv[2];
+    double* Jp = J_pose ? J_pose + 12 * i : nullptr;
+    double* Ji = J_intr ? J_intr + 2 * kNumIntrinsics * i : nullptr;
+    if (!ProjectPointWithJac(intrinsics, pose, p_[i].data(), uv, Ji, Jp, nullptr)) return false;
+    residuals[2 * i] = (uv[0] - uv_[i].x()) * inv_sigma_;
+    residuals[2 * i + 1] = (uv[1] - uv_[i].y()) * inv_sigma_;
+    if (!std::isfinite(residuals[2 * i]) || !std::isfinite(residuals[2 * i + 1])) return false;
+    if (Jp) for (int k = 0; k < 12; ++k) Jp[k] *= inv_sigma_;
+    if (Ji) for (int k = 0; k < 2 * kNumIntrinsics; ++k) Ji[k] *= inv_sigma_;
+  }
+  return true;
+}
+
 bool SqrtInformation(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* S) {
   if (!covariance.allFinite() || (covariance - covariance.transpose()).norm() >
                                      1e-9 * (1.0 + covariance.norm())) {

@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 #include <utility>
+#include <vector>
 
 #include "camera/camera_model.h"
 
@@ -65,6 +66,28 @@ struct ReprojectionErrorAutoDiff {
   }
 
   double u, v, inv_sigma;
+};
+
+// PlateViewReprojection: all observed points of one plate view with the plate held (its points
+// are constants), in one residual block: 2n residuals (ReprojectionError's, point by point),
+// parameter blocks pose (6) and intrinsics (9). Without a robust loss this is the same problem as
+// n ReprojectionError blocks, and one block per view is several times cheaper to build, evaluate
+// and linearise (the engine uses it for held plates without a robust loss; a loss must act per
+// point, so then each point is its own block).
+class PlateViewReprojection final : public ceres::CostFunction {
+ public:
+  PlateViewReprojection(std::vector<Eigen::Vector3d> p_in_plate,
+                        std::vector<Eigen::Vector2d> uv_px,
+                        double sigma_px);
+
+  bool Evaluate(double const* const* parameters,
+                double* residuals,
+                double** jacobians) const override;
+
+ private:
+  std::vector<Eigen::Vector3d> p_;
+  std::vector<Eigen::Vector2d> uv_;
+  double inv_sigma_;
 };
 
 // PointPriorRows: two rows of the CT prior, r = A (p - p_measured) with A 2x3 (a row of A may be

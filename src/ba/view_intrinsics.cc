@@ -31,6 +31,17 @@ ViewIntrinsics GroupIntrinsicsAt(const BaProblem& problem,
   return out;
 }
 
+std::array<double, kNumIntrinsics> IntrinsicsValueOfView(const BaProblem& problem,
+                                                         const BaResult& result,
+                                                         int view) {
+  const Eigen::MatrixXd M = ViewIntrinsicsMap(problem, view);
+  const int b = result.layout->group_block(problem.views[view].group);
+  const Eigen::VectorXd x = M * Eigen::Map<const Eigen::VectorXd>(result.block(b), M.cols());
+  std::array<double, kNumIntrinsics> out;
+  for (int i = 0; i < kNumIntrinsics; ++i) out[i] = x[i];
+  return out;
+}
+
 ViewIntrinsics IntrinsicsOfView(const BaProblem& problem, const BaResult& result, int view) {
   const BaView& v = problem.views[view];
   return GroupIntrinsicsAt(problem, result, v.group, v.primary_deg, v.secondary_deg);

@@ -34,6 +34,10 @@ ViewIntrinsics GroupIntrinsicsAt(const BaProblem& problem,
                                  double secondary_deg);
 // The intrinsics of a view of the problem (at its angles).
 ViewIntrinsics IntrinsicsOfView(const BaProblem& problem, const BaResult& result, int view);
+// Their values alone (no covariance): what a residual, a plot or an exported view geometry needs.
+std::array<double, kNumIntrinsics> IntrinsicsValueOfView(const BaProblem& problem,
+                                                         const BaResult& result,
+                                                         int view);
 
 }  // namespace ba
 }  // namespace carmba

@@ -9,6 +9,7 @@
 //   corners.vnl          mrcal's corners format
 //   report.md            the calibration, its statistics and the mrcal / OpenCV cross-checks;
 //                        per image: points found, used or skipped and why
+//   report.html          the same, with plots (report/plots.h)
 //   overlays/NNN_<image stem>.png   per image (when detected here, not from --observations):
 //                        detect/grid_detector.h DrawDetectionOverlay (found points with ids,
 //                        rejected blobs and why)
@@ -28,6 +29,7 @@
 #include "calib/calibrate.h"
 #include "calib/crosscheck.h"
 #include "detect/grid_detector.h"
+#include "report/report_doc.h"
 
 namespace carmba {
 
@@ -48,6 +50,10 @@ struct CalibrationRun {
 nlohmann::json CalibrationCameraJson(const CalibrationRun& run);
 std::string MrcalCameraModelText(const CalibrationResult& result);
 std::string OpenCvCalibrationYaml(const CalibrationRun& run);
+// The report (report.md and report.html; report/report_doc.h) and its plot data (report/plots.h:
+// residuals, distortion, mrcal's projection uncertainty over the image, source positions).
+ReportDoc CalibrationReportDoc(const CalibrationRun& run);
+nlohmann::json CalibrationPlotData(const CalibrationRun& run);
 std::string CalibrationReportMarkdown(const CalibrationRun& run);
 
 // Acceptance thresholds of the mrcal cross-check, stated in the report.
@@ -59,6 +65,7 @@ constexpr double kMrcalSigmaRelTol = 0.10;       // sigmas of fx fy cx cy within
 // out_dir/mrcal/ (script, input and output of the cross-check).
 Status WriteCalibrationOutputs(const CalibrationRun& run,
                                const std::string& out_dir,
-                               const std::string& mrcal_work_dir = "");
+                               const std::string& mrcal_work_dir = "",
+                               std::string* report_warning = nullptr);
 
 }  // namespace carmba

@@ -1,14 +1,17 @@
 #include "calib/calibrate.h"
 
-#include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
+#include <set>
 
+#include "ba/bundle_adjuster.h"
+#include "ba/quantities.h"
 #include "ba/schur_lm.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
@@ -17,21 +20,9 @@ namespace carmba {
 
 namespace {
 
-using ba::InvertSpd6;
 using ba::LeftJacobianOf;
-using ba::LineariseView;
-using ba::LmReport;
-using ba::Mat6;
-using ba::Mat69;
-using ba::Mat9;
 using ba::RobustWeight;
-using ba::RobustWeighting;
 using ba::RotationOf;
-using ba::SchurLevenbergMarquardt;
-using ba::Vec6;
-using ba::Vec9;
-using ba::ViewSystem;
-using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
@@ -43,81 +34,6 @@ int IntrinsicIndexOf(const std::string& name) {
   }
   return -1;
 }
-
-// All points of one view in one residual block: 2n whitened residuals, blocks pose (6) and
-// intrinsics (9). Jacobians from ProjectPointWithJac, scaled by 1/sigma.
-class PlateViewCost final : public ceres::CostFunction {
- public:
-  PlateViewCost(std::vector<Eigen::Vector3d> p_in_plate,
-                std::vector<Eigen::Vector2d> uv_px,
-                double inv_sigma)
-      : p_(std::move(p_in_plate)), uv_(std::move(uv_px)), inv_sigma_(inv_sigma) {
-    set_num_residuals(2 * static_cast<int>(p_.size()));
-    mutable_parameter_block_sizes()->push_back(kNumPoseParams);
-    mutable_parameter_block_sizes()->push_back(kNumIntrinsics);
-  }
-
-  bool Evaluate(double const* const* parameters,
-                double* residuals,
-                double** jacobians) const override {
-    const double* pose = parameters[0];
-    const double* intrinsics = parameters[1];
-    double* J_pose = jacobians ? jacobians[0] : nullptr;
-    double* J_intr = jacobians ? jacobians[1] : nullptr;
-    for (size_t i = 0; i < p_.size(); ++i) {
-      double uv[2];
-      double* Jp = J_pose ? J_pose + 2 * i * kNumPoseParams : nullptr;
-      double* Ji = J_intr ? J_intr + 2 * i * kNumIntrinsics : nullptr;
-      if (!ProjectPointWithJac(intrinsics, pose, p_[i].data(), uv, Ji, Jp, nullptr)) return false;
-      residuals[2 * i] = (uv[0] - uv_[i].x()) * inv_sigma_;
-      residuals[2 * i + 1] = (uv[1] - uv_[i].y()) * inv_sigma_;
-      if (Jp) {
-        for (int k = 0; k < 2 * kNumPoseParams; ++k) Jp[k] *= inv_sigma_;
-      }
-      if (Ji) {
-        for (int k = 0; k < 2 * kNumIntrinsics; ++k) Ji[k] *= inv_sigma_;
-      }
-    }
-    return true;
-  }
-
- private:
-  std::vector<Eigen::Vector3d> p_;
-  std::vector<Eigen::Vector2d> uv_;
-  double inv_sigma_;
-};
-
-// x = x0 + A delta: an affine subspace of the 9 intrinsics (fixed parameters, fy = r fx).
-class AffineSubspaceManifold final : public ceres::Manifold {
- public:
-  explicit AffineSubspaceManifold(const Eigen::MatrixXd& A)
-      : A_(A), pinv_((A.transpose() * A).inverse() * A.transpose()) {}
-  int AmbientSize() const override { return static_cast<int>(A_.rows()); }
-  int TangentSize() const override { return static_cast<int>(A_.cols()); }
-  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
-    Eigen::Map<Eigen::VectorXd>(x_plus_delta, A_.rows()) =
-        Eigen::Map<const Eigen::VectorXd>(x, A_.rows()) +
-        A_ * Eigen::Map<const Eigen::VectorXd>(delta, A_.cols());
-    return true;
-  }
-  bool PlusJacobian(const double*, double* jacobian) const override {
-    Eigen::Map<RowMat>(jacobian, A_.rows(), A_.cols()) = A_;
-    return true;
-  }
-  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
-    Eigen::Map<Eigen::VectorXd>(y_minus_x, A_.cols()) =
-        pinv_ * (Eigen::Map<const Eigen::VectorXd>(y, A_.rows()) -
-                 Eigen::Map<const Eigen::VectorXd>(x, A_.rows()));
-    return true;
-  }
-  bool MinusJacobian(const double*, double* jacobian) const override {
-    Eigen::Map<RowMat>(jacobian, A_.cols(), A_.rows()) = pinv_;
-    return true;
-  }
-
- private:
-  Eigen::MatrixXd A_, pinv_;
-};
 
 // Normalised DLT homography: plate (x, y) mm -> pixel.
 bool FitHomography(const std::vector<Eigen::Vector2d>& src,
@@ -183,143 +99,100 @@ void PoseFromHomography(const Eigen::Matrix3d& H, const double* intr, std::array
   (*pose)[3] = t.x(), (*pose)[4] = t.y(), (*pose)[5] = t.z();
 }
 
-// The normal-equation blocks of the solved problem (unwhitened pixel units, robust-weighted),
-// in the 9 intrinsics; the free parameters are delta with intrinsics = x0 + A delta.
-struct NormalBlocks {
-  std::vector<Mat69> Hpc;           // J_pose^T J_intr per view
-  std::vector<Mat6> Hii_inv;        // (J_pose^T J_pose)^-1 per view
-  std::vector<Eigen::Matrix3d> Jl;  // left Jacobian of each view's rotation vector
-  Eigen::MatrixXd S_inv;            // (A^T (Hcc - sum Hpc^T Hii^-1 Hpc) A)^-1, k x k
-};
-
-Status ComputeNormalBlocks(const std::vector<std::vector<Eigen::Vector3d>>& plate,
-                           const ObservationSet& obs,
-                           const CalibrationResult& r,
-                           double sigma_solve_px,
-                           NormalBlocks* b) {
-  const Eigen::MatrixXd& A = r.intrinsics_from_free;
-  const int k = static_cast<int>(A.cols());
-  const int nv = static_cast<int>(obs.views.size());
-  const double* intr = r.camera.params.data();
-  RobustWeighting robust;
-  robust.loss = r.robust_loss;
-  robust.scale_whitened = r.robust_loss_scale_px / sigma_solve_px;
-  robust.inv_sigma2 = 1.0 / (sigma_solve_px * sigma_solve_px);
-  const RobustWeighting* weighting = r.robust_loss != "none" ? &robust : nullptr;
-  b->Hpc.resize(nv);
-  b->Hii_inv.resize(nv);
-  b->Jl.resize(nv);
-  Mat9 Hcc = Mat9::Zero(), reduction = Mat9::Zero();
-  Vec9 gc = Vec9::Zero();
-  for (int v = 0; v < nv; ++v) {
-    const auto& view = obs.views[v];
-    ViewSystem vs;
-    if (!LineariseView(plate[v], view.uv_px, intr, r.cam_from_plate[v].data(), weighting, &vs,
-                       &Hcc, &gc)) {
-      return Status::Error("view " + std::to_string(v) + " (" + view.image +
-                           "): a grid point projects behind the source at the solution");
-    }
-    Eigen::LDLT<Mat6> ldlt(vs.Hpp);
-    if (ldlt.info() != Eigen::Success ||
-        !(ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff())) {
-      return Status::Error("view " + std::to_string(v) + " (" + view.image +
-                           "): its plate pose is not determined by its points");
-    }
-    b->Hii_inv[v] = ldlt.solve(Mat6::Identity());
-    b->Hpc[v] = vs.Hpc;
-    b->Jl[v] = LeftJacobianOf(r.cam_from_plate[v].data());
-    const Mat69 Y = b->Hii_inv[v].lazyProduct(vs.Hpc);
-    reduction.noalias() += vs.Hpc.transpose().lazyProduct(Y);
+// The calibration as a problem of the bundle-adjustment engine: one intrinsics group, one plate
+// pose per view, the plate's points held at the nominal grid.
+ba::BaProblem CalibrationProblem(const ObservationSet& obs,
+                                 const std::array<double, kNumIntrinsics>& x,
+                                 const std::array<bool, kNumIntrinsics>& free,
+                                 double fy_over_fx,
+                                 double sigma_px,
+                                 const std::vector<std::array<double, 6>>& poses) {
+  ba::BaProblem p;
+  p.name = "calibration";
+  ba::IntrinsicsGroup g;
+  g.width = obs.width;
+  g.height = obs.height;
+  g.initial = x;
+  g.free = free;
+  g.fy_over_fx = fy_over_fx;
+  p.groups.push_back(g);
+  for (int id = 0; id < obs.grid.NumPoints(); ++id) p.plate.points.push_back(obs.grid.PointInPlate(id));
+  std::set<std::string> names;
+  for (const auto& v : obs.views) names.insert(v.image);
+  const bool by_image = names.size() == obs.views.size() && !names.count("");
+  for (size_t v = 0; v < obs.views.size(); ++v) {
+    ba::BaView view;
+    view.id = by_image ? obs.views[v].image : std::to_string(v);
+    view.kind = ba::ViewKind::kPlate;
+    view.initial = Eigen::Map<const Pose6>(poses[v].data());
+    view.point_ids = obs.views[v].point_ids;
+    view.uv_px = obs.views[v].uv_px;
+    view.sigma_px = sigma_px;
+    p.views.push_back(std::move(view));
   }
-  if (k == 0) {
-    b->S_inv = Eigen::MatrixXd::Zero(0, 0);
-    return Status::Ok();
-  }
-  const Mat9 S9 = Hcc - reduction;
-  const Eigen::MatrixXd S = A.transpose() * S9 * A;
-  // Invert with a unit-diagonal scaling; a tiny eigenvalue means a parameter combination the views
-  // do not determine.
-  const Eigen::VectorXd d = S.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd Sn = d.asDiagonal() * S * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Sn);
-  const double lmin = es.eigenvalues()(0), lmax = es.eigenvalues()(k - 1);
-  if (es.info() != Eigen::Success || !(lmin > 1e-13 * lmax)) {
-    // Name the free parameter that dominates the undetermined direction.
-    Eigen::VectorXd null9 = A * (d.asDiagonal() * es.eigenvectors().col(0));
-    int worst = 0;
-    for (int i = 0; i < kNumIntrinsics; ++i) {
-      if (std::abs(null9(i)) * std::abs(r.camera.params[i] + 1) >
-          std::abs(null9(worst)) * std::abs(r.camera.params[worst] + 1)) {
-        worst = i;
-      }
-    }
-    return Status::Error(std::string("the views do not determine the intrinsics (singular ") +
-                         "information matrix, weakest: " + kIntrinsicNames[worst] +
-                         "); degenerate views, e.g. all fronto-parallel or too few tilts");
-  }
-  b->S_inv = d.asDiagonal() *
-             (es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() *
-              es.eigenvectors().transpose()) *
-             d.asDiagonal();
-  return Status::Ok();
+  p.markers_free = false;
+  return p;
 }
 
-ProjectionSigma UncertaintyFromBlocks(const ObservationSet& obs,
-                                      const CalibrationResult& r,
-                                      const NormalBlocks& b,
-                                      double u,
-                                      double v,
-                                      double distance_mm,
-                                      bool* ok) {
-  ProjectionSigma ps;
-  ps.u_px = u, ps.v_px = v;
-  *ok = false;
-  const double* intr = r.camera.params.data();
+// Gradient (2 x free state) of mrcal's projection of pixel (u, v) at distance d: the point
+// p_cam = d * unproject(q) is fixed in the frame averaged over the plate poses,
+//   q(theta) = project(intrinsics, mean_i T_i(theta) T_i0^-1 p_cam);
+// each view maps p_cam back to itself at the solution, so view i's pose gradient is
+// [((p_cam - t_i) x a) J_l(r_i), a] / n per row a of dq/dp_cam. False if q cannot be unprojected.
+bool ProjectionGradient(const ba::BaResult& e,
+                        double u,
+                        double v,
+                        double distance_mm,
+                        Eigen::MatrixXd* G) {
+  const ba::StateLayout& L = *e.layout;
+  const int gb = L.group_block(0);
+  const double* intr = e.block(gb);
   const double q[2] = {u, v};
   double xy[2];
-  if (!UnprojectToNormalized(intr, q, xy)) return ps;
+  if (!UnprojectToNormalized(intr, q, xy)) return false;
   Eigen::Vector3d p_cam(xy[0], xy[1], 1.0);
   p_cam *= distance_mm / p_cam.norm();
-  // q(theta) = project(intrinsics, mean_i T_i(theta) T_i0^-1 p_cam): each view maps p_cam back to
-  // itself at the solution, so J_uv_p_in_cam is the same for all views and view i's pose
-  // Jacobian is [((p_cam - t_i) x a) J_l(r_i), a] per row a of it (as in LineariseView).
   double uv[2], Jpc[6];
   Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor> Ji;
-  if (!ProjectCamPointWithJac(intr, p_cam.data(), uv, Ji.data(), Jpc)) return ps;
-  const int k = static_cast<int>(r.intrinsics_from_free.cols());
-  Eigen::Matrix<double, 2, kNumIntrinsics> w9 = Ji;
-  Eigen::Matrix2d cov_poses = Eigen::Matrix2d::Zero();
-  const double inv_n = 1.0 / obs.views.size();
-  for (size_t i = 0; i < obs.views.size(); ++i) {
-    const auto& pose = r.cam_from_plate[i];
-    const Eigen::Vector3d Rp = p_cam - Eigen::Vector3d(pose[3], pose[4], pose[5]);
-    Eigen::Matrix<double, 2, 3> Jw;
-    Eigen::Matrix<double, 2, 6> a;
-    for (int row = 0; row < 2; ++row) {
-      const double* c = Jpc + 3 * row;
-      Jw(row, 0) = Rp.y() * c[2] - Rp.z() * c[1];
-      Jw(row, 1) = Rp.z() * c[0] - Rp.x() * c[2];
-      Jw(row, 2) = Rp.x() * c[1] - Rp.y() * c[0];
-      a(row, 3) = c[0], a(row, 4) = c[1], a(row, 5) = c[2];
+  if (!ProjectCamPointWithJac(intr, p_cam.data(), uv, Ji.data(), Jpc)) return false;
+  *G = Eigen::MatrixXd::Zero(2, L.num_free());
+  const int num_views = static_cast<int>(e.views.size());
+  for (int row = 0; row < 2; ++row) {
+    ba::AddGradientRow(L, gb, Ji.row(row).data(), row, G);
+    const double* c = Jpc + 3 * row;
+    for (int i = 0; i < num_views; ++i) {
+      const int vb = L.view_block(i);
+      const double* pose = e.block(vb);
+      const Eigen::Vector3d Rp = p_cam - Eigen::Vector3d(pose[3], pose[4], pose[5]);
+      const Eigen::RowVector3d w(Rp.y() * c[2] - Rp.z() * c[1], Rp.z() * c[0] - Rp.x() * c[2],
+                                 Rp.x() * c[1] - Rp.y() * c[0]);
+      double g[6];
+      const Eigen::RowVector3d gr = w * LeftJacobianOf(pose) / num_views;
+      for (int k = 0; k < 3; ++k) g[k] = gr(k);
+      for (int k = 0; k < 3; ++k) g[3 + k] = c[k] / num_views;
+      ba::AddGradientRow(L, vb, g, row, G);
     }
-    a.leftCols<3>().noalias() = Jw * b.Jl[i];
-    a *= inv_n;
-    const Eigen::Matrix<double, 2, 6> g = a * b.Hii_inv[i];
-    w9.noalias() -= g * b.Hpc[i];
-    cov_poses.noalias() += g * a.transpose();
   }
-  Eigen::Matrix2d cov = cov_poses;
-  if (k > 0) {
-    const Eigen::MatrixXd w = w9 * r.intrinsics_from_free;  // 2 x k
-    cov += w * b.S_inv * w.transpose();
-  }
-  cov *= r.sigma_px * r.sigma_px;
-  ps.sigma_u_px = std::sqrt(std::max(0.0, cov(0, 0)));
-  ps.sigma_v_px = std::sqrt(std::max(0.0, cov(1, 1)));
+  return true;
+}
+
+// Cov(q) of the projection of (u, v) at distance_mm, in px^2 (scaled to the result's sigma_px).
+bool ProjectionSigmaAt(const CalibrationResult& r,
+                       double u,
+                       double v,
+                       double distance_mm,
+                       ProjectionSigma* ps) {
+  const ba::BaResult& e = *r.engine;
+  Eigen::MatrixXd G;
+  if (!ProjectionGradient(e, u, v, distance_mm, &G)) return false;
+  Eigen::Matrix2d cov = G * e.covariance->Solve(G.transpose());
+  cov *= r.covariance_scale;
+  ps->u_px = u, ps->v_px = v;
+  ps->sigma_u_px = std::sqrt(std::max(0.0, cov(0, 0)));
+  ps->sigma_v_px = std::sqrt(std::max(0.0, cov(1, 1)));
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
-  ps.worst_px = std::sqrt(std::max(0.0, es.eigenvalues()(1)));
-  *ok = true;
-  return ps;
+  ps->worst_px = std::sqrt(std::max(0.0, es.eigenvalues()(1)));
+  return true;
 }
 
 }  // namespace
@@ -535,114 +408,84 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   for (int v = 0; v < num_views; ++v) PoseFromHomography(H[v], x0.data(), &r.cam_from_plate[v]);
   r.initial_cam_from_plate = r.cam_from_plate;
 
-  // --- Parametrisation intrinsics = x0 + A delta.
+  // --- What is free: intrinsics = x0 + A delta (held parameters, fy = r fx), the engine's basis.
   r.free.assign(kNumIntrinsics, true);
   for (const auto& n : opt.fix) r.free[IntrinsicIndexOf(n)] = false;
   if (opt.fix_principal_point) r.free[kCx] = r.free[kCy] = false;
   if (opt.zero_tangential) r.free[kP1] = r.free[kP2] = false;
   if (opt.fix_k3) r.free[kK3] = false;
-  if (opt.fix_aspect_ratio && !r.free[kFx]) r.free[kFy] = false;
-  std::vector<Eigen::VectorXd> cols;
-  for (int i = 0; i < kNumIntrinsics; ++i) {
-    if (!r.free[i]) continue;
-    if (opt.fix_aspect_ratio && i == kFy) continue;  // follows fx
-    Eigen::VectorXd c = Eigen::VectorXd::Zero(kNumIntrinsics);
-    c(i) = 1;
-    if (opt.fix_aspect_ratio && i == kFx) c(kFy) = ratio;
-    cols.push_back(c);
-  }
-  const int k = static_cast<int>(cols.size());
-  r.intrinsics_from_free = Eigen::MatrixXd::Zero(kNumIntrinsics, k);
-  for (int c = 0; c < k; ++c) r.intrinsics_from_free.col(c) = cols[c];
-  r.num_free_intrinsics = k;
+  if (opt.fix_aspect_ratio) r.free[kFy] = r.free[kFx];  // fy follows fx
+  std::array<bool, kNumIntrinsics> free{};
+  for (int i = 0; i < kNumIntrinsics; ++i) free[i] = r.free[i];
+  const double fy_over_fx = opt.fix_aspect_ratio ? ratio : 0.0;
   r.robust_loss = opt.robust_loss;
   r.robust_loss_scale_px = opt.robust_loss_scale_px;
 
-  // --- Bundle adjustment, in two stages when distortion is estimated: first the pinhole core
-  // with the distortion held at its initial value (mrcal seeds the same way), then everything.
+  // --- Bundle adjustment through the engine, in two stages when distortion is estimated: first
+  // the pinhole core with the distortion held at its initial value (mrcal seeds the same way),
+  // then everything. Back end: carmba's Schur LM (solver: lm, no robust loss) or Ceres.
   const double sigma_solve = opt.pixel_sigma_px > 0 ? opt.pixel_sigma_px : 1.0;
-  std::array<double, kNumIntrinsics> x = x0;
-  auto solve = [&](const Eigen::MatrixXd& A, bool coarse, ceres::Solver::Summary* summary) -> Status {
-    const int kk = static_cast<int>(A.cols());
-    ceres::Problem problem;
-    for (int v = 0; v < num_views; ++v) {
-      if (opt.robust_loss == "none") {
-        problem.AddResidualBlock(
-            new PlateViewCost(plate[v], obs.views[v].uv_px, 1.0 / sigma_solve), nullptr,
-            r.cam_from_plate[v].data(), x.data());
-      } else {
-        for (size_t j = 0; j < plate[v].size(); ++j) {
-          const double a = opt.robust_loss_scale_px / sigma_solve;
-          ceres::LossFunction* loss =
-              opt.robust_loss == "huber" ? static_cast<ceres::LossFunction*>(new ceres::HuberLoss(a))
-                                         : new ceres::CauchyLoss(a);
-          problem.AddResidualBlock(
-              new PlateViewCost({plate[v][j]}, {obs.views[v].uv_px[j]}, 1.0 / sigma_solve), loss,
-              r.cam_from_plate[v].data(), x.data());
-        }
-      }
-    }
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::DENSE_SCHUR;
-    so.max_num_iterations = opt.max_iterations;
-    // The pinhole stage only seeds the full solve: loose tolerances.
-    so.function_tolerance = coarse ? 1e-6 : 1e-10;
-    so.gradient_tolerance = coarse ? 1e-10 : 1e-14;
-    so.parameter_tolerance = coarse ? 1e-6 : 1e-10;
-    so.num_threads = opt.num_threads;
-    so.logging_type = ceres::SILENT;
-    if (kk == 0) {
-      problem.SetParameterBlockConstant(x.data());
-    } else {
-      if (kk < kNumIntrinsics) problem.SetManifold(x.data(), new AffineSubspaceManifold(A));
-      auto* ordering = new ceres::ParameterBlockOrdering;
-      for (auto& p : r.cam_from_plate) ordering->AddElementToGroup(p.data(), 0);
-      ordering->AddElementToGroup(x.data(), 1);
-      so.linear_solver_ordering.reset(ordering);
-    }
-    // The initial state must be valid (every point in front of the source).
-    double cost = 0;
-    if (!problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr) ||
-        !std::isfinite(cost)) {
-      return Status::Error("initialisation puts grid points behind the source (bad detections?)");
-    }
-    ceres::Solve(so, &problem, summary);
-    if (!summary->IsSolutionUsable() || !std::isfinite(summary->final_cost)) {
-      return Status::Error("bundle adjustment failed: " + summary->message);
-    }
-    return Status::Ok();
-  };
-  ceres::Solver::Summary summary;
   const bool own_lm = opt.solver == "lm" && opt.robust_loss == "none";
-  std::vector<std::vector<Eigen::Vector2d>> uv_views;
-  for (const auto& v : obs.views) uv_views.push_back(v.uv_px);
-  LmReport lm_report;
-  auto run_stage = [&](const Eigen::MatrixXd& A, bool coarse) -> Status {
-    if (!own_lm) return solve(A, coarse, &summary);
-    return SchurLevenbergMarquardt(plate, uv_views, A, opt.max_iterations, coarse ? 1e-6 : 1e-10, &x,
-                                   &r.cam_from_plate, &lm_report);
+  ba::BaOptions bo;
+  bo.backend = own_lm ? "carmba_lm" : "ceres";
+  bo.loss = opt.robust_loss == "none" ? "trivial" : opt.robust_loss;
+  bo.loss_scale_px = opt.robust_loss_scale_px;
+  bo.linear_solver = "dense_schur";
+  bo.max_iterations = opt.max_iterations;
+  bo.num_threads = opt.num_threads;
+  bo.outlier_sigma = opt.outlier_threshold_sigma;
+  std::array<double, kNumIntrinsics> x = x0;
+  auto run_stage = [&](const std::array<bool, kNumIntrinsics>& stage_free, bool coarse)
+      -> StatusOr<ba::BaResult> {
+    // The pinhole stage only seeds the full solve: loose tolerances.
+    bo.function_tolerance = coarse ? 1e-6 : 1e-10;
+    bo.gradient_tolerance = coarse ? 1e-10 : 1e-14;
+    bo.parameter_tolerance = coarse ? 1e-6 : 1e-10;
+    bo.compute_covariance = !coarse;
+    bo.evaluate_solution = !coarse;
+    const ba::BaProblem p =
+        CalibrationProblem(obs, x, stage_free, fy_over_fx, sigma_solve, r.cam_from_plate);
+    auto res = ba::SolveBundleAdjustment(p, bo);
+    if (!res.ok()) {
+      const std::string& m = res.status().message();
+      if (m.find("not determined") != std::string::npos ||
+          m.find("free direction") != std::string::npos) {
+        return Status::Error("the views do not determine the intrinsics (" + m +
+                             "); degenerate views, e.g. all fronto-parallel or too few tilts");
+      }
+      if (m.find("non-finite residual") != std::string::npos) {
+        return Status::Error("initialisation puts grid points behind the source (bad detections?)");
+      }
+      return res.status();
+    }
+    const ba::StateLayout& L = *res->layout;
+    std::copy(res->block(L.group_block(0)), res->block(L.group_block(0)) + kNumIntrinsics,
+              x.begin());
+    for (int v = 0; v < num_views; ++v) {
+      std::copy(res->block(L.view_block(v)), res->block(L.view_block(v)) + 6,
+                r.cam_from_plate[v].begin());
+    }
+    return res;
   };
   {
-    std::vector<int> core_cols;
-    for (int c = 0; c < k; ++c) {
-      if (r.intrinsics_from_free.col(c).tail(5).isZero()) core_cols.push_back(c);
-    }
-    if (static_cast<int>(core_cols.size()) < k) {
-      Eigen::MatrixXd A1(kNumIntrinsics, core_cols.size());
-      for (size_t c = 0; c < core_cols.size(); ++c) A1.col(c) = r.intrinsics_from_free.col(core_cols[c]);
-      CARMBA_RETURN_IF_ERROR(run_stage(A1, true));
-    }
+    std::array<bool, kNumIntrinsics> core = free;
+    bool any_distortion = false;
+    for (int i = kK1; i < kNumIntrinsics; ++i) any_distortion |= core[i], core[i] = false;
+    if (any_distortion) CARMBA_RETURN_IF_ERROR(run_stage(core, true).status());
   }
-  CARMBA_RETURN_IF_ERROR(run_stage(r.intrinsics_from_free, false));
-  if (own_lm) {
-    r.iterations = lm_report.iterations;
-    r.termination = lm_report.termination + " (carmba Schur LM)";
-    r.converged = lm_report.termination == "CONVERGENCE";
-  } else {
-    r.iterations = static_cast<int>(summary.iterations.size()) - 1;
-    r.termination = std::string(ceres::TerminationTypeToString(summary.termination_type)) + " (Ceres)";
-    r.converged = summary.termination_type == ceres::CONVERGENCE;
+  auto solved = run_stage(free, false);
+  if (!solved.ok()) return solved.status();
+  auto engine = std::make_shared<ba::BaResult>(std::move(*solved));
+  r.iterations = engine->iterations;
+  r.termination = engine->termination + (own_lm ? "" : " (Ceres)");
+  r.converged = engine->converged;
+  {
+    const ba::BlockInfo& gi = engine->layout->block(engine->layout->group_block(0));
+    r.intrinsics_from_free =
+        gi.constant ? Eigen::MatrixXd::Zero(kNumIntrinsics, 0) : gi.basis;
   }
+  const int k = static_cast<int>(r.intrinsics_from_free.cols());
+  r.num_free_intrinsics = k;
   std::copy(x.begin(), x.end(), r.camera.params.begin());
   r.camera.width = obs.width;
   r.camera.height = obs.height;
@@ -727,15 +570,12 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   all.resize(num_worst);
   r.worst = all;
 
-  // --- Covariance of the intrinsics, marginal over the poses.
-  NormalBlocks blocks;
-  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(plate, obs, r, sigma_solve, &blocks));
-  r.covariance.setZero();
-  if (k > 0) {
-    r.covariance = r.intrinsics_from_free * blocks.S_inv * r.intrinsics_from_free.transpose() *
-                   (r.sigma_px * r.sigma_px);
-  }
+  // --- Covariance of the intrinsics, marginal over the poses (the engine's Schur covariance),
+  // in units of the pixel sigma used.
+  r.covariance_scale = (r.sigma_px / sigma_solve) * (r.sigma_px / sigma_solve);
+  r.covariance = engine->Covariance({engine->layout->group_block(0)}) * r.covariance_scale;
   for (int i = 0; i < kNumIntrinsics; ++i) r.sigma[i] = std::sqrt(std::max(0.0, r.covariance(i, i)));
+  r.engine = engine;
   // A focal length known to worse than 10 % means the views do not constrain it (a fronto-parallel
   // set is exactly singular without noise, nearly singular with it).
   constexpr double kMaxRelativeFocalSigma = 0.1;
@@ -767,10 +607,8 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
       {"centre", {W / 2, Hh / 2}}, {"top-left", {0, 0}},      {"top-right", {W, 0}},
       {"bottom-left", {0, Hh}},    {"bottom-right", {W, Hh}}};
   for (const auto& [name, q] : where) {
-    bool ok = false;
-    ProjectionSigma ps =
-        UncertaintyFromBlocks(obs, r, blocks, q.x(), q.y(), r.uncertainty_distance_mm, &ok);
-    if (!ok) continue;
+    ProjectionSigma ps;
+    if (!ProjectionSigmaAt(r, q.x(), q.y(), r.uncertainty_distance_mm, &ps)) continue;
     ps.where = name;
     r.projection_sigma.push_back(ps);
   }
@@ -785,17 +623,41 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& obs,
                                                 double u_px,
                                                 double v_px,
                                                 double distance_mm) {
-  NormalBlocks blocks;
-  const double sigma_solve = result.sigma_estimated ? 1.0 : result.sigma_px;
-  std::vector<std::vector<Eigen::Vector3d>> plate(obs.views.size());
-  for (size_t v = 0; v < obs.views.size(); ++v) {
-    for (int id : obs.views[v].point_ids) plate[v].push_back(obs.grid.PointInPlate(id));
+  if (!result.engine || !result.engine->covariance) {
+    return Status::Error("projection uncertainty: the calibration has no covariance");
   }
-  CARMBA_RETURN_IF_ERROR(ComputeNormalBlocks(plate, obs, result, sigma_solve, &blocks));
-  bool ok = false;
-  ProjectionSigma ps = UncertaintyFromBlocks(obs, result, blocks, u_px, v_px, distance_mm, &ok);
-  if (!ok) return Status::Error("pixel cannot be unprojected with the calibrated distortion");
+  if (result.engine->views.size() != obs.views.size()) {
+    return Status::Error("projection uncertainty: the observations are not the calibration's");
+  }
+  ProjectionSigma ps;
+  if (!ProjectionSigmaAt(result, u_px, v_px, distance_mm, &ps)) {
+    return Status::Error("pixel cannot be unprojected with the calibrated distortion");
+  }
   return ps;
+}
+
+StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
+    const ObservationSet& obs,
+    const CalibrationResult& result,
+    const std::vector<Eigen::Vector2d>& pixels,
+    double distance_mm) {
+  if (!result.engine || !result.engine->covariance) {
+    return Status::Error("projection uncertainty: the calibration has no covariance");
+  }
+  if (result.engine->views.size() != obs.views.size()) {
+    return Status::Error("projection uncertainty: the observations are not the calibration's");
+  }
+  std::vector<ProjectionSigma> out;
+  for (const auto& q : pixels) {
+    ProjectionSigma ps;
+    if (!ProjectionSigmaAt(result, q.x(), q.y(), distance_mm, &ps)) {
+      ps.u_px = q.x();
+      ps.v_px = q.y();
+      ps.sigma_u_px = ps.sigma_v_px = ps.worst_px = std::numeric_limits<double>::quiet_NaN();
+    }
+    out.push_back(ps);
+  }
+  return out;
 }
 
 }  // namespace carmba

@@ -1,13 +1,11 @@
-// Intrinsic calibration of a C-arm (or any OPENCV5 camera) from views of a planar grid, as one
-// bundle adjustment: shared intrinsics [fx, fy, cx, cy, k1, k2, p1, p2, k3] and one plate pose
-// cam_from_plate = (rvec, t) per view.
+// Intrinsic calibration of a C-arm (or any OPENCV5 camera) from views of a planar grid: a thin
+// front end of the bundle-adjustment engine (ba/bundle_adjuster.h). It initialises in closed form,
+// fills a ba::BaProblem -- one intrinsics group [fx, fy, cx, cy, k1, k2, p1, p2, k3], one
+// cam_from_plate = (rvec, t) per view, the plate's points held at the nominal grid -- and lets the
+// engine solve it (backend carmba_lm, carmba's Schur LM, for `solver: lm` without a robust loss;
+// Ceres DENSE_SCHUR otherwise) and compute the covariance (ba/covariance.h):
 //
 //   residual of point j in view i:  r_ij = (project(intrinsics, pose_i, P_j) - q_ij) / sigma_px
-//
-// The Jacobians are the analytic ones of camera/camera_model.h (ProjectPointWithJac). Without a
-// robust loss all points of a view form one residual block (PlateViewCost, 2n residuals), which is
-// several times faster than one block per point; with a robust loss each point is its own block so
-// that the loss acts per point.
 //
 // Initialisation (closed form, no OpenCV calibrateCamera): Zhang's homography method with the
 // principal point held at the image centre (or the given one) and zero skew. Each view's
@@ -19,25 +17,27 @@
 // fronto-parallel: the b33 column vanishes) the initialisation fails with a clear error.
 //
 // Constraints (the thesis's OpenCV flags): fixed parameters, a fixed aspect ratio fy = r fx, zero
-// tangential distortion, a fixed principal point and fixed k3 are expressed as an affine
-// parametrisation intrinsics = x0 + A delta (a ceres::Manifold), so the covariance of the free
+// tangential distortion, a fixed principal point and fixed k3 are the engine's free mask and tie
+// (IntrinsicsGroup::fy_over_fx): intrinsics = x0 + A delta, so the covariance of the free
 // parameters delta maps to the 9x9 covariance A Cov(delta) A^T (zero rows for fixed parameters).
 //
 // Covariance: Cov(theta) = sigma^2 (J^T J)^-1 with J the unwhitened Jacobian at the solution and
 // sigma the pixel noise (given, or estimated as sqrt(SSR / (2N - n_free))). The intrinsics block
-// is marginal over the plate poses: the poses are eliminated by the Schur complement
-//   S = H_cc - sum_i H_ci H_ii^-1 H_ic.
+// is marginal over the plate poses (the engine's Schur complement eliminates them).
 // Projection uncertainty at a pixel and a distance follows mrcal's definition: the point
 // p_cam = d * unproject(q) is fixed in the frame averaged over the plate poses,
 //   q(theta) = project(intrinsics, mean_i T_i(theta) T_i0^-1 p_cam),
-// and Cov(q) = J_q Cov(theta) J_q^T, evaluated through the same Schur blocks.
+// and Cov(q) = G H^-1 G^T with G = dq/dtheta over the engine's free state, by the same Schur
+// covariance (SchurCovariance::Solve).
 #pragma once
 
 #include <Eigen/Core>
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "ba/bundle_adjuster.h"
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "util/status.h"
@@ -149,6 +149,12 @@ struct CalibrationResult {
   std::string termination;  // the solver's termination, with the solver named
   bool converged = false;   // the final stage reached its convergence criterion
   double solve_seconds = 0, covariance_seconds = 0;
+
+  // The engine's solution (ba/bundle_adjuster.h): state, named layout, linearisation and Schur
+  // covariance, whitened with the pixel sigma the solve used; covariance_scale takes its
+  // covariance to `sigma_px` ((sigma_px / sigma used)^2).
+  std::shared_ptr<const ba::BaResult> engine;
+  double covariance_scale = 1.0;
 };
 
 // Calibrates. Errors: too few views, a view with < 4 points, initialisation failure (degenerate
@@ -163,5 +169,13 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& observatio
                                                 double u_px,
                                                 double v_px,
                                                 double distance_mm);
+
+// The same for many pixels at once (the normal blocks built once); a pixel that cannot be
+// unprojected gets NaN sigmas.
+StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
+    const ObservationSet& observations,
+    const CalibrationResult& result,
+    const std::vector<Eigen::Vector2d>& pixels,
+    double distance_mm);
 
 }  // namespace carmba

@@ -160,19 +160,9 @@ StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& wher
 }
 
 StatusOr<Camera> ReadCameraJson(const std::string& path) {
-  auto text = ReadFile(path);
-  if (!text.ok()) return text.status();
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(*text);
-  } catch (const nlohmann::json::parse_error& e) {
-    return Status::Error(path + ": invalid JSON at byte " + std::to_string(e.byte) +
-                         ", expected a camera object");
-  } catch (const nlohmann::json::exception& e) {
-    // Not a syntax error: e.g. out_of_range for a number beyond a double (1e999).
-    return Status::Error(path + ": invalid JSON (" + e.what() + "), expected a camera object");
-  }
-  return CameraFromJson(j, path);
+  auto j = ReadJsonFile(path, "a camera object");
+  if (!j.ok()) return j.status();
+  return CameraFromJson(*j, path);
 }
 
 nlohmann::json CameraToJson(const Camera& c) {

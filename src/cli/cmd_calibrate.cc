@@ -225,10 +225,14 @@ int RunCalibrate() {
   if (!cross.opencv) cmd << " --noopencv";
   cmd << " --out " << quoted(FLAGS_out);
   run.command_line = cmd.str();
-  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "");
+  std::string report_warning;
+  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning);
   std::error_code ec;
   std::filesystem::remove_all(work, ec);
   if (!s.ok()) return cli::Fail(kCmd, s);
+  if (!report_warning.empty()) {
+    std::cerr << "carmba " << kCmd << ": warning: " << report_warning << std::endl;
+  }
   const auto& r = run.result;
   std::cout << "calibrated " << r.views.size() << " views (" << run.skipped.size()
             << " skipped): fx " << r.camera.params[kFx] << " +- " << r.sigma[kFx] << ", fy "
@@ -238,7 +242,7 @@ int RunCalibrate() {
             << ")";
   if (run.mrcal) std::cout << "; mrcal RMS " << (*run.mrcal)["rms_px"].get<double>();
   std::cout << "; wrote " << FLAGS_out << "/{camera.json, camera.cameramodel, camera_opencv.yml, "
-            << "observations.csv, corners.vnl, report.md}" << std::endl;
+            << "observations.csv, corners.vnl, report.md, report.html}" << std::endl;
   return 0;
 }
 

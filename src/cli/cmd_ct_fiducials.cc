@@ -1,6 +1,7 @@
 // `carmba ct-fiducials --dicom DIR [--model markers.csv] [--diameter_mm 2] [--expected 9]
 //  [--frame patient|model|marker:K] --out fiducials.csv`: marker centres with covariance from a
-// DICOM CT series (ct/ct_fiducials.h). Writes the CSV, a markdown report beside it (<stem>.md)
+// DICOM CT series (ct/ct_fiducials.h). Writes the CSV, a report beside it (<stem>.md, and
+// <stem>.html with the markers' covariance ellipsoids)
 // and, with an object frame, <stem>.object_from_ct.json. Nothing is written on error.
 #include <gflags/gflags.h>
 
@@ -61,8 +62,10 @@ int RunCtFiducials() {
   if (!options.Check(&error)) return carmba::cli::Fail(cmd, error);
   auto result = carmba::ComputeCtFiducials(FLAGS_dicom, options);
   if (!result.ok()) return carmba::cli::Fail(cmd, result.status());
-  const carmba::Status s = carmba::WriteCtFiducials(*result, FLAGS_out);
+  std::string report_warning;
+  const carmba::Status s = carmba::WriteCtFiducials(*result, FLAGS_out, &report_warning);
   if (!s.ok()) return carmba::cli::Fail(cmd, s);
+  if (!report_warning.empty()) std::cerr << "carmba " << cmd << ": warning: " << report_warning << std::endl;
   std::cout << "ct-fiducials: " << result->detection.markers.size() << " markers -> "
             << FLAGS_out;
   if (result->labelled) {

@@ -1,5 +1,7 @@
-// `carmba solve`: solve a pose problem with a solver configuration; writes result.json and
-// report.md into --out (created if needed). On any error nothing is written.
+// `carmba solve`: solve a pose problem with a solver configuration; writes result.json, report.md,
+// report.html (with plots, report/plots.h) and geometry.json (per view the projection matrix CT mm
+// -> undistorted px, export/view_geometry.h) into --out (created if needed). On any error nothing
+// is written.
 #include <gflags/gflags.h>
 
 #include <unistd.h>
@@ -11,11 +13,36 @@
 #include "cli/common_flags.h"
 #include "joint/joint_problem.h"
 #include "problem/pose_problem.h"
+#include "report/plots.h"
 #include "report/pose_report.h"
+#include "export/view_geometry.h"
 #include "util/file_util.h"
 
 
 namespace {
+
+// geometry.json's text, or empty with `why` when a view's image size is unknown (a joint problem
+// whose plate observations carry no image size): the projection matrices need it.
+std::string GeometryText(const carmba::GeometrySet& g, std::string* why) {
+  for (const auto& v : g.views) {
+    if (v.camera.width <= 0 || v.camera.height <= 0) {
+      *why = "view '" + v.id + "': image size unknown";
+      return "";
+    }
+  }
+  return carmba::GeometryToJson(g).dump(2) + "\n";
+}
+
+// Writes geometry.json into the staging directory when it can be built (else a warning).
+carmba::Status WriteGeometry(const std::string& dir, const carmba::GeometrySet& g) {
+  std::string why;
+  const std::string text = GeometryText(g, &why);
+  if (text.empty()) {
+    std::cerr << "carmba solve: warning: no geometry.json: " << why << std::endl;
+    return carmba::Status::Ok();
+  }
+  return carmba::WriteFileAtomic(carmba::JoinPath(dir, "geometry.json"), text);
+}
 
 // A joint problem (plate and/or object views): the engine's joint bundle adjustment.
 int RunJoint() {
@@ -39,25 +66,22 @@ int RunJoint() {
   } else {
     j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
   }
-  std::string report = JointReportMarkdown(*problem, *config, *solution) +
-                      JointMrcalMarkdown(j["mrcal_crosscheck"]);
-  // Both files or neither; other files in an existing --out are kept.
+  ReportDoc doc = JointReportDoc(*problem, *config, *solution);
+  doc.Append(JointMrcalDoc(j["mrcal_crosscheck"]));
+  nlohmann::json plot_data = JointPlotData(*solution);
+  AddFlexPlotData(j, &plot_data);  // the intrinsics against the C-arm angle (flex)
+  const ReportFiles report =
+      RenderReport(doc, "carmba joint report: " + problem->name, plot_data);
+  // All files or none; other files in an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
-  if (s.ok() && j.contains("intrinsics_model") && !problem->angles.empty()) {
-    // The intrinsics against the C-arm angle (linked from the report); a missing matplotlib is
-    // reported, not an error of the solve.
-    const Status plot = WriteIntrinsicsPlot(JoinPath(staged.path(), "result.json"),
-                                            JoinPath(staged.path(), "intrinsics_vs_angle.png"));
-    if (!plot.ok()) {
-      report += "\nThe plot intrinsics_vs_angle.png was not written: " + plot.message() + "\n";
-      std::cerr << "carmba solve: warning: " << plot.message() << std::endl;
-    }
-  }
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteGeometry(staged.path(), JointSolutionGeometry(*problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
+  if (!report.warning.empty()) std::cerr << "carmba solve: warning: " << report.warning << std::endl;
   if (!solution->result.converged) {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
               << solution->result.termination << "): the results are not at a minimum" << std::endl;
@@ -67,7 +91,7 @@ int RunJoint() {
             << " object views, RMS " << solution->result.rms_plate_px << " / "
             << solution->result.rms_object_px << " px, " << solution->result.iterations
             << " iterations; wrote " << FLAGS_out << "/result.json and " << FLAGS_out
-            << "/report.md" << std::endl;
+            << "/report.md (and report.html)" << std::endl;
   return 0;
 }
 
@@ -90,14 +114,18 @@ int RunSolve() {
   const PoseComparison comparison = ComparePoseMethods(*problem, *config, *solution);
   nlohmann::json j = PoseSolutionToJson(*problem, *solution);
   j["comparison"] = PoseComparisonToJson(*problem, comparison);
-  const std::string report = PoseReportMarkdown(*problem, *config, *solution, comparison);
+  const ReportFiles report =
+      RenderReport(PoseReportDoc(*problem, *config, *solution, comparison),
+                   "carmba pose report: " + problem->name, PosePlotData(*problem, *solution));
 
-  // Both files or neither (a failed second write used to leave report.md behind); other files in
+  // All files or none (a failed second write used to leave report.md behind); other files in
   // an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok()) s = WriteGeometry(staged.path(), PoseSolutionGeometry(*problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (config->refine && solution->termination != "CONVERGENCE") {
@@ -105,13 +133,14 @@ int RunSolve() {
               << solution->termination << "; max_iterations " << config->max_iterations
               << "): the results are not at a minimum" << std::endl;
   }
+  if (!report.warning.empty()) std::cerr << "carmba solve: warning: " << report.warning << std::endl;
   if (!comparison.handedness_warning.empty()) {
     std::cerr << "carmba solve: warning: " << comparison.handedness_warning << std::endl;
   }
   std::cout << "solved " << problem->name << " with " << config->name << ": "
             << solution->views.size() << " views, RMS " << solution->rms_px << " px, "
             << solution->iterations << " iterations; wrote " << FLAGS_out << "/result.json and "
-            << FLAGS_out << "/report.md" << std::endl;
+            << FLAGS_out << "/report.md (and report.html)" << std::endl;
   return 0;
 }
 
@@ -119,5 +148,8 @@ int RunSolve() {
 
 CARMBA_COMMAND_FLAGS(solve, "problem,config,out");
 CARMBA_REGISTER_COMMAND(solve,
-                        "Solve a pose problem (POSIT + bundle adjustment + covariance).",
+                        "Solve a pose problem (POSIT + bundle adjustment + covariance); writes result.json, "
+                        "report.md and geometry.json (per view the 3x4 projection matrix from CT "
+                        "mm to pixels of the undistorted image; carmba export-geometry converts "
+                        "it for RTK / plastimatch).",
                         RunSolve);

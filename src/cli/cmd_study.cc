@@ -59,6 +59,9 @@ int RunStudyCommand() {
                 100 * stats.Overhead(), stats.runs_time_s, stats.wall_s, stats.jobs);
   }
   std::printf("wrote %s\n", JoinPath(FLAGS_out, "summary.md").c_str());
+  if (!stats.report_warning.empty()) {
+    std::cerr << "carmba study: warning: " << stats.report_warning << std::endl;
+  }
   if (stats.dropped_lines > 0) {
     std::cerr << "carmba study: warning: dropped " << stats.dropped_lines
               << " partial or duplicate lines of runs.jsonl (their runs ran again)" << std::endl;

@@ -55,12 +55,15 @@ int RunStudyMerge() {
     dirs.insert(dirs.end(), matches.begin(), matches.end());
   }
   int merged = 0, missing = 0;
-  const Status s =
-      MergeStudyShards(dirs, FLAGS_out, /*write_report=*/true, FLAGS_allow_missing, &merged,
-                       &missing);
+  std::string report_warning;
+  const Status s = MergeStudyShards(dirs, FLAGS_out, /*write_report=*/true, FLAGS_allow_missing,
+                                    &merged, &missing, &report_warning);
   if (!s.ok()) return cli::Fail("study-merge", s);
   std::printf("merged %d runs from %zu shard directories into %s\n", merged, dirs.size(),
               FLAGS_out.c_str());
+  if (!report_warning.empty()) {
+    std::cerr << "carmba study-merge: warning: " << report_warning << std::endl;
+  }
   if (missing > 0) {
     std::cerr << "carmba study-merge: warning: " << missing << " runs of the study are missing"
               << std::endl;

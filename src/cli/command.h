@@ -10,7 +10,8 @@
 // `carmba <cmd> --help` lists the flags defined in that command's file plus the shared flags
 // (cli/common_flags.h) it declares with CARMBA_COMMAND_FLAGS(name, "out,config"). A flag DEFINEd
 // in two files breaks the link (gflags flags are global): shared names (--out, --config,
-// --problem, --images, --pattern, --rows, --cols, --seed, --jobs) come from common_flags.h.
+// --problem, --images, --camera, --pattern, --rows, --cols, --seed, --jobs) come from
+// common_flags.h.
 // A flag that belongs to another subcommand, or a shared flag the command does not list, is
 // rejected. Library code never reads FLAGS_*.
 #pragma once

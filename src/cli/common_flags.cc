@@ -10,6 +10,9 @@ DEFINE_string(problem, "", "Problem YAML (what is estimated from which data).");
 DEFINE_string(images, "",
               "Directory or glob pattern of images (PNG, PGM, TIFF, JPEG, BMP, DICOM; a "
               "multi-frame DICOM file gives one view per frame, file.dcm#frameN).");
+DEFINE_string(camera, "",
+              "Calibrated camera: camera.json (carmba calibrate), or a joint solve's result.json "
+              "(its intrinsics).");
 DEFINE_string(pattern, "circles", "Calibration pattern: circles | acircles | chessboard.");
 DEFINE_int32(rows, 5, "Pattern rows.");
 DEFINE_int32(cols, 5, "Pattern columns.");

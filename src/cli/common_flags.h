@@ -13,6 +13,7 @@ DECLARE_string(out);      // output directory or file
 DECLARE_string(config);   // solver/calibration configuration YAML
 DECLARE_string(problem);  // problem YAML
 DECLARE_string(images);   // directory or glob of images
+DECLARE_string(camera);   // camera.json (or a joint result.json's intrinsics)
 DECLARE_string(pattern);  // calibration pattern: circles | acircles | chessboard
 DECLARE_int32(rows);      // pattern rows
 DECLARE_int32(cols);      // pattern columns

@@ -25,17 +25,20 @@
 // with the centre in the output frame (mm), its covariance (mm^2), the core volume (voxels above
 // the threshold, mm^3) and the peak HU. Beside it, <stem>.md: a short report (geometry,
 // per-marker table with the bounding-box centre of the thesis's method and its difference,
-// rejected components, labelling residuals, object_from_ct) and, with an object frame,
+// rejected components, labelling residuals, object_from_ct), <stem>.html (the same with a plot
+// of the markers and their covariance ellipsoids) and, with an object frame,
 // <stem>.object_from_ct.json: {"R": 3x3 row-major, "t_mm": [3], "frame": "..."}.
 #pragma once
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "ct/ct_volume.h"
 #include "ct/marker_detection.h"
 #include "ct/marker_labelling.h"
+#include "report/report_doc.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -79,11 +82,18 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
 
 // The CSV text and the markdown report (which names the CSV file `csv_name`).
 std::string FormatFiducialsCsv(const CtFiducialsResult& result);
+// The report as a document (report/report_doc.h: <stem>.md and <stem>.html) and the data of its
+// plot (the markers with their covariance ellipsoids, report/plots.h).
+ReportDoc FiducialsReportDoc(const CtFiducialsResult& result, const std::string& csv_name);
+nlohmann::json FiducialsPlotData(const CtFiducialsResult& result);
 std::string FormatFiducialsReport(const CtFiducialsResult& result, const std::string& csv_name);
 
 // Writes the CSV to `out_csv`, the report to <stem>.md and, with an object frame,
 // <stem>.object_from_ct.json; each atomically, all only after everything is computed.
-Status WriteCtFiducials(const CtFiducialsResult& result, const std::string& out_csv);
+// `report_warning` (if given): why <stem>.html has no plot, if it has none.
+Status WriteCtFiducials(const CtFiducialsResult& result,
+                        const std::string& out_csv,
+                        std::string* report_warning = nullptr);
 
 struct CtFiducialRow {
   int id = 0;

@@ -1,4 +1,5 @@
 #include "detect/grid_detector.h"
+#include "detect/detect_steps.h"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
@@ -57,18 +58,20 @@ bool DetectionOptions::Check(std::string* error) const {
   return true;
 }
 
-void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
-  m.GetEnum("polarity", {"dark", "bright", "auto"}, &o->polarity);
+void ReadFieldOfViewOptions(YamlMap& m, DetectionOptions* o) {
   m.Get("roi_px", &o->roi_px);
   m.Get("fov_circle_px", &o->fov_circle_px);
   m.Get("auto_fov_mask", &o->auto_fov_mask);
   m.GetNonNegative("fov_margin_px", &o->fov_margin_px);
+}
+
+void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
+  m.GetEnum("polarity", {"dark", "bright", "auto"}, &o->polarity);
+  ReadFieldOfViewOptions(m, o);
   m.GetPositive("min_blob_area_px", &o->min_blob_area_px);
   m.GetPositive("max_blob_area_px", &o->max_blob_area_px);
   m.Get("refine", &o->refine);
 }
-
-namespace {
 
 // Sub-pixel centre of a blob around `c` on the float image `f` (see the header, step 4). Only
 // pixels with `valid` != 0 (the field of view) are used. `nn_px` is the distance to the nearest
@@ -92,7 +95,7 @@ namespace {
 //               I - plane. Minus 5 % of the peak, clipped at zero.
 // Iterated until the centre moves less than 1e-3 px.
 bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
-                    cv::Point2d* c, double* r_half_px) {
+                    cv::Point2d* c, double* r_half_px, CentroidNoise* noise) {
   const int w = std::max(3, static_cast<int>(std::ceil(0.5 * nn_px)));
   double rho = -1, ring_width = 3;
   int rw = w;  // half-size of the pixel box scanned: rho + ring
@@ -163,7 +166,8 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
     }
     cv::Vec3d plane(0, 0, 0);
     auto background = [&plane](const Px& q) { return plane[0] + plane[1] * q.ex + plane[2] * q.ey; };
-    double cut = 1e300;
+    double cut = 1e300, ring_sigma = 0;
+    cv::Matx33d ring_AtA;
     for (int pass = 0; pass < 2; ++pass) {
       double s1 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, sv = 0, sxv = 0, syv = 0;
       for (const Px& q : ring) {
@@ -175,11 +179,13 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
       const cv::Matx33d AtA(s1, sx, sy, sx, sxx, sxy, sy, sxy, syy);
       const cv::Vec3d Atb(sv, sxv, syv);
       if (s1 < 8 || !cv::solve(AtA, Atb, plane, cv::DECOMP_CHOLESKY)) return false;
+      ring_AtA = AtA;
       if (pass == 1) break;
       res.clear();
       for (const Px& q : ring) res.push_back(static_cast<float>(std::fabs(q.value - background(q))));
       const float largest = *std::max_element(res.begin(), res.end());
       std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
+      ring_sigma = 1.4826 * res[res.size() / 2];
       // 3 robust sigmas (1.4826 MAD), at least 1e-3 of the background level.
       cut = std::max(3.0 * 1.4826 * res[res.size() / 2], 1e-3 * std::fabs(plane[0]));
       if (largest <= cut) break;  // nothing to drop: the refit would be the same plane
@@ -202,12 +208,64 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
     }
     if (!(sw > 0)) return false;
     const cv::Point2d n(sx / sw, sy / sw);
+    if (noise) {
+      // Centre covariance (detect_steps.h CentroidNoise): c = sum w_i x_i / S, dc/dw_i =
+      // (x_i - c) / S; w_i depends on the pixel I_i and on the ring's plane p = (a, b, c):
+      // dark: w = 1 - I / bg, dw/dI = -1 / bg, dw/dp = I / bg^2 [1, ex, ey], var I_i = sigma^2
+      // I_i / bg_i (quanta); bright: dw/dI = 1, dw/dp = -[1, ex, ey], var I_i = sigma^2.
+      // Cov_p = sigma^2 (A^T A)^-1 (the ring fit). Both scaled by the noise's correlation factor.
+      // The pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 + dy^2), |d| <= 3:
+      // sum_ij g_i g_j^T rho(i - j), g_i = (x_i - c) dw/dI sqrt(var I_i / sigma^2).
+      const int side = 2 * rw + 1;
+      std::vector<cv::Vec2d> g(static_cast<size_t>(side) * side, cv::Vec2d(0, 0));
+      cv::Matx23d G = cv::Matx23d::zeros();
+      for (const Px& q : disc) {
+        if (q.value - floor <= 0) continue;
+        const double bg = background(q), ex = q.ex + cx - n.x, ey = q.ey + cy - n.y;
+        const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
+        const double var_I = dark ? std::max(0.0, I / bg) : 1.0;
+        const double dw_dI = dark ? -1.0 / bg : 1.0;
+        g[(q.ey + rw) * side + (q.ex + rw)] = cv::Vec2d(ex, ey) * (dw_dI * std::sqrt(var_I));
+        const double s_p = dark ? I / (bg * bg) : -1.0;
+        const cv::Vec3d dw_dp(s_p, s_p * q.ex, s_p * q.ey);
+        for (int j = 0; j < 3; ++j) G(0, j) += ex * dw_dp[j], G(1, j) += ey * dw_dp[j];
+      }
+      double rho[4];
+      for (int k = 0; k < 4; ++k) rho[k] = std::pow(noise->rho1, k * k);
+      cv::Matx22d cov_pix = cv::Matx22d::zeros();
+      for (int y = 0; y < side; ++y) {
+        for (int x = 0; x < side; ++x) {
+          const cv::Vec2d& gi = g[y * side + x];
+          if (gi[0] == 0 && gi[1] == 0) continue;
+          for (int dy = -3; dy <= 3; ++dy) {
+            if (y + dy < 0 || y + dy >= side) continue;
+            for (int dx = -3; dx <= 3; ++dx) {
+              if (x + dx < 0 || x + dx >= side) continue;
+              const cv::Vec2d& gj = g[(y + dy) * side + x + dx];
+              const double r = rho[std::abs(dx)] * rho[std::abs(dy)];
+              cov_pix(0, 0) += r * gi[0] * gj[0], cov_pix(0, 1) += r * gi[0] * gj[1];
+              cov_pix(1, 1) += r * gi[1] * gj[1];
+            }
+          }
+        }
+      }
+      cov_pix(1, 0) = cov_pix(0, 1);
+      const double sigma2 = ring_sigma * ring_sigma;
+      const cv::Matx22d cov = (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) *
+                              (sigma2 / (sw * sw));
+      noise->covariance_px2 = cov;
+      noise->sigma_gray = ring_sigma;
+      noise->peak_contrast = peak;
+      noise->background = plane[0];
+    }
     const double move = std::hypot(n.x - c->x, n.y - c->y);
     *c = n;
     if (move < 1e-3) break;
   }
   return true;
 }
+
+namespace {
 
 // The radius (px from the field-of-view centre `c`) out to which an image intensifier's field is
 // fully exposed: the median grey level of 1-px annuli follows the interior's trend (a line
@@ -401,6 +459,8 @@ bool PlausibleGrid(const std::vector<cv::Point2f>& pts, const GridSpec& g) {
   return true;
 }
 
+}  // namespace
+
 // The 8-bit search image for dark blobs with the slowly varying brightness divided out: 255 x
 // the ratio of the (lightly blurred) image to its local background, the morphological closing of
 // the image (its upper envelope over dark features narrower than ~2.4 blob diameters), computed
@@ -432,6 +492,8 @@ cv::Mat FlatFieldedSearchImage(const cv::Mat& f, const cv::Mat& mask, double blo
   }
   return out;
 }
+
+namespace {
 
 // A SimpleBlobDetector that drops blobs touching the field-of-view border (the vignetted rim next
 // to the masked-out area looks like a chain of dark blobs). findCirclesGrid calls detect() once
@@ -472,6 +534,8 @@ class MaskedBlobDetector : public cv::Feature2D {
 // ---- DetectGrid's steps (grid_detector.h, "Pipeline per image"). Each returns false with the
 // reason in `reason` when the view cannot be used.
 
+}  // namespace
+
 // Step 1a: the (cropped) image as float grey levels; `offset` is the crop's corner.
 bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv::Point* offset,
                  std::string* reason) {
@@ -498,13 +562,8 @@ bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv
   return true;
 }
 
-struct FieldOfView {
-  cv::Mat mask;              // CV_8U, 255 inside the field (shrunk by the margin)
-  bool have_circle = false;  // the circle is known (given, or found)
-  cv::Point2d centre;
-  double radius = 0;
-  cv::Mat refine_valid;      // the fully exposed part of the mask (sub-pixel refinement)
-};
+namespace {
+
 
 // The largest component above `level` (fraction of the range lo..hi) and its convex hull, when
 // it covers 20-90 % of the image (a dark border exists).
@@ -522,6 +581,8 @@ bool FieldHull(const cv::Mat& f, double lo, double hi, double level, std::vector
   cv::convexHull(contours[best], *hull);
   return true;
 }
+
+}  // namespace
 
 // Step 2: region of interest and field of view (header).
 FieldOfView FindFieldOfView(const cv::Mat& f, const DetectionOptions& o, cv::Point offset) {
@@ -588,6 +649,8 @@ FieldOfView FindFieldOfView(const cv::Mat& f, const DetectionOptions& o, cv::Poi
   }
   return fov;
 }
+
+namespace {
 
 struct WorkingImage {
   cv::Mat work;    // CV_8U, 1..99 % of the field stretched to 0..255
@@ -1018,7 +1081,7 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path) {
   return views;
 }
 
-cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const GridDetection& d) {
+cv::Mat StretchedColourImage(const cv::Mat& image) {
   cv::Mat grey, f, shown, out;
   if (image.channels() == 3) {
     cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
@@ -1040,6 +1103,11 @@ cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const G
   if (!(hi > lo)) hi = lo + 1;
   f.convertTo(shown, CV_8U, 255.0 / (hi - lo), -255.0 * lo / (hi - lo));
   cv::cvtColor(shown, out, cv::COLOR_GRAY2BGR);
+  return out;
+}
+
+cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const GridDetection& d) {
+  cv::Mat out = StretchedColourImage(image);
   const double scale = std::max(0.35, std::min(out.cols, out.rows) / 1400.0);
   const cv::Scalar green(0, 200, 0), red(0, 0, 255), yellow(0, 220, 255);
   for (size_t i = 0; i < d.view.uv_px.size(); ++i) {

@@ -80,6 +80,9 @@ struct DetectionOptions {
 // calibration config.
 class YamlMap;
 void ReadDetectionOptions(YamlMap& map, DetectionOptions* options);
+// Only the region-of-interest / field-of-view keys (roi_px, fov_circle_px, auto_fov_mask,
+// fov_margin_px), e.g. for the marker blob detector.
+void ReadFieldOfViewOptions(YamlMap& map, DetectionOptions* options);
 
 // A candidate blob or grid point that is not among the detected points, and why (full-image
 // pixel coordinates): "not on the grid" (a blob of the search that found the grid but is no grid

@@ -96,7 +96,17 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
     const double sigma = std::sqrt(std::max(C(i, i), 0.0));
     if (sigma > 0) max_sigmas = std::max(max_sigmas, d / sigma);
   }
+  // mrcal seeded at carmba's optimum (the script re-optimises from it): how far mrcal moves.
+  double max_rel_at_carmba = 0;
+  if (out->contains("intrinsics_seeded_at_carmba")) {
+    const auto at = out->at("intrinsics_seeded_at_carmba").get<std::vector<double>>();
+    for (int i = 0; i < kNumIntrinsics && i < static_cast<int>(at.size()); ++i) {
+      const double d = std::abs(x[i] - at[i]);
+      max_rel_at_carmba = std::max(max_rel_at_carmba, x[i] != 0 ? d / std::abs(x[i]) : d);
+    }
+  }
   nlohmann::json j;
+  j["max_relative_move_of_mrcal_seeded_at_carmba"] = max_rel_at_carmba;
   j["what"] = "markers held at their CT centres, all nine intrinsics free, one intrinsics, "
               "seeded from carmba's initial values";
   j["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},

@@ -1,24 +1,15 @@
-// C-arm flex in result.json and report.md (joint_problem.h): per-view intrinsics, the smooth
-// model's coefficients, the model selection, the plot.
+// C-arm flex in result.json and the report (joint_problem.h): per-view intrinsics, the smooth
+// model's coefficients, the model selection, the plot's data.
+#include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <sstream>
+#include <limits>
 
 #include "ba/view_intrinsics.h"
 #include "joint/joint_problem.h"
-#include "util/file_util.h"
+#include "report/format.h"
 
 namespace carmba {
 namespace {
-
-nlohmann::json Num(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); }
-
-std::string Fmt(const char* f, double x) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, x);
-  return b;
-}
 
 bool AnyAngles(const JointSolution& s) {
   for (const auto& v : s.ba_problem.views) {
@@ -56,10 +47,10 @@ nlohmann::json FlexModelJson(const JointSolution& s) {
   for (int k = 0; k < g.basis.NumTerms(); ++k) terms.push_back(g.basis.TermName(k));
   for (int i = 0; i < g.basis.BlockSize(); ++i) {
     names.push_back(g.basis.ParameterName(i));
-    values.push_back(Num(s.result.block(b)[i]));
-    sigmas.push_back(Num(std::sqrt(std::max(0.0, C(i, i)))));
+    values.push_back(JsonNumber(s.result.block(b)[i]));
+    sigmas.push_back(JsonNumber(std::sqrt(std::max(0.0, C(i, i)))));
     nlohmann::json row = nlohmann::json::array();
-    for (int k = 0; k < g.basis.BlockSize(); ++k) row.push_back(Num(C(i, k)));
+    for (int k = 0; k < g.basis.BlockSize(); ++k) row.push_back(JsonNumber(C(i, k)));
     cov.push_back(row);
   }
   return {{"model", "smooth"},
@@ -94,7 +85,7 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
       nlohmann::json z;
       for (int i = 0; i < 4; ++i) {
         const double sg = std::sqrt(std::max(0.0, vi.covariance(i, i)));
-        z[kIntrinsicNames[i]] = Num(sg > 0 ? (vi.value[i] - t->second[i]) / sg : NAN);
+        z[kIntrinsicNames[i]] = JsonNumber(sg > 0 ? (vi.value[i] - t->second[i]) / sg : NAN);
       }
       vj["true_intrinsics"] = std::vector<double>(t->second.begin(), t->second.end());
       vj["intrinsics_error_sigma"] = z;
@@ -109,19 +100,19 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
       nlohmann::json held = nlohmann::json::array();
       for (const auto& h : sc.held_out) {
         held.push_back({{"orientation", h.orientation},
-                        {"rms_px", Num(h.rms_px)},
-                        {"chi2_per_residual", Num(h.chi2_per_residual)},
-                        {"mahalanobis_d2", Num(h.d2)}});
+                        {"rms_px", JsonNumber(h.rms_px)},
+                        {"chi2_per_residual", JsonNumber(h.chi2_per_residual)},
+                        {"mahalanobis_d2", JsonNumber(h.d2)}});
       }
       nlohmann::json sj = {{"model", ba::IntrinsicsModelName(sc.model)}, {"ok", sc.ok}};
       if (!sc.ok) sj["error"] = sc.error;
       sj["num_parameters"] = sc.num_free;
       sj["num_residuals"] = sc.num_residuals;
-      sj["chi2"] = Num(sc.chi2);
-      sj["aic"] = Num(sc.aic);
-      sj["bic"] = Num(sc.bic);
-      sj["held_out_rms_px"] = Num(sc.held_out_rms_px);
-      sj["held_out_mahalanobis_d2_mean"] = Num(sc.held_out_d2_mean);
+      sj["chi2"] = JsonNumber(sc.chi2);
+      sj["aic"] = JsonNumber(sc.aic);
+      sj["bic"] = JsonNumber(sc.bic);
+      sj["held_out_rms_px"] = JsonNumber(sc.held_out_rms_px);
+      sj["held_out_mahalanobis_d2_mean"] = JsonNumber(sc.held_out_d2_mean);
       sj["held_out"] = held;
       scores.push_back(sj);
     }
@@ -154,8 +145,8 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
         const ba::ViewIntrinsics vi = ba::GroupIntrinsicsAt(bp, s.result, 0, a, sec);
         nlohmann::json x = nlohmann::json::array(), sg = nlohmann::json::array();
         for (int i = 0; i < 4; ++i) {
-          x.push_back(Num(vi.value[i]));
-          sg.push_back(Num(std::sqrt(std::max(0.0, vi.covariance(i, i)))));
+          x.push_back(JsonNumber(vi.value[i]));
+          sg.push_back(JsonNumber(std::sqrt(std::max(0.0, vi.covariance(i, i)))));
         }
         pts.push_back({{"primary_deg", a}, {"fx_fy_cx_cy", x}, {"sigma", sg}});
       }
@@ -165,112 +156,128 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
   }
 }
 
-std::string FlexReportMarkdown(const JointProblem& problem, const JointSolution& s) {
-  if (!AnyAngles(s) && !problem.smooth) return "";
+ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& s) {
+  ReportDoc d;
+  if (!AnyAngles(s) && !problem.smooth) return d;
   const ba::BaProblem& bp = s.ba_problem;
-  std::ostringstream o;
-  o << "\n## Intrinsics per view (C-arm angles)\n\nModel `" << ModelName(problem) << "`";
+  d.Heading(2, "Intrinsics per view (C-arm angles)");
+  std::string text = std::string("Model `") + ModelName(problem) + "`";
   if (problem.smooth) {
-    o << ": fx, fy, cx, cy as functions of the angles (Fourier order "
-      << problem.smooth_basis.primary_order << " in the primary angle, degree "
-      << problem.smooth_basis.secondary_degree
-      << " in the secondary), distortion shared; a view's intrinsics and their sigma follow from "
-         "the coefficients' covariance, also between the calibrated angles";
+    text += ": fx, fy, cx, cy as functions of the angles (Fourier order " +
+            std::to_string(problem.smooth_basis.primary_order) + " in the primary angle, degree " +
+            std::to_string(problem.smooth_basis.secondary_degree) +
+            " in the secondary), distortion shared; a view's intrinsics and their sigma follow from "
+            "the coefficients' covariance, also between the calibrated angles";
   }
-  o << ". Sigmas are 1 sigma (px).\n\n![intrinsics against the primary angle](intrinsics_vs_angle.png)\n\n";
+  d.Paragraph(text + ". Values +- 1 sigma (px); the plot of the intrinsics against the primary "
+                     "angle is in report.html.");
+  d.Figures({"intrinsics-vs-angle"});
   const bool truth = !problem.truth.view_intrinsics.empty();
-  o << "| view | kind | primary (deg) | secondary (deg) | fx | fy | cx | cy |"
-    << (truth ? " max abs(error) / sigma |" : "") << "\n|---|---|---|---|---|---|---|---|"
-    << (truth ? "---|" : "") << "\n";
+  std::vector<std::string> header = {"view", "kind", "primary (deg)", "secondary (deg)",
+                                     "fx", "fy", "cx", "cy"};
+  if (truth) header.push_back("max abs(error) / sigma");
+  std::vector<std::vector<std::string>> rows;
   for (size_t v = 0; v < bp.views.size(); ++v) {
     const ba::BaView& bv = bp.views[v];
     const ba::ViewIntrinsics vi = ba::IntrinsicsOfView(bp, s.result, static_cast<int>(v));
-    o << "| " << bv.id << " | " << (bv.kind == ba::ViewKind::kPlate ? "plate" : "object") << " | "
-      << (bv.has_angles ? Fmt("%.1f", bv.primary_deg) : "") << " | "
-      << (bv.has_angles ? Fmt("%.1f", bv.secondary_deg) : "") << " |";
+    std::vector<std::string> row = {bv.id, bv.kind == ba::ViewKind::kPlate ? "plate" : "object",
+                                    bv.has_angles ? Fmt("%.1f", bv.primary_deg) : "",
+                                    bv.has_angles ? Fmt("%.1f", bv.secondary_deg) : ""};
     double worst = 0;
     auto t = problem.truth.view_intrinsics.find(bv.id);
     for (int i = 0; i < 4; ++i) {
       const double sg = std::sqrt(std::max(0.0, vi.covariance(i, i)));
-      o << " " << Fmt("%.2f", vi.value[i]) << " +- " << Fmt("%.2f", sg) << " |";
+      row.push_back(Fmt("%.2f", vi.value[i]) + " +- " + Fmt("%.2f", sg));
       if (t != problem.truth.view_intrinsics.end() && sg > 0) {
         worst = std::max(worst, std::abs(vi.value[i] - t->second[i]) / sg);
       }
     }
-    if (truth) o << " " << (t != problem.truth.view_intrinsics.end() ? Fmt("%.2f", worst) : "") << " |";
-    o << "\n";
+    if (truth) row.push_back(t != problem.truth.view_intrinsics.end() ? Fmt("%.2f", worst) : "");
+    rows.push_back(row);
   }
+  d.Table(header, rows);
   if (problem.smooth) {
     const nlohmann::json m = FlexModelJson(s);
-    o << "\nCoefficients (angles in radians):\n\n| coefficient | value | sigma |\n|---|---|---|\n";
+    d.Paragraph("Coefficients (angles in radians):");
+    rows.clear();
     for (size_t i = 0; i < m["names"].size(); ++i) {
-      o << "| " << m["names"][i].get<std::string>() << " | " << Fmt("%.6g", m["values"][i].get<double>())
-        << " | " << Fmt("%.3g", m["sigmas"][i].get<double>()) << " |\n";
+      const auto num = [](const nlohmann::json& x) {
+        return x.is_number() ? x.get<double>() : std::numeric_limits<double>::quiet_NaN();
+      };
+      rows.push_back({m["names"][i].get<std::string>(), Fmt("%.6g", num(m["values"][i])),
+                      Fmt("%.3g", num(m["sigmas"][i]))});
     }
+    d.Table({"coefficient", "value", "sigma"}, rows);
   }
-  o << "\n## Intrinsics model selection\n\n";
+  d.Heading(2, "Intrinsics model selection");
   if (!s.selection) {
-    o << (s.selection_error.empty() ? "Not run (it needs C-arm angles for every view; "
-                                      "intrinsics.select)."
-                                    : "Not available: " + s.selection_error + ".")
-      << "\n";
-    return o.str();
+    d.Paragraph(s.selection_error.empty()
+                    ? "Not run (it needs C-arm angles for every view; intrinsics.select)."
+                    : "Not available: " + s.selection_error + ".");
+    return d;
   }
-  o << "Each plate orientation group is left out in turn; the model fitted to the other groups' "
-       "plate views predicts its intrinsics and its plate observations (poses refitted, "
-       "intrinsics held at the prediction). `d2` is the Mahalanobis distance of the predicted fx, "
-       "fy, cx, cy from the group's own calibration with both covariances (4 on average when the "
-       "model is right); the held-out RMS is in px per coordinate (a pose absorbs most of an "
-       "intrinsics error, so it moves little). AIC = chi2 + 2k, BIC = chi2 + k ln n on all plate "
-       "views.\n\n| model | parameters | chi2 | AIC | BIC | held-out RMS (px) | mean held-out d2 |\n"
-       "|---|---|---|---|---|---|---|\n";
+  d.Paragraph(
+      "Each plate orientation group is left out in turn; the model fitted to the other groups' "
+      "plate views predicts its intrinsics and its plate observations (poses refitted, "
+      "intrinsics held at the prediction). `d2` is the Mahalanobis distance of the predicted fx, "
+      "fy, cx, cy from the group's own calibration with both covariances (4 on average when the "
+      "model is right); the held-out RMS is in px per coordinate (a pose absorbs most of an "
+      "intrinsics error, so it moves little). AIC = chi2 + 2k, BIC = chi2 + k ln n on all plate "
+      "views.");
+  rows.clear();
   for (const auto& sc : s.selection->scores) {
     if (!sc.ok) {
-      o << "| " << ba::IntrinsicsModelName(sc.model) << " | failed: " << sc.error << " | | | | | |\n";
+      rows.push_back({ba::IntrinsicsModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
       continue;
     }
-    o << "| " << ba::IntrinsicsModelName(sc.model) << " | " << sc.num_free << " | "
-      << Fmt("%.1f", sc.chi2) << " | " << Fmt("%.1f", sc.aic) << " | " << Fmt("%.1f", sc.bic)
-      << " | " << Fmt("%.4f", sc.held_out_rms_px) << " | " << Fmt("%.2f", sc.held_out_d2_mean) << " |\n";
+    rows.push_back({ba::IntrinsicsModelName(sc.model), std::to_string(sc.num_free),
+                    Fmt("%.1f", sc.chi2), Fmt("%.1f", sc.aic), Fmt("%.1f", sc.bic),
+                    Fmt("%.4f", sc.held_out_rms_px), Fmt("%.2f", sc.held_out_d2_mean)});
   }
-  o << "\nHeld-out d2 per orientation group:\n\n| model |";
+  d.Table({"model", "parameters", "chi2", "AIC", "BIC", "held-out RMS (px)", "mean held-out d2"},
+          rows);
+  d.Paragraph("Held-out d2 per orientation group:");
   const auto& first = s.selection->scores.front();
-  for (const auto& h : first.held_out) o << " " << h.orientation << " |";
-  o << "\n|---|";
-  for (size_t k = 0; k < first.held_out.size(); ++k) o << "---|";
-  o << "\n";
+  header = {"model"};
+  for (const auto& h : first.held_out) header.push_back(h.orientation);
+  rows.clear();
   for (const auto& sc : s.selection->scores) {
     if (!sc.ok) continue;
-    o << "| " << ba::IntrinsicsModelName(sc.model) << " |";
-    for (const auto& h : sc.held_out) o << " " << Fmt("%.2f", h.d2) << " |";
-    o << "\n";
+    std::vector<std::string> row = {ba::IntrinsicsModelName(sc.model)};
+    for (const auto& h : sc.held_out) row.push_back(Fmt("%.2f", h.d2));
+    row.resize(header.size());
+    rows.push_back(row);
   }
-  o << "\n**Recommended: `" << ba::IntrinsicsModelName(s.selection->recommended) << "`** -- "
-    << s.selection->why << ".";
+  d.Table(header, rows);
+  std::string rec = std::string("**Recommended: `") +
+                    ba::IntrinsicsModelName(s.selection->recommended) + "`** -- " +
+                    s.selection->why + ".";
   if (std::string(ba::IntrinsicsModelName(s.selection->recommended)) != ModelName(problem)) {
-    o << " This solve used `" << ModelName(problem) << "` (intrinsics.model in the problem).";
+    rec += std::string(" This solve used `") + ModelName(problem) +
+           "` (intrinsics.model in the problem).";
   }
-  o << "\n";
-  return o.str();
+  d.Paragraph(rec);
+  return d;
 }
 
-Status WriteIntrinsicsPlot(const std::string& result_json, const std::string& png) {
-  const std::string script = png + ".plot.py";
-  CARMBA_RETURN_IF_ERROR(WriteFileAtomic(script, IntrinsicsPlotScript()));
-  const std::string cmd = "/usr/bin/python3 '" + script + "' '" + result_json + "' '" + png +
-                          "' > '" + png + ".log' 2>&1";
-  const int rc = std::system(cmd.c_str());
-  auto log = ReadFile(png + ".log");
-  std::remove(script.c_str());
-  std::remove((png + ".log").c_str());
-  if (rc != 0) {
-    std::string msg = log.ok() ? *log : "";
-    while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();
-    const auto nl = msg.rfind('\n');
-    if (nl != std::string::npos) msg = msg.substr(nl + 1);
-    return Status::Error("the intrinsics plot (scripts/plot_intrinsics_vs_angle.py) failed: " + msg);
+void AddFlexPlotData(const nlohmann::json& result, nlohmann::json* plot_data) {
+  if (!result.contains("intrinsics_model") || !result.contains("views")) return;
+  nlohmann::json views = nlohmann::json::array();
+  for (const auto& v : result.at("views")) {
+    if (!v.contains("primary_deg") || !v.contains("intrinsics")) continue;
+    nlohmann::json pv = {{"id", v.value("id", std::string())},
+                         {"kind", v.value("kind", std::string())},
+                         {"primary_deg", v.at("primary_deg")},
+                         {"secondary_deg", v.at("secondary_deg")},
+                         {"intrinsics", v.at("intrinsics")}};
+    if (v.contains("true_intrinsics")) pv["true_intrinsics"] = v.at("true_intrinsics");
+    views.push_back(pv);
   }
-  return Status::Ok();
+  if (views.empty()) return;
+  (*plot_data)["intrinsics_vs_angle"] = {
+      {"model", result.at("intrinsics_model").value("name", std::string("?"))},
+      {"views", views},
+      {"curves", result.value("intrinsics_curve", nlohmann::json::array())}};
 }
 
 }  // namespace carmba

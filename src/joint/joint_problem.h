@@ -17,6 +17,11 @@
 //   object_views:
 //     observations: object/observations.csv  # long: view, marker, u_px, v_px
 //     sigma_px: 0.3
+//     # or images: DIR_OR_GLOB (PNG/TIFF/DICOM, multi-frame DICOM: a view per frame) with
+//     # detection: {diameter_mm: 2, ...} (detect/marker_views.h ReadObjectViewsOptions): marker
+//     # blobs detected and labelled with the fiducials through `camera` (required then); each
+//     # observation's sigma from its blob's covariance (sigma_px, if given, is not used); views
+//     # with fewer than 4 markers found are skipped (listed in skipped_object_views)
 //   fiducials: fiducials.csv          # as `carmba ct-fiducials` writes it: id, x_mm, y_mm, z_mm,
 //                                     # cov_xx..cov_zz (the CT prior); or a map
 //                                     # {file, id_column, columns, sigma_mm}
@@ -53,9 +58,12 @@
 #include "ba/bundle_adjuster.h"
 #include "ba/flex_models.h"
 #include "ba/quantities.h"
+#include "ba/relative_pose.h"
+#include "ba/tre.h"
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "problem/pose_problem.h"
+#include "report/report_doc.h"
 
 namespace carmba {
 
@@ -63,6 +71,7 @@ struct JointObjectView {
   std::string id;
   std::vector<int> marker_ids;
   std::vector<Eigen::Vector2d> uv_px;
+  std::vector<double> sigma_px;  // per observation (detected blobs); empty = object_sigma_px
 };
 
 struct JointTruth {
@@ -84,7 +93,8 @@ struct JointProblem {
   std::vector<std::string> skipped_images;  // plate images without a usable grid ("file: why")
   // Object views.
   std::vector<JointObjectView> object_views;
-  double object_sigma_px = 0;
+  double object_sigma_px = 0;  // from images: the median of the per-observation sigmas
+  std::vector<std::string> skipped_object_views;  // object images not labelled ("view: why")
   std::vector<Marker> fiducials;
   // Intrinsics.
   std::optional<Camera> camera;
@@ -126,6 +136,11 @@ struct JointSolution {
   std::string initial_intrinsics_from;           // "camera.json", "Zhang + calibration" ...
   std::optional<ba::ModelSelection> selection;   // intrinsics models compared (flex)
   std::string selection_error;                   // why not (if asked and it failed)
+  // Relative poses of object views with 6x6 covariances (ba/relative_pose.h: every pair when
+  // there are at most 10 object views, else the validation pairs); the leave-one-marker-out TRE
+  // when the config has tre: true (ba/tre.h).
+  std::vector<ba::RelativePoseEstimate> relative_poses;
+  std::optional<ba::TreResult> tre;
 };
 
 StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config);
@@ -133,6 +148,16 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
 nlohmann::json JointSolutionToJson(const JointProblem& problem,
                                    const SolverConfig& config,
                                    const JointSolution& solution);
+// geometry.json's content (export/view_geometry.h): the object views, each with the
+// intrinsics of its group (the full model) and its cam_from_object (the object frame is the CT
+// frame of the fiducials); the reference point the fiducials' centroid.
+GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& solution);
+
+// The report (report.md and report.html; report/report_doc.h) and its plot data (report/plots.h).
+ReportDoc JointReportDoc(const JointProblem& problem,
+                         const SolverConfig& config,
+                         const JointSolution& solution);
+nlohmann::json JointPlotData(const JointSolution& solution);
 std::string JointReportMarkdown(const JointProblem& problem,
                                 const SolverConfig& config,
                                 const JointSolution& solution);
@@ -150,6 +175,7 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
 
 // The report's section on the cross-check (its JSON as JointMrcalCrossCheck returns it, or
 // {"error": ...}).
+ReportDoc JointMrcalDoc(const nlohmann::json& crosscheck);
 std::string JointMrcalMarkdown(const nlohmann::json& crosscheck);
 
 // C-arm flex (joint_flex_report.cc): every view's intrinsics (at its angles, with covariance, as
@@ -159,12 +185,11 @@ std::string JointMrcalMarkdown(const nlohmann::json& crosscheck);
 void AddFlexJson(const JointProblem& problem, const JointSolution& solution, nlohmann::json* j);
 nlohmann::json FlexModelJson(const JointSolution& solution);
 // The report's sections on the intrinsics per view (against the truth when it has them) and on
-// the model selection, linking the plot intrinsics_vs_angle.png.
-std::string FlexReportMarkdown(const JointProblem& problem, const JointSolution& solution);
-// Runs scripts/plot_intrinsics_vs_angle.py (embedded; matplotlib through /usr/bin/python3) on a
-// result.json, writing `png`. Errors: python3 or matplotlib missing, the script failing.
-Status WriteIntrinsicsPlot(const std::string& result_json, const std::string& png);
-const char* IntrinsicsPlotScript();
+// the model selection, with the place of the plot "intrinsics-vs-angle" (report.html).
+ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& solution);
+// The plot's data from result.json (AddFlexJson's keys) into the report's plot data
+// ("intrinsics_vs_angle", drawn by scripts/report_plots.py); nothing without angles.
+void AddFlexPlotData(const nlohmann::json& result, nlohmann::json* plot_data);
 
 // The options of the engine from a solver config (one vocabulary for pose and joint).
 ba::BaOptions BaOptionsFromConfig(const SolverConfig& config);

@@ -8,6 +8,8 @@
 #include "detect/grid_detector.h"
 #include "io/dicom_xray.h"
 #include "joint/joint_problem.h"
+
+#include "detect/marker_views.h"
 #include "util/csv.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -82,16 +84,27 @@ Status ReadPlateViews(YamlMap& m, const std::string& base, JointProblem* p) {
   return Status::Ok();
 }
 
-Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p) {
+// object_views: {images, detection}: the options read here, the views detected and labelled once
+// the camera and the fiducials are read (DetectObjectViews).
+struct ObjectImages {
+  std::string images;
+  ObjectViewsOptions options;
+};
+
+Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p, ObjectImages* from_images) {
   std::string observations, marker_column = "marker";
+  if (m.Has("images")) {
+    m.Get("images", &from_images->images, true);
+    if (m.Has("observations")) m.Fail("observations", "give observations or images, not both");
+    YamlMap& d = m.Map("detection", true);
+    ReadObjectViewsOptions(d, &from_images->options);
+    double unused = 0;
+    m.GetInRange("sigma_px", &unused, plausible::kPixelSigmaPx);
+    return m.status();
+  }
   m.Get("observations", &observations, true);
   m.Get("marker_column", &marker_column);
   m.GetInRange("sigma_px", &p->object_sigma_px, plausible::kPixelSigmaPx, true);
-  if (m.Has("images")) {
-    m.Raw("images");
-    m.Fail("images", "object views from images need marker detection, which is not built yet; "
-                     "give observations (CSV: view, marker, u_px, v_px)");
-  }
   if (!m.status().ok()) return m.status();
   const std::string path = JoinPath(base, observations);
   auto t = ReadCsv(path);
@@ -111,7 +124,7 @@ Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p) {
     if (!v.ok()) return v.status();
     if (!index.count(id)) {
       index[id] = p->object_views.size();
-      p->object_views.push_back({id, {}, {}});
+      p->object_views.push_back({id, {}, {}, {}});
     }
     JointObjectView& ov = p->object_views[index[id]];
     for (int m2 : ov.marker_ids) {
@@ -238,6 +251,36 @@ bool IsJointProblemFile(const std::string& yaml_path) {
   }
 }
 
+Status DetectObjectViews(const ObjectImages& in, const std::string& base, const std::string& where,
+                         JointProblem* p) {
+  if (!p->camera) {
+    return Status::Error(where + ": object_views.images needs the camera (camera.json) to label "
+                                 "the markers");
+  }
+  auto files = ListImageFiles(JoinPath(base, in.images));
+  if (!files.ok()) return files.status().WithContext(where + ": object_views.images");
+  auto views = DetectAndLabelObjectViews(*files, *p->camera, p->fiducials, in.options);
+  if (!views.ok()) return views.status();
+  std::vector<double> all;
+  for (const PoseView& pv : ToPoseViews(*views, in.options.sigma_floor_px)) {
+    JointObjectView ov;
+    ov.id = pv.id;
+    for (const Observation& o : pv.observations) {
+      ov.marker_ids.push_back(o.marker_id);
+      ov.uv_px.push_back(o.uv_px);
+      ov.sigma_px.push_back(o.sigma_px);
+      all.push_back(o.sigma_px);
+    }
+    p->object_views.push_back(ov);
+  }
+  for (const ObjectView& v : *views) {
+    if (!v.labelled) p->skipped_object_views.push_back(v.name + ": " + v.skipped);
+  }
+  std::nth_element(all.begin(), all.begin() + all.size() / 2, all.end());
+  p->object_sigma_px = all[all.size() / 2];
+  return Status::Ok();
+}
+
 StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
   YamlMap root = YamlMap::Load(yaml_path);
   if (!root.status().ok()) return root.status();
@@ -290,8 +333,9 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
   }
   if (!root.status().ok()) return root.status();
   if (has_plate) CARMBA_RETURN_IF_ERROR(ReadPlateViews(plate, base, &p));
+  ObjectImages object_images;
   if (has_object) {
-    CARMBA_RETURN_IF_ERROR(ReadObjectViews(object, base, &p));
+    CARMBA_RETURN_IF_ERROR(ReadObjectViews(object, base, &p, &object_images));
     auto markers = ReadMarkersCsv(JoinPath(base, fiducials_file), id_column, columns, fid_sigma_mm,
                                   sigma_key);
     if (!markers.ok()) return markers.status();
@@ -319,6 +363,9 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
     auto cam = ReadCameraJson(JoinPath(base, camera_file));
     if (!cam.ok()) return cam.status();
     p.camera = *cam;
+  }
+  if (!object_images.images.empty()) {
+    CARMBA_RETURN_IF_ERROR(DetectObjectViews(object_images, base, yaml_path, &p));
   }
   if (p.camera_prior && (!p.camera || p.camera->covariance.empty())) {
     return Status::Error(yaml_path + ": intrinsics.prior: true needs a camera with a covariance");

@@ -3,31 +3,15 @@
 #include <cstdio>
 #include <sstream>
 
+#include "ba/view_intrinsics.h"
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
+#include "report/format.h"
+#include "report/plots.h"
+#include "report/relative_tre_report.h"
 
 namespace carmba {
 namespace {
-
-nlohmann::json Num(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); }
-
-nlohmann::json Vec(const Eigen::VectorXd& v) {
-  nlohmann::json j = nlohmann::json::array();
-  for (Eigen::Index i = 0; i < v.size(); ++i) j.push_back(Num(v[i]));
-  return j;
-}
-
-nlohmann::json Rows(const Eigen::MatrixXd& m) {
-  nlohmann::json j = nlohmann::json::array();
-  for (Eigen::Index r = 0; r < m.rows(); ++r) j.push_back(Vec(m.row(r).transpose()));
-  return j;
-}
-
-std::string Fmt(const char* f, double x) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, x);
-  return b;
-}
 
 // The group's intrinsics as camera.json writes them, with the joint covariance (a smooth group:
 // its coefficients, FlexModelJson).
@@ -63,6 +47,29 @@ const ba::BudgetRow* FindRow(const JointSolution& s, const std::string& name) {
 
 }  // namespace
 
+GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& s) {
+  const ba::StateLayout& L = *s.result.layout;
+  GeometrySet g;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& m : problem.fiducials) centroid += m.p_in_object;
+  if (!problem.fiducials.empty()) g.reference_point_ct_mm = centroid / problem.fiducials.size();
+  for (size_t v = 0; v < s.ba_problem.views.size(); ++v) {
+    const ba::BaView& bv = s.ba_problem.views[v];
+    if (bv.kind != ba::ViewKind::kObject) continue;
+    ViewGeometry vg;
+    vg.id = bv.id;
+    // The view's intrinsics: its group's, or at its angles (a smooth group, ba/view_intrinsics.h).
+    const ba::IntrinsicsGroup& grp = s.ba_problem.groups[bv.group];
+    vg.camera.params = ba::IntrinsicsValueOfView(s.ba_problem, s.result, static_cast<int>(v));
+    vg.camera.width = grp.width;
+    vg.camera.height = grp.height;
+    const double* pose = s.result.block(L.view_block(static_cast<int>(v)));
+    for (int i = 0; i < 6; ++i) vg.cam_from_ct[i] = pose[i];
+    g.views.push_back(vg);
+  }
+  return g;
+}
+
 nlohmann::json JointSolutionToJson(const JointProblem& problem,
                                    const SolverConfig& config,
                                    const JointSolution& s) {
@@ -96,23 +103,23 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     vj["kind"] = bv.kind == ba::ViewKind::kPlate ? "plate" : "object";
     vj["group"] = s.ba_problem.groups[bv.group].name;
     vj[bv.kind == ba::ViewKind::kPlate ? "cam_from_plate" : "cam_from_object"] = {
-        {"rvec", Vec(pose.head<3>())}, {"t_mm", Vec(pose.tail<3>())}};
-    vj["rms_px"] = Num(r.views[v].rms_px);
+        {"rvec", JsonVector(pose.head<3>())}, {"t_mm", JsonVector(pose.tail<3>())}};
+    vj["rms_px"] = JsonNumber(r.views[v].rms_px);
     vj["num_observations"] = r.views[v].num_observations;
     if (bv.kind == ba::ViewKind::kObject) {
-      vj["covariance_6x6"] = Rows(r.Covariance({b}));
+      vj["covariance_6x6"] = JsonRows(r.Covariance({b}));
       vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
       static const char* const kAxis[3] = {"x", "y", "z"};
       nlohmann::json sr = nlohmann::json::array(), st = nlohmann::json::array();
       for (int a = 0; a < 3; ++a) {
-        sr.push_back(Num(FindRow(s, "view " + bv.id + " rot " + kAxis[a])->sigma));
-        st.push_back(Num(FindRow(s, "view " + bv.id + " t" + kAxis[a])->sigma));
+        sr.push_back(JsonNumber(FindRow(s, "view " + bv.id + " rot " + kAxis[a])->sigma));
+        st.push_back(JsonNumber(FindRow(s, "view " + bv.id + " t" + kAxis[a])->sigma));
       }
       vj["sigma_rotation_deg"] = sr;
       vj["sigma_translation_mm"] = st;
       auto it = problem.truth.object_poses.find(bv.id);
       if (it != problem.truth.object_poses.end()) {
-        vj["truth"] = {{"rvec", Vec(it->second.head<3>())}, {"t_mm", Vec(it->second.tail<3>())}};
+        vj["truth"] = {{"rvec", JsonVector(it->second.head<3>())}, {"t_mm", JsonVector(it->second.tail<3>())}};
         vj["rotation_error_deg"] = AngleBetweenRotations(RotationFromRvec(pose.head<3>()),
                                                          RotationFromRvec(it->second.head<3>())) *
                                    kRadToDeg;
@@ -131,10 +138,10 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     const ba::BudgetRow* vd = FindRow(s, name + " view directions");
     nlohmann::json pj = {{"a", vp.a},
                          {"b", vp.b},
-                         {"relative_rotation_deg", Num(rr->quantity.value)},
-                         {"sigma_relative_rotation_deg", Num(rr->sigma)},
-                         {"angle_view_dirs_deg", Num(vd->quantity.value)},
-                         {"sigma_view_dirs_deg", Num(vd->sigma)},
+                         {"relative_rotation_deg", JsonNumber(rr->quantity.value)},
+                         {"sigma_relative_rotation_deg", JsonNumber(rr->sigma)},
+                         {"angle_view_dirs_deg", JsonNumber(vd->quantity.value)},
+                         {"sigma_view_dirs_deg", JsonNumber(vd->sigma)},
                          {"expected_deg", vp.expected_deg ? nlohmann::json(*vp.expected_deg)
                                                           : nlohmann::json()}};
     auto ta = problem.truth.object_poses.find(vp.a), tb = problem.truth.object_poses.find(vp.b);
@@ -144,27 +151,29 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     val.push_back(pj);
   }
   j["validation"] = val;
+  j["relative_poses"] = RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) j["tre"] = TreJson(*s.tre);
   nlohmann::json markers = nlohmann::json::array();
   for (size_t m = 0; m < s.ba_problem.markers.size(); ++m) {
     const int b = L.marker_block(static_cast<int>(m));
     markers.push_back({{"id", s.ba_problem.markers[m].id},
-                       {"p_in_object_mm", Vec(Eigen::Map<const Eigen::Vector3d>(r.block(b)))},
-                       {"covariance_mm2", Rows(r.Covariance({b}))}});
+                       {"p_in_object_mm", JsonVector(Eigen::Map<const Eigen::Vector3d>(r.block(b)))},
+                       {"covariance_mm2", JsonRows(r.Covariance({b}))}});
   }
   j["markers"] = markers;
   nlohmann::json outliers = nlohmann::json::array();
   for (const auto& o : r.outliers) {
     outliers.push_back({{"view", o.view},
                         {o.plate ? "point" : "marker", o.id},
-                        {"residual_sigma", Num(o.residual_sigma)},
-                        {"du_px", Num(o.du_px)},
-                        {"dv_px", Num(o.dv_px)}});
+                        {"residual_sigma", JsonNumber(o.residual_sigma)},
+                        {"du_px", JsonNumber(o.du_px)},
+                        {"dv_px", JsonNumber(o.dv_px)}});
   }
   j["outliers"] = outliers;
   nlohmann::json rejected = nlohmann::json::array();
   for (const auto& o : r.rejected) {
     rejected.push_back({{"view", o.view}, {o.plate ? "point" : "marker", o.id},
-                        {"residual_sigma", Num(o.residual_sigma)}});
+                        {"residual_sigma", JsonNumber(o.residual_sigma)}});
   }
   j["rejected"] = rejected;
   nlohmann::json layout = nlohmann::json::array();
@@ -175,13 +184,13 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     nlohmann::json src = nlohmann::json::array();
     for (int k = 0; k < ba::kNumSources; ++k) {
       src.push_back({{"source", ba::SourceName(static_cast<ba::Source>(k))},
-                     {"sigma", Num(row.source_sigma[k])},
-                     {"share", Num(row.share[k])}});
+                     {"sigma", JsonNumber(row.source_sigma[k])},
+                     {"share", JsonNumber(row.share[k])}});
     }
     budget.push_back({{"quantity", row.quantity.name},
                       {"unit", row.quantity.unit},
-                      {"value", Num(row.quantity.value)},
-                      {"sigma", Num(row.sigma)},
+                      {"value", JsonNumber(row.quantity.value)},
+                      {"sigma", JsonNumber(row.sigma)},
                       {"sources", src}});
   }
   j["error_budget"] = budget;
@@ -191,8 +200,8 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     cj["method"] = c.method;
     nlohmann::json pv = nlohmann::json::array();
     for (size_t k = 0; k < c.sigma_rotation_deg.size(); ++k) {
-      pv.push_back({{"sigma_rotation_deg", Vec(c.sigma_rotation_deg[k])},
-                    {"sigma_translation_mm", Vec(c.sigma_translation_mm[k])}});
+      pv.push_back({{"sigma_rotation_deg", JsonVector(c.sigma_rotation_deg[k])},
+                    {"sigma_translation_mm", JsonVector(c.sigma_translation_mm[k])}});
     }
     cj["object_views"] = pv;
     cj["sigma_relative_rotation_deg"] = c.sigma_relative_rotation_deg;
@@ -201,12 +210,12 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
   }
   j["two_step_comparison"] = cmp;
   if (!s.comparison_error.empty()) j["two_step_comparison_error"] = s.comparison_error;
-  j["statistics"] = {{"rms_plate_px", Num(r.rms_plate_px)},
-                     {"rms_object_px", Num(r.rms_object_px)},
-                     {"sigma0", Num(r.sigma0)},
-                     {"chi2", Num(r.chi2)},
+  j["statistics"] = {{"rms_plate_px", JsonNumber(r.rms_plate_px)},
+                     {"rms_object_px", JsonNumber(r.rms_object_px)},
+                     {"sigma0", JsonNumber(r.sigma0)},
+                     {"chi2", JsonNumber(r.chi2)},
                      {"dof", r.dof},
-                     {"chi2_p_value", Num(r.chi2_p_value)},
+                     {"chi2_p_value", JsonNumber(r.chi2_p_value)},
                      {"num_residuals", r.num_residuals},
                      {"num_parameters", r.num_free},
                      {"covariance_scale", config.covariance_aposteriori ? "aposteriori" : "apriori"}};
@@ -215,175 +224,250 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                  {"iterations", r.iterations},
                  {"termination", r.termination},
                  {"converged", r.converged},
-                 {"initial_cost", Num(r.initial_cost)},
-                 {"final_cost", Num(r.final_cost)},
-                 {"time_s", Num(r.time_s)}};
+                 {"initial_cost", JsonNumber(r.initial_cost)},
+                 {"final_cost", JsonNumber(r.final_cost)},
+                 {"time_s", JsonNumber(r.time_s)}};
   return j;
 }
 
-std::string JointReportMarkdown(const JointProblem& problem,
-                                const SolverConfig& config,
-                                const JointSolution& s) {
+ReportDoc JointReportDoc(const JointProblem& problem,
+                         const SolverConfig& config,
+                         const JointSolution& s) {
   const ba::BaResult& r = s.result;
-  std::ostringstream o;
-  o << "# Joint bundle adjustment: " << problem.name << "\n\n";
-  if (!problem.description.empty()) o << problem.description << "\n\n";
-  o << "Calibration and pose as one bundle adjustment (src/ba): " << problem.plate.views.size()
-    << " plate views (sigma " << problem.plate_sigma_px << " px), " << problem.object_views.size()
-    << " object views (sigma " << problem.object_sigma_px << " px), " << problem.fiducials.size()
-    << " CT fiducials as priors. Config `" << config.name << "`; uncertainties use the "
-    << (config.covariance_aposteriori ? "a-posteriori" : "a-priori") << " pixel sigmas.\n\n";
+  ReportDoc d;
+  d.Heading(1, "Joint bundle adjustment: " + problem.name);
+  if (!problem.description.empty()) d.Paragraph(problem.description);
+  d.Paragraph("Calibration and pose as one bundle adjustment (src/ba): " +
+              std::to_string(problem.plate.views.size()) + " plate views (sigma " +
+              Fmt("%g", problem.plate_sigma_px) + " px), " +
+              std::to_string(problem.object_views.size()) + " object views (sigma " +
+              Fmt("%g", problem.object_sigma_px) + " px), " +
+              std::to_string(problem.fiducials.size()) + " CT fiducials as priors. Config `" +
+              config.name + "`; uncertainties use the " +
+              (config.covariance_aposteriori ? "a-posteriori" : "a-priori") +
+              " pixel sigmas.");
   if (!problem.skipped_images.empty()) {
-    o << "Plate images without a usable grid (" << problem.skipped_images.size() << "):\n";
-    for (const auto& sk : problem.skipped_images) o << "- " << sk << "\n";
-    o << "\n";
+    d.Paragraph("Plate images without a usable grid (" +
+                std::to_string(problem.skipped_images.size()) + "):");
+    d.List(problem.skipped_images);
   }
-  o << "## Statistics\n\n| | |\n|---|---|\n";
-  o << "| RMS plate views (px per coordinate) | " << Fmt("%.4f", r.rms_plate_px) << " |\n";
-  o << "| RMS object views (px per coordinate) | " << Fmt("%.4f", r.rms_object_px) << " |\n";
-  o << "| chi-square / dof | " << Fmt("%.2f", r.chi2) << " / " << r.dof << " (P = "
-    << Fmt("%.3f", r.chi2_p_value) << ", sigma0 " << Fmt("%.3f", r.sigma0) << ") |\n";
-  o << "| iterations, termination | " << r.iterations << ", " << r.termination << " |\n";
-  o << "| time | " << Fmt("%.1f", r.time_s * 1e3) << " ms |\n\n";
-  if (!r.converged) o << "**Warning:** the solve did not converge (" << r.termination << ").\n\n";
+  d.Heading(2, "Statistics");
+  d.Table({"", ""},
+          {{"RMS plate views (px per coordinate)", Fmt("%.4f", r.rms_plate_px)},
+           {"RMS object views (px per coordinate)", Fmt("%.4f", r.rms_object_px)},
+           {"chi-square / dof", Fmt("%.2f", r.chi2) + " / " + std::to_string(r.dof) + " (P = " +
+                                    Fmt("%.3f", r.chi2_p_value) + ", sigma0 " +
+                                    Fmt("%.3f", r.sigma0) + ")"},
+           {"iterations, termination", std::to_string(r.iterations) + ", " + r.termination},
+           {"time", Fmt("%.1f", r.time_s * 1e3) + " ms"}});
+  if (!r.converged) d.Warning("the solve did not converge (" + r.termination + ").");
+  d.Figures({"residuals-per-view", "residual-field"});
 
-  o << "## Intrinsics\n\n| group | parameter | value | sigma |";
-  if (problem.truth.camera) o << " truth | error / sigma |";
-  o << "\n|---|---|---|---|" << (problem.truth.camera ? "---|---|" : "") << "\n";
+  d.Heading(2, "Intrinsics");
+  std::vector<std::string> header = {"group", "parameter", "value", "sigma"};
+  if (problem.truth.camera) {
+    header.push_back("truth");
+    header.push_back("error / sigma");
+  }
+  std::vector<std::vector<std::string>> rows;
   for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
     const int b = r.layout->group_block(static_cast<int>(g));
     const Eigen::MatrixXd C = r.Covariance({b});
-    if (s.ba_problem.groups[g].smooth) continue;  // FlexReportMarkdown
+    if (s.ba_problem.groups[g].smooth) continue;  // FlexReportDoc
     for (int i = 0; i < kNumIntrinsics; ++i) {
       const double x = r.block(b)[i], sg = std::sqrt(std::max(0.0, C(i, i)));
-      o << "| " << s.ba_problem.groups[g].name << " | " << kIntrinsicNames[i] << " | "
-        << Fmt("%.6g", x) << " | " << (sg > 0 ? Fmt("%.3g", sg) : std::string("held")) << " |";
+      std::vector<std::string> row = {s.ba_problem.groups[g].name, kIntrinsicNames[i],
+                                      Fmt("%.6g", x), sg > 0 ? Fmt("%.3g", sg) : "held"};
       if (problem.truth.camera) {
         const double t = problem.truth.camera->params[i];
-        o << " " << Fmt("%.6g", t) << " | " << (sg > 0 ? Fmt("%.2f", (x - t) / sg) : std::string("")) << " |";
+        row.push_back(Fmt("%.6g", t));
+        row.push_back(sg > 0 ? Fmt("%.2f", (x - t) / sg) : "");
       }
-      o << "\n";
+      rows.push_back(row);
     }
   }
-  o << FlexReportMarkdown(problem, s);
-  o << "\n## Validation pairs (object views)\n\n"
-       "| a | b | expected (deg) | relative rotation (deg) | sigma | view directions (deg) | sigma |";
+  d.Table(header, rows);
+  d.Figures({"distortion", "projection-uncertainty"});
+  d.Append(FlexReportDoc(problem, s));  // C-arm flex: intrinsics per view, model selection
+
+  d.Heading(2, "Validation pairs (object views)");
   const bool truth_poses = !problem.truth.object_poses.empty();
-  if (truth_poses) o << " true relative rotation | error / sigma |";
-  o << "\n|---|---|---|---|---|---|---|" << (truth_poses ? "---|---|" : "") << "\n";
+  header = {"a", "b", "expected (deg)", "relative rotation (deg)", "sigma",
+            "view directions (deg)", "sigma"};
+  if (truth_poses) {
+    header.push_back("true relative rotation");
+    header.push_back("error / sigma");
+  }
+  rows.clear();
   for (const auto& vp : problem.validation) {
     const std::string name = "pair " + vp.a + "/" + vp.b;
     const ba::BudgetRow* rr = FindRow(s, name + " relative rotation");
     const ba::BudgetRow* vd = FindRow(s, name + " view directions");
-    o << "| " << vp.a << " | " << vp.b << " | "
-      << (vp.expected_deg ? Fmt("%g", *vp.expected_deg) : std::string("")) << " | "
-      << Fmt("%.3f", rr->quantity.value) << " | " << Fmt("%.3f", rr->sigma) << " | "
-      << Fmt("%.3f", vd->quantity.value) << " | " << Fmt("%.3f", vd->sigma) << " |";
+    std::vector<std::string> row = {vp.a,
+                                    vp.b,
+                                    vp.expected_deg ? Fmt("%g", *vp.expected_deg) : "",
+                                    Fmt("%.3f", rr->quantity.value),
+                                    Fmt("%.3f", rr->sigma),
+                                    Fmt("%.3f", vd->quantity.value),
+                                    Fmt("%.3f", vd->sigma)};
     auto ta = problem.truth.object_poses.find(vp.a), tb = problem.truth.object_poses.find(vp.b);
     if (truth_poses) {
       if (ta != problem.truth.object_poses.end() && tb != problem.truth.object_poses.end()) {
         const double t = RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
-        o << " " << Fmt("%.3f", t) << " | " << Fmt("%.2f", (rr->quantity.value - t) / rr->sigma) << " |";
+        row.push_back(Fmt("%.3f", t));
+        row.push_back(Fmt("%.2f", (rr->quantity.value - t) / rr->sigma));
       } else {
-        o << " | |";
+        row.push_back("");
+        row.push_back("");
       }
     }
-    o << "\n";
+    rows.push_back(row);
   }
-  o << "\n## Error budget\n\nShare of each quantity's variance from each independent noise source "
-       "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %). "
-       "Rotations are small rotations about the camera axes (their value is 0 by definition); "
-       "`centre projection` is where the ray of the image centre, held fixed at the object "
-       "distance, projects with the estimated intrinsics (its value is the image centre, its "
-       "sigma the calibration's own uncertainty there).\n\n"
-       "| quantity | unit | value | sigma |";
-  for (int k = 0; k < ba::kNumSources; ++k) o << " " << ba::SourceName(static_cast<ba::Source>(k)) << " |";
-  o << "\n|---|---|---|---|";
-  for (int k = 0; k < ba::kNumSources; ++k) o << "---|";
-  o << "\n";
+  d.Table(header, rows);
+  d.Figures({"poses", "markers"});
+
+  AppendRelativePoses(&d, s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) AppendTre(&d, *s.tre);
+
+  d.Heading(2, "Error budget");
+  d.Paragraph(
+      "Share of each quantity's variance from each independent noise source "
+      "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %). "
+      "Rotations are small rotations about the camera axes (their value is 0 by definition); "
+      "`centre projection` is where the ray of the image centre, held fixed at the object "
+      "distance, projects with the estimated intrinsics (its value is the image centre, its "
+      "sigma the calibration's own uncertainty there).");
+  header = {"quantity", "unit", "value", "sigma"};
+  for (int k = 0; k < ba::kNumSources; ++k) header.push_back(ba::SourceName(static_cast<ba::Source>(k)));
+  rows.clear();
   for (const auto& row : s.budget) {
-    o << "| " << row.quantity.name << " | " << row.quantity.unit << " | "
-      << Fmt("%.6g", row.quantity.value) << " | " << Fmt("%.3g", row.sigma) << " |";
+    std::vector<std::string> cells = {row.quantity.name, row.quantity.unit,
+                                      Fmt("%.6g", row.quantity.value), Fmt("%.3g", row.sigma)};
     for (int k = 0; k < ba::kNumSources; ++k) {
-      o << " " << (row.share[k] > 0 ? Fmt("%.1f %%", 100 * row.share[k]) : std::string("-")) << " |";
+      cells.push_back(row.share[k] > 0 ? Fmt("%.1f %%", 100 * row.share[k]) : "-");
     }
-    o << "\n";
+    rows.push_back(cells);
   }
-  o << "\n## Joint against two-step\n\n";
+  d.Table(header, rows);
+  d.Figures({"error-budget"});
+
+  d.Heading(2, "Joint against two-step");
   if (!s.comparison_error.empty()) {
-    o << "Not shown: " << s.comparison_error << ".\n";
+    d.Paragraph("Not shown: " + s.comparison_error + ".");
   } else {
-    o << "Sigma of each validation pair's relative rotation (deg) and the mean rotation / "
-         "translation sigma of the object poses. Two-step with the intrinsics held leaves the "
-         "calibration's uncertainty out (its sigmas are too small); with the calibration's "
-         "covariance as a prior it equals the joint result to first order.\n\n| method |";
-    for (const auto& vp : problem.validation) o << " " << vp.a << "-" << vp.b << " |";
-    o << " mean rotation sigma (deg) | mean translation sigma (mm) |\n|---|";
-    for (size_t k = 0; k < problem.validation.size(); ++k) o << "---|";
-    o << "---|---|\n";
+    d.Paragraph(
+        "Sigma of each validation pair's relative rotation (deg) and the mean rotation / "
+        "translation sigma of the object poses. Two-step with the intrinsics held leaves the "
+        "calibration's uncertainty out (its sigmas are too small); with the calibration's "
+        "covariance as a prior it equals the joint result to first order.");
+    header = {"method"};
+    for (const auto& vp : problem.validation) header.push_back(vp.a + "-" + vp.b);
+    header.push_back("mean rotation sigma (deg)");
+    header.push_back("mean translation sigma (mm)");
+    rows.clear();
     for (const auto& c : s.comparison) {
-      o << "| " << c.method << " |";
-      for (double x : c.sigma_relative_rotation_deg) o << " " << Fmt("%.4f", x) << " |";
+      std::vector<std::string> cells = {c.method};
+      for (double x : c.sigma_relative_rotation_deg) cells.push_back(Fmt("%.4f", x));
       double mr = 0, mt = 0;
       for (size_t k = 0; k < c.sigma_rotation_deg.size(); ++k) {
         mr += c.sigma_rotation_deg[k].norm() / std::sqrt(3.0);
         mt += c.sigma_translation_mm[k].norm() / std::sqrt(3.0);
       }
       const double n = std::max<size_t>(1, c.sigma_rotation_deg.size());
-      o << " " << Fmt("%.4f", mr / n) << " | " << Fmt("%.4f", mt / n) << " |\n";
+      cells.push_back(Fmt("%.4f", mr / n));
+      cells.push_back(Fmt("%.4f", mt / n));
+      rows.push_back(cells);
     }
+    d.Table(header, rows);
   }
-  o << "\n## Outliers\n\n";
+  d.Heading(2, "Outliers");
   if (r.outliers.empty()) {
-    o << "None above " << config.outlier_sigma << " sigma.\n";
+    d.Paragraph("None above " + Fmt("%g", config.outlier_sigma) + " sigma.");
   } else {
-    o << "| view | point / marker | residual (sigma) | du (px) | dv (px) |\n|---|---|---|---|---|\n";
+    rows.clear();
     for (const auto& out : r.outliers) {
-      o << "| " << out.view << " | " << (out.plate ? "point " : "marker ") << out.id << " | "
-        << Fmt("%.1f", out.residual_sigma) << " | " << Fmt("%.3f", out.du_px) << " | "
-        << Fmt("%.3f", out.dv_px) << " |\n";
+      rows.push_back({out.view, (out.plate ? "point " : "marker ") + std::to_string(out.id),
+                      Fmt("%.1f", out.residual_sigma), Fmt("%.3f", out.du_px),
+                      Fmt("%.3f", out.dv_px)});
     }
+    d.Table({"view", "point / marker", "residual (sigma)", "du (px)", "dv (px)"}, rows);
   }
   if (!r.rejected.empty()) {
-    o << "\nRejected (reject_sigma " << config.reject_sigma << ", solved again without them):";
+    std::string text = "Rejected (reject_sigma " + Fmt("%g", config.reject_sigma) +
+                       ", solved again without them):";
     for (const auto& out : r.rejected) {
-      o << " " << out.view << "/" << (out.plate ? "point " : "marker ") << out.id << " ("
-        << Fmt("%.1f", out.residual_sigma) << " sigma);";
+      text += " " + out.view + "/" + (out.plate ? "point " : "marker ") + std::to_string(out.id) +
+              " (" + Fmt("%.1f", out.residual_sigma) + " sigma);";
     }
-    o << "\n";
+    d.Paragraph(text);
   }
-  return o.str();
+  return d;
 }
 
-std::string JointMrcalMarkdown(const nlohmann::json& c) {
-  std::ostringstream o;
-  o << "\n## Cross-check with mrcal\n\n";
+std::string JointReportMarkdown(const JointProblem& problem,
+                                const SolverConfig& config,
+                                const JointSolution& s) {
+  return JointReportDoc(problem, config, s).Markdown();
+}
+
+nlohmann::json JointPlotData(const JointSolution& s) {
+  nlohmann::json d = BaPlotData(s.ba_problem, s.result, &s.budget);
+  d["kind"] = "joint";
+  return d;
+}
+
+ReportDoc JointMrcalDoc(const nlohmann::json& c) {
+  ReportDoc d;
+  d.Heading(2, "Cross-check with mrcal");
   if (c.contains("error")) {
-    o << "Not run: " << c.at("error").get<std::string>() << ".\n";
-    return o.str();
+    d.Paragraph("Not run: " + c.at("error").get<std::string>() + ".");
+    return d;
   }
-  o << "The same plate and marker observations solved by carmba's engine and by mrcal "
-    << c.at("mrcal").value("mrcal_version", std::string("2.2")) << "'s `mrcal.optimize` ("
-    << c.at("what").get<std::string>() << "; mrcal cannot hold single distortion terms or tie "
-       "points to priors, so this variant differs from the solve above).\n\n"
-       "| | fx | fy | cx | cy | k1 | k2 | p1 | p2 | k3 | RMS (mrcal's definition, px) |\n"
-       "|---|---|---|---|---|---|---|---|---|---|---|\n";
+  d.Paragraph("The same plate and marker observations solved by carmba's engine and by mrcal " +
+              c.at("mrcal").value("mrcal_version", std::string("2.2")) + "'s `mrcal.optimize` (" +
+              c.at("what").get<std::string>() +
+              "; mrcal cannot hold single distortion terms or tie points to priors, so this "
+              "variant differs from the solve above).");
+  std::vector<std::vector<std::string>> rows;
   auto row = [&](const std::string& who, const nlohmann::json& x, double rms) {
-    o << "| " << who << " |";
-    for (const auto& v : x) o << " " << Fmt("%.8g", v.get<double>()) << " |";
-    o << " " << Fmt("%.8g", rms) << " |\n";
+    std::vector<std::string> cells = {who};
+    for (const auto& v : x) cells.push_back(Fmt("%.8g", v.get<double>()));
+    cells.push_back(Fmt("%.8g", rms));
+    rows.push_back(cells);
   };
   row("carmba", c.at("carmba").at("intrinsics"), c.at("rms_px_carmba_in_mrcal").get<double>());
   row("mrcal", c.at("mrcal").at("intrinsics"), c.at("rms_px_mrcal").get<double>());
-  o << "| relative difference |";
+  std::vector<std::string> diff = {"relative difference"};
   for (int i = 0; i < kNumIntrinsics; ++i) {
-    o << " " << Fmt("%.1e", c.at("relative_difference").at(kIntrinsicNames[i]).get<double>()) << " |";
+    diff.push_back(Fmt("%.1e", c.at("relative_difference").at(kIntrinsicNames[i]).get<double>()));
   }
-  o << " " << Fmt("%.1e", std::abs(c.at("rms_px_mrcal").get<double>() / c.at("rms_px_carmba_in_mrcal").get<double>() - 1)) << " |\n";
-  o << "\nLargest difference: " << Fmt("%.2e", c.at("max_relative_difference_fx_fy_cx_cy").get<double>())
-    << " relative in fx, fy, cx, cy; " << Fmt("%.2e", c.at("max_difference_in_sigmas").get<double>())
-    << " sigma over all nine intrinsics.\n";
-  return o.str();
+  diff.push_back(Fmt("%.1e", std::abs(c.at("rms_px_mrcal").get<double>() /
+                                          c.at("rms_px_carmba_in_mrcal").get<double>() -
+                                      1)));
+  rows.push_back(diff);
+  d.Table({"", "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3",
+           "RMS (mrcal's definition, px)"},
+          rows);
+  d.Paragraph("Largest difference: " +
+              Fmt("%.2e", c.at("max_relative_difference_fx_fy_cx_cy").get<double>()) +
+              " relative in fx, fy, cx, cy; " +
+              Fmt("%.2e", c.at("max_difference_in_sigmas").get<double>()) +
+              " sigma over all nine intrinsics.");
+  if (c.contains("max_relative_move_of_mrcal_seeded_at_carmba")) {
+    const double rms_m = c.at("rms_px_mrcal").get<double>();
+    const double rms_c = c.at("rms_px_carmba_in_mrcal").get<double>();
+    d.Paragraph(
+        "mrcal seeded at carmba's optimum stays there: it moves the nine intrinsics by at most " +
+        Fmt("%.1e", c.at("max_relative_move_of_mrcal_seeded_at_carmba").get<double>()) +
+        " relative. Its own solve from the initial values stops " +
+        (rms_c <= rms_m ? "slightly short of it (carmba's solution has the lower cost in mrcal's "
+                          "own residuals, by " + Fmt("%.1e", rms_m - rms_c) + " px RMS)"
+                        : std::string("at it")) +
+        "; the distortion terms' differences above are that stopping tolerance.");
+  }
+  return d;
 }
+
+std::string JointMrcalMarkdown(const nlohmann::json& c) { return JointMrcalDoc(c).Markdown(); }
 
 }  // namespace carmba

@@ -228,6 +228,7 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     view.kind = ba::ViewKind::kObject;
     view.group = object_group[k];
     view.sigma_px = problem.object_sigma_px;
+    view.obs_sigma_px = ov.sigma_px;
     view.point_ids = ov.marker_ids;
     view.uv_px = ov.uv_px;
     Camera cam;
@@ -271,6 +272,12 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
   if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
   sol.result = std::move(*r);
   sol.budget = ba::ComputeErrorBudget(bp, sol.result, sol.pairs);
+  sol.relative_poses = ba::EstimateRelativePoses(sol.result, ba::RelativePosePairs(bp, sol.pairs));
+  if (config.tre) {
+    auto tre = ba::LeaveOneMarkerOut(bp, sol.result, options);
+    if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
+    sol.tre = *tre;
+  }
 
   // Two-step comparison: needs both kinds of view.
   if (problem.object_views.empty() || problem.plate.views.empty()) {

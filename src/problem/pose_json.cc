@@ -3,6 +3,7 @@
 
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
+#include "report/relative_tre_report.h"
 
 namespace carmba {
 namespace {
@@ -97,7 +98,25 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
                  {"final_cost", Num(s.final_cost)},
                  {"time_s", s.time_s}};
   if (s.has_covariance) j["joint_covariance"] = MatRows(s.joint_covariance);
+  if (s.ba_problem) j["relative_poses"] = RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth_poses);
+  if (s.tre) j["tre"] = TreJson(*s.tre);
   return j;
+}
+
+GeometrySet PoseSolutionGeometry(const PoseProblem& problem, const PoseSolution& s) {
+  GeometrySet g;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& m : problem.markers) centroid += m.p_in_object;
+  if (!problem.markers.empty()) g.reference_point_ct_mm = centroid / problem.markers.size();
+  for (const auto& v : s.views) {
+    ViewGeometry vg;
+    vg.id = v.id;
+    vg.camera = problem.camera;  // one camera for all views in a pose problem
+    vg.cam_from_ct = v.cam_from_object;
+    vg.ct_mirrored = problem.handedness == Handedness::kMirrored;
+    g.views.push_back(vg);
+  }
+  return g;
 }
 
 }  // namespace carmba

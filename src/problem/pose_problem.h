@@ -60,6 +60,8 @@
 //   backend: ceres                # or carmba_lm (calibration-structured problems only)
 //   outliers: {list_sigma: 4, reject_sigma: 0}   # list above 4 sigma; reject_sigma > 0 drops
 //                                 # the worst above it and solves again, until none is left
+//   tre: false                    # true: leave-one-marker-out target registration error
+//                                 # (ba/tre.h; one more solve per marker) in result.json/report
 // A calibration config given here (it has keys such as robust_loss, detection, crosscheck) is an
 // error saying so.
 #pragma once
@@ -73,7 +75,10 @@
 #include <vector>
 
 #include "ba/bundle_adjuster.h"
+#include "ba/relative_pose.h"
+#include "ba/tre.h"
 #include "camera/camera.h"
+#include "export/view_geometry.h"
 #include "geometry/pose.h"
 #include "util/status.h"
 
@@ -91,6 +96,9 @@ struct Marker {
 struct Observation {
   int marker_id = 0;
   Eigen::Vector2d uv_px;
+  // This observation's pixel sigma (px, per coordinate); 0 = the problem's sigma_px. Set for
+  // detected marker blobs (detect/marker_views.h).
+  double sigma_px = 0;
 };
 
 struct PoseView {
@@ -161,6 +169,8 @@ struct SolverConfig {
   // The engine's minimiser: ceres, or carmba_lm for calibration-structured problems
   // (ba/bundle_adjuster.h).
   std::string backend = "ceres";
+  // Leave-one-marker-out target registration error (ba/tre.h): one more solve per marker.
+  bool tre = false;
 
   bool Check(std::string* error) const;
 };
@@ -231,6 +241,11 @@ struct PoseSolution {
   std::string termination;
   double initial_cost = 0, final_cost = 0;
   double time_s = 0;                  // wall time of initialisation + solve + covariance
+  // Relative poses cam_b_from_cam_a with 6x6 covariances (ba/relative_pose.h): every pair of
+  // views when there are at most 10, else the validation pairs; empty without the engine's
+  // covariance. Leave-one-marker-out TRE when the config asks (tre: true).
+  std::vector<ba::RelativePoseEstimate> relative_poses;
+  std::optional<ba::TreResult> tre;
   // The engine's problem and result (ba/), for error budgets and further analysis.
   std::shared_ptr<const ba::BaProblem> ba_problem;
   std::shared_ptr<const ba::BaResult> ba_result;
@@ -245,6 +260,11 @@ Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m
 
 // result.json (the schema in the foundation issue: views[], validation[], statistics, solver).
 nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& solution);
+
+// geometry.json's content (export/view_geometry.h): per view the problem's camera and
+// cam_from_ct = cam_from_object (with the mirror when handedness is mirrored), the reference
+// point the CT markers' centroid.
+GeometrySet PoseSolutionGeometry(const PoseProblem& problem, const PoseSolution& solution);
 
 // A synthetic problem with ground truth, for Monte Carlo tests and studies: the markers of
 // `spec.markers` (object frame, mm), views at C-arm angles rotating about the object's axis,

@@ -438,6 +438,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
     }
   }
   root.GetEnum("backend", {"ceres", "carmba_lm"}, &c.backend);
+  root.Get("tre", &c.tre);
   YamlMap& outliers = root.Map("outliers");
   outliers.GetPositive("list_sigma", &c.outlier_sigma);
   outliers.GetNonNegative("reject_sigma", &c.reject_sigma);

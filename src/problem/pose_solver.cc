@@ -166,11 +166,14 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     view.id = problem.views[v].id;
     view.kind = ba::ViewKind::kObject;
     view.sigma_px = problem.sigma_px;
+    bool per_observation = false;
+    for (const auto& o : problem.views[v].observations) per_observation |= o.sigma_px > 0;
     for (const auto& o : problem.views[v].observations) {
       pts.push_back(markers.at(o.marker_id));
       uv.push_back(o.uv_px);
       view.point_ids.push_back(o.marker_id);
       view.uv_px.push_back(o.uv_px);
+      if (per_observation) view.obs_sigma_px.push_back(o.sigma_px > 0 ? o.sigma_px : problem.sigma_px);
     }
     auto init = InitialObjectPose(problem.camera, config.initializer, pts, uv);
     if (!init.ok()) {
@@ -321,7 +324,26 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
         sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");
     sol.validation.push_back(ps);
   }
+  // Relative poses (every pair of few views, else the validation pairs) and, when asked, the
+  // leave-one-marker-out TRE: both from the engine's covariance.
+  const bool engine_covariance = config.refine && config.covariance_algorithm == "schur" && r.covariance;
+  if (engine_covariance) {
+    std::vector<std::pair<int, int>> validation_pairs;
+    for (const auto& pr : problem.validation) {
+      validation_pairs.emplace_back(static_cast<int>(index.at(pr.a)), static_cast<int>(index.at(pr.b)));
+    }
+    sol.relative_poses = ba::EstimateRelativePoses(r, ba::RelativePosePairs(bp, validation_pairs));
+  }
   sol.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (config.tre) {
+    if (!engine_covariance) {
+      return Status::Error(config.path + ": tre: true needs the refined solve with the engine's "
+                                         "covariance (refine: true, covariance: {algorithm: schur})");
+    }
+    auto tre = ba::LeaveOneMarkerOut(bp, r, options);
+    if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
+    sol.tre = *tre;
+  }
   return sol;
 }
 

@@ -6,16 +6,12 @@
 
 #include "geometry/rotation.h"
 #include "pose/posit.h"
+#include "report/format.h"
+#include "report/plots.h"
+#include "report/relative_tre_report.h"
 
 namespace carmba {
 namespace {
-
-std::string Fmt(const char* f, double v) {
-  if (!std::isfinite(v)) return "n/a";
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), f, v);
-  return buf;
-}
 
 const char* HandName(Handedness h) { return h == Handedness::kMirrored ? "mirrored" : "as_given"; }
 
@@ -145,41 +141,43 @@ nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseCompar
   return j;
 }
 
-std::string PoseReportMarkdown(const PoseProblem& problem,
-                               const SolverConfig& config,
-                               const PoseSolution& s,
-                               const PoseComparison& c) {
-  std::ostringstream o;
-  o << "# carmba pose report: " << problem.name << "\n\n";
-  o << "- Problem: `" << problem.path << "`; config: `" << config.name << "` (initializer "
-    << InitializerName(config.initializer) << ", "
-    << (config.analytic_jacobians ? "analytic" : "autodiff") << " Jacobians, loss " << config.loss
-    << ", " << config.linear_solver << ")\n";
-  o << "- Camera: fx " << Fmt("%.3f", problem.camera.params[kFx]) << ", fy "
-    << Fmt("%.3f", problem.camera.params[kFy]) << ", cx " << Fmt("%.3f", problem.camera.params[kCx])
-    << ", cy " << Fmt("%.3f", problem.camera.params[kCy]) << " px (held fixed); pixel sigma "
-    << Fmt("%.3g", problem.sigma_px) << " px; object frame " << HandName(problem.handedness)
-    << "\n";
-  o << "- Solver: " << s.termination << " after " << s.iterations << " iterations, "
-    << Fmt("%.2f", s.time_s * 1e3) << " ms; cost " << Fmt("%.4g", s.initial_cost) << " -> "
-    << Fmt("%.4g", s.final_cost) << "\n\n";
-  if (!c.handedness_warning.empty()) o << "> **Warning:** " << c.handedness_warning << ".\n\n";
+ReportDoc PoseReportDoc(const PoseProblem& problem,
+                        const SolverConfig& config,
+                        const PoseSolution& s,
+                        const PoseComparison& c) {
+  ReportDoc d;
+  d.Heading(1, "carmba pose report: " + problem.name);
+  d.List({"Problem: `" + problem.path + "`; config: `" + config.name + "` (initializer " +
+              InitializerName(config.initializer) + ", " +
+              (config.analytic_jacobians ? "analytic" : "autodiff") + " Jacobians, loss " +
+              config.loss + ", " + config.linear_solver + ")",
+          "Camera: fx " + Fmt("%.3f", problem.camera.params[kFx]) + ", fy " +
+              Fmt("%.3f", problem.camera.params[kFy]) + ", cx " +
+              Fmt("%.3f", problem.camera.params[kCx]) + ", cy " +
+              Fmt("%.3f", problem.camera.params[kCy]) + " px (held fixed); pixel sigma " +
+              Fmt("%.3g", problem.sigma_px) + " px; object frame " + HandName(problem.handedness),
+          "Solver: " + s.termination + " after " + std::to_string(s.iterations) +
+              " iterations, " + Fmt("%.2f", s.time_s * 1e3) + " ms; cost " +
+              Fmt("%.4g", s.initial_cost) + " -> " + Fmt("%.4g", s.final_cost)});
+  if (!c.handedness_warning.empty()) d.Warning(c.handedness_warning + ".");
   if (config.refine && s.termination != "CONVERGENCE") {
-    o << "> **Warning:** the bundle adjustment did not converge (" << s.termination
-      << "): the poses, sigmas and verdicts below are not at a minimum.\n\n";
+    d.Warning("the bundle adjustment did not converge (" + s.termination +
+              "): the poses, sigmas and verdicts below are not at a minimum.");
   }
 
-  o << "## Validation: angles between views (deg)\n\n";
-  o << "Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) and "
-       "inv(R_b)(0,0,1)); relative rotation is the angle of R_a^T R_b. "
-    << (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance."
-                      : "This config does not refine (refine: false): the values are the "
-                        "initializer's, without uncertainty.")
-    << "\n\n";
+  d.Heading(2, "Validation: angles between views (deg)");
+  d.Paragraph(
+      std::string("Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) "
+                  "and inv(R_b)(0,0,1)); relative rotation is the angle of R_a^T R_b. ") +
+      (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance "
+                       "(" + std::string(config.covariance_aposteriori
+                                              ? "a-posteriori pixel sigma"
+                                              : "a-priori pixel sigma") + ")."
+                     : "This config does not refine (refine: false): the values are the "
+                       "initializer's, without uncertainty."));
   const std::string result_column =
       config.refine ? "bundle adjustment" : std::string(InitializerName(config.initializer));
-  o << "| pair | expected | thesis | legacy POSIT | " << result_column
-    << " (view dirs) | within 2 sigma | relative rotation |\n|---|---|---|---|---|---|---|\n";
+  std::vector<std::vector<std::string>> rows;
   for (const auto& p : s.validation) {
     const auto key = std::make_pair(p.a, p.b);
     const double thesis = problem.reference_angles_deg.count(key)
@@ -193,65 +191,113 @@ std::string PoseReportMarkdown(const PoseProblem& problem,
                    ? "yes"
                    : "no";
     }
-    o << "| " << p.a << "-" << p.b << " | "
-      << (p.expected_deg ? Fmt("%.1f", *p.expected_deg) : "n/a") << " | " << Fmt("%.4f", thesis)
-      << " | " << Fmt("%.4f", legacy) << " | " << Fmt("%.3f", p.angle_view_dirs_deg) << " +- "
-      << Fmt("%.3f", p.sigma_view_dirs_deg) << " | " << within << " | "
-      << Fmt("%.3f", p.relative_rotation_deg) << " +- " << Fmt("%.3f", p.sigma_relative_rotation_deg)
-      << " |\n";
+    rows.push_back({p.a + "-" + p.b, p.expected_deg ? Fmt("%.1f", *p.expected_deg) : "n/a",
+                    Fmt("%.4f", thesis), Fmt("%.4f", legacy),
+                    Fmt("%.3f", p.angle_view_dirs_deg) + " +- " + Fmt("%.3f", p.sigma_view_dirs_deg),
+                    within,
+                    Fmt("%.3f", p.relative_rotation_deg) + " +- " +
+                        Fmt("%.3f", p.sigma_relative_rotation_deg)});
   }
-  o << "\n## Reprojection RMS per view (px, per coordinate)\n\n";
-  o << "| view | markers | legacy POSIT | initializer (" << InitializerName(config.initializer)
-    << ") | " << (config.refine ? "bundle adjustment" : "final (not refined)")
-    << " | other handedness BA |\n|---|---|---|---|---|---|\n";
+  d.Table({"pair", "expected", "thesis", "legacy POSIT", result_column + " (view dirs)",
+           "within 2 sigma", "relative rotation"},
+          rows);
+
+  d.Heading(2, "Reprojection RMS per view (px, per coordinate)");
+  rows.clear();
   for (size_t v = 0; v < s.views.size(); ++v) {
     const auto& vs = s.views[v];
     const double legacy = v < c.legacy.size() ? c.legacy[v].rms_px : std::nan("");
     const double other = c.other_handedness ? c.other_handedness->views[v].rms_px : std::nan("");
-    o << "| " << vs.id << " | " << vs.num_observations << " | " << Fmt("%.3f", legacy) << " | "
-      << Fmt("%.3f", vs.initial_rms_px) << " | " << Fmt("%.3f", vs.rms_px) << " | "
-      << Fmt("%.3f", other) << " |\n";
+    rows.push_back({vs.id, std::to_string(vs.num_observations), Fmt("%.3f", legacy),
+                    Fmt("%.3f", vs.initial_rms_px), Fmt("%.3f", vs.rms_px), Fmt("%.3f", other)});
   }
-  o << "| all | | | | " << Fmt("%.3f", s.rms_px) << " | "
-    << (c.other_handedness ? Fmt("%.3f", c.other_handedness->rms_px) : "n/a") << " |\n\n";
-  o << "Legacy POSIT: " << c.legacy_settings << ".";
-  if (!c.legacy_error.empty()) o << " Could not run: " << c.legacy_error << ".";
-  o << "\n\n## Poses (cam_from_object) with 1-sigma uncertainty\n\n";
-  o << "| view | t (mm) | sigma t (mm) | sigma rotation about camera x, y, z (deg) |\n"
-       "|---|---|---|---|\n";
+  rows.push_back({"all", "", "", "", Fmt("%.3f", s.rms_px),
+                  c.other_handedness ? Fmt("%.3f", c.other_handedness->rms_px) : "n/a"});
+  d.Table({"view", "markers", "legacy POSIT",
+           std::string("initializer (") + InitializerName(config.initializer) + ")",
+           config.refine ? "bundle adjustment" : "final (not refined)", "other handedness BA"},
+          rows);
+  d.Paragraph("Legacy POSIT: " + c.legacy_settings + "." +
+              (c.legacy_error.empty() ? "" : " Could not run: " + c.legacy_error + "."));
+  d.Figures({"residuals-per-view", "residual-field"});
+
+  d.Heading(2, "Poses (cam_from_object) with 1-sigma uncertainty");
+  rows.clear();
   for (const auto& vs : s.views) {
     const auto& t = vs.cam_from_object;
-    o << "| " << vs.id << " | " << Fmt("%.2f", t[3]) << ", " << Fmt("%.2f", t[4]) << ", "
-      << Fmt("%.2f", t[5]) << " | " << Fmt("%.3f", vs.sigma_translation_mm[0]) << ", "
-      << Fmt("%.3f", vs.sigma_translation_mm[1]) << ", " << Fmt("%.3f", vs.sigma_translation_mm[2])
-      << " | " << Fmt("%.3f", vs.sigma_rotation_deg[0]) << ", "
-      << Fmt("%.3f", vs.sigma_rotation_deg[1]) << ", " << Fmt("%.3f", vs.sigma_rotation_deg[2])
-      << " |\n";
+    rows.push_back({vs.id, Fmt("%.2f", t[3]) + ", " + Fmt("%.2f", t[4]) + ", " + Fmt("%.2f", t[5]),
+                    Fmt("%.3f", vs.sigma_translation_mm[0]) + ", " +
+                        Fmt("%.3f", vs.sigma_translation_mm[1]) + ", " +
+                        Fmt("%.3f", vs.sigma_translation_mm[2]),
+                    Fmt("%.3f", vs.sigma_rotation_deg[0]) + ", " +
+                        Fmt("%.3f", vs.sigma_rotation_deg[1]) + ", " +
+                        Fmt("%.3f", vs.sigma_rotation_deg[2])});
   }
+  d.Table({"view", "t (mm)", "sigma t (mm)", "sigma rotation about camera x, y, z (deg)"}, rows);
+  d.Figures({"poses", "markers", "error-budget", "distortion"});
   if (!c.legacy.empty() && c.legacy.front().max_diff_to_reference) {
-    o << "\n## Legacy POSIT against the printed matrices\n\n| view | max abs element difference "
-         "|\n|---|---|\n";
+    d.Heading(2, "Legacy POSIT against the printed matrices");
+    rows.clear();
     for (const auto& l : c.legacy) {
-      o << "| " << l.id << " | "
-        << (l.max_diff_to_reference ? Fmt("%.2e", *l.max_diff_to_reference) : "n/a") << " |\n";
+      rows.push_back({l.id, l.max_diff_to_reference ? Fmt("%.2e", *l.max_diff_to_reference)
+                                                    : "n/a"});
     }
+    d.Table({"view", "max abs element difference"}, rows);
   }
-  o << "\n## Statistics\n\n";
-  o << "- Residuals: " << s.num_residuals << " (reprojection and CT prior), free parameters "
-    << s.num_parameters << ", degrees of freedom " << s.dof << "\n";
-  o << "- Reprojection RMS " << Fmt("%.3f", s.rms_px) << " px per coordinate; a-posteriori sigma "
-    << Fmt("%.3f", s.sigma_aposteriori_px) << " px (a-priori " << Fmt("%.3f", problem.sigma_px)
-    << " px, factor s0 = " << Fmt("%.3f", s.sigma0) << ")\n";
-  o << "- Chi-square " << Fmt("%.2f", s.chi2) << " on " << s.dof << " dof, P(X > chi2) = "
-    << Fmt("%.3f", s.chi2_p_value)
-    << (s.chi2_p_value < 0.01 ? " (residuals larger than the stated sigmas explain)"
-        : s.chi2_p_value > 0.99 ? " (residuals smaller than the stated sigmas: sigmas too large?)"
-                                : " (consistent with the stated sigmas)")
-    << "\n";
-  o << "- Covariance: " << config.covariance_algorithm << ", "
-    << (config.covariance_aposteriori ? "scaled by s0^2 (a-posteriori)" : "a-priori sigmas")
-    << "\n";
-  return o.str();
+  d.Heading(2, "Statistics");
+  d.List({"Residuals: " + std::to_string(s.num_residuals) +
+              " (reprojection and CT prior), free parameters " +
+              std::to_string(s.num_parameters) + ", degrees of freedom " + std::to_string(s.dof),
+          "Reprojection RMS " + Fmt("%.3f", s.rms_px) + " px per coordinate; a-posteriori sigma " +
+              Fmt("%.3f", s.sigma_aposteriori_px) + " px (a-priori " +
+              Fmt("%.3f", problem.sigma_px) + " px, factor s0 = " + Fmt("%.3f", s.sigma0) + ")",
+          "Chi-square " + Fmt("%.2f", s.chi2) + " on " + std::to_string(s.dof) +
+              " dof, P(X > chi2) = " + Fmt("%.3f", s.chi2_p_value) +
+              (s.chi2_p_value < 0.01   ? " (residuals larger than the stated sigmas explain)"
+               : s.chi2_p_value > 0.99 ? " (residuals smaller than the stated sigmas: sigmas too large?)"
+                                       : " (consistent with the stated sigmas)"),
+          "Covariance: " + config.covariance_algorithm + ", " +
+              (config.covariance_aposteriori ? "scaled by s0^2 (a-posteriori pixel sigma " +
+                                                   Fmt("%.3f", s.sigma_aposteriori_px) + " px)"
+                                             : "a-priori pixel sigma " +
+                                                   Fmt("%.3f", problem.sigma_px) + " px")});
+  if (s.ba_problem) {
+    AppendRelativePoses(&d, *s.ba_problem, s.relative_poses, problem.truth_poses);
+    d.Paragraph("The camera's intrinsics are held (a pose problem): the relative poses' "
+                "covariances leave the calibration's uncertainty out.");
+  }
+  if (s.tre) AppendTre(&d, *s.tre);
+  return d;
+}
+
+std::string PoseReportMarkdown(const PoseProblem& problem,
+                               const SolverConfig& config,
+                               const PoseSolution& solution,
+                               const PoseComparison& comparison) {
+  return PoseReportDoc(problem, config, solution, comparison).Markdown();
+}
+
+nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& s) {
+  if (!s.ba_problem || !s.ba_result) return {{"kind", "pose"}};
+  std::vector<std::pair<int, int>> pairs;
+  auto index = [&](const std::string& id) {
+    for (size_t v = 0; v < s.ba_problem->views.size(); ++v) {
+      if (s.ba_problem->views[v].id == id) return static_cast<int>(v);
+    }
+    return -1;
+  };
+  for (const auto& p : problem.validation) {
+    const int a = index(p.a), b = index(p.b);
+    if (a >= 0 && b >= 0) pairs.emplace_back(a, b);
+  }
+  std::vector<ba::BudgetRow> budget;
+  if (s.ba_result->covariance) budget = ba::ComputeErrorBudget(*s.ba_problem, *s.ba_result, pairs);
+  nlohmann::json d = BaPlotData(*s.ba_problem, *s.ba_result, &budget);
+  d["kind"] = "pose";
+  if (!d.contains("image_size") && problem.camera.width > 0) {
+    d["image_size"] = {problem.camera.width, problem.camera.height};
+  }
+  return d;
 }
 
 }  // namespace carmba

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "problem/pose_problem.h"
+#include "report/report_doc.h"
 
 namespace carmba {
 
@@ -45,6 +46,13 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
                                   const PoseSolution& solution);
 
 nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseComparison& c);
+
+// The report (report.md and report.html) and its plot data (report/plots.h).
+ReportDoc PoseReportDoc(const PoseProblem& problem,
+                        const SolverConfig& config,
+                        const PoseSolution& solution,
+                        const PoseComparison& comparison);
+nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& solution);
 
 std::string PoseReportMarkdown(const PoseProblem& problem,
                                const SolverConfig& config,

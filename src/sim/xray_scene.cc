@@ -92,6 +92,8 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   YamlMap& output = scene.Map("output");
   output.GetEnum("format", {"png", "pgm", "dcm"}, &s.format);
   output.Get("bit_depth", &s.bit_depth);
+  output.Get("multiframe", &s.multiframe);
+  if (s.multiframe && s.format != "dcm") output.Fail("multiframe", "only with format: dcm");
   if (output.Has("bit_depth") && s.bit_depth != 8 && s.bit_depth != 16) {
     output.Fail("bit_depth", "expected 8 or 16");
   }
@@ -304,6 +306,54 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   } else if (scene.Has("block")) {
     scene.Fail("block", "only valid with 'markers'");
   }
+  if (scene.Has("clutter")) {
+    YamlMap& cl = scene.Map("clutter");
+    if (!has_markers) cl.Fail("spheres", "clutter is only valid with 'markers'");
+    s.clutter.frame = "object";
+    auto material = [&](YamlMap& m, double* mu) {
+      std::string name = "steel";
+      m.Get("material", &name);
+      if (!materials.count(name)) {
+        m.Fail("material", "unknown material '" + name + "'");
+        return;
+      }
+      *mu = materials.at(name);
+    };
+    int k = 0;
+    for (YamlMap* sm : cl.MapList("spheres")) {
+      SpherePrimitive sp;
+      GetVec(*sm, "center_mm", 3, sp.center_mm.data(), true);
+      double d = 0;
+      sm->GetPositive("diameter_mm", &d, true);
+      sp.radius_mm = 0.5 * d;
+      material(*sm, &sp.mu_per_mm);
+      sp.id = --k;  // negative: not a marker
+      s.clutter.spheres.push_back(sp);
+    }
+    for (YamlMap* wm : cl.MapList("wires")) {
+      Eigen::Vector3d a = Eigen::Vector3d::Zero(), b = Eigen::Vector3d::Zero();
+      GetVec(*wm, "from_mm", 3, a.data(), true);
+      GetVec(*wm, "to_mm", 3, b.data(), true);
+      double d = 0;
+      wm->GetPositive("diameter_mm", &d, true);
+      BoxPrimitive box;
+      material(*wm, &box.mu_per_mm);
+      const double len = (b - a).norm();
+      if (!(len > 0)) {
+        wm->Fail("to_mm", "expected a segment of non-zero length");
+        continue;
+      }
+      // Box frame: z along the segment.
+      const Eigen::Vector3d z = (b - a) / len;
+      Eigen::Vector3d x = z.unitOrthogonal(), y = z.cross(x);
+      box.phantom_from_box.R.col(0) = x;
+      box.phantom_from_box.R.col(1) = y;
+      box.phantom_from_box.R.col(2) = z;
+      box.phantom_from_box.t = 0.5 * (a + b);
+      box.half_size_mm = Eigen::Vector3d(0.5 * d, 0.5 * d, 0.5 * len);
+      s.clutter.boxes.push_back(box);
+    }
+  }
 
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const auto& sp : s.phantom.spheres) centroid += sp.center_mm;
@@ -341,6 +391,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     GetVec(vm, "object_center_mm", 3, ctr.data());
     v.world_from_object = ObjectPlacement(centroid, rot, ctr);
     v.seed = ViewSeed(s.seed, static_cast<int>(i));
+    vm.Get("partial", &v.partial);
     s.views.push_back(v);
   }
 
@@ -384,6 +435,7 @@ Status CheckViewsInsideFov(const XrayScene& s) {
     const Rigid3 cam_from_object = s.CamFromObject(i);
     const Camera camera = s.ViewCamera(i);
     const std::string where = s.path + ": view '" + s.views[i].name + "'";
+    if (s.views[i].partial) continue;
     for (const auto& sp : s.phantom.spheres) {
       const Eigen::Vector3d c = cam_from_object * sp.center_mm;
       double uv[2];
@@ -424,7 +476,10 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   const PlacedPhantom placed{&scene.phantom, out.cam_from_object};
   const Camera camera = scene.ViewCamera(index);
   if (!scene.flex.Rigid()) grid = nullptr;  // the ray grid is the rigid camera's
-  auto gray = RenderXray(camera, {placed}, options, grid);
+  std::vector<PlacedPhantom> phantoms = {placed};
+  const bool clutter = !scene.clutter.spheres.empty() || !scene.clutter.boxes.empty();
+  if (clutter) phantoms.push_back({&scene.clutter, out.cam_from_object});
+  auto gray = RenderXray(camera, phantoms, options, grid);
   if (!gray.ok()) return gray.status().WithContext("view '" + v.name + "'");
   out.gray = *gray;
   out.image = ToOutputImage(out.gray, scene.bit_depth);
@@ -451,8 +506,34 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   j["centers_px"] = px;
   j["centers_in_cam_mm"] = cam;
   j["intrinsics"] = CameraToJson(camera);
+  if (!scene.clutter.spheres.empty()) {
+    auto cuv = ProjectSphereCenters(camera, {&scene.clutter, out.cam_from_object});
+    if (!cuv.ok()) return cuv.status().WithContext("view '" + v.name + "' (clutter)");
+    nlohmann::json cpx = nlohmann::json::array();
+    for (const auto& q : *cuv) cpx.push_back({q.x(), q.y()});
+    j["clutter_centers_px"] = cpx;
+  }
   return out;
 }
+
+namespace {
+
+// The XA geometry tags of a view (xray_scene.h, output dcm): angles, SID, SOD, and the pixel
+// spacing SID / fy \ SID / fx that gives back fx, fy through sim/dicom_view.h.
+DicomXrayWriteOptions DicomOptionsOfView(const XrayScene& scene, int view) {
+  const CarmGeometry& carm = scene.views[view].carm;
+  const Camera camera = scene.ViewCamera(view);  // the view's own (flexing C-arm)
+  DicomXrayWriteOptions o;
+  o.geometry.primary_angle_deg = carm.primary_angle_deg;
+  o.geometry.secondary_angle_deg = carm.secondary_angle_deg;
+  o.geometry.sid_mm = carm.sid_mm;
+  o.geometry.sod_mm = carm.sod_mm;
+  o.geometry.pixel_spacing_row_mm = carm.sid_mm / camera.params[kFy];
+  o.geometry.pixel_spacing_col_mm = carm.sid_mm / camera.params[kFx];
+  return o;
+}
+
+}  // namespace
 
 Status SimulateXrayScene(const XrayScene& scene,
                          const std::string& out_dir,
@@ -490,26 +571,41 @@ Status SimulateXrayScene(const XrayScene& scene,
   }
   t["object"] = obj;
   t["views"] = nlohmann::json::array();
-  for (int i = 0; i < static_cast<int>(scene.views.size()); ++i) {
+  std::vector<cv::Mat> frames;
+  const int num_views = static_cast<int>(scene.views.size());
+  for (int i = 0; i < num_views; ++i) {
     auto view = RenderXrayView(scene, i, grid->get());
     if (!view.ok()) return view.status().WithContext(scene.path);
+    if (scene.multiframe) {
+      view->truth["file"] = DicomFrameName("views.dcm", i, num_views);
+      frames.push_back(view->image);
+      t["views"].push_back(view->truth);
+      continue;
+    }
     const std::string file = JoinPath(out_dir, view->truth["file"].get<std::string>());
     if (scene.format == "dcm") {
-      const CarmGeometry& carm = scene.views[i].carm;
-      DicomXrayWriteOptions o;
-      o.geometry.primary_angle_deg = carm.primary_angle_deg;
-      o.geometry.secondary_angle_deg = carm.secondary_angle_deg;
-      o.geometry.sid_mm = carm.sid_mm;
-      o.geometry.sod_mm = carm.sod_mm;
-      const Camera camera = scene.ViewCamera(i);
-      o.geometry.pixel_spacing_row_mm = carm.sid_mm / camera.params[kFy];
-      o.geometry.pixel_spacing_col_mm = carm.sid_mm / camera.params[kFx];
+      DicomXrayWriteOptions o = DicomOptionsOfView(scene, i);
       o.sop_instance_uid = o.series_uid + "." + std::to_string(i + 1);
       CARMBA_RETURN_IF_ERROR(WriteDicomXray(file, {view->image}, o));
     } else {
       CARMBA_RETURN_IF_ERROR(WriteImage(file, view->image));
     }
     t["views"].push_back(view->truth);
+  }
+  if (scene.multiframe) {
+    const CarmGeometry& first = scene.views[0].carm;
+    DicomXrayWriteOptions o = DicomOptionsOfView(scene, 0);
+    for (const XrayView& v : scene.views) {
+      if (v.carm.sid_mm != first.sid_mm || v.carm.sod_mm != first.sod_mm) {
+        return Status::Error(scene.path + ": view '" + v.name +
+                             "': multiframe output needs one SID and SOD for all views");
+      }
+      // One offset per frame from the first frame's angles (PS3.3 C.8.7.5.1.3).
+      o.primary_increment_deg.push_back(v.carm.primary_angle_deg - first.primary_angle_deg);
+      o.secondary_increment_deg.push_back(v.carm.secondary_angle_deg - first.secondary_angle_deg);
+    }
+    if (num_views == 1) o.primary_increment_deg.clear(), o.secondary_increment_deg.clear();
+    CARMBA_RETURN_IF_ERROR(WriteDicomXray(JoinPath(out_dir, "views.dcm"), frames, o));
   }
   return Status::Ok();
 }

@@ -8,6 +8,10 @@
 //   description: "..."
 //   seed: 1                          # noise seed; view i uses a seed derived from (seed, i)
 //   output: {format: png, bit_depth: 8}        # png | pgm | dcm, 8 | 16
+//     multiframe: true (dcm only): all views in ONE multi-frame DICOM XA file `views.dcm` (views
+//     named views.dcm#frame1.. in truth.json), the first view's angles as Positioner Primary /
+//     Secondary Angle and each frame's offset from them as the per-frame increments (0018,1520 /
+//     1521); SID, SOD and the pixel spacing are the file's (the views must share them).
 //     dcm: one single-frame DICOM XA file per view (io/dicom_xray.h WriteDicomXray) carrying the
 //     view's Positioner Primary / Secondary Angle, SID, SOD and Imager Pixel Spacing
 //     (SID / fy \ SID / fx, so that sim/dicom_view.h gives back fx, fy). The detector rotation,
@@ -49,6 +53,12 @@
 //     rotation_deg: [rx, ry, rz]     # rotation vector (degrees) about the spheres' centroid
 //     center_mm: [x, y, z]           # world position of the spheres' centroid (default: 0)
 //     i.e. world_from_object = T(center) * R(rotation) * T(-centroid)
+//   clutter:                         # markers scenes: metal that is NOT a marker (object frame),
+//                                    # rendered but not in the truth's spheres: spurious beads
+//     spheres: [{center_mm: [x, y, z], diameter_mm: 2.0, material: steel}]
+//     wires: [{from_mm: [x, y, z], to_mm: [x, y, z], diameter_mm: 0.6, material: steel}]
+//                                    # a square rod of that width along the segment
+//     truth.json: per view "clutter_centers_px" (the spheres', projected)
 //   views:                           # required, at least one
 //     - name: view_000               # file stem (letters, digits, '_', '-'); default view_NNN
 //       primary_deg: 0               # LAO +, RAO -
@@ -56,10 +66,11 @@
 //       detector_rotation_deg: 0
 //       object_rotation_deg: [..]    # optional per-view object_pose overrides
 //       object_center_mm: [..]
+//       partial: false               # true: markers may fall outside the field of view here
 //
-// Every sphere of every view must project, with its whole silhouette, inside the image and the
-// fully exposed part of the field of view (radius_px - edge_px), else the scene is rejected
-// naming the view and the sphere.
+// Every sphere of every view (but `partial` ones) must project, with its whole silhouette, inside
+// the image and the fully exposed part of the field of view (radius_px - edge_px), else the scene
+// is rejected naming the view and the sphere.
 //
 // GROUND TRUTH (truth.json, filled by SimulateXrayScene):
 //   {"kind": "xray", "description", "seed",
@@ -97,6 +108,7 @@ struct XrayView {
   CarmGeometry carm;         // the scene's C-arm with this view's angles
   Rigid3 world_from_object;  // the phantom's placement in this view
   uint64_t seed = 0;         // noise seed of this view
+  bool partial = false;      // markers may lie outside the field of view
 };
 
 struct XrayScene {
@@ -111,6 +123,8 @@ struct XrayScene {
   PlateSpec plate;          // if plate
   MarkerSpec markers;       // if markers
   Phantom phantom;
+  Phantom clutter;          // metal that is not a marker (object frame); may be empty
+  bool multiframe = false;  // dcm: one multi-frame file
   std::vector<XrayView> views;
   CarmFlex flex;            // rigid unless carm.flex is given
 

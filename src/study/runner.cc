@@ -13,7 +13,7 @@
 #include <set>
 #include <thread>
 
-#include "study/report_html.h"
+#include "report/plots.h"
 #include "study/summary.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -240,7 +240,8 @@ Status RunStudy(const StudySpec& spec,
   if (options.progress && !pending.empty()) print_progress(true);
   CARMBA_RETURN_IF_ERROR(write_error);
 
-  CARMBA_RETURN_IF_ERROR(WriteStudyOutputs(dir, options.write_report, st.wall_s, jobs));
+  CARMBA_RETURN_IF_ERROR(
+      WriteStudyOutputs(dir, options.write_report, st.wall_s, jobs, &st.report_warning));
   StatusOr<std::vector<RunRecord>> final_records = ReadRunLog(log_path, nullptr, nullptr);
   if (final_records.ok()) {
     for (const auto& r : *final_records) st.failed_total += r.ok ? 0 : 1;
@@ -248,7 +249,11 @@ Status RunStudy(const StudySpec& spec,
   return Status::Ok();
 }
 
-Status WriteStudyOutputs(const std::string& dir, bool write_report, double wall_s, int jobs) {
+Status WriteStudyOutputs(const std::string& dir,
+                         bool write_report,
+                         double wall_s,
+                         int jobs,
+                         std::string* report_warning) {
   StatusOr<nlohmann::json> info = ReadStudyInfo(dir);
   if (!info.ok()) return info.status();
   int bad = 0, dup = 0;
@@ -258,10 +263,16 @@ Status WriteStudyOutputs(const std::string& dir, bool write_report, double wall_
   const std::vector<GroupSummary> groups = Summarize(std::move(records).value());
   // Build everything first, then write: an error leaves no new file behind.
   const std::string csv = SummaryCsv(groups);
-  const std::string md = SummaryMarkdown(*info, groups, wall_s, jobs);
+  const ReportDoc doc = SummaryDoc(*info, groups, wall_s, jobs);
+  const std::string md = doc.Markdown();
   const std::string timing = TimingCsv(groups);
   std::string html;
-  if (write_report) html = StudyReportHtml(*info, groups);
+  if (write_report) {
+    const ReportFiles report = RenderReport(
+        doc, "carmba study " + info->value("name", std::string("?")), StudyPlotData(groups));
+    html = report.html;
+    if (report_warning) *report_warning = report.warning;
+  }
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(dir, "summary.csv"), csv));
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(dir, "summary.md"), md));
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(dir, "timing.csv"), timing));
@@ -276,7 +287,8 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
                         bool write_report,
                         bool allow_missing,
                         int* runs_merged,
-                        int* runs_missing) {
+                        int* runs_missing,
+                        std::string* report_warning) {
   if (shard_dirs.empty()) return Status::Error("no shard directories given");
   nlohmann::json info;
   std::map<std::string, RunRecord> by_key;
@@ -338,7 +350,7 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
   info["shard"] = "merged from " + std::to_string(shard_dirs.size()) + " directories";
   CARMBA_RETURN_IF_ERROR(RewriteRunLog(log_path, records));
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(out_dir, "study.json"), info.dump(2) + "\n"));
-  return WriteStudyOutputs(out_dir, write_report, 0, 0);
+  return WriteStudyOutputs(out_dir, write_report, 0, 0, report_warning);
 }
 
 }  // namespace carmba

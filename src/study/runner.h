@@ -59,6 +59,8 @@ struct StudyRunStats {
   // (scheduling, JSON, appending, waiting for the last run). Only meaningful when
   // executed >> jobs.
   double Overhead() const;
+  // Non-empty when report.html was written without (some) plots: why (report/plots.h).
+  std::string report_warning;
 };
 
 Status RunStudy(const StudySpec& spec,
@@ -68,7 +70,13 @@ Status RunStudy(const StudySpec& spec,
 
 // Writes summary.csv, summary.md, timing.csv and (optionally) report.html of DIR from its
 // study.json and runs.jsonl. `wall_s`/`jobs` only feed the timing section (0 = unknown).
-Status WriteStudyOutputs(const std::string& dir, bool write_report, double wall_s, int jobs);
+// report.html holds summary.md's tables and matplotlib plots (report/plots.h); when the plots
+// could not be drawn, `report_warning` (if given) says why.
+Status WriteStudyOutputs(const std::string& dir,
+                         bool write_report,
+                         double wall_s,
+                         int jobs,
+                         std::string* report_warning = nullptr);
 
 // Combines shard directories (each with study.json and runs.jsonl of the same study fingerprint)
 // into `out_dir`: runs.jsonl sorted by enumeration index, study.json, summaries and report.
@@ -80,6 +88,7 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
                         bool write_report,
                         bool allow_missing,
                         int* runs_merged,
-                        int* runs_missing);
+                        int* runs_missing,
+                        std::string* report_warning = nullptr);
 
 }  // namespace carmba

@@ -7,6 +7,9 @@
 #include <map>
 #include <sstream>
 
+#include "report/format.h"
+#include "report/plots.h"
+
 namespace carmba {
 namespace {
 
@@ -79,29 +82,7 @@ std::string Csv(const std::string& s) {
   return q + "\"";
 }
 
-std::string Md(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '|') {
-      out += "\\|";
-    } else if (c == '\n') {
-      out += ' ';
-    } else {
-      out += c;
-    }
-  }
-  return out;
-}
-
 }  // namespace
-
-std::string FormatNumber(double v) {
-  if (std::isnan(v)) return "nan";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", v);
-  return std::string(buf) == "-0" ? "0" : buf;
-}
 
 const MetricStats* GroupSummary::Find(const std::string& kind, const std::string& name) const {
   for (const auto& m : metrics) {
@@ -213,18 +194,44 @@ std::vector<std::string> SweepNames(const std::vector<GroupSummary>& groups) {
 }
 
 namespace {
-std::string SweepCells(const GroupSummary& g, const std::vector<std::string>& names,
-                       const char* sep) {
-  std::string s;
+std::vector<std::string> SweepCellList(const GroupSummary& g,
+                                       const std::vector<std::string>& names) {
+  std::vector<std::string> cells;
   for (const auto& name : names) {
     std::string cell;
     for (const auto& kv : g.sweep) {
       if (kv.first == name) cell = FormatNumber(kv.second);
     }
-    s += cell + sep;
+    cells.push_back(cell);
   }
+  return cells;
+}
+
+std::string SweepCells(const GroupSummary& g, const std::vector<std::string>& names,
+                       const char* sep) {
+  std::string s;
+  for (const auto& cell : SweepCellList(g, names)) s += cell + sep;
   return s;
 }
+
+// A table row: problem, config, the sweep cells, then `rest`.
+std::vector<std::string> GroupRow(const GroupSummary& g,
+                                  const std::vector<std::string>& sweeps,
+                                  const std::vector<std::string>& rest) {
+  std::vector<std::string> row = {g.problem, g.config};
+  for (const auto& c : SweepCellList(g, sweeps)) row.push_back(c);
+  row.insert(row.end(), rest.begin(), rest.end());
+  return row;
+}
+
+std::vector<std::string> GroupHeader(const std::vector<std::string>& sweeps,
+                                     const std::vector<std::string>& rest) {
+  std::vector<std::string> h = {"problem", "config"};
+  h.insert(h.end(), sweeps.begin(), sweeps.end());
+  h.insert(h.end(), rest.begin(), rest.end());
+  return h;
+}
+
 }  // namespace
 
 std::string SummaryCsv(const std::vector<GroupSummary>& groups) {
@@ -269,78 +276,77 @@ std::string TimingCsv(const std::vector<GroupSummary>& groups) {
   return out.str();
 }
 
-std::string SummaryMarkdown(const nlohmann::json& info,
-                            const std::vector<GroupSummary>& groups,
-                            double wall_s,
-                            int jobs) {
+ReportDoc SummaryDoc(const nlohmann::json& info,
+                     const std::vector<GroupSummary>& groups,
+                     double wall_s,
+                     int jobs) {
   const std::vector<std::string> sweeps = SweepNames(groups);
   int runs = 0, failed = 0;
   for (const auto& g : groups) {
     runs += g.runs;
     failed += g.failed;
   }
-  std::ostringstream out;
-  out << "# Study " << Md(info.value("name", std::string("?"))) << "\n\n";
-  out << "Runs recorded: " << runs << " of " << info.value("runs_total", 0)
-      << ", failed: " << failed << ". Study fingerprint `"
-      << info.value("fingerprint", std::string("?")) << "`.\n\n";
-  out << "Errors are against the truth; each cell is median / p95 over the trials. "
-         "Consistency = empirical spread / reported sigma (1 is honest, > 1 overconfident).\n\n";
+  ReportDoc d;
+  d.Heading(1, "Study " + MarkdownCell(info.value("name", std::string("?"))));
+  d.Paragraph("Runs recorded: " + std::to_string(runs) + " of " +
+              std::to_string(info.value("runs_total", 0)) + ", failed: " + std::to_string(failed) +
+              ". Study fingerprint `" + info.value("fingerprint", std::string("?")) + "`.");
+  d.Paragraph("Errors are against the truth; each cell is median / p95 over the trials. "
+              "Consistency = empirical spread / reported sigma (1 is honest, > 1 overconfident).");
 
   // Column sets: error metrics (median / p95) and value metrics (mean), union over groups.
   std::vector<std::string> errors, values;
   for (const auto& g : groups) {
     for (const auto& m : g.metrics) {
-      auto& list = m.kind == "error" ? errors : m.kind == "value" ? values : errors;
       if (m.kind == "signed") continue;
+      auto& list = m.kind == "value" ? values : errors;
       if (std::find(list.begin(), list.end(), m.name) == list.end()) list.push_back(m.name);
     }
   }
   std::sort(errors.begin(), errors.end());
   std::sort(values.begin(), values.end());
-  out << "## Accuracy\n\n| problem | config |";
-  for (const auto& s : sweeps) out << " " << Md(s) << " |";
-  out << " runs | failed |";
-  for (const auto& e : errors) out << " " << Md(e) << " |";
-  for (const auto& v : values) out << " " << Md(v) << " (mean) |";
-  out << "\n|---|---|";
-  for (size_t i = 0; i < sweeps.size() + 2 + errors.size() + values.size(); ++i) out << "---|";
-  out << "\n";
+  d.Heading(2, "Accuracy");
+  std::vector<std::string> rest = {"runs", "failed"};
+  rest.insert(rest.end(), errors.begin(), errors.end());
+  for (const auto& v : values) rest.push_back(v + " (mean)");
+  std::vector<std::vector<std::string>> rows;
   for (const auto& g : groups) {
-    out << "| " << Md(g.problem) << " | " << Md(g.config) << " | " << SweepCells(g, sweeps, " | ")
-        << g.runs << " | " << g.failed << " |";
+    std::vector<std::string> cells = {std::to_string(g.runs), std::to_string(g.failed)};
     for (const auto& e : errors) {
       const MetricStats* m = g.Find("error", e);
-      out << " " << (m ? FormatNumber(m->median) + " / " + FormatNumber(m->p95) : "") << " |";
+      cells.push_back(m ? FormatNumber(m->median) + " / " + FormatNumber(m->p95) : "");
     }
     for (const auto& v : values) {
       const MetricStats* m = g.Find("value", v);
-      out << " " << (m ? FormatNumber(m->mean) : "") << " |";
+      cells.push_back(m ? FormatNumber(m->mean) : "");
     }
-    out << "\n";
+    rows.push_back(GroupRow(g, sweeps, cells));
   }
+  d.Table(GroupHeader(sweeps, rest), rows);
+  d.Figures({"error-vs-noise"});
 
   bool any_signed = false;
   for (const auto& g : groups) {
     for (const auto& m : g.metrics) any_signed |= m.kind == "signed";
   }
   if (any_signed) {
-    out << "\n## Reported sigma vs empirical spread\n\n| problem | config |";
-    for (const auto& s : sweeps) out << " " << Md(s) << " |";
-    out << " parameter | n | bias | empirical sigma | reported sigma | consistency |\n|---|---|";
-    for (size_t i = 0; i < sweeps.size() + 6; ++i) out << "---|";
-    out << "\n";
+    d.Heading(2, "Reported sigma vs empirical spread");
+    rows.clear();
     for (const auto& g : groups) {
       for (const auto& m : g.metrics) {
         if (m.kind != "signed") continue;
-        out << "| " << Md(g.problem) << " | " << Md(g.config) << " | "
-            << SweepCells(g, sweeps, " | ") << Md(m.name) << " | " << m.n << " | "
-            << FormatNumber(m.mean) << " | " << FormatNumber(m.emp_sigma) << " | "
-            << (m.has_sigma ? FormatNumber(m.pred_sigma) : "") << " | "
-            << (m.has_sigma ? FormatNumber(m.consistency) : "") << " |\n";
+        rows.push_back(GroupRow(g, sweeps,
+                                {m.name, std::to_string(m.n), FormatNumber(m.mean),
+                                 FormatNumber(m.emp_sigma),
+                                 m.has_sigma ? FormatNumber(m.pred_sigma) : "",
+                                 m.has_sigma ? FormatNumber(m.consistency) : ""}));
       }
     }
+    d.Table(GroupHeader(sweeps, {"parameter", "n", "bias", "empirical sigma", "reported sigma",
+                                 "consistency"}),
+            rows);
   }
+  d.Figures({"sigma-consistency", "residual-histogram"});
 
   // The error budget per group: each quantity's predicted 1-sigma contribution per noise source
   // (the runs' "budget" entries "quantity.source", mean over the trials), and each source's share
@@ -348,13 +354,9 @@ std::string SummaryMarkdown(const nlohmann::json& info,
   bool any_budget = false;
   for (const auto& g : groups) any_budget |= !g.budget.empty();
   if (any_budget) {
-    out << "\n## Error budget (predicted, mean over trials)\n\n"
-           "Each cell: the source's 1-sigma contribution, and its share of the variance.\n\n"
-           "| problem | config |";
-    for (const auto& s : sweeps) out << " " << Md(s) << " |";
-    out << " quantity | source contributions |\n|---|---|";
-    for (size_t i = 0; i < sweeps.size() + 2; ++i) out << "---|";
-    out << "\n";
+    d.Heading(2, "Error budget (predicted, mean over trials)");
+    d.Paragraph("Each cell: the source's 1-sigma contribution, and its share of the variance.");
+    rows.clear();
     for (const auto& g : groups) {
       std::vector<std::string> quantities;
       std::map<std::string, std::vector<std::pair<std::string, double>>> by_q;
@@ -367,72 +369,121 @@ std::string SummaryMarkdown(const nlohmann::json& info,
       for (const auto& q : quantities) {
         double total = 0;
         for (const auto& sv : by_q[q]) total += sv.second * sv.second;
-        out << "| " << Md(g.problem) << " | " << Md(g.config) << " | " << SweepCells(g, sweeps, " | ")
-            << Md(q) << " |";
+        std::string cell;
         for (const auto& [src, v] : by_q[q]) {
-          char share[32];
-          std::snprintf(share, sizeof share, "%.0f %%", total > 0 ? 100 * v * v / total : 0.0);
-          out << " " << Md(src) << " " << FormatNumber(v) << " (" << share << ");";
+          cell += (cell.empty() ? "" : " ") + src + " " + FormatNumber(v) + " (" +
+                  Fmt("%.0f %%", total > 0 ? 100 * v * v / total : 0.0) + ");";
         }
-        out << " |\n";
+        rows.push_back(GroupRow(g, sweeps, {q, cell}));
       }
     }
+    d.Table(GroupHeader(sweeps, {"quantity", "source contributions"}), rows);
   }
+  d.Figures({"error-budget"});
 
-  out << "\n## Failures\n\n";
+  d.Heading(2, "Failures");
   if (failed == 0) {
-    out << "None.\n";
+    d.Paragraph("None.");
   } else {
-    out << "| problem | config | runs failed | first run | error |\n|---|---|---|---|---|\n";
     // One line per (problem, config, message) over all sweep points.
     struct Row {
       std::string problem, config, error, first_key;
       int count;
     };
-    std::vector<Row> rows;
+    std::vector<Row> failure_rows;
     for (const auto& g : groups) {
       for (const auto& f : g.failures) {
-        auto it = std::find_if(rows.begin(), rows.end(), [&](const Row& r) {
+        auto it = std::find_if(failure_rows.begin(), failure_rows.end(), [&](const Row& r) {
           return r.problem == g.problem && r.config == g.config && r.error == f.error;
         });
-        if (it == rows.end()) {
-          rows.push_back(Row{g.problem, g.config, f.error, f.first_key, f.count});
+        if (it == failure_rows.end()) {
+          failure_rows.push_back(Row{g.problem, g.config, f.error, f.first_key, f.count});
         } else {
           it->count += f.count;
         }
       }
     }
-    for (const auto& r : rows) {
-      out << "| " << Md(r.problem) << " | " << Md(r.config) << " | " << r.count << " | `"
-          << Md(r.first_key) << "` | " << Md(r.error) << " |\n";
+    rows.clear();
+    for (const auto& r : failure_rows) {
+      rows.push_back({r.problem, r.config, std::to_string(r.count), "`" + r.first_key + "`",
+                      r.error});
     }
+    d.Table({"problem", "config", "runs failed", "first run", "error"}, rows);
   }
 
-  out << "\n## Timing\n\n";
-  out << "Wall-clock numbers vary between runs and machines; they are excluded from the "
-         "reproducibility checks (timing.csv has them per group).\n\n";
+  d.Heading(2, "Timing");
+  d.Paragraph("Wall-clock numbers vary between runs and machines; they are excluded from the "
+              "reproducibility checks (timing.csv has them per group).");
   double total = 0, cpu = 0;
   for (const auto& g : groups) {
     total += g.time_total_s;
     cpu += g.cpu_total_s;
   }
-  out << "- runs from: shard " << info.value("shard", std::string("1/1")) << "\n";
-  out << "- sum of the runs' own times: " << FormatNumber(total) << " s (CPU " << FormatNumber(cpu)
-      << " s)\n";
+  std::vector<std::string> items = {
+      "runs from: shard " + info.value("shard", std::string("1/1")),
+      "sum of the runs' own times: " + FormatNumber(total) + " s (CPU " + FormatNumber(cpu) + " s)"};
   if (wall_s > 0 && jobs > 0) {
-    out << "- wall time of this invocation: " << FormatNumber(wall_s) << " s with " << jobs
-        << " jobs\n";
+    items.push_back("wall time of this invocation: " + FormatNumber(wall_s) + " s with " +
+                    std::to_string(jobs) + " jobs");
   }
-  out << "\n| problem | config |";
-  for (const auto& s : sweeps) out << " " << Md(s) << " |";
-  out << " mean s/run | max s/run |\n|---|---|";
-  for (size_t i = 0; i < sweeps.size() + 2; ++i) out << "---|";
-  out << "\n";
+  d.List(items);
+  rows.clear();
   for (const auto& g : groups) {
-    out << "| " << Md(g.problem) << " | " << Md(g.config) << " | " << SweepCells(g, sweeps, " | ")
-        << FormatNumber(g.time_mean_s) << " | " << FormatNumber(g.time_max_s) << " |\n";
+    rows.push_back(GroupRow(g, sweeps, {FormatNumber(g.time_mean_s), FormatNumber(g.time_max_s)}));
   }
-  return out.str();
+  d.Table(GroupHeader(sweeps, {"mean s/run", "max s/run"}), rows);
+  return d;
+}
+
+std::string SummaryMarkdown(const nlohmann::json& info,
+                            const std::vector<GroupSummary>& groups,
+                            double wall_s,
+                            int jobs) {
+  return SummaryDoc(info, groups, wall_s, jobs).Markdown();
+}
+
+nlohmann::json StudyPlotData(const std::vector<GroupSummary>& groups) {
+  nlohmann::json problems = nlohmann::json::array(), configs = nlohmann::json::array(),
+                 gj = nlohmann::json::array();
+  auto add_unique = [](nlohmann::json* a, const std::string& x) {
+    for (const auto& e : *a) {
+      if (e == x) return;
+    }
+    a->push_back(x);
+  };
+  for (const auto& g : groups) {
+    add_unique(&problems, g.problem);
+    add_unique(&configs, g.config);
+    nlohmann::json sweep = nlohmann::json::object();
+    for (const auto& kv : g.sweep) sweep[kv.first] = kv.second;
+    nlohmann::json metrics = nlohmann::json::array();
+    for (const auto& m : g.metrics) {
+      metrics.push_back({{"kind", m.kind},
+                         {"name", m.name},
+                         {"n", m.n},
+                         {"median", JsonNumber(m.median)},
+                         {"p95", JsonNumber(m.p95)},
+                         {"has_sigma", m.has_sigma},
+                         {"pred_sigma", JsonNumber(m.pred_sigma)},
+                         {"emp_sigma", JsonNumber(m.emp_sigma)}});
+    }
+    nlohmann::json residuals = nlohmann::json::array();
+    for (double r : g.residuals) {
+      if (std::isfinite(r)) residuals.push_back(r);
+    }
+    nlohmann::json budget = nlohmann::json::array();
+    for (const auto& [entry, v] : g.budget) {
+      if (std::isfinite(v)) budget.push_back({entry, v});
+    }
+    gj.push_back({{"problem", g.problem},
+                  {"config", g.config},
+                  {"sweep", sweep},
+                  {"metrics", metrics},
+                  {"residuals", residuals},
+                  {"budget", budget}});
+  }
+  return {{"kind", "study"},
+          {"study", {{"problems", problems}, {"configs", configs}, {"groups", gj}}}};
 }
 
 std::string MarkdownWithoutTiming(const std::string& markdown) {

@@ -30,6 +30,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "report/format.h"
+#include "report/report_doc.h"
 #include "study/run_store.h"
 
 namespace carmba {
@@ -80,10 +82,17 @@ std::string SummaryMarkdown(const nlohmann::json& info,
                             double wall_s,
                             int jobs);
 
+// summary.md and the tables of report.html (report/report_doc.h), and the data of its plots
+// (scripts/report_plots.py: error against each swept variable, reported against empirical sigma,
+// residual histograms, error budgets).
+ReportDoc SummaryDoc(const nlohmann::json& info,
+                     const std::vector<GroupSummary>& groups,
+                     double wall_s,
+                     int jobs);
+nlohmann::json StudyPlotData(const std::vector<GroupSummary>& groups);
+
 // The part of summary.md before "## Timing" (what equality tests compare).
 std::string MarkdownWithoutTiming(const std::string& markdown);
 
-// %.6g, "nan"/"inf" spelled out.
-std::string FormatNumber(double v);
 
 }  // namespace carmba

@@ -306,4 +306,18 @@ StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob
   return images;
 }
 
+StatusOr<nlohmann::json> ReadJsonFile(const std::string& path, const std::string& expected) {
+  auto text = ReadFile(path);
+  if (!text.ok()) return text.status();
+  try {
+    return nlohmann::json::parse(*text);
+  } catch (const nlohmann::json::parse_error& e) {
+    return Status::Error(path + ": invalid JSON at byte " + std::to_string(e.byte) +
+                         ", expected " + expected);
+  } catch (const nlohmann::json::exception& e) {
+    // Not a syntax error: e.g. out_of_range for a number beyond a double (1e999).
+    return Status::Error(path + ": invalid JSON (" + e.what() + "), expected " + expected);
+  }
+}
+
 }  // namespace carmba

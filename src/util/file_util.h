@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "util/status.h"
 
 namespace carmba {
@@ -57,6 +59,10 @@ class StagedOutputDir {
 
 // Reads a whole file. Error names the path.
 StatusOr<std::string> ReadFile(const std::string& path);
+
+// Reads and parses a JSON file. Errors: the file's (ReadFile), "<path>: invalid JSON at byte N,
+// expected <expected>", or for a value JSON cannot hold (1e999) "<path>: invalid JSON (...)".
+StatusOr<nlohmann::json> ReadJsonFile(const std::string& path, const std::string& expected);
 
 // Creates a directory and its parents (like mkdir -p).
 Status MakeDirs(const std::string& path);

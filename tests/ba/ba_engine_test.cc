@@ -3,9 +3,12 @@
 // analytic and autodiff solves reaching the same optimum, bad problems.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <ceres/ceres.h>
 
 #include <functional>
+#include <memory>
 #include <random>
 
 #include "ba/bundle_adjuster.h"
@@ -53,6 +56,39 @@ TEST(BaPriors, IntrinsicsPriorAnalyticEqualsAutodiff) {
   // |r|^2 is the Mahalanobis distance of the prior.
   Eigen::Vector3d d(3, -4, 0.02);
   EXPECT_NEAR(Eigen::Vector3d(r1[0], r1[1], r1[2]).squaredNorm(), d.dot(C.inverse() * d), 1e-9);
+}
+
+// The per-view plate block is the stacked per-point ReprojectionError (their residuals and
+// Jacobians to the last bits), so the engine may use either.
+TEST(BaPriors, PlateViewReprojectionIsStackedPointBlocks) {
+  const double pose[6] = {0.2, -0.1, 0.05, 3, -4, 700};
+  const double intr[9] = {2000, 2010, 205, 200, 0.08, -0.2, 1e-4, -2e-4, 0.1};
+  std::vector<Eigen::Vector3d> p = {{0, 0, 0}, {20, 0, 0}, {0, 20, 0}, {40, 60, 0}};
+  std::vector<Eigen::Vector2d> uv = {{200, 190}, {260, 201}, {207, 255}, {330, 370}};
+  const double sigma = 0.07;
+  PlateViewReprojection view(p, uv, sigma);
+  const double* params[2] = {pose, intr};
+  Eigen::Matrix<double, 8, 1> r;
+  Eigen::Matrix<double, 8, 6, Eigen::RowMajor> Jp;
+  Eigen::Matrix<double, 8, 9, Eigen::RowMajor> Ji;
+  double* jac[2] = {Jp.data(), Ji.data()};
+  ASSERT_TRUE(view.Evaluate(params, r.data(), jac));
+  for (size_t i = 0; i < p.size(); ++i) {
+    std::unique_ptr<ceres::CostFunction> one(ReprojectionError::Create(uv[i].x(), uv[i].y(), sigma));
+    const double* pp[3] = {pose, p[i].data(), intr};
+    double ri[2], jp[12], jpt[6], ji[18];
+    double* jj[3] = {jp, jpt, ji};
+    ASSERT_TRUE(one->Evaluate(pp, ri, jj));
+    for (int k = 0; k < 2; ++k) {
+      EXPECT_EQ(r(2 * i + k), ri[k]);
+      for (int c = 0; c < 6; ++c) EXPECT_EQ(Jp(2 * i + k, c), jp[6 * k + c]);
+      for (int c = 0; c < 9; ++c) EXPECT_EQ(Ji(2 * i + k, c), ji[9 * k + c]);
+    }
+  }
+  // A point behind the source is refused, as the per-point block refuses it.
+  const double behind[6] = {0, 0, 0, 0, 0, -700};
+  const double* bad[2] = {behind, intr};
+  EXPECT_FALSE(view.Evaluate(bad, r.data(), nullptr));
 }
 
 TEST(BaPriors, PointPriorRowsAnalyticEqualsAutodiff) {
@@ -151,6 +187,60 @@ TEST(BaCovariance, CalibrationOnlyEliminatesPlatePoses) {
       ASSERT_NEAR(schur(i, j), (*ref)(i, j), kCovTol * scale + 1e-300) << i << "," << j;
     }
   }
+}
+
+// A fixed aspect ratio fy = r fx (IntrinsicsGroup::fy_over_fx): one free parameter for both, the
+// ratio kept by the solve on both back ends, the covariance equal to ceres::Covariance through the
+// affine manifold (fy's rows r times fx's), fy named in the budget.
+TEST(BaCovariance, TiedAspectRatioEqualsCeresCovariance) {
+  SyntheticJointSpec spec = SmallSpec();
+  spec.object_angles_deg.clear();
+  auto sj = MakeSyntheticJoint(spec, NoiseSwitches(), 4);
+  sj.problem.markers.clear();
+  IntrinsicsGroup& g = sj.problem.groups[0];
+  const double ratio = 1.004;
+  g.fy_over_fx = ratio;
+  g.initial[kFx] *= 1.01;
+  g.initial[kFy] = ratio * g.initial[kFx];
+  const StateLayout layout(sj.problem);
+  const BlockInfo& gi = layout.block(layout.group_block(0));
+  EXPECT_FALSE(gi.selection);
+  EXPECT_EQ(std::count(gi.free.begin(), gi.free.end(), kFy), 0);
+  BaOptions o, lm;
+  lm.backend = "carmba_lm";
+  auto r = SolveBundleAdjustment(sj.problem, o);
+  auto rl = SolveBundleAdjustment(sj.problem, lm);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  ASSERT_TRUE(rl.ok()) << rl.status().message();
+  EXPECT_NEAR(r->state[kFy], ratio * r->state[kFx], 1e-9 * r->state[kFy]);
+  EXPECT_NEAR(rl->state[kFy], ratio * rl->state[kFx], 1e-9 * rl->state[kFy]);
+  EXPECT_NEAR(r->chi2, rl->chi2, 1e-8 * r->chi2);
+  const std::vector<int> blocks = {r->layout->group_block(0), r->layout->view_block(1)};
+  const Eigen::MatrixXd schur = r->Covariance(blocks);
+  auto ref = CeresBlockCovariance(sj.problem, o, *r, blocks, "dense_svd");
+  ASSERT_TRUE(ref.ok()) << ref.status().message();
+  for (int i = 0; i < schur.rows(); ++i) {
+    for (int j = 0; j < schur.cols(); ++j) {
+      const double scale = std::sqrt(std::abs((*ref)(i, i) * (*ref)(j, j)));
+      ASSERT_NEAR(schur(i, j), (*ref)(i, j), kCovTol * scale + 1e-300) << i << "," << j;
+    }
+  }
+  EXPECT_NEAR(schur(kFy, kFy), ratio * ratio * schur(kFx, kFx), 1e-9 * schur(kFy, kFy));
+  EXPECT_NEAR(schur(kFx, kFy), ratio * schur(kFx, kFx), 1e-9 * schur(kFy, kFy));
+  const auto budget = ComputeErrorBudget(sj.problem, *r, {});
+  bool fy_listed = false;
+  for (const auto& row : budget) {
+    if (row.quantity.name == "fy") {
+      fy_listed = true;
+      EXPECT_NEAR(row.sigma, std::sqrt(schur(kFy, kFy)), 1e-9 * row.sigma);
+    }
+  }
+  EXPECT_TRUE(fy_listed);
+  // Initial values off the ratio are refused.
+  g.initial[kFy] *= 1.001;
+  auto bad = SolveBundleAdjustment(sj.problem, o);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("fy_over_fx"), std::string::npos) << bad.status().message();
 }
 
 TEST(BaSolve, AnalyticAndAutodiffReachTheSameOptimum) {

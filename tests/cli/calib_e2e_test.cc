@@ -20,6 +20,7 @@
 #include "calib/synthetic_views.h"
 #include "camera/camera.h"
 #include "detect/observations.h"
+#include "report_browser.h"
 
 namespace {
 
@@ -73,7 +74,7 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
                  "/truth.json --out " + out);
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* f : {"camera.json", "camera.cameramodel", "camera_opencv.yml",
-                        "observations.csv", "corners.vnl", "report.md"}) {
+                        "observations.csv", "corners.vnl", "report.md", "report.html"}) {
     EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
   }
   const nlohmann::json cam = Json(out + "/camera.json");
@@ -146,6 +147,14 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
 
 TEST(CalibE2E, ThesisCalibrationScene) {
   CheckSimulatedCalibration("thesis_calibration", "*.png");
+  // report.html: residuals, distortion, mrcal's projection uncertainty over the image and the
+  // source positions drawn, and the page renders in a browser.
+  const std::string html = carmba::test::ReadTextFile(Tmp("out_thesis_calibration") + "/report.html");
+  for (const char* id : {"residuals-per-view", "residual-field", "distortion-the-camera",
+                         "projection-uncertainty-the-camera", "poses-plate"}) {
+    EXPECT_NE(html.find(std::string("data-plot=\"") + id + "\""), std::string::npos) << id;
+  }
+  carmba::test::ExpectReportRenders(Tmp("out_thesis_calibration") + "/report.html", 5);
 }
 
 TEST(CalibE2E, PincushionSevenBySixScene) {

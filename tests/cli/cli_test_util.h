@@ -21,14 +21,16 @@ struct CommandResult {
   std::string err;  // stderr
 };
 
-// Runs `carmba <args>` (args are passed to the shell as written), capturing stdout and stderr.
-inline CommandResult RunCarmba(const std::string& args) {
+// Runs `carmba <args>` (args are passed to the shell as written), capturing stdout and stderr,
+// with `env` ("NAME=value ...", may be empty) added to the environment.
+inline CommandResult RunCarmbaWithEnv(const std::string& env, const std::string& args) {
   namespace fs = std::filesystem;
   static int counter = 0;
   const fs::path tmp = fs::temp_directory_path() /
                        ("carmba_cli_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
   fs::create_directories(tmp);
-  const std::string cmd = std::string(CARMBA_BIN) + " " + args + " >" + (tmp / "out").string() +
+  const std::string cmd = (env.empty() ? "" : "env " + env + " ") + std::string(CARMBA_BIN) +
+                          " " + args + " >" + (tmp / "out").string() +
                           " 2>" + (tmp / "err").string();
   const int status = std::system(cmd.c_str());
   CommandResult r;
@@ -44,6 +46,8 @@ inline CommandResult RunCarmba(const std::string& args) {
   fs::remove_all(tmp);
   return r;
 }
+
+inline CommandResult RunCarmba(const std::string& args) { return RunCarmbaWithEnv("", args); }
 
 // A fresh temporary directory, removed at destruction.
 class TempDir {

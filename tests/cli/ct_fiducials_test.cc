@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "ct/ct_fiducials.h"
+#include "report_browser.h"
 
 namespace carmba {
 namespace {
@@ -101,6 +102,11 @@ TEST_F(CtFiducialsCli, ThesisCtCentresWithinATenthOfAMillimetreTiltedTheSame) {
     EXPECT_NE(md.find("bbox centre"), std::string::npos);
     EXPECT_NE(md.find("rigid fit model <- CT"), std::string::npos);
   }
+  // <stem>.html: the same tables and the markers with their covariance ellipsoids, rendered.
+  const std::string html = Slurp(root_ + "/thesis_ct.html");
+  EXPECT_NE(html.find("data-plot=\"markers\""), std::string::npos);
+  EXPECT_NE(html.find("<th>bbox centre</th>"), std::string::npos);
+  test::ExpectReportRenders(root_ + "/thesis_ct.html", 1);
   for (size_t a = 0; a < 9; ++a) {
     EXPECT_EQ(rows["thesis_ct"][a].id, rows["thesis_ct_tilted"][a].id);
     EXPECT_LT((rows["thesis_ct"][a].p_mm - rows["thesis_ct_tilted"][a].p_mm).norm(),
@@ -182,6 +188,7 @@ TEST_F(CtFiducialsCli, BadInputsFailWithAMessageAndWriteNothing) {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_FALSE(fs::exists(out)) << args;
     EXPECT_FALSE(fs::exists(root_ + "/bad.md")) << args;
+    EXPECT_FALSE(fs::exists(root_ + "/bad.html")) << args;
   }
 }
 

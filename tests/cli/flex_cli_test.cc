@@ -90,8 +90,13 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   EXPECT_EQ(j.at("intrinsics_model").at("coefficients").at("covariance").size(), 21u);
   EXPECT_EQ(j.at("model_selection").at("recommended"), "smooth") << j.at("model_selection").at("why");
   EXPECT_EQ(j.at("model_selection").at("scores").size(), 3u);
-  EXPECT_TRUE(std::filesystem::exists(dir.File("out/intrinsics_vs_angle.png")));
-  EXPECT_NE(ReadTextFile(dir.File("out/report.md")).find("](intrinsics_vs_angle.png)"), std::string::npos);
+  const std::string md = ReadTextFile(dir.File("out/report.md"));
+  EXPECT_NE(md.find("## Intrinsics per view (C-arm angles)"), std::string::npos);
+  EXPECT_NE(md.find("## Intrinsics model selection"), std::string::npos);
+  EXPECT_NE(md.find("**Recommended: `smooth`**"), std::string::npos);
+  // The intrinsics against the angle, drawn by the report layer into report.html.
+  EXPECT_NE(ReadTextFile(dir.File("out/report.html")).find("data-plot=\"intrinsics-vs-angle\""),
+            std::string::npos);
 
   // Bad input, one corruption at a time: no output, a one-line error.
   const std::string angles = ReadTextFile(scene + "/views.csv");

@@ -7,6 +7,7 @@
 #include <regex>
 
 #include "cli_test_util.h"
+#include "report_browser.h"
 
 namespace carmba::test {
 namespace {
@@ -44,6 +45,49 @@ TEST(SolveCli, ThesisJobWritesResultAndReport) {
   ss << rep.rdbuf();
   EXPECT_NE(ss.str().find("| pair | expected | thesis | legacy POSIT | bundle adjustment"),
             std::string::npos);
+}
+
+// report.html: every plot drawn (residuals per view and over the image, error budget, source
+// positions, marker ellipsoids) and the page renders in a browser.
+TEST(SolveCli, PoseReportHtmlRendersInChromium) {
+  TempDir out;
+  const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" +
+                           kSource + "/configs/posit_ba_analytic.yaml --out=" + out.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  const std::string html = ReadTextFile(out.File("report.html"));
+  for (const char* id : {"residuals-per-view", "residual-field", "error-budget", "poses-object",
+                         "markers"}) {
+    EXPECT_NE(html.find(std::string("data-plot=\"") + id + "\""), std::string::npos) << id;
+  }
+  // The same tables as report.md.
+  EXPECT_NE(html.find("<th>within 2 sigma</th>"), std::string::npos);
+  EXPECT_EQ(html.find("plots-unavailable"), std::string::npos);
+  ExpectReportRenders(out.File("report.html"), 5);
+}
+
+// Without matplotlib (a package of that name that fails to import shadows the real one) the
+// solve still writes report.md and a report.html that says why it has no plots, with one warning.
+TEST(SolveCli, WithoutMatplotlibTheReportSaysPlotsAreUnavailable) {
+  TempDir out, fake;
+  std::filesystem::create_directories(fake.File("matplotlib"));
+  fake.Write("matplotlib/__init__.py", "raise ImportError('No module named matplotlib (test)')\n");
+  const auto r2 = RunCarmbaWithEnv("PYTHONPATH=" + fake.path(),
+                                   "solve --problem=" + kSource + "/problems/thesis_pose.yaml "
+                                   "--config=" + kSource + "/configs/posit_ba_analytic.yaml "
+                                   "--out=" + out.File("nomatplotlib"));
+  ASSERT_EQ(r2.exit_code, 0) << r2.err;
+  EXPECT_EQ(r2.err,
+            "carmba solve: warning: report.html has no plots: matplotlib is not available to "
+            "/usr/bin/python3 (No module named matplotlib (test))\n");
+  EXPECT_NE(ReadTextFile(out.File("nomatplotlib/report.md")).find("| pair | expected | thesis |"),
+            std::string::npos);
+  const std::string html = ReadTextFile(out.File("nomatplotlib/report.html"));
+  EXPECT_NE(html.find("id=\"plots-unavailable\">Plots unavailable: matplotlib is not available"),
+            std::string::npos);
+  EXPECT_EQ(html.find("<img"), std::string::npos);
+  EXPECT_NE(html.find("<th>within 2 sigma</th>"), std::string::npos);
+  ExpectReportRenders(out.File("nomatplotlib/report.html"), 0);
 }
 
 // A small valid problem in a temporary directory; each test corrupts one thing.

@@ -104,7 +104,8 @@ TEST(PoseSolver, UnrefinedReportsInitializerWithoutCovariance) {
 }
 
 // Seeded Monte Carlo: the reported covariance matches the actual spread of the estimates.
-// 200 trials of pixel noise (0.5 px) and CT noise (0.2 mm) on the 9-marker object.
+// 200 trials of pixel noise (0.5 px) and CT noise (0.2 mm) on the 9-marker object; also the
+// relative poses' 6x6 covariances (NEES) and the leave-one-marker-out TRE against its prediction.
 TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
   constexpr int kTrials = 200;
   SyntheticPoseSpec spec;
@@ -112,9 +113,12 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
   spec.camera.params[kK1] = -0.15;
   spec.camera.params[kP1] = 1e-3;
   spec.markers = ThesisMarkers();
-  const SolverConfig config = DefaultConfig();
+  SolverConfig config = DefaultConfig();
+  config.tre = true;  // leave-one-marker-out TRE through the pose front end
   double nees_sum = 0;
   int nees_n = 0;
+  double rel_nees = 0, tre_e2 = 0, tre_pred2 = 0;
+  int rel_n = 0, tre_n = 0;
   // Relative-rotation angle per pair: errors and reported sigmas.
   std::vector<std::vector<double>> rr_err(spec.pairs.size());
   std::vector<double> rr_sigma_sum(spec.pairs.size(), 0);
@@ -127,6 +131,20 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
       const Pose6 e = v.cam_from_object - truth;  // covariance is of (rvec, t)
       nees_sum += e.dot(v.covariance.ldlt().solve(e)) / 6.0;
       ++nees_n;
+    }
+    ASSERT_EQ(s->relative_poses.size(), 10u);  // every pair of the 5 views
+    for (const auto& rp : s->relative_poses) {
+      const auto err = ba::CompareRelativePose(rp, p.truth_poses.at(p.views[rp.view_a].id),
+                                               p.truth_poses.at(p.views[rp.view_b].id));
+      rel_nees += err.nees / 6.0;
+      ++rel_n;
+    }
+    ASSERT_TRUE(s->tre.has_value());
+    ASSERT_EQ(s->tre->num_evaluated, 9);
+    for (const auto& m : s->tre->markers) {
+      tre_e2 += m.error_mm * m.error_mm;
+      tre_pred2 += m.predicted_rms_mm * m.predicted_rms_mm;
+      ++tre_n;
     }
     for (size_t k = 0; k < s->validation.size(); ++k) {
       const auto& pr = s->validation[k];
@@ -142,6 +160,14 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
   EXPECT_GE(mean_nees, 0.8);
   EXPECT_LE(mean_nees, 1.25);
   std::printf("mean NEES/6 over %d view estimates: %.3f\n", nees_n, mean_nees);
+  // The relative poses' 6x6 covariances and the leave-one-out TRE (the band).
+  std::printf("relative poses: mean NEES/6 over %d pair estimates %.3f; leave-one-marker-out: "
+              "mean squared error / predicted over %d markers %.3f\n",
+              rel_n, rel_nees / rel_n, tre_n, tre_e2 / tre_pred2);
+  EXPECT_GE(rel_nees / rel_n, 0.8);
+  EXPECT_LE(rel_nees / rel_n, 1.25);
+  EXPECT_GE(tre_e2 / tre_pred2, 0.8);
+  EXPECT_LE(tre_e2 / tre_pred2, 1.25);
   for (size_t k = 0; k < rr_err.size(); ++k) {
     double m = 0, ss = 0;
     for (double e : rr_err[k]) m += e;

@@ -394,7 +394,7 @@ TEST(StudyRunnerTest, ReportHasEveryPlotKind) {
   const std::string html = Read(f.dir + "/out/report.html");
   for (const char* kind :
        {"error-vs-noise", "sigma-consistency", "residual-histogram", "error-budget"}) {
-    EXPECT_NE(html.find(std::string("data-plot=\"") + kind + "\""), std::string::npos) << kind;
+    EXPECT_NE(html.find(std::string("data-plot=\"") + kind), std::string::npos) << kind;
   }
   // Self-contained: no external resources.
   EXPECT_EQ(html.find("src=\"http"), std::string::npos);

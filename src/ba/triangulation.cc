@@ -1,0 +1,195 @@
+#include "ba/triangulation.h"
+
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include "ba/quantities.h"
+#include "camera/camera_model.h"
+#include "geometry/rotation.h"
+#include "report/format.h"
+
+namespace carmba {
+namespace ba {
+
+bool TriangulationOptions::Check(std::string* error) const {
+  if (!(min_ray_angle_deg >= 0 && min_ray_angle_deg < 90)) {
+    *error = "min_ray_angle_deg must be in [0, 90) deg";
+    return false;
+  }
+  if (max_iterations < 1) {
+    *error = "max_iterations must be >= 1";
+    return false;
+  }
+  return true;
+}
+
+StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
+                                             const BaResult& result,
+                                             const std::vector<PixelObservation>& obs,
+                                             const TriangulationOptions& options) {
+  std::string err;
+  if (!options.Check(&err)) return Status::Error(err);
+  if (!result.covariance) return Status::Error("the solve has no covariance");
+  const StateLayout& L = *result.layout;
+  if (obs.size() < 2) {
+    return Status::Error(obs.empty() ? std::string("no observations")
+                                     : "seen in one view only ('" + problem.views[obs[0].view].id +
+                                           "'): at least two views are needed");
+  }
+  // Rays in the object frame: origin = the source -R^T t, direction R^T (x, y, 1).
+  std::set<int> seen;
+  std::vector<Eigen::Vector3d> origin, dir;
+  for (const auto& o : obs) {
+    if (o.view < 0 || o.view >= static_cast<int>(problem.views.size())) {
+      return Status::Error("view index " + std::to_string(o.view) + " is not in the problem");
+    }
+    const BaView& v = problem.views[o.view];
+    if (v.kind != ViewKind::kObject) {
+      return Status::Error("view '" + v.id + "' is a plate view: points are triangulated in object views");
+    }
+    if (!seen.insert(o.view).second) return Status::Error("view '" + v.id + "' is given twice");
+    if (!o.uv_px.allFinite() || !o.covariance_px2.allFinite()) {
+      return Status::Error("view '" + v.id + "': non-finite pixel or pixel covariance");
+    }
+    if (Eigen::LLT<Eigen::Matrix2d>(o.covariance_px2).info() != Eigen::Success ||
+        !(o.covariance_px2.determinant() > 0)) {
+      return Status::Error("view '" + v.id + "': the pixel covariance is not positive definite");
+    }
+    if (problem.groups[v.group].smooth) {
+      return Status::Error("view '" + v.id + "': triangulation with angle-dependent (smooth) "
+                           "intrinsics is not supported");
+    }
+    const double* K = result.block(L.group_block(v.group));
+    const double* pose = result.block(L.view_block(o.view));
+    double xy[2];
+    if (!UnprojectToNormalized(K, o.uv_px.data(), xy)) {
+      return Status::Error("view '" + v.id + "': pixel (" + Fmt("%g", o.uv_px[0]) + ", " +
+                           Fmt("%g", o.uv_px[1]) + ") cannot be undistorted with the calibrated model");
+    }
+    const Eigen::Matrix3d R = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
+    const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
+    origin.push_back(-R.transpose() * t);
+    dir.push_back((R.transpose() * Eigen::Vector3d(xy[0], xy[1], 1.0)).normalized());
+  }
+  TriangulatedPoint out;
+  int wa = 0, wb = 1;
+  for (size_t i = 0; i < dir.size(); ++i) {
+    for (size_t j = i + 1; j < dir.size(); ++j) {
+      const double a = std::atan2(dir[i].cross(dir[j]).norm(), dir[i].dot(dir[j]));
+      if (a * kRadToDeg > out.max_ray_angle_deg) {
+        out.max_ray_angle_deg = a * kRadToDeg;
+        wa = static_cast<int>(i), wb = static_cast<int>(j);
+      }
+    }
+  }
+  constexpr double kParallelDeg = 1e-6;  // below: the depth is not determined at all
+  if (out.max_ray_angle_deg < kParallelDeg) {
+    return Status::Error("the rays are parallel (" + Fmt("%.2g", out.max_ray_angle_deg) +
+                         " deg apart): the depth along them is not determined");
+  }
+  // Least-squares midpoint of the rays.
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < dir.size(); ++i) {
+    const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - dir[i] * dir[i].transpose();
+    A += P;
+    b += P * origin[i];
+  }
+  Eigen::Vector3d X = A.ldlt().solve(b);
+  // Gauss-Newton in pixels.
+  Eigen::Matrix3d N;
+  auto evaluate = [&](const Eigen::Vector3d& p, Eigen::Matrix3d* N_out, Eigen::Vector3d* g,
+                      double* cost) -> Status {
+    N_out->setZero();
+    g->setZero();
+    *cost = 0;
+    for (const auto& o : obs) {
+      const BaView& v = problem.views[o.view];
+      double uv[2], Jp[6];
+      if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
+                               p.data(), uv, nullptr, nullptr, Jp)) {
+        return Status::Error("the rays meet behind the source of view '" + v.id + "'");
+      }
+      const Eigen::Matrix<double, 2, 3> J = Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
+      const Eigen::Matrix2d W = o.covariance_px2.inverse();
+      const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
+      *N_out += J.transpose() * W * J;
+      *g += J.transpose() * W * r;
+      *cost += r.dot(W * r);
+    }
+    return Status::Ok();
+  };
+  Eigen::Vector3d g;
+  double cost = 0;
+  for (int it = 0; it < options.max_iterations; ++it) {
+    CARMBA_RETURN_IF_ERROR(evaluate(X, &N, &g, &cost));
+    const Eigen::Vector3d step = -N.ldlt().solve(g);
+    if (!step.allFinite()) break;
+    // Halve the step while it does not lower the cost (far from the optimum only).
+    double a = 1.0, new_cost = cost;
+    Eigen::Matrix3d N2;
+    Eigen::Vector3d g2;
+    for (int k = 0; k < 30; ++k, a *= 0.5) {
+      if (evaluate(X + a * step, &N2, &g2, &new_cost).ok() && new_cost <= cost) break;
+    }
+    if (!(new_cost <= cost)) break;
+    X += a * step;
+    if ((a * step).norm() < 1e-10 * (1.0 + X.norm())) break;
+  }
+  CARMBA_RETURN_IF_ERROR(evaluate(X, &N, &g, &cost));
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(N);
+  if (!(eig.eigenvalues()[0] > 1e-14 * eig.eigenvalues()[2])) {
+    return Status::Error("the rays are too close to parallel (" +
+                         Fmt("%.2g", out.max_ray_angle_deg) +
+                         " deg apart): the depth along them is not determined");
+  }
+  out.p_in_object = X;
+  out.covariance_pixels = N.inverse();
+  // The solve's share: G = -N^-1 sum_i J_i^T W_i B_i over the free state.
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3, L.num_free());
+  double ss = 0;
+  for (const auto& o : obs) {
+    const BaView& v = problem.views[o.view];
+    const int gb = L.group_block(v.group), vb = L.view_block(o.view);
+    double uv[2], Ji[2 * kNumIntrinsics], Jpose[12], Jp[6];
+    ProjectPointWithJac(result.block(gb), result.block(vb), X.data(), uv, Ji, Jpose, Jp);
+    const Eigen::Matrix<double, 2, 3> J = Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
+    const Eigen::Matrix<double, 3, 2> JW = J.transpose() * o.covariance_px2.inverse();
+    const Eigen::MatrixXd Bi = Eigen::Map<Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>>(Ji);
+    const Eigen::MatrixXd Bp = Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>>(Jpose);
+    // Rows of J_i^T W_i B_i over the free state (tied parameters through the block's basis).
+    const Eigen::Matrix<double, 3, kNumIntrinsics, Eigen::RowMajor> Ki = JW * Bi;
+    const Eigen::Matrix<double, 3, 6, Eigen::RowMajor> Kp = JW * Bp;
+    for (int row = 0; row < 3; ++row) {
+      AddGradientRow(L, gb, Ki.row(row).data(), row, &K);
+      AddGradientRow(L, vb, Kp.row(row).data(), row, &K);
+    }
+    const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
+    out.residual_px.push_back(r);
+    ss += r.squaredNorm();
+  }
+  out.rms_px = std::sqrt(ss / (2.0 * obs.size()));
+  const Eigen::MatrixXd G = -out.covariance_pixels * K;
+  out.covariance_solve = G * result.covariance->Solve(G.transpose()) * result.covariance_scale;
+  out.covariance_solve = 0.5 * (out.covariance_solve + out.covariance_solve.transpose()).eval();
+  if (result.linearization) {
+    const ErrorBudget eb = result.covariance->Budget(G, *result.linearization);
+    for (int s = 0; s < kNumSources; ++s) {
+      out.solve_trace_by_source[s] = eb.by_source.col(s).sum() * result.covariance_scale;
+    }
+  }
+  out.covariance = out.covariance_pixels + out.covariance_solve;
+  if (out.max_ray_angle_deg < options.min_ray_angle_deg) {
+    const Eigen::Vector3d along = (dir[wa] + dir[wb]).normalized();
+    out.warning = "the rays are nearly parallel: the widest pair (views '" +
+                  problem.views[obs[wa].view].id + "' and '" + problem.views[obs[wb].view].id +
+                  "') is " + Fmt("%.2f", out.max_ray_angle_deg) + " deg apart (below " +
+                  Fmt("%g", options.min_ray_angle_deg) + "); sigma along the rays " +
+                  Fmt("%.3g", std::sqrt(along.dot(out.covariance * along))) + " mm";
+  }
+  return out;
+}
+
+}  // namespace ba
+}  // namespace carmba

@@ -1,0 +1,153 @@
+// `carmba pose`: object poses from X-ray images. Marker blobs are detected in every view
+// (detect/marker_blobs.h), labelled with the CT fiducials through the calibrated camera
+// (pose/marker_correspondence.h, detect/marker_views.h), and the labelled views are solved as one
+// pose bundle adjustment (problem/pose_problem.h, the engine in ba/) with each blob's pixel sigma.
+// Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md; all or
+// nothing. Views with fewer than 4 markers found (or no labelling) are skipped with the reason.
+#include <gflags/gflags.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <iostream>
+#include <set>
+#include <sstream>
+
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "detect/marker_views.h"
+#include "problem/pose_problem.h"
+#include "report/pose_report.h"
+#include "util/file_util.h"
+#include "util/yaml_reader.h"
+
+DEFINE_string(fiducials, "", "CT marker centres with covariances (fiducials.csv as `carmba "
+                             "ct-fiducials` writes it: id, x_mm, y_mm, z_mm, cov_xx..cov_zz).");
+
+DEFINE_double(marker_diameter_mm, 0, "Marker diameter (mm), converted to px with the nominal "
+                                     "magnification (fx / SOD of the DICOM frame, or "
+                                     "--source_to_object_mm).");
+DEFINE_string(diameter_px, "", "Marker diameter range 'min,max' in px (instead of "
+                               "--marker_diameter_mm).");
+DEFINE_double(source_to_object_mm, 0, "Source-to-object distance (mm) for images without a "
+                                      "Distance Source to Patient tag.");
+DEFINE_string(detection, "", "Optional YAML of marker detection / correspondence options "
+                             "(detect/marker_views.h ReadObjectViewsOptions); flags override it.");
+
+namespace {
+
+using namespace carmba;
+
+int RunPose() {
+  const char* kCmd = "pose";
+  if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
+  if (FLAGS_fiducials.empty()) return cli::Fail(kCmd, "--fiducials is required");
+  if (FLAGS_camera.empty()) return cli::Fail(kCmd, "--camera is required");
+  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
+  ObjectViewsOptions options;
+  if (!FLAGS_detection.empty()) {
+    YamlMap root = YamlMap::Load(FLAGS_detection);
+    if (!root.status().ok()) return cli::Fail(kCmd, root.status());
+    ReadObjectViewsOptions(root, &options);
+    const Status s = root.Finish();
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
+  if (FLAGS_marker_diameter_mm != 0) options.blobs.diameter_mm = FLAGS_marker_diameter_mm;
+  if (FLAGS_source_to_object_mm != 0) options.source_to_object_mm = FLAGS_source_to_object_mm;
+  if (!FLAGS_diameter_px.empty()) {
+    double lo = 0, hi = 0;
+    char comma = 0;
+    std::istringstream is(FLAGS_diameter_px);
+    if (!(is >> lo >> comma >> hi) || comma != ',' || !is.eof()) {
+      return cli::Fail(kCmd, "--diameter_px: expected 'min,max' in px, got '" + FLAGS_diameter_px + "'");
+    }
+    options.blobs.diameter_px = {lo, hi};
+  }
+  std::string err;
+  if (!options.Check(&err)) {
+    return cli::Fail(kCmd, err + " (--marker_diameter_mm, --diameter_px or --detection)");
+  }
+  auto camera = ReadCameraJson(FLAGS_camera);
+  if (!camera.ok()) return cli::Fail(kCmd, camera.status());
+  auto markers = ReadMarkersCsv(FLAGS_fiducials, "id", {"x_mm", "y_mm", "z_mm"}, 0,
+                                "--fiducials (covariance columns cov_xx..cov_zz)");
+  if (!markers.ok()) return cli::Fail(kCmd, markers.status());
+  SolverConfig config;
+  config.name = "pose_default (posit + bundle adjustment)";
+  if (!FLAGS_config.empty()) {
+    auto c = LoadSolverConfig(FLAGS_config);
+    if (!c.ok()) return cli::Fail(kCmd, c.status());
+    config = *c;
+  }
+  auto files = ListImageFiles(FLAGS_images);
+  if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
+  auto views = DetectAndLabelObjectViews(*files, *camera, *markers, options);
+  if (!views.ok()) return cli::Fail(kCmd, views.status());
+
+  PoseProblem problem;
+  problem.name = "pose";
+  problem.path = FLAGS_images;
+  problem.camera = *camera;
+  problem.sigma_px = 1.0;  // every observation carries its own sigma
+  problem.markers = *markers;
+  problem.views = ToPoseViews(*views, options.sigma_floor_px);
+  {
+    const Status s = problem.Check();
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
+  auto solution = SolvePoseProblem(problem, config);
+  if (!solution.ok()) return cli::Fail(kCmd, solution.status());
+  const PoseComparison comparison = ComparePoseMethods(problem, config, *solution);
+  nlohmann::json j = PoseSolutionToJson(problem, *solution);
+  j["comparison"] = PoseComparisonToJson(problem, comparison);
+  j["marker_detection"] = ObjectViewsToJson(*views);
+  const std::string report =
+      PoseReportMarkdown(problem, config, *solution, comparison) + ObjectViewsMarkdown(*views);
+
+  std::map<std::string, Pose6> solved;
+  for (const ViewSolution& v : solution->views) solved[v.id] = v.cam_from_object;
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "observations.csv"), MarkerObservationsCsv(*views));
+  std::set<std::string> names;
+  for (const ObjectView& v : *views) {
+    if (!s.ok()) break;
+    std::optional<Pose6> pose;
+    if (solved.count(v.name)) pose = solved.at(v.name);
+    const std::string first = OverlayFileName(v.name);
+    std::string name = first;
+    for (int k = 2; !names.insert(name).second; ++k) {
+      name = first.substr(0, first.size() - 4) + "_" + std::to_string(k) + ".png";
+    }
+    const cv::Mat overlay = DrawMarkerOverlay(v, *camera, *markers, pose);
+    if (!cv::imwrite(JoinPath(staged.path(), name), overlay)) {
+      s = Status::Error(JoinPath(FLAGS_out, name) + ": cannot write the overlay");
+    }
+  }
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
+  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
+  if (!s.ok()) return cli::Fail(kCmd, s);
+  for (const ObjectView& v : *views) {
+    if (!v.labelled) std::cerr << "carmba pose: skipped " << v.name << ": " << v.skipped << "\n";
+  }
+  if (config.refine && solution->termination != "CONVERGENCE") {
+    std::cerr << "carmba pose: warning: the bundle adjustment did not converge (" << solution->termination
+              << ")" << std::endl;
+  }
+  std::cout << "pose: " << problem.views.size() << " of " << views->size() << " views labelled, RMS "
+            << solution->rms_px << " px; wrote " << FLAGS_out
+            << "/{observations.csv,result.json,report.md} and the overlays" << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config");
+CARMBA_REGISTER_COMMAND(pose,
+                        "Object poses from X-ray images: marker blobs, automatic labelling with the "
+                        "CT fiducials, bundle adjustment.",
+                        RunPose);

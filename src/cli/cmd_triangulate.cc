@@ -1,0 +1,318 @@
+// `carmba triangulate`: points seen in two or more object views (an instrument tip, an unmatched
+// blob) -> their 3-D positions in the CT (object) frame with 3x3 covariances (ba/triangulation.h).
+// The problem is solved again with its config (the same solve as `carmba solve`, deterministic),
+// so the joint covariance of the views' poses and the intrinsics is at hand.
+//
+//   carmba triangulate --problem P --config C --points points.csv --out DIR
+//   carmba triangulate --problem P --config C --pixels 'VIEW=U,V;VIEW=U,V' --out DIR
+//
+// points.csv: columns view, u_px, v_px; optional `point` (a name; rows of one point together
+// form it, default "1") and optional pixel covariance cov_uu, cov_uv, cov_vv (px^2) or sigma_px;
+// without them --sigma_px, else the view's sigma_px from the problem.
+// Writes DIR/triangulation.json (per point: position, covariance, its parts, ray angle,
+// residuals, variance by source, warnings) and DIR/points.csv (id, x_mm, y_mm, z_mm, cov_xx ..
+// cov_zz: the format of `carmba ct-fiducials`). Every error is one line; nothing is written then.
+// Nearly parallel rays are a warning (stderr and the JSON), parallel ones an error.
+#include <gflags/gflags.h>
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include "ba/triangulation.h"
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "joint/joint_problem.h"
+#include "problem/pose_problem.h"
+#include "util/csv.h"
+#include "util/file_util.h"
+#include "util/plausible.h"
+#include "report/format.h"
+
+DEFINE_string(points, "",
+              "CSV of the points' pixels: view,u_px,v_px[,point][,cov_uu,cov_uv,cov_vv | "
+              ",sigma_px].");
+DEFINE_string(pixels, "", "One point's pixels instead of --points: 'VIEW=U,V;VIEW=U,V'.");
+DEFINE_double(sigma_px, 0,
+              "Pixel sigma of the points (0: the CSV's columns, else the view's sigma_px).");
+DEFINE_double(min_angle_deg, 5.0, "Warn when the widest pair of rays is closer than this (deg).");
+
+namespace {
+
+using namespace carmba;
+
+struct PointInput {
+  std::string name;
+  struct Pixel {
+    std::string view, where;   // where: "file:line" or "--pixels"
+    Eigen::Vector2d uv;
+    std::optional<Eigen::Matrix2d> cov;
+  };
+  std::vector<Pixel> pixels;
+};
+
+StatusOr<std::vector<PointInput>> ReadPointsCsv(const std::string& path) {
+  auto t = ReadCsv(path);
+  if (!t.ok()) return t.status();
+  for (const char* c : {"view", "u_px", "v_px"}) {
+    auto col = t->Column(c);
+    if (!col.ok()) return col.status();
+  }
+  const bool has_point = t->Column("point").ok(), has_sigma = t->Column("sigma_px").ok();
+  const bool has_cov = t->Column("cov_uu").ok();
+  if (has_cov) {
+    for (const char* c : {"cov_uv", "cov_vv"}) {
+      auto col = t->Column(c);
+      if (!col.ok()) return col.status();
+    }
+  }
+  if (t->rows.empty()) return Status::Error(path + ": no rows");
+  std::vector<PointInput> points;
+  std::map<std::string, size_t> index;
+  const int vc = *t->Column("view");
+  const int pc = has_point ? *t->Column("point") : -1;
+  for (size_t r = 0; r < t->rows.size(); ++r) {
+    const int row = static_cast<int>(r);
+    const std::string where = path + ":" + std::to_string(t->line_numbers[r]);
+    PointInput::Pixel px;
+    px.where = where;
+    px.view = t->rows[r][vc];
+    auto u = t->NumberIn(row, "u_px", plausible::kPixelCoordinatePx);
+    if (!u.ok()) return u.status();
+    auto v = t->NumberIn(row, "v_px", plausible::kPixelCoordinatePx);
+    if (!v.ok()) return v.status();
+    px.uv = Eigen::Vector2d(*u, *v);
+    if (has_cov) {
+      auto uu = t->Number(row, "cov_uu"), uv = t->Number(row, "cov_uv"), vv = t->Number(row, "cov_vv");
+      if (!uu.ok()) return uu.status();
+      if (!uv.ok()) return uv.status();
+      if (!vv.ok()) return vv.status();
+      Eigen::Matrix2d C;
+      C << *uu, *uv, *uv, *vv;
+      if (!(*uu > 0 && *vv > 0 && C.determinant() > 0)) {
+        return Status::Error(where + ": cov_uu, cov_uv, cov_vv: expected a positive definite pixel "
+                                     "covariance (px^2)");
+      }
+      px.cov = C;
+    } else if (has_sigma) {
+      auto s = t->NumberIn(row, "sigma_px", plausible::kPixelSigmaPx);
+      if (!s.ok()) return s.status();
+      px.cov = Eigen::Matrix2d::Identity() * *s * *s;
+    }
+    const std::string name = has_point ? t->rows[r][pc] : "1";
+    auto it = index.find(name);
+    if (it == index.end()) {
+      index[name] = points.size();
+      points.push_back({name, {}});
+      it = index.find(name);
+    }
+    points[it->second].pixels.push_back(px);
+  }
+  return points;
+}
+
+StatusOr<std::vector<PointInput>> ParsePixelsFlag(const std::string& s) {
+  PointInput p;
+  p.name = "1";
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ';')) {
+    const size_t eq = item.find('='), comma = item.find(',', eq == std::string::npos ? 0 : eq);
+    double u = 0, v = 0;
+    if (eq == std::string::npos || comma == std::string::npos ||
+        !ParseFiniteDouble(item.substr(eq + 1, comma - eq - 1), &u) ||
+        !ParseFiniteDouble(item.substr(comma + 1), &v)) {
+      return Status::Error("--pixels: '" + item + "': expected VIEW=U,V with finite numbers (px)");
+    }
+    std::string err;
+    if (!CheckRange("--pixels u", u, plausible::kPixelCoordinatePx, &err) ||
+        !CheckRange("--pixels v", v, plausible::kPixelCoordinatePx, &err)) {
+      return Status::Error(err);
+    }
+    p.pixels.push_back({item.substr(0, eq), "--pixels", Eigen::Vector2d(u, v), std::nullopt});
+  }
+  if (p.pixels.empty()) return Status::Error("--pixels: no VIEW=U,V given");
+  return std::vector<PointInput>{p};
+}
+
+struct Solved {
+  std::shared_ptr<const ba::BaProblem> problem;
+  std::shared_ptr<const ba::BaResult> result;
+  bool mirrored = false;   // pose problem with handedness mirrored: the solve's y is -y of the CT
+  std::string kind;
+};
+
+StatusOr<Solved> Solve() {
+  Solved s;
+  auto config = LoadSolverConfig(FLAGS_config);
+  if (!config.ok()) return config.status();
+  if (IsJointProblemFile(FLAGS_problem)) {
+    auto problem = LoadJointProblem(FLAGS_problem);
+    if (!problem.ok()) return problem.status();
+    auto sol = SolveJointProblem(*problem, *config);
+    if (!sol.ok()) return sol.status();
+    s.problem = std::make_shared<const ba::BaProblem>(std::move(sol->ba_problem));
+    s.result = std::make_shared<const ba::BaResult>(std::move(sol->result));
+    s.kind = "joint";
+    return s;
+  }
+  auto problem = LoadPoseProblem(FLAGS_problem);
+  if (!problem.ok()) return problem.status();
+  auto sol = SolvePoseProblem(*problem, *config);
+  if (!sol.ok()) return sol.status();
+  if (!config->refine || config->covariance_algorithm != "schur") {
+    return Status::Error(FLAGS_config + ": triangulation needs the refined solve's covariance "
+                         "(refine: true, covariance: {algorithm: schur})");
+  }
+  s.problem = sol->ba_problem;
+  s.result = sol->ba_result;
+  s.mirrored = problem->handedness == Handedness::kMirrored;
+  s.kind = "pose";
+  return s;
+}
+
+
+int RunTriangulate() {
+  const char* cmd = "triangulate";
+  if (FLAGS_problem.empty()) return cli::Fail(cmd, "--problem is required");
+  if (FLAGS_config.empty()) return cli::Fail(cmd, "--config is required");
+  if (FLAGS_out.empty()) return cli::Fail(cmd, "--out is required");
+  if (FLAGS_points.empty() == FLAGS_pixels.empty()) {
+    return cli::Fail(cmd, "give either --points CSV or --pixels 'VIEW=U,V;VIEW=U,V'");
+  }
+  std::string err;
+  if (FLAGS_sigma_px != 0 && !CheckRange("--sigma_px", FLAGS_sigma_px, plausible::kPixelSigmaPx, &err)) {
+    return cli::Fail(cmd, err);
+  }
+  ba::TriangulationOptions topt;
+  topt.min_ray_angle_deg = FLAGS_min_angle_deg;
+  if (!topt.Check(&err)) return cli::Fail(cmd, "--min_angle_deg: " + err);
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail(cmd, s);
+  }
+  auto points = FLAGS_points.empty() ? ParsePixelsFlag(FLAGS_pixels) : ReadPointsCsv(FLAGS_points);
+  if (!points.ok()) return cli::Fail(cmd, points.status());
+  auto solved = Solve();
+  if (!solved.ok()) return cli::Fail(cmd, solved.status());
+  const ba::BaProblem& bp = *solved->problem;
+  const ba::BaResult& br = *solved->result;
+  std::map<std::string, int> object_view;
+  std::string object_ids;
+  for (size_t v = 0; v < bp.views.size(); ++v) {
+    if (bp.views[v].kind != ba::ViewKind::kObject) continue;
+    object_view[bp.views[v].id] = static_cast<int>(v);
+    object_ids += (object_ids.empty() ? "" : ", ") + bp.views[v].id;
+  }
+  bool intrinsics_free = false;
+  for (const auto& g : bp.groups) {
+    for (bool f : g.free) intrinsics_free |= f;
+  }
+  // The solve's object frame -> the CT frame (a mirrored pose problem negates y).
+  const Eigen::Matrix3d F = Eigen::Vector3d(1, solved->mirrored ? -1 : 1, 1).asDiagonal();
+
+  nlohmann::json jpoints = nlohmann::json::array();
+  std::ostringstream csv;
+  csv << "# carmba triangulate --problem " << FLAGS_problem << " --config " << FLAGS_config
+      << "\n# positions in the CT frame (mm), covariance mm^2 (the solve's "
+      << (intrinsics_free ? "poses and intrinsics" : "poses (intrinsics held)")
+      << " and the points' pixels)\n"
+      << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
+  std::vector<std::string> warnings;
+  for (const PointInput& p : *points) {
+    std::vector<ba::PixelObservation> obs;
+    for (const auto& px : p.pixels) {
+      auto it = object_view.find(px.view);
+      if (it == object_view.end()) {
+        return cli::Fail(cmd, px.where + ": view '" + px.view +
+                                  "' is not an object view of the problem (object views: " +
+                                  object_ids + ")");
+      }
+      ba::PixelObservation o;
+      o.view = it->second;
+      o.uv_px = px.uv;
+      const double s = FLAGS_sigma_px > 0 ? FLAGS_sigma_px : bp.views[o.view].sigma_px;
+      o.covariance_px2 = px.cov && FLAGS_sigma_px == 0 ? *px.cov : Eigen::Matrix2d::Identity() * s * s;
+      obs.push_back(o);
+    }
+    auto t = ba::TriangulatePoint(bp, br, obs, topt);
+    if (!t.ok()) {
+      const std::string src = FLAGS_points.empty() ? "--pixels" : FLAGS_points;
+      return cli::Fail(cmd, src + ": point '" + p.name + "': " + t.status().message());
+    }
+    const Eigen::Vector3d X = F * t->p_in_object;
+    const Eigen::Matrix3d C = F * t->covariance * F;
+    if (!t->warning.empty()) warnings.push_back("point '" + p.name + "': " + t->warning);
+    nlohmann::json views = nlohmann::json::array();
+    for (size_t i = 0; i < obs.size(); ++i) {
+      views.push_back({{"view", bp.views[obs[i].view].id},
+                       {"u_px", obs[i].uv_px[0]},
+                       {"v_px", obs[i].uv_px[1]},
+                       {"residual_px", {JsonNumber(t->residual_px[i][0]), JsonNumber(t->residual_px[i][1])}}});
+    }
+    nlohmann::json by_source;
+    for (int s = 0; s < ba::kNumSources; ++s) {
+      by_source[ba::SourceName(static_cast<ba::Source>(s))] = JsonNumber(t->solve_trace_by_source[s]);
+    }
+    by_source["the point's pixels"] = JsonNumber(t->covariance_pixels.trace());
+    jpoints.push_back({{"id", p.name},
+                       {"p_in_ct_mm", {X[0], X[1], X[2]}},
+                       {"covariance_mm2", JsonRows(C)},
+                       {"sigma_mm", {JsonNumber(std::sqrt(C(0, 0))), JsonNumber(std::sqrt(C(1, 1))), JsonNumber(std::sqrt(C(2, 2)))}},
+                       {"rms_3d_mm", JsonNumber(std::sqrt(C.trace()))},
+                       {"covariance_pixels_mm2", JsonRows(F * t->covariance_pixels * F)},
+                       {"covariance_solve_mm2", JsonRows(F * t->covariance_solve * F)},
+                       {"variance_by_source_mm2", by_source},
+                       {"max_ray_angle_deg", JsonNumber(t->max_ray_angle_deg)},
+                       {"rms_px", JsonNumber(t->rms_px)},
+                       {"views", views},
+                       {"warning", t->warning.empty() ? nlohmann::json() : nlohmann::json(t->warning)}});
+    char line[512];
+    std::snprintf(line, sizeof line, "%s,%.6f,%.6f,%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n",
+                  p.name.c_str(), X[0], X[1], X[2], C(0, 0), C(0, 1), C(0, 2), C(1, 1), C(1, 2),
+                  C(2, 2));
+    csv << line;
+    std::printf("point %s: (%.3f, %.3f, %.3f) mm, sigma (%.3f, %.3f, %.3f) mm, rays %.1f deg "
+                "apart, %zu views\n",
+                p.name.c_str(), X[0], X[1], X[2], std::sqrt(C(0, 0)), std::sqrt(C(1, 1)),
+                std::sqrt(C(2, 2)), t->max_ray_angle_deg, obs.size());
+  }
+  nlohmann::json j;
+  j["problem"] = {{"file", FLAGS_problem}, {"kind", solved->kind}, {"config", FLAGS_config}};
+  j["frame"] = "CT (object) frame, mm";
+  j["covariance"] =
+      intrinsics_free
+          ? "the solve's joint covariance of poses and intrinsics (" +
+                std::string(br.covariance_scale == 1.0 ? "a-priori" : "a-posteriori") +
+                " sigmas) and the points' pixel noise"
+          : "the solve's covariance of the poses and the points' pixel noise; the intrinsics are "
+            "held (a pose problem): the calibration's uncertainty is NOT included (a joint problem "
+            "with `camera:` and `intrinsics: {prior: true}` includes it)";
+  j["points"] = jpoints;
+  j["warnings"] = warnings;
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "triangulation.json"), j.dump(2) + "\n");
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "points.csv"), csv.str());
+  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
+  if (!s.ok()) return cli::Fail(cmd, s);
+  for (const auto& w : warnings) std::cerr << "carmba triangulate: warning: " << w << std::endl;
+  if (!intrinsics_free) {
+    std::cerr << "carmba triangulate: note: the intrinsics are held (pose problem): the "
+                 "calibration's uncertainty is not in the covariance" << std::endl;
+  }
+  std::cout << "wrote " << FLAGS_out << "/triangulation.json and " << FLAGS_out << "/points.csv"
+            << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+CARMBA_COMMAND_FLAGS(triangulate, "problem,config,out");
+CARMBA_REGISTER_COMMAND(triangulate,
+                        "Triangulate points seen in two or more object views (CT frame, 3x3 "
+                        "covariance from the solve and the pixels).",
+                        RunTriangulate);

@@ -1,0 +1,106 @@
+// `carmba undistort`: writes each image (each DICOM frame) undistorted with a calibrated camera,
+// onto the pixel grid of the projection matrices in geometry.json (export/undistort.h).
+#include <gflags/gflags.h>
+
+#include <filesystem>
+#include <iostream>
+#include <opencv2/imgcodecs.hpp>
+#include <set>
+
+#include "cli/command.h"
+#include "cli/common_flags.h"
+#include "detect/grid_detector.h"
+#include "export/undistort.h"
+#include "util/file_util.h"
+
+namespace {
+
+using namespace carmba;
+
+// The camera from camera.json, or from a joint solve's result.json (its `intrinsics` object).
+StatusOr<Camera> LoadCamera(const std::string& path) {
+  auto parsed = ReadJsonFile(path, "a camera.json or a joint result.json");
+  if (!parsed.ok()) return parsed.status();
+  const nlohmann::json& j = *parsed;
+  if (j.is_object() && j.contains("intrinsics")) {
+    if (!j["intrinsics"].is_object()) {
+      return Status::Error(path + ": key 'intrinsics': one camera expected (per-group intrinsics: "
+                                  "save one group's object as a camera.json)");
+    }
+    return CameraFromJson(j["intrinsics"], path + ": intrinsics");  // checks the ranges too
+  }
+  return CameraFromJson(j, path);
+}
+
+// Output name of a view: the file's stem (+ _frameN for a frame of a multi-frame DICOM file),
+// .png for 8 / 16 bit (lossless, depth kept), .tiff for float.
+std::string OutputName(const std::string& view, int depth) {
+  std::string file = view, frame;
+  const size_t hash = view.rfind("#frame");
+  if (hash != std::string::npos) {
+    file = view.substr(0, hash);
+    frame = "_frame" + view.substr(hash + 6);
+  }
+  return std::filesystem::path(file).stem().string() + frame +
+         (depth == CV_32F ? ".tiff" : ".png");
+}
+
+int RunUndistort() {
+  const char* kCmd = "undistort";
+  if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
+  if (FLAGS_camera.empty()) return cli::Fail(kCmd, "--camera is required");
+  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (directory) is required");
+  {
+    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
+  auto camera = LoadCamera(FLAGS_camera);
+  if (!camera.ok()) return cli::Fail(kCmd, camera.status());
+  auto files = ListImageFiles(FLAGS_images);
+  if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (!s.ok()) return cli::Fail(kCmd, s);
+  std::set<std::string> names;
+  int written = 0;
+  for (const auto& file : *files) {
+    auto views = ReadImageViews(file);
+    if (!views.ok()) return cli::Fail(kCmd, views.status());
+    for (const auto& view : *views) {
+      auto out = UndistortImage(view.image, *camera);
+      if (!out.ok()) return cli::Fail(kCmd, out.status().WithContext(view.name));
+      const std::string name = OutputName(view.name, out->depth());
+      if (!names.insert(name).second) {
+        return cli::Fail(kCmd, view.name + ": a second image named " + name + " in --out");
+      }
+      const std::string path = JoinPath(staged.path(), name);
+      bool ok = false;
+      try {
+        ok = cv::imwrite(path, *out);
+      } catch (const cv::Exception&) {
+        ok = false;
+      }
+      if (!ok) return cli::Fail(kCmd, path + ": cannot write the image");
+      ++written;
+    }
+  }
+  s = staged.Commit(/*replace_all=*/false);
+  if (!s.ok()) return cli::Fail(kCmd, s);
+  std::cout << "undistorted " << written << " images into " << FLAGS_out << " (" << camera->width
+            << "x" << camera->height << " px, pinhole fx " << camera->params[kFx] << " fy "
+            << camera->params[kFy] << " cx " << camera->params[kCx] << " cy "
+            << camera->params[kCy] << ", no distortion)" << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+CARMBA_COMMAND_FLAGS(undistort, "images,camera,out");
+CARMBA_REGISTER_COMMAND(
+    undistort,
+    "Undistort images (PNG, TIFF, ..., DICOM frames) with a calibrated camera: writes --out/"
+    "<stem>.png (8/16 bit kept; <stem>_frameN.png per DICOM frame). Output pixel grid: the same "
+    "width x height and pixel convention (pixel (0,0) = centre of the top-left pixel), an ideal "
+    "pinhole with the camera's fx fy cx cy and no distortion -- the grid geometry.json's "
+    "projection matrices map to; pixels whose source lies outside the image are 0.",
+    RunUndistort);

@@ -1,0 +1,65 @@
+// Steps of the grid detector (detect/grid_detector.h, "Pipeline per image") shared with the marker
+// blob detector (detect/marker_blobs.h): one implementation of the float conversion, the field of
+// view, the flat-fielded search image and the sub-pixel centroid.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <string>
+
+#include "detect/grid_detector.h"
+
+namespace carmba {
+
+// Step 1a: the (cropped, `o.roi_px`) image as CV_32F grey levels; `offset` is the crop's corner.
+// False with the reason for an empty image or one without contrast.
+bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv::Point* offset,
+                 std::string* reason);
+
+// Step 2: the field of view (grid_detector.h step 2).
+struct FieldOfView {
+  cv::Mat mask;              // CV_8U, 255 inside the field (shrunk by the margin)
+  bool have_circle = false;  // the circle is known (given, or found)
+  cv::Point2d centre;
+  double radius = 0;
+  cv::Mat refine_valid;      // the fully exposed part of the mask (sub-pixel refinement)
+};
+FieldOfView FindFieldOfView(const cv::Mat& f, const DetectionOptions& o, cv::Point offset);
+
+// 255 x the ratio of the lightly blurred image to its morphological closing over ~2.4 blob
+// diameters (CV_8U; 255 outside `mask`): dark blobs keep their contrast wherever they lie.
+cv::Mat FlatFieldedSearchImage(const cv::Mat& f, const cv::Mat& mask, double blob_diameter_px);
+
+// The noise of a centroid (RefineCentroid's optional output).
+//   in:  rho1, the correlation of neighbouring pixels' noise, the correlation at lag (dx, dy)
+//        taken as rho1^(dx^2 + dy^2) (white noise blurred by a Gaussian; 0 = white), used up to
+//        |dx|, |dy| <= 3; correlation_factor F = the sum of that correlation over all lags (the
+//        plane's variance from the ring's many pixels is F times the white-noise one).
+//   out: covariance_px2, the 2x2 covariance of the centre from the pixel noise of the disc
+//        (sum_ij g_i g_j^T rho(i - j), exact for the disc's weights and their cut-off) and the
+//        noise of the background plane fitted to the ring (first order, the disc and the 5 %
+//        floor held), with the pixel variance sigma_gray^2 measured on the ring (1.4826 MAD of
+//        the plane's residuals) and, for dark blobs, scaled by I / background (quantum noise);
+//        sigma_gray; peak_contrast (dark: the largest attenuation 1 - I / background);
+//        background (the plane's level at the centre).
+struct CentroidNoise {
+  double rho1 = 0.0;
+  double correlation_factor = 1.0;
+  cv::Matx22d covariance_px2 = cv::Matx22d::zeros();
+  double sigma_gray = 0;
+  double peak_contrast = 0;
+  double background = 0;
+};
+
+// Sub-pixel centre of a blob around `c` on the float image `f` (grid_detector.cc documents the
+// window, disc, ring and weights): only pixels with `valid` != 0 are used; `nn_px` the distance to
+// the nearest other blob, `disc_px` the largest centroid disc wanted. `r_half_px`: the blob's
+// half-contrast radius. False when no blob is there or the disc/ring reaches the invalid area.
+bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
+                    cv::Point2d* c, double* r_half_px, CentroidNoise* noise = nullptr);
+
+// An 8-bit BGR copy of an image (any depth, grey or colour) stretched to its 1..99 % range, for
+// overlays.
+cv::Mat StretchedColourImage(const cv::Mat& image);
+
+}  // namespace carmba

@@ -1,0 +1,283 @@
+#include "detect/marker_blobs.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+#include "detect/detect_steps.h"
+#include "util/yaml_reader.h"
+
+namespace carmba {
+
+bool MarkerBlobOptions::Check(std::string* error) const {
+  if (!diameter_px.empty()) {
+    if (diameter_px.size() != 2 || !(diameter_px[0] > 0) || !(diameter_px[1] >= diameter_px[0]) ||
+        !(diameter_px[1] < 1000)) {
+      *error = "diameter_px: expected [min, max] with 0 < min <= max < 1000";
+      return false;
+    }
+  } else if (!(diameter_mm > 0 && diameter_mm < 100) || !(px_per_mm > 0 && px_per_mm < 1000)) {
+    *error = "marker diameter: expected diameter_px [min, max], or diameter_mm (0..100) with the "
+             "nominal magnification px_per_mm (0..1000)";
+    return false;
+  }
+  if (!(diameter_tolerance >= 0 && diameter_tolerance < 1)) {
+    *error = "diameter_tolerance: expected 0 <= value < 1";
+    return false;
+  }
+  if (!(min_contrast >= 0 && min_contrast < 1)) {
+    *error = "min_contrast: expected 0 <= value < 1";
+    return false;
+  }
+  if (!(max_elongation >= 1 && max_elongation < 10) || !(merge_area_ratio > 1 && merge_area_ratio < 10) ||
+      !(merge_distance > 0 && merge_distance < 10)) {
+    *error = "max_elongation (1..10), merge_area_ratio (1..10), merge_distance (0..10) out of range";
+    return false;
+  }
+  return fov.Check(error);
+}
+
+std::pair<double, double> MarkerBlobOptions::DiameterRangePx() const {
+  if (!diameter_px.empty()) return {diameter_px[0], diameter_px[1]};
+  const double d = diameter_mm * px_per_mm;
+  return {d * (1 - diameter_tolerance), d * (1 + diameter_tolerance)};
+}
+
+void ReadMarkerBlobOptions(YamlMap& m, MarkerBlobOptions* o) {
+  m.Get("diameter_px", &o->diameter_px);
+  m.GetPositive("diameter_mm", &o->diameter_mm);
+  m.GetPositive("px_per_mm", &o->px_per_mm);
+  m.GetNonNegative("diameter_tolerance", &o->diameter_tolerance);
+  m.GetNonNegative("min_contrast", &o->min_contrast);
+  m.GetPositive("max_elongation", &o->max_elongation);
+  m.GetPositive("merge_area_ratio", &o->merge_area_ratio);
+  m.GetPositive("merge_distance", &o->merge_distance);
+  ReadFieldOfViewOptions(m, &o->fov);
+}
+
+namespace {
+
+double RobustSigma(std::vector<float>* v) {
+  if (v->size() < 16) return 0;
+  const size_t h = v->size() / 2;
+  std::nth_element(v->begin(), v->begin() + h, v->end());
+  const float med = (*v)[h];
+  for (float& x : *v) x = std::fabs(x - med);
+  std::nth_element(v->begin(), v->begin() + h, v->end());
+  return 1.4826 * (*v)[h];
+}
+
+// A connected piece of a candidate's half-peak region.
+struct Piece {
+  double area = 0;
+  cv::Point2d centre;
+  double major = 0, minor = 0;  // sqrt of the second-moment eigenvalues (px)
+  int touches_border = 0;
+};
+
+}  // namespace
+
+double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1) {
+  std::vector<float> d1, d2;
+  d1.reserve(f.total() / 8);
+  d2.reserve(f.total() / 8);
+  for (int y = 0; y < f.rows; y += 4) {
+    const float* r = f.ptr<float>(y);
+    const uint8_t* m = mask.ptr<uint8_t>(y);
+    for (int x = 0; x + 2 < f.cols; x += 2) {
+      if (!m[x] || !m[x + 2]) continue;
+      d1.push_back(r[x + 1] - r[x]);
+      d2.push_back(r[x + 2] - r[x]);
+    }
+  }
+  const double s1 = RobustSigma(&d1), s2 = RobustSigma(&d2);
+  if (rho1) *rho1 = 0;
+  if (!(s1 > 0)) return 1.0;
+  // var d2 / var d1 = (1 - rho^4) / (1 - rho) = 1 + rho + rho^2 + rho^3: solve for rho.
+  const double ratio = std::clamp(s2 * s2 / (s1 * s1), 1.0, 3.99);
+  double lo = 0, hi = 1;
+  for (int it = 0; it < 50; ++it) {
+    const double r = 0.5 * (lo + hi);
+    (1 + r + r * r + r * r * r < ratio ? lo : hi) = r;
+  }
+  const double rho = 0.5 * (lo + hi);
+  if (rho1) *rho1 = rho;
+  double F = 0;
+  for (int kx = -4; kx <= 4; ++kx) {
+    for (int ky = -4; ky <= 4; ++ky) F += std::pow(rho, kx * kx + ky * ky);
+  }
+  return F;
+}
+
+MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOptions& o) {
+  MarkerBlobDetection det;
+  if (!o.Check(&det.reason)) return det;
+  cv::Mat f;
+  cv::Point offset;
+  if (!ToFloatGrey(image, o.fov, &f, &offset, &det.reason)) return det;
+  const FieldOfView fov = FindFieldOfView(f, o.fov, offset);
+  if (fov.have_circle) {
+    det.fov_centre = fov.centre + cv::Point2d(offset);
+    det.fov_radius = fov.radius;
+  }
+  const auto [d_min, d_max] = o.DiameterRangePx();
+  const double d_nom = 0.5 * (d_min + d_max);
+  const double area_nom = M_PI * 0.25 * d_nom * d_nom;
+
+  // 3. Contrast image and its noise.
+  const cv::Mat search = FlatFieldedSearchImage(f, fov.mask, std::max(d_max, 2.0));
+  cv::Mat contrast;
+  search.convertTo(contrast, CV_32F, -1.0 / 255.0, 1.0);
+  contrast.setTo(0, fov.mask == 0);
+  std::vector<float> vals;
+  vals.reserve(f.total() / 4);
+  for (int y = 0; y < contrast.rows; y += 2) {
+    const float* c = contrast.ptr<float>(y);
+    const uint8_t* m = fov.mask.ptr<uint8_t>(y);
+    for (int x = 0; x < contrast.cols; x += 2) {
+      if (m[x]) vals.push_back(c[x]);
+    }
+  }
+  if (vals.size() < 100) return det.reason = "field of view / region of interest is (almost) empty", det;
+  const double s = std::max(RobustSigma(&vals), 1.0 / 255.0);
+  det.noise_contrast = s;
+  det.correlation_factor = NoiseCorrelationFactor(f, fov.refine_valid, &det.noise_rho1);
+  const double t_low = std::max(4.0 * s, 0.3 * o.min_contrast);
+  const double t_peak = std::max(8.0 * s, o.min_contrast);
+  cv::Mat cand = contrast > t_low;
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(cand, labels, stats, centroids, 8, CV_32S);
+
+  struct Candidate {
+    cv::Point2d centre;  // the half-peak piece's centre (crop coordinates)
+    double diameter = 0, peak = 0;
+    std::string why;     // empty: accepted so far
+  };
+  std::vector<Candidate> cands;
+  const double min_area = std::max(2.0, 0.25 * M_PI * 0.25 * d_min * d_min);
+  for (int k = 1; k < n; ++k) {
+    const int area = stats.at<int>(k, cv::CC_STAT_AREA);
+    if (area < min_area) continue;  // noise speckle (not listed)
+    const cv::Rect box(stats.at<int>(k, cv::CC_STAT_LEFT), stats.at<int>(k, cv::CC_STAT_TOP),
+                       stats.at<int>(k, cv::CC_STAT_WIDTH), stats.at<int>(k, cv::CC_STAT_HEIGHT));
+    double peak = 0;
+    for (int y = box.y; y < box.y + box.height; ++y) {
+      const int* l = labels.ptr<int>(y);
+      const float* c = contrast.ptr<float>(y);
+      for (int x = box.x; x < box.x + box.width; ++x) {
+        if (l[x] == k) peak = std::max(peak, static_cast<double>(c[x]));
+      }
+    }
+    const cv::Point2d cc(centroids.at<double>(k, 0), centroids.at<double>(k, 1));
+    if (peak < t_peak) {
+      // Low-contrast structure: listed only when it is blob-sized (the rest is background).
+      if (area >= 0.5 * area_nom && box.width < 4 * d_max && box.height < 4 * d_max) {
+        cands.push_back({cc, 2 * std::sqrt(area / M_PI), peak, "low contrast"});
+      }
+      continue;
+    }
+    // Half-peak pieces of this component.
+    cv::Mat half(box.size(), CV_8U, cv::Scalar(0));
+    for (int y = 0; y < box.height; ++y) {
+      const int* l = labels.ptr<int>(y + box.y);
+      const float* c = contrast.ptr<float>(y + box.y);
+      uint8_t* h = half.ptr<uint8_t>(y);
+      for (int x = 0; x < box.width; ++x) h[x] = (l[x + box.x] == k && c[x + box.x] > 0.5 * peak) ? 255 : 0;
+    }
+    cv::Mat plabels;
+    const int np = cv::connectedComponents(half, plabels, 8, CV_32S);
+    std::vector<Piece> pieces;
+    for (int p = 1; p < np; ++p) {
+      const cv::Moments mo = cv::moments(plabels == p, true);
+      if (mo.m00 < min_area) continue;
+      Piece pc;
+      pc.area = mo.m00;
+      pc.centre = cv::Point2d(mo.m10 / mo.m00 + box.x, mo.m01 / mo.m00 + box.y);
+      const double a = mo.mu20 / mo.m00, b = mo.mu11 / mo.m00, c = mo.mu02 / mo.m00;
+      const double disc = std::sqrt(std::max(0.0, 0.25 * (a - c) * (a - c) + b * b));
+      pc.major = std::sqrt(std::max(1e-12, 0.5 * (a + c) + disc));
+      pc.minor = std::sqrt(std::max(1e-12, 0.5 * (a + c) - disc));
+      pieces.push_back(pc);
+    }
+    for (size_t i = 0; i < pieces.size(); ++i) {
+      const Piece& pc = pieces[i];
+      const double d = 2 * std::sqrt(pc.area / M_PI);
+      const double elong = pc.major / pc.minor;
+      const double length = 4 * pc.major;  // full extent of a uniform ellipse along its axis
+      std::string why;
+      bool close_pair = false;
+      for (size_t j = 0; j < pieces.size(); ++j) {
+        if (j != i && cv::norm(pieces[j].centre - pc.centre) < o.merge_distance * d_nom) close_pair = true;
+      }
+      if (close_pair) {
+        why = "merged";
+      } else if (elong > o.max_elongation || pc.area > o.merge_area_ratio * area_nom) {
+        if (length > 2.6 * d_max) {
+          why = "elongated";
+        } else if (4 * pc.minor > 1.3 * d_max && elong < 1.15) {
+          why = "too large";
+        } else {
+          why = "merged";
+        }
+      } else if (d < d_min) {
+        why = "too small";
+      } else if (d > d_max) {
+        why = "too large";
+      }
+      cands.push_back({pc.centre, d, peak, why});
+    }
+  }
+
+  // 5, 6. Sub-pixel centres and covariances of the candidates left.
+  const double r_nom = 0.5 * d_nom;
+  for (size_t i = 0; i < cands.size(); ++i) {
+    Candidate& c = cands[i];
+    const cv::Point2d full = c.centre + cv::Point2d(offset);
+    if (!c.why.empty()) {
+      det.rejected.push_back({full, c.diameter, c.why});
+      continue;
+    }
+    double nn = 3.0 * d_max + 8.0;
+    for (size_t j = 0; j < cands.size(); ++j) {
+      if (j != i) nn = std::min(nn, cv::norm(cands[j].centre - c.centre));
+    }
+    cv::Point2d q = c.centre;
+    double r_half = 0;
+    CentroidNoise noise;
+    noise.correlation_factor = det.correlation_factor;
+    noise.rho1 = det.noise_rho1;
+    const bool refined =
+        RefineCentroid(f, fov.refine_valid, /*dark=*/true, nn, 1.5 * r_nom + 2.0, &q, &r_half, &noise);
+    if (!refined) {
+      // Where the disc or ring reaches the invalid area, the rim is the reason.
+      const cv::Point ip(static_cast<int>(std::lround(c.centre.x)), static_cast<int>(std::lround(c.centre.y)));
+      bool near_rim = false;
+      const int rr = static_cast<int>(std::ceil(r_nom + 4));
+      for (int y = ip.y - rr; y <= ip.y + rr && !near_rim; ++y) {
+        for (int x = ip.x - rr; x <= ip.x + rr; ++x) {
+          if (x < 0 || y < 0 || x >= f.cols || y >= f.rows || !fov.refine_valid.at<uint8_t>(y, x)) {
+            near_rim = true;
+            break;
+          }
+        }
+      }
+      det.rejected.push_back({full, c.diameter, near_rim ? "field-of-view border" : "refinement failed"});
+      continue;
+    }
+    if (cv::norm(q - c.centre) > std::max(1.5, 0.25 * d_nom)) {
+      det.rejected.push_back({full, c.diameter, "refinement failed"});
+      continue;
+    }
+    MarkerBlob b;
+    b.uv_px = q + cv::Point2d(offset);
+    b.covariance_px2 = noise.covariance_px2;
+    b.diameter_px = 2 * r_half;
+    b.contrast = noise.peak_contrast;
+    det.blobs.push_back(b);
+  }
+  det.ok = true;
+  return det;
+}
+
+}  // namespace carmba

@@ -1,0 +1,100 @@
+// Detection of an object's metal markers (spheres) in an X-ray view: blobs, not a grid.
+//
+// Pipeline per image (DetectMarkerBlobs):
+//   1. Float grey levels and the field of view: the grid detector's steps (detect/detect_steps.h:
+//      ToFloatGrey, FindFieldOfView with `fov` = DetectionOptions' roi / circle / auto mask).
+//   2. Expected diameter D px: `diameter_px` [min, max], or `diameter_mm` x `px_per_mm` (the
+//      nominal magnification at the object: focal length / source-to-object distance, i.e.
+//      SID / SOD / detector pitch) within +-`diameter_tolerance`.
+//   3. Contrast image: 1 - (the flat-fielded search image of the grid detector, over 2.4 D_max) /
+//      255, the attenuation of features narrower than ~2.4 D_max; anatomy, fall-off, heel and
+//      glare become 0. Its noise level s: 1.4826 MAD inside the field. Components above
+//      max(4 s, 0.3 min_contrast) (8-connected) are the candidates.
+//   4. Per candidate: its peak contrast and its half-peak region (the pixels of the component
+//      above half its peak), split into connected pieces. Rejected, with the reason listed:
+//        "low contrast"          peak < max(8 s, min_contrast) (bone edges, soft tissue, noise);
+//        "too small" / "too large"   the half-peak piece's equivalent diameter outside
+//                                  [D_min, D_max] (too large and round: other metal);
+//        "elongated"             axis ratio > max_elongation and longer than 2.6 D_max
+//                                  (a wire, a bone edge, a catheter);
+//        "merged"                two markers overlapping: one piece with an axis ratio >
+//                                  max_elongation or an area above merge_area_ratio x the
+//                                  expected one, up to twice the diameter long; or two pieces of
+//                                  one candidate whose centres are closer than merge_distance x D
+//                                  (both flagged). A merged blob is never used: its centroid is
+//                                  neither marker's;
+//        "field-of-view border"  the blob's disc reaches the mask border;
+//        "refinement failed"     no centroid, or the centroid moved by more than max(1.5 px, D/4)
+//                                  from the piece's centre (pulled by an edge in its ring).
+//   5. Sub-pixel centre: the calibration detector's centroid (RefineCentroid: flat-field contrast
+//      over a disc, background plane on a ring), with the distance to the nearest other candidate
+//      bounding its window.
+//   6. Covariance (2x2, px^2) per centre from the local image noise (detect_steps.h
+//      CentroidNoise): the ring's pixel noise, scaled for quantum noise inside the disc, with
+//      the noise's correlation measured once per image from horizontal pixel differences at
+//      lags 1 and 2 inside the field (var d2 / var d1 = 1 + rho + rho^2 + rho^3 for a Gaussian
+//      correlation rho^(k^2); F = sum over lags |k| <= 4 of rho^(kx^2 + ky^2); rho = 0, F = 1
+//      for white noise). Checked against a seeded Monte Carlo (tests/detect/marker_views_test.cc
+//      MarkerBlobs.CovarianceAgreesWithMonteCarlo).
+// Polarity: dark blobs (metal on a bright background, the X-ray convention of carmba's images).
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <string>
+#include <vector>
+
+#include "detect/grid_detector.h"
+
+namespace carmba {
+
+class YamlMap;
+
+struct MarkerBlobOptions {
+  // Expected diameter: [min, max] px, or (when empty) diameter_mm x px_per_mm +- tolerance.
+  std::vector<double> diameter_px;
+  double diameter_mm = 0;
+  double px_per_mm = 0;  // focal length (px) / source-to-object distance (mm)
+  double diameter_tolerance = 0.35;
+  // Contrast (attenuation 1 - I / background) a marker reaches at least; 0 = noise-based only.
+  double min_contrast = 0.05;
+  double max_elongation = 1.3;    // axis ratio of a single marker's half-peak region
+  double merge_area_ratio = 1.6;  // half-peak area / expected area above which it is two
+  double merge_distance = 1.25;   // pieces closer than this x D are one merged blob
+  // Field of view / region of interest (only roi_px, fov_circle_px, auto_fov_mask,
+  // fov_margin_px are used).
+  DetectionOptions fov;
+
+  bool Check(std::string* error) const;
+  // [min, max] expected diameter in px.
+  std::pair<double, double> DiameterRangePx() const;
+};
+// Reads the keys above (names as fields; `fov` keys at the top level) from a YAML map.
+void ReadMarkerBlobOptions(YamlMap& map, MarkerBlobOptions* options);
+
+struct MarkerBlob {
+  cv::Point2d uv_px;  // full-image pixel coordinates
+  cv::Matx22d covariance_px2 = cv::Matx22d::zeros();
+  double diameter_px = 0;  // half-contrast diameter
+  double contrast = 0;     // peak attenuation
+};
+
+struct MarkerBlobDetection {
+  bool ok = false;
+  std::string reason;                  // why nothing could be detected (empty when ok)
+  std::vector<MarkerBlob> blobs;       // accepted candidates
+  std::vector<RejectedBlob> rejected;  // with the reason (grid_detector.h)
+  double noise_contrast = 0;           // s of step 3
+  double correlation_factor = 1;       // F of step 6
+  double noise_rho1 = 0;               // rho of step 6 (neighbouring pixels' noise correlation)
+  cv::Point2d fov_centre;
+  double fov_radius = 0;               // 0: no circular field found
+};
+
+// Detects marker blobs in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
+MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOptions& options);
+
+// The noise correlation factor F of step 6 for a float image inside `mask`, and rho (`rho1`).
+double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1 = nullptr);
+
+}  // namespace carmba

@@ -1,0 +1,327 @@
+#include "detect/marker_views.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <Eigen/Eigenvalues>
+#include <cctype>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include "detect/detect_steps.h"
+#include "geometry/rotation.h"
+#include "sim/dicom_view.h"
+#include "util/yaml_reader.h"
+
+namespace carmba {
+
+bool ObjectViewsOptions::Check(std::string* error) const {
+  if (!(source_to_object_mm >= 0 && source_to_object_mm < 1e4)) {
+    *error = "source_to_object_mm: expected 0 (unknown) .. 10000 mm";
+    return false;
+  }
+  if (!(sigma_floor_px >= 0 && sigma_floor_px < 100)) {
+    *error = "sigma_floor_px: expected 0 .. 100 px";
+    return false;
+  }
+  if (blobs.diameter_px.empty() && !(blobs.diameter_mm > 0)) {
+    *error = "marker diameter: expected diameter_px [min, max] or diameter_mm";
+    return false;
+  }
+  return correspondence.Check(error);
+}
+
+void ReadObjectViewsOptions(YamlMap& m, ObjectViewsOptions* o) {
+  ReadMarkerBlobOptions(m, &o->blobs);
+  m.GetNonNegative("source_to_object_mm", &o->source_to_object_mm);
+  m.GetNonNegative("sigma_floor_px", &o->sigma_floor_px);
+  m.Get("use_nominal_geometry", &o->use_nominal_geometry);
+  if (m.Has("correspondence")) {
+    YamlMap& c = m.Map("correspondence");
+    c.GetPositive("gate_px", &o->correspondence.gate_px);
+    c.GetPositive("predict_gate_px", &o->correspondence.predict_gate_px);
+    c.GetPositive("accept_rms_px", &o->correspondence.accept_rms_px);
+    c.Get("min_markers", &o->correspondence.min_markers);
+    c.GetNonNegative("min_fraction", &o->correspondence.min_fraction);
+    c.GetNonNegative("px_per_mm", &o->correspondence.px_per_mm);
+    c.GetNonNegative("scale_tolerance", &o->correspondence.scale_tolerance);
+    c.GetNonNegative("ambiguity_margin_px", &o->correspondence.ambiguity_margin_px);
+    c.Get("max_blobs", &o->correspondence.max_blobs);
+  }
+}
+
+double IsotropicSigmaPx(const Eigen::Matrix2d& C, double floor_px) {
+  const double lmax = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(C, Eigen::EigenvaluesOnly).eigenvalues()(1);
+  return std::sqrt(std::max(0.0, lmax) + floor_px * floor_px);
+}
+
+std::vector<MarkerObservation> LabelledObservations(const ObjectView& view) {
+  std::vector<MarkerObservation> out;
+  if (!view.labelled) return out;
+  for (size_t i = 0; i < view.detection.blobs.size(); ++i) {
+    if (view.marker_id_of_blob[i] < 0) continue;
+    const MarkerBlob& b = view.detection.blobs[i];
+    MarkerObservation o;
+    o.marker_id = view.marker_id_of_blob[i];
+    o.uv_px = Eigen::Vector2d(b.uv_px.x, b.uv_px.y);
+    o.covariance_px2 << b.covariance_px2(0, 0), b.covariance_px2(0, 1), b.covariance_px2(1, 0),
+        b.covariance_px2(1, 1);
+    out.push_back(o);
+  }
+  std::sort(out.begin(), out.end(),
+            [](const MarkerObservation& a, const MarkerObservation& b) { return a.marker_id < b.marker_id; });
+  return out;
+}
+
+std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double floor_px) {
+  std::vector<PoseView> out;
+  for (const ObjectView& v : views) {
+    if (!v.labelled) continue;
+    PoseView pv;
+    pv.id = v.name;
+    for (const MarkerObservation& o : LabelledObservations(v)) {
+      pv.observations.push_back({o.marker_id, o.uv_px, IsotropicSigmaPx(o.covariance_px2, floor_px)});
+    }
+    out.push_back(pv);
+  }
+  return out;
+}
+
+namespace {
+
+Pose6 PoseFromRigid(const sim::Rigid3& r) {
+  Pose6 p;
+  p.head<3>() = RvecFromRotation(r.R);
+  p.tail<3>() = r.t;
+  return p;
+}
+
+sim::Rigid3 RigidFromPose(const Pose6& p) {
+  sim::Rigid3 r;
+  r.R = RotationFromRvec(p.head<3>());
+  r.t = p.tail<3>();
+  return r;
+}
+
+}  // namespace
+
+StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<std::string>& files,
+                                                            const Camera& camera,
+                                                            const std::vector<Marker>& markers,
+                                                            const ObjectViewsOptions& o) {
+  std::string err;
+  if (!o.Check(&err)) return Status::Error("object views: " + err);
+  std::vector<Eigen::Vector3d> P;
+  for (const Marker& m : markers) P.push_back(m.p_in_object);
+  std::vector<ObjectView> views;
+  int ref = -1;  // a labelled view with a nominal pose
+  for (const std::string& file : files) {
+    auto named = ReadImageViews(file);
+    if (!named.ok()) return named.status();
+    for (const NamedImage& ni : *named) {
+      ObjectView v;
+      v.name = ni.name;
+      v.image = ni.image;
+      if (v.image.cols != camera.width || v.image.rows != camera.height) {
+        return Status::Error(v.name + ": image size " + std::to_string(v.image.cols) + "x" +
+                             std::to_string(v.image.rows) + " differs from the camera's " +
+                             std::to_string(camera.width) + "x" + std::to_string(camera.height));
+      }
+      std::optional<double> sod;
+      if (ni.geometry) {
+        auto nominal = sim::NominalViewFromDicom(*ni.geometry, v.image.cols, v.image.rows, v.name);
+        if (!nominal.ok()) return nominal.status();
+        if (o.use_nominal_geometry) v.nominal_cam_from_patient = nominal->cam_from_patient;
+        if (ni.geometry->sod_mm) {
+          sod = *ni.geometry->sod_mm;
+        } else if (ni.geometry->sid_mm && ni.geometry->magnification) {
+          sod = *ni.geometry->sid_mm / *ni.geometry->magnification;
+        }
+      }
+      MarkerBlobOptions bo = o.blobs;
+      if (bo.diameter_px.empty() && !(bo.px_per_mm > 0)) {
+        const double z = sod ? *sod : o.source_to_object_mm;
+        if (!(z > 0)) {
+          return Status::Error(v.name + ": diameter_mm needs the magnification: give px_per_mm or "
+                               "source_to_object_mm (no Distance Source to Patient (0018,1111) in the image)");
+        }
+        bo.px_per_mm = camera.params[kFx] / z;
+      }
+      v.px_per_mm = bo.px_per_mm;
+      v.detection = DetectMarkerBlobs(v.image, bo);
+      if (!v.detection.ok) {
+        v.skipped = v.detection.reason;
+        views.push_back(std::move(v));
+        continue;
+      }
+      std::vector<Eigen::Vector2d> uv;
+      for (const MarkerBlob& b : v.detection.blobs) uv.emplace_back(b.uv_px.x, b.uv_px.y);
+      std::optional<Pose6> predicted;
+      if (ref >= 0 && v.nominal_cam_from_patient) {
+        const ObjectView& r = views[ref];
+        const sim::Rigid3 patient_from_object =
+            r.nominal_cam_from_patient->Inverse() * RigidFromPose(r.labelling.cam_from_object);
+        predicted = PoseFromRigid(*v.nominal_cam_from_patient * patient_from_object);
+      }
+      CorrespondenceOptions co = o.correspondence;
+      if (co.px_per_mm == 0) {
+        // The nominal magnification: the blob options', else fx / SOD when the file has it.
+        co.px_per_mm = bo.diameter_px.empty() ? bo.px_per_mm : sod ? camera.params[kFx] / *sod : 0.0;
+      }
+      auto lab = LabelMarkerBlobs(camera, P, uv, co, predicted);
+      if (!lab.ok()) {
+        if (lab.status().message().rfind("ambiguous", 0) == 0) {
+          return Status::Error(v.name + ": " + lab.status().message());
+        }
+        v.skipped = lab.status().message();
+        views.push_back(std::move(v));
+        continue;
+      }
+      v.labelled = true;
+      v.labelling = *lab;
+      v.marker_id_of_blob.assign(uv.size(), -1);
+      for (size_t i = 0; i < uv.size(); ++i) {
+        if (lab->marker_of_blob[i] >= 0) v.marker_id_of_blob[i] = markers[lab->marker_of_blob[i]].id;
+      }
+      views.push_back(std::move(v));
+      if (ref < 0 && views.back().nominal_cam_from_patient) ref = static_cast<int>(views.size()) - 1;
+    }
+  }
+  int labelled = 0;
+  std::ostringstream why;
+  for (const ObjectView& v : views) {
+    labelled += v.labelled;
+    if (!v.labelled) why << (why.tellp() > 0 ? "; " : "") << v.name << ": " << v.skipped;
+  }
+  if (views.empty()) return Status::Error("no object views in the images");
+  if (labelled == 0) return Status::Error("no view could be labelled (" + why.str() + ")");
+  return views;
+}
+
+std::string MarkerObservationsCsv(const std::vector<ObjectView>& views) {
+  std::ostringstream os;
+  os.precision(10);
+  os << "# carmba marker observations: detected blobs labelled with CT markers\n"
+        "# u_px, v_px: sub-pixel centre (pixel (0,0) = centre of the top-left pixel); cov_*: its 2x2 "
+        "covariance (px^2) from the local image noise\n"
+        "view,marker,u_px,v_px,cov_uu,cov_uv,cov_vv\n";
+  for (const ObjectView& v : views) {
+    for (const MarkerObservation& o : LabelledObservations(v)) {
+      os << v.name << "," << o.marker_id << "," << o.uv_px.x() << "," << o.uv_px.y() << ","
+         << o.covariance_px2(0, 0) << "," << o.covariance_px2(0, 1) << "," << o.covariance_px2(1, 1) << "\n";
+    }
+  }
+  return os.str();
+}
+
+nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const ObjectView& v : views) {
+    nlohmann::json j;
+    j["view"] = v.name;
+    j["blobs"] = v.detection.blobs.size();
+    j["labelled"] = v.labelled;
+    if (!v.labelled) j["skipped"] = v.skipped;
+    if (v.labelled) {
+      j["markers_labelled"] = v.labelling.num_labelled;
+      j["method"] = v.labelling.method;
+      j["rms_px"] = v.labelling.rms_px;
+      j["hypotheses"] = v.labelling.hypotheses;
+      int unlabelled = 0;
+      for (int id : v.marker_id_of_blob) unlabelled += id < 0;
+      j["blobs_not_markers"] = unlabelled;
+      if (v.labelling.second_num_labelled > 0) {
+        j["second_best"] = {{"markers", v.labelling.second_num_labelled}, {"rms_px", v.labelling.second_rms_px}};
+      }
+    }
+    j["px_per_mm"] = v.px_per_mm;
+    j["noise_correlation_factor"] = v.detection.correlation_factor;
+    nlohmann::json rej = nlohmann::json::array();
+    for (const RejectedBlob& b : v.detection.rejected) {
+      rej.push_back({{"u_px", b.uv_px.x}, {"v_px", b.uv_px.y}, {"diameter_px", b.diameter_px}, {"why", b.why}});
+    }
+    j["rejected"] = rej;
+    out.push_back(j);
+  }
+  return out;
+}
+
+std::string ObjectViewsMarkdown(const std::vector<ObjectView>& views) {
+  std::ostringstream os;
+  os.precision(3);
+  os << "\n## Marker detection and labelling\n\n"
+        "| view | blobs | labelled | not markers | method | RMS px | rejected |\n|---|---|---|---|---|---|---|\n";
+  for (const ObjectView& v : views) {
+    std::map<std::string, int> reasons;
+    for (const RejectedBlob& b : v.detection.rejected) ++reasons[b.why];
+    std::string rej;
+    for (const auto& [why, k] : reasons) rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
+    if (!v.labelled) {
+      os << "| " << v.name << " | " << v.detection.blobs.size() << " | skipped: " << v.skipped << " | | | | "
+         << rej << " |\n";
+      continue;
+    }
+    int unlabelled = 0;
+    for (int id : v.marker_id_of_blob) unlabelled += id < 0;
+    os << "| " << v.name << " | " << v.detection.blobs.size() << " | " << v.labelling.num_labelled << " | "
+       << unlabelled << " | " << v.labelling.method << " | " << v.labelling.rms_px << " | " << rej << " |\n";
+  }
+  os << "\nPixel sigma per observation in the bundle adjustment: sqrt of the larger eigenvalue of the "
+        "blob's 2x2 covariance (the engine whitens each observation isotropically).\n";
+  return os.str();
+}
+
+std::string OverlayFileName(const std::string& name) {
+  std::string file = name, frame;
+  const size_t hash = name.rfind("#frame");
+  if (hash != std::string::npos) file = name.substr(0, hash), frame = "_frame" + name.substr(hash + 6);
+  std::string stem = file.substr(file.find_last_of('/') == std::string::npos ? 0 : file.find_last_of('/') + 1);
+  const size_t dot = stem.rfind('.');
+  if (dot != std::string::npos && dot > 0) stem = stem.substr(0, dot);
+  for (char& c : stem) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-')) c = '_';
+  }
+  return "overlay_" + stem + frame + ".png";
+}
+
+cv::Mat DrawMarkerOverlay(const ObjectView& v,
+                          const Camera& camera,
+                          const std::vector<Marker>& markers,
+                          const std::optional<Pose6>& cam_from_object) {
+  cv::Mat out = StretchedColourImage(v.image);
+  const double scale = std::max(0.35, std::min(out.cols, out.rows) / 1400.0);
+  const cv::Scalar green(0, 200, 0), red(0, 0, 255), yellow(0, 220, 255), cyan(255, 255, 0);
+  if (cam_from_object) {
+    for (const Marker& m : markers) {
+      Eigen::Vector2d q;
+      if (!ProjectPoint(camera.params.data(), cam_from_object->data(), m.p_in_object.data(), q.data())) continue;
+      cv::drawMarker(out, cv::Point2d(q.x(), q.y()), cyan, cv::MARKER_CROSS, 14, 1, cv::LINE_AA);
+    }
+  }
+  for (size_t i = 0; i < v.detection.blobs.size(); ++i) {
+    const MarkerBlob& b = v.detection.blobs[i];
+    const int id = v.labelled ? v.marker_id_of_blob[i] : -1;
+    const double r = std::max(4.0, 0.5 * b.diameter_px + 2);
+    cv::circle(out, b.uv_px, static_cast<int>(std::lround(r)), id >= 0 ? green : yellow, 1, cv::LINE_AA);
+    cv::putText(out, id >= 0 ? std::to_string(id) : std::string("not a marker"), b.uv_px + cv::Point2d(r + 2, -r),
+                cv::FONT_HERSHEY_SIMPLEX, (id >= 0 ? 1.0 : 0.8) * scale, id >= 0 ? green : yellow, 1, cv::LINE_AA);
+  }
+  for (const RejectedBlob& b : v.detection.rejected) {
+    cv::drawMarker(out, b.uv_px, red, cv::MARKER_TILTED_CROSS, 10, 1, cv::LINE_AA);
+    cv::putText(out, b.why, b.uv_px + cv::Point2d(6, 12), cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale, red, 1,
+                cv::LINE_AA);
+  }
+  std::ostringstream head;
+  head.precision(3);
+  if (v.labelled) {
+    head << v.labelling.num_labelled << " markers labelled (" << v.labelling.method << "), RMS "
+         << v.labelling.rms_px << " px; " << v.detection.rejected.size() << " rejected";
+  } else {
+    head << "skipped: " << v.skipped;
+  }
+  cv::putText(out, head.str(), cv::Point(4, static_cast<int>(4 + 28 * scale)), cv::FONT_HERSHEY_SIMPLEX, scale,
+              v.labelled ? green : yellow, 1, cv::LINE_AA);
+  return out;
+}
+
+}  // namespace carmba

@@ -1,0 +1,109 @@
+// Object views from X-ray images: marker blobs (detect/marker_blobs.h) labelled with the CT
+// markers (pose/marker_correspondence.h) in every view of a set of image files, one rigid object.
+//
+// Per view, in file order (a multi-frame DICOM file gives one view per frame):
+//   1. Blobs. With `diameter_mm` and no px range, the magnification is px_per_mm if given, else
+//      fx / SOD with the DICOM frame's Distance Source to Patient (0018,1111) (or SID /
+//      Estimated Radiographic Magnification Factor), else fx / source_to_object_mm; none of these
+//      is an error naming the view.
+//   2. Labels. When this view and an already labelled view both have a nominal cam_from_patient
+//      (DICOM positioner angles and distances, sim/dicom_view.h), the object's pose is predicted
+//      from it: cam_from_object_v = cam_from_patient_v * patient_from_cam_r * cam_from_object_r
+//      (the nominal geometry's relative C-arm motion applied to the labelled view r; the
+//      isocentre offset cancels). Else, or when the prediction is not accepted, the full
+//      hypothesise-and-verify search runs. One set of CT markers for all views: the labels are
+//      consistent across views by construction (one rigid object).
+//   3. A view with fewer than min_markers blobs, or whose blobs no labelling explains, is skipped
+//      with the reason; the others go on.
+// Errors (the whole set, one line naming the view or file): an unreadable / corrupt image or a
+// missing file; images of a size other than the camera's; an ambiguous labelling (a symmetric
+// layout: refusing to guess); no view labelled (with each view's reason: the fiducials of another
+// object, a wrong camera, or too few markers).
+//
+// Pixel sigma for the bundle adjustment: each blob's 2x2 covariance C is reduced to an isotropic
+// sigma = sqrt(lambda_max(C) + sigma_floor_px^2) (the engine whitens each observation by one
+// sigma: the larger eigenvalue is the conservative choice; the anisotropy of a round blob's
+// centroid is small).
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "detect/marker_blobs.h"
+#include "pose/marker_correspondence.h"
+#include "problem/pose_problem.h"
+#include "sim/carm_geometry.h"
+#include "util/status.h"
+
+namespace carmba {
+
+struct ObjectViewsOptions {
+  MarkerBlobOptions blobs;
+  double source_to_object_mm = 0;  // for diameter_mm when px_per_mm and DICOM SOD are absent
+  CorrespondenceOptions correspondence;
+  double sigma_floor_px = 0;       // added in quadrature to each blob's sigma (model error)
+  bool use_nominal_geometry = true;
+
+  bool Check(std::string* error) const;
+};
+class YamlMap;
+// Reads the blob keys, source_to_object_mm, sigma_floor_px, use_nominal_geometry and a
+// `correspondence:` map (gate_px, predict_gate_px, accept_rms_px, min_markers, min_fraction,
+// ambiguity_margin_px, max_blobs).
+void ReadObjectViewsOptions(YamlMap& map, ObjectViewsOptions* options);
+
+struct ObjectView {
+  std::string name;   // file, or file#frameN
+  cv::Mat image;      // as read (for overlays)
+  MarkerBlobDetection detection;
+  bool labelled = false;
+  std::string skipped;  // why not labelled
+  MarkerLabelling labelling;
+  std::vector<int> marker_id_of_blob;  // CT marker id per blob, -1 = none
+  std::optional<sim::Rigid3> nominal_cam_from_patient;
+  double px_per_mm = 0;  // the magnification used
+};
+
+// The observations of a labelled view: per labelled blob its marker id, pixel and covariance.
+struct MarkerObservation {
+  int marker_id = 0;
+  Eigen::Vector2d uv_px;
+  Eigen::Matrix2d covariance_px2;
+};
+std::vector<MarkerObservation> LabelledObservations(const ObjectView& view);
+// sqrt(lambda_max(C) + floor^2).
+double IsotropicSigmaPx(const Eigen::Matrix2d& covariance_px2, double sigma_floor_px);
+
+StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<std::string>& files,
+                                                            const Camera& camera,
+                                                            const std::vector<Marker>& markers,
+                                                            const ObjectViewsOptions& options);
+
+// The labelled views as pose-problem views (observations with their per-blob sigma).
+std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double sigma_floor_px);
+
+// observations.csv: `view,marker,u_px,v_px,cov_uu,cov_uv,cov_vv` (px, px^2), one row per labelled
+// blob, after '#' comment lines (the columns' meaning).
+std::string MarkerObservationsCsv(const std::vector<ObjectView>& views);
+// Per view: blobs found, markers labelled (method, RMS, hypotheses), unlabelled blobs, rejected
+// candidates by reason, or why it was skipped.
+nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views);
+std::string ObjectViewsMarkdown(const std::vector<ObjectView>& views);
+// A file name for a view's overlay: overlay_<stem>[_frameN].png.
+std::string OverlayFileName(const std::string& view_name);
+
+// An overlay for checking by eye: the image stretched to 1..99 %, labelled blobs (green circle and
+// marker id), unlabelled accepted blobs (yellow, "not a marker"), rejected candidates (red cross
+// and reason), the markers reprojected with `cam_from_object` when given (cyan +), and a first
+// line with the view's result or the reason it was skipped.
+cv::Mat DrawMarkerOverlay(const ObjectView& view,
+                          const Camera& camera,
+                          const std::vector<Marker>& markers,
+                          const std::optional<Pose6>& cam_from_object);
+
+}  // namespace carmba

@@ -1,0 +1,416 @@
+#include "pose/marker_correspondence.h"
+
+#include <ceres/rotation.h>
+#include <opencv2/calib3d.hpp>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "camera/camera_model.h"
+
+namespace carmba {
+
+bool CorrespondenceOptions::Check(std::string* error) const {
+  if (!(gate_px > 0 && gate_px < 1000) || !(predict_gate_px >= gate_px && predict_gate_px < 10000)) {
+    *error = "gate_px: expected 0 < gate_px <= predict_gate_px < 10000";
+    return false;
+  }
+  if (!(accept_rms_px > 0 && accept_rms_px <= gate_px)) {
+    *error = "accept_rms_px: expected 0 < accept_rms_px <= gate_px";
+    return false;
+  }
+  if (min_markers < 4) {
+    *error = "min_markers: expected >= 4 (a pose and its check need 4 markers)";
+    return false;
+  }
+  if (!(px_per_mm >= 0 && px_per_mm < 1000) || !(scale_tolerance >= 0 && scale_tolerance < 10)) {
+    *error = "px_per_mm (0 = unknown .. 1000) and scale_tolerance (0 .. 10) expected";
+    return false;
+  }
+  if (!(min_fraction >= 0 && min_fraction <= 1)) {
+    *error = "min_fraction: expected 0 .. 1";
+    return false;
+  }
+  if (!(ambiguity_margin_px >= 0) || max_blobs < min_markers || max_blobs > 200) {
+    *error = "ambiguity_margin_px >= 0 and min_markers <= max_blobs <= 200 expected";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+struct Scored {
+  std::vector<int> marker_of_blob;
+  std::vector<int> blob_of_marker;
+  Pose6 pose = Pose6::Zero();
+  int num_labelled = 0;
+  double ss = 0;     // sum of squared distances of the pairs (px^2)
+  double score = 0;  // MSAC
+  int counted = 0;   // markers projecting inside the image
+  double Rms() const { return num_labelled ? std::sqrt(ss / (2.0 * num_labelled)) : 0; }
+  double ScoreRms() const { return counted ? std::sqrt(score / (2.0 * counted)) : 0; }
+};
+
+class Labeller {
+ public:
+  Labeller(const Camera& cam, const std::vector<Eigen::Vector3d>& markers,
+           const std::vector<Eigen::Vector2d>& blobs, const CorrespondenceOptions& o)
+      : cam_(cam), P_(markers), q_(blobs), o_(o) {
+    proj_.resize(P_.size());
+    ok_.resize(P_.size());
+  }
+
+  // Projects all markers; false entries in ok_ for points behind the source.
+  void Project(const Pose6& pose) {
+    for (size_t a = 0; a < P_.size(); ++a) {
+      ok_[a] = ProjectPoint(cam_.params.data(), pose.data(), P_[a].data(), proj_[a].data()) &&
+               proj_[a].allFinite();
+    }
+  }
+  bool InImage(size_t a) const {
+    return ok_[a] && proj_[a].x() >= -0.5 && proj_[a].y() >= -0.5 && proj_[a].x() <= cam_.width - 0.5 &&
+           proj_[a].y() <= cam_.height - 0.5;
+  }
+
+  // Markers with some blob within `gate` of their projection (after Project).
+  int CountNear(double gate) const {
+    const double g2 = gate * gate;
+    int count = 0;
+    for (size_t a = 0; a < P_.size(); ++a) {
+      if (!ok_[a]) continue;
+      for (const auto& q : q_) {
+        if ((q - proj_[a]).squaredNorm() < g2) {
+          ++count;
+          break;
+        }
+      }
+    }
+    return count;
+  }
+
+  // Greedy gated pairing (after Project) and the MSAC score with gate_px.
+  Scored Pair(const Pose6& pose, double gate) const {
+    Scored s;
+    s.pose = pose;
+    s.marker_of_blob.assign(q_.size(), -1);
+    s.blob_of_marker.assign(P_.size(), -1);
+    struct Cand {
+      double d2;
+      int a, i;
+    };
+    std::vector<Cand> cands;
+    const double g2 = gate * gate;
+    for (size_t a = 0; a < P_.size(); ++a) {
+      if (!ok_[a]) continue;
+      for (size_t i = 0; i < q_.size(); ++i) {
+        const double d2 = (q_[i] - proj_[a]).squaredNorm();
+        if (d2 < g2) cands.push_back({d2, static_cast<int>(a), static_cast<int>(i)});
+      }
+    }
+    std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.d2 < y.d2; });
+    for (const Cand& c : cands) {
+      if (s.blob_of_marker[c.a] >= 0 || s.marker_of_blob[c.i] >= 0) continue;
+      s.blob_of_marker[c.a] = c.i;
+      s.marker_of_blob[c.i] = c.a;
+      ++s.num_labelled;
+      s.ss += c.d2;
+    }
+    const double G2 = o_.gate_px * o_.gate_px;
+    for (size_t a = 0; a < P_.size(); ++a) {
+      const int i = s.blob_of_marker[a];
+      if (i >= 0) {
+        const double d2 = (q_[i] - proj_[a]).squaredNorm();
+        s.score += std::min(d2, G2);
+        ++s.counted;
+      } else if (InImage(a)) {
+        s.score += G2;
+        ++s.counted;
+      }
+    }
+    return s;
+  }
+
+  // Gauss-Newton on the pose over the pairs of `s`.
+  Pose6 Refine(const Scored& s) const {
+    Pose6 pose = s.pose;
+    for (int it = 0; it < 8; ++it) {
+      Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+      Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+      for (size_t a = 0; a < P_.size(); ++a) {
+        const int i = s.blob_of_marker[a];
+        if (i < 0) continue;
+        Eigen::Vector2d uv;
+        Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J;
+        if (!ProjectPointWithJac(cam_.params.data(), pose.data(), P_[a].data(), uv.data(), nullptr,
+                                 J.data(), nullptr)) {
+          return s.pose;
+        }
+        const Eigen::Vector2d r = uv - q_[i];
+        H += J.transpose() * J;
+        g += J.transpose() * r;
+      }
+      H.diagonal() *= 1.0 + 1e-9;
+      const Eigen::Matrix<double, 6, 1> step = H.ldlt().solve(-g);
+      if (!step.allFinite()) return s.pose;
+      pose += step;
+      if (step.norm() < 1e-10 * (1 + pose.norm())) break;
+    }
+    return pose;
+  }
+
+  // Pair with `gate`, refine, re-pair with gate_px (twice).
+  Scored Verify(const Pose6& pose, double gate) {
+    Project(pose);
+    Scored s = Pair(pose, gate);
+    for (int round = 0; round < 2 && s.num_labelled >= 3; ++round) {
+      const Pose6 refined = Refine(s);
+      Project(refined);
+      s = Pair(refined, o_.gate_px);
+    }
+    return s;
+  }
+
+  bool Accepted(const Scored& s) const {
+    if (!(s.num_labelled >= o_.min_markers && s.Rms() <= o_.accept_rms_px &&
+          s.num_labelled >= o_.min_fraction * static_cast<double>(P_.size()))) {
+      return false;
+    }
+    if (o_.px_per_mm > 0) {
+      // The object's magnification (fx / depth of the markers' centroid) near the nominal one.
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const auto& p : P_) c += p;
+      c /= static_cast<double>(P_.size());
+      Eigen::Vector3d c_cam;
+      ceres::AngleAxisRotatePoint(s.pose.data(), c.data(), c_cam.data());
+      const double z = c_cam.z() + s.pose[5];
+      const double mag = z > 0 ? cam_.params[kFx] / z : 0;
+      const double k = 1 + o_.scale_tolerance;
+      if (!(mag > o_.px_per_mm / k && mag < o_.px_per_mm * k)) return false;
+    }
+    return true;
+  }
+
+  const std::vector<Eigen::Vector3d>& markers() const { return P_; }
+
+ private:
+  const Camera& cam_;
+  const std::vector<Eigen::Vector3d>& P_;
+  const std::vector<Eigen::Vector2d>& q_;
+  const CorrespondenceOptions& o_;
+  std::vector<Eigen::Vector2d> proj_;
+  std::vector<char> ok_;
+};
+
+// Two labellings contradict each other: a blob with two different markers or a marker with two
+// different blobs.
+bool Contradict(const Scored& x, const Scored& y) {
+  for (size_t i = 0; i < x.marker_of_blob.size(); ++i) {
+    if (x.marker_of_blob[i] >= 0 && y.marker_of_blob[i] >= 0 && x.marker_of_blob[i] != y.marker_of_blob[i]) return true;
+  }
+  for (size_t a = 0; a < x.blob_of_marker.size(); ++a) {
+    if (x.blob_of_marker[a] >= 0 && y.blob_of_marker[a] >= 0 && x.blob_of_marker[a] != y.blob_of_marker[a]) return true;
+  }
+  return false;
+}
+
+// Marker triples for the search: disjoint ones first, compact (smallest perimeter) among the
+// well-shaped ones (roundness 4 sqrt(3) area / sum of squared sides >= 0.3; equilateral = 1),
+// so that the magnification bound prunes most blob triples; then further ones, at most 8.
+std::vector<std::array<int, 3>> MarkerTriples(const std::vector<Eigen::Vector3d>& P, int* num_disjoint) {
+  const int m = static_cast<int>(P.size());
+  struct T {
+    double key;
+    std::array<int, 3> idx;
+  };
+  std::vector<T> all;
+  for (int a = 0; a < m; ++a) {
+    for (int b = a + 1; b < m; ++b) {
+      for (int c = b + 1; c < m; ++c) {
+        const double area = 0.5 * (P[b] - P[a]).cross(P[c] - P[a]).norm();
+        const double s2 = (P[b] - P[a]).squaredNorm() + (P[c] - P[a]).squaredNorm() + (P[c] - P[b]).squaredNorm();
+        if (!(area > 1e-6)) continue;
+        const double round = 4 * std::sqrt(3.0) * area / s2;
+        const double perimeter = (P[b] - P[a]).norm() + (P[c] - P[a]).norm() + (P[c] - P[b]).norm();
+        // Well-shaped triples by perimeter, then the others by decreasing roundness.
+        all.push_back({round >= 0.3 ? perimeter : 1e12 * (2 - round), {a, b, c}});
+      }
+    }
+  }
+  std::sort(all.begin(), all.end(), [](const T& x, const T& y) { return x.key < y.key; });
+  std::vector<std::array<int, 3>> out;
+  std::vector<char> used(m, 0);
+  for (const T& t : all) {
+    if (used[t.idx[0]] || used[t.idx[1]] || used[t.idx[2]]) continue;
+    out.push_back(t.idx);
+    for (int k : t.idx) used[k] = 1;
+  }
+  *num_disjoint = static_cast<int>(out.size());
+  for (const T& t : all) {
+    if (out.size() >= 8) break;
+    if (std::find(out.begin(), out.end(), t.idx) == out.end()) out.push_back(t.idx);
+  }
+  return out;
+}
+
+// More markers labelled, then the smaller RMS.
+bool Better(const Scored& x, const Scored& y) {
+  return x.num_labelled != y.num_labelled ? x.num_labelled > y.num_labelled : x.Rms() < y.Rms();
+}
+
+std::string Describe(const Scored& s) {
+  std::ostringstream os;
+  os.precision(3);
+  os << s.num_labelled << " markers at RMS " << s.Rms() << " px";
+  return os.str();
+}
+
+}  // namespace
+
+StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
+                                           const std::vector<Eigen::Vector3d>& markers,
+                                           const std::vector<Eigen::Vector2d>& blobs,
+                                           const CorrespondenceOptions& o,
+                                           const std::optional<Pose6>& predicted) {
+  std::string err;
+  if (!o.Check(&err)) return Status::Error("correspondence options: " + err);
+  const int n = static_cast<int>(blobs.size()), m = static_cast<int>(markers.size());
+  if (m < o.min_markers) {
+    return Status::Error(std::to_string(m) + " fiducials, at least " + std::to_string(o.min_markers) +
+                         " needed");
+  }
+  if (n < o.min_markers) {
+    return Status::Error("only " + std::to_string(n) + " marker blobs found, at least " +
+                         std::to_string(o.min_markers) + " needed");
+  }
+  if (n > o.max_blobs) {
+    return Status::Error(std::to_string(n) + " marker blobs found, more than max_blobs " +
+                         std::to_string(o.max_blobs) + " (clutter taken for markers?)");
+  }
+  Labeller lab(camera, markers, blobs, o);
+  MarkerLabelling out;
+  auto finish = [&](const Scored& s, const std::string& method) {
+    out.marker_of_blob = s.marker_of_blob;
+    out.cam_from_object = s.pose;
+    out.num_labelled = s.num_labelled;
+    out.rms_px = s.Rms();
+    out.score_px2 = s.score;
+    out.method = method;
+  };
+  if (predicted) {
+    const Scored s = lab.Verify(*predicted, o.predict_gate_px);
+    // Every blob near a projected marker used: no blob the prediction could have confused.
+    if (lab.Accepted(s)) {
+      finish(s, "predicted");
+      return out;
+    }
+  }
+
+  // Undistorted rays of the blobs.
+  std::vector<cv::Point2d> rays(n);
+  std::vector<char> ray_ok(n, 0);
+  for (int i = 0; i < n; ++i) {
+    double xy[2];
+    ray_ok[i] = UnprojectToNormalized(camera.params.data(), blobs[i].data(), xy);
+    rays[i] = cv::Point2d(xy[0], xy[1]);
+  }
+  std::vector<Scored> accepted;  // distinct accepted labellings
+  Scored best;
+  best.score = std::numeric_limits<double>::infinity();
+  Scored best_any;  // the best seen, accepted or not (for the error)
+  std::vector<cv::Point3d> obj(3);
+  std::vector<cv::Point2d> img(3);
+  std::vector<cv::Mat> rvecs, tvecs;
+  int num_disjoint = 0;
+  const auto triples = MarkerTriples(markers, &num_disjoint);
+  // Blob distances (px) for the magnification bound: a projection never makes a marker pair
+  // longer than magnification x its length.
+  const double s_max = o.px_per_mm > 0 ? o.px_per_mm * (1 + o.scale_tolerance) : 0;
+  Eigen::MatrixXd D(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) D(i, j) = (blobs[i] - blobs[j]).norm();
+  for (size_t t = 0; t < triples.size(); ++t) {
+    const auto& tri = triples[t];
+    for (int k = 0; k < 3; ++k) obj[k] = cv::Point3d(markers[tri[k]].x(), markers[tri[k]].y(), markers[tri[k]].z());
+    const double inf = std::numeric_limits<double>::infinity();
+    const double l01 = s_max > 0 ? s_max * (markers[tri[0]] - markers[tri[1]]).norm() : inf;
+    const double l02 = s_max > 0 ? s_max * (markers[tri[0]] - markers[tri[2]]).norm() : inf;
+    const double l12 = s_max > 0 ? s_max * (markers[tri[1]] - markers[tri[2]]).norm() : inf;
+    for (int i = 0; i < n; ++i) {
+      if (!ray_ok[i]) continue;
+      for (int j = 0; j < n; ++j) {
+        if (j == i || !ray_ok[j] || D(i, j) > l01) continue;
+        for (int k = 0; k < n; ++k) {
+          if (k == i || k == j || !ray_ok[k] || D(i, k) > l02 || D(j, k) > l12) continue;
+          img[0] = rays[i], img[1] = rays[j], img[2] = rays[k];
+          int ns = 0;
+          try {
+            ns = cv::solveP3P(obj, img, cv::Matx33d::eye(), cv::noArray(), rvecs, tvecs, cv::SOLVEPNP_AP3P);
+          } catch (const cv::Exception&) {
+            ns = 0;
+          }
+          ++out.hypotheses;
+          for (int s = 0; s < ns; ++s) {
+            Pose6 pose;
+            for (int c = 0; c < 3; ++c) pose[c] = rvecs[s].at<double>(c), pose[3 + c] = tvecs[s].at<double>(c);
+            if (!pose.allFinite() || !(pose[5] > 0)) continue;
+            lab.Project(pose);
+            if (lab.CountNear(o.gate_px) < o.min_markers) continue;
+            const Scored sc = lab.Verify(pose, o.gate_px);
+            if (sc.num_labelled > best_any.num_labelled ||
+                (sc.num_labelled == best_any.num_labelled && sc.Rms() < best_any.Rms())) {
+              best_any = sc;
+            }
+            if (!lab.Accepted(sc)) continue;
+            bool same = false;
+            for (Scored& a : accepted) {
+              if (!Contradict(a, sc)) {
+                same = true;
+                if (sc.score < a.score) a = sc;
+                break;
+              }
+            }
+            if (!same) accepted.push_back(sc);
+            if (!std::isfinite(best.score) || Better(sc, best)) best = sc;
+          }
+        }
+      }
+    }
+    // Stop when a labelling at least as complete as the best cannot have been missed: it leaves
+    // out at most m - best markers, so of the d disjoint triples searched at least
+    // d - (m - best) were complete in it, and a complete triple finds it.
+    if (std::isfinite(best.score) && static_cast<int>(t) + 1 <= num_disjoint &&
+        static_cast<int>(t) + 1 >= m - best.num_labelled + 1) {
+      break;
+    }
+  }
+  if (accepted.empty()) {
+    return Status::Error("no labelling of the " + std::to_string(m) + " fiducials explains the " +
+                         std::to_string(n) + " blobs (best: " +
+                         (best_any.num_labelled ? Describe(best_any) : std::string("none")) +
+                         "; needs " + std::to_string(o.min_markers) + " markers within " +
+                         std::to_string(o.accept_rms_px).substr(0, 4) +
+                         " px RMS): fiducials of another object, or a wrong camera?");
+  }
+  // The best and the best labelling contradicting it.
+  std::sort(accepted.begin(), accepted.end(), Better);
+  const Scored& b = accepted.front();
+  finish(b, "search");
+  for (size_t k = 1; k < accepted.size(); ++k) {
+    if (!Contradict(b, accepted[k])) continue;
+    out.second_num_labelled = accepted[k].num_labelled;
+    out.second_rms_px = accepted[k].Rms();
+    if (accepted[k].num_labelled >= b.num_labelled && accepted[k].Rms() - b.Rms() < o.ambiguity_margin_px) {
+      return Status::Error("ambiguous marker labelling: two labellings explain the blobs about equally "
+                           "well (" + Describe(b) + " vs " + Describe(accepted[k]) +
+                           "): the marker layout is (nearly) symmetric in this view; refusing to guess");
+    }
+    break;
+  }
+  return out;
+}
+
+}  // namespace carmba

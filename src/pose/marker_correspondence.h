@@ -1,0 +1,89 @@
+// Automatic correspondence: which blob of an X-ray view is which CT marker, from the markers'
+// CT centres (the object frame) and the calibrated camera.
+//
+// Hypothesise and verify (LabelMarkerBlobs):
+//   * predicted pose (optional, e.g. from an already labelled view and the DICOM angles' nominal
+//     relative geometry, detect/marker_views.h): project all markers, pair each with the nearest
+//     blob within `predict_gate_px` (greedy by distance, one blob per marker), refine the pose on
+//     the pairs, re-pair within `gate_px`; taken if it is accepted (below) and every blob near a
+//     projected marker is used; else the full search runs.
+//   * full search: marker triples (compact and well-shaped, disjoint first) x every ordered
+//     triple of blobs within the magnification bound (px_per_mm below) ->
+//     P3P (OpenCV's AP3P on undistorted rays) -> up to 4 poses -> a quick check that another
+//     marker projects within the gate of some blob -> project all markers -> gated greedy pairing
+//     -> pose refined on the pairs (Gauss-Newton, full camera model) and re-paired -> score.
+//     A triple of markers all found in the best labelling was searched exhaustively (every
+//     labelling that pairs those three markers with blobs has been seen), and the search stops.
+//   * A labelling is accepted when it pairs >= min_markers markers, and >= min_fraction of all
+//     markers, with RMS (per coordinate) <= accept_rms_px, and (when
+//     px_per_mm is known) its pose puts the markers' centroid at a magnification fx / z within
+//     the scale tolerance of px_per_mm: among thousands of hypotheses, a 4-marker labelling of a
+//     foreign layout fits to a few tenths of a px by chance, but at a wrong depth. The best
+//     labels the most markers, then has the smallest RMS (MSAC score, sum of min(d^2, gate^2)
+//     over markers in the image, keeps the best variant of one labelling).
+//   * the search over triples stops once d disjoint triples are done with d >= m - best + 1 (m
+//     markers, best = markers in the best labelling): a labelling at least as complete misses at
+//     most m - best markers, so one of the triples was complete in it and found it.
+//   * ambiguity: an accepted labelling that contradicts the best (a blob given two different
+//     markers, or a marker two different blobs), labels as many markers and has an RMS within
+//     ambiguity_margin_px of the best is an error naming both: the layout is (nearly) symmetric
+//     as seen by this view, and a guess could be wrong.
+// Blobs left unpaired are not labelled (spurious beads, other metal).
+#pragma once
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "geometry/pose.h"
+#include "util/status.h"
+
+namespace carmba {
+
+struct CorrespondenceOptions {
+  double gate_px = 3.0;            // pairing distance (px)
+  double predict_gate_px = 40.0;   // pairing distance around a predicted pose (px)
+  double accept_rms_px = 1.0;      // an accepted labelling's RMS per coordinate (px)
+  int min_markers = 4;             // markers a labelling must pair
+  // ... and at least this fraction of all markers (chance alignments of 4-5 markers within the
+  // gate are common among thousands of hypotheses, and a wrong pose can put the other markers
+  // outside the image; the true labelling pairs all markers but the hidden ones). A view seeing
+  // fewer (e.g. 5 of 9 markers at 0.6) is skipped as unlabelled.
+  double min_fraction = 0.6;
+  double ambiguity_margin_px = 0.5;
+  int max_blobs = 40;              // more candidate blobs is an error (the search is cubic)
+  // Nominal magnification at the object (px per mm; focal length / source-to-object distance);
+  // 0 = unknown. When known, a blob triple is tried for a marker triple only if no blob pair is
+  // longer than px_per_mm (1 + scale_tolerance) x its marker pair (a projection only shortens).
+  double px_per_mm = 0;
+  double scale_tolerance = 0.3;
+
+  bool Check(std::string* error) const;
+};
+
+struct MarkerLabelling {
+  std::vector<int> marker_of_blob;  // index into the markers, -1 = not labelled
+  Pose6 cam_from_object = Pose6::Zero();
+  int num_labelled = 0;
+  double rms_px = 0;                 // of the pairs, per coordinate
+  double score_px2 = 0;              // MSAC score
+  std::string method;                // "predicted" or "search"
+  int hypotheses = 0;                // P3P solves
+  // The best labelling that contradicts this one (for the report); num_labelled 0 when none.
+  int second_num_labelled = 0;
+  double second_rms_px = 0;
+};
+
+// Labels `blobs_uv` (px) with the `markers` (object frame, mm) seen by `camera`. Errors (one line):
+// fewer blobs than min_markers; too many blobs; no accepted labelling (with the best one found:
+// how many markers and RMS); an ambiguous labelling.
+StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
+                                           const std::vector<Eigen::Vector3d>& markers,
+                                           const std::vector<Eigen::Vector2d>& blobs_uv,
+                                           const CorrespondenceOptions& options,
+                                           const std::optional<Pose6>& predicted = std::nullopt);
+
+}  // namespace carmba

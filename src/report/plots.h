@@ -1,0 +1,75 @@
+// The plots of report.html, drawn by matplotlib: scripts/report_plots.py (embedded in the
+// library, so any working directory works) run with /usr/bin/python3 on a JSON of the data a
+// command gathered (the keys are listed at the top of the script). Plus the gatherers shared by
+// the pose and joint solves (ba/ engine results), and the report writer used by every command.
+//
+// Plot generation never fails a command: without python3 or matplotlib, or when the script
+// errs, the report still gets written, report.html says why it has no plots, and the caller
+// prints the one-line warning in ReportFiles::warning.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "ba/bundle_adjuster.h"
+#include "ba/quantities.h"
+#include "report/report_doc.h"
+
+namespace carmba {
+
+// The embedded scripts/report_plots.py (generated at configure time, src/CMakeLists.txt).
+const char* ReportPlotsScript();
+
+struct PlotOptions {
+  std::string python = "/usr/bin/python3";  // Debian's, which has python3-matplotlib
+  int timeout_s = 120;
+};
+
+struct PlotSet {
+  std::vector<ReportPlot> plots;
+  std::vector<std::string> notes;  // plots not drawn for want of data, and why
+  std::string unavailable;         // non-empty: no plots at all, and why (one line)
+  std::vector<std::string> errors; // plots that failed (a bug), "function: exception"
+};
+
+// Runs the script on `data` (`data["kind"]` says which plots). Never fails (see above).
+PlotSet MakePlots(const nlohmann::json& data, const PlotOptions& options = {});
+
+// report.md and report.html of one report, and the warning to print if the plots are missing.
+struct ReportFiles {
+  std::string markdown;
+  std::string html;
+  std::string warning;  // "" or one line, e.g. "report.html has no plots: matplotlib is not ..."
+};
+ReportFiles RenderReport(const ReportDoc& doc,
+                         const std::string& title,
+                         const nlohmann::json& plot_data,
+                         const PlotOptions& options = {});
+
+// 1-sigma projection uncertainty (worst direction, px) over an nx x ny pixel grid of a camera
+// whose intrinsics have covariance `cov` (9 x 9, LENSMODEL_OPENCV5 order, zero rows for held
+// ones): the point at `distance_mm` along each pixel's ray, fixed in the camera frame, projected
+// with the uncertain intrinsics, Cov(q) = J_q C J_q^T (intrinsics only: the calibration's own
+// uncertainty, as ba/quantities.h's centre projection). Pixels that cannot be unprojected get NaN.
+// Returns {name, distance_mm, definition, nx, ny, u[], v[], worst_px[]} for the script.
+nlohmann::json IntrinsicsProjectionUncertainty(const std::string& name,
+                                               const double* intrinsics,
+                                               const Eigen::MatrixXd& cov,
+                                               int width,
+                                               int height,
+                                               double distance_mm,
+                                               int nx = 32,
+                                               int ny = 24);
+
+// The plot data of a solved bundle adjustment: residual_views (per view, at the solution),
+// scenes (source positions of plate views in the plate frame and of object views in the object
+// frame), markers (with covariance, when estimated), cameras, projection_uncertainty (per group
+// with free intrinsics) and, if given, budget. `image_size` from the first group that has one.
+nlohmann::json BaPlotData(const ba::BaProblem& problem,
+                          const ba::BaResult& result,
+                          const std::vector<ba::BudgetRow>* budget);
+
+}  // namespace carmba
