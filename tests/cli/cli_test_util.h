@@ -81,6 +81,20 @@ inline nlohmann::json ReadJsonFile(const std::string& path) {
   return nlohmann::json::parse(ReadTextFile(path));
 }
 
+// `carmba simulate` of a shipped joint scene (configs/scenes/NAME) into `scene`, then its CT
+// fiducials (`carmba ct-fiducials`, thesis marker table) into scene/fiducials.csv. Returns the
+// failing command's stderr, or "" on success.
+inline std::string SimulateJointScene(const std::string& scene_yaml, const std::string& scene) {
+  const std::string src = CARMBA_SOURCE_DIR;
+  auto r = RunCarmba("simulate --scene " + src + "/configs/scenes/" + scene_yaml + " --out " + scene);
+  if (r.exit_code != 0) return "simulate: " + r.err;
+  r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + src +
+                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
+                "/fiducials.csv");
+  if (r.exit_code != 0) return "ct-fiducials: " + r.err;
+  return "";
+}
+
 inline int CountLines(const std::string& s) {
   int n = 0;
   for (char c : s) n += c == '\n';

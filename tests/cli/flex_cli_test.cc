@@ -30,12 +30,7 @@ std::string Replace(std::string s, const std::string& from, const std::string& t
 TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   TempDir dir;
   const std::string scene = dir.File("scene");
-  auto r = RunCarmba("simulate --scene " + kSource + "/configs/scenes/flex_joint.yaml --out " + scene);
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + kSource +
-                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
-                "/fiducials.csv");
-  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(SimulateJointScene("flex_joint.yaml", scene), "");
   const nlohmann::json truth = ReadJsonFile(scene + "/truth.json");
   // The simulator's per-view truth follows the flex (camera/carm_flex.h).
   for (const auto& v : truth.at("view_intrinsics")) {
@@ -48,7 +43,7 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
       Replace(ReadTextFile(kSource + "/problems/flex_joint_smooth.yaml"), "../out/sim/flex", scene);
   dir.Write("problem.yaml", problem);
   const std::string config = " --config " + kSource + "/configs/joint_radial.yaml";
-  r = RunCarmba("solve --problem " + dir.File("problem.yaml") + config + " --out " + dir.File("out"));
+  auto r = RunCarmba("solve --problem " + dir.File("problem.yaml") + config + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
   std::map<std::string, nlohmann::json> true_intr;

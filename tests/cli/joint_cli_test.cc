@@ -23,12 +23,7 @@ constexpr double kSigmas = 3.0;  // the issue's acceptance: within 3 sigma of th
 TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   TempDir dir;
   const std::string scene = dir.File("scene");
-  auto r = RunCarmba("simulate --scene " + kSource + "/configs/scenes/thesis_joint.yaml --out " + scene);
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + kSource +
-                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
-                "/fiducials.csv");
-  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(SimulateJointScene("thesis_joint.yaml", scene), "");
   // The shipped problem with its data paths (the demo's out/sim/joint) pointed at this scene.
   std::ifstream in(kSource + "/problems/thesis_joint.yaml");
   std::stringstream ss;
@@ -46,7 +41,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
     cs << cin.rdbuf() << "tre: true\n";
     dir.Write("config.yaml", cs.str());
   }
-  r = RunCarmba("solve --problem " + dir.File("problem.yaml") + " --config " +
+  auto r = RunCarmba("solve --problem " + dir.File("problem.yaml") + " --config " +
                 dir.File("config.yaml") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
