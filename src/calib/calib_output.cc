@@ -22,6 +22,15 @@
 
 namespace carmba {
 
+namespace {
+
+// Which pixel sigma the covariance used, as the report says it wherever it shows an uncertainty.
+std::string PixelSigmaKind(const CalibrationResult& r) {
+  return r.sigma_estimated ? "a-posteriori (estimated from the residuals, sqrt(SSR / dof))"
+                           : "a-priori (given: pixel_sigma_px)";
+}
+
+}  // namespace
 
 nlohmann::json CalibrationCameraJson(const CalibrationRun& run) {
   const CalibrationResult& r = run.result;
@@ -33,6 +42,8 @@ nlohmann::json CalibrationCameraJson(const CalibrationRun& run) {
   j["rms_opencv_px"] = r.rms_opencv_px;
   j["sigma_px"] = r.sigma_px;
   j["sigma_px_estimated"] = r.sigma_estimated;
+  j["sigma_px_kind"] = r.sigma_estimated ? "a-posteriori" : "a-priori";
+  j["warnings"] = AssessConditioning(r, run.observations.width, run.observations.height).warnings;
   j["num_views"] = r.views.size();
   j["num_points"] = r.num_points;
   nlohmann::json views = nlohmann::json::array();
@@ -161,15 +172,14 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
   d.List({"RMS per coordinate: **" + Fixed(r.rms_px) +
               " px** (sqrt(SSR / 2N), mrcal's rms_reproj_error__pixels)",
           "OpenCV's figure sqrt(SSR / N) = sqrt(2) x the above: " + Fixed(r.rms_opencv_px) + " px",
-          "Pixel sigma for the covariance: " + Fixed(r.sigma_px) + " px (" +
-              (r.sigma_estimated ? "a-posteriori: estimated, sqrt(SSR / dof)"
-                                 : "a-priori: given") +
-              ")"});
+          "Pixel sigma for the covariance: " + Fixed(r.sigma_px) + " px, " + PixelSigmaKind(r)});
   d.Figures({"residuals-per-view", "residual-field"});
 
   const nlohmann::json* m = run.mrcal ? &*run.mrcal : nullptr;
   const OpenCvReference* cvr = run.opencv ? &*run.opencv : nullptr;
   d.Heading(2, "Intrinsics (1-sigma marginal over the plate poses)");
+  d.Paragraph("Sigmas from the " + PixelSigmaKind(r) + " pixel sigma " + Fixed(r.sigma_px) +
+              " px; mrcal's sigmas (its formula, at its own solution) use the same pixel sigma.");
   std::vector<std::string> header = {"", "carmba", "sigma", "initial (closed form)"};
   if (m) {
     for (const char* h : {"mrcal", "mrcal sigma", "sigma ratio carmba/mrcal"}) header.push_back(h);
@@ -206,7 +216,8 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
     if (cond.warnings.empty()) {
       text = "No warnings: the principal point's sigmas are under " +
              Fixed(100 * kPrincipalPointSigmaWarnFraction, 0) +
-             " % of the image, where the linearised covariance matched a seeded Monte Carlo.";
+             " % of the image, where the linearised covariance matched a seeded Monte Carlo, and "
+             "no two intrinsics correlate beyond " + Fixed(kIntrinsicsCorrelationWarn, 2) + ".";
     }
     std::vector<std::string> items;
     for (const auto& w : cond.warnings) items.push_back("WARNING: " + w);
@@ -226,9 +237,9 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
 
   d.Heading(2, "Projection uncertainty at " + Fixed(r.uncertainty_distance_mm, 1) + " mm");
   d.Paragraph("A point at this range along the pixel's ray, fixed in the frame averaged over the "
-              "plate poses (mrcal's definition); 1-sigma, px, from the " +
-              std::string(r.sigma_estimated ? "a-posteriori" : "a-priori") + " pixel sigma " +
-              Fixed(r.sigma_px) + " px.");
+              "plate poses (mrcal's definition); 1-sigma, px, from the " + PixelSigmaKind(r) +
+              " pixel sigma " + Fixed(r.sigma_px) +
+              " px (mrcal's columns: mrcal.projection_uncertainty given the same pixel sigma).");
   header = {"where", "pixel", "carmba sigma_u", "carmba sigma_v", "carmba worst"};
   if (m) {
     header.push_back("mrcal formula at carmba's solution");
@@ -310,8 +321,10 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
     d.Table({"check", "value", "threshold", "verdict"}, rows);
     d.Paragraph("mrcal's RMS evaluated at carmba's solution: " +
                 Fixed((*m)["rms_px_of_carmba_solution"].get<double>(), 6) +
-                " px. carmba's solution with mrcal's optimization inputs (for mrcal's "
-                "uncertainty tools): `mrcal/camera_with_optimization_inputs.cameramodel`.");
+                " px. `camera.cameramodel` is carmba's solution with mrcal's optimization inputs "
+                "(the same observations), written by mrcal: `mrcal-show-projection-uncertainty "
+                "camera.cameramodel` works on it (mrcal estimates the pixel sigma from the "
+                "residuals and frees all 9 intrinsics).");
   }
 
   d.Heading(2, "Cross-check: OpenCV calibrateCamera");
@@ -509,9 +522,28 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
   const ReportFiles report =
       RenderReport(CalibrationReportDoc(run), "carmba calibration report", CalibrationPlotData(run));
   if (report_warning) *report_warning = report.warning;
+  // camera.cameramodel: with the mrcal cross-check, the model mrcal itself wrote from carmba's
+  // solution and the same observations, with its optimization_inputs (mrcal's uncertainty tools
+  // read them: mrcal-show-projection-uncertainty camera.cameramodel); without, the plain model.
+  std::string cameramodel = MrcalCameraModelText(run.result);
+  const std::string with_inputs =
+      JoinPath(mrcal_work_dir, "camera_with_optimization_inputs.cameramodel");
+  if (!mrcal_work_dir.empty() && FileExists(with_inputs)) {
+    auto text = ReadFile(with_inputs);
+    if (!text.ok()) return text.status();
+    // mrcal prints 10 significant digits; carmba's intrinsics go in at full precision (the
+    // optimization_inputs blob holds them in binary already).
+    const std::string key = "'intrinsics': [";
+    const size_t a = text->find(key);
+    const size_t b = a == std::string::npos ? a : text->find(']', a);
+    if (b == std::string::npos) return Status::Error(with_inputs + ": no 'intrinsics' list");
+    std::string list;
+    for (double v : run.result.camera.params) list += " " + FullPrecision(v) + ",";
+    cameramodel = text->substr(0, a + key.size()) + list + text->substr(b);
+  }
   const std::pair<std::string, std::string> files[] = {
       {"camera.json", CalibrationCameraJson(run).dump(2) + "\n"},
-      {"camera.cameramodel", MrcalCameraModelText(run.result)},
+      {"camera.cameramodel", cameramodel},
       {"camera_opencv.yml", OpenCvCalibrationYaml(run)},
       {"corners.vnl", CornersVnl(run.observations)},
       {"report.md", report.markdown},

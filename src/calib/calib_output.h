@@ -2,7 +2,11 @@
 //   camera.json          camera/camera.h's format plus: sigmas, rms_px (per coordinate),
 //                        rms_opencv_px (sqrt(2) x), sigma_px, views [{image, num_points, rms_px,
 //                        max_px, tilt_deg, distance_mm}], projection_uncertainty, options
-//   camera.cameramodel   mrcal's format (a Python dict literal, LENSMODEL_OPENCV5, full precision)
+//   camera.cameramodel   mrcal's format (a Python dict literal, LENSMODEL_OPENCV5): with the mrcal
+//                        cross-check, written by mrcal from carmba's solution with mrcal's
+//                        optimization_inputs (same observations), so that mrcal's uncertainty
+//                        tools work on it directly; without it (--no-mrcal, or mrcal failed), the
+//                        intrinsics alone at full precision (MrcalCameraModelText)
 //   camera_opencv.yml    cv::FileStorage as OpenCV's calibration sample writes it: camera_matrix,
 //                        distortion_coefficients, avg_reprojection_error (OpenCV's sqrt(2) figure)
 //   observations.csv     detect/observations.h

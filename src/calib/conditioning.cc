@@ -1,9 +1,42 @@
 #include "calib/conditioning.h"
 
+#include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <sstream>
+#include <utility>
 
 namespace carmba {
+
+std::vector<std::string> IntrinsicsCorrelationWarnings(const Eigen::MatrixXd& cov,
+                                                       const std::string& group) {
+  std::vector<std::pair<double, std::string>> found;
+  const int n = static_cast<int>(std::min<Eigen::Index>(cov.rows(), kNumIntrinsics));
+  for (int i = 0; i < n; ++i) {
+    for (int j = i + 1; j < n; ++j) {
+      const double den = std::sqrt(cov(i, i) * cov(j, j));
+      if (!(den > 0)) continue;  // a held parameter
+      const double c = cov(i, j) / den;
+      if (!(std::abs(c) > kIntrinsicsCorrelationWarn)) continue;
+      std::ostringstream w;
+      w << (group.empty() ? "" : group + ": ") << kIntrinsicNames[i] << " and "
+        << kIntrinsicNames[j] << " correlate at " << std::fixed << std::setprecision(4) << c
+        << " (|r| > " << std::setprecision(2) << kIntrinsicsCorrelationWarn
+        << "): the data determine little more than one combination of them, so their separate "
+           "values and sigmas mean little; "
+        << (j >= kK1 ? "hold the distortion term (fix_k3, zero_tangential: "
+                       "configs/calib_radial.yaml) or add views that separate them."
+                     : "add views that separate them (stronger tilts, a wider range of "
+                       "distances).");
+      found.emplace_back(std::abs(c), w.str());
+    }
+  }
+  std::stable_sort(found.begin(), found.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<std::string> out;
+  for (auto& f : found) out.push_back(std::move(f.second));
+  return out;
+}
 
 ConditioningReport AssessConditioning(const CalibrationResult& r, int width, int height) {
   ConditioningReport out;
@@ -43,6 +76,7 @@ ConditioningReport AssessConditioning(const CalibrationResult& r, int width, int
     }
     out.warnings.push_back(w.str());
   }
+  for (auto& w : IntrinsicsCorrelationWarnings(r.covariance)) out.warnings.push_back(std::move(w));
   return out;
 }
 

@@ -23,8 +23,22 @@ namespace carmba {
 // Carlo above: honest at 0.6 %, not at 5 %).
 constexpr double kPrincipalPointSigmaWarnFraction = 0.02;
 
+// Two intrinsics whose estimates correlate beyond this (in absolute value) are reported: the data
+// determine little more than one combination of them, and their separate sigmas are large and
+// unstable (mrcal and OpenCV users know it as fx-fy, cx-p1, k1-k2-k3 in a narrow field of view).
+constexpr double kIntrinsicsCorrelationWarn = 0.99;
+
+// One sentence per pair (i < j) of intrinsics in `covariance` (9 x 9, kIntrinsicNames order; a
+// held parameter has zero variance and is skipped) whose |correlation| exceeds
+// kIntrinsicsCorrelationWarn, strongest first, e.g. "k1 and k3 correlate at -0.9987 (|r| > 0.99):
+// ...". `group` (optional) prefixes the names ("c-arm: k1 and k3 ...").
+std::vector<std::string> IntrinsicsCorrelationWarnings(const Eigen::MatrixXd& covariance,
+                                                       const std::string& group = "");
+
 struct ConditioningReport {
-  std::vector<std::string> warnings;  // one sentence each, empty when none
+  // One sentence each, empty when none: weakly determined principal point, intrinsics that
+  // correlate above kIntrinsicsCorrelationWarn.
+  std::vector<std::string> warnings;
   // The largest |correlation| between a principal-point coordinate and a distortion term, and
   // the pair's names ("cy-p2"); 0 and "" when none is free.
   double max_pp_distortion_correlation = 0;

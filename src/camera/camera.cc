@@ -4,6 +4,7 @@
 #include <cmath>
 #include <set>
 
+#include "util/accepted_keys.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
 
@@ -103,6 +104,8 @@ StatusOr<double> Num(const nlohmann::json& j, const std::string& key, const std:
 StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& where) {
   Camera c;
   if (!j.is_object()) return Status::Error(where + ": expected a JSON object");
+  // The keys this reader looks at, for util/accepted_keys.h (recorded when the camera is read).
+  std::vector<std::string> keys = {"image_size", "distortion", "covariance"};
   if (!j.contains("image_size") || !j["image_size"].is_array() || j["image_size"].size() != 2 ||
       !j["image_size"][0].is_number_integer() || !j["image_size"][1].is_number_integer()) {
     return Status::Error(where + ": key 'image_size': expected [width, height] in px");
@@ -120,6 +123,7 @@ StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& wher
   c.width = static_cast<int>(size[0]);
   c.height = static_cast<int>(size[1]);
   for (int i = 0; i < 4; ++i) {
+    keys.push_back(kIntrinsicNames[i]);
     auto v = Num(j, kIntrinsicNames[i], where);
     if (!v.ok()) return v.status();
     c.params[i] = *v;
@@ -139,6 +143,7 @@ StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& wher
   }
   if (j.contains("covariance")) {
     const auto& cov = j["covariance"];
+    keys.insert(keys.end(), {"covariance.names", "covariance.matrix"});
     const auto& names = cov.is_object() && cov.contains("names") ? cov["names"] : nlohmann::json();
     const auto& matrix = cov.is_object() && cov.contains("matrix") ? cov["matrix"] : nlohmann::json();
     bool ok = names.is_array() && matrix.is_array();
@@ -156,6 +161,7 @@ StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& wher
   }
   Status s = c.Check();
   if (!s.ok()) return s.WithContext(where);
+  for (const auto& k : keys) RecordAcceptedKey(where, k);
   return c;
 }
 

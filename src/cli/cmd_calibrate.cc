@@ -26,6 +26,7 @@
 
 #include "calib/calib_output.h"
 #include "calib/calibrate.h"
+#include "calib/conditioning.h"
 #include "calib/crosscheck.h"
 #include "cli/command.h"
 #include "cli/common_flags.h"
@@ -104,11 +105,8 @@ int RunCalibrate() {
     if (truth.empty() && !p_truth.empty()) truth = JoinPath(dir, p_truth);
     if (spacing == 0) spacing = p_spacing;
   }
-  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
-  {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
-    if (!s.ok()) return cli::Fail(kCmd, s);
-  }
+  // --out is required (checked before this runs: cli/command.h).
+  if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail(kCmd, s);
   if (images.empty() == observations.empty()) {
     return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
   }
@@ -142,7 +140,13 @@ int RunCalibrate() {
     auto files = ListImageFiles(images);
     if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
     double per_image = 0;
-    auto obs = DetectGridInFiles(*files, grid, detect, &run.skipped, &per_image, &run.detections);
+    StatusOr<ObservationSet> obs = Status::Error("not detected");
+    {
+      auto progress =
+          cli::MakeProgress("calibrate: detecting", static_cast<int>(files->size()), "images");
+      obs = DetectGridInFiles(*files, grid, detect, &run.skipped, &per_image, &run.detections,
+                              progress->Callback());
+    }
     if (!obs.ok()) return cli::Fail(kCmd, obs.status());
     run.observations = *obs;
     for (const auto& s : run.skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";
@@ -157,6 +161,8 @@ int RunCalibrate() {
                                  (run.skipped.empty() ? "" : "; first skipped: " + run.skipped[0]));
     }
   }
+  cli::Step(kCmd, "bundle adjustment over " + std::to_string(run.observations.views.size()) +
+                     " views");
   auto result = Calibrate(run.observations, options);
   if (!result.ok()) return cli::Fail(kCmd, result.status());
   run.result = *result;
@@ -182,6 +188,7 @@ int RunCalibrate() {
                          " views > crosscheck.opencv_max_views (" +
                          std::to_string(cross.opencv_max_views) + "): calibrateCamera too slow";
     } else {
+      cli::Step(kCmd, "OpenCV cross-check (cv::calibrateCamera)");
       auto ref = RunOpenCvCalibration(run.observations, options, run.result);
       if (ref.ok()) {
         run.opencv = *ref;
@@ -195,6 +202,7 @@ int RunCalibrate() {
   }
   const std::string work = FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid());
   if (cross.mrcal) {
+    cli::Step(kCmd, "mrcal cross-check (" + cross.python + ")");
     MrcalCrossCheckOptions mo;
     mo.python = cross.python;
     mo.work_dir = work;
@@ -218,11 +226,11 @@ int RunCalibrate() {
   } else {
     cmd << " --observations " << quoted(observations);
   }
-  cmd << " --spacing_mm " << run.observations.grid.spacing_mm;
+  cmd << " --spacing-mm " << run.observations.grid.spacing_mm;
   if (!config.empty()) cmd << " --config " << quoted(config);
   if (!truth.empty()) cmd << " --truth " << quoted(truth);
-  if (!cross.mrcal) cmd << " --nomrcal";
-  if (!cross.opencv) cmd << " --noopencv";
+  if (!cross.mrcal) cmd << " --no-mrcal";
+  if (!cross.opencv) cmd << " --no-opencv";
   cmd << " --out " << quoted(FLAGS_out);
   run.command_line = cmd.str();
   std::string report_warning;
@@ -234,12 +242,17 @@ int RunCalibrate() {
     std::cerr << "carmba " << kCmd << ": warning: " << report_warning << std::endl;
   }
   const auto& r = run.result;
+  for (const auto& w :
+       AssessConditioning(r, run.observations.width, run.observations.height).warnings) {
+    std::cerr << "carmba calibrate: warning: " << w << std::endl;
+  }
   std::cout << "calibrated " << r.views.size() << " views (" << run.skipped.size()
             << " skipped): fx " << r.camera.params[kFx] << " +- " << r.sigma[kFx] << ", fy "
             << r.camera.params[kFy] << " +- " << r.sigma[kFy] << ", cx " << r.camera.params[kCx]
             << " +- " << r.sigma[kCx] << ", cy " << r.camera.params[kCy] << " +- " << r.sigma[kCy]
-            << " px; RMS " << r.rms_px << " px per coordinate (OpenCV figure " << r.rms_opencv_px
-            << ")";
+            << " px (" << (r.sigma_estimated ? "a-posteriori" : "a-priori") << " pixel sigma "
+            << r.sigma_px << " px); RMS " << r.rms_px << " px per coordinate (OpenCV figure "
+            << r.rms_opencv_px << ")";
   if (run.mrcal) std::cout << "; mrcal RMS " << (*run.mrcal)["rms_px"].get<double>();
   std::cout << "; wrote " << FLAGS_out << "/{camera.json, camera.cameramodel, camera_opencv.yml, "
             << "observations.csv, corners.vnl, report.md, report.html}" << std::endl;
@@ -248,8 +261,10 @@ int RunCalibrate() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(calibrate, "images,pattern,rows,cols,spacing_mm,config,problem,out");
+CARMBA_COMMAND_FLAGS(calibrate, "images,pattern,rows,cols,spacing_mm,config,problem,out,force");
+CARMBA_REQUIRED_FLAGS(calibrate, "out");
 CARMBA_REGISTER_COMMAND(calibrate,
                         "Calibrate the C-arm's intrinsics from grid images (bundle adjustment, "
-                        "covariance, mrcal and OpenCV cross-checks).",
+                        "covariance, mrcal and OpenCV cross-checks). Give exactly one of "
+                        "--images, --observations, --problem.",
                         RunCalibrate);

@@ -37,11 +37,9 @@ namespace {
 
 int RunCtFiducials() {
   const std::string cmd = "ct-fiducials";
-  if (FLAGS_dicom.empty()) return carmba::cli::Fail(cmd, "--dicom DIR is required");
-  if (FLAGS_out.empty()) return carmba::cli::Fail(cmd, "--out fiducials.csv is required");
-  {
-    const carmba::Status s = carmba::CheckOutputFile(FLAGS_out, "--out");
-    if (!s.ok()) return carmba::cli::Fail(cmd, s);
+  // --dicom and --out are required (checked before this runs: cli/command.h).
+  if (const carmba::Status s = carmba::cli::CheckOutFile(); !s.ok()) {
+    return carmba::cli::Fail(cmd, s);
   }
   carmba::CtFiducialsOptions options;
   options.read.series_uid = FLAGS_series_uid;
@@ -60,10 +58,12 @@ int RunCtFiducials() {
   options.extra_sigma_mm = FLAGS_extra_sigma_mm;
   std::string error;
   if (!options.Check(&error)) return carmba::cli::Fail(cmd, error);
+  carmba::cli::Step(cmd, "reading " + FLAGS_dicom + " and finding the markers");
   auto result = carmba::ComputeCtFiducials(FLAGS_dicom, options);
   if (!result.ok()) return carmba::cli::Fail(cmd, result.status());
   std::string report_warning;
-  const carmba::Status s = carmba::WriteCtFiducials(*result, FLAGS_out, &report_warning);
+  carmba::Status s = carmba::MakeParentDirs(FLAGS_out);
+  if (s.ok()) s = carmba::WriteCtFiducials(*result, FLAGS_out, &report_warning);
   if (!s.ok()) return carmba::cli::Fail(cmd, s);
   if (!report_warning.empty()) std::cerr << "carmba " << cmd << ": warning: " << report_warning << std::endl;
   std::cout << "ct-fiducials: " << result->detection.markers.size() << " markers -> "
@@ -78,8 +78,13 @@ int RunCtFiducials() {
 }
 
 const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
-    "ct-fiducials", "Marker centres with covariance from a DICOM CT series.", __FILE__,
+    "ct-fiducials",
+    "Marker centres with covariance from a DICOM CT series (--out: the fiducials CSV; a report "
+    "<stem>.md beside it).",
+    __FILE__,
     RunCtFiducials);
-const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out");
+const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force");
+const bool kRequired [[maybe_unused]] =
+    carmba::cli::RegisterRequiredFlags("ct-fiducials", "dicom,out");
 
 }  // namespace

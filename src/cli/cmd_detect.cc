@@ -17,12 +17,8 @@ using namespace carmba;
 
 int RunDetect() {
   const char* kCmd = "detect";
-  if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
-  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (observations.csv) is required");
-  {
-    const Status s = CheckOutputFile(FLAGS_out, "--out");
-    if (!s.ok()) return cli::Fail(kCmd, s);
-  }
+  // --images and --out are required (checked before this runs: cli/command.h).
+  if (const Status s = cli::CheckOutFile(); !s.ok()) return cli::Fail(kCmd, s);
   auto pat = ParseGridPattern(FLAGS_pattern);
   if (!pat.ok()) return cli::Fail(kCmd, pat.status().WithContext("--pattern"));
   GridSpec grid;
@@ -47,14 +43,20 @@ int RunDetect() {
   if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
   std::vector<std::string> skipped;
   double per_image = 0;
-  auto obs = DetectGridInFiles(*files, grid, options, &skipped, &per_image);
+  StatusOr<ObservationSet> obs = Status::Error("not detected");
+  {
+    auto progress = cli::MakeProgress("detect", static_cast<int>(files->size()), "images");
+    obs = DetectGridInFiles(*files, grid, options, &skipped, &per_image, nullptr,
+                            progress->Callback());
+  }
   if (!obs.ok()) return cli::Fail(kCmd, obs.status());
   for (const auto& s : skipped) std::cerr << "carmba detect: not found: " << s << "\n";
   if (obs->views.empty()) {
     return cli::Fail(kCmd, "the grid was found in none of the " + std::to_string(skipped.size()) +
                                " images (first: " + skipped[0] + ")");
   }
-  Status s = WriteObservationsCsv(*obs, FLAGS_out);
+  Status s = MakeParentDirs(FLAGS_out);
+  if (s.ok()) s = WriteObservationsCsv(*obs, FLAGS_out);
   if (!s.ok()) return cli::Fail(kCmd, s);
   // A multi-frame DICOM file counts one image per frame.
   std::cout << "found the grid in " << obs->views.size() << " of "
@@ -65,6 +67,9 @@ int RunDetect() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(detect, "images,pattern,rows,cols,spacing_mm,config,out");
-CARMBA_REGISTER_COMMAND(detect, "Detect a calibration grid in images; write observations.csv.",
+CARMBA_COMMAND_FLAGS(detect, "images,pattern,rows,cols,spacing_mm,config,out,force");
+CARMBA_REQUIRED_FLAGS(detect, "images,out");
+CARMBA_REGISTER_COMMAND(detect,
+                        "Detect a calibration grid in images; write observations.csv (--out, a "
+                        "file).",
                         RunDetect);

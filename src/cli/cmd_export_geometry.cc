@@ -54,12 +54,12 @@ int RunExportGeometry() {
                                FLAGS_format + "'");
   }
   if (FLAGS_sdd_mm != 0 && !InRange(FLAGS_sdd_mm, plausible::kDistanceMm)) {
-    return cli::Fail(kCmd, "--sdd_mm: expected 0 (not given) or " +
+    return cli::Fail(kCmd, "--sdd-mm: expected 0 (not given) or " +
                                FormatRange(plausible::kDistanceMm) + ", got " +
                                FormatCompact(FLAGS_sdd_mm));
   }
   {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
   const std::string path =
@@ -125,6 +125,6 @@ const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "(geometry.json) or all; from --result DIR (a solve's geometry.json).",
     __FILE__,
     RunExportGeometry);
-const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("export-geometry", "out");
+const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("export-geometry", "out,force");
 
 }  // namespace

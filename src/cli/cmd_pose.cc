@@ -2,7 +2,7 @@
 // (detect/marker_blobs.h), labelled with the CT fiducials through the calibrated camera
 // (pose/marker_correspondence.h, detect/marker_views.h), and the labelled views are solved as one
 // pose bundle adjustment (problem/pose_problem.h, the engine in ba/) with each blob's pixel sigma.
-// Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md; all or
+// Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md, report.html; all or
 // nothing. Views with fewer than 4 markers found (or no labelling) are skipped with the reason.
 #include <gflags/gflags.h>
 
@@ -16,6 +16,7 @@
 #include "cli/common_flags.h"
 #include "detect/marker_views.h"
 #include "problem/pose_problem.h"
+#include "report/plots.h"
 #include "report/pose_report.h"
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
@@ -25,9 +26,9 @@ DEFINE_string(fiducials, "", "CT marker centres with covariances (fiducials.csv 
 
 DEFINE_double(marker_diameter_mm, 0, "Marker diameter (mm), converted to px with the nominal "
                                      "magnification (fx / SOD of the DICOM frame, or "
-                                     "--source_to_object_mm).");
+                                     "--source-to-object-mm).");
 DEFINE_string(diameter_px, "", "Marker diameter range 'min,max' in px (instead of "
-                               "--marker_diameter_mm).");
+                               "--marker-diameter-mm).");
 DEFINE_double(source_to_object_mm, 0, "Source-to-object distance (mm) for images without a "
                                       "Distance Source to Patient tag.");
 DEFINE_string(detection, "", "Optional YAML of marker detection / correspondence options "
@@ -44,7 +45,7 @@ int RunPose() {
   if (FLAGS_camera.empty()) return cli::Fail(kCmd, "--camera is required");
   if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
   {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
   ObjectViewsOptions options;
@@ -68,7 +69,7 @@ int RunPose() {
   }
   std::string err;
   if (!options.Check(&err)) {
-    return cli::Fail(kCmd, err + " (--marker_diameter_mm, --diameter_px or --detection)");
+    return cli::Fail(kCmd, err + " (--marker-diameter-mm, --diameter-px or --detection)");
   }
   auto camera = ReadCameraJson(FLAGS_camera);
   if (!camera.ok()) return cli::Fail(kCmd, camera.status());
@@ -104,8 +105,10 @@ int RunPose() {
   nlohmann::json j = PoseSolutionToJson(problem, *solution);
   j["comparison"] = PoseComparisonToJson(problem, comparison);
   j["marker_detection"] = ObjectViewsToJson(*views);
-  const std::string report =
-      PoseReportMarkdown(problem, config, *solution, comparison) + ObjectViewsMarkdown(*views);
+  ReportDoc doc = PoseReportDoc(problem, config, *solution, comparison);
+  AppendObjectViews(&doc, *views);
+  const ReportFiles report =
+      RenderReport(doc, "carmba pose report: " + problem.name, PosePlotData(problem, *solution));
 
   std::map<std::string, Pose6> solved;
   for (const ViewSolution& v : solution->views) solved[v.id] = v.cam_from_object;
@@ -127,10 +130,12 @@ int RunPose() {
       s = Status::Error(JoinPath(FLAGS_out, name) + ": cannot write the overlay");
     }
   }
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail(kCmd, s);
+  if (!report.warning.empty()) std::cerr << "carmba pose: warning: " << report.warning << std::endl;
   for (const ObjectView& v : *views) {
     if (!v.labelled) std::cerr << "carmba pose: skipped " << v.name << ": " << v.skipped << "\n";
   }
@@ -140,13 +145,13 @@ int RunPose() {
   }
   std::cout << "pose: " << problem.views.size() << " of " << views->size() << " views labelled, RMS "
             << solution->rms_px << " px; wrote " << FLAGS_out
-            << "/{observations.csv,result.json,report.md} and the overlays" << std::endl;
+            << "/{observations.csv,result.json,report.md,report.html} and the overlays" << std::endl;
   return 0;
 }
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config");
+CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force");
 CARMBA_REGISTER_COMMAND(pose,
                         "Object poses from X-ray images: marker blobs, automatic labelling with the "
                         "CT fiducials, bundle adjustment.",

@@ -3,7 +3,8 @@
 //
 // Everything is written into a staging directory (beside DIR, or inside an existing DIR) and moved
 // into place at the end, so an error leaves no partial output. An existing non-empty DIR is an
-// error unless --overwrite, which replaces its contents.
+// error unless --force, which replaces its contents (the whole directory: a simulation is one
+// consistent set of images and truth).
 #include <gflags/gflags.h>
 #include <unistd.h>
 
@@ -22,9 +23,9 @@
 #include "util/yaml_reader.h"
 
 DEFINE_string(scene, "", "Scene YAML file (configs/scenes/*.yaml), kind xray, ct or joint.");
-// --out (output directory: images or the ct/ DICOM series, and truth.json) and --seed (overrides
-// an X-ray scene's noise seed) are shared: cli/common_flags.h.
-DEFINE_bool(overwrite, false, "Replace an existing non-empty output directory.");
+// --out (output directory: images or the ct/ DICOM series, and truth.json), --seed (overrides
+// an X-ray scene's noise seed) and --force (replace an existing non-empty --out) are shared:
+// cli/common_flags.h.
 
 namespace {
 
@@ -190,23 +191,13 @@ carmba::Status Simulate(const std::string& scene_path,
 
 int RunSimulate() {
   const std::string cmd = "simulate";
-  if (FLAGS_scene.empty()) return carmba::cli::Fail(cmd, "--scene is required");
-  if (FLAGS_out.empty()) return carmba::cli::Fail(cmd, "--out is required");
+  // --scene and --out are required (checked before this runs: cli/command.h).
   fs::path out = fs::path(FLAGS_out).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();  // trailing '/'
-  {
-    const carmba::Status s = carmba::CheckOutputDir(out.string(), "--out");
-    if (!s.ok()) return carmba::cli::Fail(cmd, s);
+  if (const carmba::Status s = carmba::cli::CheckOutDir(); !s.ok()) {
+    return carmba::cli::Fail(cmd, s);
   }
-  std::error_code ec;
-  const bool exists = fs::exists(out, ec);
-  const bool non_empty = exists && !fs::is_empty(out, ec);
-  if (non_empty && !FLAGS_overwrite) {
-    return carmba::cli::Fail(cmd,
-                             out.string() +
-                                 ": output directory exists and is not empty "
-                                 "(use --overwrite to replace it)");
-  }
+  carmba::cli::Step(cmd, "simulating " + FLAGS_scene);
   // Staged beside DIR when it does not exist, inside it when it does (util/file_util.h), so that
   // the final renames never cross file systems (DIR may be a mount point).
   carmba::StagedOutputDir staged(out.string());
@@ -221,7 +212,8 @@ int RunSimulate() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(simulate, "out,seed");
+CARMBA_COMMAND_FLAGS(simulate, "out,seed,force");
+CARMBA_REQUIRED_FLAGS(simulate, "scene,out");
 CARMBA_REGISTER_COMMAND(simulate,
                         "Simulate C-arm X-ray images or a CT series with ground truth.",
                         RunSimulate);

@@ -1,7 +1,7 @@
 // `carmba solve`: solve a pose problem with a solver configuration; writes result.json, report.md,
 // report.html (with plots, report/plots.h) and geometry.json (per view the projection matrix CT mm
-// -> undistorted px, export/view_geometry.h) into --out (created if needed). On any error nothing
-// is written.
+// -> undistorted px, export/view_geometry.h) into --out (created with its parents if needed; an
+// existing result only with --force). On any error nothing is written.
 #include <gflags/gflags.h>
 
 #include <unistd.h>
@@ -47,12 +47,17 @@ carmba::Status WriteGeometry(const std::string& dir, const carmba::GeometrySet& 
 // A joint problem (plate and/or object views): the engine's joint bundle adjustment.
 int RunJoint() {
   using namespace carmba;
+  cli::Step("solve", "loading the joint problem " + FLAGS_problem);
   auto problem = LoadJointProblem(FLAGS_problem);
   if (!problem.ok()) return cli::Fail("solve", problem.status());
   auto config = LoadSolverConfig(FLAGS_config);
   if (!config.ok()) return cli::Fail("solve", config.status());
+  cli::Step("solve", "solving the joint bundle adjustment (" +
+                         std::to_string(problem->plate.views.size()) + " plate views, " +
+                         std::to_string(problem->object_views.size()) + " object views)");
   auto solution = SolveJointProblem(*problem, *config);
   if (!solution.ok()) return cli::Fail("solve", solution.status());
+  cli::Step("solve", "mrcal cross-check");
   // The mrcal cross-check (a failure is reported, not an error of the solve).
   const std::string work = FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid());
   auto mrcal = JointMrcalCrossCheck(*problem, *solution, work);
@@ -82,6 +87,9 @@ int RunJoint() {
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
   if (!report.warning.empty()) std::cerr << "carmba solve: warning: " << report.warning << std::endl;
+  for (const auto& w : JointWarnings(*solution)) {
+    std::cerr << "carmba solve: warning: " << w << std::endl;
+  }
   if (!solution->result.converged) {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
               << solution->result.termination << "): the results are not at a minimum" << std::endl;
@@ -97,20 +105,21 @@ int RunJoint() {
 
 int RunSolve() {
   using namespace carmba;
-  if (FLAGS_problem.empty()) return cli::Fail("solve", "--problem is required");
-  if (FLAGS_config.empty()) return cli::Fail("solve", "--config is required");
-  if (FLAGS_out.empty()) return cli::Fail("solve", "--out is required");
-  {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
-    if (!s.ok()) return cli::Fail("solve", s);
-  }
+  // --problem, --config and --out are required (checked before this runs: cli/command.h).
+  if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail("solve", s);
   if (IsJointProblemFile(FLAGS_problem)) return RunJoint();
   auto problem = LoadPoseProblem(FLAGS_problem);
   if (!problem.ok()) return cli::Fail("solve", problem.status());
   auto config = LoadSolverConfig(FLAGS_config);
   if (!config.ok()) return cli::Fail("solve", config.status());
-  auto solution = SolvePoseProblem(*problem, *config);
+  StatusOr<PoseSolution> solution = Status::Error("not solved");
+  {
+    auto progress = cli::MakeProgress("solve: initial poses", static_cast<int>(problem->views.size()),
+                                      "views");
+    solution = SolvePoseProblem(*problem, *config, progress->Callback());
+  }
   if (!solution.ok()) return cli::Fail("solve", solution.status());
+  cli::Step("solve", "comparing with legacy POSIT");
   const PoseComparison comparison = ComparePoseMethods(*problem, *config, *solution);
   nlohmann::json j = PoseSolutionToJson(*problem, *solution);
   j["comparison"] = PoseComparisonToJson(*problem, comparison);
@@ -146,7 +155,8 @@ int RunSolve() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(solve, "problem,config,out");
+CARMBA_COMMAND_FLAGS(solve, "problem,config,out,force");
+CARMBA_REQUIRED_FLAGS(solve, "problem,config,out");
 CARMBA_REGISTER_COMMAND(solve,
                         "Solve a pose problem (POSIT + bundle adjustment + covariance); writes result.json, "
                         "report.md and geometry.json (per view the 3x4 projection matrix from CT "

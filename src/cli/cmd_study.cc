@@ -25,11 +25,16 @@ namespace {
 
 int RunStudyCommand() {
   using namespace carmba;
-  if (FLAGS_study.empty()) return cli::Fail("study", "--study is required (a study YAML file)");
-  if (FLAGS_out.empty()) return cli::Fail("study", "--out is required (an output directory)");
-  {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
-    if (!s.ok()) return cli::Fail("study", s);
+  // --study and --out are required (checked before this runs: cli/command.h). An existing
+  // study in --out is continued with --resume, or started over with --force.
+  if (const Status s = cli::CheckOutDir(
+          /*also_allowed=*/FLAGS_resume,
+          "pass --resume to continue that study, --force to start it over"); !s.ok()) {
+    return cli::Fail("study", s);
+  }
+  if (FLAGS_resume && FLAGS_force) {
+    return cli::Fail("study", "--resume continues the study in --out, --force starts it over: "
+                              "give one of them");
   }
   StudyRunOptions options;
   options.out_dir = FLAGS_out;
@@ -39,7 +44,8 @@ int RunStudyCommand() {
   }
   options.jobs = FLAGS_jobs;
   options.resume = FLAGS_resume;
-  options.progress = ::isatty(STDERR_FILENO) == 1;
+  options.restart = FLAGS_force;
+  options.progress = ChooseProgressStyle(::isatty(STDERR_FILENO) == 1, FLAGS_verbose);
   Status s = ParseShard(FLAGS_shard, &options.shard_k, &options.shard_n);
   if (!s.ok()) return cli::Fail("study", s);
   std::string error;
@@ -78,4 +84,5 @@ int RunStudyCommand() {
 
 CARMBA_REGISTER_COMMAND(study, "Run an accuracy study: problems x configs x sweeps x seeded trials.",
                         RunStudyCommand);
-CARMBA_COMMAND_FLAGS(study, "out,jobs");
+CARMBA_COMMAND_FLAGS(study, "out,jobs,force");
+CARMBA_REQUIRED_FLAGS(study, "study,out");

@@ -24,12 +24,8 @@ bool HasGlobChars(const std::string& s) { return s.find_first_of("*?[") != std::
 
 int RunStudyMerge() {
   using namespace carmba;
-  if (FLAGS_shards.empty()) return cli::Fail("study-merge", "--shards is required");
-  if (FLAGS_out.empty()) return cli::Fail("study-merge", "--out is required");
-  {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
-    if (!s.ok()) return cli::Fail("study-merge", s);
-  }
+  // --shards and --out are required (checked before this runs: cli/command.h).
+  if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail("study-merge", s);
   std::vector<std::string> dirs;
   std::stringstream ss(FLAGS_shards);
   std::string item;
@@ -55,9 +51,15 @@ int RunStudyMerge() {
     dirs.insert(dirs.end(), matches.begin(), matches.end());
   }
   int merged = 0, missing = 0;
+  // Merged into a staging directory and moved into place: all files or none (util/file_util.h).
   std::string report_warning;
-  const Status s = MergeStudyShards(dirs, FLAGS_out, /*write_report=*/true, FLAGS_allow_missing,
-                                    &merged, &missing, &report_warning);
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (s.ok()) {
+    s = MergeStudyShards(dirs, staged.path(), /*write_report=*/true, FLAGS_allow_missing, &merged,
+                         &missing, &report_warning);
+  }
+  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("study-merge", s);
   std::printf("merged %d runs from %zu shard directories into %s\n", merged, dirs.size(),
               FLAGS_out.c_str());
@@ -74,6 +76,8 @@ int RunStudyMerge() {
 const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "study-merge", "Combine the shard directories of 'carmba study --shard K/N'.", __FILE__,
     RunStudyMerge);
-const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("study-merge", "out");
+const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("study-merge", "out,force");
+const bool kRequired [[maybe_unused]] = carmba::cli::RegisterRequiredFlags("study-merge",
+                                                                           "shards,out");
 
 }  // namespace

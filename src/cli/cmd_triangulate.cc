@@ -189,9 +189,9 @@ int RunTriangulate() {
   }
   ba::TriangulationOptions topt;
   topt.min_ray_angle_deg = FLAGS_min_angle_deg;
-  if (!topt.Check(&err)) return cli::Fail(cmd, "--min_angle_deg: " + err);
+  if (!topt.Check(&err)) return cli::Fail(cmd, "--min-angle-deg: " + err);
   {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(cmd, s);
   }
   auto points = FLAGS_points.empty() ? ParsePixelsFlag(FLAGS_pixels) : ReadPointsCsv(FLAGS_points);
@@ -311,7 +311,7 @@ int RunTriangulate() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(triangulate, "problem,config,out");
+CARMBA_COMMAND_FLAGS(triangulate, "problem,config,out,force");
 CARMBA_REGISTER_COMMAND(triangulate,
                         "Triangulate points seen in two or more object views (CT frame, 3x3 "
                         "covariance from the solve and the pixels).",

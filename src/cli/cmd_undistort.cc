@@ -51,7 +51,7 @@ int RunUndistort() {
   if (FLAGS_camera.empty()) return cli::Fail(kCmd, "--camera is required");
   if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (directory) is required");
   {
-    const Status s = CheckOutputDir(FLAGS_out, "--out");
+    const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
   auto camera = LoadCamera(FLAGS_camera);
@@ -95,7 +95,7 @@ int RunUndistort() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(undistort, "images,camera,out");
+CARMBA_COMMAND_FLAGS(undistort, "images,camera,out,force");
 CARMBA_REGISTER_COMMAND(
     undistort,
     "Undistort images (PNG, TIFF, ..., DICOM frames) with a calibrated camera: writes --out/"

@@ -7,8 +7,11 @@
 //   static int RunSolve() { ... return 0; }
 //   CARMBA_REGISTER_COMMAND(solve, "Solve a pose problem ...", RunSolve);
 //
-// `carmba <cmd> --help` lists the flags defined in that command's file plus the shared flags
-// (cli/common_flags.h) it declares with CARMBA_COMMAND_FLAGS(name, "out,config"). A flag DEFINEd
+// `carmba <cmd> --help` (or `carmba help <cmd>`) lists the flags defined in that command's file
+// plus the shared flags (cli/common_flags.h) it declares with CARMBA_COMMAND_FLAGS(name,
+// "out,config"), and marks those it declares required with CARMBA_REQUIRED_FLAGS(name,
+// "problem,config,out"): a required flag left out (or empty) is an error before the command
+// runs, so commands do not check them again. Flag names are shown with dashes. A flag DEFINEd
 // in two files breaks the link (gflags flags are global): shared names (--out, --config,
 // --problem, --images, --camera, --pattern, --rows, --cols, --seed, --jobs) come from
 // common_flags.h.
@@ -33,8 +36,20 @@ struct Command {
 bool RegisterCommand(const char* name, const char* summary, const char* file, int (*run)());
 const std::vector<Command>& Commands();
 bool RegisterCommandFlags(const char* name, const char* shared_flags_csv);
-// The shared flags a command declared it uses (empty if it declared none).
+bool RegisterRequiredFlags(const char* name, const char* required_flags_csv);
+// The shared flags a command declared it uses (empty if it declared none), and its required
+// flags (own or shared), with underscores.
 std::vector<std::string> CommandSharedFlags(const std::string& name);
+std::vector<std::string> CommandRequiredFlags(const std::string& name);
+
+// `carmba help` and `carmba help <cmd>` / `carmba <cmd> --help`.
+std::string UsageText();
+std::string CommandHelpText(const Command& cmd);
+// The arguments of `cmd` as gflags reads them: flag names with underscores, `--no-x` / `--no_x`
+// as `--nox`. Error (one line, with the closest flag name) for a flag `cmd` does not have.
+Status NormalizeFlags(const Command& cmd,
+                      const std::vector<std::string>& args,
+                      std::vector<std::string>* out);
 
 // Prints "carmba <command>: error: <message>" as one line on stderr and returns exit code 1.
 int Fail(const std::string& command, const Status& status);
@@ -49,3 +64,7 @@ int Fail(const std::string& command, const std::string& message);
 #define CARMBA_COMMAND_FLAGS(name, shared_flags_csv)                  \
   static const bool carmba_flags_##name [[maybe_unused]] =            \
       ::carmba::cli::RegisterCommandFlags(#name, shared_flags_csv)
+
+#define CARMBA_REQUIRED_FLAGS(name, required_flags_csv)               \
+  static const bool carmba_required_##name [[maybe_unused]] =         \
+      ::carmba::cli::RegisterRequiredFlags(#name, required_flags_csv)

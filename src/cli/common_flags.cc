@@ -1,7 +1,11 @@
 #include "cli/common_flags.h"
 
-#include <cmath>
+#include <unistd.h>
 
+#include <cmath>
+#include <iostream>
+
+#include "util/file_util.h"
 #include "util/plausible.h"
 
 DEFINE_string(out, "", "Output directory (or file, where the command says so).");
@@ -14,18 +18,29 @@ DEFINE_string(camera, "",
               "Calibrated camera: camera.json (carmba calibrate), or a joint solve's result.json "
               "(its intrinsics).");
 DEFINE_string(pattern, "circles", "Calibration pattern: circles | acircles | chessboard.");
-DEFINE_int32(rows, 5, "Pattern rows.");
-DEFINE_int32(cols, 5, "Pattern columns.");
+DEFINE_int32(rows, 5,
+             "Grid rows, i.e. points per column: for a chessboard the inner corners (squares - "
+             "1); for circles and acircles the circles (acircles: every other row is offset by "
+             "half a pitch).");
+DEFINE_int32(cols, 5,
+             "Grid columns, i.e. points per row: for a chessboard the inner corners (squares - "
+             "1); for circles and acircles the circles in one row.");
 DEFINE_double(spacing_mm, 0,
               "Grid pitch in mm (0: the problem's or the observations', otherwise 20).");
 DEFINE_uint64(seed, 1, "Random seed.");
 DEFINE_int32(jobs, 0, "Parallel jobs (0 = all cores).");
+DEFINE_bool(force, false,
+            "Write over an existing result in --out (without it an existing non-empty output "
+            "directory or an existing output file is an error).");
+DEFINE_bool(verbose, false,
+            "Progress on stderr: the steps, and one line per image / view / run when stderr is "
+            "not a terminal (on a terminal a progress bar is shown anyway).");
 
 namespace carmba::cli {
 bool CheckSpacingFlag(std::string* error) {
   if (FLAGS_spacing_mm == 0) return true;
   if (!InRange(FLAGS_spacing_mm, plausible::kGridSpacingMm)) {
-    *error = "--spacing_mm: expected 0 (not given) or " +
+    *error = "--spacing-mm: expected 0 (not given) or " +
              FormatRange(plausible::kGridSpacingMm) + ", got " + FormatCompact(FLAGS_spacing_mm);
     return false;
   }
@@ -43,5 +58,22 @@ bool CheckJobsFlag(std::string* error) {
   *error = "--jobs: expected " + FormatRange(plausible::kJobs) + " (0 = all cores), got " +
            std::to_string(FLAGS_jobs);
   return false;
+}
+
+Status CheckOutDir(bool also_allowed, const std::string& how_to_override) {
+  return CheckOutputDir(FLAGS_out, "--out", FLAGS_force || also_allowed, how_to_override);
+}
+
+Status CheckOutFile() { return CheckOutputFile(FLAGS_out, "--out", FLAGS_force); }
+
+std::unique_ptr<Progress> MakeProgress(const std::string& label,
+                                       int total,
+                                       const std::string& unit) {
+  return std::make_unique<Progress>(
+      label, total, unit, ChooseProgressStyle(::isatty(STDERR_FILENO) == 1, FLAGS_verbose));
+}
+
+void Step(const std::string& command, const std::string& what) {
+  if (FLAGS_verbose) std::cerr << "carmba " << command << ": " << what << std::endl;
 }
 }  // namespace carmba::cli

@@ -7,7 +7,11 @@
 
 #include <gflags/gflags.h>
 
+#include <memory>
 #include <string>
+
+#include "util/progress.h"
+#include "util/status.h"
 
 DECLARE_string(out);      // output directory or file
 DECLARE_string(config);   // solver/calibration configuration YAML
@@ -20,6 +24,8 @@ DECLARE_int32(cols);      // pattern columns
 DECLARE_double(spacing_mm);  // grid pitch in mm (0: from the problem / observations, else 20)
 DECLARE_uint64(seed);     // random seed
 DECLARE_int32(jobs);      // parallel jobs (0 = all cores)
+DECLARE_bool(force);      // write over an existing result in --out
+DECLARE_bool(verbose);    // progress on stderr (every command has it)
 
 namespace carmba::cli {
 // The numeric flags checked against their plausible ranges (util/plausible.h); each returns false
@@ -30,4 +36,18 @@ bool CheckSpacingFlag(std::string* error);
 bool CheckGridFlags(std::string* error);
 // --jobs: plausible::kJobs (0 = all cores).
 bool CheckJobsFlag(std::string* error);
+
+// --out, checked before any work, the same way for every command (util/file_util.h): missing
+// parent directories are fine (they are created when the result is written); an existing result
+// (a non-empty directory, an existing file) is refused unless --force (or `also_allowed`, e.g.
+// study's --resume).
+Status CheckOutDir(bool also_allowed = false,
+                   const std::string& how_to_override = "pass --force to write over it");
+Status CheckOutFile();
+
+// Progress of `total` items of `unit` for the command `label`: a bar when stderr is a terminal,
+// else one line per item with --verbose, else nothing (util/progress.h).
+std::unique_ptr<Progress> MakeProgress(const std::string& label, int total, const std::string& unit);
+// With --verbose: "carmba <command>: <what>" on stderr (a step that takes time).
+void Step(const std::string& command, const std::string& what);
 }  // namespace carmba::cli

@@ -1,18 +1,27 @@
 // carmba: C-arm calibration and pose estimation. Dispatches to subcommands (cli/command.h).
+//
+// The command line is the same for every subcommand:
+//   carmba --version | carmba version
+//   carmba help | carmba help <command> | carmba <command> --help
+//   carmba <command> --flag-name=value --flag-name value --bool-flag --no-bool-flag
+// Flag names are written with dashes (as in --help and the README) or underscores: both work.
+// A flag the command does not have is a one-line error suggesting the closest of its flags;
+// a required flag that is missing is a one-line error too, before any work.
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstring>
 #include <iostream>
 #include <map>
-#include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "cli/command.h"
-
-DEFINE_bool(verbose, false, "Log progress (glog INFO) to stderr.");
+#include "cli/common_flags.h"
+#include "util/text_match.h"
 
 namespace carmba::cli {
 namespace {
@@ -27,8 +36,27 @@ std::map<std::string, std::vector<std::string>>& SharedFlags() {
   return r;
 }
 
-bool IsSharedFlagFile(const std::string& filename) {
-  return filename.find("common_flags.cc") != std::string::npos;
+std::map<std::string, std::vector<std::string>>& RequiredFlags() {
+  static std::map<std::string, std::vector<std::string>> r;
+  return r;
+}
+
+std::vector<std::string> SplitCsv(const std::string& csv) {
+  std::vector<std::string> v;
+  std::string item;
+  for (char ch : csv + ",") {
+    if (ch == ',') {
+      if (!item.empty()) v.push_back(item);
+      item.clear();
+    } else if (ch != ' ') {
+      item += ch;
+    }
+  }
+  return v;
+}
+
+bool Contains(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
 }
 
 std::string BaseName(const std::string& p) {
@@ -36,35 +64,120 @@ std::string BaseName(const std::string& p) {
   return pos == std::string::npos ? p : p.substr(pos + 1);
 }
 
-void PrintUsage() {
-  std::cout << "carmba: C-arm X-ray calibration and pose estimation as one bundle adjustment.\n\n"
-               "Usage: carmba <command> [--flag=value ...]\n"
-               "       carmba <command> --help   (the command's flags)\n\nCommands:\n";
+bool IsSharedFlagFile(const std::string& filename) {
+  return BaseName(filename) == "common_flags.cc";
+}
+
+// The flags of `cmd`: those DEFINEd in its file, the shared ones it lists, and --verbose.
+std::vector<gflags::CommandLineFlagInfo> CommandFlags(const Command& cmd) {
+  std::vector<gflags::CommandLineFlagInfo> all, mine;
+  gflags::GetAllFlags(&all);  // sorted by name
+  const auto shared = CommandSharedFlags(cmd.name);
+  for (const auto& f : all) {
+    const bool own = BaseName(f.filename) == BaseName(cmd.file);
+    const bool listed = IsSharedFlagFile(f.filename) && (Contains(shared, f.name) ||
+                                                         f.name == "verbose");
+    if (own || listed) mine.push_back(f);
+  }
+  return mine;
+}
+
+std::string Dashed(std::string name) {
+  std::replace(name.begin(), name.end(), '_', '-');
+  return name;
+}
+
+std::string Underscored(std::string name) {
+  std::replace(name.begin(), name.end(), '-', '_');
+  return name;
+}
+
+// `text` in lines of at most `width` characters (words are not split), each after `indent`.
+std::string Wrapped(const std::string& text, const std::string& indent, size_t width) {
+  std::string out, line, word;
+  auto flush_word = [&]() {
+    if (word.empty()) return;
+    if (!line.empty() && indent.size() + line.size() + 1 + word.size() > width) {
+      out += indent + line + "\n";
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + word;
+    word.clear();
+  };
+  for (char c : text) {
+    if (c == ' ' || c == '\n') {
+      flush_word();
+    } else {
+      word += c;
+    }
+  }
+  flush_word();
+  if (!line.empty()) out += indent + line + "\n";
+  return out;
+}
+
+const Command* FindCommand(const std::string& name) {
+  for (const auto& c : Registry()) {
+    if (c.name == name) return &c;
+  }
+  return nullptr;
+}
+
+std::vector<Command> SortedCommands() {
   std::vector<Command> cmds = Registry();
   std::sort(cmds.begin(), cmds.end(),
             [](const Command& a, const Command& b) { return a.name < b.name; });
-  for (const auto& c : cmds) {
-    std::cout << "  " << c.name << std::string(std::max<size_t>(2, 16 - c.name.size()), ' ')
-              << c.summary << "\n";
-  }
-  std::cout << "  help            This list.\n";
-}
-
-void PrintCommandHelp(const Command& cmd) {
-  std::cout << "carmba " << cmd.name << ": " << cmd.summary << "\n\nFlags:\n";
-  std::vector<gflags::CommandLineFlagInfo> flags;
-  gflags::GetAllFlags(&flags);
-  for (const auto& f : flags) {
-    const auto shared = CommandSharedFlags(cmd.name);
-    const bool listed = IsSharedFlagFile(f.filename) &&
-                        std::find(shared.begin(), shared.end(), f.name) != shared.end();
-    if (BaseName(f.filename) != BaseName(cmd.file) && f.name != "verbose" && !listed) continue;
-    std::cout << "  --" << f.name << " (" << f.type << ", default '" << f.default_value
-              << "')\n      " << f.description << "\n";
-  }
+  return cmds;
 }
 
 }  // namespace
+
+std::string UsageText() {
+  std::string s =
+      "carmba: C-arm X-ray calibration and pose estimation as one bundle adjustment.\n\n"
+      "Usage: carmba <command> [--flag-name=value ...]\n"
+      "       carmba help <command>   (or carmba <command> --help: the command's flags)\n"
+      "       carmba --version\n\nCommands:\n";
+  for (const auto& c : SortedCommands()) {
+    s += "  " + c.name + std::string(std::max<size_t>(2, 16 - c.name.size()), ' ') + c.summary +
+         "\n";
+  }
+  s += "  help            This list, or a command's flags (carmba help <command>).\n";
+  return s;
+}
+
+std::string CommandHelpText(const Command& cmd) {
+  const auto required = CommandRequiredFlags(cmd.name);
+  std::string s = "carmba " + cmd.name + ": " + cmd.summary + "\n\nUsage: carmba " + cmd.name;
+  for (const auto& r : required) s += " --" + Dashed(r) + "=...";
+  s += " [flags]\n\nFlag names take dashes or underscores (--spacing-mm = --spacing_mm).\n";
+  auto flags = CommandFlags(cmd);
+  // Required flags first, in the order the command lists them; then the others by name.
+  std::sort(flags.begin(), flags.end(), [&](const auto& a, const auto& b) {
+    const auto ia = std::find(required.begin(), required.end(), a.name);
+    const auto ib = std::find(required.begin(), required.end(), b.name);
+    return ia != ib ? ia < ib : a.name < b.name;
+  });
+  for (const auto& f : flags) {
+    const bool req = Contains(required, f.name);
+    const std::string name = Dashed(f.name);
+    std::string type = f.type;  // "string", "int32", "double" ... shown as STRING, INT32
+    std::transform(type.begin(), type.end(), type.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    const std::string head =
+        f.type == "bool" ? "--" + name + ", --no-" + name : "--" + name + "=" + type;
+    s += "\n  " + head;
+    if (req) {
+      s += "  (required)";
+    } else if (f.type == "string" && f.default_value.empty()) {
+      s += "  (default: none)";
+    } else {
+      s += "  (default: " + f.default_value + ")";
+    }
+    s += "\n" + Wrapped(f.description, "      ", 96);
+  }
+  return s;
+}
 
 bool RegisterCommand(const char* name, const char* summary, const char* file, int (*run)()) {
   Registry().push_back(Command{name, summary, file, run});
@@ -74,22 +187,25 @@ bool RegisterCommand(const char* name, const char* summary, const char* file, in
 const std::vector<Command>& Commands() { return Registry(); }
 
 bool RegisterCommandFlags(const char* name, const char* shared_flags_csv) {
-  std::vector<std::string>& v = SharedFlags()[name];
-  std::string s = shared_flags_csv, item;
-  for (char ch : s + ",") {
-    if (ch == ',') {
-      if (!item.empty()) v.push_back(item);
-      item.clear();
-    } else if (ch != ' ') {
-      item += ch;
-    }
-  }
+  auto& v = SharedFlags()[name];
+  for (auto& f : SplitCsv(shared_flags_csv)) v.push_back(Underscored(f));
+  return true;
+}
+
+bool RegisterRequiredFlags(const char* name, const char* required_flags_csv) {
+  auto& v = RequiredFlags()[name];
+  for (auto& f : SplitCsv(required_flags_csv)) v.push_back(Underscored(f));
   return true;
 }
 
 std::vector<std::string> CommandSharedFlags(const std::string& name) {
   auto it = SharedFlags().find(name);
   return it == SharedFlags().end() ? std::vector<std::string>() : it->second;
+}
+
+std::vector<std::string> CommandRequiredFlags(const std::string& name) {
+  auto it = RequiredFlags().find(name);
+  return it == RequiredFlags().end() ? std::vector<std::string>() : it->second;
 }
 
 int Fail(const std::string& command, const std::string& message) {
@@ -101,72 +217,132 @@ int Fail(const std::string& command, const Status& status) {
   return Fail(command, status.message());
 }
 
+Status NormalizeFlags(const Command& cmd,
+                      const std::vector<std::string>& args,
+                      std::vector<std::string>* out) {
+  const auto flags = CommandFlags(cmd);
+  std::map<std::string, const gflags::CommandLineFlagInfo*> by_name;
+  std::vector<std::string> names;
+  for (const auto& f : flags) {
+    by_name[f.name] = &f;
+    names.push_back("--" + Dashed(f.name));
+    if (f.type == "bool") names.push_back("--no-" + Dashed(f.name));
+  }
+  const std::string see = " (see 'carmba " + cmd.name + " --help')";
+  out->clear();
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--") {  // the rest is positional
+      out->insert(out->end(), args.begin() + static_cast<long>(i), args.end());
+      break;
+    }
+    if (a.size() < 2 || a[0] != '-' || (a[1] >= '0' && a[1] <= '9') || a[1] == '.') {
+      out->push_back(a);  // a positional argument (rejected later) or a negative number
+      continue;
+    }
+    const size_t start = a[1] == '-' ? 2 : 1;
+    const size_t eq = a.find('=');
+    const std::string typed = a.substr(start, eq == std::string::npos ? std::string::npos
+                                                                      : eq - start);
+    const std::string value = eq == std::string::npos ? "" : a.substr(eq);  // with '='
+    std::string name = Underscored(typed);
+    bool negated = false;
+    if (!by_name.count(name) && name.size() > 2 && name.compare(0, 2, "no") == 0) {
+      std::string rest = name.substr(name[2] == '_' ? 3 : 2);
+      auto it = by_name.find(rest);
+      if (it != by_name.end() && it->second->type == "bool") {
+        name = rest;
+        negated = true;
+      }
+    }
+    auto it = by_name.find(name);
+    if (it == by_name.end()) {
+      gflags::CommandLineFlagInfo other;
+      if (gflags::GetCommandLineFlagInfo(name.c_str(), &other)) {
+        return Status::Error("flag --" + Dashed(name) + " is not a flag of '" + cmd.name + "'" +
+                             see);
+      }
+      const std::string close = ClosestMatch("--" + Dashed(typed), names);
+      return Status::Error("unknown flag --" + Dashed(typed) +
+                           (close.empty() ? "" : "; did you mean " + close + "?") + see);
+    }
+    if (negated) {
+      if (!value.empty()) {
+        return Status::Error("flag --no-" + Dashed(name) + " takes no value, got '" +
+                             value.substr(1) + "'");
+      }
+      out->push_back("--no" + name);
+      continue;
+    }
+    out->push_back("--" + name + value);
+    // `--flag value`: the value is the next argument (bool flags take none).
+    if (value.empty() && it->second->type != "bool" && i + 1 < args.size()) {
+      out->push_back(args[++i]);
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace carmba::cli
 
 int main(int argc, char** argv) {
-  using carmba::cli::Command;
-  if (argc < 2 || !std::strcmp(argv[1], "help") || !std::strcmp(argv[1], "--help") ||
-      !std::strcmp(argv[1], "-h")) {
-    carmba::cli::PrintUsage();
-    return argc < 2 ? 2 : 0;
-  }
-  const std::string name = argv[1];
-  const Command* cmd = nullptr;
-  for (const auto& c : carmba::cli::Commands()) {
-    if (c.name == name) cmd = &c;
-  }
-  if (!cmd) {
-    std::cerr << "carmba: error: unknown command '" << name << "' (see 'carmba help')"
-              << std::endl;
+  namespace cli = carmba::cli;
+  auto is_help = [](const std::string& a) { return a == "--help" || a == "-h" || a == "-help"; };
+  if (argc < 2) {
+    std::cout << cli::UsageText();
     return 2;
   }
-  // Drop the command name and parse the rest as this command's flags. Dashes inside a flag's
-  // name are read as underscores (--spacing-mm = --spacing_mm), as users type them.
-  std::vector<std::string> normalized;
-  for (int i = 2; i < argc; ++i) {
-    std::string a = argv[i];
-    if (a.size() > 2 && a[0] == '-') {
-      const size_t start = a[1] == '-' ? 2 : 1;
-      const size_t end = std::min(a.find('='), a.size());
-      for (size_t k = start; k < end; ++k) {
-        if (a[k] == '-') a[k] = '_';
-      }
+  std::string name = argv[1];
+  if (name == "--version" || name == "-V") name = "version";
+  if (name == "help" || is_help(name)) {
+    if (argc < 3 || is_help(argv[2])) {
+      std::cout << cli::UsageText();
+      return 0;
     }
-    normalized.push_back(a);
+    name = argv[2];
+    const cli::Command* cmd = cli::FindCommand(name);
+    if (cmd) {
+      std::cout << cli::CommandHelpText(*cmd);
+      return 0;
+    }
+  }
+  const cli::Command* cmd = cli::FindCommand(name);
+  if (!cmd) {
+    std::vector<std::string> names;
+    for (const auto& c : cli::Commands()) names.push_back(c.name);
+    const std::string close = carmba::ClosestMatch(name, names);
+    std::cerr << "carmba: error: unknown command '" << name << "'"
+              << (close.empty() ? "" : "; did you mean '" + close + "'?")
+              << " (see 'carmba help')" << std::endl;
+    return 2;
+  }
+  std::vector<std::string> raw(argv + 2, argv + argc);
+  for (const auto& a : raw) {
+    if (is_help(a)) {
+      std::cout << cli::CommandHelpText(*cmd);
+      return 0;
+    }
+  }
+  std::vector<std::string> normalized;
+  if (const carmba::Status s = cli::NormalizeFlags(*cmd, raw, &normalized); !s.ok()) {
+    return cli::Fail(name, s);
   }
   std::vector<char*> args;
   args.push_back(argv[0]);
-  for (int i = 2; i < argc; ++i) {
-    argv[i] = normalized[i - 2].data();
-    if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h") ||
-        !std::strcmp(argv[i], "-help")) {
-      carmba::cli::PrintCommandHelp(*cmd);
-      return 0;
-    }
-    args.push_back(argv[i]);
-  }
+  for (auto& a : normalized) args.push_back(a.data());
   int nargs = static_cast<int>(args.size());
   char** pargs = args.data();
   gflags::SetUsageMessage("carmba " + name + " (see 'carmba " + name + " --help')");
   gflags::ParseCommandLineFlags(&nargs, &pargs, /*remove_flags=*/true);
   if (nargs > 1) {
-    return carmba::cli::Fail(name, std::string("unexpected argument '") + pargs[1] +
-                                       "' (flags are written --name=value)");
+    return cli::Fail(name, std::string("unexpected argument '") + pargs[1] +
+                               "' (flags are written --name=value)");
   }
-  // Reject flags that belong to other subcommands.
-  std::vector<gflags::CommandLineFlagInfo> flags;
-  gflags::GetAllFlags(&flags);
-  for (const auto& f : flags) {
-    if (f.is_default || f.name == "verbose") continue;
-    const bool other_cmd = f.filename.find("/cli/cmd_") != std::string::npos &&
-                           carmba::cli::BaseName(f.filename) != carmba::cli::BaseName(cmd->file);
-    const auto shared = carmba::cli::CommandSharedFlags(name);
-    const bool unlisted_shared =
-        carmba::cli::IsSharedFlagFile(f.filename) &&
-        std::find(shared.begin(), shared.end(), f.name) == shared.end();
-    if (other_cmd || unlisted_shared) {
-      return carmba::cli::Fail(name, "flag --" + f.name + " is not a flag of '" + name +
-                                         "' (see 'carmba " + name + " --help')");
+  for (const auto& r : cli::CommandRequiredFlags(name)) {
+    gflags::CommandLineFlagInfo f;
+    if (gflags::GetCommandLineFlagInfo(r.c_str(), &f) && (f.is_default || f.current_value.empty())) {
+      return cli::Fail(name, "--" + cli::Dashed(r) + " is required (see 'carmba " + name +
+                                 " --help')");
     }
   }
   FLAGS_logtostderr = true;

@@ -1138,7 +1138,8 @@ StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files
                                            const DetectionOptions& options,
                                            std::vector<std::string>* skipped,
                                            double* seconds_per_image,
-                                           std::vector<GridDetection>* detections) {
+                                           std::vector<GridDetection>* detections,
+                                           const ProgressFn& progress) {
   std::string err;
   if (!options.Check(&err)) return Status::Error("detection options: " + err);
   if (!grid.Check(&err)) return Status::Error(err);
@@ -1172,6 +1173,7 @@ StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files
       }
       obs.views.push_back(d.view);
     }
+    if (progress) progress(path);
   }
   if (seconds_per_image && num_views > 0) *seconds_per_image = total / num_views;
   return obs;

@@ -52,6 +52,7 @@
 
 #include "detect/observations.h"
 #include "io/dicom_xray.h"
+#include "util/progress.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -134,11 +135,13 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path);
 // one view per frame, named `file#frameN`). Views where it is found go into the set; the others
 // are listed as "view: reason" in `skipped`. Errors: unreadable image, images of different sizes.
 // `detections` (optional): every view's detection in order, view.image set to the view's name.
+// `progress` (optional) is called once per file, after its views are done.
 StatusOr<ObservationSet> DetectGridInFiles(const std::vector<std::string>& files,
                                            const GridSpec& grid,
                                            const DetectionOptions& options,
                                            std::vector<std::string>* skipped,
                                            double* seconds_per_image = nullptr,
-                                           std::vector<GridDetection>* detections = nullptr);
+                                           std::vector<GridDetection>* detections = nullptr,
+                                           const ProgressFn& progress = nullptr);
 
 }  // namespace carmba

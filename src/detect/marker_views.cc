@@ -1,5 +1,7 @@
 #include "detect/marker_views.h"
 
+#include "report/format.h"
+
 #include <opencv2/imgproc.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -246,29 +248,30 @@ nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
   return out;
 }
 
-std::string ObjectViewsMarkdown(const std::vector<ObjectView>& views) {
-  std::ostringstream os;
-  os.precision(3);
-  os << "\n## Marker detection and labelling\n\n"
-        "| view | blobs | labelled | not markers | method | RMS px | rejected |\n|---|---|---|---|---|---|---|\n";
+void AppendObjectViews(ReportDoc* d, const std::vector<ObjectView>& views) {
+  d->Heading(2, "Marker detection and labelling");
+  std::vector<std::vector<std::string>> rows;
   for (const ObjectView& v : views) {
     std::map<std::string, int> reasons;
     for (const RejectedBlob& b : v.detection.rejected) ++reasons[b.why];
     std::string rej;
     for (const auto& [why, k] : reasons) rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
     if (!v.labelled) {
-      os << "| " << v.name << " | " << v.detection.blobs.size() << " | skipped: " << v.skipped << " | | | | "
-         << rej << " |\n";
+      rows.push_back({v.name, std::to_string(v.detection.blobs.size()), "skipped: " + v.skipped, "",
+                      "", "", rej});
       continue;
     }
     int unlabelled = 0;
     for (int id : v.marker_id_of_blob) unlabelled += id < 0;
-    os << "| " << v.name << " | " << v.detection.blobs.size() << " | " << v.labelling.num_labelled << " | "
-       << unlabelled << " | " << v.labelling.method << " | " << v.labelling.rms_px << " | " << rej << " |\n";
+    rows.push_back({v.name, std::to_string(v.detection.blobs.size()),
+                    std::to_string(v.labelling.num_labelled), std::to_string(unlabelled),
+                    v.labelling.method, Fmt("%.3g", v.labelling.rms_px), rej});
   }
-  os << "\nPixel sigma per observation in the bundle adjustment: sqrt of the larger eigenvalue of the "
-        "blob's 2x2 covariance (the engine whitens each observation isotropically).\n";
-  return os.str();
+  d->Table({"view", "blobs", "labelled", "not markers", "method", "RMS px", "rejected"}, rows);
+  d->Paragraph("Pixel sigma per observation in the bundle adjustment: sqrt of the larger eigenvalue "
+               "of the blob's 2x2 covariance (the engine whitens each observation isotropically). "
+               "The overlays (`overlay_<view>.png`) show the blobs, labels, reprojected markers and "
+               "rejected blobs with their reason.");
 }
 
 std::string OverlayFileName(const std::string& name) {

@@ -26,6 +26,8 @@
 // centroid is small).
 #pragma once
 
+#include "report/report_doc.h"
+
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
@@ -93,7 +95,7 @@ std::string MarkerObservationsCsv(const std::vector<ObjectView>& views);
 // Per view: blobs found, markers labelled (method, RMS, hypotheses), unlabelled blobs, rejected
 // candidates by reason, or why it was skipped.
 nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views);
-std::string ObjectViewsMarkdown(const std::vector<ObjectView>& views);
+void AppendObjectViews(ReportDoc* doc, const std::vector<ObjectView>& views);
 // A file name for a view's overlay: overlay_<stem>[_frameN].png.
 std::string OverlayFileName(const std::string& view_name);
 

@@ -161,6 +161,10 @@ nlohmann::json JointPlotData(const JointSolution& solution);
 std::string JointReportMarkdown(const JointProblem& problem,
                                 const SolverConfig& config,
                                 const JointSolution& solution);
+// Warnings about the solution, one sentence each (in the report, in result.json "warnings" and on
+// stderr): intrinsics of a group that correlate beyond kIntrinsicsCorrelationWarn
+// (calib/conditioning.h).
+std::vector<std::string> JointWarnings(const JointSolution& solution);
 
 // Cross-check with mrcal 2.2 (scripts/mrcal_crosscheck.py, joint mode, through /usr/bin/python3):
 // the joint problem with the markers held at their CT positions and all nine intrinsics free,

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "ba/view_intrinsics.h"
+#include "calib/conditioning.h"
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
 #include "report/format.h"
@@ -85,6 +86,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                   {"object_sigma_px", problem.object_sigma_px},
                   {"intrinsics_model", problem.per_group ? "per_group" : "shared"},
                   {"initial_intrinsics_from", s.initial_intrinsics_from}};
+  j["warnings"] = JointWarnings(s);
   if (s.ba_problem.groups.size() == 1) {
     j["intrinsics"] = GroupJson(s, 0);
   } else {
@@ -230,6 +232,17 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
   return j;
 }
 
+std::vector<std::string> JointWarnings(const JointSolution& s) {
+  std::vector<std::string> out;
+  for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
+    const int b = s.result.layout->group_block(static_cast<int>(g));
+    const auto w = IntrinsicsCorrelationWarnings(
+        s.result.Covariance({b}), s.ba_problem.groups.size() > 1 ? s.ba_problem.groups[g].name : "");
+    out.insert(out.end(), w.begin(), w.end());
+  }
+  return out;
+}
+
 ReportDoc JointReportDoc(const JointProblem& problem,
                          const SolverConfig& config,
                          const JointSolution& s) {
@@ -290,7 +303,24 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   d.Figures({"distortion", "projection-uncertainty"});
   d.Append(FlexReportDoc(problem, s));  // C-arm flex: intrinsics per view, model selection
 
+  {
+    const auto warnings = JointWarnings(s);
+    const std::string used = std::string("Sigmas from the ") +
+                             (config.covariance_aposteriori ? "a-posteriori" : "a-priori") +
+                             " pixel sigmas.";
+    if (warnings.empty()) {
+      d.Paragraph(used + " No two intrinsics correlate beyond " +
+                  Fmt("%.2f", kIntrinsicsCorrelationWarn) + ".");
+    } else {
+      d.Paragraph(used);
+      for (const auto& w : warnings) d.Warning(w);
+    }
+  }
+  const std::string sigma_note = std::string("Sigmas from the ") +
+                                 (config.covariance_aposteriori ? "a-posteriori" : "a-priori") +
+                                 " pixel sigmas.";
   d.Heading(2, "Validation pairs (object views)");
+  d.Paragraph(sigma_note);
   const bool truth_poses = !problem.truth.object_poses.empty();
   header = {"a", "b", "expected (deg)", "relative rotation (deg)", "sigma",
             "view directions (deg)", "sigma"};
@@ -336,7 +366,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
       "Rotations are small rotations about the camera axes (their value is 0 by definition); "
       "`centre projection` is where the ray of the image centre, held fixed at the object "
       "distance, projects with the estimated intrinsics (its value is the image centre, its "
-      "sigma the calibration's own uncertainty there).");
+      "sigma the calibration's own uncertainty there). " + sigma_note);
   header = {"quantity", "unit", "value", "sigma"};
   for (int k = 0; k < ba::kNumSources; ++k) header.push_back(ba::SourceName(static_cast<ba::Source>(k)));
   rows.clear();

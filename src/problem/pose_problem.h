@@ -15,6 +15,9 @@
 // per view it is reported as (rvec, t) and as small rotations about the camera axes (deg) and
 // translations (mm).
 //
+// The reference of both files, every key with its units, is src/docs/formats.md (kept equal to
+// the readers by tests/cli/docs_formats_test.cc); in short:
+//
 // PROBLEM FILE (problems/*.yaml); paths are relative to the problem file:
 //   name: thesis_pose
 //   camera: ../data/thesis/camera.json         # camera.json (camera/camera.h)
@@ -80,6 +83,7 @@
 #include "camera/camera.h"
 #include "export/view_geometry.h"
 #include "geometry/pose.h"
+#include "util/progress.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -252,8 +256,11 @@ struct PoseSolution {
 };
 
 // Solves a pose problem. Errors: a view whose initialiser fails, a non-finite initial cost,
-// a rank-deficient covariance.
-StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const SolverConfig& config);
+// a rank-deficient covariance. `progress` (optional) is called once per view after its initial
+// pose (the bundle adjustment that follows is one solve over all views).
+StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
+                                        const SolverConfig& config,
+                                        const ProgressFn& progress = nullptr);
 
 // The problem's marker positions in its handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m);

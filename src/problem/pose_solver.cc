@@ -122,7 +122,9 @@ double ViewRms(const PoseProblem& problem,
 
 }  // namespace
 
-StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const SolverConfig& config) {
+StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
+                                        const SolverConfig& config,
+                                        const ProgressFn& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   std::string err;
   if (!config.Check(&err)) return Status::Error(config.path + ": " + err);
@@ -186,6 +188,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem, const Solver
     sol.views[v].initial = *init;
     sol.views[v].initial_rms_px = ViewRms(problem, problem.views[v], *init, markers);
     sol.views[v].num_observations = static_cast<int>(problem.views[v].observations.size());
+    if (progress) progress(problem.views[v].id);
   }
 
   ba::BaOptions options;

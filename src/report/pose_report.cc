@@ -165,14 +165,18 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
               "): the poses, sigmas and verdicts below are not at a minimum.");
   }
 
+  // Which pixel sigma the uncertainties below rest on (said wherever an uncertainty is shown).
+  const std::string sigma_used =
+      config.covariance_aposteriori
+          ? "the a-posteriori pixel sigma " + Fmt("%.3g", s.sigma_aposteriori_px) +
+                " px (the a-priori " + Fmt("%.3g", problem.sigma_px) + " px x s0)"
+          : "the a-priori pixel sigma " + Fmt("%.3g", problem.sigma_px) + " px";
   d.Heading(2, "Validation: angles between views (deg)");
   d.Paragraph(
       std::string("Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) "
                   "and inv(R_b)(0,0,1)); relative rotation is the angle of R_a^T R_b. ") +
-      (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance "
-                       "(" + std::string(config.covariance_aposteriori
-                                              ? "a-posteriori pixel sigma"
-                                              : "a-priori pixel sigma") + ")."
+      (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance, "
+                       "from " + sigma_used + "."
                      : "This config does not refine (refine: false): the values are the "
                        "initializer's, without uncertainty."));
   const std::string result_column =
@@ -223,6 +227,7 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
 
   d.Heading(2, "Poses (cam_from_object) with 1-sigma uncertainty");
   rows.clear();
+  d.Paragraph("Sigmas from " + sigma_used + ".");
   for (const auto& vs : s.views) {
     const auto& t = vs.cam_from_object;
     rows.push_back({vs.id, Fmt("%.2f", t[3]) + ", " + Fmt("%.2f", t[4]) + ", " + Fmt("%.2f", t[5]),

@@ -232,6 +232,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       scene.Fail("materials", "expected a mapping of material name to mu (1/mm)");
     } else {
       YamlMap& mm = scene.Map("materials");
+      mm.SetUserNamedKeys("<material>");
       for (const auto& kv : mats) {
         if (!kv.first.IsScalar()) {  // `? [a, b]`: as<std::string>() would throw
           scene.Fail("materials", "expected material names as keys");

@@ -27,18 +27,6 @@ double ThreadCpuSeconds() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-std::string FormatDuration(double s) {
-  char buf[32];
-  if (s < 0 || s > 1e7) return "?";
-  const int total = static_cast<int>(s + 0.5);
-  if (total >= 3600) {
-    std::snprintf(buf, sizeof(buf), "%dh%02dm", total / 3600, (total / 60) % 60);
-  } else {
-    std::snprintf(buf, sizeof(buf), "%dm%02ds", total / 60, total % 60);
-  }
-  return buf;
-}
-
 RunRecord Execute(const RunFunction& run, const RunSpec& spec) {
   RunRecord r;
   r.index = spec.index;
@@ -137,9 +125,15 @@ Status RunStudy(const StudySpec& spec,
   int bad = 0, dup = 0;
   StatusOr<std::vector<RunRecord>> existing = ReadRunLog(log_path, &bad, &dup);
   if (!existing.ok()) return existing.status();
+  if (options.restart && !options.resume && (!existing->empty() || bad > 0)) {
+    CARMBA_RETURN_IF_ERROR(RewriteRunLog(log_path, {}));
+    existing = std::vector<RunRecord>();
+    bad = dup = 0;
+  }
   if (!options.resume && (!existing->empty() || bad > 0)) {
     return Status::Error(log_path + ": already holds " + std::to_string(existing->size()) +
-                         " runs; pass --resume to continue that study or choose a new --out");
+                         " runs; pass --resume to continue that study, --force to start it "
+                         "over, or choose a new --out");
   }
   if (options.resume && FileExists(info_path)) {
     StatusOr<nlohmann::json> old = ReadStudyInfo(dir);
@@ -188,22 +182,8 @@ Status RunStudy(const StudySpec& spec,
   double runs_time = 0;
   Status write_error;
   const auto start = std::chrono::steady_clock::now();
-  auto last_print = start - std::chrono::seconds(10);
-  auto print_progress = [&](bool final) {
-    const auto now = std::chrono::steady_clock::now();
-    if (!final && now - last_print < std::chrono::milliseconds(250)) return;
-    last_print = now;
-    const double elapsed = std::chrono::duration<double>(now - start).count();
-    const double rate = executed > 0 ? executed / std::max(elapsed, 1e-9) : 0;
-    const int left = static_cast<int>(pending.size()) - executed;
-    std::fprintf(stderr, "\r[study %s] %d/%zu runs done, %d failed, %s elapsed, ETA %s   ",
-                 spec.name.c_str(), executed + st.skipped, runs.size(), failed,
-                 FormatDuration(elapsed).c_str(),
-                 rate > 0 ? FormatDuration(left / rate).c_str() : "?");
-    if (final) std::fprintf(stderr, "\n");
-    std::fflush(stderr);
-  };
-
+  Progress progress("study " + spec.name, static_cast<int>(pending.size()), "runs",
+                    options.progress);
   auto worker = [&]() {
     for (;;) {
       const size_t i = next.fetch_add(1);
@@ -222,7 +202,7 @@ Status RunStudy(const StudySpec& spec,
       ++executed;
       failed += record.ok ? 0 : 1;
       runs_time += record.time_s;
-      if (options.progress) print_progress(false);
+      progress.Tick(record.key);
     }
   };
   if (jobs == 1) {
@@ -237,7 +217,7 @@ Status RunStudy(const StudySpec& spec,
   st.executed = executed;
   st.failed = failed;
   st.runs_time_s = runs_time;
-  if (options.progress && !pending.empty()) print_progress(true);
+  progress.Finish();
   CARMBA_RETURN_IF_ERROR(write_error);
 
   CARMBA_RETURN_IF_ERROR(

@@ -27,6 +27,7 @@
 
 #include "study/run_store.h"
 #include "study/study_spec.h"
+#include "util/progress.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -37,9 +38,11 @@ struct StudyRunOptions {
   std::string out_dir;     // required
   int jobs = 0;            // worker threads; 0 = std::thread::hardware_concurrency()
   bool resume = false;     // skip runs already recorded in out_dir/runs.jsonl
+  bool restart = false;    // discard the runs already recorded there and start over
   int shard_k = 1;         // run shard K of N (see ShardRuns)
   int shard_n = 1;
-  bool progress = false;   // print a progress line to stderr (callers pass isatty(2))
+  // Progress per finished run on stderr (util/progress.h; the command chooses the style).
+  ProgressStyle progress = ProgressStyle::kNone;
   bool write_report = true;  // report.html besides the summaries
 
   bool Check(std::string* error) const;

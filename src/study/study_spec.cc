@@ -164,6 +164,7 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
       m.Fail("sweeps", "expected a mapping of variable names to lists of numbers");
     } else {
       YamlMap& sm = m.Map("sweeps");
+      sm.SetUserNamedKeys("<variable>");
       for (const auto& kv : sweeps) {
         StudySweep s;
         s.name = kv.first.Scalar();

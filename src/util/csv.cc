@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <sstream>
 
+#include "util/accepted_keys.h"
 #include "util/file_util.h"
 
 namespace carmba {
@@ -47,6 +48,7 @@ bool ParseFiniteDouble(const std::string& s, double* value) {
 }
 
 StatusOr<int> CsvTable::Column(const std::string& name) const {
+  RecordAcceptedKey(path, name);
   for (size_t i = 0; i < header.size(); ++i) {
     if (header[i] == name) return static_cast<int>(i);
   }

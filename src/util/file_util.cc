@@ -83,7 +83,10 @@ std::string NearestExistingAncestor(const std::string& p) {
 
 }  // namespace
 
-Status CheckOutputDir(const std::string& dir_in, const std::string& what) {
+Status CheckOutputDir(const std::string& dir_in,
+                      const std::string& what,
+                      bool force,
+                      const std::string& how_to_override) {
   if (dir_in.empty()) return Status::Error(what + ": expected a directory path, got nothing");
   const std::string dir = StripTrailingSlashes(dir_in);
   if (FileExists(dir)) {
@@ -91,7 +94,23 @@ Status CheckOutputDir(const std::string& dir_in, const std::string& what) {
       return Status::Error(what + " " + dir + ": exists and is not a directory, expected a "
                                               "directory");
     }
-    return CheckCanCreateIn(dir, dir, what);
+    CARMBA_RETURN_IF_ERROR(CheckCanCreateIn(dir, dir, what));
+    if (force) return Status::Ok();
+    std::vector<std::string> names;
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+      names.push_back(e.path().filename().string());
+    }
+    if (names.empty()) return Status::Ok();
+    std::sort(names.begin(), names.end());
+    std::string list;
+    for (size_t i = 0; i < std::min<size_t>(3, names.size()); ++i) {
+      list += (i ? ", " : "") + names[i];
+    }
+    if (names.size() > 3) list += ", ... " + std::to_string(names.size()) + " entries";
+    return Status::Error(what + " " + dir + ": holds a previous result (" + list +
+                         "); " + how_to_override +
+                         ", or choose a new directory");
   }
   const std::string a = NearestExistingAncestor(dir);
   if (!IsDirectory(a)) {
@@ -100,7 +119,7 @@ Status CheckOutputDir(const std::string& dir_in, const std::string& what) {
   return CheckCanCreateIn(a, dir, what);
 }
 
-Status CheckOutputFile(const std::string& path, const std::string& what) {
+Status CheckOutputFile(const std::string& path, const std::string& what, bool force) {
   if (path.empty() || path.back() == '/') {
     return Status::Error(what + " " + path + ": expected a file name");
   }
@@ -113,6 +132,10 @@ Status CheckOutputFile(const std::string& path, const std::string& what) {
       return Status::Error(what + " " + path + ": exists and is not a regular file, expected a "
                                                "file name");
     }
+    if (!force) {
+      return Status::Error(what + " " + path +
+                           ": exists (a previous result); pass --force to replace it");
+    }
   }
   const std::string d = DirName(path);
   if (!FileExists(d)) {
@@ -120,12 +143,17 @@ Status CheckOutputFile(const std::string& path, const std::string& what) {
     if (!IsDirectory(a)) {
       return Status::Error(what + " " + path + ": " + a + " is a file, expected a directory");
     }
-    return Status::Error(what + " " + path + ": directory " + d + " does not exist");
+    return CheckCanCreateIn(a, path, what);  // the missing directories are created on writing
   }
   if (!IsDirectory(d)) {
     return Status::Error(what + " " + path + ": " + d + " is a file, expected a directory");
   }
   return CheckCanCreateIn(d, path, what);
+}
+
+Status MakeParentDirs(const std::string& path) {
+  const std::string d = DirName(path);
+  return FileExists(d) ? Status::Ok() : MakeDirs(d);
 }
 
 StagedOutputDir::StagedOutputDir(std::string dir) : dir_(StripTrailingSlashes(std::move(dir))) {}
@@ -134,6 +162,7 @@ StagedOutputDir::~StagedOutputDir() {
   if (!done_ && !staging_.empty()) {
     std::error_code ec;
     std::filesystem::remove_all(staging_, ec);
+    for (const auto& d : created_parents_) ::rmdir(d.c_str());  // only if empty
   }
 }
 
@@ -145,6 +174,9 @@ Status StagedOutputDir::Begin() {
     staging_ = JoinPath(dir_, ".carmba-tmp." + suffix);
   } else {
     staging_ = dir_ + ".tmp." + suffix;
+    for (std::string a = DirName(dir_); !FileExists(a) && a != "." && a != "/"; a = DirName(a)) {
+      created_parents_.push_back(a);
+    }
   }
   std::error_code ec;
   std::filesystem::remove_all(staging_, ec);

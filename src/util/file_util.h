@@ -15,17 +15,30 @@ namespace carmba {
 Status WriteFileAtomic(const std::string& path, const std::string& contents);
 
 // Output paths, checked before any work so that a bad --out fails at once with a clear reason
-// (not after minutes of solving, with a rename's errno). `what` names the flag, e.g. "--out".
+// (not after minutes of solving, with a rename's errno). Every command follows the same contract:
+// missing parent directories are fine (they are created when the result is written, and removed
+// again if it is not); an existing result is refused unless `force`. `what` names the flag, e.g.
+// "--out".
 // CheckOutputDir: `dir` is an existing directory, or the nearest existing ancestor is a
 // directory (none of the ancestors is a file), and that directory is not on a read-only file
 // system and accepts new entries (probed by creating and removing a directory
 // `.carmba-probe.<pid>` in it: /proc and /sys refuse with ENOENT / EPERM although access(2) says
-// they are writable).
-Status CheckOutputDir(const std::string& dir, const std::string& what);
+// they are writable). Unless `force`, an existing `dir` must be empty (a non-empty one holds a
+// previous result: "--out DIR: holds a previous result (report.md, ...); pass --force to write
+// over it").
+// `how_to_override` replaces "pass --force to write over it" in that message.
+Status CheckOutputDir(const std::string& dir,
+                      const std::string& what,
+                      bool force,
+                      const std::string& how_to_override = "pass --force to write over it");
 // CheckOutputFile: `path` names a file: not an existing directory or other non-regular file
-// (renaming onto /dev/null would replace the device); its directory exists and passes the
-// checks above.
-Status CheckOutputFile(const std::string& path, const std::string& what);
+// (renaming onto /dev/null would replace the device); the nearest existing ancestor of its
+// directory passes the checks above. Unless `force`, `path` must not exist.
+Status CheckOutputFile(const std::string& path, const std::string& what, bool force);
+
+// Creates the missing directories of `path`'s directory (for an output file checked with
+// CheckOutputFile); the error names the directory.
+Status MakeParentDirs(const std::string& path);
 
 // An output directory written through a staging directory, so that an error leaves no partial
 // output and the final renames stay within one file system (rename(2) across mounts fails with
@@ -37,7 +50,8 @@ Status CheckOutputFile(const std::string& path, const std::string& what);
 //     that is an error before anything moves); with `replace_all` the entries that were in `dir`
 //     before are moved aside first and deleted after, or moved back on error. A rename failing
 //     half-way through (not expected within one directory) can leave some entries moved.
-// Without Commit the destructor removes the staging directory.
+// Without Commit the destructor removes the staging directory, and the parents of `dir` that
+// Begin created (when they are empty).
 class StagedOutputDir {
  public:
   explicit StagedOutputDir(std::string dir);
@@ -53,6 +67,7 @@ class StagedOutputDir {
  private:
   std::string dir_;
   std::string staging_;
+  std::vector<std::string> created_parents_;  // by Begin, deepest first
   bool inside_ = false;
   bool done_ = false;
 };

@@ -1,7 +1,10 @@
 #include "util/yaml_reader.h"
 
 #include <cmath>
+#include <regex>
 #include <set>
+
+#include "util/accepted_keys.h"
 
 #include "util/csv.h"
 #include "util/file_util.h"
@@ -336,6 +339,14 @@ Status YamlMap::Finish() {
                                        ": unknown key '" + KeyPath(k) + "' (known keys: " + list +
                                        ")");
       }
+    }
+  }
+  if (status_.ok() && AcceptedKeyRecordingEnabled()) {
+    static const std::regex kIndex("\\[[0-9]+\\]");
+    for (const auto& k : known_) {
+      RecordAcceptedKey(file_,
+                        std::regex_replace(KeyPath(user_named_.empty() ? k : user_named_), kIndex,
+                                           "[]"));
     }
   }
   return status_;

@@ -1,6 +1,7 @@
 // Strict reading of YAML mappings for problem, config, scene and study files.
 //
-// Every key read is recorded; Finish() reports the first unknown key. Wrong types, missing
+// Every key read is recorded; Finish() reports the first unknown key. The keys a parser asks for are
+// also what util/accepted_keys.h records, for the check of src/docs/formats.md. Wrong types, missing
 // required keys and non-finite numbers are errors naming the file, the line and the dotted key
 // path, and what was expected, e.g.
 //   configs/x.yaml:7: key 'solver.max_iterations': expected an integer, got 'many'
@@ -67,6 +68,10 @@ class YamlMap {
   // The raw node (marks the key as known); a Null node when absent -- test with Has().
   YAML::Node Raw(const std::string& key);
 
+  // This map's keys are names the user chooses (e.g. materials); util/accepted_keys.h records them
+  // as `placeholder` (e.g. "<material>").
+  void SetUserNamedKeys(const std::string& placeholder) { user_named_ = placeholder; }
+
   // Records an error at `key` (for checks done by the caller).
   void Fail(const std::string& key, const std::string& what);
   // The first error so far, including nested maps and unknown keys.
@@ -83,6 +88,7 @@ class YamlMap {
   std::string file_;
   std::string prefix_;
   std::set<std::string> known_;
+  std::string user_named_;
   std::vector<std::unique_ptr<YamlMap>> children_;
   Status status_;
 };

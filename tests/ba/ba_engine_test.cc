@@ -27,6 +27,17 @@ constexpr double kJacTol = 1e-10;
 // rounding of two different factorisations of a matrix with condition ~1e8.
 constexpr double kCovTol = 1e-8;
 
+// Every element within kCovTol of the reference, relative to sqrt(C_ii C_jj).
+void ExpectCovarianceEqual(const Eigen::MatrixXd& schur, const Eigen::MatrixXd& ref) {
+  ASSERT_EQ(schur.rows(), ref.rows());
+  for (int i = 0; i < schur.rows(); ++i) {
+    for (int j = 0; j < schur.cols(); ++j) {
+      const double scale = std::sqrt(std::abs(ref(i, i) * ref(j, j)));
+      ASSERT_NEAR(schur(i, j), ref(i, j), kCovTol * scale + 1e-300) << i << "," << j;
+    }
+  }
+}
+
 SyntheticJointSpec SmallSpec() {
   SyntheticJointSpec s;
   s.num_plate_views = 5;
@@ -181,12 +192,7 @@ TEST(BaCovariance, CalibrationOnlyEliminatesPlatePoses) {
   const Eigen::MatrixXd schur = r->Covariance(blocks);
   auto ref = CeresBlockCovariance(sj.problem, o, *r, blocks, "dense_svd");
   ASSERT_TRUE(ref.ok()) << ref.status().message();
-  for (int i = 0; i < schur.rows(); ++i) {
-    for (int j = 0; j < schur.cols(); ++j) {
-      const double scale = std::sqrt(std::abs((*ref)(i, i) * (*ref)(j, j)));
-      ASSERT_NEAR(schur(i, j), (*ref)(i, j), kCovTol * scale + 1e-300) << i << "," << j;
-    }
-  }
+  ExpectCovarianceEqual(schur, *ref);
 }
 
 // A fixed aspect ratio fy = r fx (IntrinsicsGroup::fy_over_fx): one free parameter for both, the
@@ -219,12 +225,7 @@ TEST(BaCovariance, TiedAspectRatioEqualsCeresCovariance) {
   const Eigen::MatrixXd schur = r->Covariance(blocks);
   auto ref = CeresBlockCovariance(sj.problem, o, *r, blocks, "dense_svd");
   ASSERT_TRUE(ref.ok()) << ref.status().message();
-  for (int i = 0; i < schur.rows(); ++i) {
-    for (int j = 0; j < schur.cols(); ++j) {
-      const double scale = std::sqrt(std::abs((*ref)(i, i) * (*ref)(j, j)));
-      ASSERT_NEAR(schur(i, j), (*ref)(i, j), kCovTol * scale + 1e-300) << i << "," << j;
-    }
-  }
+  ExpectCovarianceEqual(schur, *ref);
   EXPECT_NEAR(schur(kFy, kFy), ratio * ratio * schur(kFx, kFx), 1e-9 * schur(kFy, kFy));
   EXPECT_NEAR(schur(kFx, kFy), ratio * schur(kFx, kFx), 1e-9 * schur(kFy, kFy));
   const auto budget = ComputeErrorBudget(sj.problem, *r, {});

@@ -144,8 +144,14 @@ TEST(SceneMonteCarlo, ConditioningWarningWhereTheSigmasAreNotHonest) {
       auto r = Calibrate(clean, opt);
       EXPECT_TRUE(r.ok());
       const ConditioningReport c = AssessConditioning(*r, clean.width, clean.height);
-      for (const auto& w : c.warnings) std::cout << name << " " << noise << " px: " << w << "\n";
-      return c.warnings.size();
+      // The principal-point warnings (correlations beyond 0.99, fx-fy on these narrow views,
+      // are warned about in every regime and are tested in conditioning_test.cc).
+      size_t n = 0;
+      for (const auto& w : c.warnings) {
+        std::cout << name << " " << noise << " px: " << w << "\n";
+        n += w.find(" correlate at ") == std::string::npos;
+      }
+      return n;
     };
     EXPECT_GT(warnings(kCoarseNoisePx, false), 0u) << name;
     EXPECT_EQ(warnings(kSceneNoisePx, false), 0u) << name;

@@ -76,18 +76,18 @@ TEST_F(AbsurdInput, ValidObservationsCalibrate) {
 // Was: "view 0 (...): its plate pose is not determined by its points".
 TEST_F(AbsurdInput, SpacingFlag) {
   ExpectFails(Calibrate(obs_csv_) + " --spacing_mm 25000",
-              "--spacing_mm: expected 0 (not given) or 0.1 .. 1000 mm, got 25000");
+              "--spacing-mm: expected 0 (not given) or 0.1 .. 1000 mm, got 25000");
 }
 
 // Was: "view 0 (...): no homography (collinear points?)".
 TEST_F(AbsurdInput, SpacingFlagHuge) {
   ExpectFails(Calibrate(obs_csv_) + " --spacing_mm 1e300",
-              "--spacing_mm: expected 0 (not given) or 0.1 .. 1000 mm, got 1e+300");
+              "--spacing-mm: expected 0 (not given) or 0.1 .. 1000 mm, got 1e+300");
 }
 
 TEST_F(AbsurdInput, SpacingFlagTiny) {
   ExpectFails(Calibrate(obs_csv_) + " --spacing_mm 1e-9",
-              "--spacing_mm: expected 0 (not given) or 0.1 .. 1000 mm, got 1e-09");
+              "--spacing-mm: expected 0 (not given) or 0.1 .. 1000 mm, got 1e-09");
 }
 
 TEST_F(AbsurdInput, RowsAndColsFlags) {

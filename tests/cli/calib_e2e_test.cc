@@ -251,7 +251,7 @@ TEST(CalibE2E, BadInputs) {
                      "found in 0 of 20 images");
 
   ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --spacing_mm -20",
-                     "--spacing_mm: expected 0 (not given) or 0.1 .. 1000 mm, got -20");
+                     "--spacing-mm: expected 0 (not given) or 0.1 .. 1000 mm, got -20");
   ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --config " + empty,
                      "is a directory");
 

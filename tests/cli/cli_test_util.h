@@ -13,6 +13,9 @@
 #include <sstream>
 #include <string>
 
+#include "calib/synthetic_views.h"
+#include "detect/observations.h"
+
 namespace carmba::test {
 
 struct CommandResult {
@@ -93,6 +96,15 @@ inline std::string SimulateJointScene(const std::string& scene_yaml, const std::
                 "/fiducials.csv");
   if (r.exit_code != 0) return "ct-fiducials: " + r.err;
   return "";
+}
+
+// Synthetic observations of the default 5 x 5 plate by a thesis-like camera (408 x 408 px), as
+// observations.csv at `path` (calib/synthetic_views.h defaults): input for a quick calibrate.
+inline bool WriteSyntheticGridObservations(const std::string& path) {
+  SyntheticViewsOptions so;
+  GridSpec g;
+  const auto obs = MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
+  return WriteObservationsCsv(obs, path).ok();
 }
 
 inline int CountLines(const std::string& s) {

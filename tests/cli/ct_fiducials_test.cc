@@ -155,8 +155,8 @@ TEST_F(CtFiducialsCli, BadInputsFailWithAMessageAndWriteNothing) {
   std::ofstream(root_ + "/mirror.csv") << "id,x,y,z\n1,0,0,0\n2,10,0,0\n3,0,20,0\n4,0,0,30\n"
                                           "5,-12,7,0\n6,3,-9,14\n7,8,8,8\n8,-5,2,40\n9,20,1,-3\n";
   const std::vector<BadCase> cases = {
-      {"--out OUT", "--dicom DIR is required"},
-      {"--dicom " + series, "--out fiducials.csv is required"},
+      {"--out OUT", "--dicom is required"},
+      {"--dicom " + series, "--out is required"},
       {"--dicom " + root_ + "/missing --out OUT", "not a directory"},
       {"--dicom " + root_ + "/empty --out OUT", "no DICOM image files"},
       {"--dicom " + series + " --expected 8 --out OUT", "found 9 markers"},
@@ -168,7 +168,7 @@ TEST_F(CtFiducialsCli, BadInputsFailWithAMessageAndWriteNothing) {
        "column 'a'"},
       {"--dicom " + series + " --model " + root_ + "/mirror.csv --out OUT", "no labelling"},
       {"--dicom " + series + " --frame marker:12 --out OUT", "no marker with id 12"},
-      {"--dicom " + series + " --out " + root_ + "/no/such/dir/f.csv", "does not exist"},
+      {"--dicom " + series + " --out " + root_ + "/mirror.csv/f.csv", "is a file, expected a directory"},
       {"--dicom /usr/lib/python3/dist-packages/pydicom/data/test_files/dicomdirtests/77654033/"
        "CT2 --out OUT",
        "gap of 202.500 mm"},

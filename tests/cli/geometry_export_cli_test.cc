@@ -132,7 +132,7 @@ TEST(ExportGeometryCli, BadInputIsOneLineAndNoOutput) {
   };
   expect_error("", "--result");
   expect_error("--result " + geometry + " --format vtk", "--format: expected rtk, plastimatch");
-  expect_error("--result " + geometry + " --sdd_mm -5", "--sdd_mm: expected");
+  expect_error("--result " + geometry + " --sdd_mm -5", "--sdd-mm: expected");
   expect_error("--result " + dir.File("missing"), "missing");
   dir.Write("other.json", "{\"views\": []}");
   expect_error("--result " + dir.File("other.json"), "key 'format'");

@@ -44,6 +44,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   auto r = RunCarmba("solve --problem " + dir.File("problem.yaml") + " --config " +
                 dir.File("config.yaml") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto solve_run = r;  // its stderr is checked below (r is reused)
   const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
   const nlohmann::json truth = ReadJsonFile(scene + "/truth.json");
   // Intrinsics within 3 sigma of the truth.
@@ -181,6 +182,17 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
     EXPECT_NE(html.find(std::string("data-plot=\"") + id + "\""), std::string::npos) << id;
   }
   ExpectReportRenders(dir.File("out/report.html"), 8);
+  // The pixel sigma behind the uncertainties is named; correlated intrinsics are warnings in
+  // result.json, the report and on stderr, or the report says there are none.
+  EXPECT_NE(rs.str().find("Sigmas from the a-p"), std::string::npos);
+  ASSERT_TRUE(j.at("warnings").is_array());
+  for (const auto& w : j.at("warnings")) {
+    EXPECT_NE(rs.str().find("**Warning:** " + w.get<std::string>()), std::string::npos) << w;
+    EXPECT_NE(solve_run.err.find("carmba solve: warning: " + w.get<std::string>()),
+              std::string::npos);
+  }
+  EXPECT_EQ(j.at("warnings").empty(),
+            rs.str().find("No two intrinsics correlate beyond 0.99") != std::string::npos);
 }
 
 // A small valid joint problem written from the synthetic generator; each test corrupts one thing.

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "cli/cli_test_util.h"
+#include "cli/report_browser.h"
 
 namespace carmba::test {
 namespace {
@@ -95,6 +96,9 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
     }
   }
   EXPECT_NE(Slurp(out + "/report.md").find("Marker detection and labelling"), std::string::npos);
+  // report.html: the same report with its plots, rendered in a browser.
+  EXPECT_NE(Slurp(out + "/report.html").find("Marker detection and labelling"), std::string::npos);
+  ExpectReportRenders(out + "/report.html", 2);
 }
 
 // A joint problem file naming object_views: {images, detection} instead of observations (a

@@ -96,13 +96,13 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   EXPECT_EQ(truth3["views"][0]["centers_px"], truth["views"][0]["centers_px"]);
   EXPECT_FALSE(Slurp(out3 / "orient_000.png") == Slurp(out / "orient_000.png"));
 
-  // An existing non-empty output is not overwritten without --overwrite ...
+  // An existing non-empty output is not overwritten without --force ...
   const SimRun again = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
   EXPECT_NE(again.code, 0);
-  EXPECT_NE(again.err.find("--overwrite"), std::string::npos) << again.err;
+  EXPECT_NE(again.err.find("pass --force"), std::string::npos) << again.err;
   // ... and is replaced with it.
   EXPECT_EQ(
-      Simulate("--scene=" + kScenes + "thesis_pose.yaml --overwrite --out=" + out.string()).code,
+      Simulate("--scene=" + kScenes + "thesis_pose.yaml --force --out=" + out.string()).code,
       0);
   EXPECT_TRUE(fs::exists(out / "truth.json"));
 }

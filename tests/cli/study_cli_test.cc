@@ -222,20 +222,27 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
             std::string::npos);
 }
 
-// The progress line (runs done, failed, ETA) goes to stderr only when stderr is a terminal.
+// The progress bar (runs done, ETA; util/progress.h) goes to stderr only when stderr is a
+// terminal; in a pipe there is none, and --verbose gives one line per run instead.
 TEST(StudyCliTest, ProgressLineOnlyOnATerminal) {
   const std::string dir = MakeTempDir();
   const std::string study = WriteStudy(dir, 5);
   Result r = Carmba("study --study=" + study + " --out=" + dir + "/plain --jobs=2", dir);
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_EQ(r.err.find("runs done"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("runs"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
+  r = Carmba("study --study=" + study + " --out=" + dir + "/verbose --jobs=2 --verbose", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("20/20 runs done"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
   if (!FileExists("/usr/bin/script")) GTEST_SKIP() << "no /usr/bin/script to provide a terminal";
   // script(1) runs the command on a pseudo-terminal.
   r = Shell("/usr/bin/script -qec \"'" + kBin + "' study --study=" + study + " --out=" + dir +
                 "/tty --jobs=2\" /dev/null",
             dir);
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("20/20 runs done, 0 failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("] 20/20 runs 100%"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\r"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("ETA"), std::string::npos) << r.out;
 }
 
