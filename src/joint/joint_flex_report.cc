@@ -18,10 +18,6 @@ bool AnyAngles(const JointSolution& s) {
   return false;
 }
 
-const char* ModelName(const JointProblem& p) {
-  return p.smooth ? "smooth" : p.per_group ? "per_group" : "shared";
-}
-
 Camera ToCamera(const ba::ViewIntrinsics& vi, const ba::IntrinsicsGroup& g) {
   Camera c;
   c.params = vi.value;
@@ -91,7 +87,7 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
       vj["intrinsics_error_sigma"] = z;
     }
   }
-  nlohmann::json model = {{"name", ModelName(problem)}};
+  nlohmann::json model = {{"name", IntrinsicsModelName(problem)}};
   if (problem.smooth) model["coefficients"] = FlexModelJson(s);
   (*j)["intrinsics_model"] = model;
   if (s.selection) {
@@ -118,7 +114,7 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
     }
     (*j)["model_selection"] = {{"recommended", ba::IntrinsicsModelName(s.selection->recommended)},
                                {"why", s.selection->why},
-                               {"used", ModelName(problem)},
+                               {"used", IntrinsicsModelName(problem)},
                                {"scores", scores}};
   } else if (!s.selection_error.empty()) {
     (*j)["model_selection"] = {{"error", s.selection_error}};
@@ -161,7 +157,7 @@ ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& s) {
   if (!AnyAngles(s) && !problem.smooth) return d;
   const ba::BaProblem& bp = s.ba_problem;
   d.Heading(2, "Intrinsics per view (C-arm angles)");
-  std::string text = std::string("Model `") + ModelName(problem) + "`";
+  std::string text = std::string("Model `") + IntrinsicsModelName(problem) + "`";
   if (problem.smooth) {
     text += ": fx, fy, cx, cy as functions of the angles (Fourier order " +
             std::to_string(problem.smooth_basis.primary_order) + " in the primary angle, degree " +
@@ -252,8 +248,8 @@ ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& s) {
   std::string rec = std::string("**Recommended: `") +
                     ba::IntrinsicsModelName(s.selection->recommended) + "`** -- " +
                     s.selection->why + ".";
-  if (std::string(ba::IntrinsicsModelName(s.selection->recommended)) != ModelName(problem)) {
-    rec += std::string(" This solve used `") + ModelName(problem) +
+  if (std::string(ba::IntrinsicsModelName(s.selection->recommended)) != IntrinsicsModelName(problem)) {
+    rec += std::string(" This solve used `") + IntrinsicsModelName(problem) +
            "` (intrinsics.model in the problem).";
   }
   d.Paragraph(rec);

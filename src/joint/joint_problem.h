@@ -112,6 +112,11 @@ struct JointProblem {
   JointTruth truth;
 };
 
+// "shared", "per_group" or "smooth": the problem's intrinsics model as the files spell it.
+inline const char* IntrinsicsModelName(const JointProblem& p) {
+  return p.smooth ? "smooth" : p.per_group ? "per_group" : "shared";
+}
+
 StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path);
 // True if the YAML file is a joint problem (has plate_views or object_views).
 bool IsJointProblemFile(const std::string& yaml_path);

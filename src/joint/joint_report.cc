@@ -84,7 +84,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                   {"object_views", problem.object_views.size()},
                   {"plate_sigma_px", problem.plate_sigma_px},
                   {"object_sigma_px", problem.object_sigma_px},
-                  {"intrinsics_model", problem.per_group ? "per_group" : "shared"},
+                  {"intrinsics_model", IntrinsicsModelName(problem)},
                   {"initial_intrinsics_from", s.initial_intrinsics_from}};
   j["warnings"] = JointWarnings(s);
   if (s.ba_problem.groups.size() == 1) {

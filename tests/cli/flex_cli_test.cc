@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "cli_test_util.h"
+#include "markdown_doc.h"
 
 namespace carmba::test {
 namespace {
@@ -85,6 +86,24 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   EXPECT_EQ(j.at("intrinsics_model").at("coefficients").at("covariance").size(), 21u);
   EXPECT_EQ(j.at("model_selection").at("recommended"), "smooth") << j.at("model_selection").at("why");
   EXPECT_EQ(j.at("model_selection").at("scores").size(), 3u);
+  // Its keys as formats.md lists them: the joint result's table plus the flex table, and every
+  // key of the flex table written.
+  {
+    const MarkdownDoc formats = ReadMarkdownDoc(kSource + "/src/docs/formats.md");
+    ASSERT_TRUE(formats.tables.count("json-result-joint") && formats.tables.count("json-result-joint-flex"));
+    const auto& flex_rows = formats.tables.at("json-result-joint-flex");
+    std::set<std::string> documented(flex_rows.begin(), flex_rows.end());
+    const std::set<std::string> flex_keys = documented;
+    for (const auto& k : formats.tables.at("json-result-joint")) documented.insert(k);
+    std::set<std::string> written;
+    FlattenJsonKeys(j, "", 2, &written);
+    EXPECT_TRUE(Minus(written, documented).empty()) << "written, not in formats.md: " << JoinSet(Minus(written, documented));
+    std::set<std::string> missing;  // the `...error` keys are written only when a check fails
+    for (const auto& k : Minus(flex_keys, written)) {
+      if (k.size() < 5 || k.compare(k.size() - 5, 5, "error") != 0) missing.insert(k);
+    }
+    EXPECT_TRUE(missing.empty()) << "in the flex table, not written: " << JoinSet(missing);
+  }
   const std::string md = ReadTextFile(dir.File("out/report.md"));
   EXPECT_NE(md.find("## Intrinsics per view (C-arm angles)"), std::string::npos);
   EXPECT_NE(md.find("## Intrinsics model selection"), std::string::npos);
