@@ -234,10 +234,29 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
 
 std::vector<std::string> JointWarnings(const JointSolution& s) {
   std::vector<std::string> out;
-  for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
-    const int b = s.result.layout->group_block(static_cast<int>(g));
-    const auto w = IntrinsicsCorrelationWarnings(
-        s.result.Covariance({b}), s.ba_problem.groups.size() > 1 ? s.ba_problem.groups[g].name : "");
+  const ba::BaProblem& bp = s.ba_problem;
+  for (size_t g = 0; g < bp.groups.size(); ++g) {
+    std::string label = bp.groups.size() > 1 ? bp.groups[g].name : "";
+    Eigen::MatrixXd cov;
+    if (bp.groups[g].smooth) {
+      // A smooth group's block holds coefficients (the 1 and cos p terms of one intrinsic always
+      // correlate): the intrinsics themselves at the group's view nearest to (0, 0) instead.
+      int nearest = -1;
+      double best = 0;
+      for (size_t v = 0; v < bp.views.size(); ++v) {
+        if (bp.views[v].group != static_cast<int>(g)) continue;
+        const double d = std::hypot(bp.views[v].primary_deg, bp.views[v].secondary_deg);
+        if (nearest < 0 || d < best) nearest = static_cast<int>(v), best = d;
+      }
+      if (nearest < 0) continue;
+      cov = ba::IntrinsicsOfView(bp, s.result, nearest).covariance;
+      label = (label.empty() ? "" : label + ", ") + "smooth model at primary " +
+              Fmt("%g", bp.views[nearest].primary_deg) + " deg, secondary " +
+              Fmt("%g", bp.views[nearest].secondary_deg) + " deg";
+    } else {
+      cov = s.result.Covariance({s.result.layout->group_block(static_cast<int>(g))});
+    }
+    const auto w = IntrinsicsCorrelationWarnings(cov, label);
     out.insert(out.end(), w.begin(), w.end());
   }
   return out;
