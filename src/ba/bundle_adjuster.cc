@@ -11,6 +11,8 @@
 #include "ba/priors.h"
 #include "ba/reprojection_error.h"
 #include "ba/schur_lm.h"
+#include "ba/smooth_intrinsics.h"
+#include "ba/view_intrinsics.h"
 #include "util/stats.h"
 
 namespace carmba {
@@ -151,9 +153,12 @@ Status Assemble(const BaProblem& problem,
     const BaView& view = problem.views[v];
     const int pose_b = layout.view_block(static_cast<int>(v));
     const int intr_b = layout.group_block(view.group);
+    const bool smooth = problem.groups[view.group].smooth;
+    const Eigen::MatrixXd A = smooth ? ViewIntrinsicsMap(problem, static_cast<int>(v)) : Eigen::MatrixXd();
     if (view.kind == ViewKind::kPlate && !problem.plate.free && o.loss == "trivial" &&
-        o.analytic_jacobians && view.obs_sigma_px.empty()) {
-      // The held plate without a loss: the whole view in one block (ba/reprojection_error.h).
+        o.analytic_jacobians && view.obs_sigma_px.empty() && !smooth) {
+      // The held plate without a loss: the whole view in one block (ba/reprojection_error.h;
+      // not for a smooth group: the block takes the 9 intrinsics, the group holds coefficients).
       std::vector<Eigen::Vector3d> p;
       std::vector<Eigen::Vector2d> uv;
       std::vector<int> kept;
@@ -179,8 +184,12 @@ Status Assemble(const BaProblem& problem,
                               : layout.marker_block(marker_index.at(view.point_ids[i]));
       const Eigen::Vector2d& q = view.uv_px[i];
       ceres::CostFunction* cost =
-          o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.SigmaPx(i))
-                               : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i));
+          smooth ? (o.analytic_jacobians
+                        ? static_cast<ceres::CostFunction*>(
+                              new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
+                        : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
+          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.SigmaPx(i))
+                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i));
       ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
@@ -333,6 +342,7 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
     if (!ok && why.empty()) why = what;
   };
   need(p.groups.size() == 1, "one intrinsics group");
+  need(p.groups.empty() || !p.groups[0].smooth, "intrinsics that do not depend on the angles");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
   for (const auto& v : p.views) {
     need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty(), "one pixel sigma for all views");
