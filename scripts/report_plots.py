@@ -16,6 +16,9 @@
 #   markers                  {frame, items: [{id, p[3], cov[3][3]}]}
 #   study                    {configs[], problems[], groups[{problem, config, sweep{}, metrics[],
 #                             residuals[], budget[[entry, sigma]]}]}
+#   intrinsics_vs_angle      {model, views[{id, kind, primary_deg, secondary_deg, intrinsics
+#                             (camera.json), true_intrinsics[9]?}], curves[{secondary_deg,
+#                             points[{primary_deg, fx_fy_cx_cy[4], sigma[4]}]}]}  (C-arm flex)
 # Every key is optional; a plot whose data are missing is not drawn, and a note says why.
 # OUT.json: {plots: [{id, title, caption, png_base64}], notes: [...], errors: [...]}; a plot that
 # raises is listed in errors and the others are still drawn. Exit status 3 (with one line on
@@ -563,6 +566,59 @@ def study_plots(d, out, notes):
 
 
 # ------------------------------------------------------------------------------------------------
+# Intrinsics against the C-arm angle (C-arm flex, issue 14)
+
+def intrinsics_vs_angle(d, out, notes):
+    data = d.get("intrinsics_vs_angle")
+    if not data or not data.get("views"):
+        return
+    views = data["views"]
+    names = ["fx", "fy", "cx", "cy"]
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    secs = sorted({v["secondary_deg"] for v in views})
+    colour = {s: PALETTE[k % len(PALETTE)] for k, s in enumerate(secs)}
+    for i, name in enumerate(names):
+        ax = axes[i // 2][i % 2]
+        for curve in data.get("curves", []):
+            s = curve["secondary_deg"]
+            a = [p["primary_deg"] for p in curve["points"]]
+            x = np.asarray([np.nan if p["fx_fy_cx_cy"][i] is None else p["fx_fy_cx_cy"][i]
+                            for p in curve["points"]], float)
+            sg = np.asarray([np.nan if p["sigma"][i] is None else p["sigma"][i]
+                             for p in curve["points"]], float)
+            c = colour.get(s, "grey")
+            ax.plot(a, x, color=c, lw=1.2, label="model, secondary %+.0f deg" % s)
+            ax.fill_between(a, x - 3 * sg, x + 3 * sg, color=c, alpha=0.12, lw=0)
+            ax.fill_between(a, x - sg, x + sg, color=c, alpha=0.25, lw=0)
+        for kind, marker in (("plate", "o"), ("object", "D")):
+            for v in (v for v in views if v["kind"] == kind):
+                cam = v["intrinsics"]
+                k = cam["covariance"]["names"].index(name)
+                var = cam["covariance"]["matrix"][k][k]
+                sigma = max(0.0, var if var is not None else 0.0) ** 0.5
+                c = colour.get(v["secondary_deg"], "black")
+                ax.errorbar(v["primary_deg"], cam[name], yerr=3 * sigma, fmt=marker, ms=4, color=c,
+                            mfc="white" if kind == "object" else c, capsize=2, lw=0.8)
+                if "true_intrinsics" in v:
+                    ax.plot(v["primary_deg"], v["true_intrinsics"][i], "x", color="black", ms=6)
+        ax.set_ylabel(name + " (px)")
+        ax.grid(alpha=0.3)
+        if i >= 2:
+            ax.set_xlabel("primary angle (deg, LAO +)")
+    handles, _ = axes[0][0].get_legend_handles_labels()
+    handles += [plt.Line2D([], [], marker="o", ls="", color="grey", label="plate views (3 sigma bars)"),
+                plt.Line2D([], [], marker="D", ls="", mfc="white", color="grey", label="object views"),
+                plt.Line2D([], [], marker="x", ls="", color="black", label="truth")]
+    fig.legend(handles=handles, loc="lower center", ncol=3, frameon=False)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    out.append(("intrinsics-vs-angle",
+                "Intrinsics against the C-arm angle (model %s)" % data.get("model", "?"), png(fig),
+                "fx, fy, cx, cy of every view at its C-arm angles with 3-sigma bars (plate views "
+                "filled, object views open), the model's curve along the primary angle at each plate "
+                "secondary angle with 1- and 3-sigma bands, and the truth (crosses) when known."))
+
+
+# ------------------------------------------------------------------------------------------------
 
 PLOTS = {
     "calibration": [residuals_per_view, residual_field, distortion_field, projection_uncertainty,
@@ -570,7 +626,7 @@ PLOTS = {
     "pose": [residuals_per_view, residual_field, error_budget, scenes_3d, markers_3d,
              distortion_field],
     "joint": [residuals_per_view, residual_field, distortion_field, projection_uncertainty,
-              error_budget, scenes_3d, markers_3d],
+              error_budget, scenes_3d, markers_3d, intrinsics_vs_angle],
     "study": [study_plots],
     "ct_fiducials": [markers_3d],
 }

@@ -11,6 +11,8 @@
 #include "ba/priors.h"
 #include "ba/reprojection_error.h"
 #include "ba/schur_lm.h"
+#include "ba/smooth_intrinsics.h"
+#include "ba/view_intrinsics.h"
 #include "util/stats.h"
 
 namespace carmba {
@@ -151,9 +153,13 @@ Status Assemble(const BaProblem& problem,
     const BaView& view = problem.views[v];
     const int pose_b = layout.view_block(static_cast<int>(v));
     const int intr_b = layout.group_block(view.group);
+    const bool smooth = problem.groups[view.group].smooth;
+    const Eigen::MatrixXd A = smooth ? ViewIntrinsicsMap(problem, static_cast<int>(v)) : Eigen::MatrixXd();
     if (view.kind == ViewKind::kPlate && !problem.plate.free && o.loss == "trivial" &&
-        o.analytic_jacobians && view.obs_sigma_px.empty() && view.obs_covariance_px2.empty()) {
-      // The held plate without a loss: the whole view in one block (ba/reprojection_error.h).
+        o.analytic_jacobians && view.obs_sigma_px.empty() && view.obs_covariance_px2.empty() &&
+        !smooth) {
+      // The held plate without a loss: the whole view in one block (ba/reprojection_error.h;
+      // not for a smooth group: the block takes the 9 intrinsics, the group holds coefficients).
       std::vector<Eigen::Vector3d> p;
       std::vector<Eigen::Vector2d> uv;
       std::vector<int> kept;
@@ -184,9 +190,15 @@ Status Assemble(const BaProblem& problem,
         return Status::Error("view '" + view.id + "' point " + std::to_string(view.point_ids[i]) +
                              ": the pixel covariance is not symmetric positive definite");
       }
-      ceres::CostFunction* cost = o.analytic_jacobians
-                                      ? ReprojectionError::Create(q.x(), q.y(), w)
-                                      : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
+      // A smooth group's residual whitens isotropically (SigmaPx: the larger eigenvalue of a
+      // 2x2 covariance, a conservative bound); the others by the full 2x2.
+      ceres::CostFunction* cost =
+          smooth ? (o.analytic_jacobians
+                        ? static_cast<ceres::CostFunction*>(
+                              new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
+                        : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
+          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), w)
+                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
       ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
@@ -346,6 +358,7 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
     if (!ok && why.empty()) why = what;
   };
   need(p.groups.size() == 1, "one intrinsics group");
+  need(p.groups.empty() || !p.groups[0].smooth, "intrinsics that do not depend on the angles");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
   for (const auto& v : p.views) {
     need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty() && v.obs_covariance_px2.empty(),
@@ -551,7 +564,7 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       auto observe = [&](int obs, const Eigen::Vector2d& r2) {
         const double n_sigma = r2.norm();
         PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(obs));
-        if (!view.obs_covariance_px2.empty()) {
+        if (!view.obs_covariance_px2.empty() && !problem.groups[view.group].smooth) {
           PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
         }
         const Eigen::Vector2d e = w.Unwhiten(r2);  // px

@@ -36,6 +36,22 @@ Status BaProblem::Check() const {
     if (!(g.initial[kFx] > 0) || !(g.initial[kFy] > 0)) {
       return Status::Error("group '" + g.name + "': fx and fy must be > 0");
     }
+    if (g.smooth && g.has_prior) {
+      return Status::Error("group '" + g.name + "': an intrinsics prior is not supported with the "
+                           "smooth (angle-dependent) model");
+    }
+    if (g.smooth && (g.basis.primary_order < 0 || g.basis.secondary_degree < 0)) {
+      return Status::Error("group '" + g.name + "': the smooth basis needs orders >= 0");
+    }
+    if (g.smooth && !g.initial_coefficients.empty() &&
+        static_cast<int>(g.initial_coefficients.size()) != g.basis.BlockSize()) {
+      return Status::Error("group '" + g.name + "': " + std::to_string(g.initial_coefficients.size()) +
+                           " initial coefficients, expected " + std::to_string(g.basis.BlockSize()));
+    }
+    if (g.smooth && g.fy_over_fx != 0) {
+      return Status::Error("group '" + g.name + "': a fixed aspect ratio (fy_over_fx) is not "
+                           "supported with the smooth (angle-dependent) model");
+    }
     if (g.fy_over_fx != 0) {
       if (!(g.fy_over_fx > 0) || !std::isfinite(g.fy_over_fx)) {
         return Status::Error("group '" + g.name + "': fy_over_fx must be > 0 (0: fy free)");
@@ -69,6 +85,10 @@ Status BaProblem::Check() const {
         !g.consider_covariance.allFinite()) {
       return Status::Error("group '" + g.name + "': the considered calibration needs a finite " +
                            std::to_string(n) + "x" + std::to_string(n) + " covariance");
+    }
+    if (g.smooth) {
+      return Status::Error("group '" + g.name + "': a considered calibration is not supported with "
+                           "the smooth (angle-dependent) model");
     }
     std::set<int> distinct;
     for (int i : g.consider_indices) {
@@ -161,8 +181,49 @@ Status BaProblem::Check() const {
                              " is not among the fiducials");
       }
     }
+    if (groups[v.group].smooth) {
+      if (!v.has_angles) {
+        return Status::Error("view '" + v.id + "' has no C-arm angles, but its intrinsics group '" +
+                             groups[v.group].name +
+                             "' is smooth (intrinsics as functions of the angles)");
+      }
+      if (!std::isfinite(v.primary_deg) || !std::isfinite(v.secondary_deg)) {
+        return Status::Error("view '" + v.id + "': non-finite C-arm angles");
+      }
+    }
     ++views_of[v.group];
     if (v.kind == ViewKind::kPlate) ++plate_views_of[v.group];
+  }
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (!groups[g].smooth) continue;
+    const SmoothBasis& basis = groups[g].basis;
+    std::set<std::pair<long, long>> orientations;
+    std::set<long> primaries, secondaries;
+    for (const auto& v : views) {
+      if (v.group != static_cast<int>(g) || v.kind != ViewKind::kPlate) continue;
+      const long a = std::lround(v.primary_deg * 100), b = std::lround(v.secondary_deg * 100);
+      orientations.insert({a, b});
+      primaries.insert(a);
+      secondaries.insert(b);
+    }
+    const int K = basis.NumTerms();
+    if (static_cast<int>(orientations.size()) < K) {
+      return Status::Error(
+          "intrinsics group '" + groups[g].name + "': model smooth has " + std::to_string(K) +
+          " coefficients per intrinsic (Fourier order " + std::to_string(basis.primary_order) +
+          " in the primary angle, degree " + std::to_string(basis.secondary_degree) +
+          " in the secondary) but the plate views cover " + std::to_string(orientations.size()) +
+          " orientation group(s); it needs at least " + std::to_string(K));
+    }
+    if (static_cast<int>(primaries.size()) < 2 * basis.primary_order + 1 ||
+        static_cast<int>(secondaries.size()) < basis.secondary_degree + 1) {
+      return Status::Error(
+          "intrinsics group '" + groups[g].name + "': model smooth needs plate views at >= " +
+          std::to_string(2 * basis.primary_order + 1) + " distinct primary angles (have " +
+          std::to_string(primaries.size()) + ") and >= " +
+          std::to_string(basis.secondary_degree + 1) + " distinct secondary angles (have " +
+          std::to_string(secondaries.size()) + ")");
+    }
   }
   for (size_t g = 0; g < groups.size(); ++g) {
     if (views_of[g] == 0) {
@@ -217,15 +278,21 @@ StateLayout::StateLayout(const BaProblem& problem) {
   consider_covariance_ = Eigen::MatrixXd::Zero(nc, nc);
   for (size_t g = 0; g < problem.groups.size(); ++g) {
     const IntrinsicsGroup& grp = problem.groups[g];
-    const bool tied = grp.fy_over_fx > 0;
+    // A smooth group's block holds its basis coefficients (coefficient j free if its intrinsic
+    // is); a fixed aspect ratio ties fy to fx (refused with smooth by Check()).
+    const bool tied = !grp.smooth && grp.fy_over_fx > 0;
     std::vector<int> free;
-    for (int i = 0; i < kNumIntrinsics; ++i) {
-      if (grp.free[i] && !(tied && i == kFy)) free.push_back(i);
+    for (int i = 0; i < grp.BlockSize(); ++i) {
+      const int intrinsic = grp.smooth ? grp.basis.IntrinsicOf(i) : i;
+      if (grp.free[intrinsic] && !(tied && intrinsic == kFy)) free.push_back(i);
     }
-    const int b = add(BlockKind::kIntrinsics, static_cast<int>(g), kNumIntrinsics,
+    const int b = add(BlockKind::kIntrinsics, static_cast<int>(g), grp.BlockSize(),
                       one_group ? "" : grp.name, false, free);
     group_block_.push_back(b);
     BlockInfo& bi = blocks_[b];
+    if (grp.smooth) {
+      for (int i = 0; i < grp.BlockSize(); ++i) bi.parameter_names.push_back(grp.basis.ParameterName(i));
+    }
     const auto fx = std::find(bi.free.begin(), bi.free.end(), kFx);
     if (tied && fx != bi.free.end()) {
       bi.basis(kFy, fx - bi.free.begin()) = grp.fy_over_fx;
@@ -292,6 +359,10 @@ std::string StateLayout::ParameterName(int b, int i) const {
   static const char* const kPoint[3] = {"x", "y", "z"};
   const BlockInfo& blk = blocks_[b];
   std::string p;
+  if (!blk.parameter_names.empty()) {
+    p = blk.parameter_names[i];
+    return blk.label.empty() ? p : blk.label + " " + p;
+  }
   switch (blk.kind) {
     case BlockKind::kIntrinsics: p = kIntrinsicNames[i]; break;
     case BlockKind::kPlatePose:
@@ -360,10 +431,18 @@ std::vector<double> InitialState(const BaProblem& problem, const StateLayout& la
   for (const BlockInfo& b : layout.blocks()) {
     double* dst = x.data() + b.offset;
     switch (b.kind) {
-      case BlockKind::kIntrinsics:
-        std::copy(problem.groups[b.index].initial.begin(), problem.groups[b.index].initial.end(),
-                  dst);
+      case BlockKind::kIntrinsics: {
+        const IntrinsicsGroup& g = problem.groups[b.index];
+        if (g.smooth) {
+          const std::vector<double> c = g.initial_coefficients.empty()
+                                            ? g.basis.ConstantCoefficients(g.initial)
+                                            : g.initial_coefficients;
+          std::copy(c.begin(), c.end(), dst);
+        } else {
+          std::copy(g.initial.begin(), g.initial.end(), dst);
+        }
         break;
+      }
       case BlockKind::kPlatePose:
       case BlockKind::kObjectPose:
         for (int i = 0; i < 6; ++i) dst[i] = problem.views[b.index].initial[i];

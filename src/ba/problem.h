@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "ba/smooth_intrinsics.h"
 #include "camera/camera_model.h"
 #include "geometry/pose.h"
 #include "util/status.h"
@@ -79,6 +80,14 @@ struct IntrinsicsGroup {
   // parameters' covariance gains  A Sigma_c A^T  (ba/covariance.h). Every index must be held.
   std::vector<int> consider_indices;
   Eigen::MatrixXd consider_covariance;
+  // Orientation-dependent intrinsics (ba/smooth_intrinsics.h): the group's block holds the
+  // coefficients of `basis` (4K + 5), each view's intrinsics are A(view angles) c. Coefficient j
+  // is free if its intrinsic is. Every view of the group needs angles; no prior; the plate views
+  // must cover at least K orientations (K distinct angle pairs).
+  bool smooth = false;
+  SmoothBasis basis;
+  std::vector<double> initial_coefficients;  // empty: `initial` at every angle
+  int BlockSize() const { return smooth ? basis.BlockSize() : kNumIntrinsics; }
 };
 
 enum class ViewKind { kPlate, kObject };
@@ -91,6 +100,9 @@ struct BaView {
   std::vector<int> point_ids;         // plate point ids (plate view) or marker ids (object view)
   std::vector<Eigen::Vector2d> uv_px;
   double sigma_px = 1.0;              // pixel noise, 1 sigma per coordinate
+  // C-arm angles (DICOM positioner angles, deg), needed by a smooth intrinsics group.
+  bool has_angles = false;
+  double primary_deg = 0, secondary_deg = 0;
   // Per-observation pixel noise (1 sigma per coordinate, isotropic), parallel to uv_px; empty =
   // sigma_px for all.
   std::vector<double> obs_sigma_px;
@@ -141,7 +153,7 @@ struct BlockInfo {
   BlockKind kind;
   int index = 0;           // group / view / marker or plate-point index in the problem
   int offset = 0;          // into the parameter buffer
-  int size = 0;            // 9, 6 or 3
+  int size = 0;            // 9 (4K + 5 for smooth intrinsics), 6 or 3
   std::string label;       // "" (one group), "lao30", "plate 3", "view lao+030", "marker 7", ...
   bool constant = false;   // held entirely
   std::vector<int> free;   // free parameter indices within the block (empty if constant)
@@ -150,6 +162,7 @@ struct BlockInfo {
   // their offset in the considered vector c (-1: none).
   std::vector<int> consider;
   int consider_offset = -1;
+  std::vector<std::string> parameter_names;  // when not the kind's default (smooth intrinsics)
   // The block's parameters move as  x = x0 + basis * delta,  delta over `free` (size x |free|).
   // A column selection (`selection`) unless parameters are tied (fy = r fx: the fx column has r
   // in fy's row).

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "ba/view_intrinsics.h"
+#include "camera/camera.h"
 #include "geometry/rotation.h"
 
 namespace carmba {
@@ -56,6 +58,28 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
     const int b = L.group_block(static_cast<int>(g));
     const BlockInfo& bi = L.block(b);
     const double* x = result.block(b);
+    if (problem.groups[g].smooth) {
+      // Angle-dependent intrinsics: each view's fx, fy, cx, cy (rows of A(angles)).
+      for (size_t v = 0; v < problem.views.size(); ++v) {
+        if (problem.views[v].group != static_cast<int>(g)) continue;
+        const Eigen::MatrixXd A = ViewIntrinsicsMap(problem, static_cast<int>(v));
+        const Eigen::VectorXd xv = A * Eigen::Map<const Eigen::VectorXd>(x, A.cols());
+        for (int i = kFx; i <= kCy; ++i) {
+          if (!problem.groups[g].free[i]) continue;
+          std::vector<double> grad(A.cols());
+          for (Eigen::Index c = 0; c < A.cols(); ++c) grad[c] = A(i, c);
+          add("view " + problem.views[v].id + " " + kIntrinsicNames[i], "px", xv[i], b, grad);
+        }
+      }
+      for (int i = kK1; i < kNumIntrinsics; ++i) {
+        if (!problem.groups[g].free[i]) continue;
+        const int k = bi.size - kNumIntrinsics + i;  // distortion sits last in the block
+        std::vector<double> grad(bi.size, 0.0);
+        grad[k] = 1.0;
+        add(L.ParameterName(b, k), "", x[k], b, grad);
+      }
+      continue;
+    }
     for (int i : bi.Moving()) {
       std::vector<double> grad(kNumIntrinsics, 0.0);
       grad[i] = 1.0;

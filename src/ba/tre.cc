@@ -48,6 +48,12 @@ StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
   options.compute_covariance = true;
   const double nan = std::numeric_limits<double>::quiet_NaN();
 
+  for (const IntrinsicsGroup& g : problem.groups) {
+    if (g.smooth) {
+      return Status::Error("leave-one-marker-out: group '" + g.name +
+                           "' has angle-dependent (smooth) intrinsics, which the TRE does not support");
+    }
+  }
   // The problem with the full solve's rejections removed and its solution as initial values.
   BaProblem base = problem;
   for (size_t g = 0; g < base.groups.size(); ++g) {

@@ -56,6 +56,10 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
         !(o.covariance_px2.determinant() > 0)) {
       return Status::Error("view '" + v.id + "': the pixel covariance is not positive definite");
     }
+    if (problem.groups[v.group].smooth) {
+      return Status::Error("view '" + v.id + "': triangulation with angle-dependent (smooth) "
+                           "intrinsics is not supported");
+    }
     const double* K = result.block(L.group_block(v.group));
     const double* pose = result.block(L.view_block(o.view));
     double xy[2];

@@ -41,7 +41,10 @@ namespace fs = std::filesystem;
 // DIR/object/observations.csv holds the object views' marker centres (view, marker, u_px, v_px):
 // the true projections plus Gaussian noise of sigma_px, standing in for the manual picking of the
 // thesis (marker detection in object views is not built yet). DIR/truth.json: the camera, the
-// object views' cam_from_object (object = the marker model's frame), the sub-scenes' files.
+// object views' cam_from_object (object = the marker model's frame), the sub-scenes' files, every
+// view's true intrinsics (view_intrinsics; they depend on the angles when the scenes have
+// carm.flex) and the flex. DIR/views.csv: every view's C-arm angles (view, primary_deg,
+// secondary_deg), for `angles: views.csv` in a problem.
 carmba::Status SimulateJoint(carmba::YamlMap& scene,
                              const std::string& scene_path,
                              const std::string& tmp_dir,
@@ -71,10 +74,15 @@ carmba::Status SimulateJoint(carmba::YamlMap& scene,
   if (object->object_kind != "markers") {
     return Status::Error(scene_path + ": key 'object': " + object_file + " is not a marker scene");
   }
+  const auto& pf = plate->flex;
+  const auto& of = object->flex;
+  const bool same_flex = pf.cx_primary_px == of.cx_primary_px && pf.cx_secondary_px == of.cx_secondary_px &&
+                         pf.cy_primary_px == of.cy_primary_px && pf.cy_secondary_px == of.cy_secondary_px &&
+                         pf.f_primary == of.f_primary && pf.f_secondary == of.f_secondary;
   if (plate->camera.params != object->camera.params || plate->camera.width != object->camera.width ||
-      plate->camera.height != object->camera.height) {
+      plate->camera.height != object->camera.height || !same_flex) {
     return Status::Error(scene_path + ": the plate and object scenes must share one camera (" +
-                         plate_file + " and " + object_file + " differ in camera:)");
+                         plate_file + " and " + object_file + " differ in camera: or carm.flex)");
   }
   if (override_seed) {
     carmba::sim::ReseedXrayScene(FLAGS_seed, &plate.value());
@@ -116,10 +124,34 @@ carmba::Status SimulateJoint(carmba::YamlMap& scene,
     views.push_back({{"id", v.at("name")}, {"rvec", cfo.at("rvec")}, {"t_mm", cfo.at("t_mm")}});
   }
   CARMBA_RETURN_IF_ERROR(carmba::WriteFileAtomic(JoinPath(object_dir, "observations.csv"), csv.str()));
+  // Every view's C-arm angles (for problems with angle-dependent intrinsics: `angles: views.csv`)
+  // and its true intrinsics (with carm.flex they differ from view to view).
+  std::ostringstream angles;
+  angles << "# carmba simulate: the C-arm angles of every plate and object view\n"
+            "view,primary_deg,secondary_deg\n";
+  nlohmann::json view_intrinsics = nlohmann::json::array();
+  for (const nlohmann::json* tv : {&tp, &to}) {
+    for (const auto& v : tv->at("views")) {
+      char line[160];
+      std::snprintf(line, sizeof line, "%s,%.6g,%.6g\n", v.at("name").get<std::string>().c_str(),
+                    v.at("primary_deg").get<double>(), v.at("secondary_deg").get<double>());
+      angles << line;
+      view_intrinsics.push_back({{"id", v.at("name")},
+                                 {"primary_deg", v.at("primary_deg")},
+                                 {"secondary_deg", v.at("secondary_deg")},
+                                 {"camera", v.at("intrinsics")}});
+    }
+  }
+  CARMBA_RETURN_IF_ERROR(carmba::WriteFileAtomic(JoinPath(tmp_dir, "views.csv"), angles.str()));
   (*truth)["kind"] = "joint";
   (*truth)["description"] = description;
   (*truth)["camera"] = carmba::CameraToJson(plate->camera);
   (*truth)["object_views"] = views;
+  (*truth)["view_intrinsics"] = view_intrinsics;
+  (*truth)["flex"] = {{"cx_primary_px", pf.cx_primary_px}, {"cx_secondary_px", pf.cx_secondary_px},
+                      {"cy_primary_px", pf.cy_primary_px}, {"cy_secondary_px", pf.cy_secondary_px},
+                      {"f_primary", pf.f_primary}, {"f_secondary", pf.f_secondary},
+                      {"model", "camera/carm_flex.h"}};
   (*truth)["object_picks"] = {{"sigma_px", pick_sigma}, {"seed", pick_seed}};
   (*truth)["files"] = {{"plate", "plate/truth.json"}, {"object", "object/truth.json"},
                        {"ct", "ct_truth.json"}, {"ct_series", "ct/"}};

@@ -73,8 +73,10 @@ int RunJoint() {
   }
   ReportDoc doc = JointReportDoc(*problem, *config, *solution);
   doc.Append(JointMrcalDoc(j["mrcal_crosscheck"]));
+  nlohmann::json plot_data = JointPlotData(*solution);
+  AddFlexPlotData(j, &plot_data);  // the intrinsics against the C-arm angle (flex)
   const ReportFiles report =
-      RenderReport(doc, "carmba joint report: " + problem->name, JointPlotData(*solution));
+      RenderReport(doc, "carmba joint report: " + problem->name, plot_data);
   // All files or none; other files in an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();

@@ -15,6 +15,10 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
     return Status::Error("the mrcal cross-check needs one intrinsics group and both plate and "
                          "object views");
   }
+  if (joint.groups[0].smooth) {
+    return Status::Error("the mrcal cross-check needs intrinsics that do not depend on the "
+                         "C-arm angles (model shared)");
+  }
   // carmba's variant: markers held at their CT centres, all nine intrinsics free, no priors, the
   // same initial values (joint.* hold the initial values, the solution is in solution.result).
   ba::BaProblem variant = joint;

@@ -30,6 +30,18 @@
 //                                     # an intrinsics prior
 //   intrinsics: {model: shared}       # or {model: per_group, groups: groups.csv} (columns view,
 //                                     # group; a plate view is named by its image stem or number)
+//                                     # or {model: per_group} with angles: one group per plate
+//                                     # orientation, an object view in the nearest one's group;
+//                                     # or {model: smooth, primary_order: 1, secondary_degree: 1}:
+//                                     # fx fy cx cy as functions of the C-arm angles
+//                                     # (ba/smooth_intrinsics.h), distortion shared.
+//                                     # select: true|false (default true when every view has
+//                                     # angles): compare the models by held-out orientation
+//                                     # groups and AIC/BIC (ba/flex_models.h) in the report
+//   angles: views.csv                 # optional: C-arm angles per view (columns view, primary_deg,
+//                                     # secondary_deg; view = image stem, plate view number or
+//                                     # object view id); plate views read from DICOM images take
+//                                     # their Positioner Primary / Secondary Angle instead
 //   validation: [{a: VIEW, b: VIEW, expected_deg: X}, ...]   # object views
 //   truth: truth.json                 # optional (the simulator's joint truth)
 // The solver configuration (configs/, SolverConfig of problem/pose_problem.h) says how: the
@@ -44,6 +56,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ba/bundle_adjuster.h"
+#include "ba/flex_models.h"
 #include "ba/quantities.h"
 #include "ba/relative_pose.h"
 #include "ba/tre.h"
@@ -67,6 +80,8 @@ struct JointObjectView {
 struct JointTruth {
   std::optional<Camera> camera;
   std::map<std::string, Pose6> object_poses;  // cam_from_object by view id
+  // Per-view true intrinsics of a flexing C-arm ("view_intrinsics": [{"id", "camera"}]).
+  std::map<std::string, std::array<double, kNumIntrinsics>> view_intrinsics;
 };
 
 struct JointProblem {
@@ -89,9 +104,21 @@ struct JointProblem {
   bool camera_prior = false;
   bool per_group = false;
   std::map<std::string, std::string> group_of_view;  // per_group: view id -> group name
+  bool smooth = false;                               // model smooth
+  ba::SmoothBasis smooth_basis;
+  bool select_model = true;
+  // C-arm angles (deg) by view id (plate view ids as plate_view_ids, object view ids), and where
+  // each came from ("views.csv:12", "DICOM image.dcm").
+  std::map<std::string, std::pair<double, double>> angles;
+  std::map<std::string, std::string> angles_from;
   std::vector<ValidationPair> validation;
   JointTruth truth;
 };
+
+// "shared", "per_group" or "smooth": the problem's intrinsics model as the files spell it.
+inline const char* IntrinsicsModelName(const JointProblem& p) {
+  return p.smooth ? "smooth" : p.per_group ? "per_group" : "shared";
+}
 
 StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path);
 // True if the YAML file is a joint problem (has plate_views or object_views).
@@ -115,6 +142,8 @@ struct JointSolution {
   std::vector<PoseSigmas> comparison;            // joint, two-step, two-step with prior
   std::string comparison_error;                  // why the comparison is missing (if it is)
   std::string initial_intrinsics_from;           // "camera.json", "Zhang + calibration" ...
+  std::optional<ba::ModelSelection> selection;   // intrinsics models compared (flex)
+  std::string selection_error;                   // why not (if asked and it failed)
   // Relative poses of object views with 6x6 covariances (ba/relative_pose.h: every pair when
   // there are at most 10 object views, else the validation pairs); the leave-one-marker-out TRE
   // when the config has tre: true (ba/tre.h).
@@ -160,6 +189,19 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
 // {"error": ...}).
 ReportDoc JointMrcalDoc(const nlohmann::json& crosscheck);
 std::string JointMrcalMarkdown(const nlohmann::json& crosscheck);
+
+// C-arm flex (joint_flex_report.cc): every view's intrinsics (at its angles, with covariance, as
+// camera.json writes them) into result.json's views, the smooth model's coefficients and
+// covariance ("intrinsics_model"), the model selection ("model_selection") and the intrinsics
+// along the primary angle with their sigma ("intrinsics_curve", for the plot).
+void AddFlexJson(const JointProblem& problem, const JointSolution& solution, nlohmann::json* j);
+nlohmann::json FlexModelJson(const JointSolution& solution);
+// The report's sections on the intrinsics per view (against the truth when it has them) and on
+// the model selection, with the place of the plot "intrinsics-vs-angle" (report.html).
+ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& solution);
+// The plot's data from result.json (AddFlexJson's keys) into the report's plot data
+// ("intrinsics_vs_angle", drawn by scripts/report_plots.py); nothing without angles.
+void AddFlexPlotData(const nlohmann::json& result, nlohmann::json* plot_data);
 
 // The options of the engine from a solver config (one vocabulary for pose and joint).
 ba::BaOptions BaOptionsFromConfig(const SolverConfig& config);

@@ -1,9 +1,12 @@
 // Reading joint problem files (format in joint_problem.h).
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <set>
 
+#include "ba/flex_models.h"
 #include "detect/grid_detector.h"
+#include "io/dicom_xray.h"
 #include "joint/joint_problem.h"
 
 #include "detect/marker_views.h"
@@ -157,6 +160,51 @@ Status ReadGroups(const std::string& path, JointProblem* p) {
   return Status::Ok();
 }
 
+constexpr PlausibleRange kSmoothOrder{0, 4, ""};
+constexpr PlausibleRange kSecondaryDeg{-90, 90, "deg"};
+
+// angles: views.csv (view, primary_deg, secondary_deg).
+Status ReadAngles(const std::string& path, JointProblem* p) {
+  auto t = ReadCsv(path);
+  if (!t.ok()) return t.status();
+  auto vc = t->Column("view");
+  if (!vc.ok()) return vc.status();
+  for (size_t r = 0; r < t->rows.size(); ++r) {
+    const std::string view = t->rows[r][*vc];
+    const std::string where = path + ":" + std::to_string(t->line_numbers[r]);
+    if (view.empty()) return Status::Error(where + ": column 'view': expected a view id");
+    auto a = t->NumberIn(r, "primary_deg", plausible::kAngleDeg);
+    if (!a.ok()) return a.status();
+    auto b = t->NumberIn(r, "secondary_deg", kSecondaryDeg);
+    if (!b.ok()) return b.status();
+    if (p->angles.count(view)) return Status::Error(where + ": view '" + view + "' is given twice");
+    p->angles[view] = {*a, *b};
+    p->angles_from[view] = where;
+  }
+  return Status::Ok();
+}
+
+// Plate views read from DICOM images: their positioner angles.
+Status ReadDicomAngles(JointProblem* p) {
+  for (size_t v = 0; v < p->plate.views.size(); ++v) {
+    const std::string& file = p->plate.views[v].image;
+    if (file.empty() || !IsDicomFileName(file) || !std::filesystem::is_regular_file(file)) continue;
+    auto img = ReadDicomXray(file);
+    if (!img.ok()) return img.status();
+    if (img->geometry.empty()) continue;
+    const auto& g = img->geometry[0];
+    if (!g.primary_angle_deg || !g.secondary_angle_deg) continue;
+    const std::string& id = p->plate_view_ids[v];
+    if (p->angles.count(id)) {
+      return Status::Error(p->angles_from[id] + ": view '" + id +
+                           "' has angles in its DICOM tags (" + file + "); give them once");
+    }
+    p->angles[id] = {*g.primary_angle_deg, *g.secondary_angle_deg};
+    p->angles_from[id] = "DICOM " + file;
+  }
+  return Status::Ok();
+}
+
 Status ReadJointTruth(const std::string& path, JointTruth* truth) {
   auto text = ReadFile(path);
   if (!text.ok()) return text.status();
@@ -166,6 +214,13 @@ Status ReadJointTruth(const std::string& path, JointTruth* truth) {
       auto cam = CameraFromJson(j.at("camera"), path + ": camera");
       if (!cam.ok()) return cam.status();
       truth->camera = *cam;
+    }
+    if (j.contains("view_intrinsics")) {
+      for (const auto& v : j.at("view_intrinsics")) {
+        auto cam = CameraFromJson(v.at("camera"), path + ": view_intrinsics");
+        if (!cam.ok()) return cam.status();
+        truth->view_intrinsics[v.at("id").get<std::string>()] = cam->params;
+      }
     }
     if (j.contains("object_views")) {
       for (const auto& v : j.at("object_views")) {
@@ -239,9 +294,15 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
   root.Get("camera", &camera_file);
   root.Get("truth", &truth_file);
   YamlMap& intr = root.Map("intrinsics");
-  intr.GetEnum("model", {"shared", "per_group"}, &model);
+  intr.GetEnum("model", {"shared", "per_group", "smooth"}, &model);
   intr.Get("groups", &groups_file);
   intr.Get("prior", &p.camera_prior);
+  intr.GetInRange("primary_order", &p.smooth_basis.primary_order, kSmoothOrder);
+  intr.GetInRange("secondary_degree", &p.smooth_basis.secondary_degree, kSmoothOrder);
+  const bool has_select = intr.Has("select");
+  intr.Get("select", &p.select_model);
+  std::string angles_file;
+  root.Get("angles", &angles_file);
   if (root.Has("config")) {
     root.Raw("config");
     root.Fail("config", "a problem does not name its config: give --config to `carmba solve`");
@@ -314,11 +375,71 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
     return Status::Error(yaml_path + ": camera: a problem without plate views needs the camera "
                                      "(camera.json) for its intrinsics");
   }
-  p.per_group = model == "per_group";
-  if (p.per_group) {
-    if (groups_file.empty()) {
-      return Status::Error(yaml_path + ": intrinsics.groups: per_group needs a CSV (view, group)");
+  if (model != "smooth" && (intr.Has("primary_order") || intr.Has("secondary_degree"))) {
+    return Status::Error(yaml_path + ": intrinsics.primary_order / secondary_degree are only for "
+                                     "model: smooth");
+  }
+  // C-arm angles: views.csv, then the DICOM plate images.
+  if (!angles_file.empty()) CARMBA_RETURN_IF_ERROR(ReadAngles(JoinPath(base, angles_file), &p));
+  CARMBA_RETURN_IF_ERROR(ReadDicomAngles(&p));
+  {
+    std::set<std::string> known(p.plate_view_ids.begin(), p.plate_view_ids.end());
+    for (size_t v = 0; v < p.plate_view_ids.size(); ++v) known.insert(std::to_string(v));
+    for (const auto& v : p.object_views) known.insert(v.id);
+    for (const auto& [id, from] : p.angles_from) {
+      if (!known.count(id)) return Status::Error(from + ": view '" + id + "' is not a view of the problem");
     }
+    // A plate view may be named by its number in views.csv.
+    for (size_t v = 0; v < p.plate_view_ids.size(); ++v) {
+      auto it = p.angles.find(std::to_string(v));
+      if (!p.angles.count(p.plate_view_ids[v]) && it != p.angles.end()) {
+        p.angles[p.plate_view_ids[v]] = it->second;
+        p.angles_from[p.plate_view_ids[v]] = p.angles_from[it->first];
+      }
+    }
+  }
+  auto angles_of = [&](const std::string& id) { return p.angles.count(id) > 0; };
+  bool all_angles = !p.plate_view_ids.empty() || !p.object_views.empty();
+  std::string first_without;
+  for (const auto& id : p.plate_view_ids) {
+    if (!angles_of(id) && first_without.empty()) first_without = "plate view '" + id + "'";
+  }
+  for (const auto& v : p.object_views) {
+    if (!angles_of(v.id) && first_without.empty()) first_without = "object view '" + v.id + "'";
+  }
+  all_angles = first_without.empty();
+  p.smooth = model == "smooth";
+  if ((p.smooth || (model == "per_group" && groups_file.empty())) && !all_angles) {
+    return Status::Error(yaml_path + ": " + first_without + " has no C-arm angles; intrinsics model " +
+                         model + (p.smooth ? "" : " without groups") +
+                         " needs them (DICOM positioner angles, or angles: views.csv)");
+  }
+  if (has_select && p.select_model && !all_angles) {
+    return Status::Error(yaml_path + ": intrinsics.select: " + first_without +
+                         " has no C-arm angles; the model selection needs them for every view");
+  }
+  if (!has_select) p.select_model = all_angles;
+  p.per_group = model == "per_group";
+  if (p.per_group && groups_file.empty()) {
+    // One group per plate orientation; an object view joins the nearest.
+    std::vector<std::pair<double, double>> orientations;
+    for (const auto& id : p.plate_view_ids) {
+      const auto a = p.angles.at(id);
+      if (std::find(orientations.begin(), orientations.end(), a) == orientations.end()) orientations.push_back(a);
+    }
+    auto nearest = [&](const std::pair<double, double>& a) {
+      size_t best = 0;
+      for (size_t k = 1; k < orientations.size(); ++k) {
+        if (std::hypot(orientations[k].first - a.first, orientations[k].second - a.second) <
+            std::hypot(orientations[best].first - a.first, orientations[best].second - a.second)) {
+          best = k;
+        }
+      }
+      return ba::OrientationName(orientations[best].first, orientations[best].second);
+    };
+    for (const auto& id : p.plate_view_ids) p.group_of_view[id] = nearest(p.angles.at(id));
+    for (const auto& v : p.object_views) p.group_of_view[v.id] = nearest(p.angles.at(v.id));
+  } else if (p.per_group) {
     CARMBA_RETURN_IF_ERROR(ReadGroups(JoinPath(base, groups_file), &p));
     auto check = [&](const std::string& id, const std::string& number) -> Status {
       if (p.group_of_view.count(id) || (!number.empty() && p.group_of_view.count(number))) {

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "ba/view_intrinsics.h"
 #include "calib/conditioning.h"
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
@@ -13,8 +14,10 @@
 namespace carmba {
 namespace {
 
-// The group's intrinsics as camera.json writes them, with the joint covariance.
+// The group's intrinsics as camera.json writes them, with the joint covariance (a smooth group:
+// its coefficients, FlexModelJson).
 nlohmann::json GroupJson(const JointSolution& s, int g) {
+  if (s.ba_problem.groups[g].smooth) return FlexModelJson(s);
   const ba::StateLayout& L = *s.result.layout;
   const int b = L.group_block(g);
   Camera c;
@@ -56,10 +59,9 @@ GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSoluti
     if (bv.kind != ba::ViewKind::kObject) continue;
     ViewGeometry vg;
     vg.id = bv.id;
-    // The view's intrinsics: its group's (one per view once views carry their own).
+    // The view's intrinsics: its group's, or at its angles (a smooth group, ba/view_intrinsics.h).
     const ba::IntrinsicsGroup& grp = s.ba_problem.groups[bv.group];
-    const double* x = s.result.block(L.group_block(bv.group));
-    std::copy(x, x + kNumIntrinsics, vg.camera.params.begin());
+    vg.camera.params = ba::IntrinsicsValueOfView(s.ba_problem, s.result, static_cast<int>(v));
     vg.camera.width = grp.width;
     vg.camera.height = grp.height;
     const double* pose = s.result.block(L.view_block(static_cast<int>(v)));
@@ -82,7 +84,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                   {"object_views", problem.object_views.size()},
                   {"plate_sigma_px", problem.plate_sigma_px},
                   {"object_sigma_px", problem.object_sigma_px},
-                  {"intrinsics_model", problem.per_group ? "per_group" : "shared"},
+                  {"intrinsics_model", IntrinsicsModelName(problem)},
                   {"initial_intrinsics_from", s.initial_intrinsics_from}};
   j["warnings"] = JointWarnings(s);
   if (s.ba_problem.groups.size() == 1) {
@@ -129,6 +131,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     views.push_back(vj);
   }
   j["views"] = views;
+  AddFlexJson(problem, s, &j);
   nlohmann::json val = nlohmann::json::array();
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
@@ -231,10 +234,29 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
 
 std::vector<std::string> JointWarnings(const JointSolution& s) {
   std::vector<std::string> out;
-  for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
-    const int b = s.result.layout->group_block(static_cast<int>(g));
-    const auto w = IntrinsicsCorrelationWarnings(
-        s.result.Covariance({b}), s.ba_problem.groups.size() > 1 ? s.ba_problem.groups[g].name : "");
+  const ba::BaProblem& bp = s.ba_problem;
+  for (size_t g = 0; g < bp.groups.size(); ++g) {
+    std::string label = bp.groups.size() > 1 ? bp.groups[g].name : "";
+    Eigen::MatrixXd cov;
+    if (bp.groups[g].smooth) {
+      // A smooth group's block holds coefficients (the 1 and cos p terms of one intrinsic always
+      // correlate): the intrinsics themselves at the group's view nearest to (0, 0) instead.
+      int nearest = -1;
+      double best = 0;
+      for (size_t v = 0; v < bp.views.size(); ++v) {
+        if (bp.views[v].group != static_cast<int>(g)) continue;
+        const double d = std::hypot(bp.views[v].primary_deg, bp.views[v].secondary_deg);
+        if (nearest < 0 || d < best) nearest = static_cast<int>(v), best = d;
+      }
+      if (nearest < 0) continue;
+      cov = ba::IntrinsicsOfView(bp, s.result, nearest).covariance;
+      label = (label.empty() ? "" : label + ", ") + "smooth model at primary " +
+              Fmt("%g", bp.views[nearest].primary_deg) + " deg, secondary " +
+              Fmt("%g", bp.views[nearest].secondary_deg) + " deg";
+    } else {
+      cov = s.result.Covariance({s.result.layout->group_block(static_cast<int>(g))});
+    }
+    const auto w = IntrinsicsCorrelationWarnings(cov, label);
     out.insert(out.end(), w.begin(), w.end());
   }
   return out;
@@ -283,6 +305,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
     const int b = r.layout->group_block(static_cast<int>(g));
     const Eigen::MatrixXd C = r.Covariance({b});
+    if (s.ba_problem.groups[g].smooth) continue;  // FlexReportDoc
     for (int i = 0; i < kNumIntrinsics; ++i) {
       const double x = r.block(b)[i], sg = std::sqrt(std::max(0.0, C(i, i)));
       std::vector<std::string> row = {s.ba_problem.groups[g].name, kIntrinsicNames[i],
@@ -297,6 +320,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   }
   d.Table(header, rows);
   d.Figures({"distortion", "projection-uncertainty"});
+  d.Append(FlexReportDoc(problem, s));  // C-arm flex: intrinsics per view, model selection
 
   {
     const auto warnings = JointWarnings(s);

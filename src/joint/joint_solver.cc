@@ -245,8 +245,30 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     bp.views.push_back(view);
   }
   for (const auto& vp : problem.validation) sol.pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
+  // C-arm angles, and the angle-dependent models.
+  for (auto& v : bp.views) {
+    auto it = problem.angles.find(v.id);
+    if (it == problem.angles.end()) continue;
+    v.has_angles = true;
+    v.primary_deg = it->second.first;
+    v.secondary_deg = it->second.second;
+  }
 
   const ba::BaOptions options = BaOptionsFromConfig(config);
+  if (problem.select_model && !problem.plate.views.empty()) {
+    auto sel = ba::SelectIntrinsicsModel(
+        bp, problem.smooth_basis, options,
+        {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth});
+    if (sel.ok()) {
+      sol.selection = *sel;
+    } else {
+      sol.selection_error = sel.status().message();
+    }
+  }
+  if (problem.smooth) {
+    const Status s = ba::ApplyIntrinsicsModel(ba::IntrinsicsModel::kSmooth, problem.smooth_basis, &bp);
+    if (!s.ok()) return Status::Error(problem.path + ": " + s.message());
+  }
   auto r = ba::SolveBundleAdjustment(bp, options);
   if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
   sol.result = std::move(*r);
@@ -261,6 +283,10 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
   // Two-step comparison: needs both kinds of view.
   if (problem.object_views.empty() || problem.plate.views.empty()) {
     sol.comparison_error = "needs both plate and object views";
+    return sol;
+  }
+  if (problem.smooth) {
+    sol.comparison_error = "not built for the smooth intrinsics model";
     return sol;
   }
   sol.comparison.push_back(SigmasOf("joint", bp, sol.result, sol.pairs));

@@ -12,6 +12,7 @@
 #include <ceres/jet.h>
 #include <Eigen/Eigenvalues>
 
+#include "ba/view_intrinsics.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
 #include "report/format.h"
@@ -192,7 +193,9 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
     const ba::BaView& bv = problem.views[v];
     const bool plate = bv.kind == ba::ViewKind::kPlate;
     const double* pose = result.block(L.view_block(static_cast<int>(v)));
-    const double* intr = result.block(L.group_block(bv.group));
+    const std::array<double, kNumIntrinsics> view_intr =
+        ba::IntrinsicsValueOfView(problem, result, static_cast<int>(v));  // smooth: at its angles
+    const double* intr = view_intr.data();
     nlohmann::json u = nlohmann::json::array(), vv = nlohmann::json::array(),
                    du = nlohmann::json::array(), dv = nlohmann::json::array();
     for (size_t k = 0; k < bv.point_ids.size(); ++k) {
@@ -277,6 +280,9 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
   for (size_t g = 0; g < problem.groups.size(); ++g) {
     const auto& grp = problem.groups[g];
     const std::string name = problem.groups.size() == 1 ? "the camera" : grp.name;
+    // A smooth group's block holds coefficients, not one camera (its intrinsics against the
+    // angle are the joint report's own plot).
+    if (grp.smooth) continue;
     const int b = L.group_block(static_cast<int>(g));
     const double* x = result.block(b);
     cameras.push_back({{"name", name}, {"intrinsics", std::vector<double>(x, x + kNumIntrinsics)}});

@@ -105,6 +105,16 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   cm.GetInRange("sod_mm", &carm.sod_mm, plausible::kDistanceMm);
   GetVec(cm, "isocenter_mm", 3, carm.isocenter_mm.data());
   GetVec(cm, "axis_offset_mm", 2, carm.axis_offset_mm.data());
+  if (cm.Has("flex")) {
+    YamlMap& fx = cm.Map("flex");
+    const PlausibleRange kShiftPx{-200, 200, "px"}, kRelative{-0.1, 0.1, ""};
+    fx.GetInRange("cx_primary_px", &s.flex.cx_primary_px, kShiftPx);
+    fx.GetInRange("cx_secondary_px", &s.flex.cx_secondary_px, kShiftPx);
+    fx.GetInRange("cy_primary_px", &s.flex.cy_primary_px, kShiftPx);
+    fx.GetInRange("cy_secondary_px", &s.flex.cy_secondary_px, kShiftPx);
+    fx.GetInRange("f_primary", &s.flex.f_primary, kRelative);
+    fx.GetInRange("f_secondary", &s.flex.f_secondary, kRelative);
+  }
   if (cm.status().ok() && !(carm.sod_mm < carm.sid_mm)) {
     cm.Fail("sod_mm",
             "expected the source-to-isocentre distance to be smaller than sid_mm (" +
@@ -424,16 +434,17 @@ Status CheckViewsInsideFov(const XrayScene& s) {
   const double fr = s.render.fov_radius_px > 0 ? s.render.fov_radius_px : 0.5 * std::min(W, H);
   for (int i = 0; i < static_cast<int>(s.views.size()); ++i) {
     const Rigid3 cam_from_object = s.CamFromObject(i);
+    const Camera camera = s.ViewCamera(i);
     const std::string where = s.path + ": view '" + s.views[i].name + "'";
     if (s.views[i].partial) continue;
     for (const auto& sp : s.phantom.spheres) {
       const Eigen::Vector3d c = cam_from_object * sp.center_mm;
       double uv[2];
-      if (!(c.z() > sp.radius_mm) || !ProjectCamPoint(s.camera.params.data(), c.data(), uv)) {
+      if (!(c.z() > sp.radius_mm) || !ProjectCamPoint(camera.params.data(), c.data(), uv)) {
         return Status::Error(where + ": sphere " + std::to_string(sp.id) +
                              " is not in front of the X-ray source");
       }
-      const double r = SphereImageRadius(s.camera, c, sp.radius_mm, {uv[0], uv[1]});
+      const double r = SphereImageRadius(camera, c, sp.radius_mm, {uv[0], uv[1]});
       const std::string at = "sphere " + std::to_string(sp.id) + " projects to (" + Fmt(uv[0]) +
                              ", " + Fmt(uv[1]) + ") px with radius " + Fmt(r) + " px, ";
       if (!(uv[0] - r >= 0 && uv[0] + r <= W - 1 && uv[1] - r >= 0 && uv[1] + r <= H - 1)) {
@@ -464,14 +475,16 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   RenderOptions options = scene.render;
   options.seed = v.seed;
   const PlacedPhantom placed{&scene.phantom, out.cam_from_object};
+  const Camera camera = scene.ViewCamera(index);
+  if (!scene.flex.Rigid()) grid = nullptr;  // the ray grid is the rigid camera's
   std::vector<PlacedPhantom> phantoms = {placed};
   const bool clutter = !scene.clutter.spheres.empty() || !scene.clutter.boxes.empty();
   if (clutter) phantoms.push_back({&scene.clutter, out.cam_from_object});
-  auto gray = RenderXray(scene.camera, phantoms, options, grid);
+  auto gray = RenderXray(camera, phantoms, options, grid);
   if (!gray.ok()) return gray.status().WithContext("view '" + v.name + "'");
   out.gray = *gray;
   out.image = ToOutputImage(out.gray, scene.bit_depth);
-  auto uv = ProjectSphereCenters(scene.camera, placed);
+  auto uv = ProjectSphereCenters(camera, placed);
   if (!uv.ok()) return uv.status().WithContext("view '" + v.name + "'");
   out.centers_px = *uv;
 
@@ -493,8 +506,9 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   }
   j["centers_px"] = px;
   j["centers_in_cam_mm"] = cam;
+  j["intrinsics"] = CameraToJson(camera);
   if (!scene.clutter.spheres.empty()) {
-    auto cuv = ProjectSphereCenters(scene.camera, {&scene.clutter, out.cam_from_object});
+    auto cuv = ProjectSphereCenters(camera, {&scene.clutter, out.cam_from_object});
     if (!cuv.ok()) return cuv.status().WithContext("view '" + v.name + "' (clutter)");
     nlohmann::json cpx = nlohmann::json::array();
     for (const auto& q : *cuv) cpx.push_back({q.x(), q.y()});
@@ -507,14 +521,16 @@ namespace {
 
 // The XA geometry tags of a view (xray_scene.h, output dcm): angles, SID, SOD, and the pixel
 // spacing SID / fy \ SID / fx that gives back fx, fy through sim/dicom_view.h.
-DicomXrayWriteOptions DicomOptionsOfView(const XrayScene& scene, const CarmGeometry& carm) {
+DicomXrayWriteOptions DicomOptionsOfView(const XrayScene& scene, int view) {
+  const CarmGeometry& carm = scene.views[view].carm;
+  const Camera camera = scene.ViewCamera(view);  // the view's own (flexing C-arm)
   DicomXrayWriteOptions o;
   o.geometry.primary_angle_deg = carm.primary_angle_deg;
   o.geometry.secondary_angle_deg = carm.secondary_angle_deg;
   o.geometry.sid_mm = carm.sid_mm;
   o.geometry.sod_mm = carm.sod_mm;
-  o.geometry.pixel_spacing_row_mm = carm.sid_mm / scene.camera.params[kFy];
-  o.geometry.pixel_spacing_col_mm = carm.sid_mm / scene.camera.params[kFx];
+  o.geometry.pixel_spacing_row_mm = carm.sid_mm / camera.params[kFy];
+  o.geometry.pixel_spacing_col_mm = carm.sid_mm / camera.params[kFx];
   return o;
 }
 
@@ -569,7 +585,7 @@ Status SimulateXrayScene(const XrayScene& scene,
     }
     const std::string file = JoinPath(out_dir, view->truth["file"].get<std::string>());
     if (scene.format == "dcm") {
-      DicomXrayWriteOptions o = DicomOptionsOfView(scene, scene.views[i].carm);
+      DicomXrayWriteOptions o = DicomOptionsOfView(scene, i);
       o.sop_instance_uid = o.series_uid + "." + std::to_string(i + 1);
       CARMBA_RETURN_IF_ERROR(WriteDicomXray(file, {view->image}, o));
     } else {
@@ -579,7 +595,7 @@ Status SimulateXrayScene(const XrayScene& scene,
   }
   if (scene.multiframe) {
     const CarmGeometry& first = scene.views[0].carm;
-    DicomXrayWriteOptions o = DicomOptionsOfView(scene, first);
+    DicomXrayWriteOptions o = DicomOptionsOfView(scene, 0);
     for (const XrayView& v : scene.views) {
       if (v.carm.sid_mm != first.sid_mm || v.carm.sod_mm != first.sod_mm) {
         return Status::Error(scene.path + ": view '" + v.name +

@@ -25,6 +25,11 @@
 //     distortion: [k1, k2, p1, p2, k3]          # default zeros; k1 < 0 barrel, k1 > 0 pincushion
 //   carm:                            # sim/carm_geometry.h
 //     sid_mm: 1000, sod_mm: 620, isocenter_mm: [0, 0, 0], axis_offset_mm: [0, 0]
+//     flex: {cx_primary_px: 6, cx_secondary_px: 0.5, cy_primary_px: 2.5, cy_secondary_px: 0.3,
+//            f_primary: 0.004, f_secondary: 0.001}
+//       # optional: intrinsics that depend on the view's angles (camera/carm_flex.h); `camera`
+//       # gives them at primary = secondary = 0. Each view's true intrinsics go to truth.json
+//       # (views[].intrinsics); a DICOM view's Imager Pixel Spacing follows its fx, fy.
 //   imaging:                         # sim/xray_render.h RenderOptions
 //     supersampling: 3, white_level: 220, photons_per_pixel: 3000, read_noise_gray: 0.8,
 //     blur_sigma_px: 0.6, vignetting: 0.2, outside_fov_gray: 0,
@@ -78,7 +83,8 @@
 //               "cam_from_world", "world_from_object", "cam_from_plate"|"cam_from_object"
 //                  (each {"R": 3x3 row-major, "rvec": [rad], "t_mm": [..]}),
 //               "centers_px": [[u, v]..] (sphere order, projected with distortion),
-//               "centers_in_cam_mm": [[x,y,z]..]}]}
+//               "centers_in_cam_mm": [[x,y,z]..],
+//               "intrinsics": CameraToJson of the view's camera (with flex: at its angles)}]}
 #pragma once
 
 #include <memory>
@@ -88,6 +94,7 @@
 #include <vector>
 
 #include "camera/camera.h"
+#include "camera/carm_flex.h"
 #include "sim/carm_geometry.h"
 #include "sim/phantom.h"
 #include "sim/xray_render.h"
@@ -119,6 +126,15 @@ struct XrayScene {
   Phantom clutter;          // metal that is not a marker (object frame); may be empty
   bool multiframe = false;  // dcm: one multi-frame file
   std::vector<XrayView> views;
+  CarmFlex flex;            // rigid unless carm.flex is given
+
+  // The camera of view `view`: `camera` moved by the flex at the view's angles.
+  Camera ViewCamera(int view) const {
+    Camera c = camera;
+    c.params = flex.Apply(camera.params, views[view].carm.primary_angle_deg,
+                          views[view].carm.secondary_angle_deg);
+    return c;
+  }
 
   Rigid3 CamFromObject(int view) const {
     return CamFromWorld(views[view].carm) * views[view].world_from_object;

@@ -7,8 +7,11 @@
 #include <random>
 #include <set>
 
+#include "ba/flex_models.h"
 #include "ba/quantities.h"
 #include "ba/synthetic.h"
+#include "ba/synthetic_flex.h"
+#include "ba/view_intrinsics.h"
 #include "calib/calibrate.h"
 #include "calib/synthetic_views.h"
 #include "camera/camera_model.h"
@@ -344,6 +347,144 @@ bool IsJoint(const StudyProblem& p) {
   return p.synthetic.is_object() && p.synthetic.contains("kind") && p.synthetic["kind"] == "joint";
 }
 
+// One run's record: convergence, errors against the truth, signed errors with their sigmas, values.
+nlohmann::json RunRecord(bool converged,
+                         const std::string& termination,
+                         const nlohmann::json& errors,
+                         const nlohmann::json& signed_errors,
+                         const nlohmann::json& sigmas,
+                         const nlohmann::json& values) {
+  return {{"converged", converged},
+          {"termination", termination},
+          {"errors", errors},
+          {"signed_errors", signed_errors},
+          {"sigmas", sigmas},
+          {"values", values}};
+}
+
+bool IsFlex(const StudyProblem& p) {
+  return p.synthetic.is_object() && p.synthetic.contains("kind") && p.synthetic["kind"] == "flex";
+}
+
+// A synthetic FLEXING C-arm (ba/synthetic_flex.h) solved with one intrinsics model
+// (synthetic.model: shared | per_group | smooth); the flex scaled by the sweep `flex_scale`
+// (0: rigid, 1: CarmFlex::Typical()). Per-view intrinsics and object poses against the truth:
+// signed errors with sigmas of the first calibrated and the first in-between object view, the
+// mean NEES of the per-view intrinsics (fx fy cx cy; 4 if consistent) and of the object poses
+// (6), the fraction of intrinsics within 3 sigma; with synthetic.select: 1 the recommended
+// model of the held-out selection (values.recommended_*: 1 if it is that model).
+StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
+  for (const auto& kv : run.sweep) {
+    if (kv.first != "flex_scale" && kv.first != "pixel_noise_px") {
+      return Status::Error("sweep variable '" + kv.first +
+                           "' is not understood by flex problems (known: flex_scale, pixel_noise_px)");
+    }
+  }
+  const StudyProblem& sp = *run.problem;
+  JsonMap m(sp.synthetic, "problem '" + sp.name + "': synthetic");
+  std::string kind, model = "smooth";
+  double select = 0, per = 6;
+  m.String("kind", &kind);
+  m.String("model", &model);
+  m.Number("select", &select);
+  m.Number("plate_views_per_orientation", &per, &plausible::kViews);
+  ba::SyntheticFlexSpec spec;
+  m.Number("sigma_plate_px", &spec.sigma_plate_px, &plausible::kPixelSigmaPx);
+  m.Number("sigma_object_px", &spec.sigma_object_px, &plausible::kPixelSigmaPx);
+  CARMBA_RETURN_IF_ERROR(m.Finish());
+  ba::IntrinsicsModel im;
+  if (model == "shared") {
+    im = ba::IntrinsicsModel::kShared;
+  } else if (model == "per_group") {
+    im = ba::IntrinsicsModel::kPerGroup;
+  } else if (model == "smooth") {
+    im = ba::IntrinsicsModel::kSmooth;
+  } else {
+    return Status::Error("problem '" + sp.name + "': synthetic.model '" + model +
+                         "' is unknown (shared, per_group, smooth)");
+  }
+  spec.plate_views_per_orientation = static_cast<int>(per);
+  spec.sigma_object_px = run.SweepValue("pixel_noise_px", spec.sigma_object_px);
+  const double scale = run.SweepValue("flex_scale", 1.0);
+  const CarmFlex t = CarmFlex::Typical();
+  spec.flex = {scale * t.cx_primary_px, scale * t.cx_secondary_px, scale * t.cy_primary_px,
+               scale * t.cy_secondary_px, scale * t.f_primary, scale * t.f_secondary};
+  auto config = state->configs.Get(run.config->file, [&] { return LoadSolverConfig(run.config->file); });
+  if (!config->ok()) return config->status();
+  ba::BaOptions options = BaOptionsFromConfig(config->value());
+  options.num_threads = 1;
+  const ba::SyntheticFlex sf = ba::MakeSyntheticFlex(spec, run.seed);
+  ba::BaProblem p = sf.problem;
+  CARMBA_RETURN_IF_ERROR(ba::ApplyIntrinsicsModel(im, ba::SmoothBasis(), &p));
+  auto r = ba::SolveBundleAdjustment(p, options);
+  if (!r.ok()) return r.status();
+  nlohmann::json signed_errors, sigmas, values, errors;
+  double nees_cal = 0, nees_between = 0, nees_pose_at = 0, nees_pose_between = 0, within = 0;
+  int n_cal = 0, n_between = 0, n_at = 0, n_comp = 0;
+  bool first_at = true, first_between = true;
+  static const char* const kPose[6] = {"rx_rad", "ry_rad", "rz_rad", "tx_mm", "ty_mm", "tz_mm"};
+  for (size_t v = 0; v < p.views.size(); ++v) {
+    const ba::ViewIntrinsics vi = ba::IntrinsicsOfView(p, *r, static_cast<int>(v));
+    Eigen::Vector4d e;
+    for (int i = 0; i < 4; ++i) {
+      e[i] = vi.value[i] - sf.true_intrinsics[v][i];
+      within += std::abs(e[i]) < 3 * std::sqrt(vi.covariance(i, i));
+      ++n_comp;
+    }
+    const double nees = e.dot(vi.covariance.topLeftCorner<4, 4>().ldlt().solve(e));
+    if (p.views[v].kind == ba::ViewKind::kPlate) {
+      nees_cal += nees, ++n_cal;
+      continue;
+    }
+    const int b = r->layout->view_block(static_cast<int>(v));
+    const Eigen::MatrixXd C = r->Covariance({b});
+    Eigen::Matrix<double, 6, 1> d;
+    for (int i = 0; i < 6; ++i) d[i] = r->block(b)[i] - sf.true_poses[v][i];
+    const double pose_nees = d.dot(C.ldlt().solve(d));
+    const bool between = sf.between[v];
+    if (between) {
+      nees_between += nees, nees_pose_between += pose_nees, ++n_between;
+    } else {
+      nees_pose_at += pose_nees, ++n_at;
+    }
+    bool& first = between ? first_between : first_at;
+    if (!first) continue;
+    first = false;
+    const std::string tag = between ? "between_" : "at_";
+    for (int i = 0; i < 4; ++i) {
+      signed_errors[tag + kIntrinsicNames[i] + "_px"] = e[i];
+      sigmas[tag + kIntrinsicNames[i] + "_px"] = std::sqrt(vi.covariance(i, i));
+    }
+    for (int i = 0; i < 6; ++i) {
+      signed_errors[tag + "pose_" + kPose[i]] = d[i];
+      sigmas[tag + "pose_" + kPose[i]] = std::sqrt(C(i, i));
+    }
+  }
+  values["intrinsics_nees_calibrated"] = nees_cal / std::max(1, n_cal);
+  values["intrinsics_nees_between"] = nees_between / std::max(1, n_between);
+  values["pose_nees_at"] = nees_pose_at / std::max(1, n_at);
+  values["pose_nees_between"] = nees_pose_between / std::max(1, n_between);
+  values["intrinsics_within_3_sigma"] = within / std::max(1, n_comp);
+  values["sigma0"] = Num(r->sigma0);
+  errors["between_cx_px"] = std::abs(signed_errors.value("between_cx_px", 0.0));
+  errors["between_translation_mm"] =
+      std::hypot(signed_errors.value("between_pose_tx_mm", 0.0), signed_errors.value("between_pose_ty_mm", 0.0),
+                 signed_errors.value("between_pose_tz_mm", 0.0));
+  if (select > 0) {
+    auto sel = ba::SelectIntrinsicsModel(
+        sf.problem, ba::SmoothBasis(), options,
+        {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth});
+    if (!sel.ok()) return sel.status();
+    for (auto mm : {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth}) {
+      values[std::string("recommended_") + ba::IntrinsicsModelName(mm)] = sel->recommended == mm ? 1 : 0;
+    }
+    for (const auto& sc : sel->scores) {
+      values[std::string("held_out_d2_") + ba::IntrinsicsModelName(sc.model)] = Num(sc.held_out_d2_mean);
+    }
+  }
+  return RunRecord(r->converged, r->termination, errors, signed_errors, sigmas, values);
+}
+
 std::string BudgetKey(ba::Source s) {
   switch (s) {
     case ba::Source::kPlatePixels: return "plate_pixels";
@@ -561,14 +702,7 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   double worst = 0;
   for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
   values["projection_sigma_worst_px"] = Num(worst);
-  nlohmann::json r;
-  r["converged"] = result->converged;
-  r["termination"] = result->termination;
-  r["errors"] = errors;
-  r["signed_errors"] = signed_errors;
-  r["sigmas"] = sigmas;
-  r["values"] = values;
-  return r;
+  return RunRecord(result->converged, result->termination, errors, signed_errors, sigmas, values);
 }
 
 // The predicted error budget of the first view from the engine (ba/quantities.h): the shares of
@@ -695,6 +829,7 @@ nlohmann::json MakeResult(const PoseProblem& problem,
 StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
   if (IsCalibration(*run.problem)) return RunCalibration(state, run);
   if (IsJoint(*run.problem)) return RunJoint(state, run);
+  if (IsFlex(*run.problem)) return RunFlex(state, run);
   for (const auto& kv : run.sweep) {
     if (!KnownSweeps().count(kv.first)) {
       return Status::Error("sweep variable '" + kv.first +

@@ -149,7 +149,7 @@ TEST(CalibE2E, ThesisCalibrationScene) {
   CheckSimulatedCalibration("thesis_calibration", "*.png");
   // report.html: residuals, distortion, mrcal's projection uncertainty over the image and the
   // source positions drawn, and the page renders in a browser.
-  const std::string html = carmba::test::SlurpFile(Tmp("out_thesis_calibration") + "/report.html");
+  const std::string html = carmba::test::ReadTextFile(Tmp("out_thesis_calibration") + "/report.html");
   for (const char* id : {"residuals-per-view", "residual-field", "distortion-the-camera",
                          "projection-uncertainty-the-camera", "poses-plate"}) {
     EXPECT_NE(html.find(std::string("data-plot=\"") + id + "\""), std::string::npos) << id;

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
@@ -71,6 +72,31 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
+
+// The text of a file ("" if unreadable) and a JSON file parsed.
+inline std::string ReadTextFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+inline nlohmann::json ReadJsonFile(const std::string& path) {
+  return nlohmann::json::parse(ReadTextFile(path));
+}
+
+// `carmba simulate` of a shipped joint scene (configs/scenes/NAME) into `scene`, then its CT
+// fiducials (`carmba ct-fiducials`, thesis marker table) into scene/fiducials.csv. Returns the
+// failing command's stderr, or "" on success.
+inline std::string SimulateJointScene(const std::string& scene_yaml, const std::string& scene) {
+  const std::string src = CARMBA_SOURCE_DIR;
+  auto r = RunCarmba("simulate --scene " + src + "/configs/scenes/" + scene_yaml + " --out " + scene);
+  if (r.exit_code != 0) return "simulate: " + r.err;
+  r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + src +
+                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
+                "/fiducials.csv");
+  if (r.exit_code != 0) return "ct-fiducials: " + r.err;
+  return "";
+}
 
 // Synthetic observations of the default 5 x 5 plate by a thesis-like camera (408 x 408 px), as
 // observations.csv at `path` (calib/synthetic_views.h defaults): input for a quick calibrate.

@@ -27,25 +27,6 @@ nlohmann::json ReadJson(const std::string& path) {
   return nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
 }
 
-// Dotted key paths of `j` up to `depth` components, lists of objects written `[]` (their
-// elements' keys united), as formats.md's output tables list them.
-void Flatten(const nlohmann::json& j, const std::string& prefix, int depth,
-             std::set<std::string>* out) {
-  if (depth == 0) return;
-  if (j.is_array()) {
-    for (const auto& e : j) {
-      if (e.is_object()) Flatten(e, prefix + "[]", depth, out);
-    }
-    return;
-  }
-  if (!j.is_object()) return;
-  for (const auto& [k, v] : j.items()) {
-    const std::string key = prefix.empty() ? k : prefix + "." + k;
-    out->insert(key);
-    Flatten(v, key, depth - 1, out);
-  }
-}
-
 // The marker design of the simulated object: data/thesis/markers_table_5_1.csv's object frame.
 std::string MarkerDesignCsv() {
   std::ifstream in(kSrc + "/data/thesis/markers_table_5_1.csv");
@@ -115,7 +96,7 @@ TEST(DocsOwnData, WalkThroughRunsOnSimulatedData) {
     const auto& rows = formats.tables.at(kind);
     const std::set<std::string> documented(rows.begin(), rows.end());
     std::set<std::string> written;
-    Flatten(j, "", 2, &written);
+    test::FlattenJsonKeys(j, "", 2, &written);
     EXPECT_TRUE(test::Minus(written, documented).empty())
         << "written, not in the table: " << JoinSet(test::Minus(written, documented));
     EXPECT_TRUE(test::Minus(documented, written).empty())

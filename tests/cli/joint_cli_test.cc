@@ -20,20 +20,10 @@ namespace {
 const std::string kSource = CARMBA_SOURCE_DIR;
 constexpr double kSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
 
-nlohmann::json ReadJson(const std::string& path) {
-  std::ifstream in(path);
-  return nlohmann::json::parse(in);
-}
-
 TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   TempDir dir;
   const std::string scene = dir.File("scene");
-  auto r = RunCarmba("simulate --scene " + kSource + "/configs/scenes/thesis_joint.yaml --out " + scene);
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + kSource +
-                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
-                "/fiducials.csv");
-  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(SimulateJointScene("thesis_joint.yaml", scene), "");
   // The shipped problem with its data paths (the demo's out/sim/joint) pointed at this scene.
   std::ifstream in(kSource + "/problems/thesis_joint.yaml");
   std::stringstream ss;
@@ -51,12 +41,12 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
     cs << cin.rdbuf() << "tre: true\n";
     dir.Write("config.yaml", cs.str());
   }
-  r = RunCarmba("solve --problem " + dir.File("problem.yaml") + " --config " +
+  auto r = RunCarmba("solve --problem " + dir.File("problem.yaml") + " --config " +
                 dir.File("config.yaml") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto solve_run = r;  // its stderr is checked below (r is reused)
-  const nlohmann::json j = ReadJson(dir.File("out/result.json"));
-  const nlohmann::json truth = ReadJson(scene + "/truth.json");
+  const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
+  const nlohmann::json truth = ReadJsonFile(scene + "/truth.json");
   // Intrinsics within 3 sigma of the truth.
   const auto& intr = j.at("intrinsics");
   for (const char* k : {"fx", "fy", "cx", "cy"}) {
@@ -127,7 +117,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
                   dir.File("tri"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(r.err, "");  // no note: the intrinsics are estimated
-    const nlohmann::json t = ReadJson(dir.File("tri/triangulation.json"));
+    const nlohmann::json t = ReadJsonFile(dir.File("tri/triangulation.json"));
     ASSERT_EQ(t.at("points").size(), 2u);
     for (const auto& p : t.at("points")) {
       const int id = p.at("id") == "m5" ? 5 : 1;
@@ -185,7 +175,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   EXPECT_NE(rs.str().find("## Error budget"), std::string::npos);
   EXPECT_NE(rs.str().find("## Joint against two-step"), std::string::npos);
   // report.html: the joint solve's plots, rendered in a browser.
-  const std::string html = SlurpFile(dir.File("out/report.html"));
+  const std::string html = ReadTextFile(dir.File("out/report.html"));
   for (const char* id : {"residuals-per-view", "residual-field", "distortion-the-camera",
                          "projection-uncertainty-the-camera", "error-budget", "poses-plate",
                          "poses-object", "markers"}) {
@@ -278,7 +268,7 @@ class JointBadInput : public ::testing::Test {
 TEST_F(JointBadInput, ValidProblemSolves) {
   const auto r = Solve();
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = ReadJson(dir_.File("out/result.json"));
+  const nlohmann::json j = ReadJsonFile(dir_.File("out/result.json"));
   EXPECT_EQ(j.at("views").size(), 9u);
   EXPECT_EQ(j.at("validation").size(), 1u);
 }
@@ -290,7 +280,7 @@ TEST_F(JointBadInput, PerGroupIntrinsics) {
   config_ = "name: c\nfix: [k1, k2, p1, p2, k3]\n";  // 3 plate views per group: pinhole
   const auto r = Solve();
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = ReadJson(dir_.File("out/result.json"));
+  const nlohmann::json j = ReadJsonFile(dir_.File("out/result.json"));
   ASSERT_TRUE(j.at("intrinsics").is_array());
   ASSERT_EQ(j.at("intrinsics").size(), 2u);
   EXPECT_EQ(j.at("intrinsics")[0].at("group"), "a");
@@ -301,7 +291,7 @@ TEST_F(JointBadInput, PerGroupIntrinsics) {
   // The state layout names each group's parameters.
   EXPECT_EQ(j.at("state_layout")[0], "a fx");
   // geometry.json: the object views, each with the intrinsics of its own group.
-  const nlohmann::json g = ReadJson(dir_.File("out/geometry.json"));
+  const nlohmann::json g = ReadJsonFile(dir_.File("out/geometry.json"));
   ASSERT_EQ(g.at("views").size(), 3u);
   for (const auto& gv : g.at("views")) {
     const int group = gv.at("id") == "+000" ? 0 : 1;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <map>
 #include <set>
 #include <sstream>
@@ -107,6 +108,25 @@ inline std::string JoinSet(const std::set<std::string>& s) {
   std::string out;
   for (const auto& x : s) out += (out.empty() ? "" : ", ") + x;
   return out.empty() ? "(none)" : out;
+}
+
+// Dotted key paths of `j` up to `depth` components, lists of objects written `[]` (their
+// elements' keys united), as formats.md's output tables list them.
+inline void FlattenJsonKeys(const nlohmann::json& j, const std::string& prefix, int depth,
+             std::set<std::string>* out) {
+  if (depth == 0) return;
+  if (j.is_array()) {
+    for (const auto& e : j) {
+      if (e.is_object()) FlattenJsonKeys(e, prefix + "[]", depth, out);
+    }
+    return;
+  }
+  if (!j.is_object()) return;
+  for (const auto& [k, v] : j.items()) {
+    const std::string key = prefix.empty() ? k : prefix + "." + k;
+    out->insert(key);
+    FlattenJsonKeys(v, key, depth - 1, out);
+  }
 }
 
 }  // namespace carmba::test

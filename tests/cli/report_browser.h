@@ -23,6 +23,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "cli_test_util.h"
+
 namespace carmba::test {
 
 inline std::string FindChromium() {
@@ -43,13 +45,6 @@ struct BrowserResult {
   double non_white_fraction = 0; // pixels darker than 245 of 255
 };
 
-inline std::string SlurpFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // Loads `html` in Chromium; fills `r`. Returns false with a gtest failure if Chromium fails.
 inline bool RenderInChromium(const std::string& chromium, const std::string& html,
                              BrowserResult* r) {
@@ -67,19 +62,19 @@ inline bool RenderInChromium(const std::string& chromium, const std::string& htm
   const std::string dump = common + "--dump-dom '" + url + "' > '" + dir + "/dom.html' 2> '" +
                            dir + "/dom.log'";
   if (std::system(dump.c_str()) != 0) {
-    ADD_FAILURE() << dump << "\n" << SlurpFile(dir + "/dom.log");
+    ADD_FAILURE() << dump << "\n" << ReadTextFile(dir + "/dom.log");
     fs::remove_all(dir);
     return false;
   }
   const std::string shot = common + "--window-size=1280,2000 --screenshot='" + dir +
                            "/shot.png' '" + url + "' > /dev/null 2> '" + dir + "/shot.log'";
   if (std::system(shot.c_str()) != 0) {
-    ADD_FAILURE() << shot << "\n" << SlurpFile(dir + "/shot.log");
+    ADD_FAILURE() << shot << "\n" << ReadTextFile(dir + "/shot.log");
     fs::remove_all(dir);
     return false;
   }
-  r->dom = SlurpFile(dir + "/dom.html");
-  std::istringstream log(SlurpFile(dir + "/dom.log") + SlurpFile(dir + "/shot.log"));
+  r->dom = ReadTextFile(dir + "/dom.html");
+  std::istringstream log(ReadTextFile(dir + "/dom.log") + ReadTextFile(dir + "/shot.log"));
   for (std::string line; std::getline(log, line);) {
     if (line.find(":CONSOLE") != std::string::npos) r->console += line + "\n";
   }
@@ -93,7 +88,7 @@ inline bool RenderInChromium(const std::string& chromium, const std::string& htm
   r->js_error = std::regex_search(r->dom, std::regex("<body[^>]*data-js-error"));
   const cv::Mat grey = cv::imread(dir + "/shot.png", cv::IMREAD_GRAYSCALE);
   if (grey.empty()) {
-    ADD_FAILURE() << "no screenshot: " << SlurpFile(dir + "/shot.log");
+    ADD_FAILURE() << "no screenshot: " << ReadTextFile(dir + "/shot.log");
     fs::remove_all(dir);
     return false;
   }

@@ -55,7 +55,7 @@ TEST(SolveCli, PoseReportHtmlRendersInChromium) {
                            kSource + "/configs/posit_ba_analytic.yaml --out=" + out.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err, "");
-  const std::string html = SlurpFile(out.File("report.html"));
+  const std::string html = ReadTextFile(out.File("report.html"));
   for (const char* id : {"residuals-per-view", "residual-field", "error-budget", "poses-object",
                          "markers"}) {
     EXPECT_NE(html.find(std::string("data-plot=\"") + id + "\""), std::string::npos) << id;
@@ -80,9 +80,9 @@ TEST(SolveCli, WithoutMatplotlibTheReportSaysPlotsAreUnavailable) {
   EXPECT_EQ(r2.err,
             "carmba solve: warning: report.html has no plots: matplotlib is not available to "
             "/usr/bin/python3 (No module named matplotlib (test))\n");
-  EXPECT_NE(SlurpFile(out.File("nomatplotlib/report.md")).find("| pair | expected | thesis |"),
+  EXPECT_NE(ReadTextFile(out.File("nomatplotlib/report.md")).find("| pair | expected | thesis |"),
             std::string::npos);
-  const std::string html = SlurpFile(out.File("nomatplotlib/report.html"));
+  const std::string html = ReadTextFile(out.File("nomatplotlib/report.html"));
   EXPECT_NE(html.find("id=\"plots-unavailable\">Plots unavailable: matplotlib is not available"),
             std::string::npos);
   EXPECT_EQ(html.find("<img"), std::string::npos);

@@ -20,11 +20,6 @@ namespace {
 
 const std::string kSource = CARMBA_SOURCE_DIR;
 
-nlohmann::json ReadJson(const std::string& path) {
-  std::ifstream in(path);
-  return nlohmann::json::parse(in);
-}
-
 class TriangulateCli : public ::testing::Test {
  protected:
   std::string Args(const std::string& extra) const {
@@ -54,7 +49,7 @@ TEST_F(TriangulateCli, ThesisMarkersInTheCtFrame) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   // The pose problem holds the intrinsics: said once, as a note.
   EXPECT_NE(r.err.find("calibration's uncertainty is not in the covariance"), std::string::npos);
-  const nlohmann::json j = ReadJson(dir_.File("out/triangulation.json"));
+  const nlohmann::json j = ReadJsonFile(dir_.File("out/triangulation.json"));
   ASSERT_EQ(j.at("points").size(), 3u);
   const std::map<std::string, Eigen::Vector3d> ct = {
       {"m3", {0, 0, 0}}, {"m8", {-55.4, 17.8, 30}}, {"m4", {-21.6, -21.5, 10}}};
@@ -99,7 +94,7 @@ TEST_F(TriangulateCli, NearlyParallelRaysAreAWarning) {
                        "'0' and '10') is "),
             std::string::npos)
       << r.err;
-  const nlohmann::json j = ReadJson(dir_.File("out/triangulation.json"));
+  const nlohmann::json j = ReadJsonFile(dir_.File("out/triangulation.json"));
   EXPECT_FALSE(j.at("points")[0].at("warning").is_null());
   EXPECT_EQ(j.at("warnings").size(), 1u);
 }
@@ -158,7 +153,7 @@ TEST(SolveTre, FourMarkerViewsAreSkippedWithTheReason) {
   const auto r = RunCarmba("solve --problem " + kSource + "/problems/thesis_pose.yaml --config " +
                            dir.File("config.yaml") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = ReadJson(dir.File("out/result.json"));
+  const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
   ASSERT_EQ(j.at("tre").at("markers").size(), 4u);
   EXPECT_EQ(j.at("tre").at("evaluated"), 0);
   EXPECT_EQ(j.at("tre").at("markers")[0].at("skipped"),
