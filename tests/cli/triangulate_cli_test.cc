@@ -197,7 +197,7 @@ TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangul
   auto solve = [&](const std::string& problem_file, const std::string& cfg, const std::string& out) {
     const auto r = RunCarmba("solve --problem " + problem_file + " --config " + cfg + " --out " + dir.File(out));
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    return ReadJson(dir.File(out + "/result.json"));
+    return ReadJsonFile(dir.File(out + "/result.json"));
   };
   const nlohmann::json on = solve(dir.File("problem.yaml"), config, "on");
   const nlohmann::json off = solve(dir.File("problem.yaml"), dir.File("off.yaml"), "off");
@@ -231,7 +231,7 @@ TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangul
                            dir.File("tri"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err.find("not in the covariance"), std::string::npos) << r.err;
-  const nlohmann::json t = ReadJson(dir.File("tri/triangulation.json"));
+  const nlohmann::json t = ReadJsonFile(dir.File("tri/triangulation.json"));
   EXPECT_NE(t.at("covariance").get<std::string>().find("considered"), std::string::npos);
   const auto& cc = t.at("points")[0].at("covariance_calibration_mm2");
   EXPECT_GT(cc[0][0].get<double>() + cc[1][1].get<double>() + cc[2][2].get<double>(), 0.0);
