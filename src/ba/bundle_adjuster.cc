@@ -156,7 +156,8 @@ Status Assemble(const BaProblem& problem,
     const bool smooth = problem.groups[view.group].smooth;
     const Eigen::MatrixXd A = smooth ? ViewIntrinsicsMap(problem, static_cast<int>(v)) : Eigen::MatrixXd();
     if (view.kind == ViewKind::kPlate && !problem.plate.free && o.loss == "trivial" &&
-        o.analytic_jacobians && view.obs_sigma_px.empty() && !smooth) {
+        o.analytic_jacobians && view.obs_sigma_px.empty() && view.obs_covariance_px2.empty() &&
+        !smooth) {
       // The held plate without a loss: the whole view in one block (ba/reprojection_error.h;
       // not for a smooth group: the block takes the 9 intrinsics, the group holds coefficients).
       std::vector<Eigen::Vector3d> p;
@@ -183,13 +184,21 @@ Status Assemble(const BaProblem& problem,
                               ? layout.plate_point_block(view.point_ids[i])
                               : layout.marker_block(marker_index.at(view.point_ids[i]));
       const Eigen::Vector2d& q = view.uv_px[i];
+      PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(i));
+      if (!view.obs_covariance_px2.empty() &&
+          !PixelWhitening::FromCovariance(view.obs_covariance_px2[i], &w)) {
+        return Status::Error("view '" + view.id + "' point " + std::to_string(view.point_ids[i]) +
+                             ": the pixel covariance is not symmetric positive definite");
+      }
+      // A smooth group's residual whitens isotropically (SigmaPx: the larger eigenvalue of a
+      // 2x2 covariance, a conservative bound); the others by the full 2x2.
       ceres::CostFunction* cost =
           smooth ? (o.analytic_jacobians
                         ? static_cast<ceres::CostFunction*>(
                               new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
                         : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
-          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), view.SigmaPx(i))
-                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i));
+          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), w)
+                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
       ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
       own(cost, loss);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
@@ -319,6 +328,13 @@ bool EvaluateBlock(const BuiltBlock& bb,
   lin->J.reserve(bb.blocks.size());
   for (size_t i = 0; i < bb.blocks.size(); ++i) {
     const BlockInfo& bi = layout.block(bb.blocks[i]);
+    if (!bi.consider.empty()) {  // the considered (held) intrinsics' columns
+      const Eigen::Map<const RowMajor> Ji(jac[i], nr, sizes[i]);
+      lin->consider_block = bb.blocks[i];
+      lin->J_consider.resize(nr, static_cast<Eigen::Index>(bi.consider.size()));
+      for (size_t c = 0; c < bi.consider.size(); ++c) lin->J_consider.col(c) = Ji.col(bi.consider[c]);
+      if (bb.loss) CorrectForLoss(*bb.loss, *r, &lin->J_consider);
+    }
     if (bi.constant) continue;
     const Eigen::Map<const RowMajor> Ji(jac[i], nr, sizes[i]);
     Eigen::MatrixXd Jf(nr, bi.free.size());
@@ -345,7 +361,8 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   need(p.groups.empty() || !p.groups[0].smooth, "intrinsics that do not depend on the angles");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
   for (const auto& v : p.views) {
-    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty(), "one pixel sigma for all views");
+    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty() && v.obs_covariance_px2.empty(),
+         "one pixel sigma for all views");
   }
   need(!p.plate.free, "plate points held");
   need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
@@ -546,15 +563,14 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       // One observation's whitened residual r2.
       auto observe = [&](int obs, const Eigen::Vector2d& r2) {
         const double n_sigma = r2.norm();
-        const double sigma = view.SigmaPx(obs);
-        view_ss[bb.view] += r2.squaredNorm() * sigma * sigma;
+        PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(obs));
+        if (!view.obs_covariance_px2.empty() && !problem.groups[view.group].smooth) {
+          PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
+        }
+        const Eigen::Vector2d e = w.Unwhiten(r2);  // px
+        view_ss[bb.view] += e.squaredNorm();
         view_n[bb.view] += 1;
-        BaOutlier out{view.id,
-                      view.kind == ViewKind::kPlate,
-                      view.point_ids[obs],
-                      n_sigma,
-                      r2[0] * sigma,
-                      r2[1] * sigma};
+        BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
         if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
         if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
             n_sigma > worst_sigma) {

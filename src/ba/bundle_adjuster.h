@@ -9,8 +9,11 @@
 //   marker m (free, with priors):  PointPriorRows x 2 (its CT covariance, ba/reprojection_error.h)
 //   plate point j (free):    PointPriorRows x 2 (isotropic sigma_mm)
 //   group g with a prior:    IntrinsicsPriorError (ba/priors.h)
-// A robust loss acts on the reprojection blocks only, with its scale in px (whitened by each
-// view's sigma_px). Held intrinsics are a ceres::SubsetManifold; constant blocks are set constant.
+// Held intrinsics with a considered calibration covariance (IntrinsicsGroup::consider_*) stay
+// held; their Jacobian columns are linearised too, for the consider term of the covariance.
+// Reprojections are whitened by each observation's 2x2 pixel covariance (BaView::
+// obs_covariance_px2) or isotropic sigma. A robust loss acts on the reprojection blocks only,
+// with its scale in px (whitened by the observation's isotropic sigma, BaView::SigmaPx). Held intrinsics are a ceres::SubsetManifold; constant blocks are set constant.
 // Ordering for the Schur solvers: points first, then poses, then intrinsics (poses first when no
 // point is free).
 //
@@ -98,9 +101,17 @@ struct BaResult {
   double time_s = 0;
 
   const double* block(int b) const { return state.data() + layout->block(b).offset; }
-  // Covariance of blocks (ambient parameters), scaled by covariance_scale.
+  // Covariance of blocks (ambient parameters): the residuals' part scaled by covariance_scale,
+  // plus the considered calibration's part (ba/covariance.h; zero without one).
   Eigen::MatrixXd Covariance(const std::vector<int>& blocks) const {
+    return ObservationCovariance(blocks) + CalibrationCovariance(blocks);
+  }
+  // The two parts of Covariance.
+  Eigen::MatrixXd ObservationCovariance(const std::vector<int>& blocks) const {
     return covariance->BlockCovariance(blocks) * covariance_scale;
+  }
+  Eigen::MatrixXd CalibrationCovariance(const std::vector<int>& blocks) const {
+    return covariance->BlockConsiderCovariance(blocks);
   }
 };
 
@@ -108,7 +119,8 @@ struct BaResult {
 // solve, a rank-deficient covariance (naming the null direction).
 StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptions& options);
 
-// The covariance of `blocks` (ambient parameters, as BaResult::Covariance) by ceres::Covariance
+// The covariance of `blocks` (ambient parameters, as BaResult::ObservationCovariance: without a
+// considered calibration's part) by ceres::Covariance
 // over the same Ceres problem at the solution: `algorithm` dense_svd, sparse_qr or
 // eigen_sparse_qr. The reference the Schur covariance is tested against, and the configs'
 // alternative covariance algorithms.

@@ -219,7 +219,32 @@ StatusOr<std::shared_ptr<SchurCovariance>> SchurCovariance::Compute(const StateL
     out->S_inv_ = is.asDiagonal() * Sc_inv * is.asDiagonal();
     out->S_inv_ = 0.5 * (out->S_inv_ + out->S_inv_.transpose()).eval();
   }
+  // Considered calibration: H_fc from the held intrinsics' columns, D = -H_ff^-1 H_fc.
+  const int nc = layout.num_consider();
+  out->consider_covariance_ = layout.consider_covariance();
+  out->D_ = Eigen::MatrixXd::Zero(out->n_, nc);
+  if (nc > 0) {
+    Eigen::MatrixXd H_fc = Eigen::MatrixXd::Zero(out->n_, nc);
+    for (const LinearizedBlock& r : lin.rows) {
+      if (r.consider_block < 0) continue;
+      if (!r.J_consider.allFinite()) return Status::Error("covariance: non-finite Jacobian at the solution");
+      const BlockInfo& bc = layout.block(r.consider_block);
+      for (size_t i = 0; i < r.blocks.size(); ++i) {
+        const BlockInfo& bi = layout.block(r.blocks[i]);
+        H_fc.block(bi.free_offset, bc.consider_offset, bi.free.size(), bc.consider.size()).noalias() +=
+            r.J[i].transpose() * r.J_consider;
+      }
+    }
+    out->D_ = -out->Solve(H_fc);
+  }
   return out;
+}
+
+Eigen::MatrixXd SchurCovariance::ConsiderGradient(const Eigen::MatrixXd& G,
+                                                  const Eigen::MatrixXd& Gc) const {
+  Eigen::MatrixXd T = G * D_;
+  if (Gc.size() > 0) T += Gc;
+  return T;
 }
 
 Eigen::MatrixXd SchurCovariance::Solve(const Eigen::MatrixXd& B_in) const {
@@ -283,11 +308,30 @@ Eigen::MatrixXd SchurCovariance::BlockCovariance(const std::vector<int>& blocks)
   return 0.5 * (C + C.transpose());
 }
 
-ErrorBudget SchurCovariance::Budget(const Eigen::MatrixXd& G, const Linearization& lin) const {
+Eigen::MatrixXd SchurCovariance::BlockConsiderCovariance(const std::vector<int>& blocks) const {
+  const StateLayout& L = *layout_;
+  int ambient = 0;
+  for (int b : blocks) ambient += L.block(b).size;
+  // Rows of D for the blocks, mapped to the ambient parameters by the blocks' bases.
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(ambient, num_consider());
+  if (num_consider() == 0) return Eigen::MatrixXd::Zero(ambient, ambient);
+  int a = 0;
+  for (int b : blocks) {
+    const BlockInfo& bi = L.block(b);
+    if (!bi.free.empty()) T.middleRows(a, bi.size) = bi.basis * D_.middleRows(bi.free_offset, bi.free.size());
+    a += bi.size;
+  }
+  const Eigen::MatrixXd C = T * consider_covariance_ * T.transpose();
+  return 0.5 * (C + C.transpose());
+}
+
+ErrorBudget SchurCovariance::Budget(const Eigen::MatrixXd& G,
+                                    const Linearization& lin,
+                                    double scale,
+                                    const Eigen::MatrixXd& Gc) const {
   const StateLayout& L = *layout_;
   const Eigen::MatrixXd A = Solve(G.transpose());  // n x q
   ErrorBudget out;
-  out.total = (G * A).diagonal();
   out.by_source = Eigen::MatrixXd::Zero(G.rows(), kNumSources);
   for (const LinearizedBlock& r : lin.rows) {
     Eigen::MatrixXd JA = Eigen::MatrixXd::Zero(r.J.empty() ? 0 : r.J[0].rows(), G.rows());
@@ -296,6 +340,14 @@ ErrorBudget SchurCovariance::Budget(const Eigen::MatrixXd& G, const Linearizatio
       JA.noalias() += r.J[i] * A.middleRows(bi.free_offset, bi.free.size());
     }
     out.by_source.col(static_cast<int>(r.source)) += JA.colwise().squaredNorm().transpose();
+  }
+  out.by_source *= scale;
+  out.total = (G * A).diagonal() * scale;
+  if (num_consider() > 0) {
+    const Eigen::MatrixXd T = ConsiderGradient(G, Gc);  // q x nc
+    const Eigen::VectorXd var = (T * consider_covariance_).cwiseProduct(T).rowwise().sum();
+    out.by_source.col(static_cast<int>(Source::kCalibration)) = var;
+    out.total += var;
   }
   return out;
 }

@@ -26,6 +26,21 @@
 //   Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T,
 // computed as a = H^-1 G^T once, then |J_b a|^2 accumulated per residual block b into its source.
 // The shares add up to the total G H^-1 G^T (the sources cover all rows).
+//
+// Considered calibration (Schmidt's consider covariance; Tapley, Schutz & Born, "Statistical
+// Orbit Determination", sec. 6.3). Held intrinsics c with a covariance Sigma_c
+// (IntrinsicsGroup::consider_*) stay held in the solve, so the estimate x_f of the free
+// parameters minimises |r(x_f, c0)|^2 at the held c0. To first order an error dc = c0 - c_true
+// moves it by  dx_f = D dc,  D = -H_ff^-1 H_fc,  H_fc = sum_b J_b,f^T J_b,c (the whitened
+// Jacobians' columns of the held intrinsics, loss-corrected like the free ones). Independent of
+// the pixel noise, so
+//   Sigma_f = s H_ff^-1 + D Sigma_c D^T
+// with s the covariance scale (1, or sigma0^2 a posteriori: it scales the residuals' noise
+// only; Sigma_c is the calibration's own covariance in physical units, never rescaled). D is
+// computed once, n x |c| (`consider_sensitivity`). A quantity f(x_f, c) with gradients G (over
+// the free state) and Gc (over c, for a direct dependence on the held intrinsics) has
+//   Var f = s G H^-1 G^T + (G D + Gc) Sigma_c (G D + Gc)^T,
+// the second term the budget's kCalibration share.
 #pragma once
 
 #include <Eigen/Dense>
@@ -43,6 +58,10 @@ struct LinearizedBlock {
   Source source = Source::kPlatePixels;
   std::vector<int> blocks;        // layout blocks (free ones only) this residual block touches
   std::vector<Eigen::MatrixXd> J; // per block: rows x |free parameters of the block|
+  // The considered intrinsics block it touches (-1: none) and the Jacobian over its considered
+  // parameters (rows x |BlockInfo::consider|).
+  int consider_block = -1;
+  Eigen::MatrixXd J_consider;
 };
 
 struct Linearization {
@@ -50,7 +69,7 @@ struct Linearization {
 };
 
 struct ErrorBudget {
-  Eigen::VectorXd total;       // q variances, G H^-1 G^T
+  Eigen::VectorXd total;       // q variances, s G H^-1 G^T + the considered calibration's
   Eigen::MatrixXd by_source;   // q x kNumSources variances; rows add up to `total`
 };
 
@@ -66,9 +85,24 @@ class SchurCovariance {
   Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
   // Covariance of the concatenated blocks in their full (ambient) parameters, held parameters as
   // zero rows and columns. Blocks are layout indices; constant blocks give zero blocks.
+  // H^-1 only (the residuals' noise, unscaled): BaResult::Covariance adds the consider term.
   Eigen::MatrixXd BlockCovariance(const std::vector<int>& blocks) const;
-  // The budget of quantities with gradient rows G (q x num_free) over `lin`'s rows.
-  ErrorBudget Budget(const Eigen::MatrixXd& G, const Linearization& lin) const;
+  // The considered calibration's part D Sigma_c D^T of the same blocks (zero without one).
+  Eigen::MatrixXd BlockConsiderCovariance(const std::vector<int>& blocks) const;
+  // The budget of quantities with gradient rows G (q x num_free) over `lin`'s rows, the residual
+  // sources scaled by `scale` (the covariance scale), plus the considered calibration's share
+  // (kCalibration) with the direct gradient Gc (q x num_consider; empty: zero).
+  ErrorBudget Budget(const Eigen::MatrixXd& G,
+                     const Linearization& lin,
+                     double scale = 1.0,
+                     const Eigen::MatrixXd& Gc = Eigen::MatrixXd()) const;
+  // Considered calibration: D = d x_f / d c (num_free x num_consider) and Sigma_c.
+  int num_consider() const { return static_cast<int>(consider_covariance_.rows()); }
+  const Eigen::MatrixXd& consider_sensitivity() const { return D_; }
+  const Eigen::MatrixXd& consider_covariance() const { return consider_covariance_; }
+  // The total consider gradient G D + Gc of quantities (q x num_consider).
+  Eigen::MatrixXd ConsiderGradient(const Eigen::MatrixXd& G,
+                                   const Eigen::MatrixXd& Gc = Eigen::MatrixXd()) const;
   // Sizes of the eliminated and kept parts (for tests and reports).
   int num_eliminated_blocks() const;
   int kept_size() const { return static_cast<int>(kept_dim_); }
@@ -87,6 +121,8 @@ class SchurCovariance {
   std::vector<int> kept_offset_;              // their offsets in S
   Eigen::Index kept_dim_ = 0;
   Eigen::MatrixXd S_inv_;                     // (S)^-1 over the kept blocks
+  Eigen::MatrixXd D_;                         // -H_ff^-1 H_fc (num_free x num_consider)
+  Eigen::MatrixXd consider_covariance_;       // Sigma_c
 };
 
 }  // namespace ba

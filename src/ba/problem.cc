@@ -17,6 +17,7 @@ const char* SourceName(Source s) {
     case Source::kCt: return "CT localisation";
     case Source::kPlateManufacturing: return "plate manufacturing";
     case Source::kIntrinsicsPrior: return "intrinsics prior";
+    case Source::kCalibration: return "calibration (intrinsics)";
   }
   return "?";
 }
@@ -77,6 +78,40 @@ Status BaProblem::Check() const {
       }
     }
   }
+  for (const auto& g : groups) {
+    const auto n = static_cast<Eigen::Index>(g.consider_indices.size());
+    if (n == 0 && g.consider_covariance.size() == 0) continue;
+    if (n == 0 || g.consider_covariance.rows() != n || g.consider_covariance.cols() != n ||
+        !g.consider_covariance.allFinite()) {
+      return Status::Error("group '" + g.name + "': the considered calibration needs a finite " +
+                           std::to_string(n) + "x" + std::to_string(n) + " covariance");
+    }
+    if (g.smooth) {
+      return Status::Error("group '" + g.name + "': a considered calibration is not supported with "
+                           "the smooth (angle-dependent) model");
+    }
+    std::set<int> distinct;
+    for (int i : g.consider_indices) {
+      if (i < 0 || i >= kNumIntrinsics || !distinct.insert(i).second) {
+        return Status::Error("group '" + g.name + "': considered intrinsic index " +
+                             std::to_string(i) + " is out of range or given twice");
+      }
+      const bool held = !g.free[i] && !(i == kFy && g.fy_over_fx > 0 && g.free[kFx]);
+      if (!held) {
+        return Status::Error("group '" + g.name + "': intrinsic " + kIntrinsicNames[i] +
+                             " is free: only held intrinsics are considered");
+      }
+    }
+    if (!g.consider_covariance.isApprox(g.consider_covariance.transpose(), 1e-9) ||
+        Eigen::LDLT<Eigen::MatrixXd>(g.consider_covariance).info() != Eigen::Success ||
+        !(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g.consider_covariance)
+              .eigenvalues()
+              .minCoeff() >= 0)) {
+      return Status::Error("group '" + g.name +
+                           "': the considered calibration covariance is not symmetric positive "
+                           "semi-definite");
+    }
+  }
   std::set<std::string> view_ids;
   std::map<int, const BaMarker*> marker_by_id;
   for (const auto& m : markers) {
@@ -105,6 +140,18 @@ Status BaProblem::Check() const {
     for (double s : v.obs_sigma_px) {
       if (!(s > 0) || !std::isfinite(s)) {
         return Status::Error("view '" + v.id + "': a per-observation sigma_px is not > 0");
+      }
+    }
+    if (!v.obs_covariance_px2.empty() && v.obs_covariance_px2.size() != v.uv_px.size()) {
+      return Status::Error("view '" + v.id +
+                           "': per-observation covariances and pixels differ in number");
+    }
+    for (const Eigen::Matrix2d& C : v.obs_covariance_px2) {
+      if (!C.allFinite() || std::abs(C(0, 1) - C(1, 0)) > 1e-12 * (C(0, 0) + C(1, 1)) ||
+          !(C(0, 0) > 0) || !(C.determinant() > 0)) {
+        return Status::Error("view '" + v.id +
+                             "': a per-observation pixel covariance is not symmetric positive "
+                             "definite");
       }
     }
     if (v.point_ids.size() < 4) {
@@ -226,6 +273,9 @@ StateLayout::StateLayout(const BaProblem& problem) {
     return v;
   };
   const bool one_group = problem.groups.size() == 1;
+  int nc = 0;
+  for (const auto& grp : problem.groups) nc += static_cast<int>(grp.consider_indices.size());
+  consider_covariance_ = Eigen::MatrixXd::Zero(nc, nc);
   for (size_t g = 0; g < problem.groups.size(); ++g) {
     const IntrinsicsGroup& grp = problem.groups[g];
     // A smooth group's block holds its basis coefficients (coefficient j free if its intrinsic
@@ -248,6 +298,14 @@ StateLayout::StateLayout(const BaProblem& problem) {
       bi.basis(kFy, fx - bi.free.begin()) = grp.fy_over_fx;
       bi.selection = false;
     }
+    if (!grp.consider_indices.empty()) {
+      const auto k = static_cast<Eigen::Index>(grp.consider_indices.size());
+      bi.consider = grp.consider_indices;
+      bi.consider_offset = num_consider_;
+      consider_covariance_.block(num_consider_, num_consider_, k, k) = grp.consider_covariance;
+      for (int i : grp.consider_indices) consider_index_.emplace_back(b, i);
+      num_consider_ += static_cast<int>(k);
+    }
   }
   view_block_.assign(problem.views.size(), -1);
   for (ViewKind kind : {ViewKind::kPlate, ViewKind::kObject}) {
@@ -269,6 +327,23 @@ StateLayout::StateLayout(const BaProblem& problem) {
                                      "plate point " + std::to_string(p), !problem.plate.free,
                                      all(3)));
   }
+}
+
+double BaView::SigmaPx(size_t i) const {
+  if (!obs_covariance_px2.empty()) {
+    const Eigen::Matrix2d& C = obs_covariance_px2[i];
+    // Larger eigenvalue of a symmetric 2x2, closed form.
+    const double m = 0.5 * (C(0, 0) + C(1, 1));
+    const double d = 0.5 * (C(0, 0) - C(1, 1));
+    return std::sqrt(m + std::sqrt(d * d + C(0, 1) * C(0, 1)));
+  }
+  return obs_sigma_px.empty() ? sigma_px : obs_sigma_px[i];
+}
+
+Eigen::Matrix2d BaView::CovariancePx2(size_t i) const {
+  if (!obs_covariance_px2.empty()) return obs_covariance_px2[i];
+  const double s = obs_sigma_px.empty() ? sigma_px : obs_sigma_px[i];
+  return s * s * Eigen::Matrix2d::Identity();
 }
 
 std::vector<int> BlockInfo::Moving() const {
@@ -300,6 +375,54 @@ std::string StateLayout::ParameterName(int b, int i) const {
 
 std::string StateLayout::FreeName(int k) const {
   const auto [b, i] = free_index_[k];
+  return ParameterName(b, i);
+}
+
+CalibrationUncertainty CalibrationUncertaintyOf(const BaProblem& problem) {
+  bool considered = false;
+  for (const auto& g : problem.groups) {
+    for (bool f : g.free) {
+      if (f) return CalibrationUncertainty::kEstimated;
+    }
+    considered |= !g.consider_indices.empty();
+  }
+  return considered ? CalibrationUncertainty::kConsidered : CalibrationUncertainty::kLeftOut;
+}
+
+const char* CalibrationUncertaintyNote(CalibrationUncertainty c) {
+  switch (c) {
+    case CalibrationUncertainty::kEstimated:
+      return "The intrinsics are estimated in the solve: the covariances include the "
+             "calibration's uncertainty.";
+    case CalibrationUncertainty::kConsidered:
+      return "The intrinsics are held at camera.json's values and its covariance is considered: "
+             "the covariances include the calibration's uncertainty (its share is the source "
+             "'calibration (intrinsics)').";
+    case CalibrationUncertainty::kLeftOut:
+      return "The intrinsics are held and camera.json has no covariance (or consider_calibration: "
+             "false): the covariances leave the calibration's uncertainty out.";
+  }
+  return "";
+}
+
+BaView KeepObservations(const BaView& view, const std::vector<char>& keep) {
+  BaView out = view;
+  out.point_ids.clear();
+  out.uv_px.clear();
+  out.obs_sigma_px.clear();
+  out.obs_covariance_px2.clear();
+  for (size_t i = 0; i < view.point_ids.size(); ++i) {
+    if (!keep[i]) continue;
+    out.point_ids.push_back(view.point_ids[i]);
+    out.uv_px.push_back(view.uv_px[i]);
+    if (!view.obs_sigma_px.empty()) out.obs_sigma_px.push_back(view.obs_sigma_px[i]);
+    if (!view.obs_covariance_px2.empty()) out.obs_covariance_px2.push_back(view.obs_covariance_px2[i]);
+  }
+  return out;
+}
+
+std::string StateLayout::ConsiderName(int k) const {
+  const auto [b, i] = consider_index_[k];
   return ParameterName(b, i);
 }
 

@@ -16,6 +16,10 @@
 // (ba/reprojection_error.h, ba/priors.h), each belonging to one independent noise SOURCE:
 //   plate reprojection (kPlatePixels), marker reprojection (kObjectPixels), CT prior (kCt),
 //   plate prior (kPlateManufacturing), intrinsics prior (kIntrinsicsPrior).
+// A sixth source has no residual: the CONSIDERED calibration (kCalibration). A group whose
+// intrinsics are held at an earlier calibration may carry that calibration's covariance
+// (IntrinsicsGroup::consider_*): the estimates stay those with the intrinsics held, and the
+// covariance of the free parameters gains the Schmidt "consider" term (ba/covariance.h).
 //
 // STATE LAYOUT: parameter blocks in a fixed order -- intrinsics groups, plate-view poses,
 // object-view poses, markers (by id), plate points (by id) -- in one contiguous buffer (Ceres
@@ -40,9 +44,18 @@ namespace carmba {
 namespace ba {
 
 // Independent noise sources (error budget).
-enum class Source { kPlatePixels = 0, kObjectPixels, kCt, kPlateManufacturing, kIntrinsicsPrior };
-constexpr int kNumSources = 5;
-// "plate pixels", "object pixels", "CT localisation", "plate manufacturing", "intrinsics prior".
+enum class Source {
+  kPlatePixels = 0,
+  kObjectPixels,
+  kCt,
+  kPlateManufacturing,
+  kIntrinsicsPrior,
+  kCalibration  // held intrinsics' calibration covariance, considered (no residual of its own)
+};
+constexpr int kNumSources = 6;
+constexpr int kNumResidualSources = 5;  // the sources that residual blocks belong to
+// "plate pixels", "object pixels", "CT localisation", "plate manufacturing", "intrinsics prior",
+// "calibration (intrinsics)".
 const char* SourceName(Source s);
 
 struct IntrinsicsPrior {
@@ -61,6 +74,12 @@ struct IntrinsicsGroup {
   double fy_over_fx = 0;
   bool has_prior = false;
   IntrinsicsPrior prior;
+  // Considered calibration uncertainty of HELD intrinsics (Schmidt's consider covariance): the
+  // covariance (consider_indices x consider_indices, IntrinsicIndex order as listed) of the
+  // values they are held at, e.g. camera.json's. They stay held in the solve; the free
+  // parameters' covariance gains  A Sigma_c A^T  (ba/covariance.h). Every index must be held.
+  std::vector<int> consider_indices;
+  Eigen::MatrixXd consider_covariance;
   // Orientation-dependent intrinsics (ba/smooth_intrinsics.h): the group's block holds the
   // coefficients of `basis` (4K + 5), each view's intrinsics are A(view angles) c. Coefficient j
   // is free if its intrinsic is. Every view of the group needs angles; no prior; the plate views
@@ -85,10 +104,18 @@ struct BaView {
   bool has_angles = false;
   double primary_deg = 0, secondary_deg = 0;
   // Per-observation pixel noise (1 sigma per coordinate, isotropic), parallel to uv_px; empty =
-  // sigma_px for all. E.g. detected marker blobs with a covariance each (detect/marker_blobs.h:
-  // the square root of the larger eigenvalue of the blob's 2x2 covariance).
+  // sigma_px for all.
   std::vector<double> obs_sigma_px;
-  double SigmaPx(size_t i) const { return obs_sigma_px.empty() ? sigma_px : obs_sigma_px[i]; }
+  // Per-observation full 2x2 pixel covariance (px^2), parallel to uv_px; empty = isotropic
+  // (obs_sigma_px / sigma_px). E.g. detected marker blobs (detect/marker_blobs.h). The residual
+  // is whitened by L^-1 with Sigma = L L^T (ba/reprojection_error.h). Takes precedence over
+  // obs_sigma_px.
+  std::vector<Eigen::Matrix2d> obs_covariance_px2;
+  // An isotropic sigma standing for observation i (px): sqrt of the larger eigenvalue of its 2x2
+  // covariance when it has one (the robust loss's scale and the outlier listing use it).
+  double SigmaPx(size_t i) const;
+  // Observation i's pixel covariance (px^2): its 2x2, else sigma^2 I.
+  Eigen::Matrix2d CovariancePx2(size_t i) const;
 };
 
 struct BaMarker {
@@ -131,6 +158,10 @@ struct BlockInfo {
   bool constant = false;   // held entirely
   std::vector<int> free;   // free parameter indices within the block (empty if constant)
   int free_offset = -1;    // into the free state (-1 if constant)
+  // Considered (held) parameters of an intrinsics block (IntrinsicsGroup::consider_indices) and
+  // their offset in the considered vector c (-1: none).
+  std::vector<int> consider;
+  int consider_offset = -1;
   std::vector<std::string> parameter_names;  // when not the kind's default (smooth intrinsics)
   // The block's parameters move as  x = x0 + basis * delta,  delta over `free` (size x |free|).
   // A column selection (`selection`) unless parameters are tied (fy = r fx: the fx column has r
@@ -159,13 +190,30 @@ class StateLayout {
   std::string FreeName(int k) const;
   // (block, parameter) of free-state index k.
   std::pair<int, int> FreeIndex(int k) const { return free_index_[k]; }
+  // The considered calibration parameters c (held intrinsics with a covariance), their number,
+  // names and covariance Sigma_c (block-diagonal over the groups; 0 x 0 when none).
+  int num_consider() const { return num_consider_; }
+  std::string ConsiderName(int k) const;
+  const Eigen::MatrixXd& consider_covariance() const { return consider_covariance_; }
 
  private:
   std::vector<BlockInfo> blocks_;
   std::vector<int> group_block_, view_block_, marker_block_, plate_point_block_;
-  std::vector<std::pair<int, int>> free_index_;
-  int buffer_size_ = 0, num_free_ = 0;
+  std::vector<std::pair<int, int>> free_index_, consider_index_;
+  int buffer_size_ = 0, num_free_ = 0, num_consider_ = 0;
+  Eigen::MatrixXd consider_covariance_;
 };
+
+// How the calibration's uncertainty enters the covariances: the intrinsics are estimated (some
+// free), held and considered (a covariance, no free one), or held and left out.
+enum class CalibrationUncertainty { kEstimated, kConsidered, kLeftOut };
+CalibrationUncertainty CalibrationUncertaintyOf(const BaProblem& problem);
+// One sentence saying it, for reports and messages.
+const char* CalibrationUncertaintyNote(CalibrationUncertainty c);
+
+// `view` with only the observations i where keep[i] is non-zero (ids, pixels and the
+// per-observation sigmas and covariances alike).
+BaView KeepObservations(const BaView& view, const std::vector<char>& keep);
 
 // The initial state: every block's initial value in layout order.
 std::vector<double> InitialState(const BaProblem& problem, const StateLayout& layout);

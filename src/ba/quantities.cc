@@ -19,6 +19,17 @@ void AddGradientRow(const StateLayout& L, int b, const double* g, int row, Eigen
   }
 }
 
+void AddConsiderGradientRow(const StateLayout& L,
+                            int b,
+                            const double* g,
+                            int row,
+                            Eigen::MatrixXd* Gc) {
+  const BlockInfo& bi = L.block(b);
+  for (size_t c = 0; c < bi.consider.size(); ++c) {
+    (*Gc)(row, bi.consider_offset + static_cast<int>(c)) += g[bi.consider[c]];
+  }
+}
+
 QuantitySet DerivedQuantities(const BaProblem& problem,
                               const BaResult& result,
                               const std::vector<std::pair<int, int>>& pairs) {
@@ -129,6 +140,14 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
   for (size_t q = 0; q < qs.size(); ++q) {
     for (const auto& [b, g] : grads[q]) AddGradientRow(L, b, g.data(), static_cast<int>(q), &out.G);
   }
+  out.Gc = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(qs.size()), L.num_consider());
+  for (size_t q = 0; q < qs.size(); ++q) {
+    for (const auto& [b, g] : grads[q]) {
+      if (static_cast<int>(g.size()) == L.block(b).size) {
+        AddConsiderGradientRow(L, b, g.data(), static_cast<int>(q), &out.Gc);
+      }
+    }
+  }
   return out;
 }
 
@@ -136,15 +155,16 @@ std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
                                           const BaResult& result,
                                           const std::vector<std::pair<int, int>>& pairs) {
   const QuantitySet qs = DerivedQuantities(problem, result, pairs);
-  const ErrorBudget eb = result.covariance->Budget(qs.G, *result.linearization);
+  const ErrorBudget eb =
+      result.covariance->Budget(qs.G, *result.linearization, result.covariance_scale, qs.Gc);
   std::vector<BudgetRow> rows;
   for (size_t q = 0; q < qs.quantities.size(); ++q) {
     BudgetRow r;
     r.quantity = qs.quantities[q];
-    const double total = eb.total[q] * result.covariance_scale;
+    const double total = eb.total[q];
     r.sigma = std::sqrt(std::max(0.0, total));
     for (int s = 0; s < kNumSources; ++s) {
-      const double var = eb.by_source(q, s) * result.covariance_scale;
+      const double var = eb.by_source(q, s);
       r.source_sigma[s] = std::sqrt(std::max(0.0, var));
       r.share[s] = total > 0 ? var / total : 0.0;
     }

@@ -32,13 +32,21 @@ struct Quantity {
 
 struct QuantitySet {
   std::vector<Quantity> quantities;
-  Eigen::MatrixXd G;  // q x num_free (derivatives in the quantities' units)
+  Eigen::MatrixXd G;   // q x num_free (derivatives in the quantities' units)
+  Eigen::MatrixXd Gc;  // q x num_consider: direct derivatives over the considered (held)
+                       // intrinsics (ba/covariance.h), e.g. a held group's centre projection
 };
 
 // Adds the gradient `g` of a quantity over block b's ambient parameters (b.size values) to row
 // `row` of G (q x num_free), through the block's basis (held parameters drop out, tied ones add
 // to the parameter they follow). Constant blocks add nothing.
 void AddGradientRow(const StateLayout& layout, int b, const double* g, int row, Eigen::MatrixXd* G);
+// The same over block b's considered parameters into row `row` of Gc (q x num_consider).
+void AddConsiderGradientRow(const StateLayout& layout,
+                            int b,
+                            const double* g,
+                            int row,
+                            Eigen::MatrixXd* Gc);
 
 // `pairs` are view indices (problem order) of object views.
 QuantitySet DerivedQuantities(const BaProblem& problem,
@@ -52,7 +60,8 @@ struct BudgetRow {
   std::array<double, kNumSources> share{};           // variance share, adds up to 1
 };
 
-// The error budget of the derived quantities (scaled by the result's covariance_scale).
+// The error budget of the derived quantities (the residual sources scaled by the result's
+// covariance_scale; the considered calibration's share, kCalibration, not).
 std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
                                           const BaResult& result,
                                           const std::vector<std::pair<int, int>>& pairs);

@@ -32,7 +32,8 @@ RelativePoseEstimate EstimateRelativePose(const BaResult& result, int view_a, in
   const int ba = L.view_block(view_a), bb = L.view_block(view_b);
   RelativePoseEstimate e = EstimateRelativePose(Eigen::Map<const Pose6>(result.block(ba)),
                                                 Eigen::Map<const Pose6>(result.block(bb)),
-                                                result.Covariance({ba, bb}));  // scaled
+                                                result.Covariance({ba, bb}),  // scaled
+                                                result.CalibrationCovariance({ba, bb}));
   e.view_a = view_a;
   e.view_b = view_b;
   return e;
@@ -62,6 +63,22 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
   return e;
 }
 
+RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
+                                          const Pose6& pb,
+                                          const Eigen::Matrix<double, 12, 12>& C,
+                                          const Eigen::Matrix<double, 12, 12>& C_cal) {
+  RelativePoseEstimate e = EstimateRelativePose(pa, pb, C);
+  Eigen::Matrix<double, 6, 12> J;
+  RelativePoseWithJacobian(pa, pb, &J);
+  e.covariance_calibration = J * C_cal * J.transpose();
+  e.covariance_calibration = 0.5 * (e.covariance_calibration + e.covariance_calibration.transpose()).eval();
+  Eigen::Matrix<double, 12, 1> g;
+  PairMetricWithGradient(pa.data(), pb.data(),
+                         [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g.data());
+  e.sigma_angle_calibration_deg = std::sqrt(std::max(0.0, g.dot(C_cal * g))) * kRadToDeg;
+  return e;
+}
+
 std::vector<RelativePoseEstimate> EstimateRelativePoses(const BaResult& result,
                                                         const std::vector<std::pair<int, int>>& pairs) {
   std::map<int, int> slot;  // view -> position in the joint covariance
@@ -75,16 +92,21 @@ std::vector<RelativePoseEstimate> EstimateRelativePoses(const BaResult& result,
   }
   std::vector<RelativePoseEstimate> out;
   if (pairs.empty()) return out;
-  const Eigen::MatrixXd C = result.Covariance(blocks);  // scaled
+  const Eigen::MatrixXd C_cal = result.CalibrationCovariance(blocks);
+  const Eigen::MatrixXd C = result.ObservationCovariance(blocks) + C_cal;  // scaled
   for (const auto& [a, b] : pairs) {
-    Eigen::Matrix<double, 12, 12> Cab;
+    Eigen::Matrix<double, 12, 12> Cab, Cab_cal;
     const int s[2] = {slot.at(a), slot.at(b)};
     for (int i = 0; i < 2; ++i) {
-      for (int k = 0; k < 2; ++k) Cab.block<6, 6>(6 * i, 6 * k) = C.block<6, 6>(6 * s[i], 6 * s[k]);
+      for (int k = 0; k < 2; ++k) {
+        Cab.block<6, 6>(6 * i, 6 * k) = C.block<6, 6>(6 * s[i], 6 * s[k]);
+        Cab_cal.block<6, 6>(6 * i, 6 * k) = C_cal.block<6, 6>(6 * s[i], 6 * s[k]);
+      }
     }
     RelativePoseEstimate e =
         EstimateRelativePose(Eigen::Map<const Pose6>(result.block(result.layout->view_block(a))),
-                             Eigen::Map<const Pose6>(result.block(result.layout->view_block(b))), Cab);
+                             Eigen::Map<const Pose6>(result.block(result.layout->view_block(b))),
+                             Cab, Cab_cal);
     e.view_a = a;
     e.view_b = b;
     out.push_back(e);

@@ -10,7 +10,9 @@
 // Covariance: first order through the 6x12 Jacobian of (rvec, t) with respect to both poses
 // (ceres::Jet, exact), applied to the engine's joint 12x12 covariance of the two pose blocks
 // (ba/covariance.h: marginal over everything else, so the intrinsics' and the markers' shares and
-// the two poses' cross-covariance are in it):  C_rel = J C_ab J^T.
+// the two poses' cross-covariance are in it):  C_rel = J C_ab J^T. With a considered
+// calibration (a pose problem's held intrinsics with camera.json's covariance) C_ab includes its
+// consider term, and its part J C_ab,cal J^T is also given on its own.
 // The rotation part is also given as small rotations about view b's camera axes (deg; the rvec
 // covariance mapped by the SO(3) left Jacobian, as the pose reports do).
 #pragma once
@@ -61,6 +63,10 @@ struct RelativePoseEstimate {
   Eigen::Vector3d sigma_rotation_deg = Eigen::Vector3d::Zero();  // about view b's camera axes
   Eigen::Vector3d sigma_translation_mm = Eigen::Vector3d::Zero();
   double baseline_mm = 0;             // |t|: distance between the two sources
+  // The considered calibration's part of `covariance` (zero without one) and of the angle's
+  // variance (its sigma, deg).
+  Matrix6 covariance_calibration = Matrix6::Zero();
+  double sigma_angle_calibration_deg = 0;
 };
 
 // The relative pose of object views `view_a`, `view_b` (problem indices) of a solved result with
@@ -71,6 +77,11 @@ RelativePoseEstimate EstimateRelativePose(const BaResult& result, int view_a, in
 RelativePoseEstimate EstimateRelativePose(const Pose6& pose_a,
                                           const Pose6& pose_b,
                                           const Eigen::Matrix<double, 12, 12>& covariance_ab);
+// The same with the calibration's part of covariance_ab (included in it) given on its own.
+RelativePoseEstimate EstimateRelativePose(const Pose6& pose_a,
+                                          const Pose6& pose_b,
+                                          const Eigen::Matrix<double, 12, 12>& covariance_ab,
+                                          const Eigen::Matrix<double, 12, 12>& calibration_ab);
 
 // The relative poses of `pairs` (problem view indices), with the covariance of all the views
 // involved computed once.

@@ -16,13 +16,36 @@ bool ReprojectionError::Evaluate(double const* const* parameters,
                            J_point)) {
     return false;
   }
-  residuals[0] = (uv[0] - u_) * inv_sigma_;
-  residuals[1] = (uv[1] - v_) * inv_sigma_;
+  // r = L^-1 e, L^-1 = [[a, 0], [b, c]]; each Jacobian (row-major 2 x n) likewise.
+  const double e0 = uv[0] - u_, e1 = uv[1] - v_;
+  residuals[0] = w_.a * e0;
+  residuals[1] = w_.b * e0 + w_.c * e1;
   if (!std::isfinite(residuals[0]) || !std::isfinite(residuals[1])) return false;
-  if (J_pose) for (int i = 0; i < 12; ++i) J_pose[i] *= inv_sigma_;
-  if (J_point) for (int i = 0; i < 6; ++i) J_point[i] *= inv_sigma_;
-  if (J_intr) for (int i = 0; i < 18; ++i) J_intr[i] *= inv_sigma_;
+  auto whiten = [this](double* J, int n) {
+    for (int i = 0; i < n; ++i) {
+      const double d0 = J[i], d1 = J[n + i];
+      J[i] = w_.a * d0;
+      J[n + i] = w_.b * d0 + w_.c * d1;
+    }
+  };
+  if (J_pose) whiten(J_pose, 6);
+  if (J_point) whiten(J_point, 3);
+  if (J_intr) whiten(J_intr, kNumIntrinsics);
   return true;
+}
+
+bool PixelWhitening::FromCovariance(const Eigen::Matrix2d& C, PixelWhitening* w) {
+  if (!C.allFinite() || std::abs(C(0, 1) - C(1, 0)) > 1e-12 * (std::abs(C(0, 0)) + std::abs(C(1, 1))) ||
+      !(C(0, 0) > 0)) {
+    return false;
+  }
+  const double l00 = std::sqrt(C(0, 0));
+  const double l10 = C(1, 0) / l00;
+  const double d = C(1, 1) - l10 * l10;
+  if (!(d > 0)) return false;
+  const double l11 = std::sqrt(d);
+  *w = {1.0 / l00, -l10 / (l00 * l11), 1.0 / l11};
+  return std::isfinite(w->a) && std::isfinite(w->b) && std::isfinite(w->c);
 }
 
 PlateViewReprojection::PlateViewReprojection(std::vector<Eigen::Vector3d> p_in_plate,

@@ -4,13 +4,15 @@
 //   parameter blocks: pose   cam_from_object [rx, ry, rz (rad), tx, ty, tz (mm)]   (6)
 //                     point  p_in_object [x, y, z] (mm)                              (3)
 //                     intrinsics [fx, fy, cx, cy, k1, k2, p1, p2, k3]                 (9)
-//   residual (2): (project(intrinsics, pose, point) - uv_observed) / sigma_px
-// Whitening by sigma_px makes ceres::Covariance come out in physical units (ceres/covariance.h
-// leaves that to the user). Evaluate() returns false for non-finite input or a point behind the
+//   residual (2): L^-1 (project(intrinsics, pose, point) - uv_observed),  Sigma = L L^T
+// with Sigma the observation's 2x2 pixel covariance (px^2; a detected blob's, detect/
+// marker_blobs.h) and L its lower Cholesky factor; isotropic sigma_px is the special case
+// L = sigma_px I. Then |r|^2 = e^T Sigma^-1 e. Whitening makes ceres::Covariance come out in
+// physical units (ceres/covariance.h leaves that to the user). Evaluate() returns false for non-finite input or a point behind the
 // source, so Ceres rejects the step instead of using a meaningless residual.
 //
-// The Jacobians are the analytic ones of camera/camera_model.h (ProjectPointWithJac), divided by
-// sigma_px. ReprojectionErrorAutoDiff is the autodiff twin, used by the `autodiff` configuration
+// The Jacobians are the analytic ones of camera/camera_model.h (ProjectPointWithJac),
+// premultiplied by L^-1 (dr/dx = L^-1 dq/dx: the whitening is constant). ReprojectionErrorAutoDiff is the autodiff twin, used by the `autodiff` configuration
 // and by the tests to check the analytic derivatives.
 //
 // CT prior: a 3-D point tied to a measured position (a CT fiducial) with covariance C:
@@ -30,10 +32,25 @@
 
 namespace carmba {
 
+// The whitening L^-1 of a 2x2 pixel covariance Sigma = L L^T: lower triangular
+// [[a, 0], [b, c]] (a = 1/l00, b = -l10/(l00 l11), c = 1/l11). Isotropic: a = c = 1/sigma, b = 0.
+struct PixelWhitening {
+  double a = 1, b = 0, c = 1;
+  static PixelWhitening Isotropic(double sigma_px) { return {1.0 / sigma_px, 0.0, 1.0 / sigma_px}; }
+  // False if Sigma is not symmetric positive definite.
+  static bool FromCovariance(const Eigen::Matrix2d& covariance_px2, PixelWhitening* w);
+  // L e (px) of a whitened residual r: the pixel residual back.
+  Eigen::Vector2d Unwhiten(const Eigen::Vector2d& r) const {
+    const double x = r[0] / a;
+    return {x, (r[1] - b * x) / c};
+  }
+};
+
 class ReprojectionError final : public ceres::SizedCostFunction<2, 6, 3, 9> {
  public:
   ReprojectionError(double u_px, double v_px, double sigma_px)
-      : u_(u_px), v_(v_px), inv_sigma_(1.0 / sigma_px) {}
+      : u_(u_px), v_(v_px), w_(PixelWhitening::Isotropic(sigma_px)) {}
+  ReprojectionError(double u_px, double v_px, const PixelWhitening& w) : u_(u_px), v_(v_px), w_(w) {}
 
   bool Evaluate(double const* const* parameters,
                 double* residuals,
@@ -42,30 +59,39 @@ class ReprojectionError final : public ceres::SizedCostFunction<2, 6, 3, 9> {
   static ceres::CostFunction* Create(double u_px, double v_px, double sigma_px) {
     return new ReprojectionError(u_px, v_px, sigma_px);
   }
+  static ceres::CostFunction* Create(double u_px, double v_px, const PixelWhitening& w) {
+    return new ReprojectionError(u_px, v_px, w);
+  }
 
  private:
-  double u_, v_, inv_sigma_;
+  double u_, v_;
+  PixelWhitening w_;
 };
 
 struct ReprojectionErrorAutoDiff {
-  ReprojectionErrorAutoDiff(double u_px, double v_px, double sigma_px)
-      : u(u_px), v(v_px), inv_sigma(1.0 / sigma_px) {}
+  ReprojectionErrorAutoDiff(double u_px, double v_px, const PixelWhitening& whitening)
+      : u(u_px), v(v_px), w(whitening) {}
 
   template <typename T>
   bool operator()(const T* pose, const T* point, const T* intrinsics, T* residuals) const {
     T uv[2];
     if (!ProjectPoint(intrinsics, pose, point, uv)) return false;
-    residuals[0] = (uv[0] - T(u)) * T(inv_sigma);
-    residuals[1] = (uv[1] - T(v)) * T(inv_sigma);
+    const T e0 = uv[0] - T(u), e1 = uv[1] - T(v);
+    residuals[0] = T(w.a) * e0;
+    residuals[1] = T(w.b) * e0 + T(w.c) * e1;
     return true;
   }
 
   static ceres::CostFunction* Create(double u_px, double v_px, double sigma_px) {
+    return Create(u_px, v_px, PixelWhitening::Isotropic(sigma_px));
+  }
+  static ceres::CostFunction* Create(double u_px, double v_px, const PixelWhitening& w) {
     return new ceres::AutoDiffCostFunction<ReprojectionErrorAutoDiff, 2, 6, 3, 9>(
-        new ReprojectionErrorAutoDiff(u_px, v_px, sigma_px));
+        new ReprojectionErrorAutoDiff(u_px, v_px, w));
   }
 
-  double u, v, inv_sigma;
+  double u, v;
+  PixelWhitening w;
 };
 
 // PlateViewReprojection: all observed points of one plate view with the plate held (its points

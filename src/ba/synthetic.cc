@@ -9,8 +9,9 @@ namespace carmba {
 namespace ba {
 
 NoiseSwitches NoiseSwitches::Only(Source s) {
-  NoiseSwitches n{false, false, false, false, false};
+  NoiseSwitches n{false, false, false, false, false, false};
   switch (s) {
+    case Source::kCalibration: n.calibration = true; break;
     case Source::kPlatePixels: n.plate_px = true; break;
     case Source::kObjectPixels: n.object_px = true; break;
     case Source::kCt: n.ct = true; break;
@@ -138,7 +139,19 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
     for (size_t m = 0; m < markers.size(); ++m) {
       Eigen::Vector2d q;
       ProjectPoint(K, pose.data(), markers[m].data(), q.data());
-      if (noise.object_px) q += spec.sigma_object_px * Eigen::Vector2d(gauss(rng), gauss(rng));
+      if (spec.object_px_anisotropy > 1.0) {
+        const double phi = kPi * uni(geo);
+        Eigen::Matrix2d R;
+        R << std::cos(phi), -std::sin(phi), std::sin(phi), std::cos(phi);
+        const Eigen::Matrix2d C =
+            spec.sigma_object_px * spec.sigma_object_px * R *
+            Eigen::Vector2d(spec.object_px_anisotropy, 1.0 / spec.object_px_anisotropy).asDiagonal() *
+            R.transpose();
+        view.obs_covariance_px2.push_back(0.5 * (C + C.transpose()));
+        if (noise.object_px) q += C.llt().matrixL() * Eigen::Vector2d(gauss(rng), gauss(rng));
+      } else if (noise.object_px) {
+        q += spec.sigma_object_px * Eigen::Vector2d(gauss(rng), gauss(rng));
+      }
       view.point_ids.push_back(static_cast<int>(m) + 1);
       view.uv_px.push_back(q);
     }
@@ -148,6 +161,18 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
   }
   for (size_t i = 1; i < object_view_index.size(); ++i) {
     out.pairs.emplace_back(object_view_index[0], object_view_index[i]);
+  }
+  if (!spec.consider_indices.empty()) {
+    IntrinsicsGroup& grp = p.groups[0];
+    grp.consider_indices = spec.consider_indices;
+    grp.consider_covariance = spec.consider_covariance;
+    if (noise.calibration) {
+      const auto n = static_cast<Eigen::Index>(spec.consider_indices.size());
+      Eigen::VectorXd z(n);
+      for (Eigen::Index i = 0; i < n; ++i) z[i] = gauss(rng);
+      const Eigen::VectorXd e = spec.consider_covariance.llt().matrixL() * z;
+      for (Eigen::Index i = 0; i < n; ++i) grp.initial[spec.consider_indices[i]] += e[i];
+    }
   }
   return out;
 }

@@ -6,7 +6,8 @@
 // Each noise source can be switched on alone (the budget's Monte Carlo): plate pixel noise,
 // object pixel noise, CT localisation noise, plate manufacturing noise (the true plate differs
 // from the nominal grid; only meaningful with plate.free), intrinsics prior noise (the prior's
-// mean differs from the truth by a draw from its covariance). Initial values are the truth: the
+// mean differs from the truth by a draw from its covariance), considered calibration noise (the
+// held intrinsics differ from the truth by a draw from their covariance). Initial values are the truth: the
 // Monte Carlo measures the estimator, not the initialiser. Deterministic for a seed: the geometry
 // comes from `spec.geometry_seed`, the noise from `seed`.
 #pragma once
@@ -39,11 +40,21 @@ struct SyntheticJointSpec {
   double sigma_plate_mm = 0.01;     // manufacturing tolerance (with plate_free)
   bool intrinsics_prior = false;    // a prior on fx, fy, cx, cy
   std::array<double, 4> prior_sigma{5, 5, 2, 2};  // px
+  // Considered calibration: held intrinsics (`free` false) with this covariance
+  // (IntrinsicsGroup::consider_*); with the calibration noise on, the values they are held at
+  // are the truth plus a draw from it (an earlier calibration's error). Drawn after all else.
+  std::vector<int> consider_indices;
+  Eigen::MatrixXd consider_covariance;
+  // > 1: each object observation gets its own 2x2 pixel covariance (BaView::obs_covariance_px2):
+  // sigma_object_px^2 R diag(ratio, 1/ratio) R^T with a random orientation R per observation
+  // (from the geometry seed), and pixel noise drawn from it.
+  double object_px_anisotropy = 1.0;
   uint64_t geometry_seed = 1;
 };
 
 struct NoiseSwitches {
-  bool plate_px = true, object_px = true, ct = true, plate_mfg = true, prior = true;
+  bool plate_px = true, object_px = true, ct = true, plate_mfg = true, prior = true,
+       calibration = true;
   static NoiseSwitches Only(Source s);
 };
 

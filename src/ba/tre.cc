@@ -64,15 +64,9 @@ StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
     BaView& view = base.views[v];
     view.initial = Eigen::Map<const Pose6>(full.block(L.view_block(static_cast<int>(v))));
     if (v < full.dropped.size() && !full.dropped[v].empty()) {
-      BaView kept = view;
-      kept.point_ids.clear();
-      kept.uv_px.clear();
-      for (size_t i = 0; i < view.point_ids.size(); ++i) {
-        if (full.dropped[v][i]) continue;
-        kept.point_ids.push_back(view.point_ids[i]);
-        kept.uv_px.push_back(view.uv_px[i]);
-      }
-      view = kept;
+      std::vector<char> keep(view.point_ids.size());
+      for (size_t i = 0; i < keep.size(); ++i) keep[i] = !full.dropped[v][i];
+      view = KeepObservations(view, keep);
     }
   }
 
@@ -91,7 +85,7 @@ StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
         PixelObservation o;
         o.view = static_cast<int>(v);
         o.uv_px = view.uv_px[i];
-        o.covariance_px2 = Eigen::Matrix2d::Identity() * view.sigma_px * view.sigma_px;
+        o.covariance_px2 = view.CovariancePx2(i);
         obs_of[m].push_back(o);
       }
     }
@@ -126,14 +120,9 @@ StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
     for (size_t v = 0; v < base.views.size(); ++v) {
       BaView view = base.views[v];
       if (view.kind == ViewKind::kObject) {
-        BaView kept = view;
-        kept.point_ids.clear();
-        kept.uv_px.clear();
-        for (size_t i = 0; i < view.point_ids.size(); ++i) {
-          if (view.point_ids[i] == marker.id) continue;
-          kept.point_ids.push_back(view.point_ids[i]);
-          kept.uv_px.push_back(view.uv_px[i]);
-        }
+        std::vector<char> keep(view.point_ids.size());
+        for (size_t i = 0; i < keep.size(); ++i) keep[i] = view.point_ids[i] != marker.id;
+        const BaView kept = KeepObservations(view, keep);
         if (kept.point_ids.size() < 4) {
           ++row.num_views_left_out;
           continue;
@@ -183,6 +172,7 @@ StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
     row.p_triangulated = t->p_in_object;
     row.covariance = t->covariance;
     row.covariance_pixels = t->covariance_pixels;
+    row.covariance_calibration = t->covariance_calibration;
     row.max_ray_angle_deg = t->max_ray_angle_deg;
     const Eigen::Vector3d e = row.p_triangulated - row.p_ct;
     row.error_mm = e.norm();

@@ -18,6 +18,8 @@
 // the markers (tr of their CT covariances) plus the mean 3-D error of their X-ray triangulation
 // from pixel noise alone (the full solve's poses held). To compare with |e_k| the target's own
 // localisation is added: fitzpatrick_rms_mm = sqrt(TRE_F^2 + tr(C_pixels,k) + tr(C_ct,k)).
+// With a considered calibration (held intrinsics with a covariance) C_tri includes its part
+// (ba/triangulation.h), also given on its own (covariance_calibration).
 #pragma once
 
 #include <Eigen/Dense>
@@ -45,6 +47,7 @@ struct MarkerTre {
   Eigen::Vector3d p_triangulated = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();     // of p_triangulated (solve + pixels)
   Eigen::Matrix3d covariance_pixels = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d covariance_calibration = Eigen::Matrix3d::Zero();  // considered calibration's part
   Eigen::Matrix3d ct_covariance = Eigen::Matrix3d::Zero();
   double error_mm = 0;              // |p_triangulated - p_ct|
   double predicted_rms_mm = 0;      // sqrt(tr(C_tri) + tr(C_ct))

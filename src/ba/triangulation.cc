@@ -148,6 +148,7 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
   out.covariance_pixels = N.inverse();
   // The solve's share: G = -N^-1 sum_i J_i^T W_i B_i over the free state.
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3, L.num_free());
+  Eigen::MatrixXd Kc = Eigen::MatrixXd::Zero(3, L.num_consider());  // over considered intrinsics
   double ss = 0;
   for (const auto& o : obs) {
     const BaView& v = problem.views[o.view];
@@ -164,6 +165,7 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
     for (int row = 0; row < 3; ++row) {
       AddGradientRow(L, gb, Ki.row(row).data(), row, &K);
       AddGradientRow(L, vb, Kp.row(row).data(), row, &K);
+      AddConsiderGradientRow(L, gb, Ki.row(row).data(), row, &Kc);
     }
     const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
     out.residual_px.push_back(r);
@@ -171,15 +173,21 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
   }
   out.rms_px = std::sqrt(ss / (2.0 * obs.size()));
   const Eigen::MatrixXd G = -out.covariance_pixels * K;
+  const Eigen::MatrixXd Gc = -out.covariance_pixels * Kc;
   out.covariance_solve = G * result.covariance->Solve(G.transpose()) * result.covariance_scale;
   out.covariance_solve = 0.5 * (out.covariance_solve + out.covariance_solve.transpose()).eval();
-  if (result.linearization) {
-    const ErrorBudget eb = result.covariance->Budget(G, *result.linearization);
-    for (int s = 0; s < kNumSources; ++s) {
-      out.solve_trace_by_source[s] = eb.by_source.col(s).sum() * result.covariance_scale;
-    }
+  if (result.covariance->num_consider() > 0) {
+    const Eigen::MatrixXd T = result.covariance->ConsiderGradient(G, Gc);  // 3 x nc
+    out.covariance_calibration = T * result.covariance->consider_covariance() * T.transpose();
+    out.covariance_calibration =
+        0.5 * (out.covariance_calibration + out.covariance_calibration.transpose()).eval();
   }
-  out.covariance = out.covariance_pixels + out.covariance_solve;
+  if (result.linearization) {
+    const ErrorBudget eb =
+        result.covariance->Budget(G, *result.linearization, result.covariance_scale, Gc);
+    for (int s = 0; s < kNumSources; ++s) out.solve_trace_by_source[s] = eb.by_source.col(s).sum();
+  }
+  out.covariance = out.covariance_pixels + out.covariance_solve + out.covariance_calibration;
   if (out.max_ray_angle_deg < options.min_ray_angle_deg) {
     const Eigen::Vector3d along = (dir[wa] + dir[wb]).normalized();
     out.warning = "the rays are nearly parallel: the widest pair (views '" +

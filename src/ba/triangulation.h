@@ -16,6 +16,10 @@
 // the two independent (the point's pixels are not in the solve). C_theta is the engine's
 // covariance (ba/covariance.h, G H^-1 G^T by one solve), scaled by the result's covariance_scale;
 // the solve's part is split by noise source with the engine's error budget.
+// Held intrinsics with a considered calibration covariance Sigma_c (a pose problem with
+// camera.json's covariance): X depends on them directly (q_i uses them, Gc = -N^-1 sum_i J_i^T
+// W_i dq_i/dc) and through the solve's estimate (D = dtheta/dc, ba/covariance.h), so
+//   C_X += (G D + Gc) Sigma_c (G D + Gc)^T   (covariance_calibration, budget kCalibration).
 //
 // Warnings and errors: fewer than two views is an error ("seen in one view only"), as are a
 // plate view, a view given twice, non-finite pixels, a pixel that cannot be undistorted, rays
@@ -50,8 +54,10 @@ struct TriangulatedPoint {
   Eigen::Vector3d p_in_object = Eigen::Vector3d::Zero();   // mm, the solve's object frame
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    // total, mm^2
   Eigen::Matrix3d covariance_pixels = Eigen::Matrix3d::Zero();  // N^-1: the point's own pixels
-  Eigen::Matrix3d covariance_solve = Eigen::Matrix3d::Zero();   // G C_theta G^T
-  // Variance (trace, mm^2) of the solve's part by noise source (ba/problem.h Source order).
+  Eigen::Matrix3d covariance_solve = Eigen::Matrix3d::Zero();   // G C_theta G^T (residuals)
+  Eigen::Matrix3d covariance_calibration = Eigen::Matrix3d::Zero();  // considered calibration
+  // Variance (trace, mm^2) of the solve's and the calibration's parts by noise source
+  // (ba/problem.h Source order; kCalibration is covariance_calibration's trace).
   std::array<double, kNumSources> solve_trace_by_source{};
   double max_ray_angle_deg = 0;     // widest angle between two of the rays
   std::vector<Eigen::Vector2d> residual_px;  // q_i(X) - z_i, per observation

@@ -207,10 +207,7 @@ int RunTriangulate() {
     object_view[bp.views[v].id] = static_cast<int>(v);
     object_ids += (object_ids.empty() ? "" : ", ") + bp.views[v].id;
   }
-  bool intrinsics_free = false;
-  for (const auto& g : bp.groups) {
-    for (bool f : g.free) intrinsics_free |= f;
-  }
+  const ba::CalibrationUncertainty calibration = ba::CalibrationUncertaintyOf(bp);
   // The solve's object frame -> the CT frame (a mirrored pose problem negates y).
   const Eigen::Matrix3d F = Eigen::Vector3d(1, solved->mirrored ? -1 : 1, 1).asDiagonal();
 
@@ -218,7 +215,9 @@ int RunTriangulate() {
   std::ostringstream csv;
   csv << "# carmba triangulate --problem " << FLAGS_problem << " --config " << FLAGS_config
       << "\n# positions in the CT frame (mm), covariance mm^2 (the solve's "
-      << (intrinsics_free ? "poses and intrinsics" : "poses (intrinsics held)")
+      << (calibration == ba::CalibrationUncertainty::kEstimated    ? "poses and intrinsics"
+          : calibration == ba::CalibrationUncertainty::kConsidered ? "poses, with the held intrinsics' calibration covariance"
+                                                                   : "poses (intrinsics held, calibration uncertainty left out)")
       << " and the points' pixels)\n"
       << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
   std::vector<std::string> warnings;
@@ -265,6 +264,7 @@ int RunTriangulate() {
                        {"rms_3d_mm", JsonNumber(std::sqrt(C.trace()))},
                        {"covariance_pixels_mm2", JsonRows(F * t->covariance_pixels * F)},
                        {"covariance_solve_mm2", JsonRows(F * t->covariance_solve * F)},
+                       {"covariance_calibration_mm2", JsonRows(F * t->covariance_calibration * F)},
                        {"variance_by_source_mm2", by_source},
                        {"max_ray_angle_deg", JsonNumber(t->max_ray_angle_deg)},
                        {"rms_px", JsonNumber(t->rms_px)},
@@ -283,14 +283,19 @@ int RunTriangulate() {
   nlohmann::json j;
   j["problem"] = {{"file", FLAGS_problem}, {"kind", solved->kind}, {"config", FLAGS_config}};
   j["frame"] = "CT (object) frame, mm";
+  const std::string scale = br.covariance_scale == 1.0 ? "a-priori" : "a-posteriori";
   j["covariance"] =
-      intrinsics_free
-          ? "the solve's joint covariance of poses and intrinsics (" +
-                std::string(br.covariance_scale == 1.0 ? "a-priori" : "a-posteriori") +
+      calibration == ba::CalibrationUncertainty::kEstimated
+          ? "the solve's joint covariance of poses and intrinsics (" + scale +
                 " sigmas) and the points' pixel noise"
-          : "the solve's covariance of the poses and the points' pixel noise; the intrinsics are "
-            "held (a pose problem): the calibration's uncertainty is NOT included (a joint problem "
-            "with `camera:` and `intrinsics: {prior: true}` includes it)";
+      : calibration == ba::CalibrationUncertainty::kConsidered
+          ? "the solve's covariance of the poses (" + scale +
+                " sigmas), the held intrinsics' calibration covariance from camera.json "
+                "(considered: covariance_calibration_mm2) and the points' pixel noise"
+          : std::string("the solve's covariance of the poses and the points' pixel noise; the "
+                        "intrinsics are held and camera.json has no covariance (or the config "
+                        "says consider_calibration: false): the calibration's uncertainty is NOT "
+                        "included");
   j["points"] = jpoints;
   j["warnings"] = warnings;
   StagedOutputDir staged(FLAGS_out);
@@ -300,9 +305,9 @@ int RunTriangulate() {
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail(cmd, s);
   for (const auto& w : warnings) std::cerr << "carmba triangulate: warning: " << w << std::endl;
-  if (!intrinsics_free) {
-    std::cerr << "carmba triangulate: note: the intrinsics are held (pose problem): the "
-                 "calibration's uncertainty is not in the covariance" << std::endl;
+  if (calibration == ba::CalibrationUncertainty::kLeftOut) {
+    std::cerr << "carmba triangulate: note: the intrinsics are held without a calibration "
+                 "covariance: the calibration's uncertainty is not in the covariance" << std::endl;
   }
   std::cout << "wrote " << FLAGS_out << "/triangulation.json and " << FLAGS_out << "/points.csv"
             << std::endl;

@@ -82,7 +82,8 @@ std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double f
     PoseView pv;
     pv.id = v.name;
     for (const MarkerObservation& o : LabelledObservations(v)) {
-      pv.observations.push_back({o.marker_id, o.uv_px, IsotropicSigmaPx(o.covariance_px2, floor_px)});
+      pv.observations.push_back({o.marker_id, o.uv_px, IsotropicSigmaPx(o.covariance_px2, floor_px),
+                                 o.covariance_px2 + floor_px * floor_px * Eigen::Matrix2d::Identity()});
     }
     out.push_back(pv);
   }

@@ -20,10 +20,10 @@
 // layout: refusing to guess); no view labelled (with each view's reason: the fiducials of another
 // object, a wrong camera, or too few markers).
 //
-// Pixel sigma for the bundle adjustment: each blob's 2x2 covariance C is reduced to an isotropic
-// sigma = sqrt(lambda_max(C) + sigma_floor_px^2) (the engine whitens each observation by one
-// sigma: the larger eigenvalue is the conservative choice; the anisotropy of a round blob's
-// centroid is small).
+// Pixel covariance for the bundle adjustment: each blob's 2x2 covariance C plus the floor,
+// C + sigma_floor_px^2 I, which the engine whitens in full (ba/reprojection_error.h); the isotropic
+// sigma = sqrt(lambda_max(C) + sigma_floor_px^2) (a conservative bound) is kept beside it for the
+// robust loss's scale and the reports.
 #pragma once
 
 #include "report/report_doc.h"

@@ -20,7 +20,7 @@
 //     # or images: DIR_OR_GLOB (PNG/TIFF/DICOM, multi-frame DICOM: a view per frame) with
 //     # detection: {diameter_mm: 2, ...} (detect/marker_views.h ReadObjectViewsOptions): marker
 //     # blobs detected and labelled with the fiducials through `camera` (required then); each
-//     # observation's sigma from its blob's covariance (sigma_px, if given, is not used); views
+//     # observation's 2x2 covariance from its blob's (sigma_px, if given, is not used); views
 //     # with fewer than 4 markers found are skipped (listed in skipped_object_views)
 //   fiducials: fiducials.csv          # as `carmba ct-fiducials` writes it: id, x_mm, y_mm, z_mm,
 //                                     # cov_xx..cov_zz (the CT prior); or a map
@@ -72,6 +72,9 @@ struct JointObjectView {
   std::vector<int> marker_ids;
   std::vector<Eigen::Vector2d> uv_px;
   std::vector<double> sigma_px;  // per observation (detected blobs); empty = object_sigma_px
+  // Per observation 2x2 pixel covariance (px^2, detected blobs: whitened in full by the
+  // engine); empty = isotropic.
+  std::vector<Eigen::Matrix2d> covariance_px2;
 };
 
 struct JointTruth {

@@ -124,7 +124,7 @@ Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p, Obj
     if (!v.ok()) return v.status();
     if (!index.count(id)) {
       index[id] = p->object_views.size();
-      p->object_views.push_back({id, {}, {}, {}});
+      p->object_views.push_back({id, {}, {}, {}, {}});
     }
     JointObjectView& ov = p->object_views[index[id]];
     for (int m2 : ov.marker_ids) {
@@ -269,6 +269,7 @@ Status DetectObjectViews(const ObjectImages& in, const std::string& base, const 
       ov.marker_ids.push_back(o.marker_id);
       ov.uv_px.push_back(o.uv_px);
       ov.sigma_px.push_back(o.sigma_px);
+      ov.covariance_px2.push_back(o.covariance_px2);
       all.push_back(o.sigma_px);
     }
     p->object_views.push_back(ov);

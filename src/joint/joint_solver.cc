@@ -229,6 +229,7 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     view.group = object_group[k];
     view.sigma_px = problem.object_sigma_px;
     view.obs_sigma_px = ov.sigma_px;
+    view.obs_covariance_px2 = ov.covariance_px2;
     view.point_ids = ov.marker_ids;
     view.uv_px = ov.uv_px;
     Camera cam;

@@ -7,8 +7,11 @@
 //   * per marker m its position p_m in the object frame, a parameter block shared by all views,
 //     tied to its CT measurement by a prior whitened by the CT covariance (PointPriorRows). It fixes
 //     the object frame (the gauge), and CT error enters the covariance and correlates the views;
-//   * per observation a ReprojectionError whitened by sigma_px (analytic Jacobians, or the autodiff
-//     twin); the intrinsics are read from the camera file and held constant here.
+//   * per observation a ReprojectionError whitened by sigma_px, or by its 2x2 pixel covariance
+//     when it has one (analytic Jacobians, or the autodiff twin); the intrinsics are read from the
+//     camera file and held at its values. When camera.json has a covariance they are CONSIDERED
+//     (config consider_calibration, default true): the covariances include the calibration's
+//     uncertainty by the consider term (ba/covariance.h), the estimates are unchanged.
 // Initial poses come from the configured initialiser (legacy_posit, posit, epnp, sqpnp).
 // The covariance of all poses is computed jointly, by default from the analytic Jacobians with the
 // markers eliminated by the Schur complement (ba/covariance.h), or with ceres::Covariance;
@@ -65,6 +68,8 @@
 //                                 # the worst above it and solves again, until none is left
 //   tre: false                    # true: leave-one-marker-out target registration error
 //                                 # (ba/tre.h; one more solve per marker) in result.json/report
+//   consider_calibration: true    # pose problems: camera.json's covariance enters the
+//                                 # covariances (intrinsics held, their uncertainty considered)
 // A calibration config given here (it has keys such as robust_loss, detection, crosscheck) is an
 // error saying so.
 #pragma once
@@ -103,6 +108,11 @@ struct Observation {
   // This observation's pixel sigma (px, per coordinate); 0 = the problem's sigma_px. Set for
   // detected marker blobs (detect/marker_views.h).
   double sigma_px = 0;
+  // Its full 2x2 pixel covariance (px^2); zero = none (isotropic sigma_px). Detected blobs carry
+  // one, as do observations.csv files with columns cov_uu, cov_uv, cov_vv. The bundle adjustment
+  // whitens by it in full.
+  Eigen::Matrix2d covariance_px2 = Eigen::Matrix2d::Zero();
+  bool HasCovariance() const { return covariance_px2(0, 0) > 0; }
 };
 
 struct PoseView {
@@ -175,6 +185,10 @@ struct SolverConfig {
   std::string backend = "ceres";
   // Leave-one-marker-out target registration error (ba/tre.h): one more solve per marker.
   bool tre = false;
+  // Pose problems: when camera.json has a covariance, the intrinsics (held at its values) are
+  // CONSIDERED: the poses' covariance (and everything derived from it) includes the
+  // calibration's uncertainty (ba/covariance.h). false: the residuals' part only.
+  bool consider_calibration = true;
 
   bool Check(std::string* error) const;
 };
@@ -261,6 +275,10 @@ struct PoseSolution {
 StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
                                         const SolverConfig& config,
                                         const ProgressFn& progress = nullptr);
+
+// camera.json's covariance as a considered calibration (ba/problem.h IntrinsicsGroup::consider_*):
+// the intrinsic indices of its names and the matrix; empty without a covariance.
+StatusOr<std::pair<std::vector<int>, Eigen::MatrixXd>> ConsideredCalibration(const Camera& camera);
 
 // The problem's marker positions in its handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m);

@@ -86,6 +86,8 @@ Status ReadObservations(YamlMap& m,
   } else {
     auto vc = t->Column("view");
     if (!vc.ok()) return vc.status();
+    // Optional per-observation 2x2 pixel covariance (as `carmba pose` writes observations.csv).
+    const bool with_cov = t->Column("cov_uu").ok() || t->Column("cov_uv").ok() || t->Column("cov_vv").ok();
     for (size_t r = 0; r < t->rows.size(); ++r) {
       const std::string id = t->rows[r][*vc];
       if (id.empty()) {
@@ -101,6 +103,23 @@ Status ReadObservations(YamlMap& m,
       auto vv = t->NumberIn(r, "v_px", plausible::kPixelCoordinatePx);
       if (!vv.ok()) return vv.status();
       o.uv_px = Eigen::Vector2d(*u, *vv);
+      if (with_cov) {
+        double c[3];
+        const char* names[3] = {"cov_uu", "cov_uv", "cov_vv"};
+        for (int k = 0; k < 3; ++k) {
+          auto x = t->Number(r, names[k]);
+          if (!x.ok()) return x.status();
+          c[k] = *x;
+        }
+        o.covariance_px2 << c[0], c[1], c[1], c[2];
+        if (!(c[0] > 0) || !(c[2] > 0) || !(c[0] * c[2] - c[1] * c[1] > 0)) {
+          return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
+                               ": columns cov_uu, cov_uv, cov_vv: expected a positive definite "
+                               "pixel covariance (px^2), got " + t->rows[r][*t->Column("cov_uu")] +
+                               ", " + t->rows[r][*t->Column("cov_uv")] + ", " +
+                               t->rows[r][*t->Column("cov_vv")]);
+        }
+      }
       if (!views.count(id)) {
         order.push_back(id);
         views[id].id = id;
@@ -439,6 +458,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   }
   root.GetEnum("backend", {"ceres", "carmba_lm"}, &c.backend);
   root.Get("tre", &c.tre);
+  root.Get("consider_calibration", &c.consider_calibration);
   YamlMap& outliers = root.Map("outliers");
   outliers.GetPositive("list_sigma", &c.outlier_sigma);
   outliers.GetNonNegative("reject_sigma", &c.reject_sigma);

@@ -24,6 +24,24 @@ Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m
   return p;
 }
 
+StatusOr<std::pair<std::vector<int>, Eigen::MatrixXd>> ConsideredCalibration(const Camera& camera) {
+  std::pair<std::vector<int>, Eigen::MatrixXd> out;
+  const size_t n = camera.covariance_names.size();
+  if (n == 0) return out;
+  out.second.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (size_t i = 0; i < n; ++i) {
+    const auto* it = std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, camera.covariance_names[i]);
+    if (it == kIntrinsicNames + kNumIntrinsics || camera.covariance.size() != n ||
+        camera.covariance[i].size() != n) {
+      return Status::Error("covariance: expected a square matrix over intrinsic names");
+    }
+    out.first.push_back(static_cast<int>(it - kIntrinsicNames));
+    for (size_t j = 0; j < n; ++j) out.second(i, j) = camera.covariance[i][j];
+  }
+  out.second = (0.5 * (out.second + out.second.transpose())).eval();
+  return out;
+}
+
 namespace {
 
 Eigen::Matrix3d MarkerCovarianceInProblemFrame(const PoseProblem& problem, const Marker& m) {
@@ -154,6 +172,12 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
   g.free.fill(false);
   g.width = problem.camera.width;
   g.height = problem.camera.height;
+  if (config.consider_calibration) {
+    auto considered = ConsideredCalibration(problem.camera);
+    if (!considered.ok()) return Status::Error(problem.path + ": camera: " + considered.status().message());
+    g.consider_indices = considered->first;
+    g.consider_covariance = considered->second;
+  }
   bp.groups.push_back(g);
   for (const auto& [id, p] : markers) {
     const Marker& m = *marker_by_id.at(id);
@@ -168,14 +192,22 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
     view.id = problem.views[v].id;
     view.kind = ba::ViewKind::kObject;
     view.sigma_px = problem.sigma_px;
-    bool per_observation = false;
-    for (const auto& o : problem.views[v].observations) per_observation |= o.sigma_px > 0;
+    bool per_observation = false, full = false;
+    for (const auto& o : problem.views[v].observations) {
+      per_observation |= o.sigma_px > 0;
+      full |= o.HasCovariance();
+    }
     for (const auto& o : problem.views[v].observations) {
       pts.push_back(markers.at(o.marker_id));
       uv.push_back(o.uv_px);
       view.point_ids.push_back(o.marker_id);
       view.uv_px.push_back(o.uv_px);
-      if (per_observation) view.obs_sigma_px.push_back(o.sigma_px > 0 ? o.sigma_px : problem.sigma_px);
+      const double sigma = o.sigma_px > 0 ? o.sigma_px : problem.sigma_px;
+      if (per_observation) view.obs_sigma_px.push_back(sigma);
+      if (full) {
+        view.obs_covariance_px2.push_back(
+            o.HasCovariance() ? o.covariance_px2 : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
+      }
     }
     auto init = InitialObjectPose(problem.camera, config.initializer, pts, uv);
     if (!init.ok()) {
@@ -202,7 +234,10 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
   options.parameter_tolerance = config.parameter_tolerance;
   options.num_threads = config.num_threads;
   options.covariance_aposteriori = config.covariance_aposteriori;
-  options.compute_covariance = config.refine && config.covariance_algorithm == "schur";
+  // The engine's covariance: for the schur algorithm, and for the others when a considered
+  // calibration adds its term to ceres::Covariance's.
+  const bool considered = !bp.groups[0].consider_indices.empty();
+  options.compute_covariance = config.refine && (config.covariance_algorithm == "schur" || considered);
   options.outlier_sigma = config.outlier_sigma;
   options.reject_sigma = config.refine ? config.reject_sigma : 0;
   auto solved = ba::SolveBundleAdjustment(bp, options);
@@ -277,6 +312,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
     if (config.covariance_aposteriori && std::isfinite(sol.sigma0)) {
       sol.joint_covariance *= sol.sigma0 * sol.sigma0;
     }
+    if (r.covariance) sol.joint_covariance += r.CalibrationCovariance(pose_blocks);
   }
   if (config.refine) {
     sol.has_covariance = sol.joint_covariance.allFinite();

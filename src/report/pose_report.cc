@@ -268,8 +268,7 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
                                                    Fmt("%.3f", problem.sigma_px) + " px")});
   if (s.ba_problem) {
     AppendRelativePoses(&d, *s.ba_problem, s.relative_poses, problem.truth_poses);
-    d.Paragraph("The camera's intrinsics are held (a pose problem): the relative poses' "
-                "covariances leave the calibration's uncertainty out.");
+    d.Paragraph(ba::CalibrationUncertaintyNote(ba::CalibrationUncertaintyOf(*s.ba_problem)));
   }
   if (s.tre) AppendTre(&d, *s.tre);
   return d;

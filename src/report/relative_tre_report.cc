@@ -33,7 +33,9 @@ nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
                         {"sigma_angle_deg", JsonNumber(e.sigma_angle_deg)},
                         {"sigma_rotation_deg", JsonVector(e.sigma_rotation_deg)},
                         {"sigma_translation_mm", JsonVector(e.sigma_translation_mm)},
-                        {"baseline_mm", JsonNumber(e.baseline_mm)}};
+                        {"baseline_mm", JsonNumber(e.baseline_mm)},
+                        {"covariance_calibration_6x6", JsonRows(e.covariance_calibration)},
+                        {"sigma_angle_calibration_deg", JsonNumber(e.sigma_angle_calibration_deg)}};
     const Pose6* ta = Find(truth, ia);
     const Pose6* tb = Find(truth, ib);
     if (ta && tb) {

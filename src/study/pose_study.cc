@@ -492,6 +492,7 @@ std::string BudgetKey(ba::Source s) {
     case ba::Source::kCt: return "ct";
     case ba::Source::kPlateManufacturing: return "plate_manufacturing";
     case ba::Source::kIntrinsicsPrior: return "intrinsics_prior";
+    case ba::Source::kCalibration: return "calibration";
   }
   return "?";
 }

@@ -276,10 +276,12 @@ TEST(BaBudget, SharesAddUpToTheTotal) {
                 1e-9 * rows[q].sigma * rows[q].sigma) << rows[q].quantity.name;
     for (int src = 0; src < kNumSources; ++src) EXPECT_GE(rows[q].share[src], 0.0);
   }
-  // Every source contributes to the relative rotations here (all five are present).
+  // Every residual source contributes to the relative rotations here (all five are present; no
+  // considered calibration: the intrinsics are estimated).
   const BudgetRow& pair = rows[rows.size() - 4];
   EXPECT_NE(pair.quantity.name.find("relative rotation"), std::string::npos);
-  for (int src = 0; src < kNumSources; ++src) EXPECT_GT(pair.share[src], 0.0) << src;
+  for (int src = 0; src < kNumResidualSources; ++src) EXPECT_GT(pair.share[src], 0.0) << src;
+  EXPECT_EQ(pair.share[static_cast<int>(Source::kCalibration)], 0.0);
   // An intrinsic's sigma is its covariance's diagonal.
   const Eigen::MatrixXd ci = s.result.Covariance({s.result.layout->group_block(0)});
   EXPECT_NEAR(rows[0].sigma, std::sqrt(ci(0, 0)), 1e-9 * rows[0].sigma);

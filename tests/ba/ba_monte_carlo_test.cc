@@ -85,7 +85,7 @@ struct Reference {
 };
 
 Reference AtTruth() {
-  NoiseSwitches none{false, false, false, false, false};
+  NoiseSwitches none{false, false, false, false, false, false};
   Reference ref{MakeSyntheticJoint(Spec(), none, 0), BaResult(), QuantitySet(), {}, {}};
   auto r = SolveBundleAdjustment(ref.sj.problem, BaOptions());
   EXPECT_TRUE(r.ok()) << r.status().message();
@@ -134,7 +134,7 @@ TEST(BaMonteCarlo, ErrorBudgetMatchesEachSourceAlone) {
   ASSERT_EQ(nq, static_cast<int>(ref.budget.size()));
   double worst = 0;
   std::string worst_what;
-  for (int s = 0; s < kNumSources; ++s) {
+  for (int s = 0; s < kNumResidualSources; ++s) {  // no considered calibration here
     const Source src = static_cast<Source>(s);
     const Eigen::VectorXd var = EmpiricalVariance(ref, NoiseSwitches::Only(src), 100000 * (s + 1), kTrials);
     for (int q = 0; q < nq; ++q) {

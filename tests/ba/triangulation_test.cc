@@ -22,6 +22,7 @@
 #include "ba/synthetic.h"
 #include "ba/tre.h"
 #include "ba/triangulation.h"
+#include "synthetic_pixels.h"
 #include "geometry/rotation.h"
 
 namespace carmba {
@@ -37,13 +38,6 @@ SyntheticJointSpec Spec() {
   return s;
 }
 
-std::vector<int> ObjectViews(const BaProblem& p) {
-  std::vector<int> v;
-  for (size_t i = 0; i < p.views.size(); ++i) {
-    if (p.views[i].kind == ViewKind::kObject) v.push_back(static_cast<int>(i));
-  }
-  return v;
-}
 
 TEST(RelativePose, JacobianMatchesCentralDifferences) {
   // Central differences have a truncation error ~h^2 |f'''| and a rounding error ~eps |f| / h:
@@ -138,19 +132,7 @@ std::vector<PixelObservation> TipPixels(const SyntheticJoint& sj,
                                         const std::vector<int>& views,
                                         double sigma_px,
                                         std::mt19937_64* rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  std::vector<PixelObservation> obs;
-  for (int v : views) {
-    PixelObservation o;
-    o.view = v;
-    ProjectPoint(sj.true_intrinsics.data(), sj.true_poses[v].data(), kTip.data(), o.uv_px.data());
-    o.uv_px += sigma_px * Eigen::Vector2d(g(*rng), g(*rng));
-    // Noise-free picks (sigma 0) still need a weight: equal weights give the same point.
-    const double w = sigma_px > 0 ? sigma_px : 0.3;
-    o.covariance_px2 = Eigen::Matrix2d::Identity() * w * w;
-    obs.push_back(o);
-  }
-  return obs;
+  return TruePointPixels(sj, kTip, views, sigma_px, rng);
 }
 
 TEST(Triangulation, MonteCarloNees) {

@@ -43,7 +43,7 @@ JointProblem FromSynthetic(const ba::SyntheticJoint& sj, const ba::SyntheticJoin
       p.plate.views.push_back(vo);
       p.plate_view_ids.push_back(v.id);
     } else {
-      p.object_views.push_back({v.id, v.point_ids, v.uv_px, {}});
+      p.object_views.push_back({v.id, v.point_ids, v.uv_px, {}, {}});
     }
   }
   for (const auto& m : sj.problem.markers) {
