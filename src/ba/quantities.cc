@@ -173,5 +173,15 @@ std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
   return rows;
 }
 
+std::vector<Source> ActiveSources(const std::vector<BudgetRow>& budget) {
+  std::vector<Source> out;
+  for (int k = 0; k < kNumSources; ++k) {
+    bool any = false;
+    for (const auto& r : budget) any |= r.share[k] > 0;
+    if (any) out.push_back(static_cast<Source>(k));
+  }
+  return out;
+}
+
 }  // namespace ba
 }  // namespace carmba

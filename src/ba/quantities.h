@@ -65,6 +65,9 @@ struct BudgetRow {
 std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
                                           const BaResult& result,
                                           const std::vector<std::pair<int, int>>& pairs);
+// The sources that contribute to some row of `budget` (in Source order): the columns a report
+// shows (a pose problem has no plate pixels, a joint problem no considered calibration).
+std::vector<Source> ActiveSources(const std::vector<BudgetRow>& budget);
 
 }  // namespace ba
 }  // namespace carmba

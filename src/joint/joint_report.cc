@@ -387,13 +387,15 @@ ReportDoc JointReportDoc(const JointProblem& problem,
       "distance, projects with the estimated intrinsics (its value is the image centre, its "
       "sigma the calibration's own uncertainty there). " + sigma_note);
   header = {"quantity", "unit", "value", "sigma"};
-  for (int k = 0; k < ba::kNumSources; ++k) header.push_back(ba::SourceName(static_cast<ba::Source>(k)));
+  const std::vector<ba::Source> active = ba::ActiveSources(s.budget);
+  for (ba::Source k : active) header.push_back(ba::SourceName(k));
   rows.clear();
   for (const auto& row : s.budget) {
     std::vector<std::string> cells = {row.quantity.name, row.quantity.unit,
                                       Fmt("%.6g", row.quantity.value), Fmt("%.3g", row.sigma)};
-    for (int k = 0; k < ba::kNumSources; ++k) {
-      cells.push_back(row.share[k] > 0 ? Fmt("%.1f %%", 100 * row.share[k]) : "-");
+    for (ba::Source k : active) {
+      const double share = row.share[static_cast<int>(k)];
+      cells.push_back(share > 0 ? Fmt("%.1f %%", 100 * share) : "-");
     }
     rows.push_back(cells);
   }

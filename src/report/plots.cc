@@ -296,12 +296,11 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
   if (!pu.empty()) d["projection_uncertainty"] = pu;
   if (budget && !budget->empty()) {
     nlohmann::json sources = nlohmann::json::array(), rows = nlohmann::json::array();
-    for (int k = 0; k < ba::kNumSources; ++k) {
-      sources.push_back(ba::SourceName(static_cast<ba::Source>(k)));
-    }
+    const std::vector<ba::Source> active = ba::ActiveSources(*budget);
+    for (ba::Source k : active) sources.push_back(ba::SourceName(k));
     for (const auto& r : *budget) {
       nlohmann::json shares = nlohmann::json::array();
-      for (int k = 0; k < ba::kNumSources; ++k) shares.push_back(JsonNumber(r.share[k]));
+      for (ba::Source k : active) shares.push_back(JsonNumber(r.share[static_cast<int>(k)]));
       rows.push_back({{"quantity", r.quantity.name},
                       {"unit", r.quantity.unit},
                       {"value", JsonNumber(r.quantity.value)},
