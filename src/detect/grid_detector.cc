@@ -234,25 +234,30 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
     if (shift_px) *shift_px = shift;
     if (noise) {
       // Centre covariance (detect_steps.h CentroidNoise): c = sum w_i x_i / S, dc/dw_i =
-      // (x_i - c) / S; w_i depends on the pixel I_i and on the ring's plane p = (a, b, c):
+      // (x_i - c) / S; the centre used, (1 - t) c_full + t c_core (t held), has dc/dw_i = a_i =
+      // (1 - t) (x_i - c_full) / S_full [w_i > floor] + t (x_i - c_core) / S_core [w_i > core
+      // floor]. w_i depends on the pixel I_i and on the ring's plane p = (a, b, c):
       // dark: w = 1 - I / bg, dw/dI = -1 / bg, dw/dp = I / bg^2 [1, ex, ey], var I_i = sigma^2
       // I_i / bg_i (quanta); bright: dw/dI = 1, dw/dp = -[1, ex, ey], var I_i = sigma^2.
       // Cov_p = sigma^2 (A^T A)^-1 (the ring fit). Both scaled by the noise's correlation factor.
       // The pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 + dy^2), |d| <= 3:
-      // sum_ij g_i g_j^T rho(i - j), g_i = (x_i - c) dw/dI sqrt(var I_i / sigma^2).
+      // sum_ij g_i g_j^T rho(i - j), g_i = a_i dw/dI sqrt(var I_i / sigma^2).
       const int side = 2 * rw + 1;
       std::vector<cv::Vec2d> g(static_cast<size_t>(side) * side, cv::Vec2d(0, 0));
       cv::Matx23d G = cv::Matx23d::zeros();
       for (const Px& q : disc) {
         if (q.value - floor <= 0) continue;
-        const double bg = background(q), ex = q.ex + cx - n.x, ey = q.ey + cy - n.y;
+        const double x = q.ex + cx, y = q.ey + cy;
+        cv::Vec2d a = cv::Vec2d(x - full.x, y - full.y) * ((1.0 - toward_core) / sw);
+        if (q.value - core_floor > 0) a += cv::Vec2d(x - core.x, y - core.y) * (toward_core / hw);
+        const double bg = background(q);
         const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
         const double var_I = dark ? std::max(0.0, I / bg) : 1.0;
         const double dw_dI = dark ? -1.0 / bg : 1.0;
-        g[(q.ey + rw) * side + (q.ex + rw)] = cv::Vec2d(ex, ey) * (dw_dI * std::sqrt(var_I));
+        g[(q.ey + rw) * side + (q.ex + rw)] = a * (dw_dI * std::sqrt(var_I));
         const double s_p = dark ? I / (bg * bg) : -1.0;
         const cv::Vec3d dw_dp(s_p, s_p * q.ex, s_p * q.ey);
-        for (int j = 0; j < 3; ++j) G(0, j) += ex * dw_dp[j], G(1, j) += ey * dw_dp[j];
+        for (int j = 0; j < 3; ++j) G(0, j) += a[0] * dw_dp[j], G(1, j) += a[1] * dw_dp[j];
       }
       double rho[4];
       for (int k = 0; k < 4; ++k) rho[k] = std::pow(noise->rho1, k * k);
@@ -275,8 +280,8 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
       }
       cov_pix(1, 0) = cov_pix(0, 1);
       const double sigma2 = ring_sigma * ring_sigma;
-      const cv::Matx22d cov = (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) *
-                              (sigma2 / (sw * sw));
+      const cv::Matx22d cov =
+          (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) * sigma2;
       noise->covariance_px2 = cov;
       noise->sigma_gray = ring_sigma;
       noise->peak_contrast = peak;
