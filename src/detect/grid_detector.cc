@@ -870,7 +870,7 @@ double GridPitchPx(const GridSpec& grid, const std::vector<cv::Point2d>& pts) {
 
 // A refined centre whose core and whole-blob centroids (RefineCentroid's shift_px) are further
 // apart than this is dropped as unreliable (background structure across the sphere).
-constexpr double kUnreliableShiftPx = 0.1;
+constexpr double kUnreliableShiftPx = 0.15;
 
 // Step 4: sub-pixel centres of circles on the float image (RefineCentroid). `refined_ok[i]` is
 // false where the refinement failed, was pulled off the blob or is unreliable (`shift_px[i]` >

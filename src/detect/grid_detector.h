@@ -32,7 +32,7 @@
 //      structure (a bone edge across the sphere) the centre moves to the centroid of the blob's
 //      core (contrast above 25 % of its peak), which that structure hardly pulls, when the two
 //      differ by 0.03-0.06 px and more; a point whose core and whole-blob centroids are more than
-//      0.1 px apart is dropped as unreliable (listed with kUnreliableCentre). Against the
+//      0.15 px apart is dropped as unreliable (listed with kUnreliableCentre). Against the
 //      simulator's truth: ~0.004 px RMS systematic error (tests/detect/simulated_scene_test.cc),
 //      ~0.012 px over a real anatomical background (tests/detect/recall_test.cc), < 0.02 px and
 //      no point beyond ~0.1 px next to sharp anatomy (tests/detect/edge_accuracy_test.cc, where
@@ -98,7 +98,7 @@ void ReadFieldOfViewOptions(YamlMap& map, DetectionOptions* options);
 // where the refinement found no blob or was pulled off it), or, when no grid was found, the
 // reason for the blobs of the search with the most blobs.
 // The reason given for a grid point dropped because its centre is unreliable: the centroid of
-// the sphere's core and that of the whole blob differ by more than 0.1 px (background structure
+// the sphere's core and that of the whole blob differ by more than 0.15 px (background structure
 // across the sphere, e.g. an anatomical edge; step 4).
 inline constexpr const char* kUnreliableCentre = "centre unreliable: background edge";
 struct RejectedBlob {
