@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <map>
 #include <sstream>
 #include <unistd.h>
 
@@ -157,12 +158,21 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
     rows.clear();
     for (size_t i = 0; i < run.detections.size(); ++i) {
       const GridDetection& g = run.detections[i];
+      // Rejected blobs by reason ("centre unreliable: background edge (core 0.31 px off)" counts
+      // under "centre unreliable: background edge").
+      std::map<std::string, int> why;
+      for (const RejectedBlob& b : g.rejected) why[b.why.substr(0, b.why.find(" ("))]++;
+      std::string rejected = std::to_string(g.rejected.size());
+      for (const auto& [reason, count] : why) {
+        rejected += (reason == why.begin()->first ? " (" : "; ") + std::to_string(count) + " " + reason;
+      }
+      if (!why.empty()) rejected += ")";
       rows.push_back({std::to_string(i), g.view.image,
                       std::to_string(g.view.uv_px.size()) + " / " +
                           std::to_string(obs.grid.NumPoints()),
-                      std::to_string(g.rejected.size()), g.found ? "used" : "skipped: " + g.reason});
+                      rejected, g.found ? "used" : "skipped: " + g.reason});
     }
-    d.Table({"#", "image", "points found", "rejected blobs", "status"}, rows);
+    d.Table({"#", "image", "points found", "rejected blobs (why)", "status"}, rows);
   } else if (!run.skipped.empty()) {
     d.Heading(2, "Skipped images");
     d.List(run.skipped);

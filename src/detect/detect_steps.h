@@ -56,7 +56,8 @@ struct CentroidNoise {
 // the nearest other blob, `disc_px` the largest centroid disc wanted. `r_half_px`: the blob's
 // half-contrast radius. False when no blob is there or the disc/ring reaches the invalid area.
 bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
-                    cv::Point2d* c, double* r_half_px, CentroidNoise* noise = nullptr);
+                    cv::Point2d* c, double* r_half_px, CentroidNoise* noise = nullptr,
+                    double* shift_px = nullptr);
 
 // An 8-bit BGR copy of an image (any depth, grey or colour) stretched to its 1..99 % range, for
 // overlays.

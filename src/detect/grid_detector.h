@@ -28,10 +28,16 @@
 //      I - background). Only the fully exposed field of view is used: the intensifier's rim
 //      fall-off (found from the median radial profile) is excluded, and a blob whose ring reaches
 //      it is dropped; so is a centre the refinement moved by more than half the blob's radius
-//      (at least 1.5 px: a strong anatomical edge in the ring). Against the simulator's truth:
-//      ~0.004 px RMS systematic error (tests/detect/simulated_scene_test.cc), ~0.012 px over a
-//      real anatomical background (tests/detect/recall_test.cc). The points kept must lie on a
-//      grid (a homography from the plate within 30 % of the pitch).
+//      (at least 1.5 px: a strong anatomical edge in the ring). Next to sharp background
+//      structure (a bone edge across the sphere) the centre moves to the centroid of the blob's
+//      core (contrast above 25 % of its peak), which that structure hardly pulls, when the two
+//      differ by 0.03-0.06 px and more; a point whose core and whole-blob centroids are more than
+//      0.15 px apart is dropped as unreliable (listed with kUnreliableCentre). Against the
+//      simulator's truth: ~0.004 px RMS systematic error (tests/detect/simulated_scene_test.cc),
+//      ~0.012 px over a real anatomical background (tests/detect/recall_test.cc), < 0.02 px and
+//      no point beyond ~0.1 px next to sharp anatomy (tests/detect/edge_accuracy_test.cc, where
+//      the plain centroid was 0.027 px RMS with points up to 1.8 px off). The points kept must
+//      lie on a grid (a homography from the plate within 30 % of the pitch).
 //   5. Ids: row-major in the grid (detect/observations.h). For symmetric grids and chessboards,
 //      whose ordering is only defined up to the grid's symmetry, the ordering is made right-handed
 //      in the image (row direction x column direction > 0): an X-ray sees the plate from either
@@ -87,9 +93,14 @@ void ReadFieldOfViewOptions(YamlMap& map, DetectionOptions* options);
 
 // A candidate blob or grid point that is not among the detected points, and why (full-image
 // pixel coordinates): "not on the grid" (a blob of the search that found the grid but is no grid
-// point), "on the field-of-view border", "no blob / refinement failed" (OpenCV's grid point
+// point), "on the field-of-view border", kUnreliableCentre with the distance of the core's and the
+// whole blob's centroids, "no blob / refinement failed" (OpenCV's grid point
 // where the refinement found no blob or was pulled off it), or, when no grid was found, the
 // reason for the blobs of the search with the most blobs.
+// The reason given for a grid point dropped because its centre is unreliable: the centroid of
+// the sphere's core and that of the whole blob differ by more than 0.15 px (background structure
+// across the sphere, e.g. an anatomical edge; step 4).
+inline constexpr const char* kUnreliableCentre = "centre unreliable: background edge";
 struct RejectedBlob {
   cv::Point2d uv_px;
   double diameter_px = 0;  // the blob finder's size (0 for a grid point without a blob)
@@ -103,6 +114,11 @@ struct GridDetection {
   std::string polarity; // the polarity that worked
   ViewObservations view;
   std::vector<RejectedBlob> rejected;  // circle grids: what was not used, and why
+  // Circle grids, per point of `view`: how far the centroid of the blob's core (contrast above
+  // 25 % of its peak) lies from the centroid of the whole blob (RefineCentroid's shift_px): ~0.01
+  // px on a smooth background, larger where background structure the ring's plane does not
+  // follow (an anatomical edge) pulls the whole blob's centroid. 0 without refinement.
+  std::vector<double> background_shift_px;
 };
 
 // An 8-bit colour picture of a detection for checking by eye: the image stretched to its 1..99 %
