@@ -97,16 +97,21 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
     if (sigma > 0) max_sigmas = std::max(max_sigmas, d / sigma);
   }
   // mrcal seeded at carmba's optimum (the script re-optimises from it): how far mrcal moves.
-  double max_rel_at_carmba = 0;
+  // Relative moves are large for a term near zero or in the flat valley of the radial terms
+  // (k2, k3 trade off); the move in sigmas says whether it matters.
+  double max_rel_at_carmba = 0, max_sig_at_carmba = 0;
   if (out->contains("intrinsics_seeded_at_carmba")) {
     const auto at = out->at("intrinsics_seeded_at_carmba").get<std::vector<double>>();
     for (int i = 0; i < kNumIntrinsics && i < static_cast<int>(at.size()); ++i) {
       const double d = std::abs(x[i] - at[i]);
       max_rel_at_carmba = std::max(max_rel_at_carmba, x[i] != 0 ? d / std::abs(x[i]) : d);
+      const double sigma = std::sqrt(std::max(C(i, i), 0.0));
+      if (sigma > 0) max_sig_at_carmba = std::max(max_sig_at_carmba, d / sigma);
     }
   }
   nlohmann::json j;
   j["max_relative_move_of_mrcal_seeded_at_carmba"] = max_rel_at_carmba;
+  j["max_move_in_sigmas_of_mrcal_seeded_at_carmba"] = max_sig_at_carmba;
   j["what"] = "markers held at their CT centres, all nine intrinsics free, one intrinsics, "
               "seeded from carmba's initial values";
   j["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},

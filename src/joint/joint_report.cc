@@ -504,17 +504,25 @@ ReportDoc JointMrcalDoc(const nlohmann::json& c) {
               " relative in fx, fy, cx, cy; " +
               Fmt("%.2e", c.at("max_difference_in_sigmas").get<double>()) +
               " sigma over all nine intrinsics.");
-  if (c.contains("max_relative_move_of_mrcal_seeded_at_carmba")) {
+  if (c.contains("max_move_in_sigmas_of_mrcal_seeded_at_carmba")) {
     const double rms_m = c.at("rms_px_mrcal").get<double>();
     const double rms_c = c.at("rms_px_carmba_in_mrcal").get<double>();
-    d.Paragraph(
-        "mrcal seeded at carmba's optimum stays there: it moves the nine intrinsics by at most " +
-        Fmt("%.1e", c.at("max_relative_move_of_mrcal_seeded_at_carmba").get<double>()) +
-        " relative. Its own solve from the initial values stops " +
-        (rms_c <= rms_m ? "slightly short of it (carmba's solution has the lower cost in mrcal's "
-                          "own residuals, by " + Fmt("%.1e", rms_m - rms_c) + " px RMS)"
-                        : std::string("at it")) +
-        "; the distortion terms' differences above are that stopping tolerance.");
+    std::string cost;
+    if (rms_c < rms_m) {
+      cost = "mrcal's own solve from the initial values stops slightly short of it (carmba's solution "
+             "has the lower cost in mrcal's own residuals, by " + Fmt("%.1e", rms_m - rms_c) + " px RMS)";
+    } else if (rms_c > rms_m) {
+      cost = "mrcal's own solve from the initial values ends at a cost lower than carmba's by " +
+             Fmt("%.1e", rms_c - rms_m) + " px RMS (" + Fmt("%.1e", (rms_c - rms_m) / rms_m) +
+             " relative): both stop where the cost no longer changes";
+    } else {
+      cost = "mrcal's own solve from the initial values ends at the same cost";
+    }
+    d.Paragraph("mrcal seeded at carmba's optimum stays there: it moves the nine intrinsics by at most " +
+                Fmt("%.1e", c.at("max_move_in_sigmas_of_mrcal_seeded_at_carmba").get<double>()) +
+                " sigma (" + Fmt("%.1e", c.at("max_relative_move_of_mrcal_seeded_at_carmba").get<double>()) +
+                " relative, largest in the weakly determined terms). " + cost +
+                "; the distortion terms' differences above are that stopping tolerance.");
   }
   return d;
 }
