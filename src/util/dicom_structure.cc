@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <string>
 
 namespace carmba {
 
@@ -39,6 +40,10 @@ class DicomWalker {
         size_t value_pos, len;
         if (!ElementHeader(pos, true, &value_pos, &len)) return error_;
         if (len == kUndefined) return At(pos, "undefined length in the file meta group");
+        // GDCM (as packaged by Debian) aborts on an assertion for a sequence in the file meta
+        // group (ReadExplicitDataElement).
+        if (d_.compare(pos + 4, 2, "SQ") == 0)
+          return At(pos, "a sequence (SQ) in the file meta group");
         if (value_pos + len > d_.size()) return Truncated(pos, len);
         if (elem == 0x0010) {
           ts = d_.substr(value_pos, len);
@@ -46,6 +51,9 @@ class DicomWalker {
         }
         pos = value_pos + len;
       }
+      // GDCM reads group-0002 elements until the next tag is another group's, and aborts on an
+      // assertion when the file ends instead (found by fuzz_dicom_xray).
+      if (pos + 8 > d_.size()) return At(pos, "the file ends in its file meta group (no data set)");
       if (ts == "1.2.840.10008.1.2.2" || ts == "1.2.840.10008.1.2.1.99") return "";
       explicit_vr = ts != "1.2.840.10008.1.2";
     } else {
@@ -55,6 +63,14 @@ class DicomWalker {
       explicit_vr = IsUpper(d_[4]) && IsUpper(d_[5]);
     }
     if (!Walk(&pos, explicit_vr, false, 0)) return error_;
+    // GDCM (as packaged by Debian) aborts on an assertion (ImageCodec::DecodeByStreams, already
+    // while reading the image: Bitmap::ComputeLossyFlag) for compressed 8-bit pixel data with
+    // fewer bits stored (found by fuzz_dicom_xray).
+    if (encapsulated_ && bits_allocated_ == 8 && bits_stored_ >= 0 && bits_stored_ != 8) {
+      return error_ = "Bits Stored (0028,0101) " + std::to_string(bits_stored_) +
+                      " with Bits Allocated 8 in compressed pixel data: GDCM cannot decode it, "
+                      "expected Bits Stored 8";
+    }
     return "";
   }
 
@@ -136,6 +152,7 @@ class DicomWalker {
       }
       if (len == kUndefined) {
         // A sequence (or encapsulated pixel data): items until the sequence delimiter.
+        if (depth == 0 && group == 0x7fe0 && elem == 0x0010) encapsulated_ = true;
         size_t p = value_pos;
         while (true) {
           size_t item_value, item_len;
@@ -166,6 +183,9 @@ class DicomWalker {
         Truncated(*pos, len);
         return false;
       }
+      if (depth == 0 && group == 0x0028 && len == 2 && (elem == 0x0100 || elem == 0x0101)) {
+        (elem == 0x0100 ? bits_allocated_ : bits_stored_) = U16(value_pos);
+      }
       *pos = value_pos + len;
     }
     if (in_item) {
@@ -177,6 +197,9 @@ class DicomWalker {
 
   const std::string& d_;
   std::string error_;
+  // From the top-level data set: (0028,0100), (0028,0101) (-1: absent), encapsulated (7fe0,0010).
+  int bits_allocated_ = -1, bits_stored_ = -1;
+  bool encapsulated_ = false;
 };
 
 }  // namespace

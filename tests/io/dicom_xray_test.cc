@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -446,17 +447,18 @@ TEST(DicomXray, TruncatedAndNonDicomFilesAreErrors) {
   ExpectError(ReadDicomXray(dir.File("missing.dcm")), {"missing.dcm"});
 }
 
+std::string FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 // Found by fuzz_dicom_xray: an unknown VR ("UM") in the file meta group made GDCM abort on an
 // assertion (ReadExplicitDataElement); the structure check refuses it first.
 TEST(DicomXray, UnknownVrIsAnErrorNotAnAbort) {
   TempDir dir;
   const std::string path = dir.File("vr.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 3)}, WithGeometry()).ok());
-  std::string bytes;
-  {
-    std::ifstream in(path, std::ios::binary);
-    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  }
+  std::string bytes = FileBytes(path);
   // (0002,0010) Transfer Syntax UID, explicit VR "UI" -> "UM".
   const std::string tag("\x02\x00\x10\x00UI", 6);
   const size_t at = bytes.find(tag);
@@ -464,6 +466,70 @@ TEST(DicomXray, UnknownVrIsAnErrorNotAnAbort) {
   bytes[at + 5] = 'M';
   { std::ofstream(path, std::ios::binary) << bytes; }
   ExpectError(ReadDicomXray(path), {"vr.dcm", "invalid VR 'UM'"});
+}
+
+// The two GDCM aborts in tests/fuzz/known_crashes/ (found by fuzz_dicom_xray), each refused or
+// read before GDCM sees it.
+// GDCM reads file-meta elements until it meets another group's tag, and asserts when the file
+// ends first; it also asserts on a sequence in the file meta group.
+TEST(DicomXray, FileMetaGroupWithoutDataSetOrWithSequenceIsAnErrorNotAnAbort) {
+  TempDir dir;
+  const std::string path = dir.File("meta.dcm");
+  ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 4)}, WithGeometry()).ok());
+  const std::string bytes = FileBytes(path);
+  // (0002,0000) UL 4 <group length> at byte 132: the meta group ends at 144 + group length.
+  ASSERT_EQ(bytes.compare(132, 6, std::string("\x02\x00\x00\x00UL", 6)), 0);
+  uint32_t glen = 0;
+  std::memcpy(&glen, bytes.data() + 140, 4);
+  for (size_t extra : {0, 2, 6}) {  // nothing, or less than an element header, after the meta group
+    { std::ofstream(path, std::ios::binary) << bytes.substr(0, 144 + glen + extra); }
+    ExpectError(ReadDicomXray(path), {"meta.dcm", "the file ends in its file meta group"});
+  }
+  // (0002,0001) File Meta Information Version, OB -> SQ (same header layout).
+  std::string sq = bytes;
+  const size_t at = sq.find(std::string("\x02\x00\x01\x00OB", 6));
+  ASSERT_NE(at, std::string::npos);
+  sq[at + 4] = 'S';
+  sq[at + 5] = 'Q';
+  { std::ofstream(path, std::ios::binary) << sq; }
+  ExpectError(ReadDicomXray(path), {"meta.dcm", "a sequence (SQ) in the file meta group"});
+}
+
+// Bits Allocated 8 with fewer bits stored: GDCM's raw codec asserts Bits Stored == 8; the reader
+// takes uncompressed 8-bit pixels as stored, and refuses compressed ones naming the tags.
+TEST(DicomXray, EightBitsAllocatedFewerStoredIsReadNotAnAbort) {
+  TempDir dir;
+  const cv::Mat img6 = RandomImage(12, 16, CV_8UC1, 6, 5);
+  DicomXrayWriteOptions o = WithGeometry();
+  o.bits_stored = 6;
+  ASSERT_TRUE(WriteDicomXray(dir.File("x6.dcm"), {img6, 63 - img6}, o).ok());
+  auto r = ReadDicomXray(dir.File("x6.dcm"));
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->bits_allocated, 8);
+  EXPECT_EQ(r->bits_stored, 6);
+  ASSERT_EQ(r->frames.size(), 2u);
+  EXPECT_TRUE(Equal(r->frames[0], img6));
+  EXPECT_TRUE(Equal(r->frames[1], 63 - img6));
+  // 2 bits stored, High Bit 7 (the fuzzer's file): read, not an abort. GDCM's image reader
+  // reports High Bit 1 for it (Bits Stored - 1), so the low 2 bits are the value.
+  EditDicom(dir.File("x6.dcm"), [&](gdcm::File* f) {
+    gdcm::DataSet& ds = f->GetDataSet();
+    gdcm::Attribute<0x0028, 0x0101> bs = {2};
+    gdcm::Attribute<0x0028, 0x0102> hb = {7};
+    ds.Replace(bs.GetAsDataElement());
+    ds.Replace(hb.GetAsDataElement());
+  });
+  r = ReadDicomXray(dir.File("x6.dcm"));
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->bits_stored, 2);
+  EXPECT_TRUE(Equal(r->frames[0], cv::Mat(img6 & 3)));
+  EXPECT_TRUE(Equal(r->frames[1], cv::Mat((63 - img6) & 3)));
+
+  o.transfer_syntax = "rle";
+  const Status s = WriteDicomXray(dir.File("x6rle.dcm"), {img6}, o);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ExpectError(ReadDicomXray(dir.File("x6rle.dcm")),
+              {"x6rle.dcm", "Bits Stored (0028,0101) 6 with Bits Allocated 8 in compressed"});
 }
 
 TEST(DicomXray, FrameNames) {
