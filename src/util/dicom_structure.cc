@@ -19,9 +19,9 @@ namespace {
 
 // A structural check of a DICOM file before GDCM parses it: GDCM (as packaged by Debian) aborts
 // on an assertion for some truncated files. Walks the file meta group and the data set (explicit
-// or implicit VR little endian, nested sequences and encapsulated pixel data) and checks that
-// every element's value lies within the file. *dicom is false for files that do not look like
-// DICOM at all (to be skipped). Big-endian and deflated data sets are left to GDCM.
+// or implicit VR little endian, explicit VR big endian, nested sequences and encapsulated pixel
+// data) and checks that every element's value lies within the file. *dicom is false for files that do not look like
+// DICOM at all (to be skipped). Deflated data sets are left to GDCM.
 class DicomWalker {
  public:
   explicit DicomWalker(const std::string& data) : d_(data) {}
@@ -54,7 +54,10 @@ class DicomWalker {
       // GDCM reads group-0002 elements until the next tag is another group's, and aborts on an
       // assertion when the file ends instead (found by fuzz_dicom_xray).
       if (pos + 8 > d_.size()) return At(pos, "the file ends in its file meta group (no data set)");
-      if (ts == "1.2.840.10008.1.2.2" || ts == "1.2.840.10008.1.2.1.99") return "";
+      // Deflated data sets are left to GDCM. Explicit VR big endian is walked too: GDCM takes a
+      // big-endian element's length as given and allocates it (an OOM in fuzz_dicom_xray).
+      if (ts == "1.2.840.10008.1.2.1.99") return "";
+      big_endian_ = ts == "1.2.840.10008.1.2.2";
       explicit_vr = ts != "1.2.840.10008.1.2";
     } else {
       // No preamble: plausible only if it starts with a group-0008 (or 0002) element.
@@ -78,10 +81,14 @@ class DicomWalker {
   static constexpr size_t kUndefined = 0xffffffffu;
   static bool IsUpper(char c) { return c >= 'A' && c <= 'Z'; }
   uint16_t U16(size_t p) const {
-    return static_cast<uint16_t>(static_cast<unsigned char>(d_[p]) |
-                                 (static_cast<unsigned char>(d_[p + 1]) << 8));
+    const unsigned lo = static_cast<unsigned char>(d_[p + (big_endian_ ? 1 : 0)]);
+    const unsigned hi = static_cast<unsigned char>(d_[p + (big_endian_ ? 0 : 1)]);
+    return static_cast<uint16_t>(lo | (hi << 8));
   }
-  uint32_t U32(size_t p) const { return U16(p) | (static_cast<uint32_t>(U16(p + 2)) << 16); }
+  uint32_t U32(size_t p) const {
+    return big_endian_ ? (static_cast<uint32_t>(U16(p)) << 16) | U16(p + 2)
+                       : U16(p) | (static_cast<uint32_t>(U16(p + 2)) << 16);
+  }
   std::string At(size_t pos, const std::string& what) {
     char b[64];
     std::snprintf(b, sizeof(b), "at byte %zu: ", pos);
@@ -200,6 +207,7 @@ class DicomWalker {
   // From the top-level data set: (0028,0100), (0028,0101) (-1: absent), encapsulated (7fe0,0010).
   int bits_allocated_ = -1, bits_stored_ = -1;
   bool encapsulated_ = false;
+  bool big_endian_ = false;  // the data set's byte order (the file meta group is little endian)
 };
 
 }  // namespace
