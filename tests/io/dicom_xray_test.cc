@@ -535,6 +535,21 @@ TEST(DicomXray, EightBitsAllocatedFewerStoredIsReadNotAnAbort) {
               {"x6rle.dcm", "Bits Stored (0028,0101) 6 with Bits Allocated 8 in compressed"});
 }
 
+// Found by fuzz_dicom_xray (seeds/regress/bits_allocated_absent.dcm): no Bits Allocated
+// (0028,0100) with Bits Stored 2 is an error naming the tag.
+TEST(DicomXray, AbsentBitsAllocatedIsAnError) {
+  TempDir dir;
+  const std::string path = dir.File("ba.dcm");
+  ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 7)}, WithGeometry()).ok());
+  EditDicom(path, [](gdcm::File* f) {
+    gdcm::DataSet& ds = f->GetDataSet();
+    ds.Remove(gdcm::Tag(0x0028, 0x0100));
+    gdcm::Attribute<0x0028, 0x0101> bs = {2};
+    ds.Replace(bs.GetAsDataElement());
+  });
+  ExpectError(ReadDicomXray(path), {"ba.dcm", "Bits Allocated (0028,0100) is 0, expected 8 or 16"});
+}
+
 // Explicit VR big endian: a valid file reads as written; a big-endian element whose length runs
 // past the file is refused by the structure check (GDCM allocated the length as given: an OOM
 // found by fuzz_dicom_xray).
