@@ -69,6 +69,12 @@ class DicomWalker {
     // GDCM (as packaged by Debian) aborts on an assertion (ImageCodec::DecodeByStreams, already
     // while reading the image: Bitmap::ComputeLossyFlag) for compressed 8-bit pixel data with
     // fewer bits stored (found by fuzz_dicom_xray).
+    // GDCM asserts Samples per Pixel <= 4 while reading the image (PixelFormat::
+    // SetSamplesPerPixel; found by fuzz_dicom_xray).
+    if (samples_per_pixel_ > 4) {
+      return error_ = "Samples per Pixel (0028,0002) is " + std::to_string(samples_per_pixel_) +
+                      ", expected 1 to 4";
+    }
     if (encapsulated_ && bits_allocated_ == 8 && bits_stored_ >= 0 && bits_stored_ != 8) {
       return error_ = "Bits Stored (0028,0101) " + std::to_string(bits_stored_) +
                       " with Bits Allocated 8 in compressed pixel data: GDCM cannot decode it, "
@@ -190,8 +196,10 @@ class DicomWalker {
         Truncated(*pos, len);
         return false;
       }
-      if (depth == 0 && group == 0x0028 && len == 2 && (elem == 0x0100 || elem == 0x0101)) {
-        (elem == 0x0100 ? bits_allocated_ : bits_stored_) = U16(value_pos);
+      if (depth == 0 && group == 0x0028 && len == 2) {
+        if (elem == 0x0002) samples_per_pixel_ = U16(value_pos);
+        if (elem == 0x0100) bits_allocated_ = U16(value_pos);
+        if (elem == 0x0101) bits_stored_ = U16(value_pos);
       }
       *pos = value_pos + len;
     }
@@ -204,8 +212,9 @@ class DicomWalker {
 
   const std::string& d_;
   std::string error_;
-  // From the top-level data set: (0028,0100), (0028,0101) (-1: absent), encapsulated (7fe0,0010).
-  int bits_allocated_ = -1, bits_stored_ = -1;
+  // From the top-level data set: (0028,0002), (0028,0100), (0028,0101) (-1: absent), and
+  // whether (7fe0,0010) is encapsulated.
+  int samples_per_pixel_ = -1, bits_allocated_ = -1, bits_stored_ = -1;
   bool encapsulated_ = false;
   bool big_endian_ = false;  // the data set's byte order (the file meta group is little endian)
 };
