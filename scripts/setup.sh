@@ -25,10 +25,10 @@ fi
 if [[ "${CARMBA_WITH_SKULL_CT:-1}" == 1 ]]; then
   PKGS+=(invesalius-examples)
 fi
-# clang with its runtimes (libFuzzer, ASan, UBSan) for the fuzz harnesses (tests/fuzz/); off by
-# default: their sanitizer build adds ~11 min (CARMBA_WITH_FUZZ=1, with CARMBA_FUZZ=1 for test.sh).
-if [[ "${CARMBA_WITH_FUZZ:-0}" == 1 ]]; then
-  PKGS+=(clang libclang-rt-14-dev)
+# clang with its runtimes (libFuzzer, ASan, UBSan) and lld for the fuzz harnesses (tests/fuzz/),
+# which scripts/test.sh builds and runs (CARMBA_WITH_FUZZ=0 leaves them out, with CARMBA_FUZZ=0).
+if [[ "${CARMBA_WITH_FUZZ:-1}" == 1 ]]; then
+  PKGS+=(clang libclang-rt-14-dev lld)
 fi
 # Headless Chromium for the tests that render every report.html in a browser
 # (tests/cli/report_browser.h); they skip without it. CARMBA_WITH_BROWSER=0 leaves it out.

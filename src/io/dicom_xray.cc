@@ -320,7 +320,20 @@ StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
   // All frames decoded into one buffer, one row range per frame (no copy).
   cv::Mat all(rows * num_frames, cols, bytes_per == 1 ? CV_8UC1 : CV_16UC1);
   bool decoded;
-  {
+  if (out.bits_allocated == 8 && out.bits_stored != 8) {
+    // GDCM 3.0 aborts on an assertion (ImageCodec::DecodeByStreams: Bits Allocated 8 needs Bits
+    // Stored 8; found by fuzz_dicom_xray). Uncompressed 8-bit pixel data is the bytes as stored
+    // (any byte order), read here; compressed is refused (by the structure check already, as
+    // GDCM aborts while reading the image).
+    if (!stored) {
+      return Status::Error(path + ": Bits Stored (0028,0101) " + std::to_string(out.bits_stored) +
+                           " with Bits Allocated 8 in compressed pixel data (transfer syntax " +
+                           SyntaxName(out.transfer_syntax_uid) +
+                           "): GDCM cannot decode it, expected Bits Stored 8");
+    }
+    std::memcpy(all.data, stored->GetPointer(), expected);
+    decoded = true;
+  } else {
     QuietStderr quiet;
     decoded = image.GetBuffer(reinterpret_cast<char*>(all.data));
   }

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <string>
 
 namespace carmba {
 
@@ -18,9 +19,9 @@ namespace {
 
 // A structural check of a DICOM file before GDCM parses it: GDCM (as packaged by Debian) aborts
 // on an assertion for some truncated files. Walks the file meta group and the data set (explicit
-// or implicit VR little endian, nested sequences and encapsulated pixel data) and checks that
-// every element's value lies within the file. *dicom is false for files that do not look like
-// DICOM at all (to be skipped). Big-endian and deflated data sets are left to GDCM.
+// or implicit VR little endian, explicit VR big endian, nested sequences and encapsulated pixel
+// data) and checks that every element's value lies within the file. *dicom is false for files that do not look like
+// DICOM at all (to be skipped). Deflated data sets are left to GDCM.
 class DicomWalker {
  public:
   explicit DicomWalker(const std::string& data) : d_(data) {}
@@ -39,6 +40,10 @@ class DicomWalker {
         size_t value_pos, len;
         if (!ElementHeader(pos, true, &value_pos, &len)) return error_;
         if (len == kUndefined) return At(pos, "undefined length in the file meta group");
+        // GDCM (as packaged by Debian) aborts on an assertion for a sequence in the file meta
+        // group (ReadExplicitDataElement).
+        if (d_.compare(pos + 4, 2, "SQ") == 0)
+          return At(pos, "a sequence (SQ) in the file meta group");
         if (value_pos + len > d_.size()) return Truncated(pos, len);
         if (elem == 0x0010) {
           ts = d_.substr(value_pos, len);
@@ -46,7 +51,13 @@ class DicomWalker {
         }
         pos = value_pos + len;
       }
-      if (ts == "1.2.840.10008.1.2.2" || ts == "1.2.840.10008.1.2.1.99") return "";
+      // GDCM reads group-0002 elements until the next tag is another group's, and aborts on an
+      // assertion when the file ends instead (found by fuzz_dicom_xray).
+      if (pos + 8 > d_.size()) return At(pos, "the file ends in its file meta group (no data set)");
+      // Deflated data sets are left to GDCM. Explicit VR big endian is walked too: GDCM takes a
+      // big-endian element's length as given and allocates it (an OOM in fuzz_dicom_xray).
+      if (ts == "1.2.840.10008.1.2.1.99") return "";
+      big_endian_ = ts == "1.2.840.10008.1.2.2";
       explicit_vr = ts != "1.2.840.10008.1.2";
     } else {
       // No preamble: plausible only if it starts with a group-0008 (or 0002) element.
@@ -55,6 +66,20 @@ class DicomWalker {
       explicit_vr = IsUpper(d_[4]) && IsUpper(d_[5]);
     }
     if (!Walk(&pos, explicit_vr, false, 0)) return error_;
+    // GDCM (as packaged by Debian) aborts on an assertion (ImageCodec::DecodeByStreams, already
+    // while reading the image: Bitmap::ComputeLossyFlag) for compressed 8-bit pixel data with
+    // fewer bits stored (found by fuzz_dicom_xray).
+    // GDCM asserts Samples per Pixel <= 4 while reading the image (PixelFormat::
+    // SetSamplesPerPixel; found by fuzz_dicom_xray).
+    if (samples_per_pixel_ > 4) {
+      return error_ = "Samples per Pixel (0028,0002) is " + std::to_string(samples_per_pixel_) +
+                      ", expected 1 to 4";
+    }
+    if (encapsulated_ && bits_allocated_ == 8 && bits_stored_ >= 0 && bits_stored_ != 8) {
+      return error_ = "Bits Stored (0028,0101) " + std::to_string(bits_stored_) +
+                      " with Bits Allocated 8 in compressed pixel data: GDCM cannot decode it, "
+                      "expected Bits Stored 8";
+    }
     return "";
   }
 
@@ -62,10 +87,14 @@ class DicomWalker {
   static constexpr size_t kUndefined = 0xffffffffu;
   static bool IsUpper(char c) { return c >= 'A' && c <= 'Z'; }
   uint16_t U16(size_t p) const {
-    return static_cast<uint16_t>(static_cast<unsigned char>(d_[p]) |
-                                 (static_cast<unsigned char>(d_[p + 1]) << 8));
+    const unsigned lo = static_cast<unsigned char>(d_[p + (big_endian_ ? 1 : 0)]);
+    const unsigned hi = static_cast<unsigned char>(d_[p + (big_endian_ ? 0 : 1)]);
+    return static_cast<uint16_t>(lo | (hi << 8));
   }
-  uint32_t U32(size_t p) const { return U16(p) | (static_cast<uint32_t>(U16(p + 2)) << 16); }
+  uint32_t U32(size_t p) const {
+    return big_endian_ ? (static_cast<uint32_t>(U16(p)) << 16) | U16(p + 2)
+                       : U16(p) | (static_cast<uint32_t>(U16(p + 2)) << 16);
+  }
   std::string At(size_t pos, const std::string& what) {
     char b[64];
     std::snprintf(b, sizeof(b), "at byte %zu: ", pos);
@@ -136,6 +165,7 @@ class DicomWalker {
       }
       if (len == kUndefined) {
         // A sequence (or encapsulated pixel data): items until the sequence delimiter.
+        if (depth == 0 && group == 0x7fe0 && elem == 0x0010) encapsulated_ = true;
         size_t p = value_pos;
         while (true) {
           size_t item_value, item_len;
@@ -166,6 +196,11 @@ class DicomWalker {
         Truncated(*pos, len);
         return false;
       }
+      if (depth == 0 && group == 0x0028 && len == 2) {
+        if (elem == 0x0002) samples_per_pixel_ = U16(value_pos);
+        if (elem == 0x0100) bits_allocated_ = U16(value_pos);
+        if (elem == 0x0101) bits_stored_ = U16(value_pos);
+      }
       *pos = value_pos + len;
     }
     if (in_item) {
@@ -177,6 +212,11 @@ class DicomWalker {
 
   const std::string& d_;
   std::string error_;
+  // From the top-level data set: (0028,0002), (0028,0100), (0028,0101) (-1: absent), and
+  // whether (7fe0,0010) is encapsulated.
+  int samples_per_pixel_ = -1, bits_allocated_ = -1, bits_stored_ = -1;
+  bool encapsulated_ = false;
+  bool big_endian_ = false;  // the data set's byte order (the file meta group is little endian)
 };
 
 }  // namespace

@@ -16,8 +16,8 @@ bool HasDicmMarker(const std::string& path);
 // value lies within the file. Returns "" when the structure is sound, else what is wrong (e.g.
 // "truncated: element (7fe0,0010) at byte 1234 needs 524288 bytes, the file has 2000").
 // *is_dicom is false for data that does not look like DICOM at all (no preamble and no group
-// 0002/0008 element at the start); then "" is returned. Big-endian and deflated data sets are
-// left to the parser ("" returned).
+// 0002/0008 element at the start); then "" is returned. Explicit VR big endian is walked too;
+// deflated data sets are left to the parser ("" returned).
 std::string CheckDicomStructure(const std::string& bytes, bool* is_dicom);
 
 }  // namespace carmba

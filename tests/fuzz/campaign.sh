@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A long fuzzing campaign: each harness (or those named) in turn, one at a time, niced, with the
+# A long fuzzing campaign: each harness (or those named) in turn, one at a time, at nice 19, with the
 # ctest test's corpus and seed directories, for RUNS executions or at most MAX_TIME seconds.
 # Usage: bash tests/fuzz/campaign.sh [BUILD_DIR] [NAME...]
 #   RUNS=1000000 MAX_TIME=900 bash tests/fuzz/campaign.sh build-fuzz csv camera_json
@@ -25,7 +25,7 @@ while read -r cmd; do
   log=$OUT/$name.log
   start=$(date +%s.%N)
   # shellcheck disable=SC2086
-  nice -n 10 "$exe" $args -artifact_prefix="$OUT/$name-" >"$log" 2>&1
+  nice -n 19 "$exe" $args -artifact_prefix="$OUT/$name-" >"$log" 2>&1
   rc=$?
   end=$(date +%s.%N)
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)

@@ -1,7 +1,7 @@
 // libFuzzer harness: carmba::ReadImageFile (detect/grid_detector.h) through OpenCV (PNG, PGM,
 // TIFF, JPEG, BMP; OpenCV picks the decoder from the content). Inputs with the DICOM preamble
 // ("DICM" at byte 128) go to GDCM in ReadImageFile; they are fuzz_dicom_xray's, which is not yet
-// a ctest test because GDCM still aborts on assertions for some files (known_crashes/README.md),
+// a ctest test because GDCM still aborts on assertions for some files (tests/fuzz/README.md),
 // so they are skipped here to keep this harness's CI test about the OpenCV path.
 #include <cstring>
 

@@ -5,6 +5,9 @@
 
 #include <gdcmAttribute.h>
 #include <gdcmFragment.h>
+#include <gdcmImageChangeTransferSyntax.h>
+#include <gdcmImageReader.h>
+#include <gdcmImageWriter.h>
 #include <gdcmReader.h>
 #include <gdcmSequenceOfFragments.h>
 #include <gdcmWriter.h>
@@ -14,6 +17,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -381,6 +385,14 @@ TEST(DicomXray, UnsupportedPixelFormatsAreErrors) {
     ds.Replace(px);
   });
   ExpectError(ReadDicomXray(path), {"fmt.dcm", "Samples per Pixel (0028,0002) is 3, expected 1"});
+  // Above 4, GDCM aborts on an assertion while reading (found by fuzz_dicom_xray,
+  // seeds/regress/samples_per_pixel_large.dcm): refused by the structure check first.
+  EditDicom(path, [](gdcm::File* f) {
+    gdcm::Attribute<0x0028, 0x0002> spp = {5};
+    f->GetDataSet().Replace(spp.GetAsDataElement());
+  });
+  ExpectError(ReadDicomXray(path),
+              {"fmt.dcm", "Samples per Pixel (0028,0002) is 5, expected 1 to 4"});
 
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 13)}, WithGeometry()).ok());
   EditDicom(path, [](gdcm::File* f) {
@@ -446,17 +458,18 @@ TEST(DicomXray, TruncatedAndNonDicomFilesAreErrors) {
   ExpectError(ReadDicomXray(dir.File("missing.dcm")), {"missing.dcm"});
 }
 
+std::string FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 // Found by fuzz_dicom_xray: an unknown VR ("UM") in the file meta group made GDCM abort on an
 // assertion (ReadExplicitDataElement); the structure check refuses it first.
 TEST(DicomXray, UnknownVrIsAnErrorNotAnAbort) {
   TempDir dir;
   const std::string path = dir.File("vr.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 3)}, WithGeometry()).ok());
-  std::string bytes;
-  {
-    std::ifstream in(path, std::ios::binary);
-    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  }
+  std::string bytes = FileBytes(path);
   // (0002,0010) Transfer Syntax UID, explicit VR "UI" -> "UM".
   const std::string tag("\x02\x00\x10\x00UI", 6);
   const size_t at = bytes.find(tag);
@@ -464,6 +477,123 @@ TEST(DicomXray, UnknownVrIsAnErrorNotAnAbort) {
   bytes[at + 5] = 'M';
   { std::ofstream(path, std::ios::binary) << bytes; }
   ExpectError(ReadDicomXray(path), {"vr.dcm", "invalid VR 'UM'"});
+}
+
+// The two GDCM aborts in tests/fuzz/known_crashes/ (found by fuzz_dicom_xray), each refused or
+// read before GDCM sees it.
+// GDCM reads file-meta elements until it meets another group's tag, and asserts when the file
+// ends first; it also asserts on a sequence in the file meta group.
+TEST(DicomXray, FileMetaGroupWithoutDataSetOrWithSequenceIsAnErrorNotAnAbort) {
+  TempDir dir;
+  const std::string path = dir.File("meta.dcm");
+  ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 4)}, WithGeometry()).ok());
+  const std::string bytes = FileBytes(path);
+  // (0002,0000) UL 4 <group length> at byte 132: the meta group ends at 144 + group length.
+  ASSERT_EQ(bytes.compare(132, 6, std::string("\x02\x00\x00\x00UL", 6)), 0);
+  uint32_t glen = 0;
+  std::memcpy(&glen, bytes.data() + 140, 4);
+  for (size_t extra : {0, 2, 6}) {  // nothing, or less than an element header, after the meta group
+    { std::ofstream(path, std::ios::binary) << bytes.substr(0, 144 + glen + extra); }
+    ExpectError(ReadDicomXray(path), {"meta.dcm", "the file ends in its file meta group"});
+  }
+  // (0002,0001) File Meta Information Version, OB -> SQ (same header layout).
+  std::string sq = bytes;
+  const size_t at = sq.find(std::string("\x02\x00\x01\x00OB", 6));
+  ASSERT_NE(at, std::string::npos);
+  sq[at + 4] = 'S';
+  sq[at + 5] = 'Q';
+  { std::ofstream(path, std::ios::binary) << sq; }
+  ExpectError(ReadDicomXray(path), {"meta.dcm", "a sequence (SQ) in the file meta group"});
+}
+
+// Bits Allocated 8 with fewer bits stored: GDCM's raw codec asserts Bits Stored == 8; the reader
+// takes uncompressed 8-bit pixels as stored, and refuses compressed ones naming the tags.
+TEST(DicomXray, EightBitsAllocatedFewerStoredIsReadNotAnAbort) {
+  TempDir dir;
+  const cv::Mat img6 = RandomImage(12, 16, CV_8UC1, 6, 5);
+  DicomXrayWriteOptions o = WithGeometry();
+  o.bits_stored = 6;
+  ASSERT_TRUE(WriteDicomXray(dir.File("x6.dcm"), {img6, 63 - img6}, o).ok());
+  auto r = ReadDicomXray(dir.File("x6.dcm"));
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->bits_allocated, 8);
+  EXPECT_EQ(r->bits_stored, 6);
+  ASSERT_EQ(r->frames.size(), 2u);
+  EXPECT_TRUE(Equal(r->frames[0], img6));
+  EXPECT_TRUE(Equal(r->frames[1], 63 - img6));
+  // 2 bits stored, High Bit 7 (the fuzzer's file): read, not an abort. GDCM's image reader
+  // reports High Bit 1 for it (Bits Stored - 1), so the low 2 bits are the value.
+  EditDicom(dir.File("x6.dcm"), [&](gdcm::File* f) {
+    gdcm::DataSet& ds = f->GetDataSet();
+    gdcm::Attribute<0x0028, 0x0101> bs = {2};
+    gdcm::Attribute<0x0028, 0x0102> hb = {7};
+    ds.Replace(bs.GetAsDataElement());
+    ds.Replace(hb.GetAsDataElement());
+  });
+  r = ReadDicomXray(dir.File("x6.dcm"));
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->bits_stored, 2);
+  EXPECT_TRUE(Equal(r->frames[0], cv::Mat(img6 & 3)));
+  EXPECT_TRUE(Equal(r->frames[1], cv::Mat((63 - img6) & 3)));
+
+  o.transfer_syntax = "rle";
+  const Status s = WriteDicomXray(dir.File("x6rle.dcm"), {img6}, o);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ExpectError(ReadDicomXray(dir.File("x6rle.dcm")),
+              {"x6rle.dcm", "Bits Stored (0028,0101) 6 with Bits Allocated 8 in compressed"});
+}
+
+// Found by fuzz_dicom_xray (seeds/regress/bits_allocated_absent.dcm, replayed by the fuzz ctest
+// test; GDCM reads that file with Bits Allocated 0, which the reader refuses naming the tag): no
+// Bits Allocated (0028,0100) with Bits Stored 2 is a one-line error naming the file, not an
+// abort. GDCM's image reader refuses this cleaner file itself.
+TEST(DicomXray, AbsentBitsAllocatedIsAnError) {
+  TempDir dir;
+  const std::string path = dir.File("ba.dcm");
+  ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 7)}, WithGeometry()).ok());
+  EditDicom(path, [](gdcm::File* f) {
+    gdcm::DataSet& ds = f->GetDataSet();
+    ds.Remove(gdcm::Tag(0x0028, 0x0100));
+    gdcm::Attribute<0x0028, 0x0101> bs = {2};
+    ds.Replace(bs.GetAsDataElement());
+  });
+  ExpectError(ReadDicomXray(path), {"ba.dcm", "GDCM cannot read the image"});
+}
+
+// Explicit VR big endian: a valid file reads as written; a big-endian element whose length runs
+// past the file is refused by the structure check (GDCM allocated the length as given: an OOM
+// found by fuzz_dicom_xray).
+TEST(DicomXray, BigEndianFilesAreWalkedBeforeGdcm) {
+  TempDir dir;
+  const std::string path = dir.File("be.dcm");
+  const cv::Mat img = RandomImage(10, 14, CV_16UC1, 12, 6);
+  ASSERT_TRUE(WriteDicomXray(path, {img}, WithGeometry()).ok());
+  {
+    gdcm::ImageReader r;
+    r.SetFileName(path.c_str());
+    ASSERT_TRUE(r.Read());
+    gdcm::ImageChangeTransferSyntax change;
+    change.SetTransferSyntax(gdcm::TransferSyntax::ExplicitVRBigEndian);
+    change.SetInput(r.GetImage());
+    ASSERT_TRUE(change.Change());
+    gdcm::ImageWriter w;
+    w.SetFile(r.GetFile());
+    w.SetImage(change.GetOutput());
+    w.SetFileName(path.c_str());
+    ASSERT_TRUE(w.Write());
+  }
+  auto x = ReadDicomXray(path);
+  ASSERT_TRUE(x.ok()) << x.status().message();
+  EXPECT_EQ(x->transfer_syntax_uid, "1.2.840.10008.1.2.2");
+  EXPECT_TRUE(Equal(x->frames[0], img));
+  EXPECT_EQ(x->geometry[0].sid_mm, 1195.5);
+  // Patient's Name (0010,0010) PN: its 16-bit length made 0xffff bytes (big endian).
+  std::string bytes = FileBytes(path);
+  const size_t at = bytes.find(std::string("\x00\x10\x00\x10PN", 6));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 6] = bytes[at + 7] = '\xff';
+  { std::ofstream(path, std::ios::binary) << bytes; }
+  ExpectError(ReadDicomXray(path), {"be.dcm", "truncated: element (0010,0010)", "needs 65535"});
 }
 
 TEST(DicomXray, FrameNames) {
