@@ -10,6 +10,7 @@
 #include <map>
 #include <sstream>
 
+#include "camera/camera_model.h"
 #include "detect/detect_steps.h"
 #include "geometry/rotation.h"
 #include "sim/dicom_view.h"
@@ -108,6 +109,48 @@ sim::Rigid3 RigidFromPose(const Pose6& p) {
 
 }  // namespace
 
+namespace {
+
+// Two markers whose shadows overlap can form one blob that the blob finder does not flag (two
+// discs half a diameter apart look like one slightly large, slightly elongated disc), and the
+// correspondence then gives it one of them: its centre is off by a quarter of the offset. The
+// labelled pose predicts where every marker projects: a labelled marker with another marker's
+// predicted centre within `merge_distance` blob diameters of its own is left out (listed as a
+// rejected blob with the reason), whether or not the blob looked merged.
+void LeaveOutPredictedOverlaps(const Camera& camera, const std::vector<Eigen::Vector3d>& P,
+                               double merge_distance, ObjectView* v) {
+  std::vector<double> diameters;
+  for (size_t i = 0; i < v->marker_id_of_blob.size(); ++i) {
+    if (v->labelling.marker_of_blob[i] >= 0) diameters.push_back(v->detection.blobs[i].diameter_px);
+  }
+  if (diameters.empty()) return;
+  std::nth_element(diameters.begin(), diameters.begin() + diameters.size() / 2, diameters.end());
+  const double limit = merge_distance * diameters[diameters.size() / 2];
+  std::vector<Eigen::Vector2d> proj(P.size());
+  std::vector<bool> ok(P.size());
+  for (size_t m = 0; m < P.size(); ++m) {
+    ok[m] = ProjectPoint(camera.params.data(), v->labelling.cam_from_object.data(), P[m].data(), proj[m].data());
+  }
+  for (size_t i = 0; i < v->marker_id_of_blob.size(); ++i) {
+    const int m = v->labelling.marker_of_blob[i];
+    if (m < 0 || !ok[m]) continue;
+    int other = -1;
+    for (size_t k = 0; k < P.size() && other < 0; ++k) {
+      if (static_cast<int>(k) != m && ok[k] && (proj[k] - proj[m]).norm() < limit) other = static_cast<int>(k);
+    }
+    if (other < 0) continue;
+    const MarkerBlob& b = v->detection.blobs[i];
+    v->detection.rejected.push_back(
+        {b.uv_px, b.diameter_px,
+         "overlaps another marker (predicted " + Fixed((proj[other] - proj[m]).norm(), 1) + " px apart)"});
+    v->labelling.marker_of_blob[i] = -1;
+    v->marker_id_of_blob[i] = -1;
+    --v->labelling.num_labelled;
+  }
+}
+
+}  // namespace
+
 StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<std::string>& files,
                                                             const Camera& camera,
                                                             const std::vector<Marker>& markers,
@@ -185,6 +228,13 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       v.marker_id_of_blob.assign(uv.size(), -1);
       for (size_t i = 0; i < uv.size(); ++i) {
         if (lab->marker_of_blob[i] >= 0) v.marker_id_of_blob[i] = markers[lab->marker_of_blob[i]].id;
+      }
+      LeaveOutPredictedOverlaps(camera, P, o.blobs.merge_distance, &v);
+      if (v.labelling.num_labelled < co.min_markers) {
+        v.labelled = false;
+        v.skipped = "only " + std::to_string(v.labelling.num_labelled) +
+                    " markers left once the overlapping ones are left out (" +
+                    std::to_string(co.min_markers) + " needed)";
       }
       views.push_back(std::move(v));
       if (ref < 0 && views.back().nominal_cam_from_patient) ref = static_cast<int>(views.size()) - 1;

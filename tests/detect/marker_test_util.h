@@ -1,0 +1,107 @@
+// Scoring marker detection and correspondence on rendered scenes against the simulator's truth
+// (tests/detect/marker_views_test.cc, marker_recall_test.cc).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "detect/marker_views.h"
+#include "sim/xray_scene.h"
+
+namespace carmba {
+
+// The scene's markers as CT fiducials (exact positions, 0.1 mm sigma).
+inline std::vector<Marker> SceneMarkers(const sim::XrayScene& s) {
+  std::vector<Marker> out;
+  for (const auto& sp : s.phantom.spheres) {
+    Marker m;
+    m.id = sp.id;
+    m.p_in_object = sp.center_mm;
+    m.covariance = 0.01 * Eigen::Matrix3d::Identity();
+    out.push_back(m);
+  }
+  return out;
+}
+
+// Per view of a rendered scene: which markers are visible and separated (the truth), and how the
+// pipeline labelled them.
+struct Tally {
+  int expected = 0, correct = 0, wrong = 0, spurious_labelled = 0, overlap_labelled = 0;
+  int outside_labelled = 0, overlapping_pairs = 0, outside = 0;
+};
+
+inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, const std::vector<ObjectView>& views) {
+  Tally t;
+  const double fov_r = scene.render.fov_radius_px, cu = 255.5, cv_ = 255.5;
+  const double d_px = scene.markers.sphere_diameter_mm * scene.camera.params[kFx] / scene.views[0].carm.sod_mm;
+  EXPECT_EQ(views.size(), truth["views"].size());
+  for (size_t v = 0; v < views.size() && v < truth["views"].size(); ++v) {
+    const auto& tv = truth["views"][v];
+    std::vector<Eigen::Vector2d> c;
+    for (const auto& p : tv["centers_px"]) c.emplace_back(p[0].get<double>(), p[1].get<double>());
+    std::vector<Eigen::Vector2d> clutter;
+    if (tv.contains("clutter_centers_px")) {
+      for (const auto& p : tv["clutter_centers_px"]) clutter.emplace_back(p[0].get<double>(), p[1].get<double>());
+    }
+    const ObjectView& ov = views[v];
+    for (size_t k = 0; k < c.size(); ++k) {
+      const int id = scene.phantom.spheres[k].id;
+      // Overlapping: another marker's or a bead's centre within 1.25 diameters (the blob finder's
+      // merge_distance), so that the two shadows touch or merge: must not be labelled. Close:
+      // 1.25-1.5 diameters: labelled or not, but if labelled then at its centre.
+      double nearest = 1e9;
+      for (size_t j = 0; j < c.size(); ++j) {
+        if (j != k) nearest = std::min(nearest, (c[j] - c[k]).norm() / d_px);
+      }
+      for (const auto& s : clutter) nearest = std::min(nearest, (s - c[k]).norm() / d_px);
+      const bool overlapped = nearest < 1.25, close = nearest < 1.5;
+      const bool inside = std::hypot(c[k].x() - cu, c[k].y() - cv_) + d_px < fov_r - scene.render.fov_edge_px - 10;
+      const bool outside = std::hypot(c[k].x() - cu, c[k].y() - cv_) - d_px > fov_r;
+      t.outside += outside;
+      t.overlapping_pairs += overlapped;
+      // The blob labelled with this id, if any.
+      int labelled_blob = -1;
+      for (size_t b = 0; b < ov.detection.blobs.size() && ov.labelled; ++b) {
+        if (ov.marker_id_of_blob[b] == id) labelled_blob = static_cast<int>(b);
+      }
+      if (overlapped) {
+        t.overlap_labelled += labelled_blob >= 0;
+        continue;
+      }
+      if (outside) {
+        t.outside_labelled += labelled_blob >= 0;
+        continue;
+      }
+      if (!inside) continue;            // on the rim: not counted either way
+      if (close && labelled_blob < 0) continue;  // a close pair left out: allowed
+      ++t.expected;
+      if (labelled_blob < 0) {
+        std::cout << "  " << ov.name << ": marker " << id << " not labelled"
+                  << (ov.labelled ? "" : " (view skipped: " + ov.skipped + ")") << "\n";
+        continue;
+      }
+      const cv::Point2d q = ov.detection.blobs[labelled_blob].uv_px;
+      const double err = std::hypot(q.x - c[k].x(), q.y - c[k].y());
+      if (err < 0.5) {
+        ++t.correct;
+      } else {
+        ++t.wrong;
+        std::cout << "  " << ov.name << ": marker " << id << " labelled " << err
+                  << " px away (nearest other marker or bead " << nearest << " diameters)\n";
+      }
+    }
+    for (size_t b = 0; b < ov.detection.blobs.size() && ov.labelled; ++b) {
+      if (ov.marker_id_of_blob[b] < 0) continue;
+      const cv::Point2d q = ov.detection.blobs[b].uv_px;
+      for (const auto& s : clutter) t.spurious_labelled += std::hypot(q.x - s.x(), q.y - s.y()) < 0.5 * d_px;
+    }
+  }
+  return t;
+}
+
+}  // namespace carmba
