@@ -61,6 +61,9 @@ struct MarkerBlobOptions {
   double max_elongation = 1.3;    // axis ratio of a single marker's half-peak region
   double merge_area_ratio = 1.6;  // half-peak area / expected area above which it is two
   double merge_distance = 1.25;   // pieces closer than this x D are one merged blob
+  // A centre whose core and whole-blob centroids are further apart than this (px) is widened
+  // (MarkerBlob::background_shift_px).
+  double unreliable_shift_px = 0.1;
   // Field of view / region of interest (only roi_px, fov_circle_px, auto_fov_mask,
   // fov_margin_px are used).
   DetectionOptions fov;
@@ -77,6 +80,10 @@ struct MarkerBlob {
   cv::Matx22d covariance_px2 = cv::Matx22d::zeros();
   double diameter_px = 0;  // half-contrast diameter
   double contrast = 0;     // peak attenuation
+  // Distance between the blob's core and whole-blob centroids (RefineCentroid's shift_px): a
+  // background edge or a wire across the marker. Above unreliable_shift_px its centre is not
+  // trusted to the noise covariance: the covariance is widened by shift^2 per axis.
+  double background_shift_px = 0;
 };
 
 struct MarkerBlobDetection {

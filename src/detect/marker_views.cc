@@ -216,9 +216,9 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       }
       auto lab = LabelMarkerBlobs(camera, P, uv, co, predicted);
       if (!lab.ok()) {
-        if (lab.status().message().rfind("ambiguous", 0) == 0) {
-          return Status::Error(v.name + ": " + lab.status().message());
-        }
+        // An ambiguous view (a layout nearly symmetric as this view sees it) is not guessed: it is
+        // skipped with the reason like any view that cannot be labelled, and the others go on;
+        // with no view labelled the whole call is an error listing the reasons.
         v.skipped = lab.status().message();
         views.push_back(std::move(v));
         continue;

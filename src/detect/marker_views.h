@@ -13,12 +13,15 @@
 //      isocentre offset cancels). Else, or when the prediction is not accepted, the full
 //      hypothesise-and-verify search runs. One set of CT markers for all views: the labels are
 //      consistent across views by construction (one rigid object).
-//   3. A view with fewer than min_markers blobs, or whose blobs no labelling explains, is skipped
-//      with the reason; the others go on.
+//   3. A view with fewer than min_markers blobs, whose blobs no labelling explains, or whose
+//      labelling is ambiguous (the layout nearly symmetric as that view sees it: refusing to
+//      guess) is skipped with the reason; the others go on.
+//   4. A labelled marker that the pose predicts within merge_distance blob diameters of another
+//      marker is left out (a merged blob the blob finder did not flag), listed as rejected.
 // Errors (the whole set, one line naming the view or file): an unreadable / corrupt image or a
-// missing file; images of a size other than the camera's; an ambiguous labelling (a symmetric
-// layout: refusing to guess); no view labelled (with each view's reason: the fiducials of another
-// object, a wrong camera, or too few markers).
+// missing file; images of a size other than the camera's; no view labelled (with each view's
+// reason: an ambiguous layout, the fiducials of another object, a wrong camera, or too few
+// markers).
 //
 // Pixel covariance for the bundle adjustment: each blob's 2x2 covariance C plus the floor,
 // C + sigma_floor_px^2 I, which the engine whitens in full (ba/reprojection_error.h); the isotropic
