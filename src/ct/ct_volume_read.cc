@@ -3,8 +3,6 @@
 
 #include <gdcmAttribute.h>
 #include <gdcmFileMetaInformation.h>
-#include <gdcmImage.h>
-#include <gdcmImageReader.h>
 #include <gdcmReader.h>
 #include <gdcmTrace.h>
 #include <gdcmTransferSyntax.h>
@@ -22,10 +20,9 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include "util/dicom_structure.h"
+#include "io/dicom_image.h"
 #include "util/file_util.h"
 #include "util/gdcm_util.h"
-#include "util/quiet_stderr.h"
 
 namespace carmba {
 namespace fs = std::filesystem;
@@ -84,65 +81,30 @@ void Rescale(const char* raw, size_t n, double slope, double intercept, float* o
 // Reads one file. Returns ok with *is_image false for files to skip (not DICOM, no pixel data).
 Status ReadSlice(const std::string& path, Slice* slice, bool* is_image) {
   *is_image = false;
-  {
-    auto bytes = ReadFile(path);
-    if (!bytes.ok()) return bytes.status();
-    bool dicom = false;
-    const std::string problem = CheckDicomStructure(*bytes, &dicom);
-    if (!dicom) return Status::Ok();  // not DICOM: skipped
-    if (!problem.empty()) return Status::Error(path + ": corrupt DICOM file: " + problem);
-  }
-  gdcm::ImageReader reader;
-  reader.SetFileName(path.c_str());
-  bool read_ok;
-  {
-    QuietStderr quiet;
-    read_ok = reader.Read();
-  }
-  if (!read_ok) {
-    gdcm::Reader plain;
-    plain.SetFileName(path.c_str());
-    bool parsed;
-    {
-      QuietStderr quiet;
-      parsed = plain.Read();
+  DicomImage image;
+  DicomImageKind kind;
+  DicomImageOptions options;
+  options.allow_32_bit = true;
+  const Status read = ReadDicomImage(path, options, &image, &kind);
+  if (!read.ok()) return read;
+  if (kind == DicomImageKind::kNotDicom) return Status::Ok();  // not DICOM: skipped
+  const gdcm::DataSet& ds = image.data_set();
+  if (kind == DicomImageKind::kNoPixelData) {
+    const std::string sop_class = GetString(ds, 0x0008, 0x0016);
+    const bool ct_class = sop_class.rfind("1.2.840.10008.5.1.4.1.1.2", 0) == 0;
+    if (!ds.FindDataElement(gdcm::Tag(0x0028, 0x0010)) && !ct_class) {
+      return Status::Ok();  // not an image (DICOMDIR, report, ...): skipped
     }
-    if (parsed) {
-      const gdcm::DataSet& ds = plain.GetFile().GetDataSet();
-      if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) {
-        const std::string sop_class = GetString(ds, 0x0008, 0x0016);
-        const bool ct_class = sop_class.rfind("1.2.840.10008.5.1.4.1.1.2", 0) == 0;
-        if (!ds.FindDataElement(gdcm::Tag(0x0028, 0x0010)) && !ct_class) {
-          return Status::Ok();  // not an image (DICOMDIR, report, ...): skipped
-        }
-        return Status::Error(path + ": corrupt DICOM image: a CT image or Rows (0028,0010) but "
-                                    "no PixelData (7fe0,0010), truncated?");
-      }
-      const gdcm::TransferSyntax& ts = plain.GetFile().GetHeader().GetDataSetTransferSyntax();
-      return Status::Error(path + ": GDCM cannot decode this image (transfer syntax " +
-                           std::string(gdcm::TransferSyntax::GetTSString(ts)) + ")");
-    }
-    if (HasDicmMarker(path)) {
-      return Status::Error(path + ": corrupt DICOM file (has the DICM marker but GDCM cannot "
-                                  "parse it)");
-    }
-    return Status::Ok();  // not DICOM: skipped
+    return Status::Error(path + ": corrupt DICOM image: a CT image or Rows (0028,0010) but "
+                                "no PixelData (7fe0,0010), truncated?");
   }
-  const gdcm::File& file = reader.GetFile();
-  const gdcm::DataSet& ds = file.GetDataSet();
-  const gdcm::Image& image = reader.GetImage();
-  if (image.GetNumberOfDimensions() == 3 && image.GetDimension(2) > 1) {
-    return Status::Error(path + ": multi-frame image (" + std::to_string(image.GetDimension(2)) +
+  if (image.frames > 1) {
+    return Status::Error(path + ": multi-frame image (" + std::to_string(image.frames) +
                          " frames), expected one slice per file");
   }
-  const gdcm::PixelFormat& pf = image.GetPixelFormat();
-  if (pf.GetSamplesPerPixel() != 1) {
-    return Status::Error(path + ": " + std::to_string(pf.GetSamplesPerPixel()) +
-                         " samples per pixel, expected a grayscale CT image (1)");
-  }
   slice->file = path;
-  slice->columns = static_cast<int>(image.GetDimension(0));
-  slice->rows = static_cast<int>(image.GetDimension(1));
+  slice->columns = image.columns;
+  slice->rows = image.rows;
   slice->series_uid = GetString(ds, 0x0020, 0x000e);
   std::vector<double> v;
   if (!GetNumbers(ds, 0x0020, 0x0032, 3, &v)) {
@@ -175,61 +137,23 @@ Status ReadSlice(const std::string& path, Slice* slice, bool* is_image) {
   if (GetNumbers(ds, 0x0018, 0x0050, 1, &v) && v[0] > 0) slice->thickness = v[0];
 
   const size_t n = static_cast<size_t>(slice->rows) * slice->columns;
-  if (pf.GetBitsAllocated() == 8 && pf.GetBitsStored() != 8) {
-    // GDCM 3.0 aborts on an assertion for these (ImageCodec::DecodeByStreams; found by
-    // fuzz_dicom_xray through the X-ray reader).
-    return Status::Error(path + ": Bits Stored (0028,0101) " +
-                         std::to_string(pf.GetBitsStored()) +
-                         " with Bits Allocated 8: GDCM cannot decode it, expected Bits Stored 8");
-  }
-  std::vector<char> raw(image.GetBufferLength());
-  bool decoded;
-  {
-    QuietStderr quiet;
-    decoded = image.GetBuffer(raw.data());
-  }
-  if (!decoded) {
-    const gdcm::TransferSyntax& ts = file.GetHeader().GetDataSetTransferSyntax();
-    return Status::Error(path + ": GDCM cannot decode the pixel data (transfer syntax " +
-                         std::string(gdcm::TransferSyntax::GetTSString(ts)) + ")");
-  }
   slice->values.resize(n);
   float* out = slice->values.data();
-  size_t bytes = 0;
-  switch (pf.GetScalarType()) {
-    case gdcm::PixelFormat::UINT8: bytes = 1; break;
-    case gdcm::PixelFormat::INT8: bytes = 1; break;
-    case gdcm::PixelFormat::UINT16: bytes = 2; break;
-    case gdcm::PixelFormat::INT16: bytes = 2; break;
-    case gdcm::PixelFormat::UINT32: bytes = 4; break;
-    case gdcm::PixelFormat::INT32: bytes = 4; break;
-    default:
-      return Status::Error(path + ": unsupported pixel format " +
-                           std::string(pf.GetScalarTypeAsString()) +
-                           ", expected 8, 16 or 32-bit integers");
-  }
-  const gdcm::DataElement& pixel_element = ds.GetDataElement(gdcm::Tag(0x7fe0, 0x0010));
-  const gdcm::ByteValue* pixel_bytes = pixel_element.GetByteValue();
-  if (pixel_bytes && pixel_bytes->GetLength() < n * bytes) {
-    return Status::Error(path + ": PixelData (7fe0,0010) holds " +
-                         std::to_string(pixel_bytes->GetLength()) + " bytes, expected " +
-                         std::to_string(n * bytes) + " for " + std::to_string(slice->columns) +
-                         "x" + std::to_string(slice->rows) + " pixels");
-  }
-  if (raw.size() < n * bytes) {
-    return Status::Error(path + ": pixel data holds " + std::to_string(raw.size()) +
-                         " bytes, expected " + std::to_string(n * bytes) + " for " +
-                         std::to_string(slice->columns) + "x" + std::to_string(slice->rows));
-  }
   const double s = slice->slope, b = slice->intercept;
-  switch (pf.GetScalarType()) {
-    case gdcm::PixelFormat::UINT8: Rescale<uint8_t>(raw.data(), n, s, b, out); break;
-    case gdcm::PixelFormat::INT8: Rescale<int8_t>(raw.data(), n, s, b, out); break;
-    case gdcm::PixelFormat::UINT16: Rescale<uint16_t>(raw.data(), n, s, b, out); break;
-    case gdcm::PixelFormat::INT16: Rescale<int16_t>(raw.data(), n, s, b, out); break;
-    case gdcm::PixelFormat::UINT32: Rescale<uint32_t>(raw.data(), n, s, b, out); break;
-    case gdcm::PixelFormat::INT32: Rescale<int32_t>(raw.data(), n, s, b, out); break;
-    default: break;
+  const char* raw = image.pixels.data();
+  switch (image.bits_allocated) {
+    case 8:
+      if (image.is_signed) Rescale<int8_t>(raw, n, s, b, out);
+      else Rescale<uint8_t>(raw, n, s, b, out);
+      break;
+    case 16:
+      if (image.is_signed) Rescale<int16_t>(raw, n, s, b, out);
+      else Rescale<uint16_t>(raw, n, s, b, out);
+      break;
+    default:
+      if (image.is_signed) Rescale<int32_t>(raw, n, s, b, out);
+      else Rescale<uint32_t>(raw, n, s, b, out);
+      break;
   }
   *is_image = true;
   return Status::Ok();

@@ -3,7 +3,6 @@
 #include <gdcmAttribute.h>
 #include <gdcmImage.h>
 #include <gdcmImageChangeTransferSyntax.h>
-#include <gdcmImageReader.h>
 #include <gdcmReader.h>
 #include <gdcmTrace.h>
 #include <gdcmTransferSyntax.h>
@@ -19,6 +18,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "io/dicom_image.h"
 #include "util/dicom_structure.h"
 #include "util/file_util.h"
 #include "util/gdcm_util.h"
@@ -89,11 +89,6 @@ Status GetOptional(const gdcm::DataSet& ds,
   return Status::Ok();
 }
 
-std::string SyntaxName(const std::string& uid) {
-  gdcm::UIDs u;
-  if (u.SetFromUID(uid.c_str()) && u.GetName()) return uid + " (" + u.GetName() + ")";
-  return uid + " (unknown to GDCM)";
-}
 
 Status ReadGeometry(const gdcm::DataSet& ds,
                     const std::string& path,
@@ -215,139 +210,52 @@ bool SplitDicomFrameName(const std::string& name,
 }
 
 StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
-  SilenceGdcm();
-  {
-    auto bytes = ReadFile(path);
-    if (!bytes.ok()) return bytes.status();
-    bool dicom = false;
-    const std::string problem = CheckDicomStructure(*bytes, &dicom);
-    if (!dicom) {
+  DicomImage image;
+  DicomImageKind kind;
+  CARMBA_RETURN_IF_ERROR(ReadDicomImage(path, DicomImageOptions(), &image, &kind));
+  if (kind == DicomImageKind::kNotDicom) {
+    return Status::Error(path +
+                         ": not a DICOM file (no DICM preamble, no DICOM element at the "
+                         "start)");
+  }
+  const gdcm::DataSet& ds = image.data_set();
+  if (kind == DicomImageKind::kNoPixelData) {
+    if (ds.FindDataElement(gdcm::Tag(0x0028, 0x0010))) {
       return Status::Error(path +
-                           ": not a DICOM file (no DICM preamble, no DICOM element at the "
-                           "start)");
+                           ": corrupt or truncated DICOM image: Rows (0028,0010) but no "
+                           "Pixel Data (7fe0,0010)");
     }
-    if (!problem.empty()) return Status::Error(path + ": corrupt DICOM file: " + problem);
+    return Status::Error(path + ": no Pixel Data (7fe0,0010): not an image");
   }
-  gdcm::ImageReader reader;
-  reader.SetFileName(path.c_str());
-  bool read_ok;
-  {
-    QuietStderr quiet;
-    read_ok = reader.Read();
-  }
-  if (!read_ok) {
-    gdcm::Reader plain;
-    plain.SetFileName(path.c_str());
-    bool parsed;
-    {
-      QuietStderr quiet;
-      parsed = plain.Read();
-    }
-    if (!parsed) return Status::Error(path + ": corrupt DICOM file (GDCM cannot parse it)");
-    const gdcm::DataSet& ds = plain.GetFile().GetDataSet();
-    if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) {
-      if (ds.FindDataElement(gdcm::Tag(0x0028, 0x0010))) {
-        return Status::Error(path +
-                             ": corrupt or truncated DICOM image: Rows (0028,0010) but no "
-                             "Pixel Data (7fe0,0010)");
-      }
-      return Status::Error(path + ": no Pixel Data (7fe0,0010): not an image");
-    }
-    const std::string ts = GetString(plain.GetFile().GetHeader(), 0x0002, 0x0010);
-    return Status::Error(path + ": GDCM cannot read the image (transfer syntax " + SyntaxName(ts) +
-                         ")");
-  }
-  const gdcm::File& file = reader.GetFile();
-  const gdcm::DataSet& ds = file.GetDataSet();
-  const gdcm::Image& image = reader.GetImage();
   DicomXrayImage out;
   out.file = path;
   out.sop_class_uid = GetString(ds, 0x0008, 0x0016);
   out.modality = GetString(ds, 0x0008, 0x0060);
-  out.transfer_syntax_uid = GetString(file.GetHeader(), 0x0002, 0x0010);
-  out.photometric = GetString(ds, 0x0028, 0x0004);
+  out.transfer_syntax_uid = image.transfer_syntax_uid;
+  out.photometric = image.photometric;
   out.patient_orientation = GetString(ds, 0x0020, 0x0020);
-  const gdcm::PixelFormat& pf = image.GetPixelFormat();
-  if (pf.GetSamplesPerPixel() != 1) {
-    return Status::Error(path + ": Samples per Pixel (0028,0002) is " +
-                         std::to_string(pf.GetSamplesPerPixel()) +
-                         ", expected 1 (a monochrome X-ray image)");
-  }
-  const auto pi = image.GetPhotometricInterpretation();
+  const auto pi = gdcm::PhotometricInterpretation::GetPIType(out.photometric.c_str());
   if (pi != gdcm::PhotometricInterpretation::MONOCHROME1 &&
       pi != gdcm::PhotometricInterpretation::MONOCHROME2) {
     return Status::Error(path + ": Photometric Interpretation (0028,0004) is '" + out.photometric +
                          "', expected MONOCHROME1 or MONOCHROME2");
   }
-  out.bits_allocated = pf.GetBitsAllocated();
-  out.bits_stored = pf.GetBitsStored();
-  out.was_signed = pf.GetPixelRepresentation() == 1;
-  if (out.bits_allocated != 8 && out.bits_allocated != 16) {
-    return Status::Error(path + ": Bits Allocated (0028,0100) is " +
-                         std::to_string(out.bits_allocated) + ", expected 8 or 16");
-  }
-  if (out.bits_stored < 1 || out.bits_stored > out.bits_allocated ||
-      pf.GetHighBit() + 1 < out.bits_stored || pf.GetHighBit() >= out.bits_allocated) {
-    return Status::Error(path + ": Bits Stored (0028,0101) " + std::to_string(out.bits_stored) +
-                         " / High Bit (0028,0102) " + std::to_string(pf.GetHighBit()) +
-                         " inconsistent with Bits Allocated " + std::to_string(out.bits_allocated));
-  }
-  const int cols = static_cast<int>(image.GetDimension(0));
-  const int rows = static_cast<int>(image.GetDimension(1));
-  const int num_frames =
-      image.GetNumberOfDimensions() >= 3 ? static_cast<int>(image.GetDimension(2)) : 1;
-  if (rows <= 0 || cols <= 0 || num_frames <= 0) {
-    return Status::Error(path + ": empty image (" + std::to_string(cols) + " x " +
-                         std::to_string(rows) + " px, " + std::to_string(num_frames) + " frames)");
-  }
+  out.bits_allocated = image.bits_allocated;
+  out.bits_stored = image.bits_stored;
+  out.was_signed = image.is_signed;
+  const int rows = image.rows, cols = image.columns, num_frames = image.frames;
   const size_t bytes_per = out.bits_allocated / 8;
-  const size_t expected = static_cast<size_t>(rows) * cols * num_frames * bytes_per;
-  if (image.GetBufferLength() != expected) {
-    return Status::Error(path + ": decoded pixel data has " +
-                         std::to_string(image.GetBufferLength()) + " bytes, expected " +
-                         std::to_string(expected) + " (" + std::to_string(cols) + " x " +
-                         std::to_string(rows) + " x " + std::to_string(num_frames) + " frames)");
-  }
-  // Uncompressed pixel data must hold every declared frame (GDCM decodes the missing ones as
-  // undefined pixels without an error).
-  const gdcm::ByteValue* stored = ds.GetDataElement(gdcm::Tag(0x7fe0, 0x0010)).GetByteValue();
-  if (stored && stored->GetLength() < expected) {
-    return Status::Error(path + ": Pixel Data (7fe0,0010) has " +
-                         std::to_string(stored->GetLength()) + " bytes, " + std::to_string(cols) +
-                         " x " + std::to_string(rows) + " x " + std::to_string(num_frames) +
-                         " frames (Number of Frames (0028,0008)) need " + std::to_string(expected));
-  }
-  // All frames decoded into one buffer, one row range per frame (no copy).
+  // All frames in one buffer, one row range per frame.
   cv::Mat all(rows * num_frames, cols, bytes_per == 1 ? CV_8UC1 : CV_16UC1);
-  bool decoded;
-  if (out.bits_allocated == 8 && out.bits_stored != 8) {
-    // GDCM 3.0 aborts on an assertion (ImageCodec::DecodeByStreams: Bits Allocated 8 needs Bits
-    // Stored 8; found by fuzz_dicom_xray). Uncompressed 8-bit pixel data is the bytes as stored
-    // (any byte order), read here; compressed is refused (by the structure check already, as
-    // GDCM aborts while reading the image).
-    if (!stored) {
-      return Status::Error(path + ": Bits Stored (0028,0101) " + std::to_string(out.bits_stored) +
-                           " with Bits Allocated 8 in compressed pixel data (transfer syntax " +
-                           SyntaxName(out.transfer_syntax_uid) +
-                           "): GDCM cannot decode it, expected Bits Stored 8");
-    }
-    std::memcpy(all.data, stored->GetPointer(), expected);
-    decoded = true;
-  } else {
-    QuietStderr quiet;
-    decoded = image.GetBuffer(reinterpret_cast<char*>(all.data));
-  }
-  if (!decoded) {
-    return Status::Error(path + ": GDCM cannot decode the pixel data (transfer syntax " +
-                         SyntaxName(out.transfer_syntax_uid) + ")");
-  }
+  std::memcpy(all.data, image.pixels.data(), image.pixels.size());
+  image.pixels = std::vector<char>();
   const bool mono1 = pi == gdcm::PhotometricInterpretation::MONOCHROME1;
   if (bytes_per == 1) {
     ToStoredValues(
-        all.ptr<uint8_t>(), all.total(), out.bits_stored, pf.GetHighBit(), out.was_signed, mono1);
+        all.ptr<uint8_t>(), all.total(), out.bits_stored, image.high_bit, out.was_signed, mono1);
   } else {
     ToStoredValues(
-        all.ptr<uint16_t>(), all.total(), out.bits_stored, pf.GetHighBit(), out.was_signed, mono1);
+        all.ptr<uint16_t>(), all.total(), out.bits_stored, image.high_bit, out.was_signed, mono1);
   }
   for (int f = 0; f < num_frames; ++f) out.frames.push_back(all.rowRange(f * rows, (f + 1) * rows));
   CARMBA_RETURN_IF_ERROR(ReadGeometry(ds, path, num_frames, &out.geometry));

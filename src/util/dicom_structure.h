@@ -4,7 +4,10 @@
 // and the X-ray image reader (io/dicom_xray.h).
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace carmba {
 
@@ -18,6 +21,19 @@ bool HasDicmMarker(const std::string& path);
 // *is_dicom is false for data that does not look like DICOM at all (no preamble and no group
 // 0002/0008 element at the start); then "" is returned. Explicit VR big endian is walked too;
 // deflated data sets are left to the parser ("" returned).
-std::string CheckDicomStructure(const std::string& bytes, bool* is_dicom);
+// When info is given, it receives every element read with an explicit VR (file meta group, data
+// set, sequence items) and the transfer syntax UID of the file meta group, for checks against a
+// DICOM dictionary (gdcm_util::CheckDicomFile).
+struct DicomElementVr {
+  uint16_t group = 0, element = 0;
+  char vr[2] = {0, 0};
+  size_t pos = 0;  // the element's byte offset in the file
+};
+struct DicomStructureInfo {
+  std::vector<DicomElementVr> explicit_vrs;
+  std::string transfer_syntax;  // (0002,0010) without padding; "" without a file meta group
+};
+std::string CheckDicomStructure(const std::string& bytes, bool* is_dicom,
+                                DicomStructureInfo* info = nullptr);
 
 }  // namespace carmba
