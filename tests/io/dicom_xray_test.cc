@@ -527,6 +527,25 @@ TEST(DicomXray, FuzzRegressionInputsAreOneLineErrors) {
   EXPECT_GE(errors, files - 1);
 }
 
+// The fuzz seeds written by gdcmconv (GDCM's converter, not carmba's writer) from
+// xa_1frame_16bit.dcm in JPEG lossless, JPEG-LS, JPEG 2000 and RLE: decoded through GDCM's codecs
+// from the pixel module carmba reads itself, each gives the uncompressed file's pixels.
+TEST(DicomXray, GdcmconvCompressedSeedsDecodeToTheUncompressedPixels) {
+  const std::string dir = std::string(CARMBA_SOURCE_DIR) + "/tests/fuzz/seeds/dicom/";
+  const auto plain = ReadDicomXray(dir + "xa_1frame_16bit.dcm");
+  ASSERT_TRUE(plain.ok()) << plain.status().message();
+  ASSERT_EQ(plain->frames.size(), 1u);
+  for (const std::string name : {"jpeg", "jpegls", "j2k", "rle"}) {
+    const auto r = ReadDicomXray(dir + "xa_1frame_16bit_" + name + ".dcm");
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    ASSERT_EQ(r->frames.size(), 1u) << name;
+    EXPECT_NE(r->transfer_syntax_uid, plain->transfer_syntax_uid) << name;
+    EXPECT_EQ(r->bits_stored, plain->bits_stored) << name;
+    EXPECT_TRUE(Equal(r->frames[0], plain->frames[0])) << name;
+    EXPECT_EQ(r->geometry.size(), 1u) << name;
+  }
+}
+
 // GDCM aborts (found by fuzz_dicom_xray), each refused or
 // read before GDCM sees it.
 // GDCM reads file-meta elements until it meets another group's tag, and asserts when the file
