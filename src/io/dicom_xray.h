@@ -16,7 +16,9 @@
 //     applied: detection works on the stored values.
 //   * Transfer syntaxes: whatever GDCM decodes (uncompressed explicit / implicit little endian,
 //     big endian, RLE, JPEG baseline / extended / lossless, JPEG-LS, JPEG 2000). One it cannot
-//     decode (e.g. MPEG-2, H.264) is an error naming the syntax.
+//     decode (e.g. MPEG-2, H.264) is an error naming the syntax. The file is parsed and the
+//     pixels decoded by io/dicom_image.h: a malformed file is a one-line error, never an abort
+//     in GDCM (its structure is walked first, compressed data is decoded in a child process).
 //
 // GEOMETRY (XA Positioner Module, PS3.3 C.8.7.5; also read from RF, CR, DX when present)
 //   * Positioner Primary Angle (0018,1510): LAO positive, RAO negative (deg).
