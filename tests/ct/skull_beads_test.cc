@@ -23,6 +23,7 @@
 #include "ct/ct_invesalius.h"
 #include "ct/ct_test_util.h"
 #include "ct/skull_beads.h"
+#include "test_env.h"
 
 namespace carmba {
 namespace {
@@ -30,13 +31,9 @@ namespace {
 using testing::ScratchDir;
 using testing::SkullBead;
 
-double EnvOr(const char* name, double fallback) {
-  const char* env = std::getenv(name);
-  return env && *env ? std::atof(env) : fallback;
-}
 // The 3 mm steel beads; steel on a 12-bit scanner (the simulator's default HU).
-const double kBeadDiameterMm = EnvOr("CARMBA_SKULL_DIAMETER_MM", 3.0);
-const double kSteelHu = EnvOr("CARMBA_SKULL_BEAD_HU", 3000);
+const double kBeadDiameterMm = testing::EnvOr("CARMBA_SKULL_DIAMETER_MM", 3.0);
+const double kSteelHu = testing::EnvOr("CARMBA_SKULL_BEAD_HU", 3000.0);
 // White noise added to the bead's own share of a voxel; the scan's noise stays in the rest
 // (the skull CT's brain has a local MAD-based sigma of about 20 HU).
 constexpr double kBeadNoiseHu = 20;

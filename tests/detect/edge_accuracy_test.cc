@@ -19,6 +19,7 @@
 #include <iostream>
 
 #include "detect/recall_scenes.h"
+#include "test_env.h"
 
 namespace carmba {
 namespace {
@@ -109,8 +110,8 @@ TEST(EdgeAccuracy, CentresNextToSharpAnatomy) {
   ASSERT_TRUE(gain.ok()) << gain.status().message();
   RecallScenes scenes(*gain);
   const std::vector<Plate> plates = {{6, 8, 15, 2.5}, {5, 5, 20, 3.06}, {6, 7, 15, 2.5}};
-  const int views = std::getenv("CARMBA_EDGE_VIEWS") ? std::atoi(std::getenv("CARMBA_EDGE_VIEWS")) : 4;
-  const uint64_t seed_base = std::getenv("CARMBA_EDGE_SEED") ? std::atoll(std::getenv("CARMBA_EDGE_SEED")) : 70000;
+  const int views = testing::EnvOr("CARMBA_EDGE_VIEWS", 4);
+  const uint64_t seed_base = testing::EnvOr<uint64_t>("CARMBA_EDGE_SEED", 70000);
   const bool print_worst = std::getenv("CARMBA_EDGE_WORST") != nullptr;
   RunStats clean, noisy;
   for (size_t p = 0; p < plates.size(); ++p) {

@@ -25,16 +25,12 @@
 #include "marker_test_util.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
+#include "test_env.h"
 
 namespace carmba {
 namespace {
 
 const char* kXaFrame = "/usr/share/doc/libgdcm3.0/examples/00191113.dcm";
-
-int EnvInt(const char* name, int fallback) {
-  const char* v = std::getenv(name);
-  return v ? std::atoi(v) : fallback;
-}
 
 // Points uniform in the block, at least `min_sep` mm from each other and from `avoid`.
 std::vector<Eigen::Vector3d> RandomPoints(std::mt19937_64& rng, int n, double min_sep,
@@ -104,8 +100,8 @@ RandomScene MakeScene(uint64_t seed, const std::string& dir) {
 }
 
 TEST(MarkerRecall, RandomisedScenesEveryVisibleSeparatedMarkerLabelled) {
-  const int scenes = EnvInt("CARMBA_MARKER_RECALL_SCENES", 8);
-  const uint64_t base = static_cast<uint64_t>(EnvInt("CARMBA_MARKER_RECALL_SEED", 1));
+  const int scenes = testing::EnvOr("CARMBA_MARKER_RECALL_SCENES", 8);
+  const uint64_t base = testing::EnvOr<uint64_t>("CARMBA_MARKER_RECALL_SEED", 1);
   const std::string dir = (std::filesystem::temp_directory_path() /
                            ("carmba_marker_recall_" + std::to_string(::getpid())))
                               .string();

@@ -23,6 +23,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "detect/recall_scenes.h"
+#include "test_env.h"
 
 namespace carmba {
 namespace {
@@ -50,10 +51,10 @@ TEST(DetectionRecall, IntensifierEffectsAndAnatomy) {
   RecallScenes scenes(*gain);
   const std::vector<Plate> plates = {{6, 8, 15, 2.5}, {5, 5, 20, 3.06}, {6, 7, 15, 2.5}};
   // CARMBA_RECALL_VIEWS=N: N views per plate instead (a longer run by hand).
-  const int kViewsPerPlate = std::getenv("CARMBA_RECALL_VIEWS") ? std::atoi(std::getenv("CARMBA_RECALL_VIEWS")) : 10;
+  const int kViewsPerPlate = testing::EnvOr("CARMBA_RECALL_VIEWS", 10);
   constexpr int kCleanViewsPerPlate = 3;
   // CARMBA_RECALL_SEED=S: other scenes (seeds S + 1000 p + v instead of 1000 p + v).
-  const uint64_t seed_base = std::getenv("CARMBA_RECALL_SEED") ? std::atoll(std::getenv("CARMBA_RECALL_SEED")) : 0;
+  const uint64_t seed_base = testing::EnvOr<uint64_t>("CARMBA_RECALL_SEED", 0);
   Tally noisy, clean, flat;
   for (size_t p = 0; p < plates.size(); ++p) {
     const Plate& plate = plates[p];
