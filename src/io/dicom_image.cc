@@ -237,8 +237,8 @@ Status ReadDicomImage(const std::string& path,
   }
   const gdcm::DataElement& pixel_element = ds.GetDataElement(pixel_tag);
   if (const gdcm::ByteValue* stored = pixel_element.GetByteValue()) {
-    // Uncompressed (GDCM has swapped big-endian words to native order and inflated deflated
-    // data sets).
+    // Uncompressed (GDCM has swapped big-endian words to native order; deflated data sets are
+    // refused by the structure check).
     if (stored->GetLength() < expected) {
       return Status::Error(path + ": Pixel Data (7fe0,0010) has " +
                            std::to_string(stored->GetLength()) + " bytes, " + size_text +

@@ -20,8 +20,9 @@ namespace {
 // A structural check of a DICOM file before GDCM parses it: GDCM (as packaged by Debian) aborts
 // on an assertion for some truncated files. Walks the file meta group and the data set (explicit
 // or implicit VR little endian, explicit VR big endian, nested sequences and encapsulated pixel
-// data) and checks that every element's value lies within the file. *dicom is false for files that do not look like
-// DICOM at all (to be skipped). Deflated data sets are left to GDCM.
+// data, defined-length sequences and items) and checks that every element's value lies within
+// the file and its item. *dicom is false for files that do not look like DICOM at all (to be
+// skipped). Deflated data sets are refused.
 class DicomWalker {
  public:
   DicomWalker(const std::string& data, DicomStructureInfo* info) : d_(data), info_(info) {}
@@ -72,9 +73,14 @@ class DicomWalker {
       if (!has_ts || ts.empty())
         return At(pos, "no Transfer Syntax UID (0002,0010) in the file meta group");
       if (info_) info_->transfer_syntax = ts;
-      // Deflated data sets are left to GDCM. Explicit VR big endian is walked too: GDCM takes a
-      // big-endian element's length as given and allocates it (an OOM in fuzz_dicom_xray).
-      if (ts == "1.2.840.10008.1.2.1.99") return "";
+      // Deflated data sets cannot be walked without inflating them, and GDCM allocates what a
+      // corrupt one declares (an OOM in fuzz_dicom_xray): refused (a retired-in-practice syntax
+      // no C-arm writes). Explicit VR big endian is walked too: GDCM takes a big-endian element's
+      // length as given and allocates it (an OOM in fuzz_dicom_xray).
+      if (ts == "1.2.840.10008.1.2.1.99") {
+        return At(pos, "Deflated Explicit VR Little Endian (1.2.840.10008.1.2.1.99) is not "
+                       "supported, expected an uncompressed or compressed-pixel transfer syntax");
+      }
       big_endian_ = ts == "1.2.840.10008.1.2.2";
       explicit_vr = ts != "1.2.840.10008.1.2";
     } else {

@@ -20,7 +20,7 @@ bool HasDicmMarker(const std::string& path);
 // "truncated: element (7fe0,0010) at byte 1234 needs 524288 bytes, the file has 2000").
 // *is_dicom is false for data that does not look like DICOM at all (no preamble and no group
 // 0002/0008 element at the start); then "" is returned. Explicit VR big endian is walked too;
-// deflated data sets are left to the parser ("" returned).
+// deflated data sets are refused.
 // When info is given, it receives every element read with an explicit VR (file meta group, data
 // set, sequence items) and the transfer syntax UID of the file meta group, for checks against a
 // DICOM dictionary (gdcm_util::CheckDicomFile).
