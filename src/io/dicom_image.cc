@@ -14,7 +14,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
+#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -169,13 +172,35 @@ std::string DecodeInChild(const gdcm::Image& image, size_t bytes, char* out) {
     const bool ok = image.GetBuffer(static_cast<char*>(shared));
     ::_exit(ok ? 0 : 1);
   }
+  // A decoder caught in a loop is stopped: 5 s, plus 10 s per 100 MB of decoded pixels.
+  const double limit_s = 5.0 + 10.0 * static_cast<double>(bytes) / 1e8;
+  const auto start = std::chrono::steady_clock::now();
   int status = 0;
   pid_t waited;
-  do {
-    waited = ::waitpid(pid, &status, 0);
-  } while (waited < 0 && errno == EINTR);
+  bool timed_out = false;
+  long sleep_ns = 20000;
+  while (true) {
+    waited = ::waitpid(pid, &status, WNOHANG);
+    if (waited != 0 && !(waited < 0 && errno == EINTR)) break;
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >
+        limit_s) {
+      ::kill(pid, SIGKILL);
+      do {
+        waited = ::waitpid(pid, &status, 0);
+      } while (waited < 0 && errno == EINTR);
+      timed_out = true;
+      break;
+    }
+    const timespec pause = {0, sleep_ns};
+    ::nanosleep(&pause, nullptr);
+    sleep_ns = std::min(sleep_ns * 2, 10000000L);  // up to 10 ms
+  }
   std::string why;
-  if (waited < 0) {
+  if (timed_out) {
+    char b[96];
+    std::snprintf(b, sizeof(b), "GDCM's decoder did not finish within %.0f s (stopped)", limit_s);
+    why = b;
+  } else if (waited < 0) {
     why = std::string("cannot wait for the decoder: ") + std::strerror(errno);
   } else if (WIFSIGNALED(status)) {
     why = "GDCM's decoder died (signal " + std::to_string(WTERMSIG(status)) + ", " +
