@@ -10,14 +10,13 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <poll.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <cerrno>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -154,12 +153,23 @@ Status ReadPixelModule(const gdcm::DataSet& ds, const std::string& path,
 // error, not the end of carmba. Only
 // GDCM's decoding runs in the child, which leaves with _exit. Returns "" on success, else why not.
 std::string DecodeInChild(const gdcm::Image& image, size_t bytes, char* out) {
-  void* shared = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  void* shared =
+      ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS | MAP_POPULATE, -1, 0);
   if (shared == MAP_FAILED) return std::string("cannot map memory: ") + std::strerror(errno);
+  // The child's end of a pipe closes when it exits: the parent waits on the pipe with a time
+  // limit, and wakes as soon as the child is done.
+  int pipe_fds[2];
+  if (::pipe2(pipe_fds, O_CLOEXEC) != 0) {
+    const std::string why = std::string("cannot start the decoder: ") + std::strerror(errno);
+    ::munmap(shared, bytes);
+    return why;
+  }
   std::fflush(nullptr);
   const pid_t pid = ::fork();
   if (pid < 0) {
     const std::string why = std::string("cannot start the decoder: ") + std::strerror(errno);
+    ::close(pipe_fds[0]);
+    ::close(pipe_fds[1]);
     ::munmap(shared, bytes);
     return why;
   }
@@ -167,34 +177,36 @@ std::string DecodeInChild(const gdcm::Image& image, size_t bytes, char* out) {
     // A failed assertion or a crash in a decoder ends the child only, without the handlers the
     // parent may have (a sanitizer's, a fuzzer's).
     for (int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) ::signal(sig, SIG_DFL);
+    ::close(pipe_fds[0]);
     const int null_fd = ::open("/dev/null", O_WRONLY);
     if (null_fd >= 0) ::dup2(null_fd, 2);  // GDCM's and the codecs' messages
     const bool ok = image.GetBuffer(static_cast<char*>(shared));
     ::_exit(ok ? 0 : 1);
   }
+  ::close(pipe_fds[1]);
   // A decoder caught in a loop is stopped: 5 s, plus 10 s per 100 MB of decoded pixels.
   const double limit_s = 5.0 + 10.0 * static_cast<double>(bytes) / 1e8;
   const auto start = std::chrono::steady_clock::now();
-  int status = 0;
-  pid_t waited;
   bool timed_out = false;
-  long sleep_ns = 20000;
   while (true) {
-    waited = ::waitpid(pid, &status, WNOHANG);
-    if (waited != 0 && !(waited < 0 && errno == EINTR)) break;
-    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >
-        limit_s) {
-      ::kill(pid, SIGKILL);
-      do {
-        waited = ::waitpid(pid, &status, 0);
-      } while (waited < 0 && errno == EINTR);
+    const double left_s =
+        limit_s - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (left_s <= 0) {
       timed_out = true;
       break;
     }
-    const timespec pause = {0, sleep_ns};
-    ::nanosleep(&pause, nullptr);
-    sleep_ns = std::min(sleep_ns * 2, 10000000L);  // up to 10 ms
+    pollfd pfd = {pipe_fds[0], POLLIN, 0};
+    const int r = ::poll(&pfd, 1, static_cast<int>(left_s * 1000) + 1);
+    if (r > 0) break;  // the child has exited (end of file on the pipe)
+    if (r < 0 && errno != EINTR) break;
   }
+  ::close(pipe_fds[0]);
+  if (timed_out) ::kill(pid, SIGKILL);
+  int status = 0;
+  pid_t waited;
+  do {
+    waited = ::waitpid(pid, &status, 0);
+  } while (waited < 0 && errno == EINTR);
   std::string why;
   if (timed_out) {
     char b[96];
