@@ -226,7 +226,8 @@ class DicomWalker {
         }
         if (depth == 0 && pixels) encapsulated_ = true;
         size_t p = value_pos;
-        if (!WalkSequence(&p, kUndefined, explicit_vr, pixels, depth)) return false;
+        // A sequence written as UN holds implicit VR little endian items (PS3.5 6.2.2).
+        if (!WalkSequence(&p, kUndefined, explicit_vr && vr != "UN", pixels, depth)) return false;
         *pos = p;
         continue;
       }
@@ -243,7 +244,8 @@ class DicomWalker {
           vr == "SQ" || ((vr.empty() || vr == "UN") && len >= 8 && IsItemTag(value_pos));
       if (sequence) {
         size_t p = value_pos;
-        if (!WalkSequence(&p, value_pos + len, explicit_vr, false, depth)) return false;
+        if (!WalkSequence(&p, value_pos + len, explicit_vr && vr != "UN", false, depth))
+          return false;
       }
       if (depth == 0 && group == 0x0028 && len >= 2) {
         // The first of duplicates counts, as in GDCM (DataSet::Insert keeps the first).

@@ -508,6 +508,37 @@ TEST(DicomXray, VrThatTheDictionaryDoesNotAllowIsAnErrorNotAnAbort) {
   ExpectError(ReadDicomXray(path), {"vr_lo.dcm", "no file meta group after the preamble"});
 }
 
+// Sequences the structure check walks: one of undefined length written as UN (its items are
+// implicit VR, PS3.5 6.2.2) and one of defined length (explicit SQ), both private elements after
+// the pixel data: the file reads; a defined-length item that runs past its sequence is refused.
+TEST(DicomXray, SequencesOfDefinedAndUndefinedLengthAreWalked) {
+  TempDir dir;
+  const std::string path = dir.File("seq.dcm");
+  const cv::Mat img = RandomImage(8, 8, CV_16UC1, 12, 4);
+  ASSERT_TRUE(WriteDicomXray(path, {img}, WithGeometry()).ok());
+  const std::string plain = FileBytes(path);
+  auto u16 = [](uint16_t v) { return std::string{static_cast<char>(v & 0xff), static_cast<char>(v >> 8)}; };
+  auto u32 = [&](uint32_t v) { return u16(v & 0xffff) + u16(v >> 16); };
+  // An implicit VR item: (7fe1,1001) length 4 "abcd".
+  const std::string implicit_elem = u16(0x7fe1) + u16(0x1001) + u32(4) + "abcd";
+  const std::string un_seq = u16(0x7fe1) + u16(0x1010) + "UN" + u16(0) + u32(0xffffffff) +
+                             u16(0xfffe) + u16(0xe000) + u32(0xffffffff) + implicit_elem +
+                             u16(0xfffe) + u16(0xe00d) + u32(0) + u16(0xfffe) + u16(0xe0dd) + u32(0);
+  // An explicit VR item of defined length: (7fe1,1021) LO "ab".
+  const std::string explicit_elem = u16(0x7fe1) + u16(0x1021) + "LO" + u16(2) + "ab";
+  const std::string item = u16(0xfffe) + u16(0xe000) + u32(explicit_elem.size()) + explicit_elem;
+  const std::string sq = u16(0x7fe1) + u16(0x1020) + "SQ" + u16(0) + u32(item.size()) + item;
+  { std::ofstream(path, std::ios::binary) << plain + un_seq + sq; }
+  const auto r = ReadDicomXray(path);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_TRUE(Equal(r->frames[0], img));
+  // The item declares 2 bytes more than its sequence holds.
+  std::string bad_item = u16(0xfffe) + u16(0xe000) + u32(explicit_elem.size() + 2) + explicit_elem;
+  const std::string bad_sq = u16(0x7fe1) + u16(0x1020) + "SQ" + u16(0) + u32(item.size()) + bad_item;
+  { std::ofstream(path, std::ios::binary) << plain + un_seq + bad_sq + "zz"; }
+  ExpectError(ReadDicomXray(path), {"seq.dcm", "an item runs past the end of its sequence"});
+}
+
 // Every input that once made GDCM abort or exhaust memory (tests/fuzz/seeds/regress, found by
 // fuzz_dicom_xray) is read or is a one-line error naming the file, in the normal suite's build too.
 TEST(DicomXray, FuzzRegressionInputsAreOneLineErrors) {
