@@ -1,7 +1,9 @@
 #include "ct/ct_phantom.h"
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -37,6 +39,10 @@ bool CtVoxeliseOptions::Check(std::string* error) const {
   }
   if (!(noise_hu >= 0) || !std::isfinite(noise_hu)) {
     *error = "noise must be >= 0 HU";
+    return false;
+  }
+  if (!(metal_streak_hu >= 0) || !(metal_streak_hu <= 10000)) {
+    *error = "metal_streak_hu must be 0 .. 10000 HU";
     return false;
   }
   return true;
@@ -169,6 +175,7 @@ Status VoxelisePhantom(const CtPhantom& phantom,
       }
     }
   }
+  AddMetalStreaks(phantom.markers, phantom.marker_diameter_mm, options, volume);
   return Status::Ok();
 }
 
@@ -240,7 +247,119 @@ Status EmbedMarkers(const std::vector<CtMarker>& markers,
       }
     }
   }
+  AddMetalStreaks(markers, diameter_mm, options, volume);
   return Status::Ok();
+}
+
+void AddMetalStreaks(const std::vector<CtMarker>& markers,
+                     double diameter_mm,
+                     const CtVoxeliseOptions& options,
+                     CtVolume* volume) {
+  if (!(options.metal_streak_hu > 0) || markers.empty()) return;
+  CtVolume& v = *volume;
+  const double radius = 0.5 * diameter_mm;
+  constexpr int kStreaks = 16;
+  constexpr double kWidthMm = 0.6, kDecayMm = 25, kBandWidthMm = 1.0;
+  const double reach = 3 * kDecayMm;  // exp(-3): 5 % of the amplitude
+  const Eigen::Vector3d X = v.axes.col(0).normalized(), Y = v.axes.col(1).normalized();
+  const Eigen::Vector3d N = X.cross(Y).normalized();
+  const double sx = v.spacing_mm.x(), sy = v.spacing_mm.y();
+  // The streaks' directions (unit vectors in the slice plane) and signs, per marker.
+  std::vector<std::array<Eigen::Vector2d, kStreaks>> dirs(markers.size());
+  for (size_t m = 0; m < markers.size(); ++m) {
+    std::mt19937_64 rng(options.seed * 0xD1B54A32D192ED03ull + 0x8CB92BA72F3D8DD7ull * (m + 1));
+    std::uniform_real_distribution<double> u(0, 2 * M_PI);
+    for (int s = 0; s < kStreaks; ++s) {
+      const double a = u(rng);
+      dirs[m][s] = Eigen::Vector2d(std::cos(a), std::sin(a));
+    }
+  }
+  std::vector<float> add;
+  std::vector<char> metal;
+  for (int k = 0; k < v.slices; ++k) {
+    // The markers this slice cuts: in-plane centre (mm along X, Y from the slice's first voxel)
+    // and chord fraction.
+    const Eigen::Vector3d origin = v.PatientFromIndex(Eigen::Vector3d(0, 0, k));
+    struct Cut {
+      size_t m;
+      Eigen::Vector2d c;
+      double w;
+    };
+    std::vector<Cut> cuts;
+    for (size_t m = 0; m < markers.size(); ++m) {
+      const Eigen::Vector3d d = markers[m].centre_mm - origin;
+      const double dz = d.dot(N);
+      if (std::abs(dz) >= radius) continue;
+      cuts.push_back({m, Eigen::Vector2d(d.dot(X), d.dot(Y)),
+                      std::sqrt(1 - (dz / radius) * (dz / radius))});
+    }
+    if (cuts.empty()) continue;
+    add.assign(static_cast<size_t>(v.rows) * v.columns, 0.f);
+    metal.assign(add.size(), 0);
+    // The voxel index box of a disc of radius r around c (in-plane mm).
+    auto box = [&](const Eigen::Vector2d& lo_mm, const Eigen::Vector2d& hi_mm, int* i0, int* i1,
+                   int* j0, int* j1) {
+      *i0 = std::max(0, static_cast<int>(std::floor(lo_mm.x() / sx)));
+      *i1 = std::min(v.columns - 1, static_cast<int>(std::ceil(hi_mm.x() / sx)));
+      *j0 = std::max(0, static_cast<int>(std::floor(lo_mm.y() / sy)));
+      *j1 = std::min(v.rows - 1, static_cast<int>(std::ceil(hi_mm.y() / sy)));
+    };
+    for (const Cut& c : cuts) {
+      const double amplitude = c.w * options.metal_streak_hu;
+      int i0, i1, j0, j1;
+      box(c.c.array() - reach, c.c.array() + reach, &i0, &i1, &j0, &j1);
+      for (int j = j0; j <= j1; ++j) {
+        for (int i = i0; i <= i1; ++i) {
+          const Eigen::Vector2d q = Eigen::Vector2d(i * sx, j * sy) - c.c;
+          const double d = q.norm();
+          const size_t idx = static_cast<size_t>(j) * v.columns + i;
+          if (d <= radius) {
+            metal[idx] = 1;
+            continue;
+          }
+          if (d > reach) continue;
+          double sum = 0;
+          for (int s = 0; s < kStreaks; ++s) {
+            const Eigen::Vector2d& u = dirs[c.m][s];
+            const double across = std::abs(q.x() * u.y() - q.y() * u.x());
+            if (across > 4 * kWidthMm) continue;
+            sum += (s % 2 == 0 ? 1.0 : -1.0) *
+                   std::exp(-0.5 * (across / kWidthMm) * (across / kWidthMm));
+          }
+          if (sum != 0) add[idx] += static_cast<float>(amplitude * std::exp(-(d - radius) / kDecayMm) * sum);
+        }
+      }
+    }
+    for (size_t a = 0; a < cuts.size(); ++a) {
+      for (size_t b = a + 1; b < cuts.size(); ++b) {
+        const Eigen::Vector2d ab = cuts[b].c - cuts[a].c;
+        const double len = ab.norm();
+        if (len <= 2 * radius) continue;
+        const double amplitude = 0.5 * std::min(cuts[a].w, cuts[b].w) * options.metal_streak_hu;
+        const double margin = 4 * kBandWidthMm;
+        int i0, i1, j0, j1;
+        box(cuts[a].c.cwiseMin(cuts[b].c).array() - margin,
+            cuts[a].c.cwiseMax(cuts[b].c).array() + margin, &i0, &i1, &j0, &j1);
+        for (int j = j0; j <= j1; ++j) {
+          for (int i = i0; i <= i1; ++i) {
+            const Eigen::Vector2d q = Eigen::Vector2d(i * sx, j * sy) - cuts[a].c;
+            const double t = q.dot(ab) / (len * len);
+            if (t <= 0 || t >= 1) continue;
+            const double across = std::abs(q.x() * ab.y() - q.y() * ab.x()) / len;
+            if (across > margin) continue;
+            add[static_cast<size_t>(j) * v.columns + i] -= static_cast<float>(
+                amplitude * std::exp(-0.5 * (across / kBandWidthMm) * (across / kBandWidthMm)));
+          }
+        }
+      }
+    }
+    for (int j = 0; j < v.rows; ++j) {
+      for (int i = 0; i < v.columns; ++i) {
+        const size_t idx = static_cast<size_t>(j) * v.columns + i;
+        if (!metal[idx] && add[idx] != 0) v.hu[v.Index(i, j, k)] += add[idx];
+      }
+    }
+  }
 }
 
 }  // namespace carmba

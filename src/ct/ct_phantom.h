@@ -7,8 +7,8 @@
 // (decided from the distance of the voxel centre to every surface against the voxel's
 // half-diagonal) and is estimated by S x S x S supersampling (regular sub-grid of sample
 // centres) for voxels cut by a surface. Then independent Gaussian noise of sigma noise_hu is
-// added to every voxel (white noise: real CT noise is correlated between neighbours and has
-// streaks near metal; neither is modelled). The random stream of slice k is seeded from
+// added to every voxel (white noise: real CT noise is correlated between neighbours, which is not
+// modelled; streaks near metal are, optionally: AddMetalStreaks). The random stream of slice k is seeded from
 // (seed, k), so a volume is the same for the same seed whatever the slice count.
 #pragma once
 
@@ -44,6 +44,9 @@ struct CtVoxeliseOptions {
   int marker_supersampling = 8;  // S for voxels cut by a sphere surface
   int block_supersampling = 4;   // S for voxels cut only by a block face
   double noise_hu = 20;          // sigma of the white Gaussian noise, HU (0: noiseless)
+  // Metal artefacts (0: none): the amplitude, HU, at a marker's surface in a slice through its
+  // centre, of the streaks a reconstruction puts around metal (AddMetalStreaks).
+  double metal_streak_hu = 0;
   uint64_t seed = 1;
 
   bool Check(std::string* error) const;
@@ -54,6 +57,21 @@ struct CtVoxeliseOptions {
 Status VoxelisePhantom(const CtPhantom& phantom,
                        const CtVoxeliseOptions& options,
                        CtVolume* volume);
+
+// Adds a model of the metal artefacts of filtered back-projection to each slice (the volume's
+// k planes) that cuts a marker: photon starvation and beam hardening along the rays through
+// metal. Per marker, 16 straight streaks along lines through its centre (a projection ray through
+// the metal, both sides) in seeded random directions, alternately bright and dark, each a Gaussian
+// profile 0.6 mm wide across and decaying as exp(-d / 25 mm) with the distance d from the
+// marker's surface, of amplitude metal_streak_hu x the marker's chord fraction in the slice
+// (sqrt(1 - (dz / r)^2)); between two markers cut by the same slice, a dark band (beam hardening
+// between metal) of half that amplitude, 1 mm wide. Voxels inside a marker are left alone. The
+// streaks of a marker are seeded from (seed, marker index), so they do not depend on the others.
+// Called by VoxelisePhantom and EmbedMarkers when options.metal_streak_hu > 0.
+void AddMetalStreaks(const std::vector<CtMarker>& markers,
+                     double diameter_mm,
+                     const CtVoxeliseOptions& options,
+                     CtVolume* volume);
 
 // Embeds spherical markers into an existing volume (a real CT as the background): each voxel
 // becomes (1 - f) v + f marker_hu + f n, where f is the fraction of the voxel's extent (as in

@@ -168,6 +168,10 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   Opt(ct, "orientation", &orientation);
   Opt(ct, "tilt_deg", &tilt_deg);
   OptIn(ct, "noise_hu", &s.voxelise.noise_hu, kNoiseHu);
+  Opt(ct, "metal_streak_hu", &s.voxelise.metal_streak_hu);
+  if (!(s.voxelise.metal_streak_hu >= 0 && s.voxelise.metal_streak_hu <= 10000)) {
+    ct.Fail("metal_streak_hu", "expected 0 .. 10000 HU");
+  }
   Opt(ct, "supersampling", &s.voxelise.marker_supersampling);
   Opt(ct, "block_supersampling", &s.voxelise.block_supersampling);
   Opt(ct, "rescale_slope", &s.write.rescale_slope);

@@ -4,6 +4,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <numeric>
 #include <unordered_map>
@@ -351,9 +352,11 @@ bool Refine(const CtVolume& vol,
   Eigen::Vector3d c = m->centre_index;
   const Eigen::Vector3d seed_index = c;
   std::vector<double> shell;
+  std::vector<Eigen::Vector3d> shell_offsets;  // mm offset from c, parallel to `shell`
   std::vector<std::pair<Eigen::Vector3d, double>> roi;  // mm offset from c, HU
   double b = 0, sigma = 0, W = 0;
   bool centroid_ok = true;
+  Eigen::Matrix3d centroid_white_cov = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d sampling = Eigen::Matrix3d::Zero();
   for (int a = 0; a < 3; ++a) {
     sampling(a, a) = SamplingVarianceMm2(0.5 * opt.diameter_mm, h[a], e[a]);
@@ -371,6 +374,7 @@ bool Refine(const CtVolume& vol,
       hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(c[a] + reach)));
     }
     shell.clear();
+    shell_offsets.clear();
     roi.clear();
     for (int k = lo[2]; k <= hi[2]; ++k) {
       for (int j = lo[1]; j <= hi[1]; ++j) {
@@ -383,6 +387,7 @@ bool Refine(const CtVolume& vol,
             roi.emplace_back(d, v);
           } else if (dist > r_roi + kShellGapMm && dist <= r_outer) {
             shell.push_back(v);
+            shell_offsets.push_back(d);
           }
         }
       }
@@ -417,9 +422,54 @@ bool Refine(const CtVolume& vol,
         g += r;
       }
       g /= W;
+      // Structured background (metal streaks, a neighbour's artefacts, a bone edge) biases the
+      // centroid where white noise of the MAD-based sigma would not: only the part of the
+      // background that is odd under reflection through the centre moves the first moment. Its
+      // RMS, from each voxel of the region's rim and the shell (outside the marker's blur)
+      // against the trilinear value at its reflection, (v - v') / sqrt(2), replaces sigma when
+      // larger (white noise gives sigma, a bit less for the interpolated v').
+      double ss = 0;
+      int ns = 0;
+      const double r_in = radius + e.maxCoeff();
+      const Eigen::Vector3d c_new = c + shift_mm.cwiseQuotient(h);
+      auto odd = [&](const Eigen::Vector3d& d, double v) {
+        if ((d - shift_mm).norm() <= r_in) return;
+        const Eigen::Vector3d idx = c + d.cwiseQuotient(h);
+        const Eigen::Vector3d refl = 2 * c_new - idx;
+        const int i0 = static_cast<int>(std::floor(refl.x()));
+        const int j0 = static_cast<int>(std::floor(refl.y()));
+        const int k0 = static_cast<int>(std::floor(refl.z()));
+        if (i0 < 0 || j0 < 0 || k0 < 0 || i0 + 1 >= vol.columns || j0 + 1 >= vol.rows ||
+            k0 + 1 >= vol.slices)
+          return;
+        const double fx = refl.x() - i0, fy = refl.y() - j0, fz = refl.z() - k0;
+        double r = 0;
+        for (int dk = 0; dk < 2; ++dk) {
+          for (int dj = 0; dj < 2; ++dj) {
+            for (int di = 0; di < 2; ++di) {
+              r += (di ? fx : 1 - fx) * (dj ? fy : 1 - fy) * (dk ? fz : 1 - fz) *
+                   vol.At(i0 + di, j0 + dj, k0 + dk);
+            }
+          }
+        }
+        const double dv = v - r;
+        ss += 0.5 * dv * dv;
+        ++ns;
+      };
+      for (const auto& [d, v] : roi) odd(d, v);
+      for (size_t q = 0; q < shell.size(); ++q) odd(shell_offsets[q], shell[q]);
+      m->odd_background_hu = ns >= 8 ? std::sqrt(ss / ns) : 0.0;
       Eigen::Matrix3d noise = sigma * sigma * S / (W * W) +
                               sigma * sigma / static_cast<double>(shell.size()) * g *
                                   g.transpose();
+      // The contamination test (7.) compares the centroid with the fit at the white-noise
+      // covariance (a bone edge next to the marker should switch to the fit, not widen the
+      // centroid); the centroid's reported covariance takes the odd part.
+      centroid_white_cov = vol.axes * noise * vol.axes.transpose() + m->covariance_sampling_mm2;
+      if (m->odd_background_hu > sigma) {
+        noise *= (m->odd_background_hu / sigma) * (m->odd_background_hu / sigma);
+        sigma = m->odd_background_hu;
+      }
       m->covariance_noise_mm2 = vol.axes * noise * vol.axes.transpose();
       m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
     }
@@ -495,7 +545,7 @@ bool Refine(const CtVolume& vol,
       // covariances (bone or air in the region of interest or its shell pulls the centroid).
       // Without a centroid (the surroundings outweigh the marker), the fit.
       const Eigen::Vector3d delta = m->centre_mm - m->fit_centre_mm;
-      const Eigen::Matrix3d C = m->covariance_mm2 + m->fit_covariance_mm2;
+      const Eigen::Matrix3d C = centroid_white_cov + m->fit_covariance_mm2;
       m->contamination_chi2 = centroid_ok ? delta.dot(C.ldlt().solve(delta)) : -1;
       if (!centroid_ok || m->contamination_chi2 > opt.contamination_chi2) {
         m->contaminated = true;
@@ -507,8 +557,11 @@ bool Refine(const CtVolume& vol,
       } else {
         // Consistent within the threshold: the centroid, its covariance widened by the Birge
         // ratio of the disagreement when it exceeds its expectation (3).
+        // The odd part's widening (5.) may already cover it: the larger of the two.
         m->centroid_mm = m->centre_mm;
-        m->covariance_mm2 *= std::max(1.0, m->contamination_chi2 / 3.0);
+        const Eigen::Matrix3d birge =
+            centroid_white_cov * std::max(1.0, m->contamination_chi2 / 3.0);
+        if (birge.trace() > m->covariance_mm2.trace()) m->covariance_mm2 = birge;
       }
     }
   }

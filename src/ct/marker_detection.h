@@ -22,7 +22,12 @@
 //    bounding-box centre of the core voxels is computed too (for the report).
 // 5. Covariance of the centroid (3x3, mm^2, patient frame) = noise term + background term +
 //    sampling term, in the volume's axis frame, rotated to patient coordinates:
-//    - noise: sigma_b^2 sum_i (p_i - c)(p_i - c)^T / W^2 (independent voxel noise);
+//    - noise: sigma_b^2 sum_i (p_i - c)(p_i - c)^T / W^2 (independent voxel noise); sigma_b is
+//      raised to the RMS of the background's odd part when that is larger: each voxel of the
+//      ROI's rim and the shell (beyond R + the largest voxel extent) against the trilinear value
+//      at its reflection through the centre, (v - v') / sqrt(2). Only the odd part of a
+//      structured background (metal streaks, a neighbour's artefacts, an edge) moves the
+//      centroid; white noise gives about sigma_b (odd_background_hu);
 //    - background: sigma_b^2 / N_shell g g^T, g = sum_i (p_i - c) / W (error of b);
 //    - sampling: along each volume axis a, the centroid error of a ball of the nominal diameter
 //      box-filtered over the voxel extent (pixel spacing, or the slice thickness along k) and
@@ -51,7 +56,7 @@
 //    the centroid, its covariance multiplied by max(1, chi2 / 3) (the Birge ratio of the two
 //    estimates' disagreement). When the centroid has no mass (W <= 0: the surroundings outweigh
 //    the marker) the fit is used.
-//    Neither model includes correlated noise, beam hardening and streaks near metal, the
+//    Neither model includes correlated noise (beyond the odd-part RMS of 5.), the
 //    scanner's point-spread function (the fit's partial-volume model is the simulator's box
 //    model), or marker diameters different from the nominal one.
 // Sheared (gantry-tilted) volumes: the centroid's ROI distances and covariance axis frame treat
@@ -105,7 +110,8 @@ struct DetectedMarker {
   double volume_mm3 = 0;               // core volume (voxels >= threshold x voxel volume)
   double peak_hu = 0;                  // maximum HU in the core
   double background_hu = 0;            // b
-  double noise_hu = 0;                 // sigma_b
+  double noise_hu = 0;                 // sigma_b (after the odd-part check of 5.)
+  double odd_background_hu = 0;        // RMS of the background's odd part (0: too few voxels)
   double weight_volume_mm3 = 0;        // W x voxel volume / (peak - b): partial-volume volume
   int core_voxels = 0;
   int roi_voxels = 0;

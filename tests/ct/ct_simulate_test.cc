@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 
+#include "ct/ct_phantom.h"
 #include "ct/ct_test_util.h"
 #include "ct/ct_volume.h"
 
@@ -121,6 +123,7 @@ TEST(CtSimulate, BadScenesAreRejectedWithOneLineErrors) {
       {SmallScene("  slice_thickness_mm: -1\n"), "ct.slice_thickness_mm"},
       {SmallScene("  orientation: [1, 0, 0, 1, 0, 0]\n"), "orthogonal"},
       {SmallScene("  tilt_deg: 95\n"), "ct.tilt_deg"},
+      {SmallScene("  metal_streak_hu: -5\n"), "ct.metal_streak_hu"},
       {"kind: xray\nmarkers:\n  csv: markers.csv\n", "expected 'ct'"},
       {"kind: ct\n", "markers"},
       {"kind: ct\nmarkers:\n  csv: missing.csv\n", "missing.csv"},
@@ -138,6 +141,64 @@ TEST(CtSimulate, BadScenesAreRejectedWithOneLineErrors) {
     EXPECT_EQ(s.message().find('\n'), std::string::npos) << s.message();
     EXPECT_FALSE(fs::exists(dir.File("out/ct"))) << c.text;
   }
+}
+
+// The metal streak model on an empty volume: nothing inside a marker, streaks along lines through
+// it (point-symmetric about a voxel-centred marker), bounded by the amplitude (16 lines can add
+// up only where they cross, at the marker), seeded; a second marker in the slice adds a dark band
+// between the two.
+TEST(CtSimulate, MetalStreaksAreLinesThroughTheMarkersAndBandsBetweenThem) {
+  CtVolume v;
+  v.columns = v.rows = 161;
+  v.slices = 3;
+  v.spacing_mm = Eigen::Vector3d(0.5, 0.5, 1.0);
+  v.hu.assign(static_cast<size_t>(v.columns) * v.rows * v.slices, 0.f);
+  const Eigen::Vector3d c = v.PatientFromIndex(Eigen::Vector3d(80, 80, 1));
+  CtVoxeliseOptions o;
+  o.metal_streak_hu = 300;
+  o.seed = 5;
+  CtVolume one = v;
+  AddMetalStreaks({CtMarker{1, c}}, 3.0, o, &one);
+  double max_abs = 0, asym = 0;
+  int changed = 0;
+  for (int j = 0; j < v.rows; ++j) {
+    for (int i = 0; i < v.columns; ++i) {
+      const double x = one.At(i, j, 1);
+      const double d = std::hypot((i - 80) * 0.5, (j - 80) * 0.5);
+      if (d <= 1.5) {
+        EXPECT_EQ(x, 0.f) << i << " " << j;  // inside the marker
+      }
+      max_abs = std::max(max_abs, std::abs(x));
+      changed += x != 0;
+      asym = std::max(asym, std::abs(x - one.At(160 - i, 160 - j, 1)));
+    }
+  }
+  EXPECT_GT(changed, 1000);
+  EXPECT_GT(max_abs, 100);
+  EXPECT_LT(max_abs, 16 * 300);
+  EXPECT_LT(asym, 1e-3);
+  // Slices 0 and 2 are 1 mm from the centre: cut with chord fraction sqrt(1 - (1/1.5)^2) < 1.
+  double max0 = 0;
+  for (int j = 0; j < v.rows; ++j) {
+    for (int i = 0; i < v.columns; ++i) max0 = std::max(max0, std::abs(1.0 * one.At(i, j, 0)));
+  }
+  EXPECT_GT(max0, 0);
+  EXPECT_LT(max0, max_abs);
+  CtVolume again = v;
+  AddMetalStreaks({CtMarker{1, c}}, 3.0, o, &again);
+  EXPECT_EQ(again.hu, one.hu);
+  // Two markers 20 mm apart along x: what the pair adds beyond each one's own lines (the
+  // second's alone: a first marker far outside the volume keeps its seeding index) is the dark
+  // band between them, half the amplitude on the line joining them, nothing off its end.
+  const Eigen::Vector3d c2 = v.PatientFromIndex(Eigen::Vector3d(120, 80, 1));
+  const Eigen::Vector3d far = v.PatientFromIndex(Eigen::Vector3d(80, 80, 500));
+  CtVolume two = v, second = v;
+  AddMetalStreaks({CtMarker{1, c}, CtMarker{2, c2}}, 3.0, o, &two);
+  AddMetalStreaks({CtMarker{1, far}, CtMarker{2, c2}}, 3.0, o, &second);
+  auto band = [&](int i, int j) { return two.At(i, j, 1) - one.At(i, j, 1) - second.At(i, j, 1); };
+  EXPECT_NEAR(band(100, 80), -150, 1e-3);
+  EXPECT_NEAR(band(100, 82), -150 * std::exp(-0.5), 1e-3);  // 1 mm off the line
+  EXPECT_NEAR(band(140, 80), 0, 1e-3);                        // beyond the second marker
 }
 
 TEST(CtSimulate, RefusesToOverwriteANonEmptySeriesDirectory) {

@@ -102,13 +102,15 @@ inline std::vector<SkullBead> PlaceSkullBeads(const CtVolume& vol,
   return beads;
 }
 
-// A copy of `skull` with the beads embedded (steel at `marker_hu`, partial volume, noise).
+// A copy of `skull` with the beads embedded (steel at `marker_hu`, partial volume, noise; metal
+// streaks of `metal_streak_hu` at the surface when > 0, ct/ct_phantom.h AddMetalStreaks).
 inline CtVolume SkullWithBeads(const CtVolume& skull,
                                const std::vector<SkullBead>& beads,
                                double diameter_mm,
                                double marker_hu,
                                double noise_hu,
-                               uint64_t seed) {
+                               uint64_t seed,
+                               double metal_streak_hu = 0) {
   CtVolume v = skull;
   std::vector<CtMarker> markers;
   for (size_t a = 0; a < beads.size(); ++a) {
@@ -118,6 +120,7 @@ inline CtVolume SkullWithBeads(const CtVolume& skull,
   opt.noise_hu = noise_hu;
   opt.seed = seed;
   opt.marker_supersampling = 8;
+  opt.metal_streak_hu = metal_streak_hu;
   const Status s = EmbedMarkers(markers, diameter_mm, marker_hu, opt, &v);
   if (!s.ok()) v.hu.clear();
   return v;
