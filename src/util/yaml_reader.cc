@@ -183,8 +183,9 @@ void YamlMap::Get(const std::string& key, std::vector<int>* out, bool required) 
   if (!had || !status_.ok()) return;
   std::vector<int> r;
   for (size_t i = 0; i < v.size(); ++i) {
-    if (v[i] != std::floor(v[i])) {
-      Fail(key, "element " + std::to_string(i) + ": expected an integer");
+    // Beyond an int the conversion is undefined (found by fuzz_xray_scene under UBSan).
+    if (v[i] != std::floor(v[i]) || std::fabs(v[i]) > 2e9) {
+      Fail(key, "element " + std::to_string(i) + ": expected an integer within +-2e9");
       return;
     }
     r.push_back(static_cast<int>(v[i]));

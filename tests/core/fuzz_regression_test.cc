@@ -5,6 +5,7 @@
 
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "camera/camera.h"
 #include "util/file_util.h"
@@ -50,6 +51,23 @@ TEST_F(FuzzRegression, YamlComplexKeyIsAnErrorNamingItsLine) {
     ASSERT_FALSE(s.ok()) << key;
     EXPECT_NE(s.message().find(path + ":2: top level: expected keys that are names"),
               std::string::npos)
+        << s.message();
+  }
+}
+
+// fuzz_xray_scene (UBSan): an integer list with an element beyond an int (4.1e98) was converted
+// with static_cast<int> (undefined behaviour); the scalar integer getter already refused it.
+TEST_F(FuzzRegression, YamlIntegerListElementBeyondAnIntIsAnError) {
+  for (const char* value : {"[1, 4.1e98]", "[-3e9]"}) {
+    const std::string path = Write("ints.yaml", std::string("size: ") + value + "\n");
+    YamlMap m = YamlMap::Load(path);
+    ASSERT_TRUE(m.status().ok()) << m.status().message();
+    std::vector<int> size;
+    m.Get("size", &size);
+    const Status s = m.Finish();
+    ASSERT_FALSE(s.ok()) << value;
+    EXPECT_NE(s.message().find("size"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find("expected an integer within +-2e9"), std::string::npos)
         << s.message();
   }
 }
