@@ -4,7 +4,6 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <cstdio>
 #include <numeric>
 #include <unordered_map>
@@ -459,18 +458,17 @@ bool Refine(const CtVolume& vol,
       for (const auto& [d, v] : roi) odd(d, v);
       for (size_t q = 0; q < shell.size(); ++q) odd(shell_offsets[q], shell[q]);
       m->odd_background_hu = ns >= 8 ? std::sqrt(ss / ns) : 0.0;
-      Eigen::Matrix3d noise = sigma * sigma * S / (W * W) +
-                              sigma * sigma / static_cast<double>(shell.size()) * g *
-                                  g.transpose();
+      auto noise_of = [&](double s) -> Eigen::Matrix3d {
+        const Eigen::Matrix3d n = s * s * S / (W * W) +
+                                  s * s / static_cast<double>(shell.size()) * g * g.transpose();
+        return vol.axes * n * vol.axes.transpose();
+      };
       // The contamination test (7.) compares the centroid with the fit at the white-noise
       // covariance (a bone edge next to the marker should switch to the fit, not widen the
       // centroid); the centroid's reported covariance takes the odd part.
-      centroid_white_cov = vol.axes * noise * vol.axes.transpose() + m->covariance_sampling_mm2;
-      if (m->odd_background_hu > sigma) {
-        noise *= (m->odd_background_hu / sigma) * (m->odd_background_hu / sigma);
-        sigma = m->odd_background_hu;
-      }
-      m->covariance_noise_mm2 = vol.axes * noise * vol.axes.transpose();
+      centroid_white_cov = noise_of(sigma) + m->covariance_sampling_mm2;
+      sigma = std::max(sigma, m->odd_background_hu);
+      m->covariance_noise_mm2 = noise_of(sigma);
       m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
     }
   }
