@@ -152,9 +152,10 @@ Status ReadPixelModule(const gdcm::DataSet& ds, const std::string& path,
 // differs from Bits Stored, a segmentation fault in JPEGCodec::Decode); isolated, such a file is an
 // error, not the end of carmba. Only
 // GDCM's decoding runs in the child, which leaves with _exit. Returns "" on success, else why not.
-std::string DecodeInChild(const gdcm::Image& image, size_t bytes, char* out) {
-  void* shared =
-      ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS | MAP_POPULATE, -1, 0);
+std::string DecodeInChild(const gdcm::Image& image, size_t bytes, std::vector<char>* out) {
+  // Not populated: a declared size far beyond what the data decodes to (a corrupt file) costs
+  // only the pages the decoder writes.
+  void* shared = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
   if (shared == MAP_FAILED) return std::string("cannot map memory: ") + std::strerror(errno);
   // The child's end of a pipe closes when it exits: the parent waits on the pipe with a time
   // limit, and wakes as soon as the child is done.
@@ -220,7 +221,8 @@ std::string DecodeInChild(const gdcm::Image& image, size_t bytes, char* out) {
   } else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
     why = "GDCM cannot decode the pixel data";
   } else {
-    std::memcpy(out, shared, bytes);
+    const char* p = static_cast<const char*>(shared);
+    out->assign(p, p + bytes);
   }
   ::munmap(shared, bytes);
   return why;
@@ -325,8 +327,7 @@ Status ReadDicomImage(const std::string& path,
                          std::to_string(image->GetBufferLength()) + " bytes, expected " +
                          std::to_string(expected) + " (" + size_text + ")");
   }
-  out->pixels.resize(expected);
-  const std::string why = DecodeInChild(*image, expected, out->pixels.data());
+  const std::string why = DecodeInChild(*image, expected, &out->pixels);
   if (!why.empty()) {
     return Status::Error(path + ": " + why + " (transfer syntax " +
                          TransferSyntaxName(out->transfer_syntax_uid) + ")");
