@@ -9,17 +9,19 @@
 #include <gdcmUIDs.h>
 
 #include <fcntl.h>
-#include <signal.h>
 #include <poll.h>
-#include <sys/mman.h>
+#include <signal.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 
 #include "util/file_util.h"
 #include "util/gdcm_util.h"
@@ -146,86 +148,201 @@ Status ReadPixelModule(const gdcm::DataSet& ds, const std::string& path,
   return Status::Ok();
 }
 
-// Decodes `image` into `out` (`bytes` long) in a child process, through shared memory. GDCM's
-// codecs (libjpeg, CharLS, OpenJPEG and its RLE decoder, as Debian builds them, assertions on)
-// abort or crash the process on malformed streams (found by fuzz_dicom_xray: a JPEG whose precision
-// differs from Bits Stored, a segmentation fault in JPEGCodec::Decode); isolated, such a file is an
-// error, not the end of carmba. Only
-// GDCM's decoding runs in the child, which leaves with _exit. Returns "" on success, else why not.
-std::string DecodeInChild(const gdcm::Image& image, size_t bytes, std::vector<char>* out) {
-  // Not populated: a declared size far beyond what the data decodes to (a corrupt file) costs
-  // only the pages the decoder writes.
-  void* shared = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-  if (shared == MAP_FAILED) return std::string("cannot map memory: ") + std::strerror(errno);
-  // The child's end of a pipe closes when it exits: the parent waits on the pipe with a time
-  // limit, and wakes as soon as the child is done.
-  int pipe_fds[2];
-  if (::pipe2(pipe_fds, O_CLOEXEC) != 0) {
-    const std::string why = std::string("cannot start the decoder: ") + std::strerror(errno);
-    ::munmap(shared, bytes);
-    return why;
+// What the decoder needs besides the file: the image pixel module as read by ReadPixelModule.
+struct DecodeRequest {
+  uint32_t magic = 0x43444331;  // "CDC1"
+  int32_t rows = 0, columns = 0, frames = 0, bits_allocated = 0, bits_stored = 0, high_bit = 0;
+  int32_t is_signed = 0, photometric = 0, transfer_syntax = 0;
+  uint64_t expected = 0;
+  uint32_t path_length = 0;
+};
+struct DecodeResponse {
+  uint32_t ok = 0;
+  uint64_t length = 0;
+};
+
+bool WriteAll(int fd, const void* data, size_t n) {
+  const char* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t w = ::send(fd, p, n, MSG_NOSIGNAL);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) return false;
+    p += w;
+    n -= static_cast<size_t>(w);
   }
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    const std::string why = std::string("cannot start the decoder: ") + std::strerror(errno);
-    ::close(pipe_fds[0]);
-    ::close(pipe_fds[1]);
-    ::munmap(shared, bytes);
-    return why;
-  }
-  if (pid == 0) {
-    // A failed assertion or a crash in a decoder ends the child only, without the handlers the
-    // parent may have (a sanitizer's, a fuzzer's).
-    for (int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) ::signal(sig, SIG_DFL);
-    ::close(pipe_fds[0]);
-    const int null_fd = ::open("/dev/null", O_WRONLY);
-    if (null_fd >= 0) ::dup2(null_fd, 2);  // GDCM's and the codecs' messages
-    const bool ok = image.GetBuffer(static_cast<char*>(shared));
-    ::_exit(ok ? 0 : 1);
-  }
-  ::close(pipe_fds[1]);
-  // A decoder caught in a loop is stopped: 5 s, plus 10 s per 100 MB of decoded pixels.
-  const double limit_s = 5.0 + 10.0 * static_cast<double>(bytes) / 1e8;
-  const auto start = std::chrono::steady_clock::now();
-  bool timed_out = false;
-  while (true) {
-    const double left_s =
-        limit_s - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (left_s <= 0) {
-      timed_out = true;
-      break;
+  return true;
+}
+
+// Reads n bytes; with a deadline (steady clock) when `deadline` is given. *timed_out on expiry.
+bool ReadAll(int fd, void* data, size_t n,
+             const std::chrono::steady_clock::time_point* deadline = nullptr,
+             bool* timed_out = nullptr) {
+  char* p = static_cast<char*>(data);
+  while (n > 0) {
+    if (deadline) {
+      const double left_ms = std::chrono::duration<double, std::milli>(
+                                 *deadline - std::chrono::steady_clock::now())
+                                 .count();
+      if (left_ms <= 0) {
+        if (timed_out) *timed_out = true;
+        return false;
+      }
+      pollfd pfd = {fd, POLLIN, 0};
+      const int r = ::poll(&pfd, 1, static_cast<int>(left_ms) + 1);
+      if (r < 0 && errno == EINTR) continue;
+      if (r == 0) continue;  // re-check the deadline
+      if (r < 0) return false;
     }
-    pollfd pfd = {pipe_fds[0], POLLIN, 0};
-    const int r = ::poll(&pfd, 1, static_cast<int>(left_s * 1000) + 1);
-    if (r > 0) break;  // the child has exited (end of file on the pipe)
-    if (r < 0 && errno != EINTR) break;
+    const ssize_t got = ::read(fd, p, n);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) return false;
+    p += got;
+    n -= static_cast<size_t>(got);
   }
-  ::close(pipe_fds[0]);
-  if (timed_out) ::kill(pid, SIGKILL);
-  int status = 0;
-  pid_t waited;
-  do {
-    waited = ::waitpid(pid, &status, 0);
-  } while (waited < 0 && errno == EINTR);
-  std::string why;
-  if (timed_out) {
+  return true;
+}
+
+// The decoder process's loop: a request (and the file's path) in, the decoded pixels out. The
+// file is parsed again here (it passed the parent's structure check), so that no GDCM object
+// crosses the process boundary.
+[[noreturn]] void DecoderLoop(int fd) {
+  while (true) {
+    DecodeRequest r;
+    if (!ReadAll(fd, &r, sizeof(r)) || r.magic != DecodeRequest().magic) ::_exit(0);
+    std::string path(r.path_length, '\0');
+    if (!ReadAll(fd, &path[0], path.size())) ::_exit(0);
+    std::vector<char> pixels;
+    bool ok = false;
+    gdcm::Reader reader;
+    reader.SetFileName(path.c_str());
+    if (reader.Read() && reader.GetFile().GetDataSet().FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) {
+      gdcm::SmartPointer<gdcm::Image> image = new gdcm::Image;
+      image->SetNumberOfDimensions(r.frames > 1 ? 3 : 2);
+      image->SetDimension(0, static_cast<unsigned int>(r.columns));
+      image->SetDimension(1, static_cast<unsigned int>(r.rows));
+      if (r.frames > 1) image->SetDimension(2, static_cast<unsigned int>(r.frames));
+      image->SetPixelFormat(gdcm::PixelFormat(1, static_cast<unsigned short>(r.bits_allocated),
+                                              static_cast<unsigned short>(r.bits_stored),
+                                              static_cast<unsigned short>(r.high_bit),
+                                              r.is_signed ? 1 : 0));
+      image->SetPhotometricInterpretation(
+          static_cast<gdcm::PhotometricInterpretation::PIType>(r.photometric));
+      image->SetTransferSyntax(static_cast<gdcm::TransferSyntax::TSType>(r.transfer_syntax));
+      image->SetDataElement(
+          reader.GetFile().GetDataSet().GetDataElement(gdcm::Tag(0x7fe0, 0x0010)));
+      if (image->GetBufferLength() == r.expected) {
+        pixels.resize(r.expected);
+        ok = image->GetBuffer(pixels.data());
+      }
+    }
+    DecodeResponse resp;
+    resp.ok = ok ? 1 : 0;
+    resp.length = ok ? pixels.size() : 0;
+    if (!WriteAll(fd, &resp, sizeof(resp))) ::_exit(0);
+    if (ok && !WriteAll(fd, pixels.data(), pixels.size())) ::_exit(0);
+  }
+}
+
+// GDCM's codecs (libjpeg, CharLS, OpenJPEG and its RLE decoder, as Debian builds them,
+// assertions on) abort or crash the process on malformed streams (found by fuzz_dicom_xray: a
+// JPEG whose precision differs from Bits Stored, a segmentation fault in JPEGCodec::Decode). They
+// run in a decoder process, forked at the first compressed image and kept for the next ones (a
+// fork per image cost ~2 ms, more under the sanitizers); a decoder that dies makes that image an
+// error, not the end of carmba, and the next image starts a new one. One decode at a time (a
+// mutex); a decoder caught in a loop is stopped after 5 s + 10 s per 100 MB of pixels.
+class Decoder {
+ public:
+  // Returns "" with *out filled, else why not.
+  std::string Decode(const std::string& path, const DecodeRequest& request, std::vector<char>* out) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (pid_ < 0) {
+      const std::string why = Start();
+      if (!why.empty()) return why;
+    }
+    DecodeRequest r = request;
+    r.path_length = static_cast<uint32_t>(path.size());
+    if (!WriteAll(fd_, &r, sizeof(r)) || !WriteAll(fd_, path.data(), path.size())) {
+      return Died();
+    }
+    const double limit_s = 5.0 + 10.0 * static_cast<double>(r.expected) / 1e8;
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                              std::chrono::duration<double>(limit_s));
+    bool timed_out = false;
+    DecodeResponse resp;
+    if (!ReadAll(fd_, &resp, sizeof(resp), &deadline, &timed_out)) {
+      return timed_out ? Stop(limit_s) : Died();
+    }
+    if (!resp.ok) return "GDCM cannot decode the pixel data";
+    if (resp.length != r.expected) return Died();
+    std::vector<char> pixels(resp.length);
+    if (!ReadAll(fd_, pixels.data(), pixels.size(), &deadline, &timed_out)) {
+      return timed_out ? Stop(limit_s) : Died();
+    }
+    *out = std::move(pixels);
+    return "";
+  }
+
+ private:
+  std::string Start() {
+    int sv[2];
+    if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
+      return std::string("cannot start the decoder: ") + std::strerror(errno);
+    }
+    std::fflush(nullptr);
+    const pid_t pid = ::fork();
+    if (pid < 0) {
+      const std::string why = std::string("cannot start the decoder: ") + std::strerror(errno);
+      ::close(sv[0]);
+      ::close(sv[1]);
+      return why;
+    }
+    if (pid == 0) {
+      // A failed assertion or a crash in a codec ends the decoder only, without the handlers
+      // the parent may have (a sanitizer's, a fuzzer's).
+      for (int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) ::signal(sig, SIG_DFL);
+      ::close(sv[0]);
+      const int null_fd = ::open("/dev/null", O_WRONLY);
+      if (null_fd >= 0) ::dup2(null_fd, 2);  // GDCM's and the codecs' messages
+      DecoderLoop(sv[1]);
+    }
+    ::close(sv[1]);
+    pid_ = pid;
+    fd_ = sv[0];
+    return "";
+  }
+  // The decoder ended (a crash, an assertion): why, and a new one next time.
+  std::string Died() {
+    ::close(fd_);
+    fd_ = -1;
+    int status = 0;
+    pid_t waited;
+    do {
+      waited = ::waitpid(pid_, &status, 0);
+    } while (waited < 0 && errno == EINTR);
+    pid_ = -1;
+    if (waited > 0 && WIFSIGNALED(status)) {
+      return "GDCM's decoder died (signal " + std::to_string(WTERMSIG(status)) + ", " +
+             ::strsignal(WTERMSIG(status)) + ")";
+    }
+    return "GDCM's decoder ended without an answer";
+  }
+  std::string Stop(double limit_s) {
+    ::kill(pid_, SIGKILL);
+    Died();
     char b[96];
     std::snprintf(b, sizeof(b), "GDCM's decoder did not finish within %.0f s (stopped)", limit_s);
-    why = b;
-  } else if (waited < 0) {
-    why = std::string("cannot wait for the decoder: ") + std::strerror(errno);
-  } else if (WIFSIGNALED(status)) {
-    why = "GDCM's decoder died (signal " + std::to_string(WTERMSIG(status)) + ", " +
-          ::strsignal(WTERMSIG(status)) + ")";
-  } else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    why = "GDCM cannot decode the pixel data";
-  } else {
-    const char* p = static_cast<const char*>(shared);
-    out->assign(p, p + bytes);
+    return b;
   }
-  ::munmap(shared, bytes);
-  return why;
+
+  std::mutex mutex_;
+  pid_t pid_ = -1;
+  int fd_ = -1;
+};
+
+Decoder& TheDecoder() {
+  static Decoder* decoder = new Decoder;  // never destroyed: the decoder ends at our exit (EOF)
+  return *decoder;
 }
 
 }  // namespace
@@ -327,7 +444,18 @@ Status ReadDicomImage(const std::string& path,
                          std::to_string(image->GetBufferLength()) + " bytes, expected " +
                          std::to_string(expected) + " (" + size_text + ")");
   }
-  const std::string why = DecodeInChild(*image, expected, &out->pixels);
+  DecodeRequest request;
+  request.rows = out->rows;
+  request.columns = out->columns;
+  request.frames = out->frames;
+  request.bits_allocated = out->bits_allocated;
+  request.bits_stored = out->bits_stored;
+  request.high_bit = out->high_bit;
+  request.is_signed = out->is_signed ? 1 : 0;
+  request.photometric = static_cast<int32_t>(pi);
+  request.transfer_syntax = static_cast<int32_t>(static_cast<gdcm::TransferSyntax::TSType>(ts));
+  request.expected = expected;
+  const std::string why = TheDecoder().Decode(path, request, &out->pixels);
   if (!why.empty()) {
     return Status::Error(path + ": " + why + " (transfer syntax " +
                          TransferSyntaxName(out->transfer_syntax_uid) + ")");

@@ -6,7 +6,9 @@
 // assertions, and ImageReader's image-module code (pixel format, icon images, overlays, palette
 // tables, media-storage guesses) aborts the process on malformed files, where carmba owes the user
 // a one-line error (found by fuzz_dicom_xray, one assertion after another). Before GDCM sees a
-// file, gdcm_util::CheckDicomFile walks its structure and checks its VRs.
+// file, gdcm_util::CheckDicomFile walks its structure and checks its VRs. Compressed pixel data is
+// decoded by GDCM's codecs in a separate decoder process (forked once, kept between images): a
+// codec that aborts or crashes on a malformed stream makes that image an error.
 #pragma once
 
 #include <gdcmDataSet.h>

@@ -539,6 +539,24 @@ TEST(DicomXray, SequencesOfDefinedAndUndefinedLengthAreWalked) {
   ExpectError(ReadDicomXray(path), {"seq.dcm", "an item runs past the end of its sequence"});
 }
 
+// GDCM's codecs run in a decoder process kept between images: one that dies on a malformed
+// stream (a segmentation fault, a failed assertion: seeds/regress) makes that image an error
+// naming the signal, and the next compressed image starts a new decoder and reads.
+TEST(DicomXray, DecoderThatDiesIsAnErrorAndTheNextImageReads) {
+  const std::string seeds = std::string(CARMBA_SOURCE_DIR) + "/tests/fuzz/seeds/";
+  const auto plain = ReadDicomXray(seeds + "dicom/xa_1frame_16bit.dcm");
+  ASSERT_TRUE(plain.ok()) << plain.status().message();
+  for (int round = 0; round < 2; ++round) {
+    for (const auto& [name, signal] : std::vector<std::pair<std::string, std::string>>{
+             {"jpeg_decoder_segfault.dcm", "signal 11"}, {"jpeg_precision_assert.dcm", "signal 6"}}) {
+      ExpectError(ReadDicomXray(seeds + "regress/" + name), {name, "GDCM's decoder died", signal});
+      const auto r = ReadDicomXray(seeds + "dicom/xa_1frame_16bit_jpeg.dcm");
+      ASSERT_TRUE(r.ok()) << r.status().message();
+      EXPECT_TRUE(Equal(r->frames[0], plain->frames[0]));
+    }
+  }
+}
+
 // Every input that once made GDCM abort or exhaust memory (tests/fuzz/seeds/regress, found by
 // fuzz_dicom_xray) is read or is a one-line error naming the file, in the normal suite's build too.
 TEST(DicomXray, FuzzRegressionInputsAreOneLineErrors) {
