@@ -202,6 +202,24 @@ bool ReadAll(int fd, void* data, size_t n,
   return true;
 }
 
+// The gdcm::Image a codec decodes: the pixel module as read by ReadPixelModule and the pixel data.
+gdcm::SmartPointer<gdcm::Image> ImageFor(const DecodeRequest& r, const gdcm::DataElement& pixels) {
+  gdcm::SmartPointer<gdcm::Image> image = new gdcm::Image;
+  image->SetNumberOfDimensions(r.frames > 1 ? 3 : 2);
+  image->SetDimension(0, static_cast<unsigned int>(r.columns));
+  image->SetDimension(1, static_cast<unsigned int>(r.rows));
+  if (r.frames > 1) image->SetDimension(2, static_cast<unsigned int>(r.frames));
+  image->SetPixelFormat(gdcm::PixelFormat(1, static_cast<unsigned short>(r.bits_allocated),
+                                          static_cast<unsigned short>(r.bits_stored),
+                                          static_cast<unsigned short>(r.high_bit),
+                                          r.is_signed ? 1 : 0));
+  image->SetPhotometricInterpretation(
+      static_cast<gdcm::PhotometricInterpretation::PIType>(r.photometric));
+  image->SetTransferSyntax(static_cast<gdcm::TransferSyntax::TSType>(r.transfer_syntax));
+  image->SetDataElement(pixels);
+  return image;
+}
+
 // The decoder process's loop: a request (and the file's path) in, the decoded pixels out. The
 // file is parsed again here (it passed the parent's structure check), so that no GDCM object
 // crosses the process boundary.
@@ -216,20 +234,8 @@ bool ReadAll(int fd, void* data, size_t n,
     gdcm::Reader reader;
     reader.SetFileName(path.c_str());
     if (reader.Read() && reader.GetFile().GetDataSet().FindDataElement(gdcm::Tag(0x7fe0, 0x0010))) {
-      gdcm::SmartPointer<gdcm::Image> image = new gdcm::Image;
-      image->SetNumberOfDimensions(r.frames > 1 ? 3 : 2);
-      image->SetDimension(0, static_cast<unsigned int>(r.columns));
-      image->SetDimension(1, static_cast<unsigned int>(r.rows));
-      if (r.frames > 1) image->SetDimension(2, static_cast<unsigned int>(r.frames));
-      image->SetPixelFormat(gdcm::PixelFormat(1, static_cast<unsigned short>(r.bits_allocated),
-                                              static_cast<unsigned short>(r.bits_stored),
-                                              static_cast<unsigned short>(r.high_bit),
-                                              r.is_signed ? 1 : 0));
-      image->SetPhotometricInterpretation(
-          static_cast<gdcm::PhotometricInterpretation::PIType>(r.photometric));
-      image->SetTransferSyntax(static_cast<gdcm::TransferSyntax::TSType>(r.transfer_syntax));
-      image->SetDataElement(
-          reader.GetFile().GetDataSet().GetDataElement(gdcm::Tag(0x7fe0, 0x0010)));
+      gdcm::SmartPointer<gdcm::Image> image = ImageFor(
+          r, reader.GetFile().GetDataSet().GetDataElement(gdcm::Tag(0x7fe0, 0x0010)));
       if (image->GetBufferLength() == r.expected) {
         pixels.resize(r.expected);
         ok = image->GetBuffer(pixels.data());
@@ -427,23 +433,6 @@ Status ReadDicomImage(const std::string& path,
     return Status::Error(path + ": Photometric Interpretation (0028,0004) is '" +
                          out->photometric + "', expected MONOCHROME1 or MONOCHROME2");
   }
-  gdcm::SmartPointer<gdcm::Image> image = new gdcm::Image;
-  image->SetNumberOfDimensions(out->frames > 1 ? 3 : 2);
-  image->SetDimension(0, static_cast<unsigned int>(out->columns));
-  image->SetDimension(1, static_cast<unsigned int>(out->rows));
-  if (out->frames > 1) image->SetDimension(2, static_cast<unsigned int>(out->frames));
-  image->SetPixelFormat(gdcm::PixelFormat(1, static_cast<unsigned short>(out->bits_allocated),
-                                          static_cast<unsigned short>(out->bits_stored),
-                                          static_cast<unsigned short>(out->high_bit),
-                                          out->is_signed ? 1 : 0));
-  image->SetPhotometricInterpretation(pi);
-  image->SetTransferSyntax(ts);
-  image->SetDataElement(pixel_element);
-  if (image->GetBufferLength() != expected) {
-    return Status::Error(path + ": the decoded pixel data would have " +
-                         std::to_string(image->GetBufferLength()) + " bytes, expected " +
-                         std::to_string(expected) + " (" + size_text + ")");
-  }
   DecodeRequest request;
   request.rows = out->rows;
   request.columns = out->columns;
@@ -455,6 +444,11 @@ Status ReadDicomImage(const std::string& path,
   request.photometric = static_cast<int32_t>(pi);
   request.transfer_syntax = static_cast<int32_t>(static_cast<gdcm::TransferSyntax::TSType>(ts));
   request.expected = expected;
+  const size_t length = ImageFor(request, pixel_element)->GetBufferLength();
+  if (length != expected) {
+    return Status::Error(path + ": the decoded pixel data would have " + std::to_string(length) +
+                         " bytes, expected " + std::to_string(expected) + " (" + size_text + ")");
+  }
   const std::string why = TheDecoder().Decode(path, request, &out->pixels);
   if (!why.empty()) {
     return Status::Error(path + ": " + why + " (transfer syntax " +

@@ -45,7 +45,7 @@ class DicomWalker {
       // its own (e.g. big endian for a tag (ffff,0000)), which this walk cannot follow: an OOM in
       // fuzz_dicom_xray.
       if (preamble && (d_.size() < 140 || U16(132) != 0x0002))
-        return At(132, "no file meta group after the preamble (expected a (0002,xxxx) element)");
+        return At(132, "no file meta group after the preamble (expected an element of group 0002)");
       std::string ts;
       bool has_ts = false;
       while (pos + 8 <= d_.size() && U16(pos) == 0x0002) {
@@ -192,7 +192,8 @@ class DicomWalker {
   // Walks the elements of a data set or of a sequence item (see Scope). GDCM aborts on
   // assertions where an item or delimiter stands outside its place, or where a defined-length
   // sequence or item does not add up (DataSet::ReadWithLength; found by fuzz_dicom_xray), so
-  // sequences of defined length are walked too, and every (fffe,xxxx) element is checked.
+  // sequences of defined length are walked too, and every item or delimiter (group fffe) is
+  // checked.
   bool Walk(size_t* pos, size_t end, bool explicit_vr, Scope scope, int depth) {
     if (depth > 32) {
       At(*pos, "sequences nested too deeply");
