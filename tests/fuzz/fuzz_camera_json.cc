@@ -1,9 +1,13 @@
-// libFuzzer harness: carmba::ReadCameraJson / CameraFromJson (camera/camera.h): camera.json.
-#include "fuzz_util.h"
+// libFuzzer harness: the camera readers of JSON files. carmba::ReadCameraJson / CameraFromJson
+// (camera/camera.h): camera.json; carmba::ReadGeometryJson (export/view_geometry.h): the
+// geometry.json that carmba export-geometry reads (a camera and a pose per view, P checked).
 #include "camera/camera.h"
+#include "export/view_geometry.h"
+#include "fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = carmba::fuzz::WriteInput("camera.json", data, size);
   (void)carmba::ReadCameraJson(path);
+  (void)carmba::ReadGeometryJson(path);
   return 0;
 }
