@@ -73,7 +73,8 @@ class TempDir {
   std::filesystem::path path_;
 };
 
-// The text of a file ("" if unreadable) and a JSON file parsed.
+// The text of a file ("" if unreadable) and a JSON file parsed (a discarded value, not an
+// exception, when it is missing or malformed: check is_object()).
 inline std::string ReadTextFile(const std::string& path) {
   std::ifstream in(path);
   std::stringstream ss;
@@ -81,7 +82,7 @@ inline std::string ReadTextFile(const std::string& path) {
   return ss.str();
 }
 inline nlohmann::json ReadJsonFile(const std::string& path) {
-  return nlohmann::json::parse(ReadTextFile(path));
+  return nlohmann::json::parse(ReadTextFile(path), nullptr, /*allow_exceptions=*/false);
 }
 
 // `carmba simulate` of a shipped joint scene (configs/scenes/NAME) into `scene`, then its CT

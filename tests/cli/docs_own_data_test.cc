@@ -22,11 +22,6 @@ using test::JoinSet;
 
 const std::string kSrc = CARMBA_SOURCE_DIR;
 
-nlohmann::json ReadJson(const std::string& path) {
-  std::ifstream in(path);
-  return nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
-}
-
 // The marker design of the simulated object: data/thesis/markers_table_5_1.csv's object frame.
 std::string MarkerDesignCsv() {
   std::ifstream in(kSrc + "/data/thesis/markers_table_5_1.csv");
@@ -90,7 +85,7 @@ TEST(DocsOwnData, WalkThroughRunsOnSimulatedData) {
       {"json-geometry", "out/pose/geometry.json"}};
   for (const auto& [kind, file] : outputs) {
     SCOPED_TRACE(file + " against formats.md table " + kind);
-    const nlohmann::json j = ReadJson(dir.File(file));
+    const nlohmann::json j = test::ReadJsonFile(dir.File(file));
     ASSERT_TRUE(j.is_object()) << "not a JSON object";
     ASSERT_TRUE(formats.tables.count(kind));
     const auto& rows = formats.tables.at(kind);
@@ -105,9 +100,9 @@ TEST(DocsOwnData, WalkThroughRunsOnSimulatedData) {
 
   // The answers: intrinsics within 4 sigma of the simulation's truth, every object pose with
   // positive finite sigmas, an error budget.
-  const nlohmann::json truth = ReadJson(dir.File("mydata/truth.json"));
-  const nlohmann::json joint = ReadJson(dir.File("out/joint/result.json"));
-  const nlohmann::json camera = ReadJson(dir.File("out/calib/camera.json"));
+  const nlohmann::json truth = test::ReadJsonFile(dir.File("mydata/truth.json"));
+  const nlohmann::json joint = test::ReadJsonFile(dir.File("out/joint/result.json"));
+  const nlohmann::json camera = test::ReadJsonFile(dir.File("out/calib/camera.json"));
   constexpr double kSigmas = 4;  // a correct 1-sigma is exceeded by 4 with probability 6e-5
   for (const char* p : {"fx", "fy", "cx", "cy"}) {
     const double t = truth.at("camera").at(p).get<double>();
@@ -118,7 +113,7 @@ TEST(DocsOwnData, WalkThroughRunsOnSimulatedData) {
     const double cs = camera.at("sigmas").at(p).get<double>();
     EXPECT_LT(std::abs(cv - t), kSigmas * cs) << "calibrate " << p;
   }
-  const nlohmann::json pose = ReadJson(dir.File("out/pose/result.json"));
+  const nlohmann::json pose = test::ReadJsonFile(dir.File("out/pose/result.json"));
   EXPECT_EQ(pose.at("views").size(), truth.at("object_views").size());
   for (const auto& v : pose.at("views")) {
     for (const auto& s : v.at("sigma_translation_mm")) {

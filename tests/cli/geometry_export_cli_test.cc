@@ -20,10 +20,6 @@ namespace {
 
 const std::string kSource = CARMBA_SOURCE_DIR;
 
-nlohmann::json ReadJsonFile(const std::string& path) {
-  return nlohmann::json::parse(*ReadFile(path));
-}
-
 TEST(GeometryCli, PoseSolveWritesTheProjectionMatricesOfItsPoses) {
   TempDir out;
   const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" +
