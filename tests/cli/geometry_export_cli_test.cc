@@ -13,7 +13,6 @@
 #include "export/view_geometry.h"
 #include "geometry/rotation.h"
 #include "io/dicom_xray.h"
-#include "util/file_util.h"
 
 namespace carmba::test {
 namespace {
