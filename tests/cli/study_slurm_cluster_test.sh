@@ -136,6 +136,16 @@ EOF
 # Field NAME=value of `scontrol show job JOB`.
 job_field() { scontrol -o show job "$1" 2> /dev/null | tr ' ' '\n' | sed -n "s/^$2=//p" | head -n 1; }
 no_jobs_left() { [[ -z "$(squeue -h -o %i 2> /dev/null)" ]]; }
+# Until no job is left or the merge job (in submit output $1) can never start.
+merge_done_or_blocked() {
+  no_jobs_left || [[ "$(squeue -h -j "$(merge_id_of "$1")" -o %r 2> /dev/null)" == DependencyNeverSatisfied ]]
+}
+# Fails with the shards' logs when a merge job (in submit output $1) can never start.
+check_merge_not_blocked() {
+  if ! no_jobs_left; then
+    fail "a shard failed, the merge is blocked; shard logs: $(cat "$2"/logs/shard-*.out)"
+  fi
+}
 # The array job id printed by slurm_study.sh ("submitted array job N (...)").
 array_id_of() { sed -n 's/^submitted array job \([0-9]*\).*/\1/p' "$1"; }
 merge_id_of() { sed -n 's/^submitted merge job \([0-9]*\).*/\1/p' "$1"; }
@@ -160,11 +170,13 @@ SIM="{camera: $SRC/data/thesis/camera.json, markers: thesis}"
 
 check_shards_merge_to_the_whole_study() {
   write_study whole 4 "  - {name: sim, synthetic: $SIM}
-  - {name: sim_few_views, synthetic: {camera: $SRC/data/thesis/camera.json, markers: thesis, view_angles_deg: [0, 20, 45]}}"
+  - {name: sim_few_views, synthetic: {camera: $SRC/data/thesis/camera.json, markers: thesis, view_angles_deg: [0, 20, 45], pairs: [[0, 2]]}}"
   CPUS_PER_TASK=1 TIME_PER_TASK=00:05:00 bash "$SRC/scripts/slurm_study.sh" "$D/whole.yaml" \
     "$D/out" 3 > "$D/submit.txt"
   cat "$D/submit.txt"
-  TIMEOUT=120 wait_for no_jobs_left || fail "the shards and the merge did not finish in 120 s"
+  TIMEOUT=120 wait_for merge_done_or_blocked "$D/submit.txt" ||
+    fail "the shards and the merge did not finish in 120 s"
+  check_merge_not_blocked "$D/submit.txt" "$D/out"
   local array
   array=$(array_id_of "$D/submit.txt")
   for k in 1 2 3; do
@@ -237,7 +249,9 @@ check_requeued_shard_resumes() {
   log "3. shard 1 requeued after $before of $RQ_SHARD_RUNS runs; pending with reason" \
     "$(squeue -h -j "${array}_1" -o %r), start time $(squeue -h -j "${array}_1" -o %S); released now"
   scontrol update JobId="${array}_1" StartTime=now
-  TIMEOUT=120 wait_for no_jobs_left || fail "the requeued study did not finish in 120 s"
+  TIMEOUT=120 wait_for merge_done_or_blocked "$D/submit_requeue.txt" ||
+    fail "the requeued study did not finish in 120 s"
+  check_merge_not_blocked "$D/submit_requeue.txt" "$D/rq"
   log "   requeued shard and merge finished $((SECONDS - t_requeue)) s after the requeue"
   [[ "$(job_field "${array}_1" Restarts)" == 1 ]] ||
     fail "shard 1: Restarts=$(job_field "${array}_1" Restarts), expected 1"
