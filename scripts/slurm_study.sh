@@ -20,7 +20,9 @@
 #      recorded in OUT_DIR/shard-K/runs.jsonl instead of starting over; its log
 #      OUT_DIR/logs/shard-K.out is appended to (--open-mode=append), one "attempt" line per
 #      start. Slurm holds a requeued job for about two minutes before it may start again
-#      (reason BeginTime); `scontrol update JobId=<job>_<K> StartTime=now` releases it at once.
+#      (reason BeginTime); `scontrol update JobId=<job>_<K> StartTime=now` releases it at once
+#      (wait a second or two after the requeue: a restart within the second of the kill is
+#      refused by slurmd, "Job credential revoked", and the task fails).
 #      A task that failed can be re-submitted alone with  sbatch --array=K ... and resumes the
 #      same way.
 #   2. a merge job with --dependency=afterok:<array job id> running

@@ -15,7 +15,7 @@
 # Exit codes: 0 passed, 1 failed, 77 skipped (the Slurm or munge packages are not installed).
 set -euo pipefail
 
-CARMBA="$1"
+export CARMBA="$1"  # scripts/slurm_study.sh and its array tasks run it
 SRC="$2"
 SKIP=77
 
@@ -248,6 +248,10 @@ check_requeued_shard_resumes() {
   TIMEOUT=30 wait_for requeue_held || fail "requeued shard 1 is not pending"
   log "3. shard 1 requeued after $before of $RQ_SHARD_RUNS runs; pending with reason" \
     "$(squeue -h -j "${array}_1" -o %r), start time $(squeue -h -j "${array}_1" -o %S); released now"
+  # slurmd revokes the killed attempt's credential; a new one issued within the same second
+  # counts as revoked too ("Job credential revoked": the task then fails). Released 2 s after
+  # the requeue, the task starts.
+  while ((SECONDS < t_requeue + 2)); do sleep 0.2; done
   scontrol update JobId="${array}_1" StartTime=now
   TIMEOUT=120 wait_for merge_done_or_blocked "$D/submit_requeue.txt" ||
     fail "the requeued study did not finish in 120 s"
