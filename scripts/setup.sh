@@ -35,6 +35,12 @@ fi
 if [[ "${CARMBA_WITH_BROWSER:-1}" == 1 ]]; then
   PKGS+=(chromium)
 fi
+# A single-node Slurm cluster (slurmctld, slurmd, munge; daemons started by the test itself, not
+# by systemd) for the test of scripts/slurm_study.sh on real Slurm
+# (tests/cli/study_slurm_cluster_test.sh); it skips without them. CARMBA_WITH_SLURM=0 leaves it out.
+if [[ "${CARMBA_WITH_SLURM:-1}" == 1 ]]; then
+  PKGS+=(slurmctld slurmd slurm-client munge)
+fi
 
 missing=()
 for p in "${PKGS[@]}"; do

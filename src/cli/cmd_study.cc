@@ -2,7 +2,9 @@
 // configurations x sweep points x seeded trials, in parallel, recording every finished run in
 // --out/runs.jsonl at once; then summary.csv, summary.md, timing.csv and report.html
 // (study/runner.h, study/pose_study.h). Failed runs are recorded with their reason and the study
-// goes on; the exit code is 0 when the study itself ran (a warning line counts failed runs).
+// goes on; at the end it exits 1 (a data failure) when more runs failed than allowed
+// (--allow-failures, or the study's allow_failures; default none), saying how many failed and
+// the most frequent reasons, so a Slurm array task of a failing shard fails too.
 #include <gflags/gflags.h>
 #include <unistd.h>
 
@@ -14,10 +16,13 @@
 #include "study/pose_study.h"
 #include "study/runner.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 
 DEFINE_string(study, "", "Study YAML (configs/studies/NAME.yaml): problems, configs, sweeps, "
                          "trials, base_seed.");
 DEFINE_bool(resume, false, "Continue the study in --out: skip the runs already in runs.jsonl.");
+DEFINE_double(allow_failures, 0, "Share of the runs that may fail (0..1) before the study exits "
+                                  "1; overrides the study's allow_failures. Default: none.");
 DEFINE_string(shard, "1/1", "Run shard K/N of the runs only (e.g. 3/8; a Slurm array task runs "
                             "one shard); combine with 'carmba study-merge'.");
 
@@ -52,6 +57,13 @@ int RunStudyCommand() {
   if (!options.Check(&error)) return cli::Fail("study", "--" + error);
   StatusOr<StudySpec> spec = LoadStudySpec(FLAGS_study);
   if (!spec.ok()) return cli::Fail("study", spec.status());
+  const bool allow_flag = !gflags::GetCommandLineFlagInfoOrDie("allow_failures").is_default;
+  if (allow_flag && !InRange(FLAGS_allow_failures, kFailureFraction)) {
+    return cli::Fail("study", "--allow-failures: expected a fraction " +
+                                  FormatRange(kFailureFraction) + ", got " +
+                                  FormatCompact(FLAGS_allow_failures));
+  }
+  const double allowed = allow_flag ? FLAGS_allow_failures : spec->allow_failures;
   StudyRunStats stats;
   s = RunStudy(*spec, PoseStudyRunFunction(), options, &stats);
   if (!s.ok()) return cli::Fail("study", s);
@@ -72,10 +84,13 @@ int RunStudyCommand() {
     std::cerr << "carmba study: warning: dropped " << stats.dropped_lines
               << " partial or duplicate lines of runs.jsonl (their runs ran again)" << std::endl;
   }
+  if (const Status failures = CheckFailures(stats, allowed, FLAGS_out); !failures.ok()) {
+    return cli::Fail("study", failures);
+  }
   if (stats.failed_total > 0) {
-    std::cerr << "carmba study: warning: " << stats.failed_total
-              << " runs failed; their reasons are in " << JoinPath(FLAGS_out, "summary.md")
-              << " (section Failures)" << std::endl;
+    std::cerr << "carmba study: warning: " << DescribeFailures(stats) << " (allowed: "
+              << FormatCompact(allowed) << " of the runs; every reason in "
+              << JoinPath(FLAGS_out, "summary.md") << ", section Failures)" << std::endl;
   }
   return 0;
 }

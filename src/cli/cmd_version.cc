@@ -6,10 +6,11 @@
 #include <iostream>
 
 #include "cli/command.h"
+#include "util/version.h"
 
 namespace {
 int RunVersion() {
-  std::cout << "carmba 0.1.0 (Ceres " << CERES_VERSION_STRING << ", Eigen " << EIGEN_WORLD_VERSION
+  std::cout << "carmba " << carmba::kCarmbaVersion << " (Ceres " << CERES_VERSION_STRING << ", Eigen " << EIGEN_WORLD_VERSION
             << "." << EIGEN_MAJOR_VERSION << "." << EIGEN_MINOR_VERSION << ", OpenCV "
             << CV_VERSION << ")\n";
   return 0;

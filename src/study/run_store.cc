@@ -153,12 +153,12 @@ void SortRecords(std::vector<RunRecord>* records) {
 
 nlohmann::json StudyInfoJson(const StudySpec& spec,
                              const std::vector<RunSpec>& all_runs,
+                             const std::vector<StudyInput>& inputs,
                              int shard_k,
                              int shard_n) {
-  nlohmann::json j;
+  nlohmann::json j = StudyIdentityJson(spec, all_runs, inputs);
   j["name"] = spec.name;
   j["study_file"] = spec.path;
-  j["fingerprint"] = StudyFingerprint(all_runs);
   j["runs_total"] = all_runs.size();
   j["trials"] = spec.trials;
   j["base_seed"] = spec.base_seed;

@@ -29,6 +29,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "study/study_inputs.h"
 #include "study/study_spec.h"
 #include "util/status.h"
 
@@ -82,10 +83,13 @@ class RunLogWriter {
 // Sorts by enumeration index (then key).
 void SortRecords(std::vector<RunRecord>* records);
 
-// DIR/study.json: {"name", "study_file", "fingerprint", "runs_total", "shard": "K/N",
-//                  "sweeps": [names], "problems": [names], "configs": [names]}.
+// DIR/study.json: {"name", "study_file", "runs_total", "shard": "K/N", "sweeps": [names],
+//                  "problems": [names], "configs": [names]} and the study's identity
+//                  (study/study_inputs.h): "fingerprint", "carmba_version", "runs_hash",
+//                  "entries_hash", "inputs": [{"path", "hash", "used_by"}].
 nlohmann::json StudyInfoJson(const StudySpec& spec,
                              const std::vector<RunSpec>& all_runs,
+                             const std::vector<StudyInput>& inputs,
                              int shard_k,
                              int shard_n);
 

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "report/plots.h"
+#include "study/study_inputs.h"
 #include "study/summary.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -78,6 +79,27 @@ StatusOr<nlohmann::json> ReadStudyInfo(const std::string& dir) {
   return j;
 }
 
+// The distinct errors of the failed runs, most frequent first (ties: the earliest run first).
+std::vector<FailureReason> CountFailureReasons(const std::vector<RunRecord>& sorted_records,
+                                               int* failed) {
+  std::vector<FailureReason> reasons;
+  *failed = 0;
+  for (const auto& r : sorted_records) {
+    if (r.ok) continue;
+    ++*failed;
+    auto it = std::find_if(reasons.begin(), reasons.end(),
+                           [&](const FailureReason& f) { return f.error == r.error; });
+    if (it == reasons.end()) {
+      reasons.push_back(FailureReason{r.error, 1});
+    } else {
+      ++it->count;
+    }
+  }
+  std::stable_sort(reasons.begin(), reasons.end(),
+                   [](const FailureReason& a, const FailureReason& b) { return a.count > b.count; });
+  return reasons;
+}
+
 }  // namespace
 
 bool StudyRunOptions::Check(std::string* error) const {
@@ -116,7 +138,8 @@ Status RunStudy(const StudySpec& spec,
   const std::vector<RunSpec> all_runs = EnumerateRuns(spec);
   const std::vector<RunSpec> runs = ShardRuns(all_runs, options.shard_k, options.shard_n);
   st.runs_in_shard = static_cast<int>(runs.size());
-  const nlohmann::json info = StudyInfoJson(spec, all_runs, options.shard_k, options.shard_n);
+  const nlohmann::json info =
+      StudyInfoJson(spec, all_runs, StudyInputFiles(spec), options.shard_k, options.shard_n);
   const std::string& dir = options.out_dir;
   const std::string log_path = JoinPath(dir, "runs.jsonl");
   const std::string info_path = JoinPath(dir, "study.json");
@@ -138,14 +161,17 @@ Status RunStudy(const StudySpec& spec,
   if (options.resume && FileExists(info_path)) {
     StatusOr<nlohmann::json> old = ReadStudyInfo(dir);
     if (!old.ok()) return old.status();
-    if ((*old)["fingerprint"] != info["fingerprint"] ||
-        old->value("shard", std::string()) != info["shard"].get<std::string>()) {
-      return Status::Error(info_path + ": the directory holds study '" +
-                           old->value("name", std::string("?")) + "' fingerprint " +
-                           (*old)["fingerprint"].get<std::string>() + " shard " +
-                           old->value("shard", std::string("?")) + ", not '" + spec.name +
-                           "' fingerprint " + info["fingerprint"].get<std::string>() + " shard " +
-                           info["shard"].get<std::string>() + "; expected the same study");
+    const std::string changed = DescribeStudyChange(*old, info);
+    if (!changed.empty()) {
+      return Status::Error(info_path + ": the study changed since these runs were recorded: " +
+                           changed + "; expected the same study to resume (--force starts it "
+                           "over, or choose a new --out)");
+    }
+    if (old->value("shard", std::string()) != info["shard"].get<std::string>()) {
+      return Status::Error(info_path + ": the directory holds shard " +
+                           old->value("shard", std::string("?")) + " of study '" +
+                           old->value("name", std::string("?")) + "', not shard " +
+                           info["shard"].get<std::string>() + "; expected the same shard");
     }
   }
   // Keep only records of this shard's runs; anything else means a different study.
@@ -223,10 +249,40 @@ Status RunStudy(const StudySpec& spec,
   CARMBA_RETURN_IF_ERROR(
       WriteStudyOutputs(dir, options.write_report, st.wall_s, jobs, &st.report_warning));
   StatusOr<std::vector<RunRecord>> final_records = ReadRunLog(log_path, nullptr, nullptr);
-  if (final_records.ok()) {
-    for (const auto& r : *final_records) st.failed_total += r.ok ? 0 : 1;
-  }
+  if (!final_records.ok()) return final_records.status();
+  std::vector<RunRecord> sorted = std::move(final_records).value();
+  SortRecords(&sorted);
+  st.failure_reasons = CountFailureReasons(sorted, &st.failed_total);
   return Status::Ok();
+}
+
+std::string DescribeFailures(const StudyRunStats& stats, size_t max_reasons) {
+  if (stats.failed_total == 0) return "";
+  std::string s = std::to_string(stats.failed_total) + " of " +
+                  std::to_string(stats.runs_in_shard) + " runs failed: ";
+  const size_t shown = std::min(max_reasons, stats.failure_reasons.size());
+  for (size_t i = 0; i < shown; ++i) {
+    const FailureReason& f = stats.failure_reasons[i];
+    std::string error = f.error;
+    if (error.size() > 300) error = error.substr(0, 297) + "...";
+    s += (i ? "; '" : "'") + error + "' (" + std::to_string(f.count) +
+         (f.count == 1 ? " run)" : " runs)");
+  }
+  if (stats.failure_reasons.size() > shown) {
+    s += "; and " + std::to_string(stats.failure_reasons.size() - shown) + " more reasons";
+  }
+  return s;
+}
+
+Status CheckFailures(const StudyRunStats& stats, double allowed_fraction, const std::string& dir) {
+  if (stats.failed_total <= allowed_fraction * stats.runs_in_shard) return Status::Ok();
+  std::string allowed = "no failed run allowed";
+  if (allowed_fraction > 0) {
+    allowed = "allowed: " + FormatCompact(allowed_fraction) + " of the runs";
+  }
+  return Status::Error(DescribeFailures(stats) + " (" + allowed +
+                       ", --allow-failures or the study's allow_failures; every reason in " +
+                       JoinPath(dir, "summary.md") + ", section Failures)");
 }
 
 Status WriteStudyOutputs(const std::string& dir,
@@ -243,8 +299,9 @@ Status WriteStudyOutputs(const std::string& dir,
   const std::vector<GroupSummary> groups = Summarize(std::move(records).value());
   // Build everything first, then write: an error leaves no new file behind.
   const std::string csv = SummaryCsv(groups);
-  const ReportDoc doc = SummaryDoc(*info, groups, wall_s, jobs);
+  ReportDoc doc = SummaryDoc(*info, groups);
   const std::string md = doc.Markdown();
+  AddTimingSection(*info, groups, wall_s, jobs, &doc);
   const std::string timing = TimingCsv(groups);
   std::string html;
   if (write_report) {
@@ -283,12 +340,10 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
     if (!shard_info.ok()) return shard_info.status();
     if (info.is_null()) {
       info = *shard_info;
-    } else if ((*shard_info)["fingerprint"] != info["fingerprint"]) {
-      return Status::Error(JoinPath(dir, "study.json") + ": fingerprint " +
-                           (*shard_info)["fingerprint"].get<std::string>() + " of study '" +
-                           shard_info->value("name", std::string("?")) + "' differs from " +
-                           info["fingerprint"].get<std::string>() + " of " + shard_dirs[0] +
-                           "; expected shards of one study");
+    } else if (const std::string changed = DescribeStudyChange(info, *shard_info);
+               !changed.empty()) {
+      return Status::Error(JoinPath(dir, "study.json") + ": not the study of " + shard_dirs[0] +
+                           ": " + changed + "; expected shards of one study");
     }
     int bad = 0, dup = 0;
     StatusOr<std::vector<RunRecord>> records =

@@ -22,6 +22,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -48,12 +49,20 @@ struct StudyRunOptions {
   bool Check(std::string* error) const;
 };
 
+// One distinct reason of failed runs and how many runs failed with it.
+struct FailureReason {
+  std::string error;
+  int count = 0;
+};
+
 struct StudyRunStats {
   int runs_in_shard = 0;    // runs this invocation is responsible for
   int skipped = 0;          // already recorded (resume)
   int executed = 0;         // run now
   int failed = 0;           // of those executed
   int failed_total = 0;     // failed runs in runs.jsonl at the end
+  // The distinct reasons of those, most frequent first (ties: the earliest run first).
+  std::vector<FailureReason> failure_reasons;
   int dropped_lines = 0;    // partial or duplicate lines removed on resume
   int jobs = 0;
   double wall_s = 0;        // wall time of the execution phase
@@ -65,6 +74,14 @@ struct StudyRunStats {
   // Non-empty when report.html was written without (some) plots: why (report/plots.h).
   std::string report_warning;
 };
+
+// "12 of 240 runs failed: 'p.yaml: cannot open' (10 runs); 'k: bad' (2 runs)", with the first
+// `max_reasons` distinct reasons (and how many more there are); "" when no run failed.
+std::string DescribeFailures(const StudyRunStats& stats, size_t max_reasons = 3);
+
+// Error (DescribeFailures, then where all reasons are: DIR/summary.md) when the failed runs are
+// more than `allowed_fraction` (0..1) of the runs in the shard: a study that exits 0 succeeded.
+Status CheckFailures(const StudyRunStats& stats, double allowed_fraction, const std::string& dir);
 
 Status RunStudy(const StudySpec& spec,
                 const RunFunction& run,

@@ -1,6 +1,5 @@
 #include "study/study_spec.h"
 
-#include <cinttypes>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -73,6 +72,10 @@ bool StudySpec::Check(std::string* error) const {
     return false;
   };
   if (trials < 1) return fail("key 'trials': expected an integer >= 1");
+  if (!InRange(allow_failures, kFailureFraction)) {
+    return fail("key 'allow_failures': expected a fraction " +
+                FormatRange(kFailureFraction) + ", got " + FormatCompact(allow_failures));
+  }
   if (problems.empty()) return fail("key 'problems': expected at least one problem");
   if (configs.empty()) return fail("key 'configs': expected at least one config");
   std::set<std::string> names;
@@ -118,31 +121,35 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
   StudySpec spec;
   spec.path = path;
   spec.name = BaseNameNoExt(path);
-  if (m.Has("name")) m.Get("name", &spec.name);
+  // Optional keys are read with Get (absent: left untouched), never behind Has(): Has() does not
+  // make a key known, so a misspelt key's message would leave it out of the known keys.
+  m.Get("name", &spec.name);
   m.Get("trials", &spec.trials, /*required=*/true);
   int base_seed = 0;
-  if (m.Has("base_seed")) m.Get("base_seed", &base_seed);
+  m.Get("base_seed", &base_seed);
   if (base_seed < 0) m.Fail("base_seed", "expected a non-negative integer");
   spec.base_seed = static_cast<uint64_t>(base_seed);
+  m.GetInRange("allow_failures", &spec.allow_failures, kFailureFraction);
   const std::string dir = DirName(path);
   for (YamlMap* p : m.MapList("problems", /*required=*/true)) {
     StudyProblem problem;
     p->Get("name", &problem.name, /*required=*/true);
     std::string file;
-    if (p->Has("file")) p->Get("file", &file);
+    p->Get("file", &file);
     if (!file.empty()) problem.file = JoinPath(dir, file);
-    if (p->Has("synthetic")) {
-      problem.synthetic = YamlToJson(p->Raw("synthetic"));
+    if (const YAML::Node synthetic = p->Raw("synthetic"); synthetic && !synthetic.IsNull()) {
+      problem.synthetic = YamlToJson(synthetic);
       if (!problem.synthetic.is_object()) p->Fail("synthetic", "expected a mapping");
     }
-    if (p->Has("options")) {
-      problem.options = YamlToJson(p->Raw("options"));
+    if (const YAML::Node options = p->Raw("options"); options && !options.IsNull()) {
+      problem.options = YamlToJson(options);
       if (!problem.options.is_object()) p->Fail("options", "expected a mapping");
     }
     problem.base_dir = dir;
-    if (p->Has("trials")) {
-      p->Get("trials", &problem.trials);
-      if (p->status().ok() && problem.trials < 1) p->Fail("trials", "expected an integer >= 1");
+    const bool has_trials = p->Has("trials");
+    p->Get("trials", &problem.trials);
+    if (has_trials && p->status().ok() && problem.trials < 1) {
+      p->Fail("trials", "expected an integer >= 1");
     }
     spec.problems.push_back(std::move(problem));
   }
@@ -152,14 +159,13 @@ StatusOr<StudySpec> LoadStudySpec(const std::string& path) {
     std::string file;
     c->Get("file", &file, /*required=*/true);
     if (!file.empty()) config.file = JoinPath(dir, file);
-    if (c->Has("options")) {
-      config.options = YamlToJson(c->Raw("options"));
+    if (const YAML::Node options = c->Raw("options"); options && !options.IsNull()) {
+      config.options = YamlToJson(options);
       if (!config.options.is_object()) c->Fail("options", "expected a mapping");
     }
     spec.configs.push_back(std::move(config));
   }
-  if (m.Has("sweeps")) {
-    YAML::Node sweeps = m.Raw("sweeps");
+  if (const YAML::Node sweeps = m.Raw("sweeps"); sweeps && !sweeps.IsNull()) {
     if (!sweeps.IsMap()) {
       m.Fail("sweeps", "expected a mapping of variable names to lists of numbers");
     } else {
@@ -266,14 +272,6 @@ std::vector<RunSpec> EnumerateRuns(const StudySpec& spec) {
     }
   }
   return runs;
-}
-
-std::string StudyFingerprint(const std::vector<RunSpec>& runs) {
-  std::string all;
-  for (const auto& r : runs) all += r.key + "#" + std::to_string(r.seed) + "\n";
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%016" PRIx64, Fnv1a64(all));
-  return std::string(buf) + "-" + std::to_string(runs.size());
 }
 
 std::vector<RunSpec> ShardRuns(const std::vector<RunSpec>& runs, int k, int n) {

@@ -6,6 +6,8 @@
 //   name: noise_sweep                # optional, defaults to the file's base name
 //   trials: 20                       # Monte Carlo trials per (problem, config, sweep point), >= 1
 //   base_seed: 1                     # non-negative integer
+//   allow_failures: 0.05             # optional: share of runs that may fail (default 0: any
+//                                    # failed run makes `carmba study` exit 1)
 //   problems:                        # >= 1 entries, unique names
 //     - name: thesis_table_5_2
 //       file: ../../problems/thesis_table_5_2.yaml    # relative to the study file
@@ -39,9 +41,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include "util/plausible.h"
 #include "util/status.h"
 
 namespace carmba {
+
+// The share of a study's runs allowed to fail (`allow_failures`, --allow-failures): a fraction,
+// 0 (any failed run fails the study) .. 1 (failures never do). (Not a plausibility bound of a
+// measurement, so not in util/plausible.h.)
+inline constexpr PlausibleRange kFailureFraction{0, 1, ""};
 
 struct StudyProblem {
   std::string name;
@@ -70,6 +78,7 @@ struct StudySpec {
   std::string path;  // the study file, for messages
   int trials = 1;
   uint64_t base_seed = 0;
+  double allow_failures = 0;  // share of runs that may fail before the study fails (0..1)
   std::vector<StudyProblem> problems;
   std::vector<StudyConfig> configs;
   std::vector<StudySweep> sweeps;
@@ -115,10 +124,6 @@ uint64_t DeriveSeed(uint64_t base_seed, const std::string& data_key);
 
 // 64-bit FNV-1a, for fingerprints and seeds.
 uint64_t Fnv1a64(const std::string& s);
-
-// A fingerprint of the run list (keys and seeds), written to DIR/study.json: resume and merge
-// refuse directories whose study differs.
-std::string StudyFingerprint(const std::vector<RunSpec>& runs);
 
 // The runs of shard `k` of `n` (1 <= k <= n): those whose enumeration index i has i % n == k - 1.
 // The shards partition the runs and interleave the groups, so each shard takes a similar load.

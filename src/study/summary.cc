@@ -276,10 +276,7 @@ std::string TimingCsv(const std::vector<GroupSummary>& groups) {
   return out.str();
 }
 
-ReportDoc SummaryDoc(const nlohmann::json& info,
-                     const std::vector<GroupSummary>& groups,
-                     double wall_s,
-                     int jobs) {
+ReportDoc SummaryDoc(const nlohmann::json& info, const std::vector<GroupSummary>& groups) {
   const std::vector<std::string> sweeps = SweepNames(groups);
   int runs = 0, failed = 0;
   for (const auto& g : groups) {
@@ -411,6 +408,16 @@ ReportDoc SummaryDoc(const nlohmann::json& info,
     d.Table({"problem", "config", "runs failed", "first run", "error"}, rows);
   }
 
+  return d;
+}
+
+void AddTimingSection(const nlohmann::json& info,
+                      const std::vector<GroupSummary>& groups,
+                      double wall_s,
+                      int jobs,
+                      ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const std::vector<std::string> sweeps = SweepNames(groups);
   d.Heading(2, "Timing");
   d.Paragraph("Wall-clock numbers vary between runs and machines; they are excluded from the "
               "reproducibility checks (timing.csv has them per group).");
@@ -427,19 +434,11 @@ ReportDoc SummaryDoc(const nlohmann::json& info,
                     std::to_string(jobs) + " jobs");
   }
   d.List(items);
-  rows.clear();
+  std::vector<std::vector<std::string>> rows;
   for (const auto& g : groups) {
     rows.push_back(GroupRow(g, sweeps, {FormatNumber(g.time_mean_s), FormatNumber(g.time_max_s)}));
   }
   d.Table(GroupHeader(sweeps, {"mean s/run", "max s/run"}), rows);
-  return d;
-}
-
-std::string SummaryMarkdown(const nlohmann::json& info,
-                            const std::vector<GroupSummary>& groups,
-                            double wall_s,
-                            int jobs) {
-  return SummaryDoc(info, groups, wall_s, jobs).Markdown();
 }
 
 nlohmann::json StudyPlotData(const std::vector<GroupSummary>& groups) {
@@ -486,9 +485,5 @@ nlohmann::json StudyPlotData(const std::vector<GroupSummary>& groups) {
           {"study", {{"problems", problems}, {"configs", configs}, {"groups", gj}}}};
 }
 
-std::string MarkdownWithoutTiming(const std::string& markdown) {
-  const auto pos = markdown.find("\n## Timing");
-  return pos == std::string::npos ? markdown : markdown.substr(0, pos);
-}
 
 }  // namespace carmba

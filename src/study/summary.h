@@ -1,15 +1,13 @@
 // Summaries of a study's runs per problem x config x sweep point: DIR/summary.csv,
 // DIR/summary.md and DIR/timing.csv.
 //
-// Reproducibility contract: summary.csv and summary.md up to the line "## Timing" depend only on
-// the set of run records (sorted by enumeration index, aggregated in that order, numbers printed
-// with %.6g), so they are byte-identical for any --jobs, for a resumed study and for merged
+// Reproducibility contract: summary.csv and summary.md depend only on the set of run records
+// (sorted by enumeration index, aggregated in that order, numbers printed with %.6g), so they are byte-identical for any --jobs, for a resumed study and for merged
 // shards, provided the run function returns the same numbers for the same run. (The pose solver
 // does up to the last bits: Ceres was observed to vary by ~1e-15 relative between identical
 // calls; %.6g hides that except when a number falls exactly on a rounding boundary, a chance of
 // about 1e-9 per printed number.) Wall-clock times vary from run to run; they are kept out of
-// summary.csv (they go to timing.csv) and sit in the last section of summary.md, "## Timing",
-// which the equality tests cut off.
+// both (they go to timing.csv and to the last section of report.html, "Timing").
 //
 // summary.csv is long-format, one row per group and metric:
 //   problem,config,<one column per swept variable>,runs,failed,kind,metric,n,mean,median,rms,
@@ -76,23 +74,19 @@ std::vector<std::string> SweepNames(const std::vector<GroupSummary>& groups);
 
 std::string SummaryCsv(const std::vector<GroupSummary>& groups);
 std::string TimingCsv(const std::vector<GroupSummary>& groups);
-// `info` is DIR/study.json (name, runs_total, shard, fingerprint).
-std::string SummaryMarkdown(const nlohmann::json& info,
-                            const std::vector<GroupSummary>& groups,
-                            double wall_s,
-                            int jobs);
 
 // summary.md and the tables of report.html (report/report_doc.h), and the data of its plots
 // (scripts/report_plots.py: error against each swept variable, reported against empirical sigma,
 // residual histograms, error budgets).
-ReportDoc SummaryDoc(const nlohmann::json& info,
-                     const std::vector<GroupSummary>& groups,
-                     double wall_s,
-                     int jobs);
+// `info` is DIR/study.json (name, runs_total, fingerprint).
+ReportDoc SummaryDoc(const nlohmann::json& info, const std::vector<GroupSummary>& groups);
+// The section "Timing" (report.html only): the shard, the runs' own times and, when `wall_s` and
+// `jobs` are > 0, the invocation's wall time.
+void AddTimingSection(const nlohmann::json& info,
+                      const std::vector<GroupSummary>& groups,
+                      double wall_s,
+                      int jobs,
+                      ReportDoc* doc);
 nlohmann::json StudyPlotData(const std::vector<GroupSummary>& groups);
-
-// The part of summary.md before "## Timing" (what equality tests compare).
-std::string MarkdownWithoutTiming(const std::string& markdown);
-
 
 }  // namespace carmba

@@ -8,6 +8,7 @@
 
 #include "util/csv.h"
 #include "util/file_util.h"
+#include "util/text_match.h"
 
 namespace carmba {
 
@@ -336,9 +337,12 @@ Status YamlMap::Finish() {
       if (!known_.count(k)) {
         std::string list;
         for (const auto& kk : known_) list += (list.empty() ? "" : ", ") + kk;
-        return status_ = Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
-                                       ": unknown key '" + KeyPath(k) + "' (known keys: " + list +
-                                       ")");
+        const std::string closest =
+            ClosestMatch(k, std::vector<std::string>(known_.begin(), known_.end()));
+        return status_ = Status::Error(
+                   file_ + ":" + std::to_string(kv.first.Mark().line + 1) + ": unknown key '" +
+                   KeyPath(k) + "'" + (closest.empty() ? "" : ", did you mean '" + closest + "'?") +
+                   " (known keys: " + list + ")");
       }
     }
   }

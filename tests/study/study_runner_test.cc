@@ -16,6 +16,7 @@
 
 #include "mean_study.h"
 #include "study/runner.h"
+#include "study/study_inputs.h"
 #include "study/summary.h"
 #include "util/file_util.h"
 
@@ -83,9 +84,9 @@ Status RunMean(const StudySpec& spec, const std::string& out, int jobs, bool res
   return RunStudy(spec, testing::MeanRun, o, stats);
 }
 
-// The reproducible part of a study directory's outputs.
+// summary.csv and summary.md, whole: neither holds a wall-clock number (study/summary.h).
 std::string Summaries(const std::string& out) {
-  return Read(out + "/summary.csv") + "\n----\n" + MarkdownWithoutTiming(Read(out + "/summary.md"));
+  return Read(out + "/summary.csv") + "\n----\n" + Read(out + "/summary.md");
 }
 
 std::multiset<std::string> Keys(const std::string& out) {
@@ -120,7 +121,9 @@ TEST(StudySpecTest, LoadsAndEnumeratesDeterministically) {
   EXPECT_NE(runs[0].seed, runs[1].seed);
   // Seeds do not depend on anything but the base seed and the key.
   EXPECT_EQ(EnumerateRuns(f.Spec())[5].seed, runs[5].seed);
-  EXPECT_EQ(StudyFingerprint(EnumerateRuns(f.Spec())), StudyFingerprint(runs));
+  const nlohmann::json identity = StudyIdentityJson(spec, runs, StudyInputFiles(spec));
+  EXPECT_EQ(StudyIdentityJson(f.Spec(), EnumerateRuns(f.Spec()), StudyInputFiles(f.Spec())),
+            identity);
 }
 
 TEST(StudySpecTest, ShardsPartitionTheRuns) {
@@ -273,9 +276,69 @@ TEST(StudyRunnerTest, RefusesToMixStudiesOrOverwrite) {
   // Another study (3 trials) cannot resume this directory, nor can another shard.
   Fixture g(3);
   s = RunMean(g.Spec(), f.dir + "/out", 2, true);
+  EXPECT_NE(s.message().find("the study changed since these runs were recorded: "),
+            std::string::npos)
+      << s.message();
   EXPECT_NE(s.message().find("expected the same study"), std::string::npos) << s.message();
   s = RunMean(f.Spec(), f.dir + "/out", 2, true, 1, 2);
-  EXPECT_NE(s.message().find("expected the same study"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("holds shard 1/1 of study 'mean_study', not shard 1/2"),
+            std::string::npos)
+      << s.message();
+  // The same study with an edited config: refused, naming the file.
+  Write(f.dir + "/c_median.yaml", "estimator: median\nrepeat: 2\n");
+  s = RunMean(f.Spec(), f.dir + "/out", 2, true);
+  EXPECT_NE(s.message().find(f.dir + "/c_median.yaml (config 'median') has different content"),
+            std::string::npos)
+      << s.message();
+}
+
+// The inputs of a study: the entries' files, files named inside YAML files (recursively, relative
+// to the naming file), files named in synthetic mappings; not strings that name nothing.
+TEST(StudyInputsTest, FindsEveryFileTheRunsReadAndNamesWhatChanged) {
+  Fixture f(2);
+  ASSERT_TRUE(MakeDirs(f.dir + "/data/views").ok());
+  Write(f.dir + "/data/markers.csv", "id,x,y,z\n1,0,0,0\n");
+  Write(f.dir + "/data/nested.yaml", "camera: cam.json\n");
+  Write(f.dir + "/data/cam.json", "{}\n");
+  Write(f.dir + "/data/views/a.png", "a");
+  Write(f.dir + "/data/views/b.png", "b");
+  Write(f.dir + "/p_small.yaml", "true_mean: 3.0\nsamples: 20\nmarkers: data/markers.csv\n"
+                                 "more: [data/nested.yaml, not_a_file.csv]\nimages: data/views\n");
+  Write(f.dir + "/scene.yaml", "x: 1\n");
+  std::string study = Read(f.study_path);
+  study.replace(study.find("configs:"), 0,
+                "  - {name: sim, synthetic: {scene: scene.yaml, markers: thesis}}\n");
+  Write(f.study_path, study);
+  const StudySpec spec = f.Spec();
+  std::map<std::string, std::string> used_by;
+  for (const StudyInput& in : StudyInputFiles(spec)) used_by[in.path] = in.used_by;
+  const std::string d = f.dir + "/";
+  std::map<std::string, std::string> expected = {
+      {d + "p_small.yaml", "problem 'small'"},       {d + "data/markers.csv", "problem 'small'"},
+      {d + "data/nested.yaml", "problem 'small'"}, {d + "data/cam.json", "problem 'small'"},
+      {d + "data/views/a.png", "problem 'small'"}, {d + "data/views/b.png", "problem 'small'"},
+      {d + "p_large.yaml", "problem 'large'"},       {d + "scene.yaml", "problem 'sim'"},
+      {d + "c_mean.yaml", "config 'mean'"},          {d + "c_median.yaml", "config 'median'"}};
+  EXPECT_EQ(used_by, expected);
+
+  const std::vector<RunSpec> runs = EnumerateRuns(spec);
+  const nlohmann::json was = StudyIdentityJson(spec, runs, StudyInputFiles(spec));
+  EXPECT_EQ(DescribeStudyChange(was, StudyIdentityJson(spec, runs, StudyInputFiles(spec))), "");
+  Write(f.dir + "/data/views/b.png", "B");
+  nlohmann::json now = StudyIdentityJson(spec, runs, StudyInputFiles(spec));
+  EXPECT_NE(now["fingerprint"], was["fingerprint"]);
+  EXPECT_EQ(DescribeStudyChange(was, now),
+            d + "data/views/b.png (problem 'small') has different content");
+  Write(f.dir + "/data/views/b.png", "b");
+  Write(f.dir + "/data/views/c.png", "c");
+  EXPECT_EQ(DescribeStudyChange(was, StudyIdentityJson(spec, runs, StudyInputFiles(spec))),
+            d + "data/views/c.png (problem 'small') is read now but was not before");
+  ::unlink((f.dir + "/data/views/c.png").c_str());
+  now = StudyIdentityJson(spec, runs, StudyInputFiles(spec));
+  EXPECT_EQ(now["fingerprint"], was["fingerprint"]);
+  now["carmba_version"] = "9.9.9";
+  now["fingerprint"] = "changed";
+  EXPECT_EQ(DescribeStudyChange(was, now), "carmba version 0.1.0 differs from 9.9.9");
 }
 
 // Kills a study running in a child process halfway, then resumes it.
