@@ -10,6 +10,7 @@
 #include "ct/ct_simulate.h"
 #include "ct/ct_volume.h"
 #include "ct/marker_detection.h"
+#include "scratch.h"
 
 namespace {
 
@@ -19,10 +20,10 @@ std::string ScenePath() {
   return std::string(CARMBA_SOURCE_DIR) + "/configs/scenes/thesis_ct.yaml";
 }
 
+// `name` (not created) in this process's scratch directory (removed at exit).
 std::string BenchDir(const char* name) {
-  return (fs::temp_directory_path() /
-          (std::string("carmba_bench_") + name + "_" + std::to_string(::getpid())))
-      .string();
+  static const carmba::test::ScratchDir dir("bench");
+  return dir.File(name);
 }
 
 void BM_CtSimulateThesis512x512x120(benchmark::State& state) {

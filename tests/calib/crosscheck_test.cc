@@ -10,6 +10,7 @@
 
 #include "calib/synthetic_views.h"
 #include "util/file_util.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -46,10 +47,9 @@ TEST_F(CrossCheck, MrcalAgrees) {
   constexpr double kProjectionDiffPx = 0.05;
   constexpr double kSigmaRelTol = 0.10;
   MrcalCrossCheckOptions mo;
-  mo.work_dir = "/tmp/carmba_crosscheck_test." + std::to_string(::getpid());
+  const test::ScratchDir work("crosscheck_test");  // kept with CARMBA_KEEP_TMP set
+  mo.work_dir = work.path();
   auto m = RunMrcalCrossCheck(obs_, result_, {{"truth", kTruth}}, mo);
-  std::error_code ec;
-  if (getenv("CARMBA_KEEP_TMP") == nullptr) std::filesystem::remove_all(mo.work_dir, ec);
   ASSERT_TRUE(m.ok()) << m.status().message();
   const double mrms = (*m)["rms_px"].get<double>();
   EXPECT_NEAR(result_.rms_px / mrms, 1.0, kRmsRelTol);

@@ -63,7 +63,7 @@ class AbsurdInput : public ::testing::Test {
     dir_.Write("bad_obs.csv", obs_csv_text);
     return "calibrate --nomrcal --noopencv --observations " + dir_.File("bad_obs.csv");
   }
-  TempDir dir_;
+  ScratchDir dir_;
   std::string obs_csv_;
 };
 

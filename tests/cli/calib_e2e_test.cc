@@ -6,7 +6,6 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <iostream>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -21,6 +20,7 @@
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "report_browser.h"
+#include "scratch.h"
 
 namespace {
 
@@ -38,8 +38,11 @@ std::string Slurp(const fs::path& p) {
   return ss.str();
 }
 
+// `name` in this process's scratch directory (shared by the tests of one run of the binary, so
+// that a scene is rendered once; removed at exit).
 std::string Tmp(const std::string& name) {
-  return testing::TempDir() + "/carmba_calib_e2e_" + std::to_string(::getpid()) + "_" + name;
+  static const carmba::test::ScratchDir dir("calib_e2e");
+  return dir.File(name);
 }
 
 CliRun Carmba(const std::string& args) {

@@ -31,7 +31,7 @@ class CalibReportSigma : public ::testing::Test {
     return RunCarmba("calibrate --no-mrcal --no-opencv --observations " + dir_.File("obs.csv") +
                      " " + extra + " --out " + dir_.File(out));
   }
-  TempDir dir_;
+  ScratchDir dir_;
 };
 
 TEST_F(CalibReportSigma, CorrelatedIntrinsicsAreWarnedAbout) {

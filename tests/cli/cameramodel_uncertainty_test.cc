@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 constexpr double kSameFormulaRelTol = 1e-6;
 
 TEST(CameraModelUncertainty, MrcalToolsWorkOnTheTopLevelModel) {
-  TempDir dir;
+  ScratchDir dir;
   ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
   const auto r = RunCarmba("calibrate --no-opencv --observations " + dir.File("obs.csv") +
                            " --out " + dir.File("out"));
@@ -86,7 +86,7 @@ print(json.dumps({'max_abs_intrinsics_diff': float(np.max(np.abs(m.intrinsics()[
 
 // Without the cross-check the model is the plain one (no optimization_inputs), full precision.
 TEST(CameraModelUncertainty, WithoutMrcalThePlainModel) {
-  TempDir dir;
+  ScratchDir dir;
   ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
   const auto r = RunCarmba("calibrate --no-mrcal --no-opencv --observations " +
                            dir.File("obs.csv") + " --out " + dir.File("out"));

@@ -15,6 +15,7 @@
 
 #include "calib/synthetic_views.h"
 #include "detect/observations.h"
+#include "scratch.h"
 
 namespace carmba::test {
 
@@ -27,51 +28,24 @@ struct CommandResult {
 // Runs `carmba <args>` (args are passed to the shell as written), capturing stdout and stderr,
 // with `env` ("NAME=value ...", may be empty) added to the environment.
 inline CommandResult RunCarmbaWithEnv(const std::string& env, const std::string& args) {
-  namespace fs = std::filesystem;
-  static int counter = 0;
-  const fs::path tmp = fs::temp_directory_path() /
-                       ("carmba_cli_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-  fs::create_directories(tmp);
+  const ScratchDir tmp("cli_run");
   const std::string cmd = (env.empty() ? "" : "env " + env + " ") + std::string(CARMBA_BIN) +
-                          " " + args + " >" + (tmp / "out").string() +
-                          " 2>" + (tmp / "err").string();
+                          " " + args + " >" + tmp.File("out") + " 2>" + tmp.File("err");
   const int status = std::system(cmd.c_str());
   CommandResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  auto slurp = [](const fs::path& p) {
+  auto slurp = [](const std::string& p) {
     std::ifstream in(p);
     std::stringstream ss;
     ss << in.rdbuf();
     return ss.str();
   };
-  r.out = slurp(tmp / "out");
-  r.err = slurp(tmp / "err");
-  fs::remove_all(tmp);
+  r.out = slurp(tmp.File("out"));
+  r.err = slurp(tmp.File("err"));
   return r;
 }
 
 inline CommandResult RunCarmba(const std::string& args) { return RunCarmbaWithEnv("", args); }
-
-// A fresh temporary directory, removed at destruction.
-class TempDir {
- public:
-  TempDir() {
-    static int counter = 0;
-    path_ = std::filesystem::temp_directory_path() /
-            ("carmba_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() { std::filesystem::remove_all(path_); }
-  std::string path() const { return path_.string(); }
-  std::string File(const std::string& name) const { return (path_ / name).string(); }
-  void Write(const std::string& name, const std::string& text) const {
-    std::ofstream(path_ / name) << text;
-  }
-
- private:
-  std::filesystem::path path_;
-};
 
 // The text of a file ("" if unreadable) and a JSON file parsed (a discarded value, not an
 // exception, when it is missing or malformed: check is_object()).

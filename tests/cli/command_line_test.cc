@@ -82,7 +82,7 @@ TEST(CommandLine, RequiredFlagsAreMarkedAndCheckedFirst) {
   EXPECT_NE(calibrate.find("--config=STRING  (default: none)"), std::string::npos) << calibrate;
   EXPECT_NE(calibrate.find("--out=STRING  (required)"), std::string::npos) << calibrate;
   // A missing required flag: one line naming it, before any work (the problem is never read).
-  TempDir dir;
+  ScratchDir dir;
   auto r = RunCarmba("solve --problem=" + dir.File("no.yaml") + " --out=" + dir.File("o"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "carmba solve: error: --config is required (see 'carmba solve --help')\n");
@@ -114,7 +114,7 @@ class CommandLineCalibrate : public ::testing::Test {
     return "calibrate --observations " + dir_.File("obs.csv") + " " + flags + " --out " +
            dir_.File(out);
   }
-  TempDir dir_;
+  ScratchDir dir_;
 };
 
 // --spacing-mm and --spacing_mm, --no-mrcal / --no_mrcal / --nomrcal, `--flag value` and

@@ -13,6 +13,7 @@
 
 #include "ct/ct_fiducials.h"
 #include "report_browser.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -45,9 +46,7 @@ CmdResult RunCarmba(const std::string& args, const std::string& scratch) {
 class CtFiducialsCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    root_ = (fs::temp_directory_path() / ("carmba_cli_ct_" + std::to_string(::getpid()))).string();
-    fs::remove_all(root_);
-    fs::create_directories(root_);
+    root_ = test::MakeScratchDir("cli_ct");
     const std::string scenes = std::string(CARMBA_SOURCE_DIR) + "/configs/scenes/";
     for (const char* name : {"thesis_ct", "thesis_ct_tilted"}) {
       const CmdResult r = RunCarmba("simulate --scene " + scenes + name + ".yaml --out " + root_ + "/" +

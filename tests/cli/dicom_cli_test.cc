@@ -20,7 +20,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::RunCarmba;
-using test::TempDir;
+using test::ScratchDir;
 
 std::string Slurp(const std::string& p) {
   std::ifstream in(p, std::ios::binary);
@@ -31,7 +31,7 @@ std::string Slurp(const std::string& p) {
 
 // Renders the scene's views (3 x 3 supersampling instead of the scene's 5 x 5: twice as fast, and
 // PNG and DICOM get the same pixels either way) into dir/png/*.png and dir/dcm/run.dcm.
-void RenderBoth(const TempDir& dir) {
+void RenderBoth(const ScratchDir& dir) {
   auto scene = sim::LoadXrayScene(std::string(CARMBA_SOURCE_DIR) +
                                   "/configs/scenes/thesis_calibration.yaml");
   ASSERT_TRUE(scene.ok()) << scene.status().message();
@@ -57,7 +57,7 @@ void RenderBoth(const TempDir& dir) {
 }
 
 TEST(DicomCli, DetectAndCalibrateFromAMultiFrameXaFileAsFromPngs) {
-  TempDir dir;
+  ScratchDir dir;
   RenderBoth(dir);
   if (HasFatalFailure()) return;
   const std::string grid = " --pattern circles --rows 5 --cols 5 --spacing_mm 20";
@@ -104,7 +104,7 @@ TEST(DicomCli, DetectAndCalibrateFromAMultiFrameXaFileAsFromPngs) {
 }
 
 TEST(DicomCli, TruncatedDicomFileIsAOneLineErrorNamingIt) {
-  TempDir dir;
+  ScratchDir dir;
   DicomXrayWriteOptions o;
   const std::string path = dir.File("broken.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {cv::Mat(64, 64, CV_16UC1, cv::Scalar(1000))}, o).ok());

@@ -96,7 +96,7 @@ class DocsFormats : public ::testing::Test {
   }
 
   test::MarkdownDoc doc_;
-  test::TempDir dir_;
+  test::ScratchDir dir_;
 };
 
 TEST_F(DocsFormats, ExamplesReadAndKeyTablesMatchTheReaders) {

@@ -74,7 +74,7 @@ TEST(DrrExportE2e, PlastimatchDrrBlobsLieWhereCarmbaProjectsTheMarkers) {
                     "installs it): the DRR end-to-end test of the geometry export is skipped";
   }
   const auto t0 = std::chrono::steady_clock::now();
-  test::TempDir tmp;
+  test::ScratchDir tmp;
   tmp.Write("ct.yaml",
             "kind: ct\n"
             "seed: 3\n"

@@ -29,7 +29,7 @@ std::string Replace(std::string s, const std::string& from, const std::string& t
 }
 
 TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string scene = dir.File("scene");
   ASSERT_EQ(SimulateJointScene("flex_joint.yaml", scene), "");
   const nlohmann::json truth = ReadJsonFile(scene + "/truth.json");
@@ -115,7 +115,7 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   // Bad input, one corruption at a time: no output, a one-line error.
   const std::string angles = ReadTextFile(scene + "/views.csv");
   auto expect_error = [&](const std::string& csv, const std::string& model, const std::string& what) {
-    TempDir bad;
+    ScratchDir bad;
     bad.Write("views.csv", csv);
     bad.Write("problem.yaml", Replace(Replace(problem, scene + "/views.csv", bad.File("views.csv")),
                                       "model: smooth", "model: " + model));

@@ -20,7 +20,7 @@ namespace {
 const std::string kSource = CARMBA_SOURCE_DIR;
 
 TEST(GeometryCli, PoseSolveWritesTheProjectionMatricesOfItsPoses) {
-  TempDir out;
+  ScratchDir out;
   const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" +
                            kSource + "/configs/posit_ba_analytic.yaml --out=" + out.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -68,7 +68,7 @@ TEST(GeometryCli, PoseSolveWritesTheProjectionMatricesOfItsPoses) {
 }
 
 // A right-handed geometry (two views) written as geometry.json.
-std::string WriteGeometry(const TempDir& dir) {
+std::string WriteGeometry(const ScratchDir& dir) {
   GeometrySet set;
   for (int k = 0; k < 2; ++k) {
     ViewGeometry v;
@@ -86,7 +86,7 @@ std::string WriteGeometry(const TempDir& dir) {
 }
 
 TEST(ExportGeometryCli, AllFormatsAndTheirRoundTrip) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string geometry = WriteGeometry(dir);
   const auto r = RunCarmba("export-geometry --result " + geometry + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -116,7 +116,7 @@ TEST(ExportGeometryCli, AllFormatsAndTheirRoundTrip) {
 }
 
 TEST(ExportGeometryCli, BadInputIsOneLineAndNoOutput) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string geometry = WriteGeometry(dir);
   auto expect_error = [&](const std::string& args, const std::string& expected) {
     const auto r = RunCarmba("export-geometry " + args + " --out " + dir.File("out"));
@@ -144,7 +144,7 @@ TEST(ExportGeometryCli, BadInputIsOneLineAndNoOutput) {
 }
 
 TEST(UndistortCli, SixteenBitImagesAndDicomFramesKeepTheirDepth) {
-  TempDir dir;
+  ScratchDir dir;
   dir.Write("camera.json",
             "{\"image_size\": [64, 48], \"fx\": 300, \"fy\": 320, \"cx\": 31.5, \"cy\": 23.5, "
             "\"distortion\": [-0.5, 0, 0, 0, 0]}");
@@ -172,7 +172,7 @@ TEST(UndistortCli, SixteenBitImagesAndDicomFramesKeepTheirDepth) {
 }
 
 TEST(UndistortCli, BadInputIsOneLineAndNoOutput) {
-  TempDir dir;
+  ScratchDir dir;
   dir.Write("camera.json",
             "{\"image_size\": [64, 48], \"fx\": 300, \"fy\": 320, \"cx\": 31.5, \"cy\": 23.5}");
   std::filesystem::create_directories(dir.File("in"));

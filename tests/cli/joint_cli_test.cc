@@ -21,7 +21,7 @@ const std::string kSource = CARMBA_SOURCE_DIR;
 constexpr double kSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
 
 TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string scene = dir.File("scene");
   ASSERT_EQ(SimulateJointScene("thesis_joint.yaml", scene), "");
   // The shipped problem with its data paths (the demo's out/sim/joint) pointed at this scene.
@@ -262,7 +262,7 @@ class JointBadInput : public ::testing::Test {
     EXPECT_FALSE(std::filesystem::exists(dir_.File("out/result.json")));
     EXPECT_FALSE(std::filesystem::exists(dir_.File("out/report.md")));
   }
-  TempDir dir_;
+  ScratchDir dir_;
   std::string plate_, object_, fiducials_, problem_, config_, groups_ = "view,group\n";
 };
 

@@ -18,7 +18,8 @@ namespace carmba::test {
 
 struct DocBlock {
   std::string lang, kind, file, text;
-  int line = 0;  // of the opening fence, 1-based
+  int line = 0;      // of the opening fence, 1-based
+  int end_line = 0;  // of the closing fence
 };
 
 struct MarkdownDoc {
@@ -39,6 +40,7 @@ inline MarkdownDoc ReadMarkdownDoc(const std::string& path) {
     ++n;
     if (open) {
       if (line.rfind("```", 0) == 0) {
+        open->end_line = n;
         open = nullptr;
       } else {
         open->text += line + "\n";

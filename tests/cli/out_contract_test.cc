@@ -34,7 +34,7 @@ class OutContract : public ::testing::Test {
  protected:
   // Shared inputs, made once: simulated plate images and a simulated CT series.
   static void SetUpTestSuite() {
-    data_ = new TempDir();
+    data_ = new ScratchDir();
     auto r = RunCarmba("simulate --scene " + kSource +
                        "/configs/scenes/thesis_calibration.yaml --out " + data_->File("plate"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -77,7 +77,7 @@ class OutContract : public ::testing::Test {
                       const std::string& out_name,
                       const std::string& probe) {
     SCOPED_TRACE(cmd);
-    TempDir root;
+    ScratchDir root;
     const std::string out = root.File("missing/parents/" + out_name);
     auto r = RunCarmba(cmd + " " + args(out));
     ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -102,10 +102,10 @@ class OutContract : public ::testing::Test {
     }
   }
 
-  static TempDir* data_;
+  static ScratchDir* data_;
 };
 
-TempDir* OutContract::data_ = nullptr;
+ScratchDir* OutContract::data_ = nullptr;
 
 TEST_F(OutContract, Calibrate) {
   ExpectContract(
@@ -172,7 +172,7 @@ TEST_F(OutContract, CtFiducials) {
 
 // A run that fails after its --out was checked leaves no output and no new parent directory.
 TEST_F(OutContract, FailedRunCreatesNothing) {
-  TempDir root;
+  ScratchDir root;
   root.Write("bad_config.yaml", "name: c\ninitializer: nonsense\n");
   auto r = RunCarmba("solve --problem " + data_->File("problem.yaml") + " --config " +
                      root.File("bad_config.yaml") + " --out " + root.File("a/b/out"));
@@ -189,7 +189,7 @@ TEST_F(OutContract, FailedRunCreatesNothing) {
 
 // study: an existing study is continued with --resume or started over with --force.
 TEST_F(OutContract, StudyResumeOrForce) {
-  TempDir root;
+  ScratchDir root;
   const std::string out = root.File("s");
   const std::string args = "study --study " + data_->File("study.yaml") + " --jobs 1 --out " + out;
   ASSERT_EQ(RunCarmba(args).exit_code, 0);
@@ -210,7 +210,7 @@ TEST_F(OutContract, StudyResumeOrForce) {
 
 // Progress per image: nothing in a pipe, a line per image with --verbose, a bar on a terminal.
 TEST_F(OutContract, CalibrateProgress) {
-  TempDir root;
+  ScratchDir root;
   const std::string base = "calibrate --no-mrcal --no-opencv --images '" + data_->File("plate") +
                            "/*.png' --out ";
   auto r = RunCarmba(base + root.File("quiet"));

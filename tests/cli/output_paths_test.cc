@@ -95,7 +95,7 @@ class OutputPaths : public ::testing::Test {
       EXPECT_FALSE(fs::exists(absent)) << absent;
     }
   }
-  TempDir dir_;
+  ScratchDir dir_;
 };
 
 TEST_F(OutputPaths, ValidOutputsAreWritten) {

@@ -27,7 +27,7 @@ std::string Slurp(const std::string& path) {
 class PoseCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new TempDir();
+    dir_ = new ScratchDir();
     const auto r = RunCarmba("simulate --scene " + std::string(CARMBA_SOURCE_DIR) +
                              "/configs/scenes/markers_clutter.yaml --out " + dir_->File("sim"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -52,10 +52,10 @@ class PoseCli : public ::testing::Test {
     return "pose --images '" + images + "' --fiducials " + dir_->File("fiducials.csv") + " --camera " +
            dir_->File("camera.json") + " --marker_diameter_mm 2 --source_to_object_mm 700";
   }
-  static TempDir* dir_;
+  static ScratchDir* dir_;
   static nlohmann::json truth_;
 };
-TempDir* PoseCli::dir_ = nullptr;
+ScratchDir* PoseCli::dir_ = nullptr;
 nlohmann::json PoseCli::truth_;
 
 TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
@@ -130,7 +130,7 @@ TEST_F(PoseCli, BadInputIsAOneLineErrorAndNoOutput) {
   struct Case {
     std::string args, expected;
   };
-  TempDir bad;
+  ScratchDir bad;
   std::ofstream(bad.File("corrupt.png")) << "not an image";
   // Another object's 9 fiducials (a different layout of the same size).
   std::string other = "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";

@@ -49,11 +49,8 @@ struct BrowserResult {
 inline bool RenderInChromium(const std::string& chromium, const std::string& html,
                              BrowserResult* r) {
   namespace fs = std::filesystem;
-  std::string dir = (fs::temp_directory_path() / "carmba_browser_XXXXXX").string();
-  if (::mkdtemp(dir.data()) == nullptr) {
-    ADD_FAILURE() << "mkdtemp";
-    return false;
-  }
+  const ScratchDir scratch("browser");
+  const std::string& dir = scratch.path();
   const std::string url = "file://" + fs::absolute(html).string();
   const std::string common = "timeout 120 '" + chromium +
                              "' --headless --no-sandbox --disable-gpu --disable-dev-shm-usage "
@@ -63,14 +60,12 @@ inline bool RenderInChromium(const std::string& chromium, const std::string& htm
                            dir + "/dom.log'";
   if (std::system(dump.c_str()) != 0) {
     ADD_FAILURE() << dump << "\n" << ReadTextFile(dir + "/dom.log");
-    fs::remove_all(dir);
     return false;
   }
   const std::string shot = common + "--window-size=1280,2000 --screenshot='" + dir +
                            "/shot.png' '" + url + "' > /dev/null 2> '" + dir + "/shot.log'";
   if (std::system(shot.c_str()) != 0) {
     ADD_FAILURE() << shot << "\n" << ReadTextFile(dir + "/shot.log");
-    fs::remove_all(dir);
     return false;
   }
   r->dom = ReadTextFile(dir + "/dom.html");
@@ -89,14 +84,12 @@ inline bool RenderInChromium(const std::string& chromium, const std::string& htm
   const cv::Mat grey = cv::imread(dir + "/shot.png", cv::IMREAD_GRAYSCALE);
   if (grey.empty()) {
     ADD_FAILURE() << "no screenshot: " << ReadTextFile(dir + "/shot.log");
-    fs::remove_all(dir);
     return false;
   }
   cv::Scalar mean, stddev;
   cv::meanStdDev(grey, mean, stddev);
   r->grey_stddev = stddev[0];
   r->non_white_fraction = cv::countNonZero(grey < 245) / static_cast<double>(grey.total());
-  fs::remove_all(dir);
   return true;
 }
 

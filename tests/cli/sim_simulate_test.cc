@@ -11,6 +11,8 @@
 #include <sstream>
 #include <string>
 
+#include "cli_test_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -21,14 +23,8 @@ struct SimRun {
 };
 
 SimRun Simulate(const std::string& args) {
-  const std::string err_file = testing::TempDir() + "/carmba_sim_cli_stderr.txt";
-  const std::string cmd =
-      std::string(CARMBA_BIN) + " simulate " + args + " >/dev/null 2>" + err_file;
-  const int status = std::system(cmd.c_str());
-  std::ifstream in(err_file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return {WEXITSTATUS(status), ss.str()};
+  const carmba::test::CommandResult r = carmba::test::RunCarmba("simulate " + args);
+  return {r.exit_code, r.err};
 }
 
 std::string Slurp(const fs::path& p) {
@@ -41,8 +37,8 @@ std::string Slurp(const fs::path& p) {
 const std::string kScenes = std::string(CARMBA_SOURCE_DIR) + "/configs/scenes/";
 
 TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
-  const fs::path out = fs::path(testing::TempDir()) / "carmba_sim_cli_pose";
-  fs::remove_all(out);
+  const carmba::test::ScratchDir tmp("sim_cli_pose");
+  const fs::path out = tmp.File("pose");
   const SimRun r = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
   nlohmann::json truth = nlohmann::json::parse(Slurp(out / "truth.json"));
@@ -72,12 +68,11 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   EXPECT_EQ(truth["views"][4]["primary_deg"].get<double>(), -90.0);  // RAO 90 (see the scene)
   // No temporary directories left beside the output.
   for (const auto& e : fs::directory_iterator(out.parent_path())) {
-    EXPECT_EQ(e.path().filename().string().find("carmba_sim_cli_pose.tmp"), std::string::npos);
+    EXPECT_EQ(e.path().filename().string().find("pose.tmp"), std::string::npos);
   }
 
   // Deterministic: a second run gives byte-identical files.
-  const fs::path out2 = fs::path(testing::TempDir()) / "carmba_sim_cli_pose2";
-  fs::remove_all(out2);
+  const fs::path out2 = tmp.File("pose2");
   ASSERT_EQ(Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out2.string()).code, 0);
   for (const auto& e : fs::directory_iterator(out)) {
     EXPECT_EQ(Slurp(e.path()).size(), Slurp(out2 / e.path().filename()).size());
@@ -87,8 +82,7 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   }
 
   // --seed changes the noise, not the geometry.
-  const fs::path out3 = fs::path(testing::TempDir()) / "carmba_sim_cli_pose3";
-  fs::remove_all(out3);
+  const fs::path out3 = tmp.File("pose3");
   ASSERT_EQ(
       Simulate("--scene=" + kScenes + "thesis_pose.yaml --seed=77 --out=" + out3.string()).code, 0);
   const nlohmann::json truth3 = nlohmann::json::parse(Slurp(out3 / "truth.json"));
@@ -109,8 +103,8 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
 
 // `kind: ct` scenes are dispatched to the CT simulator (ct/ct_simulate.h).
 TEST(SimulateCli, CtSceneIsDispatched) {
-  const fs::path out = fs::path(testing::TempDir()) / "carmba_sim_cli_ct";
-  fs::remove_all(out);
+  const carmba::test::ScratchDir tmp("sim_cli_ct");
+  const fs::path out = tmp.File("ct");
   const SimRun r = Simulate("--scene=" + kScenes + "thesis_ct.yaml --out=" + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json truth = nlohmann::json::parse(Slurp(out / "truth.json"));
@@ -121,9 +115,8 @@ TEST(SimulateCli, CtSceneIsDispatched) {
 }
 
 TEST(SimulateCli, BadSceneLeavesNoOutput) {
-  const fs::path dir = fs::path(testing::TempDir()) / "carmba_sim_cli_bad";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const carmba::test::ScratchDir tmp("sim_cli_bad");
+  const fs::path dir = tmp.path();
   // The shipped scene plus a last view that puts the plate outside the field of view.
   std::string text = Slurp(kScenes + "thesis_calibration.yaml");
   text +=

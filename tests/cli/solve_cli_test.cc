@@ -15,7 +15,7 @@ namespace {
 const std::string kSource = CARMBA_SOURCE_DIR;
 
 TEST(SolveCli, ThesisJobWritesResultAndReport) {
-  TempDir out;
+  ScratchDir out;
   const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" +
                            kSource + "/configs/posit_ba_analytic.yaml --out=" + out.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -50,7 +50,7 @@ TEST(SolveCli, ThesisJobWritesResultAndReport) {
 // report.html: every plot drawn (residuals per view and over the image, error budget, source
 // positions, marker ellipsoids) and the page renders in a browser.
 TEST(SolveCli, PoseReportHtmlRendersInChromium) {
-  TempDir out;
+  ScratchDir out;
   const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" +
                            kSource + "/configs/posit_ba_analytic.yaml --out=" + out.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -69,7 +69,7 @@ TEST(SolveCli, PoseReportHtmlRendersInChromium) {
 // Without matplotlib (a package of that name that fails to import shadows the real one) the
 // solve still writes report.md and a report.html that says why it has no plots, with one warning.
 TEST(SolveCli, WithoutMatplotlibTheReportSaysPlotsAreUnavailable) {
-  TempDir out, fake;
+  ScratchDir out, fake;
   std::filesystem::create_directories(fake.File("matplotlib"));
   fake.Write("matplotlib/__init__.py", "raise ImportError('No module named matplotlib (test)')\n");
   const auto r2 = RunCarmbaWithEnv("PYTHONPATH=" + fake.path(),
@@ -131,7 +131,7 @@ class BadInput : public ::testing::Test {
     EXPECT_FALSE(std::filesystem::exists(out + "/report.md"));
     return r;
   }
-  TempDir dir_;
+  ScratchDir dir_;
   std::string markers_, obs_, problem_, config_;
 };
 
@@ -254,7 +254,7 @@ TEST_F(BadInput, NotConvergedIsWarned) {
 // refine: false compares both handednesses after the bundle adjustment, so no false warning; the
 // report does not call the initializer's values "bundle adjustment".
 TEST(SolveCli, UnrefinedConfigHasNoFalseHandednessWarning) {
-  TempDir out;
+  ScratchDir out;
   const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml" +
                            " --config=" + kSource + "/configs/legacy_posit_only.yaml" +
                            " --out=" + out.path());

@@ -20,6 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "scratch.h"
 #include "util/file_util.h"
 
 extern char** environ;
@@ -29,12 +30,6 @@ namespace {
 
 const std::string kSrc = CARMBA_SOURCE_DIR;
 const std::string kBin = CARMBA_BIN;
-
-std::string MakeTempDir() {
-  std::string tmpl = ::testing::TempDir() + "/carmba_study_cli_XXXXXX";
-  EXPECT_NE(::mkdtemp(tmpl.data()), nullptr);
-  return tmpl;
-}
 
 std::string Read(const std::string& path) {
   StatusOr<std::string> s = ReadFile(path);
@@ -106,7 +101,7 @@ int CountLines(const std::string& path) {
 }
 
 TEST(StudyCliTest, KilledStudyResumesWithEveryRunOnce) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteStudy(dir, 150);  // 600 runs of a few ms
   const std::string out = dir + "/killed";
   std::vector<std::string> args = {kBin, "study", "--study=" + study, "--out=" + out, "--jobs=2"};
@@ -146,7 +141,7 @@ TEST(StudyCliTest, KilledStudyResumesWithEveryRunOnce) {
 }
 
 TEST(StudyCliTest, JobsAndMergedShardsGiveIdenticalSummaries) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteStudy(dir, 15);
   const std::string s = "study --study=" + study + " --out=" + dir;
   for (const std::string& a : {s + "/j1 --jobs=1", s + "/j2 --jobs=2",
@@ -178,7 +173,7 @@ TEST(StudyCliTest, JobsAndMergedShardsGiveIdenticalSummaries) {
 }
 
 TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study_cli");
   std::ofstream(dir + "/typo.yaml") << "name: typo\ninitializer: posit\nmax_iteration: 10\n";
   const std::string study =
       WriteStudy(dir, 3, "  - {name: lost, file: no_such_problem.yaml}\n",
@@ -226,7 +221,7 @@ TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
 }
 
 TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study_cli");
   std::ofstream(dir + "/bad.yaml") << "trials: 2\nproblems: []\nconfigs:\n  - {name: c, file: c}\n";
   Result r = Carmba("study --study=" + dir + "/bad.yaml --out=" + dir + "/out", dir);
   EXPECT_EQ(r.code, 1);
@@ -337,7 +332,7 @@ TEST(StudyCliTest, MergeRefusesShardsOfDifferentConfigs) {
 // The progress bar (runs done, ETA; util/progress.h) goes to stderr only when stderr is a
 // terminal; in a pipe there is none, and --verbose gives one line per run instead.
 TEST(StudyCliTest, ProgressLineOnlyOnATerminal) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteStudy(dir, 5);
   Result r = Carmba("study --study=" + study + " --out=" + dir + "/plain --jobs=2", dir);
   ASSERT_EQ(r.code, 0) << r.err;
@@ -364,7 +359,7 @@ TEST(StudyCliTest, ShippedStudiesRun) {
     const std::string path = kSrc + "/configs/studies/" + name + ".yaml";
     // A copy with one trial per problem, in a temporary directory: its relative paths (relative
     // to configs/studies/) are made absolute.
-    const std::string dir = MakeTempDir();
+    const std::string dir = test::MakeScratchDir("study_cli");
     std::string one;
     std::istringstream in(Read(path));
     std::string line;

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <string>
 
+#include "scratch.h"
 #include "util/file_util.h"
 
 namespace carmba {
@@ -28,8 +29,7 @@ int Shell(const std::string& cmd) {
 }
 
 TEST(StudySlurmTest, JobArrayShardsMergeToTheWholeStudy) {
-  std::string dir = ::testing::TempDir() + "/carmba_slurm_XXXXXX";
-  ASSERT_NE(::mkdtemp(dir.data()), nullptr);
+  const std::string dir = test::MakeScratchDir("slurm");
   ASSERT_TRUE(MakeDirs(dir + "/fakebin").ok());
   const std::string sbatch = dir + "/fakebin/sbatch";
   std::ofstream(sbatch) << R"(#!/usr/bin/env bash

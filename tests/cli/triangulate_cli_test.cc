@@ -34,7 +34,7 @@ class TriangulateCli : public ::testing::Test {
     EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
     EXPECT_FALSE(std::filesystem::exists(dir_.File("out")));
   }
-  TempDir dir_;
+  ScratchDir dir_;
 };
 
 TEST_F(TriangulateCli, ThesisMarkersInTheCtFrame) {
@@ -145,7 +145,7 @@ TEST_F(TriangulateCli, BadPixelCovariance) {
 
 TEST(SolveTre, FourMarkerViewsAreSkippedWithTheReason) {
   // The thesis's views see 4 markers: without one, 3 remain and no view can be solved.
-  TempDir dir;
+  ScratchDir dir;
   std::ifstream in(kSource + "/configs/posit_ba_analytic.yaml");
   std::stringstream ss;
   ss << in.rdbuf() << "tre: true\n";
@@ -172,7 +172,7 @@ TEST(SolveTre, FourMarkerViewsAreSkippedWithTheReason) {
 // poses) and the covariances grow by the calibration's part; `consider_calibration: false` gives
 // back the held-intrinsics covariances; triangulate says which, without the "left out" note.
 TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangulation) {
-  TempDir dir;
+  ScratchDir dir;
   std::ifstream cam_in(kSource + "/data/thesis/camera.json");
   nlohmann::json cam = nlohmann::json::parse(cam_in);
   // sigmas fx, fy 20 px, cx, cy 5 px; fx-fy correlation 0.9.

@@ -10,22 +10,20 @@
 #include "camera/camera.h"
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
 
 class FuzzRegression : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = ::testing::TempDir() + "carmba_fuzz_regression_" + std::to_string(::getpid());
-    ASSERT_TRUE(MakeDirs(dir_).ok());
-  }
   std::string Write(const std::string& name, const std::string& text) {
     const std::string path = dir_ + "/" + name;
     std::ofstream(path, std::ios::binary) << text;
     return path;
   }
-  std::string dir_;
+  const test::ScratchDir scratch_{"fuzz_regression"};
+  const std::string dir_ = scratch_.path();
 };
 
 // fuzz_camera_json: a number beyond a double is not a parse_error but nlohmann's out_of_range,

@@ -8,6 +8,7 @@
 #include "util/csv.h"
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -40,16 +41,13 @@ TEST(Csv, HexadecimalValueIsAnErrorNamingTheLine) {
 
 class YamlFile : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = ::testing::TempDir() + "carmba_util_test_" + std::to_string(::getpid());
-    ASSERT_TRUE(MakeDirs(dir_).ok());
-  }
   std::string Write(const std::string& name, const std::string& text) {
     const std::string path = dir_ + "/" + name;
     std::ofstream(path) << text;
     return path;
   }
-  std::string dir_;
+  const test::ScratchDir scratch_{"util_test"};
+  const std::string dir_ = scratch_.path();
 };
 
 TEST_F(YamlFile, RepeatedKeyIsAnErrorNamingItsLine) {

@@ -2,7 +2,6 @@
 // PNG and as DICOM XA (single-frame files, and one multi-frame JPEG-lossless file), detected from
 // each: the same points. Plus the view naming of multi-frame files and the directory listing.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -12,29 +11,13 @@
 #include "io/dicom_xray.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
 
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    static int counter = 0;
-    path_ = (fs::temp_directory_path() / ("carmba_dicom_detect_" + std::to_string(::getpid()) +
-                                          "_" + std::to_string(counter++)))
-                .string();
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string File(const std::string& name) const { return path_ + "/" + name; }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using test::ScratchDir;
 
 constexpr int kViews = 3;
 
@@ -85,7 +68,7 @@ void ExpectSameObservations(const ObservationSet& a, const ObservationSet& b) {
 
 TEST(DicomDetect, SimulatedPlateSamePointsFromDicomAsFromPng) {
   const Rendered& r = Render();
-  TempDir dir;
+  ScratchDir dir;
   std::vector<std::string> png, dcm;
   for (int i = 0; i < kViews; ++i) {
     png.push_back(dir.File("view_" + std::to_string(i) + ".png"));
@@ -131,7 +114,7 @@ TEST(DicomDetect, SimulatedPlateSamePointsFromDicomAsFromPng) {
 }
 
 TEST(DicomDetect, FramesOfAMultiFrameFileAreViews) {
-  TempDir dir;
+  ScratchDir dir;
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 3; ++k) frames.push_back(cv::Mat(10, 12, CV_8UC1, cv::Scalar(10 * k + 1)));
   const std::string multi = dir.File("m.dcm");
@@ -185,7 +168,7 @@ TEST(DicomDetect, FramesOfAMultiFrameFileAreViews) {
 }
 
 TEST(DicomDetect, DirectoryListingTakesDicomFilesWithAndWithoutExtension) {
-  TempDir dir;
+  ScratchDir dir;
   const cv::Mat img(10, 12, CV_8UC1, cv::Scalar(5));
   ASSERT_TRUE(cv::imwrite(dir.File("a.png"), img));
   ASSERT_TRUE(WriteDicomXray(dir.File("b.DCM"), {img}, DicomXrayWriteOptions()).ok());

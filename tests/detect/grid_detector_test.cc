@@ -12,6 +12,7 @@
 #include <random>
 
 #include "util/file_util.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -308,7 +309,8 @@ TEST(GridDetectorTest, ObservationsCsvRoundTrip) {
   v.point_ids = {0, 5, 11};
   v.uv_px = {{1.25, 2.5}, {100.125, 200.0625}, {3, 4}};
   obs.views = {v, v};
-  const std::string path = ::testing::TempDir() + "/carmba_obs_roundtrip.csv";
+  const test::ScratchDir dir("obs_roundtrip");
+  const std::string path = dir.File("obs.csv");
   ASSERT_TRUE(WriteObservationsCsv(obs, path).ok());
   auto back = ReadObservationsCsv(path);
   ASSERT_TRUE(back.ok()) << back.status().message();

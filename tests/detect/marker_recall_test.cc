@@ -26,6 +26,7 @@
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
 #include "test_env.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -102,9 +103,7 @@ RandomScene MakeScene(uint64_t seed, const std::string& dir) {
 TEST(MarkerRecall, RandomisedScenesEveryVisibleSeparatedMarkerLabelled) {
   const int scenes = testing::EnvOr("CARMBA_MARKER_RECALL_SCENES", 8);
   const uint64_t base = testing::EnvOr<uint64_t>("CARMBA_MARKER_RECALL_SEED", 1);
-  const std::string dir = (std::filesystem::temp_directory_path() /
-                           ("carmba_marker_recall_" + std::to_string(::getpid())))
-                              .string();
+  const std::string dir = test::MakeScratchDir("marker_recall");
   Tally total;
   int used = 0, views_skipped = 0, views = 0;
   for (uint64_t seed = base * 1000; used < scenes && seed < base * 1000 + 10 * scenes; ++seed) {

@@ -21,20 +21,12 @@
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
 #include "marker_test_util.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
 
 const std::string kScene = std::string(CARMBA_SOURCE_DIR) + "/configs/scenes/markers_clutter.yaml";
-
-std::string TempDir(const std::string& name) {
-  const std::string d = (std::filesystem::temp_directory_path() /
-                         ("carmba_markers_" + name + "_" + std::to_string(::getpid())))
-                            .string();
-  std::filesystem::remove_all(d);
-  std::filesystem::create_directories(d);
-  return d;
-}
 
 ObjectViewsOptions SceneOptions() {
   ObjectViewsOptions o;
@@ -62,7 +54,7 @@ void ExpectAllCorrect(const Tally& t, const std::string& what) {
 TEST(MarkerViews, ClutterSceneEveryVisibleMarkerLabelledNoSpuriousNoOverlap) {
   auto scene = sim::LoadXrayScene(kScene);
   ASSERT_TRUE(scene.ok()) << scene.status().message();
-  const std::string dir = TempDir("png");
+  const std::string dir = test::MakeScratchDir("markers_png");
   nlohmann::json truth;
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   std::vector<std::string> files;
@@ -86,7 +78,7 @@ TEST(MarkerViews, MultiFrameDicomXaUsesTheNominalGeometry) {
   scene->format = "dcm";
   scene->bit_depth = 16;
   scene->multiframe = true;
-  const std::string dir = TempDir("dcm");
+  const std::string dir = test::MakeScratchDir("markers_dcm");
   nlohmann::json truth;
   const Status s = sim::SimulateXrayScene(*scene, dir, &truth);
   ASSERT_TRUE(s.ok()) << s.message();
@@ -114,7 +106,7 @@ TEST(MarkerViews, SingleFrameDicomXa) {
   ASSERT_TRUE(scene.ok());
   scene->format = "dcm";
   scene->views.resize(2);
-  const std::string dir = TempDir("dcm1");
+  const std::string dir = test::MakeScratchDir("markers_dcm1");
   nlohmann::json truth;
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   std::vector<std::string> files;
@@ -336,7 +328,7 @@ TEST(MarkerViews, ViewWithFewerThanFourMarkersIsSkippedOthersGoOn) {
   auto scene = sim::LoadXrayScene(kScene);
   ASSERT_TRUE(scene.ok());
   scene->views.resize(1);
-  const std::string dir = TempDir("few");
+  const std::string dir = test::MakeScratchDir("markers_few");
   nlohmann::json truth;
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   const std::string few = JoinPath(dir, "few.png");
@@ -359,7 +351,7 @@ TEST(MarkerViews, ViewWithFewerThanFourMarkersIsSkippedOthersGoOn) {
 TEST(MarkerViews, MissingOrCorruptImageIsAnErrorNamingIt) {
   auto scene = sim::LoadXrayScene(kScene);
   ASSERT_TRUE(scene.ok());
-  const std::string dir = TempDir("bad");
+  const std::string dir = test::MakeScratchDir("markers_bad");
   const std::string missing = JoinPath(dir, "missing.png"), corrupt = JoinPath(dir, "corrupt.png");
   std::ofstream(corrupt) << "not a png";
   for (const std::string& f : {missing, corrupt}) {
@@ -393,7 +385,7 @@ TEST(MarkerScene, BadClutterKeysAreRejected) {
        "only with format: dcm"},
       {"object_center_mm: [-40, 0, -46], partial: true}", "object_center_mm: [-40, 0, -46]}", "outside"},
   };
-  const std::string dir = TempDir("scene");
+  const std::string dir = test::MakeScratchDir("markers_scene");
   for (const Case& c : cases) {
     std::string text = good;
     const size_t at = text.find(c.from);

@@ -19,6 +19,7 @@
 #include "export/view_geometry.h"
 #include "geometry/rotation.h"
 #include "util/file_util.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -26,11 +27,10 @@ namespace {
 // Round trips through files written with 17 significant digits: the matrices agree to rounding.
 constexpr double kRoundTripTol = 1e-9;
 
+// `name` in this process's scratch directory (removed at exit).
 std::string TempPath(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("carmba_export_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  return (dir / name).string();
+  static const test::ScratchDir dir("export");
+  return dir.File(name);
 }
 
 void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }

@@ -21,6 +21,8 @@
 #include <fstream>
 #include <string>
 
+#include "../scratch.h"
+
 namespace carmba::fuzz {
 
 inline std::string SourceDir() { return CARMBA_SOURCE_DIR; }
@@ -30,12 +32,8 @@ inline const std::string& ScratchDir() {
   // before it was registered.
   static const std::string& dir = *new std::string([] {
     namespace fs = std::filesystem;
-    const std::string base = fs::is_directory("/dev/shm") ? "/dev/shm" : fs::temp_directory_path().string();
-    std::string tmpl = base + "/carmba-fuzz-XXXXXX";
-    if (!::mkdtemp(tmpl.data())) {
-      std::perror("mkdtemp");
-      std::abort();
-    }
+    const std::string shm = "/dev/shm";  // NOLINT(scratch): a base; the name comes from mkdtemp
+    const std::string tmpl = carmba::test::MakeScratchDir("fuzz", fs::is_directory(shm) ? shm : "");
     const fs::path d(tmpl), src(SourceDir());
     fs::create_directory_symlink(src / "data", d / "data");
     fs::create_directory_symlink(src / "problems", d / "problems");

@@ -12,7 +12,6 @@
 #include <gdcmSequenceOfFragments.h>
 #include <gdcmWriter.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -25,27 +24,13 @@
 #include <opencv2/core.hpp>
 #include <random>
 
+#include "scratch.h"
+
 namespace carmba {
 namespace {
 
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    static int counter = 0;
-    path_ = (fs::temp_directory_path() /
-             ("carmba_io_" + std::to_string(::getpid()) + "_" + std::to_string(counter++)))
-                .string();
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string File(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
+using test::ScratchDir;
 
 // A seeded random image of `bits` significant bits; not square, so that a rows / columns swap
 // shows.
@@ -114,7 +99,7 @@ DicomXrayWriteOptions WithGeometry() {
 // Angles and distances are written as DS (decimal strings of at most 16 characters): the
 // values above are exact in a few digits, so they read back exactly.
 TEST(DicomXray, SingleFrame16BitPixelsAndGeometryAsWritten) {
-  TempDir dir;
+  ScratchDir dir;
   const cv::Mat img = RandomImage(48, 64, CV_16UC1, 16, 1);
   ASSERT_TRUE(WriteDicomXray(dir.File("a.dcm"), {img}, WithGeometry()).ok());
   auto r = ReadDicomXray(dir.File("a.dcm"));
@@ -137,7 +122,7 @@ TEST(DicomXray, SingleFrame16BitPixelsAndGeometryAsWritten) {
 }
 
 TEST(DicomXray, EightBitAnd12BitStored) {
-  TempDir dir;
+  ScratchDir dir;
   const cv::Mat img8 = RandomImage(33, 17, CV_8UC1, 8, 2);
   DicomXrayWriteOptions o;
   o.sop_class = "rf";
@@ -172,7 +157,7 @@ TEST(DicomXray, EightBitAnd12BitStored) {
 // Signed stored values become offset binary: v + 2^(BitsStored - 1), i.e. the top stored bit
 // flipped (12 bits: -2048 -> 0, 0 -> 2048, 2047 -> 4095).
 TEST(DicomXray, SignedPixelsShiftedToOffsetBinary) {
-  TempDir dir;
+  ScratchDir dir;
   cv::Mat img(2, 3, CV_16UC1);
   const int16_t values[6] = {-2048, -1, 0, 1, 2047, 100};
   for (int i = 0; i < 6; ++i) img.at<uint16_t>(i / 3, i % 3) = static_cast<uint16_t>(values[i]);
@@ -198,7 +183,7 @@ TEST(DicomXray, SignedPixelsShiftedToOffsetBinary) {
 // MONOCHROME1: checked against the STORED values (plain GDCM), not only by a round trip (a writer
 // and a reader that both forgot to invert would pass a round trip).
 TEST(DicomXray, Monochrome1IsInvertedToMonochrome2) {
-  TempDir dir;
+  ScratchDir dir;
   const cv::Mat img = RandomImage(40, 24, CV_16UC1, 12, 4);
   DicomXrayWriteOptions o;
   o.photometric = "MONOCHROME1";
@@ -229,7 +214,7 @@ TEST(DicomXray, Monochrome1IsInvertedToMonochrome2) {
 // Increments (PS3.3 C.8.7.5.1.3): one per frame = offsets from the first frame's angle; a single
 // value = the change per frame.
 TEST(DicomXray, MultiFrameViewsAndAngleIncrements) {
-  TempDir dir;
+  ScratchDir dir;
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 3; ++k) frames.push_back(RandomImage(24, 32, CV_8UC1, 8, 10 + k));
   DicomXrayWriteOptions o = WithGeometry();
@@ -261,7 +246,7 @@ TEST(DicomXray, MultiFrameViewsAndAngleIncrements) {
 }
 
 TEST(DicomXray, EmptyOrAbsentGeometryTagsAreAbsent) {
-  TempDir dir;
+  ScratchDir dir;
   ASSERT_TRUE(
       WriteDicomXray(dir.File("e.dcm"), {RandomImage(8, 8, CV_8UC1, 8, 5)}, WithGeometry()).ok());
   EditDicom(dir.File("e.dcm"), [](gdcm::File* f) {
@@ -282,7 +267,7 @@ TEST(DicomXray, EmptyOrAbsentGeometryTagsAreAbsent) {
 }
 
 TEST(DicomXray, MalformedGeometryTagsAreErrorsNamingTheTag) {
-  TempDir dir;
+  ScratchDir dir;
   struct Case {
     uint16_t element;
     std::string value;
@@ -310,7 +295,7 @@ TEST(DicomXray, MalformedGeometryTagsAreErrorsNamingTheTag) {
 // and the file really is compressed (its transfer syntax, and fewer pixel bytes for a smooth
 // image).
 TEST(DicomXray, LosslessCompressedSyntaxesDecodeToTheSamePixels) {
-  TempDir dir;
+  ScratchDir dir;
   cv::Mat img(64, 80, CV_16UC1);
   for (int r = 0; r < img.rows; ++r) {
     for (int c = 0; c < img.cols; ++c) img.at<uint16_t>(r, c) = 1000 + 13 * r + 7 * c + (r * c) % 5;
@@ -340,7 +325,7 @@ TEST(DicomXray, LosslessCompressedSyntaxesDecodeToTheSamePixels) {
 // Encapsulated pixel data under a syntax GDCM has no decoder for (MPEG-2), and JPEG 2000 whose
 // data is garbage: errors naming the file and the syntax.
 TEST(DicomXray, UndecodableSyntaxIsAnErrorNamingIt) {
-  TempDir dir;
+  ScratchDir dir;
   const std::vector<std::pair<gdcm::TransferSyntax::TSType, std::string>> cases = {
       {gdcm::TransferSyntax::MPEG2MainProfile, "1.2.840.10008.1.2.4.100"},
       {gdcm::TransferSyntax::JPEG2000Lossless, "1.2.840.10008.1.2.4.90"}};
@@ -368,7 +353,7 @@ TEST(DicomXray, UndecodableSyntaxIsAnErrorNamingIt) {
 
 // Colour and 32-bit pixel data are not X-ray projection images carmba reads.
 TEST(DicomXray, UnsupportedPixelFormatsAreErrors) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("fmt.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 12)}, WithGeometry()).ok());
   EditDicom(path, [](gdcm::File* f) {
@@ -416,7 +401,7 @@ TEST(DicomXray, UnsupportedPixelFormatsAreErrors) {
 // Number of Frames (0028,0008) larger than the pixel data holds (uncompressed and JPEG): an
 // error naming the file, not frames of undefined pixels.
 TEST(DicomXray, MoreFramesDeclaredThanStoredIsAnError) {
-  TempDir dir;
+  ScratchDir dir;
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 3; ++k) frames.push_back(RandomImage(16, 16, CV_16UC1, 16, 20 + k));
   for (const std::string ts : {"explicit_le", "jpeg_lossless"}) {
@@ -434,7 +419,7 @@ TEST(DicomXray, MoreFramesDeclaredThanStoredIsAnError) {
 }
 
 TEST(DicomXray, FileWithoutPixelDataIsAnError) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("nopix.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 8)}, WithGeometry()).ok());
   EditDicom(path, [](gdcm::File* f) { f->GetDataSet().Remove(gdcm::Tag(0x7fe0, 0x0010)); });
@@ -442,7 +427,7 @@ TEST(DicomXray, FileWithoutPixelDataIsAnError) {
 }
 
 TEST(DicomXray, TruncatedAndNonDicomFilesAreErrors) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("t.dcm");
   for (int size : {100, 136, 150, 300, 500, 900, 2000}) {
     ASSERT_TRUE(WriteDicomXray(path, {RandomImage(40, 40, CV_16UC1, 16, 9)}, WithGeometry()).ok());
@@ -466,7 +451,7 @@ std::string FileBytes(const std::string& path) {
 // Found by fuzz_dicom_xray: an unknown VR ("UM") in the file meta group made GDCM abort on an
 // assertion (ReadExplicitDataElement); the structure check refuses it first.
 TEST(DicomXray, UnknownVrIsAnErrorNotAnAbort) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("vr.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 3)}, WithGeometry()).ok());
   std::string bytes = FileBytes(path);
@@ -483,7 +468,7 @@ TEST(DicomXray, UnknownVrIsAnErrorNotAnAbort) {
 // allow (Bits Allocated as LO) made GDCM's Attribute<> abort on an assertion; the VR check of
 // gdcm_util::CheckDicomFile refuses it, naming the element.
 TEST(DicomXray, VrThatTheDictionaryDoesNotAllowIsAnErrorNotAnAbort) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("vr_lo.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 3)}, WithGeometry()).ok());
   std::string bytes = FileBytes(path);
@@ -512,7 +497,7 @@ TEST(DicomXray, VrThatTheDictionaryDoesNotAllowIsAnErrorNotAnAbort) {
 // implicit VR, PS3.5 6.2.2) and one of defined length (explicit SQ), both private elements after
 // the pixel data: the file reads; a defined-length item that runs past its sequence is refused.
 TEST(DicomXray, SequencesOfDefinedAndUndefinedLengthAreWalked) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("seq.dcm");
   const cv::Mat img = RandomImage(8, 8, CV_16UC1, 12, 4);
   ASSERT_TRUE(WriteDicomXray(path, {img}, WithGeometry()).ok());
@@ -600,7 +585,7 @@ TEST(DicomXray, GdcmconvCompressedSeedsDecodeToTheUncompressedPixels) {
 // GDCM reads file-meta elements until it meets another group's tag, and asserts when the file
 // ends first; it also asserts on a sequence in the file meta group.
 TEST(DicomXray, FileMetaGroupWithoutDataSetOrWithSequenceIsAnErrorNotAnAbort) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("meta.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 4)}, WithGeometry()).ok());
   const std::string bytes = FileBytes(path);
@@ -625,7 +610,7 @@ TEST(DicomXray, FileMetaGroupWithoutDataSetOrWithSequenceIsAnErrorNotAnAbort) {
 // Bits Allocated 8 with fewer bits stored: GDCM's raw codec asserts Bits Stored == 8; the reader
 // takes uncompressed 8-bit pixels as stored, and refuses compressed ones naming the tags.
 TEST(DicomXray, EightBitsAllocatedFewerStoredIsReadNotAnAbort) {
-  TempDir dir;
+  ScratchDir dir;
   const cv::Mat img6 = RandomImage(12, 16, CV_8UC1, 6, 5);
   DicomXrayWriteOptions o = WithGeometry();
   o.bits_stored = 6;
@@ -665,7 +650,7 @@ TEST(DicomXray, EightBitsAllocatedFewerStoredIsReadNotAnAbort) {
 // test): no Bits Allocated (0028,0100) with Bits Stored 2 is a one-line error naming the file and
 // the tag, not an abort.
 TEST(DicomXray, AbsentBitsAllocatedIsAnError) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("ba.dcm");
   ASSERT_TRUE(WriteDicomXray(path, {RandomImage(8, 8, CV_8UC1, 8, 7)}, WithGeometry()).ok());
   EditDicom(path, [](gdcm::File* f) {
@@ -681,7 +666,7 @@ TEST(DicomXray, AbsentBitsAllocatedIsAnError) {
 // past the file is refused by the structure check (GDCM allocated the length as given: an OOM
 // found by fuzz_dicom_xray).
 TEST(DicomXray, BigEndianFilesAreWalkedBeforeGdcm) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string path = dir.File("be.dcm");
   const cv::Mat img = RandomImage(10, 14, CV_16UC1, 12, 6);
   ASSERT_TRUE(WriteDicomXray(path, {img}, WithGeometry()).ok());
@@ -772,7 +757,7 @@ TEST(DicomXray, GdcmExampleXaFourFramesJpegLossless) {
 // Read time of one 512 x 512 16-bit frame, uncompressed and JPEG lossless, file to cv::Mat
 // (printed; the bound is only a gross-regression guard for a 2-core machine).
 TEST(DicomXray, ReadTimeOf512x512Frame) {
-  TempDir dir;
+  ScratchDir dir;
   // A smooth image with 2 grey levels of noise (compresses like an X-ray image, not like noise).
   cv::Mat img(512, 512, CV_16UC1);
   std::mt19937 rng(11);

@@ -15,6 +15,7 @@
 #include "io/dicom_xray.h"
 #include "sim/xray_render.h"
 #include "sim/xray_scene.h"
+#include "scratch.h"
 
 namespace carmba::sim {
 namespace {
@@ -26,9 +27,8 @@ constexpr double kTol = 1e-9;
 
 // Writes one 16 x 12 frame with these tags, reads it back and returns its nominal view.
 NominalDicomView ViewFromFile(const XrayFrameGeometry& g, const std::string& orientation = "") {
-  const std::string path =
-      (fs::temp_directory_path() / ("carmba_dicom_view_" + std::to_string(::getpid()) + ".dcm"))
-          .string();
+  const test::ScratchDir dir("dicom_view");
+  const std::string path = dir.File("view.dcm");
   DicomXrayWriteOptions o;
   o.geometry = g;
   o.patient_orientation = orientation;
@@ -209,10 +209,7 @@ TEST(DicomView, SimulatedXaFilesGiveBackTheTruePoseAndFocalLengths) {
   ASSERT_TRUE(scene.ok()) << scene.status().message();
   scene->format = "dcm";
   scene->render.supersampling = 1;  // the pixels do not matter here
-  const std::string dir =
-      (fs::temp_directory_path() / ("carmba_sim_dcm_" + std::to_string(::getpid()))).string();
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const std::string dir = test::MakeScratchDir("sim_dcm");
   nlohmann::json truth;
   ASSERT_TRUE(scene->views[0].carm.isocenter_mm.isZero());
   const Eigen::Vector2d offset = scene->views[0].carm.axis_offset_mm;
@@ -250,10 +247,7 @@ TEST(DicomView, SimulatedXaFilesGiveBackTheTruePoseAndFocalLengths) {
 // io/dicom_xray.h: the first frame by default, frame N of `file.dcm#frameN`; the same gain as
 // from the frame saved as PNG (OpenCV's path).
 TEST(DicomBackground, FrameOfAMultiFrameFileAsFromPng) {
-  const std::string dir =
-      (fs::temp_directory_path() / ("carmba_dicom_bg_" + std::to_string(::getpid()))).string();
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const std::string dir = test::MakeScratchDir("dicom_bg");
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 2; ++k) {
     cv::Mat m(40, 50, CV_16UC1);

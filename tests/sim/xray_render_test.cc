@@ -12,6 +12,7 @@
 
 #include "camera/camera_model.h"
 #include "sim/phantom.h"
+#include "scratch.h"
 
 namespace carmba::sim {
 namespace {
@@ -335,8 +336,8 @@ TEST(XrayRender, ImagesWrittenAndReadBackAreIdentical) {
   o.seed = 3;
   auto gray = RenderXray(cam, {{&*plate, Rigid3::FromRvec({0.2, 0, 0}, {-12, -12, 650})}}, o);
   ASSERT_TRUE(gray.ok());
-  const std::string dir = testing::TempDir() + "/carmba_sim_roundtrip";
-  std::filesystem::create_directories(dir);
+  const test::ScratchDir scratch("sim_roundtrip");
+  const std::string& dir = scratch.path();
   for (const auto& [ext, bits] :
        std::vector<std::pair<std::string, int>>{{"png", 8}, {"png", 16}, {"pgm", 8}, {"pgm", 16}}) {
     cv::Mat scaled = bits == 16 ? cv::Mat(*gray * 250.0) : *gray;
@@ -388,8 +389,8 @@ TEST(XrayRender, BackgroundFromRealDicomFrame) {
   EXPECT_FALSE(LoadBackgroundGain("/nonexistent.dcm", 64, 64, 0.5, 1).ok());
   EXPECT_FALSE(LoadBackgroundGain(dcm, 64, 64, 1.5, 1).ok());
   // Corrupt files: one error, and nothing printed by GDCM or libpng.
-  const std::string dir = testing::TempDir() + "/carmba_sim_background";
-  std::filesystem::create_directories(dir);
+  const test::ScratchDir scratch("sim_background");
+  const std::string& dir = scratch.path();
   {
     std::ifstream in(dcm, std::ios::binary);
     std::string head(3000, '\0');

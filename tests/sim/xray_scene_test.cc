@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "camera/camera_model.h"
+#include "scratch.h"
 
 namespace carmba::sim {
 namespace {
@@ -47,10 +48,10 @@ views:
   - {name: b, primary_deg: -15, secondary_deg: 12, detector_rotation_deg: 30}
 )";
 
+// Writes `text` as <name>.yaml in this process's scratch directory (removed at exit).
 std::string WriteScene(const std::string& text, const std::string& name) {
-  const std::string dir = testing::TempDir() + "/carmba_sim_scenes";
-  std::filesystem::create_directories(dir);
-  const std::string path = dir + "/" + name + ".yaml";
+  static const test::ScratchDir dir("sim_scenes");
+  const std::string path = dir.File(name + ".yaml");
   std::ofstream(path) << text;
   return path;
 }

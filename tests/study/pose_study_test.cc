@@ -10,6 +10,7 @@
 
 #include "study/pose_study.h"
 #include "study/summary.h"
+#include "scratch.h"
 #include "util/file_util.h"
 
 namespace carmba {
@@ -18,8 +19,7 @@ namespace {
 const std::string kSrc = CARMBA_SOURCE_DIR;
 
 StudySpec LoadStudy(const std::string& text) {
-  std::string dir = ::testing::TempDir() + "/carmba_pose_study_XXXXXX";
-  EXPECT_NE(::mkdtemp(dir.data()), nullptr);
+  const std::string dir = test::MakeScratchDir("pose_study");
   std::ofstream(dir + "/s.yaml") << text;
   StatusOr<StudySpec> spec = LoadStudySpec(dir + "/s.yaml");
   EXPECT_TRUE(spec.ok()) << spec.status().message();
@@ -193,8 +193,7 @@ TEST(PoseStudyTest, RejectsWhatItDoesNotUnderstand) {
 
 // A sweep value outside the variable's plausible range is an error of the study file, at load.
 TEST(PoseStudyTest, AbsurdSweepValueNamesTheLine) {
-  std::string dir = ::testing::TempDir() + "/carmba_pose_study_XXXXXX";
-  ASSERT_NE(::mkdtemp(dir.data()), nullptr);
+  const std::string dir = test::MakeScratchDir("pose_study");
   std::ofstream(dir + "/s.yaml") << SyntheticStudy(1, "sweeps:\n  pixel_noise_px: [0.5, 1e300]\n");
   const StatusOr<StudySpec> spec = LoadStudySpec(dir + "/s.yaml");
   ASSERT_FALSE(spec.ok());

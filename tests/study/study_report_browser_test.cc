@@ -12,6 +12,7 @@
 
 #include "../cli/report_browser.h"
 #include "mean_study.h"
+#include "scratch.h"
 #include "study/runner.h"
 #include "util/file_util.h"
 
@@ -19,8 +20,7 @@ namespace carmba {
 namespace {
 
 TEST(StudyReportBrowserTest, ChromiumRendersEveryPlot) {
-  std::string dir = ::testing::TempDir() + "/carmba_report_XXXXXX";
-  ASSERT_NE(::mkdtemp(dir.data()), nullptr);
+  const std::string dir = test::MakeScratchDir("report");
   std::ofstream(dir + "/p.yaml") << "true_mean: 1\nsamples: 30\n";
   std::ofstream(dir + "/mean.yaml") << "estimator: mean\n";
   std::ofstream(dir + "/median.yaml") << "estimator: median\n";

@@ -18,17 +18,11 @@
 #include "study/runner.h"
 #include "study/study_inputs.h"
 #include "study/summary.h"
+#include "scratch.h"
 #include "util/file_util.h"
 
 namespace carmba {
 namespace {
-
-std::string MakeTempDir() {
-  std::string tmpl = ::testing::TempDir() + "/carmba_study_XXXXXX";
-  char* d = ::mkdtemp(tmpl.data());
-  EXPECT_NE(d, nullptr);
-  return tmpl;
-}
 
 void Write(const std::string& path, const std::string& text) {
   std::ofstream(path) << text;
@@ -50,7 +44,7 @@ struct Fixture {
   std::string study_path;
   explicit Fixture(int trials, int repeat = 1, const std::string& extra_problem = "",
                    const std::string& extra_config = "") {
-    dir = MakeTempDir();
+    dir = test::MakeScratchDir("study");
     Write(dir + "/p_small.yaml", "true_mean: 3.0\nsamples: 20\n");
     Write(dir + "/p_large.yaml", "true_mean: -1.5\nsamples: 80\n");
     Write(dir + "/c_mean.yaml", "estimator: mean\nrepeat: " + std::to_string(repeat) + "\n");
@@ -148,7 +142,7 @@ TEST(StudySpecTest, ShardsPartitionTheRuns) {
 
 // Bad study files, one corruption at a time, each with the expected message.
 TEST(StudySpecTest, RejectsBadStudyFiles) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study");
   const std::string base =
       "trials: 2\nproblems:\n  - {name: a, file: a.yaml}\nconfigs:\n  - {name: c, file: c.yaml}\n";
   struct Case {
@@ -415,7 +409,7 @@ TEST(StudyRunnerTest, BadProblemsAndConfigsFailTheirRunsOnly) {
 // standard error sigma/sqrt(n) matches the spread over trials (consistency ~ 1), and the error
 // grows linearly with the noise.
 TEST(StudyRunnerTest, SummaryStatisticsMatchTheory) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study");
   Write(dir + "/p.yaml", "true_mean: 10\nsamples: 40\n");
   Write(dir + "/c.yaml", "estimator: mean\n");
   Write(dir + "/s.yaml",
