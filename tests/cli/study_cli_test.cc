@@ -205,11 +205,12 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
       << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
   EXPECT_FALSE(FileExists(dir + "/out"));
+  // Usage errors (a bad flag value, a missing flag) exit 2 (cli/command.h kExitUsage).
   r = Carmba("study --study=" + WriteStudy(dir, 1) + " --out=" + dir + "/out --shard=3/2", dir);
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("expected K/N"), std::string::npos) << r.err;
   r = Carmba("study --out=" + dir + "/out", dir);
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--study is required"), std::string::npos) << r.err;
   // A sweep the pose runs do not understand fails every run, naming it.
   std::ofstream(dir + "/sweep.yaml")
