@@ -660,4 +660,21 @@ StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
   return out;
 }
 
+Status CheckPlateDistance(const CalibrationResult& result,
+                          double spacing_mm,
+                          const std::string& pitch_source) {
+  std::vector<double> d;
+  for (const ViewStats& v : result.views) d.push_back(v.distance_mm);
+  if (d.empty()) return Status::Ok();
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  const double median = d[d.size() / 2];
+  if (InRange(median, plausible::kPlateDistanceMm)) return Status::Ok();
+  return Status::Error("the plate sits " + FormatCompact(median) + " mm from the source (median of " +
+                       std::to_string(result.views.size()) + " views), expected " +
+                       FormatRange(plausible::kPlateDistanceMm) + ": check the grid pitch, " +
+                       pitch_source + " " + FormatCompact(spacing_mm) +
+                       (median < plausible::kPlateDistanceMm.lo ? " (a unit slip? cm for mm)"
+                                                                 : " (a unit slip?)"));
+}
+
 }  // namespace carmba

@@ -170,6 +170,17 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& observatio
                                                 double v_px,
                                                 double distance_mm);
 
+// The solved plate's distance from the source, the median of the views' distance_mm, checked
+// against plausible::kPlateDistanceMm. The solve is consistent at any scale: only the grid pitch
+// fixes the distance, so a distance outside says the pitch is wrong (--spacing-mm 2 for 20 mm put
+// the plate at 78 mm). The error names `pitch_source` (the flag or key the pitch came from) and
+// the pitch, e.g.
+//   the plate sits 78.1 mm from the source (median of 20 views), expected 100 .. 5000 mm: check
+//   the grid pitch, --spacing-mm 2 (a unit slip? cm for mm)
+Status CheckPlateDistance(const CalibrationResult& result,
+                          double spacing_mm,
+                          const std::string& pitch_source);
+
 // The same for many pixels at once (the normal blocks built once); a pixel that cannot be
 // unprojected gets NaN sigmas.
 StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(

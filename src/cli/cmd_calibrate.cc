@@ -33,6 +33,7 @@
 #include "detect/grid_detector.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
+#include "util/temp_paths.h"
 #include "util/yaml_reader.h"
 
 DEFINE_string(observations, "", "Pre-detected observations.csv (instead of --images).");
@@ -79,7 +80,7 @@ int RunCalibrate() {
   double spacing = FLAGS_spacing_mm;
   {
     std::string err;
-    if (!cli::CheckGridFlags(&err)) return cli::Fail(kCmd, err);
+    if (!cli::CheckGridFlags(&err)) return cli::FailUsage(kCmd, err);
   }
   if (!FLAGS_problem.empty()) {
     YamlMap p = YamlMap::Load(FLAGS_problem);
@@ -104,6 +105,12 @@ int RunCalibrate() {
     if (config.empty() && !p_config.empty()) config = JoinPath(dir, p_config);
     if (truth.empty() && !p_truth.empty()) truth = JoinPath(dir, p_truth);
     if (spacing == 0) spacing = p_spacing;
+    const std::string key = "--problem key ";
+    const Status in = cli::CheckOutIsNoInput({{key + "'images'", images},
+                                              {key + "'observations'", observations},
+                                              {key + "'config'", config},
+                                              {key + "'truth'", truth}});
+    if (!in.ok()) return cli::FailUsage(kCmd, in);
   }
   // --out is required (checked before this runs: cli/command.h).
   if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail(kCmd, s);
@@ -123,7 +130,7 @@ int RunCalibrate() {
   CalibrationRun run;
   run.options = options;
   auto pat = ParseGridPattern(pattern);
-  if (!pat.ok()) return cli::Fail(kCmd, pat.status().WithContext("--pattern"));
+  if (!pat.ok()) return cli::FailUsage(kCmd, pat.status().WithContext("--pattern"));
   if (!observations.empty()) {
     auto obs = ReadObservationsCsv(observations);
     if (!obs.ok()) return cli::Fail(kCmd, obs.status());
@@ -166,6 +173,15 @@ int RunCalibrate() {
   auto result = Calibrate(run.observations, options);
   if (!result.ok()) return cli::Fail(kCmd, result.status());
   run.result = *result;
+  {
+    // Where the pitch came from, for the error on an implausible plate distance.
+    const std::string pitch_source = FLAGS_spacing_mm > 0 ? "--spacing-mm"
+                                     : spacing > 0        ? "--problem key 'spacing_mm'"
+                                     : !observations.empty() ? observations + " spacing_mm"
+                                                             : "--spacing-mm (default)";
+    const Status s = CheckPlateDistance(run.result, run.observations.grid.spacing_mm, pitch_source);
+    if (!s.ok()) return cli::Fail(kCmd, s);
+  }
 
   std::map<std::string, std::array<double, kNumIntrinsics>> others;
   if (!truth.empty()) {
@@ -200,7 +216,8 @@ int RunCalibrate() {
   } else {
     run.opencv_error = "disabled";
   }
-  const std::string work = FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid());
+  const ScopedTempPath work_dir(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
+  const std::string& work = work_dir.path();
   if (cross.mrcal) {
     cli::Step(kCmd, "mrcal cross-check (" + cross.python + ")");
     MrcalCrossCheckOptions mo;
@@ -235,8 +252,6 @@ int RunCalibrate() {
   run.command_line = cmd.str();
   std::string report_warning;
   Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning);
-  std::error_code ec;
-  std::filesystem::remove_all(work, ec);
   if (!s.ok()) return cli::Fail(kCmd, s);
   if (!report_warning.empty()) {
     std::cerr << "carmba " << kCmd << ": warning: " << report_warning << std::endl;

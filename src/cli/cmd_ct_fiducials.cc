@@ -57,7 +57,7 @@ int RunCtFiducials() {
   options.frame = FLAGS_frame;
   options.extra_sigma_mm = FLAGS_extra_sigma_mm;
   std::string error;
-  if (!options.Check(&error)) return carmba::cli::Fail(cmd, error);
+  if (!options.Check(&error)) return carmba::cli::FailUsage(cmd, error);
   carmba::cli::Step(cmd, "reading " + FLAGS_dicom + " and finding the markers");
   auto result = carmba::ComputeCtFiducials(FLAGS_dicom, options);
   if (!result.ok()) return carmba::cli::Fail(cmd, result.status());

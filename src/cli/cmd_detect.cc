@@ -20,15 +20,15 @@ int RunDetect() {
   // --images and --out are required (checked before this runs: cli/command.h).
   if (const Status s = cli::CheckOutFile(); !s.ok()) return cli::Fail(kCmd, s);
   auto pat = ParseGridPattern(FLAGS_pattern);
-  if (!pat.ok()) return cli::Fail(kCmd, pat.status().WithContext("--pattern"));
+  if (!pat.ok()) return cli::FailUsage(kCmd, pat.status().WithContext("--pattern"));
   GridSpec grid;
   grid.pattern = *pat;
   grid.rows = FLAGS_rows;
   grid.cols = FLAGS_cols;
   std::string err;
-  if (!cli::CheckGridFlags(&err)) return cli::Fail(kCmd, err);
+  if (!cli::CheckGridFlags(&err)) return cli::FailUsage(kCmd, err);
   grid.spacing_mm = FLAGS_spacing_mm > 0 ? FLAGS_spacing_mm : 20.0;  // recorded in the CSV
-  if (!grid.Check(&err)) return cli::Fail(kCmd, err);
+  if (!grid.Check(&err)) return cli::FailUsage(kCmd, err);
   DetectionOptions options;
   if (!FLAGS_config.empty()) {
     // The `detection:` map of a calibration config (its other keys are the calibration's).

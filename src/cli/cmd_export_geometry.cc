@@ -44,17 +44,17 @@ std::string Index4(size_t k) {
 
 int RunExportGeometry() {
   const char* kCmd = "export-geometry";
-  if (FLAGS_result.empty()) return cli::Fail(kCmd, "--result (solve output directory) is required");
-  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (directory) is required");
+  if (FLAGS_result.empty()) return cli::FailUsage(kCmd, "--result (solve output directory) is required");
+  if (FLAGS_out.empty()) return cli::FailUsage(kCmd, "--out (directory) is required");
   const bool rtk = FLAGS_format == "rtk" || FLAGS_format == "all";
   const bool plm = FLAGS_format == "plastimatch" || FLAGS_format == "all";
   const bool json = FLAGS_format == "json" || FLAGS_format == "all";
   if (!rtk && !plm && !json) {
-    return cli::Fail(kCmd, "--format: expected rtk, plastimatch, json or all, got '" +
+    return cli::FailUsage(kCmd, "--format: expected rtk, plastimatch, json or all, got '" +
                                FLAGS_format + "'");
   }
   if (FLAGS_sdd_mm != 0 && !InRange(FLAGS_sdd_mm, plausible::kDistanceMm)) {
-    return cli::Fail(kCmd, "--sdd-mm: expected 0 (not given) or " +
+    return cli::FailUsage(kCmd, "--sdd-mm: expected 0 (not given) or " +
                                FormatRange(plausible::kDistanceMm) + ", got " +
                                FormatCompact(FLAGS_sdd_mm));
   }

@@ -19,6 +19,7 @@
 #include "report/plots.h"
 #include "report/pose_report.h"
 #include "util/file_util.h"
+#include "util/plausible.h"
 #include "util/yaml_reader.h"
 
 DEFINE_string(fiducials, "", "CT marker centres with covariances (fiducials.csv as `carmba "
@@ -40,10 +41,10 @@ using namespace carmba;
 
 int RunPose() {
   const char* kCmd = "pose";
-  if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
-  if (FLAGS_fiducials.empty()) return cli::Fail(kCmd, "--fiducials is required");
-  if (FLAGS_camera.empty()) return cli::Fail(kCmd, "--camera is required");
-  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out is required");
+  if (FLAGS_images.empty()) return cli::FailUsage(kCmd, "--images is required");
+  if (FLAGS_fiducials.empty()) return cli::FailUsage(kCmd, "--fiducials is required");
+  if (FLAGS_camera.empty()) return cli::FailUsage(kCmd, "--camera is required");
+  if (FLAGS_out.empty()) return cli::FailUsage(kCmd, "--out is required");
   {
     const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(kCmd, s);
@@ -56,6 +57,21 @@ int RunPose() {
     const Status s = root.Finish();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
+  // Unit slips (metres for millimetres) name the flag once, before any view is read.
+  if (FLAGS_marker_diameter_mm != 0 &&
+      !InRange(FLAGS_marker_diameter_mm, plausible::kMarkerDiameterMm)) {
+    return cli::FailUsage(kCmd, "--marker-diameter-mm: expected " +
+                                    FormatRange(plausible::kMarkerDiameterMm) + ", got " +
+                                    FormatCompact(FLAGS_marker_diameter_mm) +
+                                    " (a diameter in metres?)");
+  }
+  if (FLAGS_source_to_object_mm != 0 &&
+      !InRange(FLAGS_source_to_object_mm, plausible::kSourceToObjectMm)) {
+    return cli::FailUsage(kCmd, "--source-to-object-mm: expected " +
+                                    FormatRange(plausible::kSourceToObjectMm) + ", got " +
+                                    FormatCompact(FLAGS_source_to_object_mm) +
+                                    " (a distance in metres?)");
+  }
   if (FLAGS_marker_diameter_mm != 0) options.blobs.diameter_mm = FLAGS_marker_diameter_mm;
   if (FLAGS_source_to_object_mm != 0) options.source_to_object_mm = FLAGS_source_to_object_mm;
   if (!FLAGS_diameter_px.empty()) {
@@ -63,7 +79,7 @@ int RunPose() {
     char comma = 0;
     std::istringstream is(FLAGS_diameter_px);
     if (!(is >> lo >> comma >> hi) || comma != ',' || !is.eof()) {
-      return cli::Fail(kCmd, "--diameter_px: expected 'min,max' in px, got '" + FLAGS_diameter_px + "'");
+      return cli::FailUsage(kCmd, "--diameter-px: expected 'min,max' in px, got '" + FLAGS_diameter_px + "'");
     }
     options.blobs.diameter_px = {lo, hi};
   }

@@ -17,6 +17,7 @@
 #include "report/pose_report.h"
 #include "export/view_geometry.h"
 #include "util/file_util.h"
+#include "util/temp_paths.h"
 
 
 namespace {
@@ -59,11 +60,10 @@ int RunJoint() {
   if (!solution.ok()) return cli::Fail("solve", solution.status());
   cli::Step("solve", "mrcal cross-check");
   // The mrcal cross-check (a failure is reported, not an error of the solve).
-  const std::string work = FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid());
-  auto mrcal = JointMrcalCrossCheck(*problem, *solution, work);
+  StatusOr<nlohmann::json> mrcal = Status::Error("not run");
   {
-    std::error_code ec;
-    std::filesystem::remove_all(work, ec);
+    const ScopedTempPath work(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
+    mrcal = JointMrcalCrossCheck(*problem, *solution, work.path());
   }
   nlohmann::json j = JointSolutionToJson(*problem, *config, *solution);
   if (mrcal.ok()) {

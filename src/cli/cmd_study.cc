@@ -38,23 +38,23 @@ int RunStudyCommand() {
     return cli::Fail("study", s);
   }
   if (FLAGS_resume && FLAGS_force) {
-    return cli::Fail("study", "--resume continues the study in --out, --force starts it over: "
+    return cli::FailUsage("study", "--resume continues the study in --out, --force starts it over: "
                               "give one of them");
   }
   StudyRunOptions options;
   options.out_dir = FLAGS_out;
   {
     std::string err;
-    if (!cli::CheckJobsFlag(&err)) return cli::Fail("study", err);
+    if (!cli::CheckJobsFlag(&err)) return cli::FailUsage("study", err);
   }
   options.jobs = FLAGS_jobs;
   options.resume = FLAGS_resume;
   options.restart = FLAGS_force;
   options.progress = ChooseProgressStyle(::isatty(STDERR_FILENO) == 1, FLAGS_verbose);
   Status s = ParseShard(FLAGS_shard, &options.shard_k, &options.shard_n);
-  if (!s.ok()) return cli::Fail("study", s);
+  if (!s.ok()) return cli::FailUsage("study", s);
   std::string error;
-  if (!options.Check(&error)) return cli::Fail("study", "--" + error);
+  if (!options.Check(&error)) return cli::FailUsage("study", "--" + error);
   StatusOr<StudySpec> spec = LoadStudySpec(FLAGS_study);
   if (!spec.ok()) return cli::Fail("study", spec.status());
   const bool allow_flag = !gflags::GetCommandLineFlagInfoOrDie("allow_failures").is_default;

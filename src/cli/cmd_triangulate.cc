@@ -177,19 +177,19 @@ StatusOr<Solved> Solve() {
 
 int RunTriangulate() {
   const char* cmd = "triangulate";
-  if (FLAGS_problem.empty()) return cli::Fail(cmd, "--problem is required");
-  if (FLAGS_config.empty()) return cli::Fail(cmd, "--config is required");
-  if (FLAGS_out.empty()) return cli::Fail(cmd, "--out is required");
+  if (FLAGS_problem.empty()) return cli::FailUsage(cmd, "--problem is required");
+  if (FLAGS_config.empty()) return cli::FailUsage(cmd, "--config is required");
+  if (FLAGS_out.empty()) return cli::FailUsage(cmd, "--out is required");
   if (FLAGS_points.empty() == FLAGS_pixels.empty()) {
-    return cli::Fail(cmd, "give either --points CSV or --pixels 'VIEW=U,V;VIEW=U,V'");
+    return cli::FailUsage(cmd, "give either --points CSV or --pixels 'VIEW=U,V;VIEW=U,V'");
   }
   std::string err;
   if (FLAGS_sigma_px != 0 && !CheckRange("--sigma_px", FLAGS_sigma_px, plausible::kPixelSigmaPx, &err)) {
-    return cli::Fail(cmd, err);
+    return cli::FailUsage(cmd, err);
   }
   ba::TriangulationOptions topt;
   topt.min_ray_angle_deg = FLAGS_min_angle_deg;
-  if (!topt.Check(&err)) return cli::Fail(cmd, "--min-angle-deg: " + err);
+  if (!topt.Check(&err)) return cli::FailUsage(cmd, "--min-angle-deg: " + err);
   {
     const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(cmd, s);

@@ -47,9 +47,9 @@ std::string OutputName(const std::string& view, int depth) {
 
 int RunUndistort() {
   const char* kCmd = "undistort";
-  if (FLAGS_images.empty()) return cli::Fail(kCmd, "--images is required");
-  if (FLAGS_camera.empty()) return cli::Fail(kCmd, "--camera is required");
-  if (FLAGS_out.empty()) return cli::Fail(kCmd, "--out (directory) is required");
+  if (FLAGS_images.empty()) return cli::FailUsage(kCmd, "--images is required");
+  if (FLAGS_camera.empty()) return cli::FailUsage(kCmd, "--camera is required");
+  if (FLAGS_out.empty()) return cli::FailUsage(kCmd, "--out (directory) is required");
   {
     const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(kCmd, s);

@@ -51,9 +51,25 @@ Status NormalizeFlags(const Command& cmd,
                       const std::vector<std::string>& args,
                       std::vector<std::string>* out);
 
-// Prints "carmba <command>: error: <message>" as one line on stderr and returns exit code 1.
+// The names (underscored) of all flags of `cmd`: its own, the shared ones it lists, --verbose.
+std::vector<std::string> CommandFlagNames(const Command& cmd);
+
+// Exit codes, the same for every command (listed by `carmba help`):
+//   0  success;
+//   1  the data: an input file that cannot be read or is wrong, a solve that fails, an existing
+//      result in --out, a file system that refuses the output;
+//   2  the command line itself (seen without reading any input): an unknown command or flag, a
+//      flag of another command, a flag value that does not parse or is outside its plausible
+//      range, a required flag left out, a stray argument, an --out that is one of the inputs.
+inline constexpr int kExitData = 1;
+inline constexpr int kExitUsage = 2;
+
+// Prints "carmba <command>: error: <message>" as one line on stderr and returns kExitData.
 int Fail(const std::string& command, const Status& status);
 int Fail(const std::string& command, const std::string& message);
+// The same for a usage error: returns kExitUsage.
+int FailUsage(const std::string& command, const Status& status);
+int FailUsage(const std::string& command, const std::string& message);
 
 }  // namespace carmba::cli
 

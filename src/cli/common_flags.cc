@@ -2,8 +2,10 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <sstream>
 
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -65,6 +67,43 @@ Status CheckOutDir(bool also_allowed, const std::string& how_to_override) {
 }
 
 Status CheckOutFile() { return CheckOutputFile(FLAGS_out, "--out", FLAGS_force); }
+
+const std::vector<std::string>& InputFlagNames() {
+  static const std::vector<std::string> kNames = {
+      "images", "camera", "config",   "problem",   "observations", "truth",  "dicom", "model",
+      "fiducials", "detection", "result", "scene", "study", "shards", "points"};
+  return kNames;
+}
+
+std::vector<InputPath> InputsOfFlags(const std::vector<std::string>& flag_names) {
+  std::vector<InputPath> inputs;
+  for (const std::string& name : flag_names) {
+    if (std::find(InputFlagNames().begin(), InputFlagNames().end(), name) ==
+        InputFlagNames().end()) {
+      continue;
+    }
+    std::string value;
+    if (!gflags::GetCommandLineOption(name.c_str(), &value) || value.empty()) continue;
+    std::string dashed = name;
+    std::replace(dashed.begin(), dashed.end(), '_', '-');
+    if (name != "shards") {
+      inputs.push_back({"--" + dashed, value});
+      continue;
+    }
+    std::stringstream items(value);
+    for (std::string item; std::getline(items, item, ',');) {
+      if (!item.empty()) inputs.push_back({"--" + dashed, item});
+    }
+  }
+  return inputs;
+}
+
+Status CheckOutIsNoInput(const std::vector<InputPath>& inputs) {
+  for (const InputPath& in : inputs) {
+    CARMBA_RETURN_IF_ERROR(CheckOutputIsNotInput(FLAGS_out, "--out", in.path, in.what));
+  }
+  return Status::Ok();
+}
 
 std::unique_ptr<Progress> MakeProgress(const std::string& label,
                                        int total,

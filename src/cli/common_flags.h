@@ -9,6 +9,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "util/progress.h"
 #include "util/status.h"
@@ -44,6 +45,23 @@ bool CheckJobsFlag(std::string* error);
 Status CheckOutDir(bool also_allowed = false,
                    const std::string& how_to_override = "pass --force to write over it");
 Status CheckOutFile();
+
+// An input of a command: `what` names it in messages ("--images", "--problem key 'images'"),
+// `path` is a file, a directory, a glob or `file.dcm#frameN`.
+struct InputPath {
+  std::string what;
+  std::string path;
+};
+// The flags that name inputs (files, directories, globs; --shards a comma-separated list of
+// them), with underscores. Every command's --out is checked against those it has before it runs
+// (main.cc), so a new input flag goes here.
+const std::vector<std::string>& InputFlagNames();
+// The inputs named by `flag_names` that are in InputFlagNames() and set (--shards split at ',').
+std::vector<InputPath> InputsOfFlags(const std::vector<std::string>& flag_names);
+// --out is not, and does not contain, any of `inputs` (util/file_util.h CheckOutputIsNotInput),
+// with --force or not. A usage error (kExitUsage). main.cc checks the flags' inputs; a command
+// that reads more inputs from a file (a problem's images) checks those once it has read it.
+Status CheckOutIsNoInput(const std::vector<InputPath>& inputs);
 
 // Progress of `total` items of `unit` for the command `label`: a bar when stderr is a terminal,
 // else one line per item with --verbose, else nothing (util/progress.h).

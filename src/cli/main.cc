@@ -12,6 +12,11 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <map>
@@ -21,6 +26,7 @@
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
+#include "util/temp_paths.h"
 #include "util/text_match.h"
 
 namespace carmba::cli {
@@ -130,6 +136,37 @@ std::vector<Command> SortedCommands() {
   return cmds;
 }
 
+// "" when `value` parses as a value of `type` (gflags' types), else what was expected: gflags
+// would print its own message and exit 1 on it.
+std::string ExpectedFlagValue(const std::string& type, const std::string& value) {
+  const char* begin = value.c_str();
+  char* end = nullptr;
+  errno = 0;
+  if (type == "bool") {
+    std::string v = value;
+    std::transform(v.begin(), v.end(), v.begin(), [](unsigned char c) { return std::tolower(c); });
+    for (const char* ok : {"true", "false", "1", "0", "yes", "no", "t", "f", "y", "n"}) {
+      if (v == ok) return "";
+    }
+    return "true or false";
+  }
+  if (type == "int32" || type == "int64") {
+    const long long v = std::strtoll(begin, &end, 10);
+    const bool fits = type == "int64" || (v >= INT32_MIN && v <= INT32_MAX);
+    return !value.empty() && *end == '\0' && errno == 0 && fits ? "" : "an integer";
+  }
+  if (type == "uint32" || type == "uint64") {
+    std::strtoull(begin, &end, 10);
+    const bool ok = !value.empty() && value[0] != '-' && *end == '\0' && errno == 0;
+    return ok ? "" : "a non-negative integer";
+  }
+  if (type == "double") {
+    const double v = std::strtod(begin, &end);
+    return !value.empty() && *end == '\0' && std::isfinite(v) ? "" : "a number";
+  }
+  return "";
+}
+
 }  // namespace
 
 std::string UsageText() {
@@ -143,6 +180,13 @@ std::string UsageText() {
          "\n";
   }
   s += "  help            This list, or a command's flags (carmba help <command>).\n";
+  s += "\nExit codes (every command):\n"
+       "  0  success\n"
+       "  1  the data: an input that cannot be read or is wrong, a solve that fails, an existing\n"
+       "     result in --out (without --force), a file system that refuses the output\n"
+       "  2  usage: an unknown command or flag, a flag value that does not parse or is outside\n"
+       "     its plausible range, a required flag left out, a stray argument, an --out that is\n"
+       "     or contains one of the command's inputs\n";
   return s;
 }
 
@@ -198,6 +242,12 @@ bool RegisterRequiredFlags(const char* name, const char* required_flags_csv) {
   return true;
 }
 
+std::vector<std::string> CommandFlagNames(const Command& cmd) {
+  std::vector<std::string> names;
+  for (const auto& f : CommandFlags(cmd)) names.push_back(f.name);
+  return names;
+}
+
 std::vector<std::string> CommandSharedFlags(const std::string& name) {
   auto it = SharedFlags().find(name);
   return it == SharedFlags().end() ? std::vector<std::string>() : it->second;
@@ -210,11 +260,20 @@ std::vector<std::string> CommandRequiredFlags(const std::string& name) {
 
 int Fail(const std::string& command, const std::string& message) {
   std::cerr << "carmba " << command << ": error: " << message << std::endl;
-  return 1;
+  return kExitData;
 }
 
 int Fail(const std::string& command, const Status& status) {
   return Fail(command, status.message());
+}
+
+int FailUsage(const std::string& command, const std::string& message) {
+  Fail(command, message);
+  return kExitUsage;
+}
+
+int FailUsage(const std::string& command, const Status& status) {
+  return FailUsage(command, status.message());
 }
 
 Status NormalizeFlags(const Command& cmd,
@@ -274,10 +333,23 @@ Status NormalizeFlags(const Command& cmd,
       out->push_back("--no" + name);
       continue;
     }
+    const std::string& type = it->second->type;
+    std::string given = value.empty() ? "" : value.substr(1);
     out->push_back("--" + name + value);
     // `--flag value`: the value is the next argument (bool flags take none).
-    if (value.empty() && it->second->type != "bool" && i + 1 < args.size()) {
-      out->push_back(args[++i]);
+    if (value.empty() && type != "bool") {
+      if (i + 1 >= args.size()) {
+        return Status::Error("flag --" + Dashed(name) + " needs a value" + see);
+      }
+      given = args[++i];
+      out->push_back(given);
+    }
+    if (!value.empty() || type != "bool") {
+      const std::string expected = ExpectedFlagValue(type, given);
+      if (!expected.empty()) {
+        return Status::Error("--" + Dashed(name) + ": expected " + expected + ", got '" + given +
+                             "'" + see);
+      }
     }
   }
   return Status::Ok();
@@ -325,7 +397,7 @@ int main(int argc, char** argv) {
   }
   std::vector<std::string> normalized;
   if (const carmba::Status s = cli::NormalizeFlags(*cmd, raw, &normalized); !s.ok()) {
-    return cli::Fail(name, s);
+    return cli::FailUsage(name, s);
   }
   std::vector<char*> args;
   args.push_back(argv[0]);
@@ -335,16 +407,20 @@ int main(int argc, char** argv) {
   gflags::SetUsageMessage("carmba " + name + " (see 'carmba " + name + " --help')");
   gflags::ParseCommandLineFlags(&nargs, &pargs, /*remove_flags=*/true);
   if (nargs > 1) {
-    return cli::Fail(name, std::string("unexpected argument '") + pargs[1] +
-                               "' (flags are written --name=value)");
+    return cli::FailUsage(name, std::string("unexpected argument '") + pargs[1] +
+                                    "' (flags are written --name=value)");
   }
   for (const auto& r : cli::CommandRequiredFlags(name)) {
     gflags::CommandLineFlagInfo f;
     if (gflags::GetCommandLineFlagInfo(r.c_str(), &f) && (f.is_default || f.current_value.empty())) {
-      return cli::Fail(name, "--" + cli::Dashed(r) + " is required (see 'carmba " + name +
-                                 " --help')");
+      return cli::FailUsage(name, "--" + cli::Dashed(r) + " is required (see 'carmba " + name +
+                                      " --help')");
     }
   }
+  if (const carmba::Status s = cli::CheckOutIsNoInput(cli::InputsOfFlags(cli::CommandFlagNames(*cmd))); !s.ok()) {
+    return cli::FailUsage(name, s);
+  }
+  carmba::InstallTempPathCleanup();
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = FLAGS_verbose ? 0 : 1;
   google::InitGoogleLogging(argv[0]);

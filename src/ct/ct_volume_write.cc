@@ -18,6 +18,7 @@
 #include "ct/ct_volume.h"
 #include "util/gdcm_util.h"
 #include "util/file_util.h"
+#include "util/temp_paths.h"
 
 namespace carmba {
 namespace fs = std::filesystem;
@@ -87,6 +88,7 @@ Status WriteCtSeries(const CtVolume& volume,
   const std::string tmp = dir + ".tmp." + std::to_string(::getpid());
   fs::remove_all(tmp, ec);
   CARMBA_RETURN_IF_ERROR(MakeDirs(tmp));
+  const TempPathRegistration registration(tmp);  // removed on SIGINT / SIGTERM
   auto fail = [&](const std::string& m) {
     std::error_code ec2;
     fs::remove_all(tmp, ec2);

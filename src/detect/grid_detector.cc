@@ -12,6 +12,7 @@
 
 #include "io/dicom_xray.h"
 #include "report/format.h"
+#include "util/image_header.h"
 #include "util/plausible.h"
 #include "util/quiet_stderr.h"
 #include "util/yaml_reader.h"
@@ -1085,6 +1086,7 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
     }
     return views->front().image;
   }
+  CARMBA_RETURN_IF_ERROR(CheckImageFileSize(path));
   cv::Mat m;
   try {
     // libpng / libtiff print their own diagnostics on a corrupt file; the Status below is the
@@ -1114,6 +1116,7 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path) {
   if (SplitDicomFrameName(path, &file, &frame, &err) && !err.empty()) return Status::Error(err);
   auto dicom = ReadDicomXray(file);
   if (!dicom.ok()) return dicom.status();
+  CARMBA_RETURN_IF_ERROR(CheckProjectionImage(*dicom));
   const int n = static_cast<int>(dicom->frames.size());
   if (frame >= n) {
     return Status::Error(path + ": no such frame, " + file + " has " + std::to_string(n) +

@@ -14,13 +14,16 @@
 #include "detect/detect_steps.h"
 #include "geometry/rotation.h"
 #include "sim/dicom_view.h"
+#include "util/plausible.h"
 #include "util/yaml_reader.h"
 
 namespace carmba {
 
 bool ObjectViewsOptions::Check(std::string* error) const {
-  if (!(source_to_object_mm >= 0 && source_to_object_mm < 1e4)) {
-    *error = "source_to_object_mm: expected 0 (unknown) .. 10000 mm";
+  if (source_to_object_mm != 0 && !InRange(source_to_object_mm, plausible::kSourceToObjectMm)) {
+    *error = "source_to_object_mm: expected 0 (unknown) or " +
+             FormatRange(plausible::kSourceToObjectMm) + ", got " +
+             FormatCompact(source_to_object_mm) + " (a distance in metres?)";
     return false;
   }
   if (!(sigma_floor_px >= 0 && sigma_floor_px < 100)) {
@@ -29,6 +32,11 @@ bool ObjectViewsOptions::Check(std::string* error) const {
   }
   if (blobs.diameter_px.empty() && !(blobs.diameter_mm > 0)) {
     *error = "marker diameter: expected diameter_px [min, max] or diameter_mm";
+    return false;
+  }
+  if (blobs.diameter_px.empty() && !InRange(blobs.diameter_mm, plausible::kMarkerDiameterMm)) {
+    *error = "diameter_mm: expected " + FormatRange(plausible::kMarkerDiameterMm) + ", got " +
+             FormatCompact(blobs.diameter_mm) + " (a diameter in metres?)";
     return false;
   }
   return correspondence.Check(error);

@@ -25,6 +25,7 @@
 
 #include "util/file_util.h"
 #include "util/gdcm_util.h"
+#include "util/plausible.h"
 #include "util/quiet_stderr.h"
 
 namespace carmba {
@@ -48,8 +49,8 @@ std::string TransferSyntaxName(const std::string& uid) {
 namespace {
 
 // Decoded images above this size are refused before anything is allocated (a corrupt Rows /
-// Columns / Number of Frames would otherwise ask for terabytes).
-constexpr size_t kMaxPixelBytes = size_t{1} << 30;
+// Columns / Number of Frames would otherwise ask for terabytes): plausible::kImageBytes.
+constexpr size_t kMaxPixelBytes = static_cast<size_t>(plausible::kImageBytes.hi);
 
 std::string Tag(uint16_t g, uint16_t e) {
   char b[16];
@@ -391,6 +392,12 @@ Status ReadDicomImage(const std::string& path,
   const std::string size_text = std::to_string(out->columns) + " x " +
                                 std::to_string(out->rows) + " x " + std::to_string(out->frames) +
                                 " frames";
+  if (!InRange(static_cast<double>(out->rows) * out->columns, plausible::kImagePixels)) {
+    return Status::Error(path + ": " + std::to_string(out->columns) + " x " +
+                         std::to_string(out->rows) + " px per frame, expected " +
+                         FormatRange(plausible::kImagePixels) +
+                         " (util/plausible.h kImagePixels; refused before decoding)");
+  }
   if (expected > kMaxPixelBytes) {
     return Status::Error(path + ": " + size_text + " of " + std::to_string(bytes_per) +
                          " bytes need " + std::to_string(expected) +

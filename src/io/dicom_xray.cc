@@ -23,6 +23,7 @@
 #include "util/file_util.h"
 #include "util/gdcm_util.h"
 #include "util/quiet_stderr.h"
+#include "util/temp_paths.h"
 
 namespace carmba {
 namespace {
@@ -207,6 +208,21 @@ bool SplitDicomFrameName(const std::string& name,
   *file = name.substr(0, pos);
   *frame_index = static_cast<int>(n - 1);
   return true;
+}
+
+Status CheckProjectionImage(const DicomXrayImage& image) {
+  // CT Image, Enhanced CT, MR Image, Enhanced MR Image Storage.
+  static const char* kVolumeClasses[] = {"1.2.840.10008.5.1.4.1.1.2", "1.2.840.10008.5.1.4.1.1.2.1",
+                                         "1.2.840.10008.5.1.4.1.1.4", "1.2.840.10008.5.1.4.1.1.4.1"};
+  bool volume = image.modality == "CT" || image.modality == "MR" || image.modality == "PT" ||
+                image.modality == "NM";
+  for (const char* uid : kVolumeClasses) volume = volume || image.sop_class_uid == uid;
+  if (!volume) return Status::Ok();
+  const std::string what = image.modality.empty() ? "SOP Class " + image.sop_class_uid
+                                                  : "Modality " + image.modality;
+  return Status::Error(image.file + " is a " + (image.modality.empty() ? "CT" : image.modality) +
+                       " slice (" + what + "), not an X-ray projection: a CT series is read by " +
+                       "'carmba ct-fiducials --dicom DIR'");
 }
 
 StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path) {
@@ -454,6 +470,7 @@ Status WriteDicomXray(const std::string& path,
   file.GetHeader().SetDataSetTransferSyntax(ts);
 
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  const TempPathRegistration registration(tmp);  // removed on SIGINT / SIGTERM
   writer.SetFileName(tmp.c_str());
   bool written;
   {

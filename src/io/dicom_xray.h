@@ -89,6 +89,11 @@ struct DicomXrayImage {
 // Reads all frames of a DICOM file and their geometry (see the header comment).
 StatusOr<DicomXrayImage> ReadDicomXray(const std::string& path);
 
+// Error when `image` is a slice of a volume, not a projection: Modality CT / MR / PT / NM or a CT /
+// MR image SOP class. The message names the file and points to `carmba ct-fiducials`, so that a
+// CT series given as X-ray images is one line, not one "too few blobs" per slice.
+Status CheckProjectionImage(const DicomXrayImage& image);
+
 // True for names taken as DICOM: a `#frameN` suffix, the extension .dcm / .dicom (any case), or,
 // for a file without one of the image extensions OpenCV reads (png, pgm, ppm, pnm, tif, tiff,
 // jpg, jpeg, bmp), the DICM preamble (Siemens .IMA, UID-like names, no extension).

@@ -80,7 +80,19 @@ Status ReadPlateViews(YamlMap& m, const std::string& base, JointProblem* p) {
     ids.insert(id);
     p->plate_view_ids.push_back(id);
   }
-  if (p->plate.views.empty()) return Status::Error(m.KeyPath("observations") + ": no plate views");
+  if (p->plate.views.empty() && !images.empty()) {
+    // Detection found the grid nowhere: most often rows / cols / pattern do not match the plate.
+    return Status::Error(
+        m.file() + ": " + m.KeyPath("images") + ": the grid (" + pattern + " " +
+        std::to_string(grid.rows) + " x " + std::to_string(grid.cols) + ", keys " +
+        m.KeyPath("pattern") + "/rows/cols) was found in none of the " +
+        std::to_string(p->skipped_images.size()) + " images: check rows and cols" +
+        (p->skipped_images.empty() ? "" : "; first: " + p->skipped_images.front()));
+  }
+  if (p->plate.views.empty()) {
+    return Status::Error(m.file() + ": " + m.KeyPath("observations") + ": no plate views in " +
+                         observations);
+  }
   return Status::Ok();
 }
 

@@ -10,6 +10,7 @@
 #include "io/dicom_xray.h"
 #include "sim/xray_render.h"
 #include "util/file_util.h"
+#include "util/image_header.h"
 #include "util/quiet_stderr.h"
 
 namespace carmba::sim {
@@ -38,6 +39,7 @@ StatusOr<cv::Mat> LoadBackgroundGain(
     }
     dicom->frames[index].convertTo(frame, CV_32F);
   } else {
+    CARMBA_RETURN_IF_ERROR(CheckImageFileSize(path));
     cv::Mat raw;
     {
       QuietStderr quiet;

@@ -18,11 +18,13 @@
 #include <sstream>
 
 #include "util/dicom_structure.h"
+#include "util/temp_paths.h"
 
 namespace carmba {
 
 Status WriteFileAtomic(const std::string& path, const std::string& contents) {
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  const TempPathRegistration registration(tmp);  // removed on SIGINT / SIGTERM
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) {
@@ -156,6 +158,58 @@ Status MakeParentDirs(const std::string& path) {
   return FileExists(d) ? Status::Ok() : MakeDirs(d);
 }
 
+namespace {
+
+// The file or directory an input names: a glob's directory before its first wildcard, a DICOM
+// frame's file.
+std::string InputRoot(const std::string& input) {
+  std::string p = input;
+  const size_t frame = p.rfind("#frame");
+  if (frame != std::string::npos) p = p.substr(0, frame);
+  const size_t wild = p.find_first_of("*?[");
+  if (wild != std::string::npos) {
+    const size_t slash = p.rfind('/', wild);
+    p = slash == std::string::npos ? "." : p.substr(0, slash + (slash == 0 ? 1 : 0));
+  }
+  return p;
+}
+
+std::filesystem::path Resolved(const std::string& p) {
+  std::error_code ec;
+  auto abs = std::filesystem::absolute(p, ec);
+  if (ec) return std::filesystem::path(p).lexically_normal();
+  auto c = std::filesystem::weakly_canonical(abs, ec);
+  return (ec ? abs : c).lexically_normal();
+}
+
+// True when `inner` is `outer` or lies below it (both resolved).
+bool IsWithin(const std::filesystem::path& inner, const std::filesystem::path& outer) {
+  auto i = inner.begin();
+  for (auto o = outer.begin(); o != outer.end(); ++o, ++i) {
+    if (o->empty()) continue;  // a trailing separator
+    if (i == inner.end() || *i != *o) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+Status CheckOutputIsNotInput(const std::string& out,
+                             const std::string& out_what,
+                             const std::string& input,
+                             const std::string& input_what) {
+  if (out.empty() || input.empty()) return Status::Ok();
+  const std::string root = InputRoot(input);
+  if (!FileExists(root)) return Status::Ok();
+  const auto o = Resolved(StripTrailingSlashes(out)), i = Resolved(StripTrailingSlashes(root));
+  if (!IsWithin(i, o)) return Status::Ok();
+  // A glob's directory holds the inputs rather than being one.
+  const bool same = o == i && input.find_first_of("*?[") == std::string::npos;
+  const std::string how = same ? ": is the input " : ": contains the input ";
+  return Status::Error(out_what + " " + out + how + input_what + " " + input +
+                       " (an output never replaces an input, with --force or not)");
+}
+
 StagedOutputDir::StagedOutputDir(std::string dir) : dir_(StripTrailingSlashes(std::move(dir))) {}
 
 StagedOutputDir::~StagedOutputDir() {
@@ -164,6 +218,7 @@ StagedOutputDir::~StagedOutputDir() {
     std::filesystem::remove_all(staging_, ec);
     for (const auto& d : created_parents_) ::rmdir(d.c_str());  // only if empty
   }
+  UnregisterTempPath(slot_);
 }
 
 Status StagedOutputDir::Begin() {
@@ -180,6 +235,8 @@ Status StagedOutputDir::Begin() {
   }
   std::error_code ec;
   std::filesystem::remove_all(staging_, ec);
+  UnregisterTempPath(slot_);
+  slot_ = RegisterTempPath(staging_);
   return MakeDirs(staging_);
 }
 
@@ -189,6 +246,8 @@ Status StagedOutputDir::Commit(bool replace_all) {
   if (!inside_) {
     fs::rename(staging_, dir_, ec);
     if (ec) return Status::Error(dir_ + ": cannot move the results into place (" + ec.message() + ")");
+    UnregisterTempPath(slot_);
+    slot_ = -1;
     done_ = true;
     return Status::Ok();
   }
@@ -242,6 +301,8 @@ Status StagedOutputDir::Commit(bool replace_all) {
   }
   fs::remove_all(staging, ec);
   fs::remove_all(old, ec);
+  UnregisterTempPath(slot_);
+  slot_ = -1;
   done_ = true;
   return Status::Ok();
 }

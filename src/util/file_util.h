@@ -36,6 +36,18 @@ Status CheckOutputDir(const std::string& dir,
 // directory passes the checks above. Unless `force`, `path` must not exist.
 Status CheckOutputFile(const std::string& path, const std::string& what, bool force);
 
+// An output never replaces an input: error when the output `out` (named `out_what`, e.g. "--out")
+// is the input `input` (named `input_what`, e.g. "--images") or contains it, with --force or not:
+//   --out data/views: is the input --images data/views (an output never replaces an input, with
+//   --force or not)
+// Paths are compared after resolving symbolic links, `.` and `..` (std::filesystem::
+// weakly_canonical; parts that do not exist yet compare as written). `input` may be a glob (the
+// directory before its first wildcard is the input), `file.dcm#frameN`, or not exist (Ok).
+Status CheckOutputIsNotInput(const std::string& out,
+                             const std::string& out_what,
+                             const std::string& input,
+                             const std::string& input_what);
+
 // Creates the missing directories of `path`'s directory (for an output file checked with
 // CheckOutputFile); the error names the directory.
 Status MakeParentDirs(const std::string& path);
@@ -51,7 +63,8 @@ Status MakeParentDirs(const std::string& path);
 //     before are moved aside first and deleted after, or moved back on error. A rename failing
 //     half-way through (not expected within one directory) can leave some entries moved.
 // Without Commit the destructor removes the staging directory, and the parents of `dir` that
-// Begin created (when they are empty).
+// Begin created (when they are empty). The staging directory is registered in util/temp_paths.h
+// (removed on SIGINT / SIGTERM), as is WriteFileAtomic's temporary file.
 class StagedOutputDir {
  public:
   explicit StagedOutputDir(std::string dir);
@@ -70,6 +83,7 @@ class StagedOutputDir {
   std::vector<std::string> created_parents_;  // by Begin, deepest first
   bool inside_ = false;
   bool done_ = false;
+  int slot_ = -1;  // util/temp_paths.h: removed on SIGINT / SIGTERM
 };
 
 // Reads a whole file. Error names the path.

@@ -42,6 +42,15 @@ inline constexpr PlausibleRange kDistortion{-1e6, 1e6, ""};
 // Standard deviation of an intrinsic in camera.json's covariance, in the intrinsic's unit (px or
 // none): larger than the largest plausible value itself says nothing.
 inline constexpr PlausibleRange kIntrinsicSigma{0, 1e6, ""};
+// Pixels of one image (one frame), read from the file's header before anything is decoded: the
+// largest flat panels are 4k x 4k (17 Mpx) and a 50 Mpx camera photo is the largest input seen;
+// 1e8 px leaves twice that. Without the bound OpenCV decodes up to 2^30 px: a 30000 x 30000 PNG
+// took 4.46 GB and 14 s before the detector even started.
+inline constexpr PlausibleRange kImagePixels{1, 1e8, "px"};
+// Decoded bytes of one image file (all frames and channels): 1 GiB is 1e8 px of 16-bit grey with
+// room for a multi-frame run; a corrupt DICOM Rows / Columns / Number of Frames would otherwise
+// ask for terabytes.
+inline constexpr PlausibleRange kImageBytes{1, 1073741824.0, "bytes"};
 // Pixel coordinates of an observation: 10 x the largest detector either way (points a little
 // outside the image arise from extrapolated or legacy coordinates).
 inline constexpr PlausibleRange kPixelCoordinatePx{-1e5, 1e5, "px"};
@@ -63,6 +72,10 @@ inline constexpr PlausibleRange kLengthMm{0, 1e4, "mm"};
 // A distance of the C-arm geometry (source-to-detector, source-to-object, object distance): up
 // to 10 m.
 inline constexpr PlausibleRange kDistanceMm{1, 1e4, "mm"};
+// The source-to-object distance of a C-arm (the marker detector's magnification fx / SOD): a
+// C-arm's object sits 300..1000 mm from the source; below 50 mm it would be inside the tube
+// housing, so a value in metres (0.6) is refused rather than turned into a 10x magnification.
+inline constexpr PlausibleRange kSourceToObjectMm{50, 1e4, "mm"};
 // An angle in degrees (C-arm view angles, expected validation angles): one turn either way.
 inline constexpr PlausibleRange kAngleDeg{-360, 360, "deg"};
 // Detector pixel pitch: flat panels and intensifier cameras have 0.1..1 mm; CT voxels 0.1..5 mm.
@@ -82,6 +95,12 @@ inline constexpr PlausibleRange kGridSpacingMm{0.1, 1000, "mm"};
 // Calibration grid rows / columns: at the >= 8 px pitch that detection needs, 1000 points in a
 // row fill more than any detector.
 inline constexpr PlausibleRange kGridRowsCols{2, 1000, ""};
+
+// Distance of a calibration plate from the X-ray source (or camera), as solved: a C-arm's plate
+// sits 300..1000 mm from the source, a camera's chessboard 200..3000 mm. Outside 100 .. 5000 mm the
+// grid pitch is wrong, most often by a unit (2 for 20 mm put a 20 mm-pitch plate at 78 mm; 200
+// would put it at 7.8 m): the solve is consistent at any scale, only the pitch fixes the distance.
+inline constexpr PlausibleRange kPlateDistanceMm{100, 5000, "mm"};
 
 // Views of a (synthetic) calibration: 1000 views calibrate in 73 ms; 1e5 is a day of images.
 inline constexpr PlausibleRange kViews{1, 1e5, ""};

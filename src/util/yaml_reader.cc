@@ -88,10 +88,29 @@ std::optional<YAML::Node> YamlMap::Node(const std::string& key,
                                         const char* expected) {
   known_.insert(key);
   if (!Has(key)) {
-    if (required) Fail(key, std::string("missing, expected ") + expected);
+    if (required && !FailOnMisspeltKey(key) && status_.ok()) {
+      Fail(key, std::string("missing, expected ") + expected);
+      missing_ = true;
+    }
     return std::nullopt;
   }
   return node_[key];
+}
+
+bool YamlMap::FailOnMisspeltKey(const std::string& missing) {
+  if (!node_ || !node_.IsMap()) return false;
+  for (const auto& kv : node_) {
+    if (!kv.first.IsScalar() || known_.count(kv.first.Scalar())) continue;
+    const std::string k = kv.first.Scalar();
+    if (ClosestMatch(k, {missing}).empty()) continue;
+    if (status_.ok()) {
+      status_ = Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
+                              ": unknown key '" + KeyPath(k) + "'; did you mean '" + missing +
+                              "'? (a required key)");
+    }
+    return true;
+  }
+  return false;
 }
 
 namespace {
@@ -317,34 +336,41 @@ YAML::Node YamlMap::Raw(const std::string& key) {
   return Has(key) ? node_[key] : YAML::Node();
 }
 
-Status YamlMap::Finish() {
-  if (!status_.ok()) return status_;
-  for (auto& c : children_) {
-    Status s = c->Finish();
-    if (!s.ok()) return status_ = s;
-  }
+Status YamlMap::UnknownKey() const {
   if (node_ && node_.IsMap()) {
     for (const auto& kv : node_) {
       // A complex key (`? [a, b]`, `? {a: 1}`) is no key of ours; as<std::string>() would throw.
       if (!kv.first.IsScalar()) {
-        return status_ = Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
-                                       ": " + (prefix_.empty() ? std::string("top level")
-                                                               : "key '" + prefix_ + "'") +
-                                       ": expected keys that are names, got " + Show(kv.first) +
-                                       " as a key");
+        return Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
+                             ": " + (prefix_.empty() ? std::string("top level")
+                                                     : "key '" + prefix_ + "'") +
+                             ": expected keys that are names, got " + Show(kv.first) +
+                             " as a key");
       }
       const std::string k = kv.first.Scalar();
       if (!known_.count(k)) {
         std::string list;
         for (const auto& kk : known_) list += (list.empty() ? "" : ", ") + kk;
-        const std::string closest =
+        const std::string close =
             ClosestMatch(k, std::vector<std::string>(known_.begin(), known_.end()));
-        return status_ = Status::Error(
-                   file_ + ":" + std::to_string(kv.first.Mark().line + 1) + ": unknown key '" +
-                   KeyPath(k) + "'" + (closest.empty() ? "" : ", did you mean '" + closest + "'?") +
-                   " (known keys: " + list + ")");
+        return Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
+                             ": unknown key '" + KeyPath(k) + "'" +
+                             (close.empty() ? "" : "; did you mean '" + close + "'?") +
+                             " (known keys: " + list + ")");
       }
     }
+  }
+  return Status::Ok();
+}
+
+Status YamlMap::Finish() {
+  // An unknown key comes before a missing one (the typo is the cause); any other error first.
+  if (!status_.ok() && !missing_) return status_;
+  if (Status u = UnknownKey(); !u.ok()) return status_ = u;
+  if (!status_.ok()) return status_;
+  for (auto& c : children_) {
+    Status s = c->Finish();
+    if (!s.ok()) return status_ = s;
   }
   if (status_.ok() && AcceptedKeyRecordingEnabled()) {
     static const std::regex kIndex("\\[[0-9]+\\]");

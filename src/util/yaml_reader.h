@@ -1,6 +1,9 @@
 // Strict reading of YAML mappings for problem, config, scene and study files.
 //
-// Every key read is recorded; Finish() reports the first unknown key. The keys a parser asks for are
+// Every key read is recorded; Finish() reports the first unknown key, with the closest known key
+// ("did you mean"). A required key that is missing while an unknown key resembles it reports the
+// unknown key instead ("unknown key 'sigma_pz'; did you mean 'sigma_px'?"), since a parser may stop
+// at the missing key before Finish() sees the rest. The keys a parser asks for are
 // also what util/accepted_keys.h records, for the check of src/docs/formats.md. Wrong types, missing
 // required keys and non-finite numbers are errors naming the file, the line and the dotted key
 // path, and what was expected, e.g.
@@ -82,6 +85,13 @@ class YamlMap {
 
  private:
   std::string Where(const std::string& key) const;
+  // A required key `missing` is absent: if a key of this map not asked for is a likely
+  // misspelling of it (util/text_match.h ClosestMatch), records "unknown key 'sigma_pz'; did you
+  // mean 'sigma_px'?" at that key's line (an unknown key is reported before a missing one) and
+  // returns true.
+  bool FailOnMisspeltKey(const std::string& missing);
+  // The first key of this map no parser asked for (Ok if none).
+  Status UnknownKey() const;
   std::optional<YAML::Node> Node(const std::string& key, bool required, const char* expected);
 
   YAML::Node node_;
@@ -91,6 +101,7 @@ class YamlMap {
   std::string user_named_;
   std::vector<std::unique_ptr<YamlMap>> children_;
   Status status_;
+  bool missing_ = false;  // status_ is a missing required key
 };
 
 }  // namespace carmba

@@ -84,7 +84,7 @@ TEST(CommandLine, RequiredFlagsAreMarkedAndCheckedFirst) {
   // A missing required flag: one line naming it, before any work (the problem is never read).
   ScratchDir dir;
   auto r = RunCarmba("solve --problem=" + dir.File("no.yaml") + " --out=" + dir.File("o"));
-  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.err, "carmba solve: error: --config is required (see 'carmba solve --help')\n");
   EXPECT_FALSE(fs::exists(dir.File("o")));
   // Given but empty counts as missing.
@@ -157,7 +157,7 @@ TEST_F(CommandLineCalibrate, MisspeltFlagSuggestsTheClosest) {
   };
   for (const auto& c : cases) {
     const auto r = RunCarmba(Calibrate(c.args, "bad"));
-    EXPECT_EQ(r.exit_code, 1) << c.args;
+    EXPECT_EQ(r.exit_code, 2) << c.args;
     EXPECT_EQ(CountLines(r.err), 1) << r.err;
     EXPECT_EQ(r.err.rfind("carmba calibrate: error: ", 0), 0u) << r.err;
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << ": " << r.err;
@@ -174,6 +174,58 @@ TEST(CommandLine, MisspeltCommandSuggestsTheClosest) {
   EXPECT_NE(r.err.find("did you mean 'calibrate'?"), std::string::npos) << r.err;
   r = RunCarmba("xyzzy");
   EXPECT_EQ(r.err, "carmba: error: unknown command 'xyzzy' (see 'carmba help')\n");
+}
+
+}  // namespace
+}  // namespace carmba::test
+
+namespace carmba::test {
+namespace {
+
+// One exit code scheme (cli/command.h): 2 for the command line itself, 1 for the data; each a
+// one-line error; `carmba help` lists them.
+TEST(CommandLine, ExitCodesTwoForUsageOneForData) {
+  TempDir dir;
+  ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
+  const std::string calibrate =
+      "calibrate --no-mrcal --no-opencv --observations " + dir.File("obs.csv");
+  struct Case {
+    std::string args;
+    int exit_code;
+    std::string expected;  // in the one line of stderr
+  };
+  const std::vector<Case> cases = {
+      {"slove", 2, "unknown command 'slove'"},
+      {calibrate + " --out " + dir.File("o") + " --spacing-nm 20", 2, "unknown flag --spacing-nm"},
+      {calibrate + " --out " + dir.File("o") + " --scene x.yaml", 2, "not a flag of 'calibrate'"},
+      {calibrate + " --out " + dir.File("o") + " --rows abc", 2, "--rows: expected an integer, got 'abc'"},
+      {calibrate + " --out " + dir.File("o") + " --rows=4.5", 2, "--rows: expected an integer, got '4.5'"},
+      {calibrate + " --out " + dir.File("o") + " --spacing-mm 2cm", 2, "--spacing-mm: expected a number, got '2cm'"},
+      {calibrate + " --out " + dir.File("o") + " --mrcal=maybe", 2, "--mrcal: expected true or false, got 'maybe'"},
+      {"study --study x.yaml --out " + dir.File("o") + " --jobs -3", 2, "--jobs: expected 0 .. 1024"},
+      {calibrate + " --out " + dir.File("o") + " --rows 1", 2, "--rows: expected 2 .. 1000"},
+      {calibrate + " --out", 2, "flag --out needs a value"},
+      {calibrate + " --out " + dir.File("o") + " stray", 2, "unexpected argument 'stray'"},
+      {"solve --problem x.yaml --out " + dir.File("o"), 2, "--config is required"},
+      {"pose --images " + dir.path() + " --fiducials f.csv --camera c.json --out " + dir.File("o") +
+           " --marker-diameter-mm 0.002", 2, "--marker-diameter-mm: expected 0.1 .. 100 mm, got 0.002"},
+      // Data: a file that does not exist, a file that is wrong.
+      {"solve --problem " + dir.File("none.yaml") + " --config " + dir.File("none.yaml") +
+           " --out " + dir.File("o"), 1, "none.yaml"},
+      {"calibrate --no-mrcal --no-opencv --observations " + dir.File("none.csv") + " --out " +
+           dir.File("o"), 1, "none.csv"},
+  };
+  for (const auto& c : cases) {
+    const auto r = RunCarmba(c.args);
+    EXPECT_EQ(r.exit_code, c.exit_code) << c.args << ": " << r.err;
+    EXPECT_EQ(CountLines(r.err), 1) << c.args << ": " << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << ": " << r.err;
+    EXPECT_FALSE(fs::exists(dir.File("o"))) << c.args;
+  }
+  const auto help = RunCarmba("help").out;
+  EXPECT_NE(help.find("Exit codes (every command):\n  0  success\n  1  the data"), std::string::npos)
+      << help;
+  EXPECT_NE(help.find("  2  usage: an unknown command or flag"), std::string::npos) << help;
 }
 
 }  // namespace

@@ -204,7 +204,7 @@ TEST_F(OutContract, StudyResumeOrForce) {
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find(" 0 already done"), std::string::npos) << r.out;
   r = RunCarmba(args + " --force --resume");
-  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.exit_code, 2);  // a usage error (cli/command.h kExitUsage)
   EXPECT_NE(r.err.find("give one of them"), std::string::npos) << r.err;
 }
 

@@ -188,7 +188,7 @@ TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
   // The lost problem fails with each good config (12 runs), the typo config with each problem
   // (12 runs; its error comes first in the lost problem's runs too). Ties: the earliest run's
   // reason first (sim|typo comes before lost|...).
-  const size_t typo_reason = r.err.find("max_iteration', did you mean 'max_iterations'?");
+  const size_t typo_reason = r.err.find("max_iteration'; did you mean 'max_iterations'?");
   const size_t lost_reason = r.err.find("no_such_problem.yaml: cannot open file' (12 runs)");
   EXPECT_NE(typo_reason, std::string::npos) << r.err;
   EXPECT_NE(lost_reason, std::string::npos) << r.err;
@@ -230,11 +230,12 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
       << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
   EXPECT_FALSE(FileExists(dir + "/out"));
+  // Usage errors (a bad flag value, a missing flag) exit 2 (cli/command.h kExitUsage).
   r = Carmba("study --study=" + WriteStudy(dir, 1) + " --out=" + dir + "/out --shard=3/2", dir);
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("expected K/N"), std::string::npos) << r.err;
   r = Carmba("study --out=" + dir + "/out", dir);
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--study is required"), std::string::npos) << r.err;
   // A sweep the pose runs do not understand fails every run, naming it.
   std::ofstream(dir + "/sweep.yaml")
@@ -254,7 +255,7 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
   std::ofstream(dir + "/sweps.yaml") << typo;
   r = Carmba("study --study=" + dir + "/sweps.yaml --out=" + dir + "/sweps", dir);
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.err.find("unknown key 'sweps', did you mean 'sweeps'?"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("unknown key 'sweps'; did you mean 'sweeps'?"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(", sweeps, "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("base_seed"), std::string::npos) << r.err;
   EXPECT_FALSE(FileExists(dir + "/sweps"));

@@ -69,6 +69,46 @@ TEST_F(YamlFile, RepeatedNestedKeyIsAnError) {
   EXPECT_NE(s.message().find("loss.type"), std::string::npos) << s.message();
 }
 
+// An unknown key is named before a missing required key it may be a typo of (reported: typo
+// `sigma_pz` gave "key 'sigma_px': missing" at line 1), both when the parser stops at the missing
+// key (reads status()) and when it reads on to Finish().
+TEST(YamlKeys, MisspeltRequiredKeyIsNamedAsUnknownWithTheSuggestion) {
+  const char* kText = "name: p\nsigma_pz: 0.3\n";
+  {
+    YamlMap m(YAML::Load(kText), "p.yaml");
+    double sigma = 0;
+    std::string name;
+    m.Get("name", &name);
+    m.Get("sigma_px", &sigma, /*required=*/true);
+    ASSERT_FALSE(m.status().ok());  // a parser that stops here
+    EXPECT_EQ(m.status().message(),
+              "p.yaml:2: unknown key 'sigma_pz'; did you mean 'sigma_px'? (a required key)");
+  }
+  // A key unlike the missing one: still reported before the missing key, by Finish().
+  YamlMap m(YAML::Load("name: p\nfrobnicate: 1\n"), "q.yaml");
+  double sigma = 0;
+  std::string name;
+  m.Get("name", &name);
+  m.Get("sigma_px", &sigma, true);
+  EXPECT_NE(m.status().message().find("'sigma_px': missing"), std::string::npos);
+  const Status s = m.Finish();
+  EXPECT_EQ(s.message().rfind("q.yaml:2: unknown key 'frobnicate'", 0), 0u) << s.message();
+  // Nested maps too, and the plain unknown-key message suggests the closest known key.
+  YamlMap n(YAML::Load("solver:\n  max_iteratons: 5\n"), "c.yaml");
+  int it = 0;
+  n.Map("solver").Get("max_iterations", &it);
+  const Status t = n.Finish();
+  EXPECT_NE(t.message().find("c.yaml:2: unknown key 'solver.max_iteratons'; did you mean "
+                             "'max_iterations'?"),
+            std::string::npos)
+      << t.message();
+  // Without a typo, a missing key is still named as missing.
+  YamlMap k(YAML::Load("name: p\n"), "r.yaml");
+  k.Get("name", &name);
+  k.Get("sigma_px", &sigma, true);
+  EXPECT_NE(k.Finish().message().find("key 'sigma_px': missing"), std::string::npos);
+}
+
 TEST_F(YamlFile, DirectoryIsAnErrorNotACrash) {
   YamlMap m = YamlMap::Load(dir_);
   ASSERT_FALSE(m.status().ok());
