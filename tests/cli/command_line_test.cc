@@ -185,7 +185,7 @@ namespace {
 // One exit code scheme (cli/command.h): 2 for the command line itself, 1 for the data; each a
 // one-line error; `carmba help` lists them.
 TEST(CommandLine, ExitCodesTwoForUsageOneForData) {
-  TempDir dir;
+  ScratchDir dir;
   ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
   const std::string calibrate =
       "calibrate --no-mrcal --no-opencv --observations " + dir.File("obs.csv");

@@ -17,7 +17,7 @@ class InputGuards : public ::testing::Test {
  protected:
   // Simulated plate images and a simulated CT series, made once.
   static void SetUpTestSuite() {
-    data_ = new TempDir();
+    data_ = new ScratchDir("input_guards");
     auto r = RunCarmba("simulate --scene " + kSource +
                        "/configs/scenes/thesis_calibration.yaml --out " + data_->File("plate"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -29,14 +29,14 @@ class InputGuards : public ::testing::Test {
     delete data_;
     data_ = nullptr;
   }
-  static TempDir* data_;
+  static ScratchDir* data_;
 };
 
-TempDir* InputGuards::data_ = nullptr;
+ScratchDir* InputGuards::data_ = nullptr;
 
 // A CT series given as X-ray images is named once (reported: 120 "too few blobs" lines).
 TEST_F(InputGuards, CtSeriesGivenAsXrayImagesIsNamedOnce) {
-  TempDir out;
+  ScratchDir out;
   for (const std::string cmd : {"calibrate --no-mrcal --no-opencv", "detect"}) {
     SCOPED_TRACE(cmd);
     const auto r = RunCarmba(cmd + " --images " + data_->File("ct/ct") + " --out " +
@@ -53,7 +53,7 @@ TEST_F(InputGuards, CtSeriesGivenAsXrayImagesIsNamedOnce) {
 
 // --spacing-mm 2 (cm meant) put the plate at 78 mm without a word; now an error naming the flag.
 TEST_F(InputGuards, PlateImplausiblyNearTheSourceNamesTheSpacing) {
-  TempDir out;
+  ScratchDir out;
   const std::string calibrate = "calibrate --no-mrcal --no-opencv --images " +
                                 data_->File("plate") + " --rows 5 --cols 5 --out ";
   auto r = RunCarmba(calibrate + out.File("bad") + " --spacing-mm 2");
@@ -75,7 +75,7 @@ TEST_F(InputGuards, PlateImplausiblyNearTheSourceNamesTheSpacing) {
 
 // A joint problem whose rows / cols do not match the plate names the grid, not "no plate views".
 TEST_F(InputGuards, JointProblemWithWrongRowsSaysTheGridWasNotFound) {
-  TempDir dir;
+  ScratchDir dir;
   dir.Write("problem.yaml", "name: wrong_rows\n"
                             "plate_views: {images: " + data_->File("plate") +
                                 ", pattern: circles, rows: 7, cols: 5, spacing_mm: 20, "
@@ -97,7 +97,7 @@ TEST_F(InputGuards, JointProblemWithWrongRowsSaysTheGridWasNotFound) {
 // A marker diameter or source-to-object distance in metres names the flag or key and its range,
 // once (reported: seven per-view lines about px_per_mm or "0 marker blobs").
 TEST_F(InputGuards, UnitSlipsNameTheFlagOrKeyOnce) {
-  TempDir dir;
+  ScratchDir dir;
   dir.Write("camera.json", R"({"image_size": [408, 408], "fx": 2061.4, "fy": 2254.6, "cx": 203.7,)"
                            R"( "cy": 205.1, "distortion": [0, 0, 0, 0, 0]})");
   dir.Write("markers.csv", "id,x_mm,y_mm,z_mm\n1,0,0,0\n2,-58.85,1,14\n3,13.35,1,14\n");

@@ -29,7 +29,7 @@ const std::string kSource = CARMBA_SOURCE_DIR;
 
 // Placeholder inputs: one directory of "images" and one file per other input.
 struct Inputs {
-  TempDir dir;
+  ScratchDir dir;
   Inputs() {
     fs::create_directories(dir.File("images"));
     dir.Write("images/view_001.png", "original pixels");
@@ -244,7 +244,7 @@ int RunAndSignalOnTmp(const std::string& args,
 TEST(TempPaths, SignalLeavesNoTemporaryPath) {
   for (int sig : {SIGTERM, SIGINT}) {
     SCOPED_TRACE(sig);
-    TempDir root;
+    ScratchDir root;
     bool seen = false;
     const int status = RunAndSignalOnTmp("simulate --scene " + kSource +
                                              "/configs/scenes/thesis_calibration.yaml --out " +
@@ -265,7 +265,7 @@ TEST(TempPaths, SigtermDuringTheMrcalStepLeavesNoTemporaryDirectory) {
   if (std::system("/usr/bin/python3 -c 'import mrcal' >/dev/null 2>&1") != 0) {
     GTEST_SKIP() << "python3-mrcal not installed";
   }
-  TempDir root;
+  ScratchDir root;
   ASSERT_TRUE(WriteSyntheticGridObservations(root.File("obs.csv")));
   bool seen = false;
   const int status = RunAndSignalOnTmp(

@@ -275,7 +275,7 @@ std::string WriteEditableStudy(const std::string& dir) {
 // --resume continues only the same study: an edited config or data file is named and refused,
 // whatever the run list.
 TEST(StudyCliTest, ResumeRefusesAStudyWhoseFilesChanged) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteEditableStudy(dir);
   const std::string s = "study --study=" + study + " --out=" + dir + "/out";
   Result r = Carmba(s, dir);
@@ -309,7 +309,7 @@ TEST(StudyCliTest, ResumeRefusesAStudyWhoseFilesChanged) {
 
 // study-merge refuses shards solved with different configs, naming the config.
 TEST(StudyCliTest, MergeRefusesShardsOfDifferentConfigs) {
-  const std::string dir = MakeTempDir();
+  const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteEditableStudy(dir);
   const std::string s = "study --study=" + study + " --out=" + dir;
   Result r = Carmba(s + "/shard-1 --shard=1/2", dir);

@@ -1,5 +1,6 @@
 // Image sizes from the header, before decoding (util/image_header.h): each format's header parsed
 // by hand-made bytes, and an absurd size refused with its bound.
+#include "scratch.h"
 #include "util/image_header.h"
 
 #include <gtest/gtest.h>
@@ -16,9 +17,7 @@ namespace {
 class ImageHeaderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::string t = ::testing::TempDir() + "carmba_image_header_XXXXXX";
-    ASSERT_NE(::mkdtemp(t.data()), nullptr);
-    dir_ = t;
+    dir_ = test::MakeScratchDir("image_header");
   }
   void TearDown() override { std::system(("rm -rf '" + dir_ + "'").c_str()); }
   std::string Write(const std::string& name, const std::string& bytes) {

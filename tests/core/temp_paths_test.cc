@@ -1,6 +1,7 @@
 // Temporary paths removed on SIGINT / SIGTERM (util/temp_paths.h): a child process registers a
 // tree and a file, installs the handler and signals itself; it must die by that signal and leave
 // nothing registered behind, while a path it did not register stays.
+#include "scratch.h"
 #include "util/temp_paths.h"
 
 #include <gtest/gtest.h>
@@ -18,10 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string MakeScratch() {
-  std::string t = ::testing::TempDir() + "carmba_temp_paths_XXXXXX";
-  return ::mkdtemp(t.data()) ? t : "";
-}
+std::string MakeScratch() { return test::MakeScratchDir("temp_paths"); }
 
 TEST(TempPaths, SignalRemovesRegisteredPathsAndReRaises) {
   for (int sig : {SIGTERM, SIGINT}) {
