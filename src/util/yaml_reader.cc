@@ -88,29 +88,36 @@ std::optional<YAML::Node> YamlMap::Node(const std::string& key,
                                         const char* expected) {
   known_.insert(key);
   if (!Has(key)) {
-    if (required && !FailOnMisspeltKey(key) && status_.ok()) {
+    if (required && status_.ok()) {
       Fail(key, std::string("missing, expected ") + expected);
       missing_ = true;
+      NoteMisspellingsOf(key);
     }
     return std::nullopt;
   }
   return node_[key];
 }
 
-bool YamlMap::FailOnMisspeltKey(const std::string& missing) {
-  if (!node_ || !node_.IsMap()) return false;
+void YamlMap::NoteMisspellingsOf(const std::string& missing) {
+  if (!node_ || !node_.IsMap()) return;
   for (const auto& kv : node_) {
     if (!kv.first.IsScalar() || known_.count(kv.first.Scalar())) continue;
     const std::string k = kv.first.Scalar();
     if (ClosestMatch(k, {missing}).empty()) continue;
-    if (status_.ok()) {
-      status_ = Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
-                              ": unknown key '" + KeyPath(k) + "'; did you mean '" + missing +
-                              "'? (a required key)");
-    }
-    return true;
+    misspelt_.push_back(Status::Error(file_ + ":" + std::to_string(kv.first.Mark().line + 1) +
+                                      ": unknown key '" + KeyPath(k) + "'; did you mean '" +
+                                      missing + "'? (a required key)"));
+    misspelt_keys_.push_back(k);
   }
-  return false;
+}
+
+Status YamlMap::status() const {
+  // A parser stopping at a missing key: a key it never asked for that resembles the missing one
+  // is the likely cause (a key asked for after all, e.g. fy after fx, is not).
+  for (size_t i = 0; missing_ && i < misspelt_.size(); ++i) {
+    if (!known_.count(misspelt_keys_[i])) return misspelt_[i];
+  }
+  return status_;
 }
 
 namespace {

@@ -79,17 +79,17 @@ class YamlMap {
   void Fail(const std::string& key, const std::string& what);
   // The first error so far, including nested maps and unknown keys.
   Status Finish();
-  const Status& status() const { return status_; }
+  // The first error so far. When it is a missing required key and a key never asked for resembles
+  // it, that key instead: "unknown key 'sigma_pz'; did you mean 'sigma_px'? (a required key)".
+  Status status() const;
   const std::string& file() const { return file_; }
   std::string KeyPath(const std::string& key) const;
 
  private:
   std::string Where(const std::string& key) const;
-  // A required key `missing` is absent: if a key of this map not asked for is a likely
-  // misspelling of it (util/text_match.h ClosestMatch), records "unknown key 'sigma_pz'; did you
-  // mean 'sigma_px'?" at that key's line (an unknown key is reported before a missing one) and
-  // returns true.
-  bool FailOnMisspeltKey(const std::string& missing);
+  // A required key `missing` is absent: notes the keys of this map not asked for so far that are
+  // likely misspellings of it (util/text_match.h ClosestMatch), for status().
+  void NoteMisspellingsOf(const std::string& missing);
   // The first key of this map no parser asked for (Ok if none).
   Status UnknownKey() const;
   std::optional<YAML::Node> Node(const std::string& key, bool required, const char* expected);
@@ -102,6 +102,8 @@ class YamlMap {
   std::vector<std::unique_ptr<YamlMap>> children_;
   Status status_;
   bool missing_ = false;  // status_ is a missing required key
+  std::vector<Status> misspelt_;           // their errors, for status()
+  std::vector<std::string> misspelt_keys_;  // keys resembling the missing one
 };
 
 }  // namespace carmba
