@@ -521,7 +521,8 @@ nlohmann::json CalibrationPlotData(const CalibrationRun& run) {
 Status WriteCalibrationOutputs(const CalibrationRun& run,
                                const std::string& out_dir,
                                const std::string& mrcal_work_dir,
-                               std::string* report_warning) {
+                               std::string* report_warning,
+                               const PlotSet* plots) {
   namespace fs = std::filesystem;
   // Staged beside out_dir when it does not exist, inside it when it does (file_util.h): the
   // final renames never cross file systems, even when out_dir is a mount point.
@@ -530,7 +531,8 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
   const std::string& tmp = staged.path();
   std::error_code ec;
   const ReportFiles report =
-      RenderReport(CalibrationReportDoc(run), "carmba calibration report", CalibrationPlotData(run));
+      RenderReport(CalibrationReportDoc(run), "carmba calibration report",
+                   plots ? *plots : MakePlots(CalibrationPlotData(run)));
   if (report_warning) *report_warning = report.warning;
   // camera.cameramodel: with the mrcal cross-check, the model mrcal itself wrote from carmba's
   // solution and the same observations, with its optimization_inputs (mrcal's uncertainty tools

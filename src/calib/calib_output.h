@@ -33,6 +33,7 @@
 #include "calib/calibrate.h"
 #include "calib/crosscheck.h"
 #include "detect/grid_detector.h"
+#include "report/plots.h"
 #include "report/report_doc.h"
 
 namespace carmba {
@@ -66,10 +67,12 @@ constexpr double kMrcalProjectionDiffPx = 0.05;  // projection difference RMS ov
 constexpr double kMrcalSigmaRelTol = 0.10;       // sigmas of fx fy cx cy within 10 %
 
 // Writes all files to `out_dir` (see above). `mrcal_work_dir`, if not empty, is copied as
-// out_dir/mrcal/ (script, input and output of the cross-check).
+// out_dir/mrcal/ (script, input and output of the cross-check). `plots`: report.html's plots
+// drawn beforehand from CalibrationPlotData(run) (PlotProcess); null: drawn here.
 Status WriteCalibrationOutputs(const CalibrationRun& run,
                                const std::string& out_dir,
                                const std::string& mrcal_work_dir = "",
-                               std::string* report_warning = nullptr);
+                               std::string* report_warning = nullptr,
+                               const PlotSet* plots = nullptr);
 
 }  // namespace carmba

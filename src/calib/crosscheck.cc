@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "util/file_util.h"
+#include "util/python_worker.h"
 
 namespace carmba {
 
@@ -140,6 +141,11 @@ StatusOr<nlohmann::json> RunMrcalCrossCheck(
   return RunMrcalScript(in, opt);
 }
 
+std::unique_ptr<PythonWorker> StartMrcalPython(const std::string& python) {
+  // scripts/mrcal_crosscheck.py's imports.
+  return std::make_unique<PythonWorker>(python, "import numpy\nimport mrcal\n");
+}
+
 StatusOr<nlohmann::json> RunMrcalScript(const nlohmann::json& in,
                                         const MrcalCrossCheckOptions& opt) {
   CARMBA_RETURN_IF_ERROR(MakeDirs(opt.work_dir));
@@ -149,9 +155,14 @@ StatusOr<nlohmann::json> RunMrcalScript(const nlohmann::json& in,
   const std::string err_path = JoinPath(opt.work_dir, "mrcal_err.txt");
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(script, MrcalCrossCheckScript()));
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(in_path, in.dump()));
-  const std::string cmd = "'" + opt.python + "' '" + script + "' '" + in_path + "' '" + out_path +
-                          "' 2> '" + err_path + "'";
-  const int rc = std::system(cmd.c_str());
+  std::unique_ptr<PythonWorker> own;
+  PythonWorker* worker = opt.warm;
+  if (!worker) {
+    own = StartMrcalPython(opt.python);
+    worker = own.get();
+  }
+  worker->Start(script, {in_path, out_path}, "", err_path);
+  const int rc = worker->Wait();
   if (rc != 0) {
     auto err = ReadFile(err_path);
     std::string msg = err.ok() ? *err : "";

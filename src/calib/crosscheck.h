@@ -10,6 +10,7 @@
 
 #include <array>
 #include <map>
+#include <memory>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -37,10 +38,18 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& observation
                                                const CalibrationOptions& options,
                                                const CalibrationResult& result);
 
+class PythonWorker;
+
 struct MrcalCrossCheckOptions {
   std::string python = "/usr/bin/python3";
   std::string work_dir;  // where the script, its input and output go (created if needed)
+  // An interpreter started early with StartMrcalPython (its imports overlap the solve), used
+  // once; null: one is started when the script runs.
+  PythonWorker* warm = nullptr;
 };
+
+// A Python interpreter importing numpy and mrcal, for MrcalCrossCheckOptions::warm.
+std::unique_ptr<PythonWorker> StartMrcalPython(const std::string& python);
 
 // Runs the mrcal script. `others` are extra intrinsics to diff against carmba's (e.g. "opencv",
 // "truth"). Returns the script's JSON (see scripts/mrcal_crosscheck.py for the keys).

@@ -31,14 +31,15 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
+#include "report/plots.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
 #include "util/temp_paths.h"
+#include "util/python_worker.h"
 #include "util/yaml_reader.h"
 
 DEFINE_string(observations, "", "Pre-detected observations.csv (instead of --images).");
 DEFINE_string(truth, "", "Ground truth (simulator truth.json or a camera.json) to compare with.");
-DEFINE_bool(mrcal, true, "Cross-check with mrcal (python3-mrcal).");
 DEFINE_bool(opencv, true, "Cross-check with cv::calibrateCamera.");
 
 namespace {
@@ -126,6 +127,13 @@ int RunCalibrate() {
   }
   if (!FLAGS_mrcal) cross.mrcal = false;
   if (!FLAGS_opencv) cross.opencv = false;
+  // The plot and mrcal interpreters start now: their imports overlap the detection and the
+  // solve; the plots are then drawn while the cross-checks run.
+  PlotOptions plot_options;
+  plot_options.enabled = FLAGS_plots;
+  PlotProcess plots(plot_options);
+  std::unique_ptr<PythonWorker> mrcal_python;
+  if (cross.mrcal) mrcal_python = StartMrcalPython(cross.python);
 
   CalibrationRun run;
   run.options = options;
@@ -146,6 +154,7 @@ int RunCalibrate() {
     if (!grid.Check(&err)) return cli::Fail(kCmd, err);
     auto files = ListImageFiles(images);
     if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
+    cli::Step(kCmd, "detecting the grid in " + std::to_string(files->size()) + " images");
     double per_image = 0;
     StatusOr<ObservationSet> obs = Status::Error("not detected");
     {
@@ -182,6 +191,7 @@ int RunCalibrate() {
     const Status s = CheckPlateDistance(run.result, run.observations.grid.spacing_mm, pitch_source);
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
+  plots.Draw(CalibrationPlotData(run));
 
   std::map<std::string, std::array<double, kNumIntrinsics>> others;
   if (!truth.empty()) {
@@ -223,6 +233,7 @@ int RunCalibrate() {
     MrcalCrossCheckOptions mo;
     mo.python = cross.python;
     mo.work_dir = work;
+    mo.warm = mrcal_python.get();
     auto m = RunMrcalCrossCheck(run.observations, run.result, others, mo);
     if (m.ok()) {
       run.mrcal = *m;
@@ -251,7 +262,11 @@ int RunCalibrate() {
   cmd << " --out " << quoted(FLAGS_out);
   run.command_line = cmd.str();
   std::string report_warning;
-  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning);
+  cli::Step(kCmd, "waiting for the plots");
+  const PlotSet plot_set = plots.Result();
+  cli::Step(kCmd, "writing the outputs");
+  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning,
+                                     &plot_set);
   if (!s.ok()) return cli::Fail(kCmd, s);
   if (!report_warning.empty()) {
     std::cerr << "carmba " << kCmd << ": warning: " << report_warning << std::endl;
@@ -276,7 +291,8 @@ int RunCalibrate() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(calibrate, "images,pattern,rows,cols,spacing_mm,config,problem,out,force");
+CARMBA_COMMAND_FLAGS(calibrate,
+                     "images,pattern,rows,cols,spacing_mm,config,problem,out,force,plots,mrcal");
 CARMBA_REQUIRED_FLAGS(calibrate, "out");
 CARMBA_REGISTER_COMMAND(calibrate,
                         "Calibrate the C-arm's intrinsics from grid images (bundle adjustment, "

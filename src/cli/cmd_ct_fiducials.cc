@@ -12,6 +12,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "ct/ct_fiducials.h"
+#include "report/plots.h"
 #include "util/file_util.h"
 
 DEFINE_string(dicom, "", "Directory of the DICOM CT series (files in any order, any names).");
@@ -58,12 +59,19 @@ int RunCtFiducials() {
   options.extra_sigma_mm = FLAGS_extra_sigma_mm;
   std::string error;
   if (!options.Check(&error)) return carmba::cli::FailUsage(cmd, error);
+  carmba::PlotOptions plot_options;
+  plot_options.enabled = FLAGS_plots;
+  carmba::PlotProcess plots(plot_options);  // imports matplotlib while the CT is read
   carmba::cli::Step(cmd, "reading " + FLAGS_dicom + " and finding the markers");
   auto result = carmba::ComputeCtFiducials(FLAGS_dicom, options);
   if (!result.ok()) return carmba::cli::Fail(cmd, result.status());
+  plots.Draw(carmba::FiducialsPlotData(*result));
+  carmba::cli::Step(cmd, "waiting for the plot");
+  const carmba::PlotSet plot_set = plots.Result();
+  carmba::cli::Step(cmd, "writing the outputs");
   std::string report_warning;
   carmba::Status s = carmba::MakeParentDirs(FLAGS_out);
-  if (s.ok()) s = carmba::WriteCtFiducials(*result, FLAGS_out, &report_warning);
+  if (s.ok()) s = carmba::WriteCtFiducials(*result, FLAGS_out, &report_warning, &plot_set);
   if (!s.ok()) return carmba::cli::Fail(cmd, s);
   if (!report_warning.empty()) std::cerr << "carmba " << cmd << ": warning: " << report_warning << std::endl;
   std::cout << "ct-fiducials: " << result->detection.markers.size() << " markers -> "
@@ -83,7 +91,7 @@ const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "<stem>.md beside it).",
     __FILE__,
     RunCtFiducials);
-const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force");
+const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force,plots");
 const bool kRequired [[maybe_unused]] =
     carmba::cli::RegisterRequiredFlags("ct-fiducials", "dicom,out");
 

@@ -44,6 +44,7 @@ int RunDetect() {
   std::vector<std::string> skipped;
   double per_image = 0;
   StatusOr<ObservationSet> obs = Status::Error("not detected");
+  cli::Step(kCmd, "detecting the grid in " + std::to_string(files->size()) + " images");
   {
     auto progress = cli::MakeProgress("detect", static_cast<int>(files->size()), "images");
     obs = DetectGridInFiles(*files, grid, options, &skipped, &per_image, nullptr,
@@ -55,6 +56,7 @@ int RunDetect() {
     return cli::Fail(kCmd, "the grid was found in none of the " + std::to_string(skipped.size()) +
                                " images (first: " + skipped[0] + ")");
   }
+  cli::Step(kCmd, "writing " + FLAGS_out);
   Status s = MakeParentDirs(FLAGS_out);
   if (s.ok()) s = WriteObservationsCsv(*obs, FLAGS_out);
   if (!s.ok()) return cli::Fail(kCmd, s);

@@ -64,8 +64,10 @@ int RunExportGeometry() {
   }
   const std::string path =
       IsDirectory(FLAGS_result) ? JoinPath(FLAGS_result, "geometry.json") : FLAGS_result;
+  cli::Step(kCmd, "reading " + path);
   auto set = ReadGeometryJson(path);
   if (!set.ok()) return cli::Fail(kCmd, set.status());
+  cli::Step(kCmd, "converting " + std::to_string(set->views.size()) + " views");
   double sdd = FLAGS_sdd_mm;
   if (sdd == 0) sdd = set->views[0].sid_mm.value_or(1000.0);
 
@@ -104,6 +106,7 @@ int RunExportGeometry() {
     files.emplace_back("plastimatch/drr.sh", script);
     summary += " plastimatch (" + std::to_string(pms->size()) + " projection matrices, drr.sh);";
   }
+  cli::Step(kCmd, "writing the outputs");
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
   if (s.ok() && plm) s = MakeDirs(JoinPath(staged.path(), "plastimatch"));

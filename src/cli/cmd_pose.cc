@@ -87,6 +87,10 @@ int RunPose() {
   if (!options.Check(&err)) {
     return cli::Fail(kCmd, err + " (--marker-diameter-mm, --diameter-px or --detection)");
   }
+  PlotOptions plot_options;
+  plot_options.enabled = FLAGS_plots;
+  PlotProcess plots(plot_options);  // imports matplotlib while the views are detected and solved
+  cli::Step(kCmd, "reading the camera and the fiducials");
   auto camera = ReadCameraJson(FLAGS_camera);
   if (!camera.ok()) return cli::Fail(kCmd, camera.status());
   auto markers = ReadMarkersCsv(FLAGS_fiducials, "id", {"x_mm", "y_mm", "z_mm"}, 0,
@@ -101,6 +105,8 @@ int RunPose() {
   }
   auto files = ListImageFiles(FLAGS_images);
   if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
+  cli::Step(kCmd, "detecting and labelling the markers in " + std::to_string(files->size()) +
+                     " images");
   auto views = DetectAndLabelObjectViews(*files, *camera, *markers, options);
   if (!views.ok()) return cli::Fail(kCmd, views.status());
 
@@ -115,16 +121,18 @@ int RunPose() {
     const Status s = problem.Check();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
+  cli::Step(kCmd, "solving " + std::to_string(problem.views.size()) + " views");
   auto solution = SolvePoseProblem(problem, config);
   if (!solution.ok()) return cli::Fail(kCmd, solution.status());
+  plots.Draw(PosePlotData(problem, *solution));
+  cli::Step(kCmd, "comparing with legacy POSIT");
   const PoseComparison comparison = ComparePoseMethods(problem, config, *solution);
   nlohmann::json j = PoseSolutionToJson(problem, *solution);
   j["comparison"] = PoseComparisonToJson(problem, comparison);
   j["marker_detection"] = ObjectViewsToJson(*views);
   ReportDoc doc = PoseReportDoc(problem, config, *solution, comparison);
   AppendObjectViews(&doc, *views);
-  const ReportFiles report =
-      RenderReport(doc, "carmba pose report: " + problem.name, PosePlotData(problem, *solution));
+  cli::Step(kCmd, "drawing the overlays");
 
   std::map<std::string, Pose6> solved;
   for (const ViewSolution& v : solution->views) solved[v.id] = v.cam_from_object;
@@ -146,6 +154,9 @@ int RunPose() {
       s = Status::Error(JoinPath(FLAGS_out, name) + ": cannot write the overlay");
     }
   }
+  cli::Step(kCmd, "waiting for the plots");
+  const ReportFiles report = RenderReport(doc, "carmba pose report: " + problem.name, plots.Result());
+  cli::Step(kCmd, "writing the outputs");
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "result.json"), j.dump(2) + "\n");
@@ -167,7 +178,7 @@ int RunPose() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force");
+CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force,plots");
 CARMBA_REGISTER_COMMAND(pose,
                         "Object poses from X-ray images: marker blobs, automatic labelling with the "
                         "CT fiducials, bundle adjustment.",

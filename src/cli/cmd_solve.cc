@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "calib/crosscheck.h"
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "joint/joint_problem.h"
@@ -18,6 +19,7 @@
 #include "export/view_geometry.h"
 #include "util/file_util.h"
 #include "util/temp_paths.h"
+#include "util/python_worker.h"
 
 
 namespace {
@@ -48,6 +50,17 @@ carmba::Status WriteGeometry(const std::string& dir, const carmba::GeometrySet& 
 // A joint problem (plate and/or object views): the engine's joint bundle adjustment.
 int RunJoint() {
   using namespace carmba;
+  // The plot and mrcal interpreters start now (their imports overlap the solve); the plots are
+  // drawn while the mrcal cross-check runs.
+  PlotOptions plot_options;
+  plot_options.enabled = FLAGS_plots;
+  PlotProcess plots(plot_options);
+  MrcalCrossCheckOptions mrcal_options;
+  std::unique_ptr<PythonWorker> mrcal_python;
+  if (FLAGS_mrcal) {
+    mrcal_python = StartMrcalPython(mrcal_options.python);
+    mrcal_options.warm = mrcal_python.get();
+  }
   cli::Step("solve", "loading the joint problem " + FLAGS_problem);
   auto problem = LoadJointProblem(FLAGS_problem);
   if (!problem.ok()) return cli::Fail("solve", problem.status());
@@ -58,25 +71,32 @@ int RunJoint() {
                          std::to_string(problem->object_views.size()) + " object views)");
   auto solution = SolveJointProblem(*problem, *config);
   if (!solution.ok()) return cli::Fail("solve", solution.status());
-  cli::Step("solve", "mrcal cross-check");
-  // The mrcal cross-check (a failure is reported, not an error of the solve).
-  StatusOr<nlohmann::json> mrcal = Status::Error("not run");
-  {
-    const ScopedTempPath work(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
-    mrcal = JointMrcalCrossCheck(*problem, *solution, work.path());
-  }
+  cli::Step("solve", "the report and its plot data");
   nlohmann::json j = JointSolutionToJson(*problem, *config, *solution);
-  if (mrcal.ok()) {
-    j["mrcal_crosscheck"] = *mrcal;
+  nlohmann::json plot_data = JointPlotData(*solution);
+  AddFlexPlotData(j, &plot_data);  // the intrinsics against the C-arm angle (flex)
+  plots.Draw(plot_data);
+  if (FLAGS_mrcal) {
+    cli::Step("solve", "mrcal cross-check");
+    // The mrcal cross-check (a failure is reported, not an error of the solve).
+    // Removed when it goes out of scope and on SIGINT/SIGTERM (util/temp_paths.h).
+    const ScopedTempPath work(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
+    mrcal_options.work_dir = work.path();
+    auto mrcal = JointMrcalCrossCheck(*problem, *solution, mrcal_options);
+    if (mrcal.ok()) {
+      j["mrcal_crosscheck"] = *mrcal;
+    } else {
+      j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
+    }
   } else {
-    j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
+    j["mrcal_crosscheck"] = {{"error", "disabled (--no-mrcal)"}};
   }
   ReportDoc doc = JointReportDoc(*problem, *config, *solution);
   doc.Append(JointMrcalDoc(j["mrcal_crosscheck"]));
-  nlohmann::json plot_data = JointPlotData(*solution);
-  AddFlexPlotData(j, &plot_data);  // the intrinsics against the C-arm angle (flex)
+  cli::Step("solve", "waiting for the plots");
   const ReportFiles report =
-      RenderReport(doc, "carmba joint report: " + problem->name, plot_data);
+      RenderReport(doc, "carmba joint report: " + problem->name, plots.Result());
+  cli::Step("solve", "writing the outputs");
   // All files or none; other files in an existing --out are kept.
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
@@ -108,24 +128,31 @@ int RunSolve() {
   // --problem, --config and --out are required (checked before this runs: cli/command.h).
   if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail("solve", s);
   if (IsJointProblemFile(FLAGS_problem)) return RunJoint();
+  PlotOptions plot_options;
+  plot_options.enabled = FLAGS_plots;
+  PlotProcess plots(plot_options);  // starts importing matplotlib while the problem is solved
+  cli::Step("solve", "loading the pose problem " + FLAGS_problem);
   auto problem = LoadPoseProblem(FLAGS_problem);
   if (!problem.ok()) return cli::Fail("solve", problem.status());
   auto config = LoadSolverConfig(FLAGS_config);
   if (!config.ok()) return cli::Fail("solve", config.status());
   StatusOr<PoseSolution> solution = Status::Error("not solved");
+  cli::Step("solve", "solving " + std::to_string(problem->views.size()) + " views");
   {
     auto progress = cli::MakeProgress("solve: initial poses", static_cast<int>(problem->views.size()),
                                       "views");
     solution = SolvePoseProblem(*problem, *config, progress->Callback());
   }
   if (!solution.ok()) return cli::Fail("solve", solution.status());
+  plots.Draw(PosePlotData(*problem, *solution));
   cli::Step("solve", "comparing with legacy POSIT");
   const PoseComparison comparison = ComparePoseMethods(*problem, *config, *solution);
   nlohmann::json j = PoseSolutionToJson(*problem, *solution);
   j["comparison"] = PoseComparisonToJson(*problem, comparison);
-  const ReportFiles report =
-      RenderReport(PoseReportDoc(*problem, *config, *solution, comparison),
-                   "carmba pose report: " + problem->name, PosePlotData(*problem, *solution));
+  const ReportDoc doc = PoseReportDoc(*problem, *config, *solution, comparison);
+  cli::Step("solve", "waiting for the plots");
+  const ReportFiles report = RenderReport(doc, "carmba pose report: " + problem->name, plots.Result());
+  cli::Step("solve", "writing the outputs");
 
   // All files or none (a failed second write used to leave report.md behind); other files in
   // an existing --out are kept.
@@ -155,7 +182,7 @@ int RunSolve() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(solve, "problem,config,out,force");
+CARMBA_COMMAND_FLAGS(solve, "problem,config,out,force,plots,mrcal");
 CARMBA_REQUIRED_FLAGS(solve, "problem,config,out");
 CARMBA_REGISTER_COMMAND(solve,
                         "Solve a pose problem (POSIT + bundle adjustment + covariance); writes result.json, "

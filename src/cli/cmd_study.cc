@@ -50,6 +50,7 @@ int RunStudyCommand() {
   options.jobs = FLAGS_jobs;
   options.resume = FLAGS_resume;
   options.restart = FLAGS_force;
+  options.plots = FLAGS_plots;
   options.progress = ChooseProgressStyle(::isatty(STDERR_FILENO) == 1, FLAGS_verbose);
   Status s = ParseShard(FLAGS_shard, &options.shard_k, &options.shard_n);
   if (!s.ok()) return cli::FailUsage("study", s);
@@ -65,6 +66,7 @@ int RunStudyCommand() {
   }
   const double allowed = allow_flag ? FLAGS_allow_failures : spec->allow_failures;
   StudyRunStats stats;
+  cli::Step("study", "running the study (runs, then the summaries and report.html)");
   s = RunStudy(*spec, PoseStudyRunFunction(), options, &stats);
   if (!s.ok()) return cli::Fail("study", s);
   std::printf("study %s (shard %d/%d): %d runs, %d already done, %d run now with %d jobs in %.3g s, "
@@ -99,5 +101,5 @@ int RunStudyCommand() {
 
 CARMBA_REGISTER_COMMAND(study, "Run an accuracy study: problems x configs x sweeps x seeded trials.",
                         RunStudyCommand);
-CARMBA_COMMAND_FLAGS(study, "out,jobs,force");
+CARMBA_COMMAND_FLAGS(study, "out,jobs,force,plots");
 CARMBA_REQUIRED_FLAGS(study, "study,out");

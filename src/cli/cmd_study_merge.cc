@@ -56,8 +56,9 @@ int RunStudyMerge() {
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
   if (s.ok()) {
+    cli::Step("study-merge", "merging " + std::to_string(dirs.size()) + " shards");
     s = MergeStudyShards(dirs, staged.path(), /*write_report=*/true, FLAGS_allow_missing, &merged,
-                         &missing, &report_warning);
+                         &missing, &report_warning, FLAGS_plots);
   }
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("study-merge", s);
@@ -76,7 +77,7 @@ int RunStudyMerge() {
 const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "study-merge", "Combine the shard directories of 'carmba study --shard K/N'.", __FILE__,
     RunStudyMerge);
-const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("study-merge", "out,force");
+const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("study-merge", "out,force,plots");
 const bool kRequired [[maybe_unused]] = carmba::cli::RegisterRequiredFlags("study-merge",
                                                                            "shards,out");
 

@@ -196,8 +196,10 @@ int RunTriangulate() {
   }
   auto points = FLAGS_points.empty() ? ParsePixelsFlag(FLAGS_pixels) : ReadPointsCsv(FLAGS_points);
   if (!points.ok()) return cli::Fail(cmd, points.status());
+  cli::Step(cmd, "solving the views' problem");
   auto solved = Solve();
   if (!solved.ok()) return cli::Fail(cmd, solved.status());
+  cli::Step(cmd, "triangulating " + std::to_string(points->size()) + " points");
   const ba::BaProblem& bp = *solved->problem;
   const ba::BaResult& br = *solved->result;
   std::map<std::string, int> object_view;
@@ -298,6 +300,7 @@ int RunTriangulate() {
                         "included");
   j["points"] = jpoints;
   j["warnings"] = warnings;
+  cli::Step(cmd, "writing the outputs");
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "triangulation.json"), j.dump(2) + "\n");

@@ -54,6 +54,7 @@ int RunUndistort() {
     const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
+  cli::Step(kCmd, "reading the camera " + FLAGS_camera);
   auto camera = LoadCamera(FLAGS_camera);
   if (!camera.ok()) return cli::Fail(kCmd, camera.status());
   auto files = ListImageFiles(FLAGS_images);
@@ -63,6 +64,7 @@ int RunUndistort() {
   if (!s.ok()) return cli::Fail(kCmd, s);
   std::set<std::string> names;
   int written = 0;
+  cli::Step(kCmd, "undistorting " + std::to_string(files->size()) + " image files");
   for (const auto& file : *files) {
     auto views = ReadImageViews(file);
     if (!views.ok()) return cli::Fail(kCmd, views.status());
@@ -84,6 +86,7 @@ int RunUndistort() {
       ++written;
     }
   }
+  cli::Step(kCmd, "moving the outputs into place");
   s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail(kCmd, s);
   std::cout << "undistorted " << written << " images into " << FLAGS_out << " (" << camera->width

@@ -3,7 +3,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <sstream>
 
@@ -38,7 +40,44 @@ DEFINE_bool(verbose, false,
             "Progress on stderr: the steps, and one line per image / view / run when stderr is "
             "not a terminal (on a terminal a progress bar is shown anyway).");
 
+DEFINE_bool(plots, true,
+            "Draw report.html's plots (matplotlib, in one Python process overlapping the work); "
+            "--no-plots writes the report without them and runs no Python for it.");
+DEFINE_bool(mrcal, true, "Cross-check with mrcal (python3-mrcal); --no-mrcal skips it.");
+
 namespace carmba::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The step in progress (Step / EndSteps); the clock starts with the process.
+struct StepClock {
+  Clock::time_point process_start = Clock::now();
+  Clock::time_point step_start;
+  std::string what;  // empty: no step open
+};
+StepClock& Steps() {
+  static StepClock clock;
+  return clock;
+}
+const bool kStepClockStarted [[maybe_unused]] = (Steps(), true);
+
+std::string Seconds(Clock::time_point from, Clock::time_point to) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f s", std::chrono::duration<double>(to - from).count());
+  return buf;
+}
+
+void CloseStep(const std::string& command, Clock::time_point now) {
+  StepClock& c = Steps();
+  if (c.what.empty()) return;
+  std::cerr << "carmba " << command << ": " << c.what << ": " << Seconds(c.step_start, now)
+            << std::endl;
+  c.what.clear();
+}
+
+}  // namespace
+
 bool CheckSpacingFlag(std::string* error) {
   if (FLAGS_spacing_mm == 0) return true;
   if (!InRange(FLAGS_spacing_mm, plausible::kGridSpacingMm)) {
@@ -113,6 +152,19 @@ std::unique_ptr<Progress> MakeProgress(const std::string& label,
 }
 
 void Step(const std::string& command, const std::string& what) {
-  if (FLAGS_verbose) std::cerr << "carmba " << command << ": " << what << std::endl;
+  if (!FLAGS_verbose) return;
+  const Clock::time_point now = Clock::now();
+  CloseStep(command, now);
+  std::cerr << "carmba " << command << ": " << what << std::endl;
+  Steps().what = what;
+  Steps().step_start = now;
+}
+
+void EndSteps(const std::string& command) {
+  if (!FLAGS_verbose) return;
+  const Clock::time_point now = Clock::now();
+  CloseStep(command, now);
+  std::cerr << "carmba " << command << ": total " << Seconds(Steps().process_start, now)
+            << std::endl;
 }
 }  // namespace carmba::cli

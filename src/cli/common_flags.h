@@ -27,6 +27,8 @@ DECLARE_uint64(seed);     // random seed
 DECLARE_int32(jobs);      // parallel jobs (0 = all cores)
 DECLARE_bool(force);      // write over an existing result in --out
 DECLARE_bool(verbose);    // progress on stderr (every command has it)
+DECLARE_bool(plots);      // report.html's matplotlib plots (--no-plots: none, no Python)
+DECLARE_bool(mrcal);      // the mrcal cross-check (--no-mrcal: skipped)
 
 namespace carmba::cli {
 // The numeric flags checked against their plausible ranges (util/plausible.h); each returns false
@@ -66,6 +68,11 @@ Status CheckOutIsNoInput(const std::vector<InputPath>& inputs);
 // Progress of `total` items of `unit` for the command `label`: a bar when stderr is a terminal,
 // else one line per item with --verbose, else nothing (util/progress.h).
 std::unique_ptr<Progress> MakeProgress(const std::string& label, int total, const std::string& unit);
-// With --verbose: "carmba <command>: <what>" on stderr (a step that takes time).
+// With --verbose, the command's steps and their wall times on stderr: "carmba <command>: <what>"
+// when a step starts, and "carmba <command>: <what>: 0.123 s" when the next one starts or the
+// command ends (EndSteps).
 void Step(const std::string& command, const std::string& what);
+// With --verbose: ends the last step and prints "carmba <command>: total 1.234 s" (the time since
+// the process started). main() calls it after every command.
+void EndSteps(const std::string& command);
 }  // namespace carmba::cli

@@ -424,5 +424,7 @@ int main(int argc, char** argv) {
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = FLAGS_verbose ? 0 : 1;
   google::InitGoogleLogging(argv[0]);
-  return cmd->run();
+  const int code = cmd->run();
+  cli::EndSteps(name);
+  return code;
 }

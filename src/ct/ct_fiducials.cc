@@ -404,11 +404,13 @@ nlohmann::json FiducialsPlotData(const CtFiducialsResult& r) {
 
 Status WriteCtFiducials(const CtFiducialsResult& r,
                         const std::string& out_csv,
-                        std::string* report_warning) {
+                        std::string* report_warning,
+                        const PlotSet* plots) {
   const std::string stem = Stem(out_csv);
   const std::string csv = FormatFiducialsCsv(r);
   const ReportFiles report = RenderReport(FiducialsReportDoc(r, BaseName(out_csv)),
-                                          "carmba CT fiducials", FiducialsPlotData(r));
+                                          "carmba CT fiducials",
+                                          plots ? *plots : MakePlots(FiducialsPlotData(r)));
   if (report_warning) *report_warning = report.warning;
   std::string json;
   if (r.has_object_frame) {

@@ -43,6 +43,8 @@
 
 namespace carmba {
 
+struct PlotSet;  // report/plots.h
+
 struct CtFiducialsOptions {
   CtReadOptions read;
   MarkerDetectionOptions detect;
@@ -90,10 +92,12 @@ std::string FormatFiducialsReport(const CtFiducialsResult& result, const std::st
 
 // Writes the CSV to `out_csv`, the report to <stem>.md and, with an object frame,
 // <stem>.object_from_ct.json; each atomically, all only after everything is computed.
-// `report_warning` (if given): why <stem>.html has no plot, if it has none.
+// `report_warning` (if given): why <stem>.html has no plot, if it has none. `plots`: the plot
+// drawn beforehand from FiducialsPlotData (report/plots.h PlotProcess); null: drawn here.
 Status WriteCtFiducials(const CtFiducialsResult& result,
                         const std::string& out_csv,
-                        std::string* report_warning = nullptr);
+                        std::string* report_warning = nullptr,
+                        const PlotSet* plots = nullptr);
 
 struct CtFiducialRow {
   int id = 0;

@@ -9,7 +9,7 @@ namespace carmba {
 
 StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
                                               const JointSolution& solution,
-                                              const std::string& work_dir) {
+                                              const MrcalCrossCheckOptions& mrcal_options) {
   const ba::BaProblem& joint = solution.ba_problem;
   if (joint.groups.size() != 1 || problem.plate.views.empty() || problem.object_views.empty()) {
     return Status::Error("the mrcal cross-check needs one intrinsics group and both plate and "
@@ -81,9 +81,7 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
   in["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},
                   {"plate_poses", sol_plate},
                   {"object_poses", sol_object}};
-  MrcalCrossCheckOptions mo;
-  mo.work_dir = work_dir;
-  auto out = RunMrcalScript(in, mo);
+  auto out = RunMrcalScript(in, mrcal_options);
   if (!out.ok()) return out.status();
   const Eigen::MatrixXd C = r->Covariance({L.group_block(0)});
   double max_rel_core = 0, max_sigmas = 0;

@@ -67,6 +67,8 @@
 
 namespace carmba {
 
+struct MrcalCrossCheckOptions;  // calib/crosscheck.h
+
 struct JointObjectView {
   std::string id;
   std::vector<int> marker_ids;
@@ -181,9 +183,10 @@ std::vector<std::string> JointWarnings(const JointSolution& solution);
 // sigma_plate / sigma_object), both from the same initial values. Returns carmba's and mrcal's
 // intrinsics, RMS and their differences (relative for fx, fy, cx, cy; in sigmas for all nine).
 // Errors: more than one intrinsics group, a view kind missing, mrcal failing (its message).
+// `options`: the work directory and the interpreter (calib/crosscheck.h).
 StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
                                               const JointSolution& solution,
-                                              const std::string& work_dir);
+                                              const MrcalCrossCheckOptions& options);
 
 // The report's section on the cross-check (its JSON as JointMrcalCrossCheck returns it, or
 // {"error": ...}).

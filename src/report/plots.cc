@@ -17,6 +17,7 @@
 #include "geometry/rotation.h"
 #include "report/format.h"
 #include "util/file_util.h"
+#include "util/python_worker.h"
 
 namespace carmba {
 namespace {
@@ -30,78 +31,115 @@ std::string LastLine(const std::string& text) {
   return last;
 }
 
-std::string ShellQuote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 }  // namespace
 
-PlotSet MakePlots(const nlohmann::json& data, const PlotOptions& options) {
-  PlotSet set;
+// What the plot script imports (scripts/report_plots.py's first lines), done while the caller
+// works.
+constexpr const char* kPlotPreload =
+    "import numpy\nimport matplotlib\nmatplotlib.use('Agg')\nimport matplotlib.pyplot\n";
+
+PlotProcess::PlotProcess(const PlotOptions& options) : options_(options) {
+  if (!options_.enabled) {
+    set_.disabled = true;
+    set_.unavailable = "not drawn (--no-plots)";
+    done_ = true;
+    return;
+  }
   namespace fs = std::filesystem;
   std::error_code ec;
-  std::string dir = (fs::temp_directory_path(ec) / "carmba_plots_XXXXXX").string();
-  if (ec || ::mkdtemp(dir.data()) == nullptr) {
-    set.unavailable = "cannot make a temporary directory for the plot script";
-    return set;
+  dir_ = (fs::temp_directory_path(ec) / "carmba_plots_XXXXXX").string();
+  if (ec || ::mkdtemp(dir_.data()) == nullptr) {
+    dir_.clear();
+    set_.unavailable = "cannot make a temporary directory for the plot script";
+    done_ = true;
+    return;
   }
-  const std::string script = JoinPath(dir, "report_plots.py"), in = JoinPath(dir, "in.json"),
-                    out = JoinPath(dir, "out.json"), err = JoinPath(dir, "stderr.txt");
+  worker_ = std::make_unique<PythonWorker>(options_.python, kPlotPreload);
+}
+
+PlotProcess::~PlotProcess() {
+  worker_.reset();  // kills an interpreter that was not waited for
+  if (!dir_.empty()) {
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+}
+
+void PlotProcess::Draw(const nlohmann::json& data) {
+  if (done_ || drawn_) return;
+  drawn_ = true;
+  const std::string script = JoinPath(dir_, "report_plots.py"), in = JoinPath(dir_, "in.json"),
+                    out = JoinPath(dir_, "out.json"), err = JoinPath(dir_, "stderr.txt");
   Status s = WriteFileAtomic(script, ReportPlotsScript());
   if (s.ok()) s = WriteFileAtomic(in, data.dump());
   if (!s.ok()) {
-    set.unavailable = "cannot write the plot script's input: " + s.message();
+    set_.unavailable = "cannot write the plot script's input: " + s.message();
+    done_ = true;
+    return;
+  }
+  worker_->Start(script, {in, out}, "/dev/null", err);
+}
+
+PlotSet PlotProcess::Result() {
+  if (done_) return set_;
+  done_ = true;
+  if (!drawn_) {
+    set_.unavailable = "no plot data";
+    return set_;
+  }
+  const int code = worker_->Wait(options_.timeout_s);
+  set_.seconds = worker_->seconds();
+  StatusOr<std::string> err_text = ReadFile(JoinPath(dir_, "stderr.txt"));
+  const std::string last = err_text.ok() ? LastLine(*err_text) : "";
+  if (code == 3) {
+    set_.unavailable = last.empty() ? "matplotlib is not available" : last;
+  } else if (code == PythonWorker::kCannotRun || code == 126) {
+    set_.unavailable = options_.python + " cannot be run (exit " + std::to_string(code) + ")";
+  } else if (code == PythonWorker::kTimedOut) {
+    set_.unavailable = "the plot script took longer than " + std::to_string(options_.timeout_s) +
+                       " s and was stopped";
+  } else if (code != 0) {
+    set_.unavailable = "the plot script failed (exit " + std::to_string(code) + ")" +
+                       (last.empty() ? "" : ": " + last);
   } else {
-    const std::string cmd = "timeout " + std::to_string(options.timeout_s) + " " +
-                            ShellQuote(options.python) + " " + ShellQuote(script) + " " +
-                            ShellQuote(in) + " " + ShellQuote(out) + " 2> " + ShellQuote(err) +
-                            " > /dev/null";
-    const int rc = std::system(cmd.c_str());
-    const int code = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-    StatusOr<std::string> err_text = ReadFile(err);
-    const std::string last = err_text.ok() ? LastLine(*err_text) : "";
-    if (code == 3) {
-      set.unavailable = last.empty() ? "matplotlib is not available" : last;
-    } else if (code == 127 || code == 126) {
-      set.unavailable = options.python + " cannot be run (exit " + std::to_string(code) + ")";
-    } else if (code == 124) {
-      set.unavailable = "the plot script took longer than " + std::to_string(options.timeout_s) +
-                        " s and was stopped";
-    } else if (code != 0) {
-      set.unavailable = "the plot script failed (exit " + std::to_string(code) + ")" +
-                        (last.empty() ? "" : ": " + last);
-    } else {
-      StatusOr<std::string> text = ReadFile(out);
-      try {
-        const nlohmann::json j = nlohmann::json::parse(text.ok() ? *text : "");
-        for (const auto& p : j.at("plots")) {
-          set.plots.push_back({p.at("id").get<std::string>(), p.at("title").get<std::string>(),
-                               p.at("caption").get<std::string>(),
-                               p.at("png_base64").get<std::string>()});
-        }
-        for (const auto& n : j.at("notes")) set.notes.push_back(n.get<std::string>());
-        for (const auto& e : j.at("errors")) set.errors.push_back(e.get<std::string>());
-      } catch (const std::exception& e) {
-        set.plots.clear();
-        set.unavailable = std::string("the plot script's output cannot be read: ") + e.what();
+    StatusOr<std::string> text = ReadFile(JoinPath(dir_, "out.json"));
+    try {
+      const nlohmann::json j = nlohmann::json::parse(text.ok() ? *text : "");
+      for (const auto& p : j.at("plots")) {
+        set_.plots.push_back({p.at("id").get<std::string>(), p.at("title").get<std::string>(),
+                              p.at("caption").get<std::string>(),
+                              p.at("png_base64").get<std::string>()});
       }
+      for (const auto& n : j.at("notes")) set_.notes.push_back(n.get<std::string>());
+      for (const auto& e : j.at("errors")) set_.errors.push_back(e.get<std::string>());
+    } catch (const std::exception& e) {
+      set_.plots.clear();
+      set_.unavailable = std::string("the plot script's output cannot be read: ") + e.what();
     }
   }
-  fs::remove_all(dir, ec);
-  return set;
+  return set_;
+}
+
+PlotSet MakePlots(const nlohmann::json& data, const PlotOptions& options) {
+  PlotProcess p(options);
+  p.Draw(data);
+  return p.Result();
 }
 
 ReportFiles RenderReport(const ReportDoc& doc,
                          const std::string& title,
                          const nlohmann::json& plot_data,
                          const PlotOptions& options) {
+  return RenderReport(doc, title, MakePlots(plot_data, options));
+}
+
+ReportFiles RenderReport(const ReportDoc& doc, const std::string& title, const PlotSet& plots) {
   ReportFiles f;
   f.markdown = doc.Markdown();
-  const PlotSet plots = MakePlots(plot_data, options);
   std::string note;
-  if (!plots.unavailable.empty()) {
+  if (plots.disabled) {
+    note = "Plots " + plots.unavailable + ". The tables below are complete.";
+  } else if (!plots.unavailable.empty()) {
     note = "Plots unavailable: " + plots.unavailable + ". The tables below are complete; "
            "install python3-matplotlib (scripts/setup.sh) for the plots.";
     f.warning = "report.html has no plots: " + plots.unavailable;

@@ -8,6 +8,7 @@
 // prints the one-line warning in ReportFiles::warning.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -23,9 +24,12 @@ namespace carmba {
 // The embedded scripts/report_plots.py (generated at configure time, src/CMakeLists.txt).
 const char* ReportPlotsScript();
 
+class PythonWorker;
+
 struct PlotOptions {
   std::string python = "/usr/bin/python3";  // Debian's, which has python3-matplotlib
   int timeout_s = 120;
+  bool enabled = true;  // false (--no-plots): no Python at all; report.html says why
 };
 
 struct PlotSet {
@@ -33,9 +37,35 @@ struct PlotSet {
   std::vector<std::string> notes;  // plots not drawn for want of data, and why
   std::string unavailable;         // non-empty: no plots at all, and why (one line)
   std::vector<std::string> errors; // plots that failed (a bug), "function: exception"
+  bool disabled = false;           // not asked for (--no-plots): no warning
+  double seconds = 0;              // the plot interpreter's wall time (start to result)
 };
 
-// Runs the script on `data` (`data["kind"]` says which plots). Never fails (see above).
+// All plots of one report drawn by one Python interpreter that starts (and imports matplotlib)
+// when this is constructed: construct it before the work whose results it plots, Draw when the
+// data is ready (returns at once; the drawing overlaps what the caller does next) and take the
+// Result when writing the report. Never fails (see above).
+class PlotProcess {
+ public:
+  explicit PlotProcess(const PlotOptions& options = {});
+  ~PlotProcess();
+  PlotProcess(const PlotProcess&) = delete;
+  PlotProcess& operator=(const PlotProcess&) = delete;
+  // Hands `data` (`data["kind"]` says which plots) to the interpreter. Once.
+  void Draw(const nlohmann::json& data);
+  // Waits for the plots (an empty set with `unavailable` if Draw was not called).
+  PlotSet Result();
+
+ private:
+  PlotOptions options_;
+  std::unique_ptr<PythonWorker> worker_;
+  std::string dir_;    // scratch directory of the script, its input, output and stderr
+  PlotSet set_;        // filled by Draw on failure, by Result otherwise
+  bool drawn_ = false;
+  bool done_ = false;
+};
+
+// PlotProcess's Draw and Result at once.
 PlotSet MakePlots(const nlohmann::json& data, const PlotOptions& options = {});
 
 // report.md and report.html of one report, and the warning to print if the plots are missing.
@@ -48,6 +78,8 @@ ReportFiles RenderReport(const ReportDoc& doc,
                          const std::string& title,
                          const nlohmann::json& plot_data,
                          const PlotOptions& options = {});
+// The same with plots drawn beforehand (PlotProcess::Result).
+ReportFiles RenderReport(const ReportDoc& doc, const std::string& title, const PlotSet& plots);
 
 // 1-sigma projection uncertainty (worst direction, px) over an nx x ny pixel grid of a camera
 // whose intrinsics have covariance `cov` (9 x 9, LENSMODEL_OPENCV5 order, zero rows for held

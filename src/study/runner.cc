@@ -247,7 +247,8 @@ Status RunStudy(const StudySpec& spec,
   CARMBA_RETURN_IF_ERROR(write_error);
 
   CARMBA_RETURN_IF_ERROR(
-      WriteStudyOutputs(dir, options.write_report, st.wall_s, jobs, &st.report_warning));
+      WriteStudyOutputs(dir, options.write_report, st.wall_s, jobs, &st.report_warning,
+                        options.plots));
   StatusOr<std::vector<RunRecord>> final_records = ReadRunLog(log_path, nullptr, nullptr);
   if (!final_records.ok()) return final_records.status();
   std::vector<RunRecord> sorted = std::move(final_records).value();
@@ -289,7 +290,8 @@ Status WriteStudyOutputs(const std::string& dir,
                          bool write_report,
                          double wall_s,
                          int jobs,
-                         std::string* report_warning) {
+                         std::string* report_warning,
+                         bool plots) {
   StatusOr<nlohmann::json> info = ReadStudyInfo(dir);
   if (!info.ok()) return info.status();
   int bad = 0, dup = 0;
@@ -305,8 +307,11 @@ Status WriteStudyOutputs(const std::string& dir,
   const std::string timing = TimingCsv(groups);
   std::string html;
   if (write_report) {
+    PlotOptions plot_options;
+    plot_options.enabled = plots;
     const ReportFiles report = RenderReport(
-        doc, "carmba study " + info->value("name", std::string("?")), StudyPlotData(groups));
+        doc, "carmba study " + info->value("name", std::string("?")), StudyPlotData(groups),
+        plot_options);
     html = report.html;
     if (report_warning) *report_warning = report.warning;
   }
@@ -325,7 +330,8 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
                         bool allow_missing,
                         int* runs_merged,
                         int* runs_missing,
-                        std::string* report_warning) {
+                        std::string* report_warning,
+                        bool plots) {
   if (shard_dirs.empty()) return Status::Error("no shard directories given");
   nlohmann::json info;
   std::map<std::string, RunRecord> by_key;
@@ -385,7 +391,7 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
   info["shard"] = "merged from " + std::to_string(shard_dirs.size()) + " directories";
   CARMBA_RETURN_IF_ERROR(RewriteRunLog(log_path, records));
   CARMBA_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(out_dir, "study.json"), info.dump(2) + "\n"));
-  return WriteStudyOutputs(out_dir, write_report, 0, 0, report_warning);
+  return WriteStudyOutputs(out_dir, write_report, 0, 0, report_warning, plots);
 }
 
 }  // namespace carmba

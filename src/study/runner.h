@@ -45,6 +45,7 @@ struct StudyRunOptions {
   // Progress per finished run on stderr (util/progress.h; the command chooses the style).
   ProgressStyle progress = ProgressStyle::kNone;
   bool write_report = true;  // report.html besides the summaries
+  bool plots = true;         // report.html's plots (false: --no-plots, no Python)
 
   bool Check(std::string* error) const;
 };
@@ -96,7 +97,8 @@ Status WriteStudyOutputs(const std::string& dir,
                          bool write_report,
                          double wall_s,
                          int jobs,
-                         std::string* report_warning = nullptr);
+                         std::string* report_warning = nullptr,
+                         bool plots = true);
 
 // Combines shard directories (each with study.json and runs.jsonl of the same study fingerprint)
 // into `out_dir`: runs.jsonl sorted by enumeration index, study.json, summaries and report.
@@ -109,6 +111,7 @@ Status MergeStudyShards(const std::vector<std::string>& shard_dirs,
                         bool allow_missing,
                         int* runs_merged,
                         int* runs_missing,
-                        std::string* report_warning = nullptr);
+                        std::string* report_warning = nullptr,
+                        bool plots = true);
 
 }  // namespace carmba
