@@ -26,6 +26,9 @@ DEFINE_int32(expected, 0, "Number of markers expected (0: the model's count, or 
 DEFINE_double(threshold_hu, 1500, "HU threshold of the marker cores (candidates).");
 DEFINE_double(min_metal_hu, 2500, "A marker's fitted ball HU (partial volume removed) is at least "
                                   "this (metal, not bone).");
+DEFINE_double(clip_hu, 0, "The scanner's largest HU (metal above it is clipped): 0 reads it from "
+                          "the data (the largest value, when at least 8 voxels hold it), < 0: "
+                          "no clip.");
 DEFINE_double(label_tolerance_mm, 1.5, "Pairwise distance tolerance of the labelling, mm.");
 DEFINE_double(extra_sigma_mm, 0, "Isotropic sigma (mm) added in quadrature to every covariance "
                                  "for effects the model leaves out on real scans (metal "
@@ -54,6 +57,7 @@ int RunCtFiducials() {
   options.detect.expected_count = FLAGS_expected;
   options.detect.threshold_hu = FLAGS_threshold_hu;
   options.detect.min_metal_hu = FLAGS_min_metal_hu;
+  options.detect.clip_hu = FLAGS_clip_hu;
   options.label_tolerance_mm = FLAGS_label_tolerance_mm;
   options.frame = FLAGS_frame;
   options.extra_sigma_mm = FLAGS_extra_sigma_mm;

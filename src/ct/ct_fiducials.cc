@@ -246,6 +246,11 @@ std::string FormatFiducialsCsv(const CtFiducialsResult& r) {
     << " mm ball (ball-fit centres where bone or air pulls the centroid: fit covariance + "
        "sampling)"
     << (r.extra_sigma_mm > 0 ? " + (" + F("%.4g", r.extra_sigma_mm) + " mm)^2 I" : "")
+    << (r.detection.clip_hu > 0
+            ? "; markers at the scanner's clip (" + F("%.0f", r.detection.clip_hu) +
+                  " HU, read from the data): surface fit to the half-level edge, widened by its "
+                  "disagreement with the clipped centroid"
+            : std::string())
     << "; frame uncertainty not included. volume_mm3: voxels >= "
     << F("%.0f", r.detect_options.threshold_hu) << " HU\n";
   o << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,volume_mm3,peak_hu\n";
@@ -295,7 +300,14 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
                 ", " + std::to_string(r.detection.rejected.size()) + " component(s) rejected, " +
                 std::to_string(r.detection.core_voxels) + " voxels above the threshold. Read " +
                 F("%.3f", r.read_seconds) + " s, detection " + F("%.3f", r.detect_seconds) +
-                " s.");
+                " s." +
+                (r.detection.clip_hu > 0
+                     ? " The scanner's clip, read from the data: " +
+                           F("%.0f", r.detection.clip_hu) + " HU (" +
+                           std::to_string(r.detection.clipped_voxels) +
+                           " voxels at it); markers clipped there are measured by a surface fit "
+                           "to their half-level edge and checked against a clipped centroid."
+                     : std::string()));
   doc.Heading(2, "Markers (patient coordinates, mm)");
   doc.Paragraph("Centre: intensity-weighted centroid over the partial-volume rim, or, when bone "
                 "or air around the marker pulls it (centroid and robust partial-volume ball fit "
@@ -307,10 +319,14 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
   for (const auto& m : r.detection.markers) {
     const Eigen::Vector3d sd = m.covariance_mm2.diagonal().cwiseSqrt();
     const std::string from =
-        m.contaminated ? (m.contamination_chi2 < 0 ? std::string("ball fit (no centroid)")
-                                                   : "ball fit (chi2 " +
-                                                         F("%.1f", m.contamination_chi2) + ")")
-                       : "centroid (chi2 " + F("%.1f", m.contamination_chi2) + ")";
+        m.saturated
+            ? "surface fit, saturated (radii " + F("%.2f", m.surface_radii_mm.x()) + " / " +
+                  F("%.2f", m.surface_radii_mm.y()) + " mm; chi2 vs clipped centroid " +
+                  F("%.1f", m.contamination_chi2) + ")"
+        : m.contaminated ? (m.contamination_chi2 < 0 ? std::string("ball fit (no centroid)")
+                                                     : "ball fit (chi2 " +
+                                                           F("%.1f", m.contamination_chi2) + ")")
+                         : "centroid (chi2 " + F("%.1f", m.contamination_chi2) + ")";
     rows.push_back({std::to_string(m.id), V3(m.centre_mm), from, V3(sd, "%.4f"),
                     V3(m.bbox_centre_mm), F("%.3f", (m.bbox_centre_mm - m.centre_mm).norm()),
                     F("%.3f", m.volume_mm3), F("%.0f", m.peak_hu), F("%.0f", m.fit_metal_hu),
@@ -380,7 +396,10 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
                                   " mm)^2 for what the model leaves out"
                             : std::string()) +
       ". Correlated noise, streaks and beam hardening near metal are not modelled; the frame's "
-      "own uncertainty is not added.");
+      "own uncertainty is not added. A saturated marker (at the scanner's clip): the surface "
+      "fit's covariance (residual scale of the edge points, counted as one independent point "
+      "per voxel area of the surface), multiplied by max(1, chi2 / 3) with chi2 the disagreement "
+      "of the clipped centroid and the surface fit over their covariances.");
   return doc;
 }
 

@@ -45,6 +45,14 @@ bool CtVoxeliseOptions::Check(std::string* error) const {
     *error = "metal_streak_hu must be 0 .. 10000 HU";
     return false;
   }
+  if (!(psf_sigma_mm >= 0) || !(psf_sigma_mm <= 10)) {
+    *error = "psf_sigma_mm must be 0 .. 10 mm";
+    return false;
+  }
+  if (!(clip_hu >= 0) || !(clip_hu <= 32767)) {
+    *error = "clip_hu must be 0 (none) .. 32767 HU";
+    return false;
+  }
   return true;
 }
 
@@ -175,7 +183,7 @@ Status VoxelisePhantom(const CtPhantom& phantom,
       }
     }
   }
-  AddMetalStreaks(phantom.markers, phantom.marker_diameter_mm, options, volume);
+  AddScannerEffects(phantom.markers, phantom.marker_diameter_mm, options, volume);
   return Status::Ok();
 }
 
@@ -247,8 +255,56 @@ Status EmbedMarkers(const std::vector<CtMarker>& markers,
       }
     }
   }
-  AddMetalStreaks(markers, diameter_mm, options, volume);
+  AddScannerEffects(markers, diameter_mm, options, volume);
   return Status::Ok();
+}
+
+namespace {
+
+// Separable Gaussian blur of sigma `sigma_mm` along each volume axis (truncated at 3 sigma,
+// renormalised at the borders).
+void GaussianBlur(double sigma_mm, CtVolume* v) {
+  const int dims[3] = {v->columns, v->rows, v->slices};
+  const size_t strides[3] = {1, static_cast<size_t>(v->columns),
+                             static_cast<size_t>(v->columns) * v->rows};
+  std::vector<float> line;
+  for (int a = 0; a < 3; ++a) {
+    const double s = sigma_mm / v->spacing_mm[a];
+    const int half = static_cast<int>(std::ceil(3 * s));
+    if (half < 1) continue;
+    std::vector<double> w(2 * half + 1);
+    for (int t = -half; t <= half; ++t) w[t + half] = std::exp(-0.5 * t * t / (s * s));
+    const int b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+    line.resize(dims[a]);
+    for (int q2 = 0; q2 < dims[b2]; ++q2) {
+      for (int q1 = 0; q1 < dims[b1]; ++q1) {
+        const size_t base = q1 * strides[b1] + q2 * strides[b2];
+        for (int t = 0; t < dims[a]; ++t) line[t] = v->hu[base + t * strides[a]];
+        for (int t = 0; t < dims[a]; ++t) {
+          double sum = 0, sw = 0;
+          for (int u = std::max(0, t - half); u <= std::min(dims[a] - 1, t + half); ++u) {
+            sum += w[u - t + half] * line[u];
+            sw += w[u - t + half];
+          }
+          v->hu[base + t * strides[a]] = static_cast<float>(sum / sw);
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+
+void AddScannerEffects(const std::vector<CtMarker>& markers,
+                       double diameter_mm,
+                       const CtVoxeliseOptions& options,
+                       CtVolume* volume) {
+  if (options.psf_sigma_mm > 0) GaussianBlur(options.psf_sigma_mm, volume);
+  AddMetalStreaks(markers, diameter_mm, options, volume);
+  if (options.clip_hu > 0) {
+    const float clip = static_cast<float>(options.clip_hu);
+    for (float& x : volume->hu) x = std::min(x, clip);
+  }
 }
 
 void AddMetalStreaks(const std::vector<CtMarker>& markers,

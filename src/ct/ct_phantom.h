@@ -47,6 +47,13 @@ struct CtVoxeliseOptions {
   // Metal artefacts (0: none): the amplitude, HU, at a marker's surface in a slice through its
   // centre, of the streaks a reconstruction puts around metal (AddMetalStreaks).
   double metal_streak_hu = 0;
+  // The scanner's point-spread function (0: none): a Gaussian of this sigma (mm, along every
+  // axis) blurs the noisy volume before the streaks (the noise becomes correlated); with metal
+  // above clip_hu the clipped region grows past the sphere: blooming.
+  double psf_sigma_mm = 0;
+  // The scanner's largest value (0: none): every voxel above it is set to it, last (a 12-bit
+  // scanner stores at most 3071 HU; steel is far above).
+  double clip_hu = 0;
   uint64_t seed = 1;
 
   bool Check(std::string* error) const;
@@ -72,6 +79,14 @@ void AddMetalStreaks(const std::vector<CtMarker>& markers,
                      double diameter_mm,
                      const CtVoxeliseOptions& options,
                      CtVolume* volume);
+
+// The scanner effects of CtVoxeliseOptions applied after the voxels and their noise: the PSF blur
+// (psf_sigma_mm), the streaks (metal_streak_hu, AddMetalStreaks), the clip (clip_hu). Called by
+// VoxelisePhantom and EmbedMarkers.
+void AddScannerEffects(const std::vector<CtMarker>& markers,
+                       double diameter_mm,
+                       const CtVoxeliseOptions& options,
+                       CtVolume* volume);
 
 // Embeds spherical markers into an existing volume (a real CT as the background): each voxel
 // becomes (1 - f) v + f marker_hu + f n, where f is the fraction of the voxel's extent (as in

@@ -172,6 +172,14 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   if (!(s.voxelise.metal_streak_hu >= 0 && s.voxelise.metal_streak_hu <= 10000)) {
     ct.Fail("metal_streak_hu", "expected 0 .. 10000 HU");
   }
+  Opt(ct, "psf_sigma_mm", &s.voxelise.psf_sigma_mm);
+  if (!(s.voxelise.psf_sigma_mm >= 0 && s.voxelise.psf_sigma_mm <= 10)) {
+    ct.Fail("psf_sigma_mm", "expected 0 .. 10 mm");
+  }
+  Opt(ct, "clip_hu", &s.voxelise.clip_hu);
+  if (!(s.voxelise.clip_hu >= 0 && s.voxelise.clip_hu <= 32767)) {
+    ct.Fail("clip_hu", "expected 0 (none) .. 32767 HU");
+  }
   Opt(ct, "supersampling", &s.voxelise.marker_supersampling);
   Opt(ct, "block_supersampling", &s.voxelise.block_supersampling);
   Opt(ct, "rescale_slope", &s.write.rescale_slope);
@@ -305,6 +313,9 @@ nlohmann::json CtTruthJson(const CtScene& scene, const std::string& series_dir_n
                           scene.phantom.block_max_mm.z()};
   }
   ct["noise_hu"] = scene.voxelise.noise_hu;
+  ct["metal_streak_hu"] = scene.voxelise.metal_streak_hu;
+  ct["psf_sigma_mm"] = scene.voxelise.psf_sigma_mm;
+  ct["clip_hu"] = scene.voxelise.clip_hu;
   ct["seed"] = scene.voxelise.seed;
   ct["rescale_slope"] = scene.write.rescale_slope;
   ct["rescale_intercept"] = scene.write.rescale_intercept;

@@ -34,6 +34,9 @@
 //                                 # (an oblique, gantry-tilt-like slice plane; slices stacked
 //                                 # along the tilted normal)
 //     noise_hu: 20                # white Gaussian noise sigma
+//     metal_streak_hu: 0          # metal streaks' amplitude at a marker (ct_phantom.h)
+//     psf_sigma_mm: 0             # the scanner's Gaussian PSF (blooming with clip_hu)
+//     clip_hu: 0                  # the scanner's largest value (0: none), e.g. 3071
 //     supersampling: 8            # per axis, for voxels cut by a marker surface
 //     block_supersampling: 4      # per axis, for voxels cut only by a block face
 //     rescale_slope: 1            # stored = round((HU - intercept) / slope), int16

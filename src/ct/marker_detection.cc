@@ -43,6 +43,10 @@ bool MarkerDetectionOptions::Check(std::string* error) const {
     *error = "contamination_chi2 must be > 0";
     return false;
   }
+  if (!std::isfinite(clip_hu)) {
+    *error = "clip_hu must be finite (0: read from the data, < 0: none)";
+    return false;
+  }
   if (max_seeds_per_component < 1) {
     *error = "max_seeds_per_component must be >= 1";
     return false;
@@ -571,6 +575,391 @@ bool Refine(const CtVolume& vol,
   return true;
 }
 
+// ---- 8. Saturated metal -------------------------------------------------------------------
+
+// Trilinear HU at continuous voxel indices (clamped to the volume).
+double Trilinear(const CtVolume& vol, const Eigen::Vector3d& x) {
+  const int dims[3] = {vol.columns, vol.rows, vol.slices};
+  int i0[3];
+  double f[3];
+  for (int a = 0; a < 3; ++a) {
+    const double xa = std::clamp(x[a], 0.0, dims[a] - 1.0);
+    i0[a] = std::min(static_cast<int>(std::floor(xa)), std::max(0, dims[a] - 2));
+    f[a] = xa - i0[a];
+  }
+  double v = 0;
+  for (int dk = 0; dk < 2; ++dk) {
+    for (int dj = 0; dj < 2; ++dj) {
+      for (int di = 0; di < 2; ++di) {
+        const int i = std::min(i0[0] + di, dims[0] - 1), j = std::min(i0[1] + dj, dims[1] - 1),
+                  k = std::min(i0[2] + dk, dims[2] - 1);
+        v += (di ? f[0] : 1 - f[0]) * (dj ? f[1] : 1 - f[1]) * (dk ? f[2] : 1 - f[2]) *
+             vol.At(i, j, k);
+      }
+    }
+  }
+  return v;
+}
+
+// The voxels (index, patient mm offset from `centre_mm`) within `radius_mm` of centre_mm.
+template <typename F>
+void ForVoxelsWithin(const CtVolume& vol, const Eigen::Vector3d& centre_mm, double radius_mm,
+                     F&& visit) {
+  const Eigen::Matrix3d A = vol.PatientFromIndexLinear();
+  const Eigen::Vector3d c = A.inverse() * (centre_mm - vol.origin_mm);
+  const int dims[3] = {vol.columns, vol.rows, vol.slices};
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    const double reach = radius_mm / vol.spacing_mm[a] + 1;
+    lo[a] = std::max(0, static_cast<int>(std::floor(c[a] - reach)));
+    hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(c[a] + reach)));
+  }
+  for (int k = lo[2]; k <= hi[2]; ++k) {
+    for (int j = lo[1]; j <= hi[1]; ++j) {
+      for (int i = lo[0]; i <= hi[0]; ++i) {
+        const Eigen::Vector3d d = A * (Eigen::Vector3d(i, j, k) - c);
+        if (d.norm() <= radius_mm) visit(i, j, k, d);
+      }
+    }
+  }
+}
+
+struct SurfaceFit {
+  Eigen::Vector3d centre_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance_mm2 = Eigen::Matrix3d::Zero();
+  Eigen::Vector2d radii_mm = Eigen::Vector2d::Zero();  // in-plane, along the slices
+  int rays = 0, inliers = 0;
+  double rms_mm = 0;
+};
+
+// Where each ray from `c` first falls below `level` (patient-frame edge points).
+constexpr int kEdgeRays = 400;
+// Ball-shaped (8.): at least kMinBallRays of the rays end within kBallRayTolerance of the fitted
+// spheroid (tails, posts and streaks spoil the rest); its radii within kMinRadiusFraction ..
+// kMaxRadiusFraction x the nominal one and their ratio within kMaxAspect (the scanner's blur
+// differs across the slices; a pin's piece is much thinner than long).
+constexpr double kBallRayTolerance = 0.2;
+constexpr double kMinBallRays = 0.5;
+constexpr double kMinRadiusFraction = 0.6, kMaxRadiusFraction = 1.6, kMaxAspect = 1.3;
+// The clipped centroid's region: the fitted spheroid grown by this (mm).
+constexpr double kRoiDelta = 0.5;
+constexpr double kMinClipContrastHu = 500;
+
+std::vector<Eigen::Vector3d> EdgePoints(const CtVolume& vol, const Eigen::Vector3d& c,
+                                        double level, double clip, double reach_mm) {
+  constexpr int kRays = kEdgeRays;
+  constexpr double kStepMm = 0.05;
+  const Eigen::Matrix3d A_inv = vol.PatientFromIndexLinear().inverse();
+  std::vector<Eigen::Vector3d> edge;
+  for (int n = 0; n < kRays; ++n) {
+    const double z = 1 - 2 * (n + 0.5) / kRays, rho = std::sqrt(1 - z * z);
+    const double phi = M_PI * (1 + std::sqrt(5.0)) * (n + 0.5);
+    const Eigen::Vector3d u(rho * std::cos(phi), rho * std::sin(phi), z);
+    auto value = [&](double t) { return Trilinear(vol, A_inv * (c + t * u - vol.origin_mm)); };
+    // The first fall below `l` from the inside; < 0: none within the reach.
+    auto crossing = [&](double l) {
+      double prev = value(0);
+      if (prev < l) return -1.0;
+      for (double t = kStepMm; t <= reach_mm; t += kStepMm) {
+        const double v = value(t);
+        if (v < l) return t - kStepMm + (prev - l) / (prev - v) * kStepMm;
+        prev = v;
+      }
+      return -1.0;
+    };
+    const double r0 = crossing(level);
+    if (r0 < 0) continue;
+    // The ray's own background, 1 .. 2 mm beyond the edge (past the blur): plastic on one side,
+    // air on the other move a common level's crossing by different amounts. The ray's half level
+    // between it and the clip instead.
+    std::vector<double> beyond;
+    for (double t = r0 + 1.0; t <= r0 + 2.0; t += 0.25) beyond.push_back(value(t));
+    const double b_ray = Median(&beyond);
+    const double l_ray = b_ray + 0.5 * (clip - b_ray);
+    if (!(clip - b_ray > kMinClipContrastHu)) continue;
+    const double r = crossing(l_ray);
+    if (r >= 0) edge.push_back(c + r * u);
+  }
+  return edge;
+}
+
+// Tukey-weighted fit of an axis-aligned spheroid (in the volume's axis frame) to edge points.
+bool FitSpheroid(const std::vector<Eigen::Vector3d>& edge, const Eigen::Matrix3d& axes,
+                 double R, Eigen::Vector3d* c, Eigen::Vector2d* radii,
+                 Eigen::Matrix<double, 5, 5>* H_out, double* s2_out, int* inliers) {
+  const int n = static_cast<int>(edge.size());
+  if (n < 20) return false;
+  Eigen::Matrix<double, 5, 1> p;
+  p << axes.transpose() * *c, radii->x(), radii->y();
+  std::vector<Eigen::Vector3d> x(n);
+  for (int i = 0; i < n; ++i) x[i] = axes.transpose() * edge[i];
+  std::vector<double> res(n), w(n);
+  std::vector<Eigen::Matrix<double, 5, 1>> J(n);
+  Eigen::Matrix<double, 5, 5> H;
+  double sigma = 0;
+  int iteration = 0;
+  auto evaluate = [&]() {
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d d = x[i] - p.head<3>();
+      const Eigen::Vector3d s(p(3), p(3), p(4));
+      const double q = d.cwiseQuotient(s).norm(), len = d.norm();
+      res[i] = (q - 1) * len;
+      for (int a = 0; a < 3; ++a) J[i](a) = -len * d[a] / (s[a] * s[a] * q);
+      J[i](3) = -len * (d[0] * d[0] + d[1] * d[1]) / (p(3) * p(3) * p(3) * q);
+      J[i](4) = -len * d[2] * d[2] / (p(4) * p(4) * p(4) * q);
+    }
+    std::vector<double> a(n);
+    for (int i = 0; i < n; ++i) a[i] = std::abs(res[i]);
+    // The scale from the first iterations only: re-estimated as the fit drifts it would let
+    // the fit follow the outliers (a tail, a post).
+    if (iteration < 3) sigma = std::max(1.4826 * Median(&a), 1e-3);
+    for (int i = 0; i < n; ++i) {
+      const double u = res[i] / (4.685 * sigma);
+      w[i] = std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;
+    }
+    H.setZero();
+    for (int i = 0; i < n; ++i) H += w[i] * J[i] * J[i].transpose();
+  };
+  for (iteration = 0; iteration < 60; ++iteration) {
+    evaluate();
+    Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
+    for (int i = 0; i < n; ++i) g += w[i] * res[i] * J[i];
+    Eigen::Matrix<double, 5, 1> step = H.ldlt().solve(-g);
+    if (!step.allFinite()) return false;
+    // Damped: at most 0.5 mm per step, the radii kept within 0.3 .. 2.5 x the nominal radius.
+    const double largest = step.cwiseAbs().maxCoeff();
+    if (largest > 0.5) step *= 0.5 / largest;
+    p += step;
+    p(3) = std::clamp(p(3), 0.3 * R, 2.5 * R);
+    p(4) = std::clamp(p(4), 0.3 * R, 2.5 * R);
+    if (step.norm() < 1e-6) break;
+  }
+  evaluate();
+  double sw = 0, swr2 = 0;
+  int in = 0;
+  for (int i = 0; i < n; ++i) {
+    sw += w[i];
+    swr2 += w[i] * res[i] * res[i];
+    in += w[i] > 0;
+  }
+  if (!(sw > 6)) return false;
+  *c = axes * p.head<3>();
+  *radii = p.tail<2>();
+  *H_out = H;
+  *s2_out = swr2 / (sw - 5);
+  *inliers = in;
+  return true;
+}
+
+// The surface fit of 8., from `start` (patient mm, inside the clipped core).
+bool FitSaturatedSurface(const CtVolume& vol, const Eigen::Vector3d& start, double b,
+                         double clip, double radius, SurfaceFit* out) {
+  const double level = b + 0.5 * (clip - b);
+  Eigen::Vector3d c = start;
+  Eigen::Vector2d radii(radius, radius);
+  Eigen::Matrix<double, 5, 5> H;
+  double s2 = 0;
+  int inliers = 0;
+  std::vector<Eigen::Vector3d> edge;
+  for (int outer = 0; outer < 4; ++outer) {
+    edge = EdgePoints(vol, c, level, clip, 2.5 * radius);
+    Eigen::Vector3d c_new = c;
+    if (!FitSpheroid(edge, vol.axes, radius, &c_new, &radii, &H, &s2, &inliers)) return false;
+    if ((c_new - start).norm() > radius) return false;
+    c = c_new;
+  }
+  const Eigen::Matrix<double, 5, 5> H_inv = H.inverse();
+  if (!H_inv.allFinite()) return false;
+  const double rays = static_cast<double>(edge.size());
+  const double share = inliers / std::max(rays, 1.0);
+  // Ellipsoid area (Knud Thomsen's approximation, p = 1.6075).
+  const double a = radii.x(), cz = radii.y(), pk = 1.6075;
+  const double area =
+      4 * M_PI * std::pow((2 * std::pow(a * a, pk) + 2 * std::pow(a * cz, pk)) / 3, 1 / pk);
+  const double n_eff = std::max(6.0, share * area / std::pow(vol.VoxelVolumeMm3(), 2.0 / 3));
+  out->centre_mm = c;
+  out->covariance_mm2 = s2 * H_inv.topLeftCorner<3, 3>() * std::max(1.0, inliers / n_eff);
+  out->covariance_mm2 = vol.axes * out->covariance_mm2 * vol.axes.transpose();
+  out->radii_mm = radii;
+  // Ball-shaped: the share of all rays whose edge is within 20 % of the spheroid's radius along it.
+  int near = 0;
+  for (const auto& x : edge) {
+    const Eigen::Vector3d d = vol.axes.transpose() * (x - c);
+    const double q = d.cwiseQuotient(Eigen::Vector3d(radii.x(), radii.x(), radii.y())).norm();
+    near += std::abs(q - 1) <= kBallRayTolerance;
+  }
+  out->rays = kEdgeRays;
+  out->inliers = near;
+  out->rms_mm = std::sqrt(s2);
+  return true;
+}
+
+// The share of the voxels inside the spheroid shrunk by one voxel extent that reach `level`.
+double SpheroidFill(const CtVolume& vol, const SurfaceFit& s, double level) {
+  const Eigen::Vector3d r(s.radii_mm.x() - 0.5 * vol.spacing_mm.x(),
+                          s.radii_mm.x() - 0.5 * vol.spacing_mm.y(),
+                          s.radii_mm.y() - 0.5 * vol.spacing_mm.z());
+  if (r.minCoeff() <= 0) return 0;
+  int inside = 0, full = 0;
+  ForVoxelsWithin(vol, s.centre_mm, r.maxCoeff(), [&](int i, int j, int k, const Eigen::Vector3d& d) {
+    if ((vol.axes.transpose() * d).cwiseQuotient(r).norm() > 1) return;
+    ++inside;
+    full += vol.At(i, j, k) >= level;
+  });
+  return inside ? static_cast<double>(full) / inside : 0.0;
+}
+
+// The clipped centroid of 8.: returns false without mass.
+bool ClippedCentroid(const CtVolume& vol, Eigen::Vector3d start, double b, double clip,
+                     double sigma_b, const Eigen::Vector3d& roi_mm, Eigen::Vector3d* c_out,
+                     Eigen::Matrix3d* cov) {
+  Eigen::Vector3d c = start;
+  double W = 0;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  for (int it = 0; it < 8; ++it) {
+    W = 0;
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> offsets;
+    ForVoxelsWithin(vol, c, roi_mm.maxCoeff(), [&](int i, int j, int k, const Eigen::Vector3d& d) {
+      if ((vol.axes.transpose() * d).cwiseQuotient(roi_mm).norm() > 1) return;
+      const double u = std::clamp((vol.At(i, j, k) - b) / (clip - b), 0.0, 1.0);
+      W += u;
+      m += u * d;
+      offsets.push_back(d);
+    });
+    if (!(W > 0)) return false;
+    const Eigen::Vector3d shift = m / W;
+    S.setZero();
+    for (const auto& d : offsets) S += (d - shift) * (d - shift).transpose();
+    c += shift;
+    if (shift.norm() < 1e-5) break;
+  }
+  const double su = sigma_b / (clip - b);
+  *c_out = c;
+  *cov = su * su * S / (W * W);
+  return true;
+}
+
+// Measures a marker whose peak is at the clip (8.). On failure, *reason says why.
+bool RefineSaturated(const CtVolume& vol, const MarkerDetectionOptions& opt, double clip,
+                     DetectedMarker* m, std::string* reason) {
+  const double R = 0.5 * opt.diameter_mm;
+  const Eigen::Vector3d seed_mm = vol.PatientFromIndex(m->centre_index);
+  // Start at the most interior clipped voxel within 1.5 R of the seed (farthest from any voxel
+  // below the clip; the ball is the thickest part, a post or tail thinner), ties to the nearest.
+  Eigen::Vector3d start = vol.PatientFromIndex(m->peak_index);
+  std::vector<Eigen::Vector3d> clipped, unclipped;
+  ForVoxelsWithin(vol, seed_mm, 2.5 * R, [&](int i, int j, int k, const Eigen::Vector3d& d) {
+    (vol.At(i, j, k) >= clip ? clipped : unclipped).push_back(d);
+  });
+  double deepest = -1, nearest = 1e30;
+  for (const auto& d : clipped) {
+    if (d.norm() > 1.5 * R) continue;
+    double depth = 1e30;
+    for (const auto& o : unclipped) depth = std::min(depth, (o - d).squaredNorm());
+    if (depth > deepest + 1e-9 || (std::abs(depth - deepest) <= 1e-9 && d.norm() < nearest)) {
+      deepest = depth;
+      nearest = d.norm();
+      start = seed_mm + d;
+    }
+  }
+  // Background: median and MAD of a shell beyond the blooming.
+  std::vector<double> shell;
+  const double r_in = 1.5 * R + 1.0, r_out = r_in + 1.5;
+  ForVoxelsWithin(vol, start, r_out, [&](int i, int j, int k, const Eigen::Vector3d& d) {
+    if (d.norm() > r_in) shell.push_back(vol.At(i, j, k));
+  });
+  if (shell.size() < 8) {
+    *reason = "too close to the volume's border for a background shell";
+    return false;
+  }
+  const double b = Median(&shell);
+  std::vector<double> dev(shell.size());
+  for (size_t s = 0; s < shell.size(); ++s) dev[s] = std::abs(shell[s] - b);
+  const double sigma_b = std::max(1.4826 * Median(&dev), 1.0);
+  if (!(clip - b > kMinClipContrastHu)) {
+    *reason = "the clip is less than 500 HU above the background";
+    return false;
+  }
+  SurfaceFit s;
+  char b_[240];
+  if (!FitSaturatedSurface(vol, start, b, clip, R, &s)) {
+    *reason = "saturated but not a ball: its half-level edge does not close around a spheroid "
+              "near the seed (a pin or wire?)";
+    return false;
+  }
+  const double fill = SpheroidFill(vol, s, b + 0.5 * (clip - b));
+  const double aspect = s.radii_mm.x() / s.radii_mm.y();
+  if (s.radii_mm.minCoeff() < kMinRadiusFraction * R ||
+      s.radii_mm.maxCoeff() > kMaxRadiusFraction * R || aspect < 1 / kMaxAspect ||
+      aspect > kMaxAspect) {
+    std::snprintf(b_, sizeof(b_),
+                  "saturated but not a ball of about the nominal size: its edge a spheroid of "
+                  "radii %.2f (in-plane) and %.2f mm (need %.1f .. %.1f x the nominal %.2f mm, "
+                  "ratio within %.2f: a pin or wire?)",
+                  s.radii_mm.x(), s.radii_mm.y(), kMinRadiusFraction, kMaxRadiusFraction, R,
+                  kMaxAspect);
+    *reason = b_;
+    return false;
+  }
+  if (s.inliers < kMinBallRays * s.rays || fill < opt.min_inner_fraction) {
+    std::snprintf(b_, sizeof(b_),
+                  "saturated but not a ball: %d of %d edge rays within %.0f%% of the fitted "
+                  "spheroid (need %.0f%%), %.0f%% of its inside at the half level (need %.0f%%): "
+                  "a pin or wire?",
+                  s.inliers, s.rays, 100 * kBallRayTolerance, 100 * kMinBallRays, 100 * fill,
+                  100 * opt.min_inner_fraction);
+    *reason = b_;
+    return false;
+  }
+  Eigen::Vector3d cc;
+  Eigen::Matrix3d cc_cov;
+  const Eigen::Vector3d roi(s.radii_mm.x() + kRoiDelta, s.radii_mm.x() + kRoiDelta,
+                            s.radii_mm.y() + kRoiDelta);
+  if (!ClippedCentroid(vol, start, b, clip, sigma_b, roi, &cc, &cc_cov)) {
+    *reason = "saturated, but the clipped centroid has no mass";
+    return false;
+  }
+  Eigen::Matrix3d sampling = Eigen::Matrix3d::Zero();
+  const double thickness = vol.slice_thickness_mm > 0 ? vol.slice_thickness_mm : vol.spacing_mm.z();
+  const Eigen::Vector3d e(vol.spacing_mm.x(), vol.spacing_mm.y(), thickness);
+  for (int a = 0; a < 3; ++a) {
+    sampling(a, a) = SamplingVarianceMm2(a < 2 ? s.radii_mm.x() : s.radii_mm.y(),
+                                         vol.spacing_mm[a], e[a]);
+  }
+  const Eigen::Matrix3d sampling_mm2 = vol.axes * sampling * vol.axes.transpose();
+  cc_cov += sampling_mm2;
+  // The half-level edge is interpolated between voxels: its error over the sub-voxel phase is
+  // of the order of the centroid's (5.), which thick or sparse slices make large.
+  s.covariance_mm2 += sampling_mm2;
+  m->saturated = true;
+  m->surface_centre_mm = s.centre_mm;
+  m->surface_covariance_mm2 = s.covariance_mm2;
+  m->surface_radii_mm = s.radii_mm;
+  m->surface_rays = s.rays;
+  m->surface_inliers = s.inliers;
+  m->surface_rms_mm = s.rms_mm;
+  m->centroid_mm = cc;
+  m->centroid_covariance_mm2 = cc_cov;
+  const Eigen::Vector3d delta = cc - s.centre_mm;
+  m->contamination_chi2 = delta.dot((cc_cov + s.covariance_mm2).ldlt().solve(delta));
+  m->centre_mm = s.centre_mm;
+  m->centre_index = vol.PatientFromIndexLinear().inverse() * (s.centre_mm - vol.origin_mm);
+  m->covariance_noise_mm2 = s.covariance_mm2 - sampling_mm2;
+  m->covariance_sampling_mm2 = sampling_mm2;
+  m->covariance_mm2 = s.covariance_mm2 * std::max(1.0, m->contamination_chi2 / 3.0);
+  m->fit_ok = true;
+  m->fit_centre_mm = s.centre_mm;
+  m->fit_covariance_mm2 = s.covariance_mm2;
+  m->fit_metal_hu = clip;  // at least: the scanner clipped it
+  m->fit_background_hu = b;
+  m->fit_inner_fraction = fill;
+  m->background_hu = b;
+  m->noise_hu = sigma_b;
+  m->peak_needed_hu = 0;
+  return true;
+}
+
 }  // namespace
 
 StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
@@ -600,6 +989,19 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
   }
   MarkerDetection out;
   out.core_voxels = static_cast<int>(core.size());
+  // 8. The scanner's clip: given, or the largest value when enough voxels hold it.
+  if (opt.clip_hu > 0) {
+    out.clip_hu = opt.clip_hu;
+  } else if (opt.clip_hu == 0 && !core.empty()) {
+    float top = thr;
+    for (size_t v : core) top = std::max(top, vol.hu[v]);
+    int at_top = 0;
+    for (size_t v : core) at_top += vol.hu[v] >= top;
+    if (at_top >= kMinClippedVoxels) out.clip_hu = top;
+  }
+  if (out.clip_hu > 0) {
+    for (size_t v : core) out.clipped_voxels += vol.hu[v] >= out.clip_hu;
+  }
   // 2. 26-connected components.
   std::unordered_map<size_t, int> position;
   position.reserve(core.size() * 2);
@@ -740,6 +1142,16 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
       m.centre_index = seed.index;
       m.peak_index = seed.peak_index;
       m.merged = large;
+      if (out.clip_hu > 0 && m.peak_hu >= out.clip_hu) {
+        std::string reason;
+        if (!RefineSaturated(vol, opt, out.clip_hu, &m, &reason)) {
+          last_reason = reason;
+          continue;
+        }
+        ++kept;
+        accepted.push_back(m);
+        continue;
+      }
       if (!Refine(vol, opt, seed.core_radius_mm, min_peak_fraction, &m)) {
         last_reason = "no contrast against its surroundings (weighted mass <= 0) or no background";
         continue;

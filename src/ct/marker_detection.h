@@ -59,6 +59,41 @@
 //    Neither model includes correlated noise (beyond the odd-part RMS of 5.), the
 //    scanner's point-spread function (the fit's partial-volume model is the simulator's box
 //    model), or marker diameters different from the nominal one.
+// 8. Saturated metal (real scanners). A scanner stores HU up to a maximum (3071 for most: 12-bit
+//    stored values); metal above it is clipped, so its voxels hold that maximum, the box model of
+//    6. does not hold, and blooming, streaks and a holder touching the marker distort the
+//    partial-volume rim. The clip is read from the data: the volume's largest value, when at
+//    least kMinClippedVoxels voxels hold it and it is >= threshold_hu (clip_hu > 0 sets it, < 0
+//    disables). A seed whose peak is at the clip is measured by two independent estimators:
+//    - surface fit: from the most interior clipped voxel within 1.5 R of the seed (farthest from
+//      any voxel below the clip: the ball is thicker than a post or tail), 400 rays (a Fibonacci sphere) each
+//      find where the trilinear HU falls below the half level L = b + (clip - b) / 2 (b the median
+//      of a shell 1.5 R + 1 .. 1.5 R + 2.5 mm out, R the nominal radius), then again below the
+//      ray's own half level, between the clip and the median 1 .. 2 mm beyond that first edge
+//      (a holder on one side, air on the other would move a common level's crossing unequally);
+//      an axis-aligned spheroid
+//      (centre, in-plane and along-slice radii: the scanner's blur differs in and across the
+//      slices) is fitted to these edge points by Tukey-weighted Gauss-Newton (4.685 x the MAD
+//      of the radial residuals, the scale frozen after 3 iterations; steps at most 0.5 mm, radii
+//      kept within 0.3 .. 2.5 R), the rays re-cast from the new centre 4 times. Rays that run
+//      into a post, a pin or the holder, or stop early in a streak, are outliers. Covariance: s^2
+//      H^-1 of the centre, s^2 the weighted residual variance, multiplied by n_inliers / n_eff,
+//      plus the sampling term of 5. at the fitted radii (the edge is interpolated between voxels),
+//      n_eff = the inliers' share of the spheroid's area / voxel area^(2/3) (neighbouring rays
+//      see the same voxels). The diameter need only be roughly known: the radii must be within
+//      0.6 .. 1.6 x R. Not a ball (a pin, a wire): radii in a ratio beyond 1.3, less than half
+//      the rays ending within 20 % of the spheroid, or less than min_inner_fraction of the voxels
+//      inside the spheroid shrunk by half a voxel reaching L. A clip less than 500 HU above b is
+//      refused;
+//    - clipped centroid: the centroid of the occupancy u = clamp((v - b) / (clip - b), 0, 1)
+//      (a clipped voxel counts as fully inside, whatever metal HU the scanner lost) over the
+//      voxels within the fitted spheroid grown by 0.5 mm around its own iterate (its radii, not
+//      its centre, from the surface fit), started at the same clipped voxel; covariance: the shell's noise (MAD /
+//      (clip - b)) propagated + the sampling term of 5. at the fitted radius.
+//    The centre is the surface fit's, its covariance widened by max(1, chi2 / 3) (chi2 between
+//    the two estimators, 3 dof): the Birge ratio says how far the estimate can be trusted when
+//    streaks or a holder move one estimator more than its covariance allows. Both estimates and
+//    their own covariances are kept (surface_*, centroid_*).
 // Sheared (gantry-tilted) volumes: the centroid's ROI distances and covariance axis frame treat
 // the volume axes as orthogonal (an approximation of the order of the shear angle); the
 // centroid, a weighted mean of voxel indices mapped through the affine voxel-to-patient map, is
@@ -95,6 +130,8 @@ struct MarkerDetectionOptions {
   double contamination_chi2 = 11.34;
   // Local maxima tried in a component larger than max_volume_fraction x nominal.
   int max_seeds_per_component = 200;
+  // The scanner's clip (8.): 0 reads it from the data, > 0 sets it (HU), < 0: no clip.
+  double clip_hu = 0;
 
   bool Check(std::string* error) const;
 };
@@ -130,6 +167,14 @@ struct DetectedMarker {
   Eigen::Vector3d centroid_mm = Eigen::Vector3d::Zero();  // the weighted centroid
   bool merged = false;            // seeded from a local maximum of a larger component
   double peak_needed_hu = 0;      // the least peak of a min_metal_hu ball over background_hu
+  // Saturated metal (8.): measured by the surface fit and the clipped centroid.
+  bool saturated = false;
+  Eigen::Vector3d surface_centre_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d surface_covariance_mm2 = Eigen::Matrix3d::Zero();
+  Eigen::Vector2d surface_radii_mm = Eigen::Vector2d::Zero();  // in-plane, along the slices
+  int surface_rays = 0, surface_inliers = 0;
+  double surface_rms_mm = 0;  // weighted RMS of the inliers' radial residuals
+  Eigen::Matrix3d centroid_covariance_mm2 = Eigen::Matrix3d::Zero();  // of centroid_mm
 };
 
 struct RejectedComponent {
@@ -144,7 +189,12 @@ struct MarkerDetection {
   std::vector<DetectedMarker> markers;      // in detection order (by first voxel index)
   std::vector<RejectedComponent> rejected;  // components that failed the size/border filter
   int core_voxels = 0;                      // voxels >= threshold
+  double clip_hu = 0;                       // the scanner's clip (8.); 0: none found
+  int clipped_voxels = 0;                   // voxels at the clip
 };
+
+// Voxels that must hold the volume's largest value for it to be taken as the scanner's clip.
+inline constexpr int kMinClippedVoxels = 8;
 
 // Runs steps 1-7. Errors: no marker found, a count different from options.expected_count (the
 // message lists what was found and rejected), or too many voxels above the threshold.
