@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "report/plots.h"
+#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -21,9 +22,7 @@ class PythonWorkerTest : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::exists(kPython)) GTEST_SKIP() << "no " << kPython;
-    std::string tmpl = (std::filesystem::temp_directory_path() / "carmba_pyworker_XXXXXX").string();
-    ASSERT_NE(::mkdtemp(tmpl.data()), nullptr);
-    dir_ = tmpl;
+    dir_ = test::MakeScratchDir("pyworker");
   }
   void TearDown() override {
     std::error_code ec;
