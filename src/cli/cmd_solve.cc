@@ -6,7 +6,6 @@
 
 #include <unistd.h>
 
-#include <filesystem>
 #include <iostream>
 
 #include "cli/command.h"
@@ -59,18 +58,9 @@ int RunJoint() {
   if (!solution.ok()) return cli::Fail("solve", solution.status());
   cli::Step("solve", "mrcal cross-check");
   // The mrcal cross-check (a failure is reported, not an error of the solve).
-  const std::string work = FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid());
-  auto mrcal = JointMrcalCrossCheck(*problem, *solution, work);
-  {
-    std::error_code ec;
-    std::filesystem::remove_all(work, ec);
-  }
   nlohmann::json j = JointSolutionToJson(*problem, *config, *solution);
-  if (mrcal.ok()) {
-    j["mrcal_crosscheck"] = *mrcal;
-  } else {
-    j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
-  }
+  j["mrcal_crosscheck"] = JointMrcalCrossCheckJson(
+      *problem, *solution, FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
   ReportDoc doc = JointReportDoc(*problem, *config, *solution);
   doc.Append(JointMrcalDoc(j["mrcal_crosscheck"]));
   nlohmann::json plot_data = JointPlotData(*solution);
@@ -121,8 +111,7 @@ int RunSolve() {
   if (!solution.ok()) return cli::Fail("solve", solution.status());
   cli::Step("solve", "comparing with legacy POSIT");
   const PoseComparison comparison = ComparePoseMethods(*problem, *config, *solution);
-  nlohmann::json j = PoseSolutionToJson(*problem, *solution);
-  j["comparison"] = PoseComparisonToJson(*problem, comparison);
+  const nlohmann::json j = PoseResultJson(*problem, *solution, comparison);
   const ReportFiles report =
       RenderReport(PoseReportDoc(*problem, *config, *solution, comparison),
                    "carmba pose report: " + problem->name, PosePlotData(*problem, *solution));

@@ -185,6 +185,12 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
                                               const JointSolution& solution,
                                               const std::string& work_dir);
 
+// result.json's "mrcal_crosscheck": JointMrcalCrossCheck's JSON, or {"error": its message} (a
+// failure is reported, not an error of the solve). `work_dir` is removed afterwards.
+nlohmann::json JointMrcalCrossCheckJson(const JointProblem& problem,
+                                        const JointSolution& solution,
+                                        const std::string& work_dir);
+
 // The report's section on the cross-check (its JSON as JointMrcalCrossCheck returns it, or
 // {"error": ...}).
 ReportDoc JointMrcalDoc(const nlohmann::json& crosscheck);
