@@ -54,6 +54,8 @@ try:
 except carmba.Error as e:
     print("carmba.Error:", e)
 
-# %% The geometry for RTK / plastimatch, as `carmba export-geometry` writes it.
-files = carmba.export_geometry(result, format="rtk")
+# %% The geometry as `carmba export-geometry` writes it. This problem's CT frame is mirrored
+# (handedness: mirrored), which RTK's and plastimatch's geometries cannot carry: geometry.json
+# only (a joint problem exports all formats).
+files = carmba.export_geometry(result, format="json")
 print(sorted(files))

@@ -16,4 +16,4 @@ def test_example_runs():
     assert "['rx', 'ry', 'rz', 'tx', 'ty', 'tz'] (6, 6)" in out
     assert "0 -> 10:" in out
     assert "carmba.Error:" in out and "no_such.yaml" in out
-    assert "['rtk_detector.json', 'rtk_geometry.xml']" in out
+    assert "['geometry.json']" in out

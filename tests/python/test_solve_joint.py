@@ -3,6 +3,7 @@ configs/joint_radial.yaml, scripts/demo.sh step 4) against `carmba solve`'s resu
 intrinsics, markers, cross-covariances, error budget, relative poses, statistics, to_json() with
 the mrcal cross-check; triangulate against `carmba triangulate`."""
 import json
+import os
 import resource
 
 import numpy as np
@@ -19,10 +20,15 @@ def scene(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def cli(scene, tmp_path_factory):
+def cli_out(scene, tmp_path_factory):
     out = tmp_path_factory.mktemp("joint_out") / "out"
     run_cli("solve", "--problem", str(scene[1]), "--config", CONFIG, "--out", str(out))
-    return read_json(out / "result.json")
+    return out
+
+
+@pytest.fixture(scope="module")
+def cli(cli_out):
+    return read_json(cli_out / "result.json")
 
 
 @pytest.fixture(scope="module")
@@ -186,3 +192,18 @@ def test_triangulate_equals_the_command(carmba, scene, result, tmp_path):
     assert_rel(t["p_in_ct_mm"], c["p_in_ct_mm"], what="point")
     assert_rel(t["covariance_mm2"], c["covariance_mm2"], what="covariance")
     assert np.linalg.norm(t["p_in_ct_mm"] - p) < 1.0
+
+
+def test_export_geometry_equals_the_command(carmba, result, cli_out, tmp_path):
+    """Every format (geometry.json, RTK, plastimatch) from the Result and from the solve's
+    directory, byte-identical to `carmba export-geometry`'s files."""
+    out = tmp_path / "export"
+    run_cli("export-geometry", "--result", str(cli_out), "--out", str(out))
+    expected = {os.path.relpath(os.path.join(d, f), out): open(os.path.join(d, f)).read()
+                for d, _, fs in os.walk(out) for f in fs}
+    assert "rtk_geometry.xml" in expected and "plastimatch/drr.sh" in expected
+    assert carmba.export_geometry(result) == expected
+    assert carmba.export_geometry(str(cli_out)) == expected
+    assert result.geometry() == (cli_out / "geometry.json").read_text()
+    assert carmba.export_geometry(result, format="rtk", sdd_mm=1100) != \
+        carmba.export_geometry(result, format="rtk")
