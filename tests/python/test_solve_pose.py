@@ -202,7 +202,7 @@ def test_errors_carry_the_commands_message(carmba, tmp_path):
     with pytest.raises(carmba.Error) as e:
         carmba.solve(str(bad), POSE_CONFIG)
     assert str(e.value) == line[len(prefix):]
-    assert "sigma_pix" in str(e.value)
+    assert str(bad) in str(e.value) and "sigma_px" in str(e.value)
     with pytest.raises(carmba.Error, match="no_such.yaml"):
         carmba.solve(str(tmp_path / "no_such.yaml"), POSE_CONFIG)
 
