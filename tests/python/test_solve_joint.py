@@ -37,8 +37,9 @@ def result(carmba, scene):
 
 
 def without_times(j):
+    """Without the wall-clock times: the solver's time_s, mrcal's solve_seconds."""
     if isinstance(j, dict):
-        return {k: without_times(v) for k, v in j.items() if k != "time_s"}
+        return {k: without_times(v) for k, v in j.items() if k not in ("time_s", "solve_seconds")}
     if isinstance(j, list):
         return [without_times(v) for v in j]
     return j
