@@ -13,6 +13,8 @@ PKGS=(
   libyaml-cpp-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-numpy python3-matplotlib python3-opencv python3-pydicom
+  # the Python module (src/python/, pybind11) and its pytest tests (tests/python/)
+  pybind11-dev python3-dev python3-pytest
   libgdcm3.0 zlib1g-dev
   # the real consumer of the exported geometry: the DRR end-to-end test renders with
   # `plastimatch drr` (tests/cli/drr_export_e2e_test.cc; skipped, saying so, without it)

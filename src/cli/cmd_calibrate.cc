@@ -57,14 +57,9 @@ Status LoadConfig(const std::string& path,
                   CalibrationOptions* calib,
                   DetectionOptions* detect,
                   CrossCheckConfig* cross) {
-  CARMBA_RETURN_IF_ERROR(LoadCalibrationOptions(path, calib, {"detection", "crosscheck"}));
+  CARMBA_RETURN_IF_ERROR(LoadCalibrationConfig(path, calib, detect, {"crosscheck"}));
   YamlMap root = YamlMap::Load(path);
   CARMBA_RETURN_IF_ERROR(root.status());
-  YamlMap d(root.Raw("detection"), path, "detection");
-  ReadDetectionOptions(d, detect);
-  CARMBA_RETURN_IF_ERROR(d.Finish());
-  std::string err;
-  if (!detect->Check(&err)) return Status::Error(path + ": detection." + err);
   YamlMap c(root.Raw("crosscheck"), path, "crosscheck");
   c.Get("mrcal", &cross->mrcal);
   c.Get("opencv", &cross->opencv);

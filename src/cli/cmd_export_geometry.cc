@@ -4,13 +4,11 @@
 // (export/plastimatch_geometry.h). Every output is written or none.
 #include <gflags/gflags.h>
 
-#include <cstdio>
 #include <iostream>
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
-#include "export/plastimatch_geometry.h"
-#include "export/rtk_geometry.h"
+#include "export/geometry_export.h"
 #include "export/view_geometry.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -26,21 +24,6 @@ DEFINE_double(sdd_mm, 0,
 namespace {
 
 using namespace carmba;
-
-// File-name-safe view id.
-std::string Safe(const std::string& id) {
-  std::string s = id;
-  for (char& c : s) {
-    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_' && c != '.') c = '_';
-  }
-  return s;
-}
-
-std::string Index4(size_t k) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%04zu", k);
-  return b;
-}
 
 int RunExportGeometry() {
   const char* kCmd = "export-geometry";
@@ -68,55 +51,20 @@ int RunExportGeometry() {
   auto set = ReadGeometryJson(path);
   if (!set.ok()) return cli::Fail(kCmd, set.status());
   cli::Step(kCmd, "converting " + std::to_string(set->views.size()) + " views");
-  double sdd = FLAGS_sdd_mm;
-  if (sdd == 0) sdd = set->views[0].sid_mm.value_or(1000.0);
-
-  std::vector<std::pair<std::string, std::string>> files;  // name, contents
-  std::string summary;
-  if (json) {
-    files.emplace_back("geometry.json", GeometryToJson(*set).dump(2) + "\n");
-  }
-  if (rtk) {
-    RtkDetector det;
-    auto ps = RtkFromGeometry(*set, sdd, &det);
-    if (!ps.ok()) return cli::Fail(kCmd, ps.status().WithContext(path + ": RTK"));
-    files.emplace_back("rtk_geometry.xml", RtkGeometryXml(*ps));
-    files.emplace_back("rtk_detector.json", RtkDetectorJson(det, *ps).dump(2) + "\n");
-    summary += " RTK (detector pitch " + FormatCompact(det.spacing_u_mm) + " x " +
-               FormatCompact(det.spacing_v_mm) + " mm, fx/fy " +
-               FormatCompact(det.spacing_v_mm / det.spacing_u_mm) + ", rows flipped);";
-  }
-  if (plm) {
-    auto pms = PlastimatchFromGeometry(*set, sdd);
-    if (!pms.ok()) return cli::Fail(kCmd, pms.status().WithContext(path + ": plastimatch"));
-    std::string script =
-        "#!/bin/sh\n"
-        "# DRRs of a CT with carmba's solved geometry, one per view:  sh drr.sh CT OUTDIR\n"
-        "# CT: a volume plastimatch reads (DICOM directory, .mha, .nrrd) in the CT frame of the\n"
-        "# fiducials. Writes OUTDIR/NNNN_<view>_0000.raw (float32, H rows of W, row 0 at the\n"
-        "# top) and its projection matrix .txt.\n"
-        "set -e\nmkdir -p \"$2\"\n";
-    for (size_t k = 0; k < pms->size(); ++k) {
-      const auto& pm = (*pms)[k];
-      const std::string stem = Index4(k) + "_" + Safe(pm.id);
-      files.emplace_back("plastimatch/" + stem + ".txt", PlastimatchProjMatText(pm));
-      script += "plastimatch drr -t raw -I \"$1\" -O \"$2/" + stem + "_\" " +
-                PlastimatchDrrArgs(pm) + "\n";
-    }
-    files.emplace_back("plastimatch/drr.sh", script);
-    summary += " plastimatch (" + std::to_string(pms->size()) + " projection matrices, drr.sh);";
-  }
+  auto exported = ExportGeometryFiles(*set, path, FLAGS_format, FLAGS_sdd_mm);
+  if (!exported.ok()) return cli::Fail(kCmd, exported.status());
   cli::Step(kCmd, "writing the outputs");
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
   if (s.ok() && plm) s = MakeDirs(JoinPath(staged.path(), "plastimatch"));
-  for (const auto& [name, text] : files) {
+  for (const auto& [name, text] : exported->files) {
     if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), name), text);
   }
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail(kCmd, s);
-  std::cout << "exported " << set->views.size() << " views to " << FLAGS_out << ":" << summary
-            << " source-detector distance " << FormatCompact(sdd) << " mm" << std::endl;
+  std::cout << "exported " << set->views.size() << " views to " << FLAGS_out << ":"
+            << exported->summary << " source-detector distance "
+            << FormatCompact(exported->sdd_mm) << " mm" << std::endl;
   return 0;
 }
 

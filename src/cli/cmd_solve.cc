@@ -6,7 +6,6 @@
 
 #include <unistd.h>
 
-#include <filesystem>
 #include <iostream>
 
 #include "calib/crosscheck.h"
@@ -82,12 +81,7 @@ int RunJoint() {
     // Removed when it goes out of scope and on SIGINT/SIGTERM (util/temp_paths.h).
     const ScopedTempPath work(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
     mrcal_options.work_dir = work.path();
-    auto mrcal = JointMrcalCrossCheck(*problem, *solution, mrcal_options);
-    if (mrcal.ok()) {
-      j["mrcal_crosscheck"] = *mrcal;
-    } else {
-      j["mrcal_crosscheck"] = {{"error", mrcal.status().message()}};
-    }
+    j["mrcal_crosscheck"] = JointMrcalCrossCheckJson(*problem, *solution, mrcal_options);
   } else {
     j["mrcal_crosscheck"] = {{"error", "disabled (--no-mrcal)"}};
   }
@@ -147,8 +141,7 @@ int RunSolve() {
   plots.Draw(PosePlotData(*problem, *solution));
   cli::Step("solve", "comparing with legacy POSIT");
   const PoseComparison comparison = ComparePoseMethods(*problem, *config, *solution);
-  nlohmann::json j = PoseSolutionToJson(*problem, *solution);
-  j["comparison"] = PoseComparisonToJson(*problem, comparison);
+  const nlohmann::json j = PoseResultJson(*problem, *solution, comparison);
   const ReportDoc doc = PoseReportDoc(*problem, *config, *solution, comparison);
   cli::Step("solve", "waiting for the plots");
   const ReportFiles report = RenderReport(doc, "carmba pose report: " + problem->name, plots.Result());

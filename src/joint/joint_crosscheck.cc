@@ -1,6 +1,7 @@
 // The joint problem's mrcal cross-check (joint_problem.h).
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "calib/crosscheck.h"
 #include "joint/joint_problem.h"
@@ -122,6 +123,16 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
   j["rms_px_mrcal"] = out->at("rms_px_of_mrcal_solution");
   j["rms_px_carmba_in_mrcal"] = out->at("rms_px_of_carmba_solution");
   return j;
+}
+
+nlohmann::json JointMrcalCrossCheckJson(const JointProblem& problem,
+                                        const JointSolution& solution,
+                                        const MrcalCrossCheckOptions& options) {
+  auto mrcal = JointMrcalCrossCheck(problem, solution, options);
+  std::error_code ec;
+  std::filesystem::remove_all(options.work_dir, ec);
+  if (!mrcal.ok()) return {{"error", mrcal.status().message()}};
+  return *mrcal;
 }
 
 }  // namespace carmba

@@ -188,6 +188,12 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
                                               const JointSolution& solution,
                                               const MrcalCrossCheckOptions& options);
 
+// result.json's "mrcal_crosscheck": JointMrcalCrossCheck's JSON, or {"error": its message} (a
+// failure is reported, not an error of the solve). `options.work_dir` is removed afterwards.
+nlohmann::json JointMrcalCrossCheckJson(const JointProblem& problem,
+                                        const JointSolution& solution,
+                                        const MrcalCrossCheckOptions& options);
+
 // The report's section on the cross-check (its JSON as JointMrcalCrossCheck returns it, or
 // {"error": ...}).
 ReportDoc JointMrcalDoc(const nlohmann::json& crosscheck);

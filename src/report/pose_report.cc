@@ -108,6 +108,14 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
   return c;
 }
 
+nlohmann::json PoseResultJson(const PoseProblem& problem,
+                              const PoseSolution& solution,
+                              const PoseComparison& comparison) {
+  nlohmann::json j = PoseSolutionToJson(problem, solution);
+  j["comparison"] = PoseComparisonToJson(problem, comparison);
+  return j;
+}
+
 nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseComparison& c) {
   nlohmann::json j;
   nlohmann::json lv = nlohmann::json::array();

@@ -47,6 +47,13 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
 
 nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseComparison& c);
 
+// result.json as `carmba solve` writes it for a pose problem: PoseSolutionToJson with the
+// comparison (legacy POSIT, the other handedness) under "comparison". The CLI and the Python
+// module (src/python/) both write it through this.
+nlohmann::json PoseResultJson(const PoseProblem& problem,
+                              const PoseSolution& solution,
+                              const PoseComparison& comparison);
+
 // The report (report.md and report.html) and its plot data (report/plots.h).
 ReportDoc PoseReportDoc(const PoseProblem& problem,
                         const SolverConfig& config,
