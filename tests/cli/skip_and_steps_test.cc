@@ -52,7 +52,7 @@ nlohmann::json WithoutTimes(nlohmann::json j) {
 }
 
 TEST(SkipAndSteps, SolveWithoutPlotsGivesTheSameResultAndSaysSo) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string base = "solve --problem " + kSource + "/problems/thesis_pose.yaml --config " +
                            kSource + "/configs/posit_ba_analytic.yaml --out ";
   auto with = RunCarmba(base + dir.File("with"));
@@ -69,7 +69,7 @@ TEST(SkipAndSteps, SolveWithoutPlotsGivesTheSameResultAndSaysSo) {
 }
 
 TEST(SkipAndSteps, JointSolveWithoutMrcalSaysSo) {
-  TempDir dir;
+  ScratchDir dir;
   const std::string scene = dir.File("scene");
   ASSERT_EQ(SimulateJointScene("thesis_joint.yaml", scene), "");
   std::string problem = ReadTextFile(kSource + "/problems/thesis_joint.yaml");
@@ -91,7 +91,7 @@ TEST(SkipAndSteps, JointSolveWithoutMrcalSaysSo) {
 }
 
 TEST(SkipAndSteps, CalibrateWithoutPlotsAndMrcalRunsNoPython) {
-  TempDir dir;
+  ScratchDir dir;
   ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
   // A python that does not exist: nothing may try to start it.
   dir.Write("config.yaml", "crosscheck: {python: /nonexistent/python3}\n");
@@ -108,7 +108,7 @@ TEST(SkipAndSteps, CalibrateWithoutPlotsAndMrcalRunsNoPython) {
 
 // Commands without a cross-check or plots print their steps too.
 TEST(SkipAndSteps, ExportGeometryNamesItsSteps) {
-  TempDir dir;
+  ScratchDir dir;
   auto r = RunCarmba("solve --problem " + kSource + "/problems/thesis_pose.yaml --config " +
                      kSource + "/configs/posit_ba_analytic.yaml --no-plots --out " +
                      dir.File("solve"));
