@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <optional>
 
@@ -342,8 +343,14 @@ std::shared_ptr<Solved> SolveJoint(const std::string& problem_path,
   auto solution = std::make_shared<JointSolution>(ValueOrThrow(SolveJointProblem(*problem, config)));
   s->json = JointSolutionToJson(*problem, config, *solution);
   if (mrcal_crosscheck) {
-    char tmpl[] = "/tmp/carmba_python_mrcal_XXXXXX";
-    if (!::mkdtemp(tmpl)) throw Error("mrcal_crosscheck: cannot create a temporary directory");
+    // A unique work directory under the system's temporary directory ($TMPDIR), as the plots'
+    // (report/plots.cc); JointMrcalCrossCheckJson removes it.
+    std::error_code ec;
+    std::string tmpl =
+        (std::filesystem::temp_directory_path(ec) / "carmba_python_mrcal_XXXXXX").string();
+    if (ec || !::mkdtemp(tmpl.data())) {
+      throw Error("mrcal_crosscheck: cannot create a temporary directory " + tmpl);
+    }
     MrcalCrossCheckOptions mrcal_options;
     mrcal_options.work_dir = tmpl;
     s->json["mrcal_crosscheck"] = JointMrcalCrossCheckJson(*problem, *solution, mrcal_options);

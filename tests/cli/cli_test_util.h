@@ -73,6 +73,20 @@ inline std::string SimulateJointScene(const std::string& scene_yaml, const std::
   return "";
 }
 
+// Simulated plate images (configs/scenes/thesis_calibration.yaml) into dir/plate and a
+// simulated CT series (thesis_ct.yaml) into dir/ct: shared inputs of the CLI fixtures. Returns
+// the failing command's stderr, or "" on success.
+inline std::string SimulatePlateAndCt(const ScratchDir& dir) {
+  const std::string src = CARMBA_SOURCE_DIR;
+  auto r = RunCarmba("simulate --scene " + src + "/configs/scenes/thesis_calibration.yaml --out " +
+                     dir.File("plate"));
+  if (r.exit_code != 0) return "simulate plate: " + r.err;
+  r = RunCarmba("simulate --scene " + src + "/configs/scenes/thesis_ct.yaml --out " +
+                dir.File("ct"));
+  if (r.exit_code != 0) return "simulate ct: " + r.err;
+  return "";
+}
+
 // Synthetic observations of the default 5 x 5 plate by a thesis-like camera (408 x 408 px), as
 // observations.csv at `path` (calib/synthetic_views.h defaults): input for a quick calibrate.
 inline bool WriteSyntheticGridObservations(const std::string& path) {

@@ -18,12 +18,8 @@ class InputGuards : public ::testing::Test {
   // Simulated plate images and a simulated CT series, made once.
   static void SetUpTestSuite() {
     data_ = new ScratchDir("input_guards");
-    auto r = RunCarmba("simulate --scene " + kSource +
-                       "/configs/scenes/thesis_calibration.yaml --out " + data_->File("plate"));
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    r = RunCarmba("simulate --scene " + kSource + "/configs/scenes/thesis_ct.yaml --out " +
-                  data_->File("ct"));
-    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::string err = SimulatePlateAndCt(*data_);
+    ASSERT_EQ(err, "");
   }
   static void TearDownTestSuite() {
     delete data_;

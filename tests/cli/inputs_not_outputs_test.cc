@@ -1,7 +1,7 @@
 // Inputs are never outputs: every command refuses an --out that is, or contains, one of its inputs
 // (cli/common_flags.h CheckOutIsNoInput), --force or not, with one line naming --out and the
 // input's flag, exit code 2 (a usage error), and the input left as it was. The check runs before
-// the command reads anything, so the inputs here are placeholders.
+// the command reads anything, so the inputs here are stand-ins (empty files of the right names).
 //
 // And temporary paths: SIGTERM during a command leaves nothing `*.tmp*` behind
 // (util/temp_paths.h).
@@ -27,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 const std::string kSource = CARMBA_SOURCE_DIR;
 
-// Placeholder inputs: one directory of "images" and one file per other input.
+// Stand-in inputs: one directory of "images" and one file per other input.
 struct Inputs {
   ScratchDir dir;
   Inputs() {
@@ -174,7 +174,7 @@ TEST(InputsNotOutputs, GlobsLinksAndSubdirectories) {
                 " --out " + in.dir.File("link") + " --force");
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("is the input --images"), std::string::npos) << r.err;
-  // A subdirectory of the images is a new output: the command runs (and fails on the placeholder
+  // A subdirectory of the images is a new output: the command runs (and fails on the stand-in
   // camera, a data error).
   r = RunCarmba("undistort --images " + in.Of("images") + " --camera " + in.Of("camera") +
                 " --out " + in.Of("images") + "/undistorted");

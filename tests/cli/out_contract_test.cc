@@ -35,12 +35,8 @@ class OutContract : public ::testing::Test {
   // Shared inputs, made once: simulated plate images and a simulated CT series.
   static void SetUpTestSuite() {
     data_ = new ScratchDir();
-    auto r = RunCarmba("simulate --scene " + kSource +
-                       "/configs/scenes/thesis_calibration.yaml --out " + data_->File("plate"));
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    r = RunCarmba("simulate --scene " + kSource + "/configs/scenes/thesis_ct.yaml --out " +
-                  data_->File("ct"));
-    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::string err = SimulatePlateAndCt(*data_);
+    ASSERT_EQ(err, "");
     data_->Write("camera.json",
                  R"({"image_size": [408, 408], "fx": 2061.4, "fy": 2254.6, "cx": 203.7,)"
                  R"( "cy": 205.1, "distortion": [0, 0, 0, 0, 0]})");
@@ -61,7 +57,7 @@ class OutContract : public ::testing::Test {
                  "thesis}\nconfigs:\n  - {name: c, file: " + kSource +
                  "/configs/posit_ba_analytic.yaml}\n");
     ASSERT_TRUE(WriteSyntheticGridObservations(data_->File("grid_obs.csv")));
-    r = RunCarmba("study --study " + data_->File("study.yaml") + " --shard 1/1 --out " +
+    auto r = RunCarmba("study --study " + data_->File("study.yaml") + " --shard 1/1 --out " +
                   data_->File("shard1"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
   }
