@@ -146,9 +146,11 @@ bool ParseTiff(const std::string& path, const std::string& s, ImageHeader* h) {
     const uint64_t tag = get(e, at, 2), type = get(e, at + 2, 2);
     const size_t value_at = at + (big ? 12 : 8);
     // SHORT (3) values sit in the first two bytes of the value field, LONG (4) in four, LONG8 (16)
-    // in eight.
-    const uint64_t value = type == 3 ? get(e, value_at, 2) : type == 16 ? get(e, value_at, 8)
-                                                                        : get(e, value_at, 4);
+    // in eight; the field itself is four bytes in classic TIFF (where LONG8 is not a valid type)
+    // and eight in BigTIFF, so nothing is read past the entry.
+    const int field_size = big ? 8 : 4;
+    const int value_size = type == 3 ? 2 : type == 16 ? field_size : 4;
+    const uint64_t value = get(e, value_at, value_size);
     if (tag == 256) h->width = static_cast<int64_t>(value);
     if (tag == 257) h->height = static_cast<int64_t>(value);
     if (tag == 258 && get(e, at + 4, big ? 8 : 4) == 1) h->bytes_per_sample = value > 8 ? (value + 7) / 8 : 1;

@@ -121,5 +121,21 @@ TEST_F(ImageHeaderTest, AbsurdSizeIsRefusedFromTheHeader) {
                                 "(util/plausible.h kImageBytes; refused before decoding)");
 }
 
+// Found by fuzz_image under ASan (CI, fb66dba): a classic TIFF whose last IFD entry claims type
+// LONG8 (16, valid only in BigTIFF) made the parser read an 8-byte value from a 4-byte field, past
+// the entry's end. The value is now read at the field's size. The file is the fuzzer's regression
+// seed (tests/fuzz/seeds/regress_image), so the ASan build replays it on every run.
+TEST_F(ImageHeaderTest, Long8InAClassicTiffIsReadAtTheFieldsSize) {
+  const std::string path = std::string(CARMBA_SOURCE_DIR) +
+                           "/tests/fuzz/seeds/regress_image/tiff_long8_in_classic_ifd.tif";
+  bool found = false;
+  auto h = ReadImageHeader(path, &found);
+  ASSERT_TRUE(h.ok()) << h.status().message();
+  ASSERT_TRUE(found);
+  EXPECT_EQ(h->format, "TIFF");
+  EXPECT_EQ(h->width, 640);
+  EXPECT_EQ(h->height, 0);
+}
+
 }  // namespace
 }  // namespace carmba
