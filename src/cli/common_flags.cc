@@ -9,6 +9,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "study/study_inputs.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
 
@@ -133,6 +134,23 @@ std::vector<InputPath> InputsOfFlags(const std::vector<std::string>& flag_names)
     for (std::string item; std::getline(items, item, ',');) {
       if (!item.empty()) inputs.push_back({"--" + dashed, item});
     }
+  }
+  return inputs;
+}
+
+std::vector<InputPath> InputsOfFlagsAndFilesTheyName(const std::vector<std::string>& flag_names) {
+  std::vector<InputPath> inputs = InputsOfFlags(flag_names);
+  const size_t num_flags = inputs.size();
+  for (size_t k = 0; k < num_flags; ++k) {
+    const std::string path = inputs[k].path;
+    auto ends_with = [&](const std::string& e) {
+      return path.size() > e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
+    };
+    if (!(ends_with(".yaml") || ends_with(".yml")) || IsDirectory(path) || !FileExists(path)) {
+      continue;
+    }
+    const std::string what = "named in " + inputs[k].what + " " + path + ":";
+    for (const std::string& f : FilesNamedInYaml(path)) inputs.push_back({what, f});
   }
   return inputs;
 }

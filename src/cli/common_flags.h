@@ -60,6 +60,9 @@ struct InputPath {
 const std::vector<std::string>& InputFlagNames();
 // The inputs named by `flag_names` that are in InputFlagNames() and set (--shards split at ',').
 std::vector<InputPath> InputsOfFlags(const std::vector<std::string>& flag_names);
+// InputsOfFlags and, for each input that is a YAML file (a problem, config or study file), the
+// files it names (study/study_inputs.h FilesNamedInYaml), as "a file named in --problem P".
+std::vector<InputPath> InputsOfFlagsAndFilesTheyName(const std::vector<std::string>& flag_names);
 // --out is not, and does not contain, any of `inputs` (util/file_util.h CheckOutputIsNotInput),
 // with --force or not. A usage error (kExitUsage). main.cc checks the flags' inputs; a command
 // that reads more inputs from a file (a problem's images) checks those once it has read it.

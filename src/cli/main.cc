@@ -417,7 +417,9 @@ int main(int argc, char** argv) {
                                       " --help')");
     }
   }
-  if (const carmba::Status s = cli::CheckOutIsNoInput(cli::InputsOfFlags(cli::CommandFlagNames(*cmd))); !s.ok()) {
+  if (const carmba::Status s = cli::CheckOutIsNoInput(cli::InputsOfFlagsAndFilesTheyName(
+          cli::CommandFlagNames(*cmd)));
+      !s.ok()) {
     return cli::FailUsage(name, s);
   }
   carmba::InstallTempPathCleanup();

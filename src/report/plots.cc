@@ -18,6 +18,7 @@
 #include "report/format.h"
 #include "util/file_util.h"
 #include "util/python_worker.h"
+#include "util/temp_paths.h"
 
 namespace carmba {
 namespace {
@@ -54,6 +55,7 @@ PlotProcess::PlotProcess(const PlotOptions& options) : options_(options) {
     done_ = true;
     return;
   }
+  dir_slot_ = RegisterTempPath(dir_);  // removed on SIGINT / SIGTERM (util/temp_paths.h)
   worker_ = std::make_unique<PythonWorker>(options_.python, kPlotPreload);
 }
 
@@ -63,6 +65,7 @@ PlotProcess::~PlotProcess() {
     std::error_code ec;
     std::filesystem::remove_all(dir_, ec);
   }
+  UnregisterTempPath(dir_slot_);
 }
 
 void PlotProcess::Draw(const nlohmann::json& data) {

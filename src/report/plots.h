@@ -60,6 +60,7 @@ class PlotProcess {
   PlotOptions options_;
   std::unique_ptr<PythonWorker> worker_;
   std::string dir_;    // scratch directory of the script, its input, output and stderr
+  int dir_slot_ = -1;  // its registration with util/temp_paths.h
   PlotSet set_;        // filled by Draw on failure, by Result otherwise
   bool drawn_ = false;
   bool done_ = false;

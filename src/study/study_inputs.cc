@@ -33,6 +33,8 @@ bool HasGlobChars(const std::string& s) { return s.find_first_of("*?[") != std::
 // Collects input files by path; the first entry naming a file is its `used_by`.
 class InputCollector {
  public:
+  explicit InputCollector(bool hash = true) : hash_(hash) {}
+
   // `text` as written in an entry or a YAML file under `base_dir`: the files it names on disk.
   void AddNamed(const std::string& base_dir, const std::string& text, const std::string& used_by,
                 int depth) {
@@ -52,7 +54,7 @@ class InputCollector {
   // A file an entry reads for certain (missing or not).
   void AddFile(const std::string& path, const std::string& used_by, int depth) {
     if (inputs_.count(path)) return;
-    inputs_[path] = StudyInput{path, FileContentHash(path), used_by};
+    inputs_[path] = StudyInput{path, hash_ ? FileContentHash(path) : "", used_by};
     if (IsYaml(path) && depth < kMaxYamlDepth) ScanYaml(path, used_by, depth + 1);
   }
 
@@ -95,6 +97,7 @@ class InputCollector {
     }
   }
 
+  bool hash_;
   std::map<std::string, StudyInput> inputs_;
 };
 
@@ -147,6 +150,16 @@ std::string FileContentHash(const std::string& path) {
     }
   }
   return Hex64(h);
+}
+
+std::vector<std::string> FilesNamedInYaml(const std::string& yaml_path) {
+  InputCollector c(/*hash=*/false);
+  c.AddFile(yaml_path, "", 0);
+  std::vector<std::string> files;
+  for (const StudyInput& in : c.Sorted()) {
+    if (in.path != yaml_path) files.push_back(in.path);
+  }
+  return files;
 }
 
 std::vector<StudyInput> StudyInputFiles(const StudySpec& spec) {

@@ -36,6 +36,12 @@ struct StudyInput {
 // The input files of a study, sorted by path (each once).
 std::vector<StudyInput> StudyInputFiles(const StudySpec& spec);
 
+// The files a YAML file names, found as above (its string values naming an existing file,
+// directory or glob relative to it, recursively through the YAML files named; a directory or glob
+// stands for its files), without the YAML file itself and without hashing: the inputs a problem,
+// config or study file makes a command read (main.cc checks --out against them).
+std::vector<std::string> FilesNamedInYaml(const std::string& yaml_path);
+
 // FNV-1a 64 of a file's content as 16 hex digits, or "missing" when it cannot be read.
 std::string FileContentHash(const std::string& path);
 

@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "util/temp_paths.h"
+
 extern char** environ;
 
 namespace carmba {
@@ -87,15 +89,22 @@ PythonWorker::PythonWorker(const std::string& python, const std::string& preload
     return;
   }
   pid_ = pid;
+  child_slot_ = RegisterChildProcess(pid);
   socket_ = fds[0];
+}
+
+void PythonWorker::Reap(int* status) {
+  UnregisterChildProcess(child_slot_);  // before waitpid: the pid may be recycled after it
+  child_slot_ = -1;
+  while (::waitpid(pid_, status, 0) < 0 && errno == EINTR) {
+  }
 }
 
 PythonWorker::~PythonWorker() {
   if (pid_ > 0 && !waited_) {
     ::kill(pid_, SIGKILL);
     int status = 0;
-    while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
-    }
+    Reap(&status);
   }
   if (socket_ >= 0) ::close(socket_);
 }
@@ -133,22 +142,29 @@ int PythonWorker::Wait(int timeout_s) {
   int status = 0;
   if (timeout_s > 0 && started_) {
     for (;;) {
-      const pid_t r = ::waitpid(pid_, &status, WNOHANG);
-      if (r == pid_) break;
+      // Has it exited? (WNOWAIT: not reaped yet, so its pid cannot be recycled before Reap
+      // unregisters it.)
+      siginfo_t info{};
+      const int r = ::waitid(P_PID, static_cast<id_t>(pid_), &info, WEXITED | WNOHANG | WNOWAIT);
+      if (r == 0 && info.si_pid == pid_) {
+        Reap(&status);
+        break;
+      }
       if (r < 0 && errno != EINTR) return exit_code_ = kCannotRun;
       if (SecondsSince(job_sent_) > timeout_s) {
         ::kill(pid_, SIGKILL);
-        while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
-        }
+        Reap(&status);
         seconds_ = SecondsSince(born_);
         return exit_code_ = kTimedOut;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
   } else {
-    while (::waitpid(pid_, &status, 0) < 0) {
+    siginfo_t info{};  // waits for the exit without reaping (see above), then reaps
+    while (::waitid(P_PID, static_cast<id_t>(pid_), &info, WEXITED | WNOWAIT) < 0) {
       if (errno != EINTR) return exit_code_ = kCannotRun;
     }
+    Reap(&status);
   }
   seconds_ = SecondsSince(born_);
   exit_code_ = started_ ? ExitCode(status) : kCannotRun;

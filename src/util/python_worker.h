@@ -8,7 +8,8 @@
 // arguments, stdout and stderr files), redirects its stdout and stderr there and runs the script
 // as __main__ (runpy, sys.argv and sys.path[0] as `python SCRIPT ARGS...` sets them). The exit
 // code is what the script's sys.exit gives (1 for an uncaught exception, after the traceback).
-// Without a job (the worker is destroyed first) the interpreter is killed.
+// Without a job (the worker is destroyed first) the interpreter is killed. While it runs it is
+// registered with util/temp_paths.h, so a carmba killed by SIGINT or SIGTERM kills it too.
 #pragma once
 
 #include <sys/types.h>
@@ -46,8 +47,11 @@ class PythonWorker {
   double seconds() const { return seconds_; }
 
  private:
+  void Reap(int* status);  // unregisters the child, then waitpid
+
   std::string python_;
   pid_t pid_ = -1;
+  int child_slot_ = -1;  // util/temp_paths.h: killed on SIGINT / SIGTERM while it runs
   int socket_ = -1;  // our end of the job socket
   bool started_ = false;
   bool waited_ = false;

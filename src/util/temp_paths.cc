@@ -5,6 +5,7 @@
 #include <limits.h>
 #include <signal.h>
 #include <sys/syscall.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -25,6 +26,23 @@ struct Slot {
 };
 
 Slot g_slots[kMaxTempPaths];
+
+struct ChildSlot {
+  std::atomic<int> state{kFree};
+  pid_t pid = -1;
+};
+
+ChildSlot g_children[kMaxChildProcesses];
+
+// Kills and reaps the registered children. Async-signal-safe (kill, waitpid).
+void KillRegisteredChildren() {
+  for (ChildSlot& c : g_children) {
+    if (c.state.load() != kActive) continue;
+    ::kill(c.pid, SIGKILL);
+    while (::waitpid(c.pid, nullptr, 0) < 0 && errno == EINTR) {
+    }
+  }
+}
 
 // getdents64's record (the glibc wrapper is not async-signal-safe; the system call is).
 struct LinuxDirent64 {
@@ -105,7 +123,34 @@ int NumRegisteredTempPaths() {
   return n;
 }
 
+int RegisterChildProcess(pid_t pid) {
+  if (pid <= 0) return -1;
+  for (int i = 0; i < kMaxChildProcesses; ++i) {
+    int expected = kFree;
+    if (g_children[i].state.compare_exchange_strong(expected, kBusy)) {
+      g_children[i].pid = pid;
+      g_children[i].state.store(kActive);
+      return i;
+    }
+  }
+  return -1;
+}
+
+void UnregisterChildProcess(int slot) {
+  if (slot < 0 || slot >= kMaxChildProcesses) return;
+  g_children[slot].state.store(kBusy);
+  g_children[slot].pid = -1;
+  g_children[slot].state.store(kFree);
+}
+
+int NumRegisteredChildProcesses() {
+  int n = 0;
+  for (const ChildSlot& c : g_children) n += c.state.load() == kActive;
+  return n;
+}
+
 void RemoveRegisteredTempPaths() {
+  KillRegisteredChildren();
   for (Slot& s : g_slots) {
     if (s.state.load() == kActive) RemoveAt(AT_FDCWD, s.path, 0);
   }

@@ -11,7 +11,14 @@
 // registry is a fixed table of slots claimed with atomics, so a signal arriving while another
 // thread registers a path never deadlocks. A path registered when the table is full (more than
 // kMaxTempPaths at once) is not removed by the handler (it is still removed by its owner).
+//
+// Child processes (the Python interpreters of the plots and the mrcal cross-check,
+// util/python_worker.h) are registered the same way: the handler kills them (SIGKILL) and reaps
+// them before it removes the paths, so no interpreter outlives a carmba killed by SIGTERM or
+// SIGINT, nor writes into a directory being removed.
 #pragma once
+
+#include <sys/types.h>
 
 #include <string>
 
@@ -26,9 +33,17 @@ void UnregisterTempPath(int slot);
 // The paths registered now (for tests).
 int NumRegisteredTempPaths();
 
+inline constexpr int kMaxChildProcesses = 32;
+// Registers a child process to be killed on SIGINT / SIGTERM; returns its slot (-1 when the table
+// is full). The owner unregisters it before reaping it (waitpid), so a recycled pid is never hit.
+int RegisterChildProcess(pid_t pid);
+void UnregisterChildProcess(int slot);
+int NumRegisteredChildProcesses();
+
 // Installs the SIGINT / SIGTERM handler (idempotent). Library code never calls it: only main().
 void InstallTempPathCleanup();
-// What the handler does before re-raising (for tests): removes every registered path.
+// What the handler does before re-raising (for tests): kills and reaps every registered child
+// process, then removes every registered path.
 void RemoveRegisteredTempPaths();
 
 // Registration for a scope (the owner removes or renames the path itself; the handler removes it

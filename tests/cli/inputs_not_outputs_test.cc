@@ -12,6 +12,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
@@ -189,8 +190,43 @@ TEST(InputsNotOutputs, CalibrateProblemInputs) {
   const auto r = RunCarmba("calibrate --problem " + in.dir.File("calib_problem.yaml") +
                            " --out " + in.Of("observations") + " --force");
   EXPECT_EQ(r.exit_code, 2) << r.err;
-  EXPECT_NE(r.err.find("is the input --problem key 'observations'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("is the input named in --problem " + in.dir.File("calib_problem.yaml") +
+                       ": " + in.Of("observations")),
+            std::string::npos)
+      << r.err;
   EXPECT_EQ(ReadTextFile(in.Of("observations")), "original observations.csv");
+}
+
+// Files named inside a problem, config or study file are inputs too, at any depth: a study names
+// a problem file, which names its data directory; solve and triangulate read a problem's files.
+TEST(InputsNotOutputs, FilesNamedInsideProblemConfigAndStudyFiles) {
+  Inputs in;
+  fs::create_directories(in.dir.File("data"));
+  in.dir.Write("data/markers.csv", "original markers");
+  in.dir.Write("nested_problem.yaml", "name: p\nviews:\n  - observations: data/markers.csv\n");
+  in.dir.Write("nested_study.yaml", "name: s\nproblems:\n  - {name: p, file: nested_problem.yaml}\n");
+  struct Case {
+    std::string args, named_in;
+  };
+  const std::vector<Case> cases = {
+      {"solve --problem " + in.dir.File("nested_problem.yaml") + " --config " + in.Of("config"),
+       "--problem " + in.dir.File("nested_problem.yaml")},
+      {"triangulate --problem " + in.dir.File("nested_problem.yaml") + " --points " +
+           in.Of("points"),
+       "--problem " + in.dir.File("nested_problem.yaml")},
+      {"study --study " + in.dir.File("nested_study.yaml"),
+       "--study " + in.dir.File("nested_study.yaml")},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.args);
+    const auto r = RunCarmba(c.args + " --out " + in.dir.File("data") + " --force");
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_EQ(CountLines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(": contains the input named in " + c.named_in + ": "), std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("data/markers.csv"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(ReadTextFile(in.dir.File("data/markers.csv")), "original markers");
 }
 
 // Any entry of `dir` whose name holds "tmp" (WriteFileAtomic's FILE.tmp.PID, StagedOutputDir's
@@ -207,16 +243,17 @@ std::vector<std::string> TmpEntries(const std::string& dir) {
   return found;
 }
 
-// Starts `carmba args` (stdout, stderr to /dev/null), waits until a temporary path shows in
-// `watch` (at most `timeout`), sends `sig`. Returns the wait status; *seen = whether a temporary
-// path was seen before the signal.
+// Starts `carmba args` (stdout, stderr to /dev/null; `env`: NAME=VALUE words put before it),
+// waits until a temporary path shows in `watch` (at most 120 s), sends `sig`. Returns the wait
+// status; *seen = whether a temporary path was seen before the signal.
 int RunAndSignalOnTmp(const std::string& args,
                       const std::string& watch,
                       int sig,
-                      bool* seen) {
+                      bool* seen,
+                      const std::string& env = "") {
   const pid_t pid = ::fork();
   if (pid == 0) {
-    const std::string cmd = "exec " + std::string(CARMBA_BIN) + " " + args +
+    const std::string cmd = "exec env " + env + " " + std::string(CARMBA_BIN) + " " + args +
                             " >/dev/null 2>/dev/null";
     ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
@@ -259,22 +296,52 @@ TEST(TempPaths, SignalLeavesNoTemporaryPath) {
   }
 }
 
+// The processes whose environment holds `marker` (NAME=VALUE), from /proc.
+std::vector<int> ProcessesWithEnvironment(const std::string& marker) {
+  std::vector<int> pids;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator("/proc", ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::ifstream in(entry.path() / "environ", std::ios::binary);
+    for (std::string var; std::getline(in, var, '\0');) {
+      if (var == marker) {
+        pids.push_back(std::stoi(name));
+        break;
+      }
+    }
+  }
+  return pids;
+}
+
 // The same during calibrate's mrcal cross-check (OUT.mrcal.tmp.PID/, the reported case), when
-// python3-mrcal is there to make it.
+// python3-mrcal is there to make it: no temporary path is left, neither beside the output nor
+// under $TMPDIR (the plot script's directory), and no Python interpreter (the plots', mrcal's)
+// outlives carmba (reported: the mrcal child survived SIGTERM).
 TEST(TempPaths, SigtermDuringTheMrcalStepLeavesNoTemporaryDirectory) {
   if (std::system("/usr/bin/python3 -c 'import mrcal' >/dev/null 2>&1") != 0) {
     GTEST_SKIP() << "python3-mrcal not installed";
   }
   ScratchDir root;
   ASSERT_TRUE(WriteSyntheticGridObservations(root.File("obs.csv")));
+  fs::create_directories(root.File("T"));  // $TMPDIR (a name without "tmp": TmpEntries)
+  const std::string marker = "CARMBA_SIGNAL_TEST=" + root.path();
   bool seen = false;
   const int status = RunAndSignalOnTmp(
       "calibrate --no-opencv --observations " + root.File("obs.csv") + " --out " +
           root.File("calib"),
-      root.path(), SIGTERM, &seen);
+      root.path(), SIGTERM, &seen, marker + " TMPDIR=" + root.File("T"));
   ASSERT_TRUE(seen) << "no temporary path appeared";
   EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) << status;
   EXPECT_TRUE(TmpEntries(root.path()).empty()) << TmpEntries(root.path()).front();
+  EXPECT_TRUE(fs::is_empty(root.File("T"))) << fs::directory_iterator(root.File("T"))->path();
+  // The handler reaps its children before it re-raises; allow the kernel a moment all the same.
+  std::vector<int> left;
+  for (int i = 0; i < 50 && !(left = ProcessesWithEnvironment(marker)).empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_TRUE(left.empty()) << "process " << left.front() << " outlived carmba";
+  for (int pid : left) ::kill(pid, SIGKILL);
 }
 
 }  // namespace
