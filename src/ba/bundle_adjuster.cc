@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -37,6 +38,33 @@ void CorrectForLoss(const ceres::LossFunction& loss, const Eigen::VectorXd& r, E
       Eigen::MatrixXd::Identity(r.size(), r.size()) - (alpha / s) * r * r.transpose();
   *J = sqrt_rho1 * (P * *J);
 }
+
+// A residual block whose rows are divided by `scale` (its group's sigmas times `scale`, the
+// per_group variance components): residuals and Jacobians of `inner` times 1 / scale.
+class ScaledCost final : public ceres::CostFunction {
+ public:
+  ScaledCost(const ceres::CostFunction* inner, double scale) : inner_(inner), w_(1.0 / scale) {
+    set_num_residuals(inner->num_residuals());
+    *mutable_parameter_block_sizes() = inner->parameter_block_sizes();
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    if (!inner_->Evaluate(parameters, residuals, jacobians)) return false;
+    const int nr = num_residuals();
+    for (int i = 0; i < nr; ++i) residuals[i] *= w_;
+    if (!jacobians) return true;
+    const auto& sizes = parameter_block_sizes();
+    for (size_t b = 0; b < sizes.size(); ++b) {
+      if (!jacobians[b]) continue;
+      for (int i = 0; i < nr * sizes[b]; ++i) jacobians[b][i] *= w_;
+    }
+    return true;
+  }
+
+ private:
+  const ceres::CostFunction* inner_;
+  double w_;
+};
 
 ceres::LossFunction* MakeLoss(const BaOptions& o, double sigma_px) {
   const double s = o.loss_scale_px / sigma_px;  // residuals are whitened
@@ -76,6 +104,7 @@ struct BuiltBlock {
   std::vector<int> blocks;
   int view = -1, obs = -1;
   int zero_rows = 0;  // rows that are zero by construction (the split point prior's third block)
+  NoiseGroup group = NoiseGroup::kPlatePixels;
   // A PlateViewReprojection block: the observations of `view` it holds (2 rows each); obs = -1.
   std::vector<int> view_obs;
 };
@@ -146,6 +175,14 @@ Status Assemble(const BaProblem& problem,
     as->costs.emplace_back(c);
     if (l) as->losses.emplace_back(l);
   };
+  // The cost as solved: `c` (owned) with its group's sigma scale applied.
+  auto scaled = [&](ceres::CostFunction* c, NoiseGroup g) -> ceres::CostFunction* {
+    const double k = o.group_sigma_scale[static_cast<int>(g)];
+    if (k == 1.0) return c;
+    auto* w = new ScaledCost(c, k);
+    as->costs.emplace_back(w);
+    return w;
+  };
   std::map<int, int> marker_index;
   for (size_t m = 0; m < problem.markers.size(); ++m)
     marker_index[problem.markers[m].id] = static_cast<int>(m);
@@ -170,8 +207,9 @@ Status Assemble(const BaProblem& problem,
         kept.push_back(static_cast<int>(i));
       }
       if (kept.empty()) continue;
-      auto* cost = new PlateViewReprojection(std::move(p), std::move(uv), view.sigma_px);
-      own(cost, nullptr);
+      auto* inner = new PlateViewReprojection(std::move(p), std::move(uv), view.sigma_px);
+      own(inner, nullptr);
+      ceres::CostFunction* cost = scaled(inner, NoiseGroup::kPlatePixels);
       if (cp) cp->AddResidualBlock(cost, nullptr, ptr(pose_b), ptr(intr_b));
       BuiltBlock bb(cost, nullptr, Source::kPlatePixels, {pose_b, intr_b}, static_cast<int>(v));
       bb.view_obs = std::move(kept);
@@ -192,30 +230,40 @@ Status Assemble(const BaProblem& problem,
       }
       // A smooth group's residual whitens isotropically (SigmaPx: the larger eigenvalue of a
       // 2x2 covariance, a conservative bound); the others by the full 2x2.
-      ceres::CostFunction* cost =
+      const Source source =
+          view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels;
+      const NoiseGroup group = GroupOf(source, &view);
+      const double sigma_scale = o.group_sigma_scale[static_cast<int>(group)];
+      ceres::CostFunction* inner =
           smooth ? (o.analytic_jacobians
                         ? static_cast<ceres::CostFunction*>(
                               new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
                         : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
           : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), w)
                                  : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
-      ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i));
-      own(cost, loss);
+      ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i) * sigma_scale);
+      own(inner, loss);
+      ceres::CostFunction* cost = scaled(inner, group);
       if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
-      as->built.emplace_back(
-          cost, loss, view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels,
-          std::vector<int>{pose_b, point_b, intr_b}, static_cast<int>(v), static_cast<int>(i));
+      as->built.emplace_back(cost, loss, source, std::vector<int>{pose_b, point_b, intr_b},
+                             static_cast<int>(v), static_cast<int>(i));
+      as->built.back().group = group;
     }
   }
+  // A prior's residual block, scaled by its group's sigma scale.
+  auto add_prior = [&](ceres::CostFunction* c, Source s, int b, int zero_rows) {
+    own(c, nullptr);
+    const NoiseGroup g = GroupOf(s, nullptr);
+    ceres::CostFunction* cost = scaled(c, g);
+    if (cp) cp->AddResidualBlock(cost, nullptr, ptr(b));
+    as->built.push_back({cost, nullptr, s, {b}, -1, -1, zero_rows});
+    as->built.back().group = g;
+  };
   auto add_point_prior = [&](int b, const Eigen::Vector3d& p, const Eigen::Matrix3d& S, Source s) {
     const auto [rows01, row2] = PointPriorRows::Split(p, S);
     if (o.analytic_jacobians) {
-      own(rows01, nullptr);
-      own(row2, nullptr);
-      if (cp) cp->AddResidualBlock(rows01, nullptr, ptr(b));
-      if (cp) cp->AddResidualBlock(row2, nullptr, ptr(b));
-      as->built.push_back({rows01, nullptr, s, {b}});
-      as->built.push_back({row2, nullptr, s, {b}, -1, -1, 1});
+      add_prior(rows01, s, b, 0);
+      add_prior(row2, s, b, 1);
     } else {
       Eigen::Matrix<double, 2, 3> top = S.topRows<2>(), last = Eigen::Matrix<double, 2, 3>::Zero();
       last.row(0) = S.row(2);
@@ -223,10 +271,7 @@ Status Assemble(const BaProblem& problem,
       delete row2;
       int zero_rows = 0;
       for (const auto& A : {top, last}) {
-        ceres::CostFunction* c = PointPriorRowsAutoDiff::Create(p, A);
-        own(c, nullptr);
-        if (cp) cp->AddResidualBlock(c, nullptr, ptr(b));
-        as->built.push_back({c, nullptr, s, {b}, -1, -1, zero_rows});
+        add_prior(PointPriorRowsAutoDiff::Create(p, A), s, b, zero_rows);
         zero_rows = 1;
       }
     }
@@ -265,9 +310,7 @@ Status Assemble(const BaProblem& problem,
             ? static_cast<ceres::CostFunction*>(
                   new IntrinsicsPriorError(grp.prior.mean.data(), grp.prior.indices, S))
             : IntrinsicsPriorAutoDiff::Create(grp.prior.mean.data(), grp.prior.indices, S);
-    own(c, nullptr);
-    if (cp) cp->AddResidualBlock(c, nullptr, ptr(b));
-    as->built.push_back({c, nullptr, Source::kIntrinsicsPrior, {b}});
+    add_prior(c, Source::kIntrinsicsPrior, b, 0);
   }
   // Held parameters.
   if (!cp) return Status::Ok();
@@ -324,6 +367,7 @@ bool EvaluateBlock(const BuiltBlock& bb,
   }
   if (!lin) return true;
   lin->source = bb.source;
+  lin->group = bb.group;
   lin->blocks.reserve(bb.blocks.size());
   lin->J.reserve(bb.blocks.size());
   for (size_t i = 0; i < bb.blocks.size(); ++i) {
@@ -440,18 +484,20 @@ bool BaOptions::Check(std::string* error) const {
   return true;
 }
 
-StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptions& o) {
-  const auto t0 = std::chrono::steady_clock::now();
-  std::string err;
-  if (!o.Check(&err)) return Status::Error("solver options: " + err);
-  CARMBA_RETURN_IF_ERROR(problem.Check());
+namespace {
+
+// One solve at the options' group sigma scales from `state`, with the observations in `dropped`
+// left out (the rejection pass may add to them): the estimate, its statistics (chi2 at the
+// scaled sigmas), the linearisation, the covariance, and the groups' residual sums.
+StatusOr<BaResult> SolveOnce(const BaProblem& problem,
+                             const BaOptions& o,
+                             std::shared_ptr<StateLayout> layout_ptr,
+                             std::vector<double> state,
+                             std::vector<std::vector<char>> dropped,
+                             GroupResiduals* groups) {
   BaResult res;
-  res.layout = std::make_shared<StateLayout>(problem);
+  res.layout = std::move(layout_ptr);
   const StateLayout& layout = *res.layout;
-  std::vector<std::vector<char>> dropped(problem.views.size());
-  for (size_t v = 0; v < problem.views.size(); ++v)
-    dropped[v].assign(problem.views[v].point_ids.size(), 0);
-  std::vector<double> state = InitialState(problem, layout);
   const bool use_lm = o.backend == "carmba_lm";
   if (use_lm) CARMBA_RETURN_IF_ERROR(CheckCarmbaLm(problem, o));
 
@@ -538,6 +584,7 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
     res.outliers.clear();
     res.chi2 = 0;
     res.num_residuals = 0;
+    *groups = GroupResiduals();
     std::vector<double> view_ss(problem.views.size(), 0.0);
     std::vector<int> view_n(problem.views.size(), 0);
     // The rejection pass drops the worst observation above reject_sigma, then solves again: one
@@ -557,6 +604,8 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
       }
       res.chi2 += r.squaredNorm();
       res.num_residuals += static_cast<int>(r.size()) - bb.zero_rows;
+      groups->chi2[static_cast<int>(bb.group)] += r.squaredNorm();
+      groups->rows[static_cast<int>(bb.group)] += static_cast<int>(r.size()) - bb.zero_rows;
       if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
       if (bb.view < 0) continue;
       const BaView& view = problem.views[bb.view];
@@ -567,7 +616,8 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
         if (!view.obs_covariance_px2.empty() && !problem.groups[view.group].smooth) {
           PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
         }
-        const Eigen::Vector2d e = w.Unwhiten(r2);  // px
+        // px (the residual is whitened by the stated sigmas times the group's scale)
+        const Eigen::Vector2d e = w.Unwhiten(r2 * o.group_sigma_scale[static_cast<int>(bb.group)]);
         view_ss[bb.view] += e.squaredNorm();
         view_n[bb.view] += 1;
         BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
@@ -638,11 +688,128 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
     auto cov = SchurCovariance::Compute(layout, *res.linearization, o.min_reciprocal_condition);
     if (!cov.ok()) return cov.status();
     res.covariance = *cov;
-    res.covariance_scale =
-        o.covariance_aposteriori && std::isfinite(res.sigma0) ? res.sigma0 * res.sigma0 : 1.0;
   }
+  return res;
+}
+
+// The per_group estimate's limits: at most this many re-solves, until every applied group's
+// factor of the rescaled problem is within kFactorTolerance of 1; the sigma scale is kept within
+// [1 / kMaxSigmaScale, kMaxSigmaScale] (noise-free data would otherwise scale the weights to
+// infinity).
+constexpr int kMaxVarianceIterations = 20;
+constexpr double kFactorTolerance = 1e-3;
+constexpr double kMaxSigmaScale = 100;
+
+// Scales each estimable group's sigmas by the square root of its factor in the rescaled problem.
+// True if any factor was further than kFactorTolerance from 1 (another solve is needed).
+bool UpdateGroupScales(const GroupResiduals& groups,
+                       const std::array<double, kNumNoiseGroups>& redundancy,
+                       std::array<double, kNumNoiseGroups>* scale,
+                       std::array<bool, kNumNoiseGroups>* applied) {
+  bool changed = false;
+  for (int k = 0; k < kNumNoiseGroups; ++k) {
+    if (groups.rows[k] == 0 || redundancy[k] < kMinVarianceComponentRedundancy) continue;
+    const double f = groups.chi2[k] / redundancy[k];
+    const double next = std::clamp((*scale)[k] * std::sqrt(f), 1.0 / kMaxSigmaScale, kMaxSigmaScale);
+    if (!(*applied)[k] || std::abs(next * next / ((*scale)[k] * (*scale)[k]) - 1) > kFactorTolerance) {
+      changed = true;
+    }
+    (*scale)[k] = next;
+    (*applied)[k] = true;
+  }
+  return changed;
+}
+
+}  // namespace
+
+StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string err;
+  if (!options.Check(&err)) return Status::Error("solver options: " + err);
+  CARMBA_RETURN_IF_ERROR(problem.Check());
+  auto layout = std::make_shared<StateLayout>(problem);
+  std::vector<std::vector<char>> dropped(problem.views.size());
+  for (size_t v = 0; v < problem.views.size(); ++v)
+    dropped[v].assign(problem.views[v].point_ids.size(), 0);
+  BaOptions o = options;
+  GroupResiduals groups;
+  auto solved = SolveOnce(problem, o, layout, InitialState(problem, *layout), dropped, &groups);
+  if (!solved.ok()) return solved.status();
+  BaResult res = std::move(*solved);
+  if (res.covariance) {
+    std::array<bool, kNumNoiseGroups> applied{};
+    for (int it = 0;; ++it) {
+      const auto redundancy = GroupRedundancies(*layout, *res.linearization, *res.covariance, groups);
+      res.variance_components = VarianceComponents(groups, redundancy, o.group_sigma_scale, applied);
+      if (options.covariance_scale != CovarianceScale::kPerGroup || it == kMaxVarianceIterations ||
+          !UpdateGroupScales(groups, redundancy, &o.group_sigma_scale, &applied)) {
+        break;
+      }
+      auto again = SolveOnce(problem, o, layout, res.state, res.dropped, &groups);
+      if (!again.ok()) return again.status();
+      again->initial_cost = res.initial_cost;
+      again->iterations += res.iterations;
+      again->rejected.insert(again->rejected.begin(), res.rejected.begin(), res.rejected.end());
+      res = std::move(*again);
+      res.variance_iterations = it + 1;
+    }
+  }
+  // The statistics at the stated sigmas (the test of the stated noise model).
+  if (res.linearization) {
+    res.chi2 = 0;
+    for (int k = 0; k < kNumNoiseGroups; ++k) {
+      res.chi2 += o.group_sigma_scale[k] * o.group_sigma_scale[k] * groups.chi2[k];
+    }
+    res.sigma0 = res.dof > 0 ? std::sqrt(res.chi2 / res.dof) : std::nan("");
+    res.chi2_p_value = ChiSquareUpperTail(res.chi2, res.dof);
+  }
+  res.group_sigma_scale = o.group_sigma_scale;
+  res.scale_mode = options.covariance_scale;
+  res.covariance_scale = options.covariance_scale == CovarianceScale::kGlobal && std::isfinite(res.sigma0)
+                             ? res.sigma0 * res.sigma0
+                             : 1.0;
   res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
+}
+
+namespace {
+
+std::string OutlierText(const BaOutlier& o) {
+  char buf[300];
+  std::snprintf(buf, sizeof buf, "view '%s' %s %d: residual %.1f sigma (du %+.3g, dv %+.3g px)",
+                o.view.c_str(), o.plate ? "plate point" : "marker", o.id, o.residual_sigma, o.du_px,
+                o.dv_px);
+  return buf;
+}
+
+}  // namespace
+
+std::vector<std::string> SolveWarnings(const BaResult& r) {
+  std::vector<std::string> out;
+  if (r.dof > 0 && std::isfinite(r.chi2_p_value) &&
+      (r.chi2_p_value < kVarianceBandTail || r.chi2_p_value > 1 - kVarianceBandTail)) {
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "chi-square %.1f on %d dof at the stated sigmas (P = %.2g, sigma0 %.3g): the "
+                  "residuals are %s than the stated noise explains (see the variance components)",
+                  r.chi2, r.dof, r.chi2_p_value, r.sigma0,
+                  r.chi2_p_value < kVarianceBandTail ? "larger" : "smaller");
+    out.push_back(buf);
+  }
+  for (auto& w : VarianceComponentWarnings(r.variance_components, r.scale_mode)) {
+    out.push_back(std::move(w));
+  }
+  auto list = [&](const std::vector<BaOutlier>& v, const std::string& what) {
+    for (size_t i = 0; i < v.size() && i < static_cast<size_t>(kMaxListedOutliers); ++i) {
+      out.push_back(OutlierText(v[i]) + " " + what);
+    }
+    if (v.size() > static_cast<size_t>(kMaxListedOutliers)) {
+      out.push_back(std::to_string(v.size() - kMaxListedOutliers) + " more observations " + what);
+    }
+  };
+  list(r.rejected, "was rejected as an outlier (outliers.reject_sigma)");
+  list(r.outliers, "is beyond the outlier threshold (outliers.list_sigma)");
+  return out;
 }
 
 StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
@@ -654,7 +821,9 @@ StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
   Assembly as;
   as.buffer = result.state;
   ceres::Problem cp(ProblemOptions(nullptr));
-  CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, result.dropped, &as, &cp));
+  BaOptions weighted = o;  // the weights of the final solve (per_group's scales)
+  weighted.group_sigma_scale = result.group_sigma_scale;
+  CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, weighted, result.dropped, &as, &cp));
   ceres::Covariance::Options co;
   if (algorithm == "dense_svd") {
     co.algorithm_type = ceres::DENSE_SVD;

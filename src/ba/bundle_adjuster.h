@@ -29,6 +29,7 @@
 
 #include "ba/covariance.h"
 #include "ba/problem.h"
+#include "ba/variance_components.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -53,7 +54,13 @@ struct BaOptions {
   // false: a seeding solve -- return the solved state, iterations and termination only (no
   // residual statistics, outliers, linearisation or covariance; no rejection pass).
   bool evaluate_solution = true;
-  bool covariance_aposteriori = false;  // scale the covariance by sigma0^2
+  // apriori: the stated sigmas; per_group: each observation group's sigmas scaled by its
+  // estimated variance factor where its redundancy allows, the problem solved again until the
+  // factors settle (ba/variance_components.h); global: one factor sigma0^2 for all. The variance
+  // components are estimated and reported in every mode (with compute_covariance).
+  CovarianceScale covariance_scale = CovarianceScale::kApriori;
+  // The groups' sigmas are the stated ones times this (per_group's iteration sets it).
+  std::array<double, kNumNoiseGroups> group_sigma_scale{1, 1, 1, 1, 1, 1};
   double outlier_sigma = 4.0;           // list observations with |r| above this (whitened)
   double reject_sigma = 0;              // > 0: drop observations above it and re-solve
   double min_reciprocal_condition = 1e-14;
@@ -80,11 +87,20 @@ struct BaResult {
   std::shared_ptr<StateLayout> layout;
   std::shared_ptr<Linearization> linearization;   // at the solution
   std::shared_ptr<SchurCovariance> covariance;    // null when not computed
-  double covariance_scale = 1.0;                  // 1 (a priori) or sigma0^2 (a posteriori)
+  double covariance_scale = 1.0;                  // 1 (a priori, per group) or sigma0^2 (global)
+  // Variance components of the observation groups (ba/variance_components.h); with per_group the
+  // applied factors are in the weights of the final solve, so in every covariance and budget.
+  std::vector<VarianceComponent> variance_components;
+  int variance_iterations = 0;  // re-solves of the per_group estimate
+  CovarianceScale scale_mode = CovarianceScale::kApriori;  // BaOptions::covariance_scale
+  // The groups' sigma scales the final solve was weighted with (1: the stated sigmas).
+  std::array<double, kNumNoiseGroups> group_sigma_scale{1, 1, 1, 1, 1, 1};
 
   std::vector<BaViewStats> views;  // problem order
   double rms_plate_px = 0, rms_object_px = 0;  // per coordinate (NaN when no such view)
-  double chi2 = 0;        // sum of squared whitened residuals (priors included), no loss
+  // Sum of squared residuals (priors included, no loss) whitened by the STATED sigmas: the
+  // test of the stated noise model, whatever covariance.scale applies.
+  double chi2 = 0;
   int num_residuals = 0;
   int num_free = 0;
   int dof = 0;
@@ -118,6 +134,13 @@ struct BaResult {
 // Solves. Errors name what is wrong: problem consistency, a non-finite initial cost, a failed
 // solve, a rank-deficient covariance (naming the null direction).
 StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptions& options);
+
+// What a solve says about itself, one sentence each (for stderr, result.json "warnings" and the
+// report): the chi-square at the stated sigmas outside its band [0.5 %, 99.5 %], each group's
+// variance factor outside its band (ba/variance_components.h), and every observation listed as
+// an outlier or rejected (the first kMaxListedOutliers by name, then how many more).
+constexpr int kMaxListedOutliers = 10;
+std::vector<std::string> SolveWarnings(const BaResult& result);
 
 // The covariance of `blocks` (ambient parameters, as BaResult::ObservationCovariance: without a
 // considered calibration's part) by ceres::Covariance

@@ -458,5 +458,59 @@ std::vector<double> InitialState(const BaProblem& problem, const StateLayout& la
   return x;
 }
 
+const char* NoiseGroupName(NoiseGroup g) {
+  switch (g) {
+    case NoiseGroup::kPlatePixels:
+      return "plate pixels";
+    case NoiseGroup::kObjectPixels:
+      return "object pixels";
+    case NoiseGroup::kDetectedBlobs:
+      return "detected blobs";
+    case NoiseGroup::kCt:
+      return "CT fiducials";
+    case NoiseGroup::kPlateManufacturing:
+      return "plate manufacturing";
+    case NoiseGroup::kIntrinsicsPrior:
+      return "intrinsics prior";
+  }
+  return "?";
+}
+
+const char* NoiseGroupKey(NoiseGroup g) {
+  switch (g) {
+    case NoiseGroup::kPlatePixels:
+      return "plate_pixels";
+    case NoiseGroup::kObjectPixels:
+      return "object_pixels";
+    case NoiseGroup::kDetectedBlobs:
+      return "detected_blobs";
+    case NoiseGroup::kCt:
+      return "ct";
+    case NoiseGroup::kPlateManufacturing:
+      return "plate_manufacturing";
+    case NoiseGroup::kIntrinsicsPrior:
+      return "intrinsics_prior";
+  }
+  return "?";
+}
+
+NoiseGroup GroupOf(Source source, const BaView* view) {
+  switch (source) {
+    case Source::kPlatePixels:
+      return NoiseGroup::kPlatePixels;
+    case Source::kObjectPixels:
+      return view && !view->obs_covariance_px2.empty() ? NoiseGroup::kDetectedBlobs
+                                                       : NoiseGroup::kObjectPixels;
+    case Source::kCt:
+      return NoiseGroup::kCt;
+    case Source::kPlateManufacturing:
+      return NoiseGroup::kPlateManufacturing;
+    case Source::kIntrinsicsPrior:
+    case Source::kCalibration:
+      return NoiseGroup::kIntrinsicsPrior;
+  }
+  return NoiseGroup::kIntrinsicsPrior;
+}
+
 }  // namespace ba
 }  // namespace carmba

@@ -58,6 +58,28 @@ constexpr int kNumResidualSources = 5;  // the sources that residual blocks belo
 // "calibration (intrinsics)".
 const char* SourceName(Source s);
 
+// Observation groups for the variance-component estimate (ba/variance_components.h): the
+// residual blocks by their noise MODEL, finer than the sources (object pixels picked by hand and
+// marker blobs found by the detector are both kObjectPixels, with different noise models).
+enum class NoiseGroup {
+  kPlatePixels = 0,
+  kObjectPixels,      // object-view pixels with an isotropic sigma (picked, or given)
+  kDetectedBlobs,     // object-view pixels with a 2x2 covariance each (the marker detector's)
+  kCt,                // CT fiducial priors
+  kPlateManufacturing,
+  kIntrinsicsPrior
+};
+constexpr int kNumNoiseGroups = 6;
+// "plate pixels", "object pixels", "detected blobs", "CT fiducials", "plate manufacturing",
+// "intrinsics prior".
+const char* NoiseGroupName(NoiseGroup g);
+// result.json's key: "plate_pixels", "object_pixels", "detected_blobs", "ct", "plate_manufacturing",
+// "intrinsics_prior".
+const char* NoiseGroupKey(NoiseGroup g);
+// The group of a residual block of `source`; `view` for a reprojection (null for a prior).
+struct BaView;
+NoiseGroup GroupOf(Source source, const BaView* view);
+
 struct IntrinsicsPrior {
   std::array<double, kNumIntrinsics> mean{};
   std::vector<int> indices;      // which intrinsics the covariance is over (IntrinsicIndex)

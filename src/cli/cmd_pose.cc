@@ -170,6 +170,9 @@ int RunPose() {
     std::cerr << "carmba pose: warning: the bundle adjustment did not converge (" << solution->termination
               << ")" << std::endl;
   }
+  for (const auto& w : PoseWarnings(*solution)) {
+    std::cerr << "carmba pose: warning: " << w << std::endl;
+  }
   std::cout << "pose: " << problem.views.size() << " of " << views->size() << " views labelled, RMS "
             << solution->rms_px << " px; wrote " << FLAGS_out
             << "/{observations.csv,result.json,report.md,report.html} and the overlays" << std::endl;

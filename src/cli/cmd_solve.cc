@@ -166,6 +166,9 @@ int RunSolve() {
   if (!comparison.handedness_warning.empty()) {
     std::cerr << "carmba solve: warning: " << comparison.handedness_warning << std::endl;
   }
+  for (const auto& w : PoseWarnings(*solution)) {
+    std::cerr << "carmba solve: warning: " << w << std::endl;
+  }
   std::cout << "solved " << problem->name << " with " << config->name << ": "
             << solution->views.size() << " views, RMS " << solution->rms_px << " px, "
             << solution->iterations << " iterations; wrote " << FLAGS_out << "/result.json and "

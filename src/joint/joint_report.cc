@@ -10,6 +10,7 @@
 #include "report/format.h"
 #include "report/plots.h"
 #include "report/relative_tre_report.h"
+#include "report/variance_report.h"
 
 namespace carmba {
 namespace {
@@ -220,7 +221,8 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                      {"chi2_p_value", JsonNumber(r.chi2_p_value)},
                      {"num_residuals", r.num_residuals},
                      {"num_parameters", r.num_free},
-                     {"covariance_scale", config.covariance_aposteriori ? "aposteriori" : "apriori"}};
+                     {"covariance_scale", ba::CovarianceScaleName(config.covariance_scale)}};
+  j["variance_components"] = VarianceComponentsJson(r);
   j["solver"] = {{"config", config.name},
                  {"engine", "ceres (src/ba)"},
                  {"iterations", r.iterations},
@@ -259,6 +261,7 @@ std::vector<std::string> JointWarnings(const JointSolution& s) {
     const auto w = IntrinsicsCorrelationWarnings(cov, label);
     out.insert(out.end(), w.begin(), w.end());
   }
+  for (auto& w : ba::SolveWarnings(s.result)) out.push_back(std::move(w));
   return out;
 }
 
@@ -275,9 +278,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
               std::to_string(problem.object_views.size()) + " object views (sigma " +
               Fmt("%g", problem.object_sigma_px) + " px), " +
               std::to_string(problem.fiducials.size()) + " CT fiducials as priors. Config `" +
-              config.name + "`; uncertainties use the " +
-              (config.covariance_aposteriori ? "a-posteriori" : "a-priori") +
-              " pixel sigmas.");
+              config.name + "`; uncertainties: " + CovarianceScaleNote(config.covariance_scale) + ".");
   if (!problem.skipped_images.empty()) {
     d.Paragraph("Plate images without a usable grid (" +
                 std::to_string(problem.skipped_images.size()) + "):");
@@ -294,6 +295,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
            {"time", Fmt("%.1f", r.time_s * 1e3) + " ms"}});
   if (!r.converged) d.Warning("the solve did not converge (" + r.termination + ").");
   d.Figures({"residuals-per-view", "residual-field"});
+  d.Append(VarianceComponentsDoc(r));
 
   d.Heading(2, "Intrinsics");
   std::vector<std::string> header = {"group", "parameter", "value", "sigma"};
@@ -324,9 +326,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
 
   {
     const auto warnings = JointWarnings(s);
-    const std::string used = std::string("Sigmas from the ") +
-                             (config.covariance_aposteriori ? "a-posteriori" : "a-priori") +
-                             " pixel sigmas.";
+    const std::string used = "Sigmas: " + CovarianceScaleNote(config.covariance_scale) + ".";
     if (warnings.empty()) {
       d.Paragraph(used + " No two intrinsics correlate beyond " +
                   Fmt("%.2f", kIntrinsicsCorrelationWarn) + ".");
@@ -335,9 +335,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
       for (const auto& w : warnings) d.Warning(w);
     }
   }
-  const std::string sigma_note = std::string("Sigmas from the ") +
-                                 (config.covariance_aposteriori ? "a-posteriori" : "a-priori") +
-                                 " pixel sigmas.";
+  const std::string sigma_note = "Sigmas: " + CovarianceScaleNote(config.covariance_scale) + ".";
   d.Heading(2, "Validation pairs (object views)");
   d.Paragraph(sigma_note);
   const bool truth_poses = !problem.truth.object_poses.empty();

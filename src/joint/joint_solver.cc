@@ -92,7 +92,7 @@ ba::BaOptions BaOptionsFromConfig(const SolverConfig& c) {
   o.gradient_tolerance = c.gradient_tolerance;
   o.parameter_tolerance = c.parameter_tolerance;
   o.num_threads = c.num_threads;
-  o.covariance_aposteriori = c.covariance_aposteriori;
+  o.covariance_scale = c.covariance_scale;
   o.outlier_sigma = c.outlier_sigma;
   o.reject_sigma = c.reject_sigma;
   o.backend = c.backend;

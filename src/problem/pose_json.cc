@@ -4,6 +4,7 @@
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
 #include "report/relative_tre_report.h"
+#include "report/variance_report.h"
 
 namespace carmba {
 namespace {
@@ -91,6 +92,11 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
                      {"chi2_p_value", Num(s.chi2_p_value)},
                      {"num_residuals", s.num_residuals},
                      {"num_parameters", s.num_parameters}};
+  if (s.ba_result) {
+    j["statistics"]["covariance_scale"] = ba::CovarianceScaleName(s.ba_result->scale_mode);
+    j["variance_components"] = VarianceComponentsJson(*s.ba_result);
+  }
+  j["warnings"] = PoseWarnings(s);
   j["solver"] = {{"config", s.config_name},
                  {"iterations", s.iterations},
                  {"termination", s.termination},

@@ -171,7 +171,9 @@ struct SolverConfig {
   //        (ba/covariance.h; the fastest);
   // dense_svd | sparse_qr (SuiteSparse) | eigen_sparse_qr: ceres::Covariance (references).
   std::string covariance_algorithm = "schur";
-  bool covariance_aposteriori = false;  // scale covariance by the a-posteriori variance factor
+  // per_group: each observation group's sigmas scaled by its estimated variance factor where its
+  // redundancy allows (ba/variance_components.h); apriori: the stated sigmas; global: sigma0^2.
+  ba::CovarianceScale covariance_scale = ba::CovarianceScale::kPerGroup;
   int num_threads = 1;
   // Joint problems (joint/joint_problem.h): intrinsics held at their initial values, by name
   // (fx fy cx cy k1 k2 p1 p2 k3); pose problems hold all of them.
@@ -282,6 +284,10 @@ StatusOr<std::pair<std::vector<int>, Eigen::MatrixXd>> ConsideredCalibration(con
 
 // The problem's marker positions in its handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m);
+
+// What the solve says about itself (ba::SolveWarnings: chi-square and variance factors outside
+// their bands, outliers), one sentence each: in result.json "warnings", the report and on stderr.
+std::vector<std::string> PoseWarnings(const PoseSolution& solution);
 
 // result.json (the schema in the foundation issue: views[], validation[], statistics, solver).
 nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& solution);

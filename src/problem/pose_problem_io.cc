@@ -444,10 +444,10 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   root.GetInRange("gradient_tolerance", &c.gradient_tolerance, plausible::kSolverTolerance);
   root.GetInRange("parameter_tolerance", &c.parameter_tolerance, plausible::kSolverTolerance);
   YamlMap& cov = root.Map("covariance");
-  std::string scale = "apriori";
+  std::string scale = "per_group";
   cov.GetEnum("algorithm", {"schur", "dense_svd", "sparse_qr", "eigen_sparse_qr"},
               &c.covariance_algorithm);
-  cov.GetEnum("scale", {"apriori", "aposteriori"}, &scale);
+  cov.GetEnum("scale", {"per_group", "apriori", "global", "aposteriori"}, &scale);
   root.GetInRange("num_threads", &c.num_threads, plausible::kThreads);
   root.Get("fix", &c.fix);
   for (const auto& n : c.fix) {
@@ -463,7 +463,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   outliers.GetPositive("list_sigma", &c.outlier_sigma);
   outliers.GetNonNegative("reject_sigma", &c.reject_sigma);
   CARMBA_RETURN_IF_ERROR(root.Finish());
-  c.covariance_aposteriori = scale == "aposteriori";
+  ba::ParseCovarianceScale(scale, &c.covariance_scale);
   c.analytic_jacobians = jac == "analytic";
   c.initializer = init == "legacy_posit" ? Initializer::kLegacyPosit
                   : init == "epnp"       ? Initializer::kEpnp

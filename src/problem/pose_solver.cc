@@ -140,6 +140,11 @@ double ViewRms(const PoseProblem& problem,
 
 }  // namespace
 
+std::vector<std::string> PoseWarnings(const PoseSolution& solution) {
+  if (!solution.ba_result) return {};
+  return ba::SolveWarnings(*solution.ba_result);
+}
+
 StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
                                         const SolverConfig& config,
                                         const ProgressFn& progress) {
@@ -233,11 +238,10 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
   options.gradient_tolerance = config.gradient_tolerance;
   options.parameter_tolerance = config.parameter_tolerance;
   options.num_threads = config.num_threads;
-  options.covariance_aposteriori = config.covariance_aposteriori;
-  // The engine's covariance: for the schur algorithm, and for the others when a considered
-  // calibration adds its term to ceres::Covariance's.
-  const bool considered = !bp.groups[0].consider_indices.empty();
-  options.compute_covariance = config.refine && (config.covariance_algorithm == "schur" || considered);
+  options.covariance_scale = config.covariance_scale;
+  // The engine's covariance, for every algorithm: the variance components (covariance.scale)
+  // and a considered calibration's term rest on it.
+  options.compute_covariance = config.refine;
   options.outlier_sigma = config.outlier_sigma;
   options.reject_sigma = config.refine ? config.reject_sigma : 0;
   auto solved = ba::SolveBundleAdjustment(bp, options);
@@ -308,10 +312,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
                            ": the covariance is rank-deficient (degenerate geometry: too few or "
                            "(near-)coplanar markers in a view?)");
     }
-    sol.joint_covariance = *cov;
-    if (config.covariance_aposteriori && std::isfinite(sol.sigma0)) {
-      sol.joint_covariance *= sol.sigma0 * sol.sigma0;
-    }
+    sol.joint_covariance = *cov;  // scaled as the engine's (BaResult::covariance_scale)
     if (r.covariance) sol.joint_covariance += r.CalibrationCovariance(pose_blocks);
   }
   if (config.refine) {

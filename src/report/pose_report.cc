@@ -9,6 +9,7 @@
 #include "report/format.h"
 #include "report/plots.h"
 #include "report/relative_tre_report.h"
+#include "report/variance_report.h"
 
 namespace carmba {
 namespace {
@@ -174,11 +175,8 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
   }
 
   // Which pixel sigma the uncertainties below rest on (said wherever an uncertainty is shown).
-  const std::string sigma_used =
-      config.covariance_aposteriori
-          ? "the a-posteriori pixel sigma " + Fmt("%.3g", s.sigma_aposteriori_px) +
-                " px (the a-priori " + Fmt("%.3g", problem.sigma_px) + " px x s0)"
-          : "the a-priori pixel sigma " + Fmt("%.3g", problem.sigma_px) + " px";
+  const std::string sigma_used = CovarianceScaleNote(config.covariance_scale) + " (pixel sigma " +
+                                 Fmt("%.3g", problem.sigma_px) + " px as stated)";
   d.Heading(2, "Validation: angles between views (deg)");
   d.Paragraph(
       std::string("Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) "
@@ -270,10 +268,13 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
                : s.chi2_p_value > 0.99 ? " (residuals smaller than the stated sigmas: sigmas too large?)"
                                        : " (consistent with the stated sigmas)"),
           "Covariance: " + config.covariance_algorithm + ", " +
-              (config.covariance_aposteriori ? "scaled by s0^2 (a-posteriori pixel sigma " +
-                                                   Fmt("%.3f", s.sigma_aposteriori_px) + " px)"
-                                             : "a-priori pixel sigma " +
-                                                   Fmt("%.3f", problem.sigma_px) + " px")});
+              CovarianceScaleNote(config.covariance_scale)});
+  if (s.ba_result) d.Append(VarianceComponentsDoc(*s.ba_result));
+  {
+    const auto warnings = PoseWarnings(s);
+    if (warnings.empty()) d.Paragraph("The solve checked itself and found nothing to warn about.");
+    for (const auto& w : warnings) d.Warning(w);
+  }
   if (s.ba_problem) {
     AppendRelativePoses(&d, *s.ba_problem, s.relative_poses, problem.truth_poses);
     d.Paragraph(ba::CalibrationUncertaintyNote(ba::CalibrationUncertaintyOf(*s.ba_problem)));

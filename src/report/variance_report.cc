@@ -1,0 +1,101 @@
+#include "report/variance_report.h"
+
+#include "report/format.h"
+
+namespace carmba {
+
+std::string CovarianceScaleNote(ba::CovarianceScale scale) {
+  switch (scale) {
+    case ba::CovarianceScale::kPerGroup:
+      return "the stated sigmas scaled per observation group by their estimated variance factors "
+             "(covariance.scale: per_group)";
+    case ba::CovarianceScale::kApriori:
+      return "the stated (a-priori) sigmas (covariance.scale: apriori)";
+    case ba::CovarianceScale::kGlobal:
+      return "the stated sigmas times the a-posteriori factor sigma0 (covariance.scale: global)";
+  }
+  return "";
+}
+
+nlohmann::json VarianceComponentsJson(const ba::BaResult& result) {
+  const ba::CovarianceScale scale = result.scale_mode;
+  nlohmann::json groups = nlohmann::json::array();
+  for (const ba::VarianceComponent& c : result.variance_components) {
+    groups.push_back({{"group", ba::NoiseGroupKey(c.group)},
+                      {"name", ba::NoiseGroupName(c.group)},
+                      {"rows", c.num_rows},
+                      {"redundancy", JsonNumber(c.redundancy)},
+                      {"chi2_stated", JsonNumber(c.chi2_stated)},
+                      {"factor", JsonNumber(c.factor)},
+                      {"factor_sigma", JsonNumber(c.factor_sigma)},
+                      {"p_value", JsonNumber(c.p_value)},
+                      {"estimable", c.estimable},
+                      {"applied", c.applied},
+                      {"outside_band", c.outside_band}});
+  }
+  return {{"scale", ba::CovarianceScaleName(scale)},
+          {"iterations", result.variance_iterations},
+          {"min_redundancy", ba::kMinVarianceComponentRedundancy},
+          {"groups", groups}};
+}
+
+namespace {
+
+std::string WhatWasDone(const ba::VarianceComponent& c, ba::CovarianceScale scale) {
+  if (c.applied) return "sigmas x " + Fmt("%.3f", std::sqrt(c.factor));
+  if (!c.estimable) return "stated (redundancy < " + Fmt("%g", ba::kMinVarianceComponentRedundancy) + ")";
+  return scale == ba::CovarianceScale::kGlobal ? "global sigma0^2" : "stated (apriori)";
+}
+
+}  // namespace
+
+ReportDoc VarianceComponentsDoc(const ba::BaResult& result) {
+  const ba::CovarianceScale scale = result.scale_mode;
+  ReportDoc d;
+  d.Heading(2, "Noise model: variance components per observation group");
+  if (result.variance_components.empty()) {
+    d.Paragraph("Not estimated (no covariance was computed).");
+    return d;
+  }
+  std::string how;
+  switch (scale) {
+    case ba::CovarianceScale::kPerGroup:
+      how = "`covariance.scale: per_group`: each group whose redundancy is at least " +
+            Fmt("%g", ba::kMinVarianceComponentRedundancy) +
+            " has its sigmas scaled by the square root of its factor, and the problem is solved "
+            "again until the factors settle (" + std::to_string(result.variance_iterations) +
+            " re-solves); the estimates, covariances and error budget are those of the rescaled "
+            "problem.";
+      break;
+    case ba::CovarianceScale::kApriori:
+      how = "`covariance.scale: apriori`: the covariances use the stated sigmas; the factors "
+            "are reported only.";
+      break;
+    case ba::CovarianceScale::kGlobal:
+      how = "`covariance.scale: global`: every covariance is multiplied by sigma0^2 = " +
+            Fmt("%.3g", result.covariance_scale) + ".";
+      break;
+  }
+  d.Paragraph(
+      "Each group's variance factor f = (its chi-square at the stated sigmas) / (its redundancy, "
+      "its share of the degrees of freedom): 1 when the stated sigmas hold, 4 when the true "
+      "sigmas are twice the stated ones (Förstner's variance-component estimate). " + how);
+  std::vector<std::vector<std::string>> rows;
+  for (const ba::VarianceComponent& c : result.variance_components) {
+    rows.push_back({ba::NoiseGroupName(c.group), std::to_string(c.num_rows),
+                    Fmt("%.1f", c.redundancy), Fmt("%.1f", c.chi2_stated),
+                    c.redundancy > 0.5 ? Fmt("%.3g", c.factor) + " +- " + Fmt("%.2g", c.factor_sigma)
+                                       : "-",
+                    Fmt("%.2g", c.p_value), c.outside_band ? "**outside**" : "inside",
+                    WhatWasDone(c, scale)});
+  }
+  d.Table({"group", "rows", "redundancy", "chi-square (stated)", "factor", "P", "band 0.5-99.5 %",
+           "covariance"},
+          rows);
+  for (const auto& w : ba::VarianceComponentWarnings(result.variance_components, scale)) {
+    d.Warning(w);
+  }
+  return d;
+}
+
+}  // namespace carmba
