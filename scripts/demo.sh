@@ -45,7 +45,7 @@ rm -rf "$JOINT_SIM"
 "$BIN" simulate --scene=configs/scenes/thesis_joint.yaml --out="$JOINT_SIM"
 "$BIN" ct-fiducials --dicom="$JOINT_SIM/ct" --model=data/thesis/markers_table_5_1.csv \
   --model-columns=x_o,y_o,z_o --diameter-mm=2 --expected=9 --out="$JOINT_SIM/fiducials.csv"
-"$BIN" solve --problem=problems/thesis_joint.yaml --config=configs/joint_radial.yaml \
+"$BIN" solve --problem=problems/thesis_joint.yaml --config=configs/joint.yaml \
   --out="$OUT/joint"
 sed -n '1,/^## Error budget/p' "$OUT/joint/report.md" | head -n -1
 sed -n '/^## Joint against two-step/,$p' "$OUT/joint/report.md"

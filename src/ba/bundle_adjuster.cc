@@ -693,30 +693,31 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
 }
 
 // The per_group estimate's limits: at most this many re-solves, until every applied group's
-// factor of the rescaled problem is within kFactorTolerance of 1; the sigma scale is kept within
-// [1 / kMaxSigmaScale, kMaxSigmaScale] (noise-free data would otherwise scale the weights to
-// infinity).
-constexpr int kMaxVarianceIterations = 20;
-constexpr double kFactorTolerance = 1e-3;
+// factor of the rescaled problem is within kFactorTolerance of 1 (tight: the estimate must not
+// depend on where the solve started); the sigma scale is kept within [1 / kMaxSigmaScale,
+// kMaxSigmaScale] (noise-free data would otherwise scale the weights to infinity).
+constexpr int kMaxVarianceIterations = 50;
+constexpr double kFactorTolerance = 1e-10;
 constexpr double kMaxSigmaScale = 100;
 
 // Scales each estimable group's sigmas by the square root of its factor in the rescaled problem.
-// True if any factor was further than kFactorTolerance from 1 (another solve is needed).
+// True (and `scale`, `applied` updated) if a group is newly applied or a factor was further than
+// kFactorTolerance from 1: another solve is needed. False leaves them as they were solved with.
 bool UpdateGroupScales(const GroupResiduals& groups,
                        const std::array<double, kNumNoiseGroups>& redundancy,
                        std::array<double, kNumNoiseGroups>* scale,
                        std::array<bool, kNumNoiseGroups>* applied) {
   bool changed = false;
+  std::array<double, kNumNoiseGroups> next = *scale;
+  std::array<bool, kNumNoiseGroups> next_applied = *applied;
   for (int k = 0; k < kNumNoiseGroups; ++k) {
     if (groups.rows[k] == 0 || redundancy[k] < kMinVarianceComponentRedundancy) continue;
     const double f = groups.chi2[k] / redundancy[k];
-    const double next = std::clamp((*scale)[k] * std::sqrt(f), 1.0 / kMaxSigmaScale, kMaxSigmaScale);
-    if (!(*applied)[k] || std::abs(next * next / ((*scale)[k] * (*scale)[k]) - 1) > kFactorTolerance) {
-      changed = true;
-    }
-    (*scale)[k] = next;
-    (*applied)[k] = true;
+    next[k] = std::clamp((*scale)[k] * std::sqrt(f), 1.0 / kMaxSigmaScale, kMaxSigmaScale);
+    changed |= !next_applied[k] || std::abs(next[k] * next[k] / ((*scale)[k] * (*scale)[k]) - 1) > kFactorTolerance;
+    next_applied[k] = true;
   }
+  if (changed) *scale = next, *applied = next_applied;
   return changed;
 }
 

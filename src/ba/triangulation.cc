@@ -8,6 +8,7 @@
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
 #include "report/format.h"
+#include "util/stats.h"
 
 namespace carmba {
 namespace ba {
@@ -24,13 +25,13 @@ bool TriangulationOptions::Check(std::string* error) const {
   return true;
 }
 
-StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
-                                             const BaResult& result,
-                                             const std::vector<PixelObservation>& obs,
-                                             const TriangulationOptions& options) {
-  std::string err;
-  if (!options.Check(&err)) return Status::Error(err);
-  if (!result.covariance) return Status::Error("the solve has no covariance");
+namespace {
+
+// The point from all of `obs`, with its covariance and residuals (no self-check).
+StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
+                                           const BaResult& result,
+                                           const std::vector<PixelObservation>& obs,
+                                           const TriangulationOptions& options) {
   const StateLayout& L = *result.layout;
   if (obs.size() < 2) {
     return Status::Error(obs.empty() ? std::string("no observations")
@@ -149,6 +150,14 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
   // The solve's share: G = -N^-1 sum_i J_i^T W_i B_i over the free state.
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3, L.num_free());
   Eigen::MatrixXd Kc = Eigen::MatrixXd::Zero(3, L.num_consider());  // over considered intrinsics
+  // The stacked pixel Jacobians over the point (Js) and over the solve's state (Bs, Bcs), for
+  // the self-check's residual covariance.
+  const Eigen::Index n2 = 2 * static_cast<Eigen::Index>(obs.size());
+  Eigen::MatrixXd Js(n2, 3), Bs = Eigen::MatrixXd::Zero(n2, L.num_free()),
+                  Bcs = Eigen::MatrixXd::Zero(n2, L.num_consider());
+  Eigen::VectorXd rs(n2);
+  Eigen::MatrixXd Sigma = Eigen::MatrixXd::Zero(n2, n2);
+  int oi = 0;
   double ss = 0;
   for (const auto& o : obs) {
     const BaView& v = problem.views[o.view];
@@ -170,6 +179,15 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
     const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
     out.residual_px.push_back(r);
     ss += r.squaredNorm();
+    for (int row = 0; row < 2; ++row) {
+      AddGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &Bs);
+      AddGradientRow(L, vb, Jpose + row * 6, 2 * oi + row, &Bs);
+      AddConsiderGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &Bcs);
+    }
+    Js.middleRows<2>(2 * oi) = J;
+    rs.segment<2>(2 * oi) = r;
+    Sigma.block<2, 2>(2 * oi, 2 * oi) = o.covariance_px2;
+    ++oi;
   }
   out.rms_px = std::sqrt(ss / (2.0 * obs.size()));
   const Eigen::MatrixXd G = -out.covariance_pixels * K;
@@ -190,11 +208,119 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
   out.covariance = out.covariance_pixels + out.covariance_solve + out.covariance_calibration;
   if (out.max_ray_angle_deg < options.min_ray_angle_deg) {
     const Eigen::Vector3d along = (dir[wa] + dir[wb]).normalized();
-    out.warning = "the rays are nearly parallel: the widest pair (views '" +
+    out.warnings.push_back("the rays are nearly parallel: the widest pair (views '" +
                   problem.views[obs[wa].view].id + "' and '" + problem.views[obs[wb].view].id +
                   "') is " + Fmt("%.2f", out.max_ray_angle_deg) + " deg apart (below " +
                   Fmt("%g", options.min_ray_angle_deg) + "); sigma along the rays " +
-                  Fmt("%.3g", std::sqrt(along.dot(out.covariance * along))) + " mm";
+                  Fmt("%.3g", std::sqrt(along.dot(out.covariance * along))) + " mm");
+  }
+  // Self-check: the residuals against their covariance M = the pixels' + the solve's projected
+  // (B C B^T, correlated between views through the shared intrinsics and markers), with the
+  // point's 3 directions taken out: chi2 = min_dX (r + J dX)^T M^-1 (r + J dX).
+  Eigen::MatrixXd M = Sigma + Bs * result.covariance->Solve(Bs.transpose()) * result.covariance_scale;
+  if (result.covariance->num_consider() > 0) {
+    const Eigen::MatrixXd T = result.covariance->ConsiderGradient(Bs, Bcs);
+    M += T * result.covariance->consider_covariance() * T.transpose();
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> Mi(0.5 * (M + M.transpose()));
+  const Eigen::VectorXd Mr = Mi.solve(rs);
+  const Eigen::MatrixXd MJ = Mi.solve(Js);
+  const Eigen::Vector3d gJ = Js.transpose() * Mr;
+  out.chi2 = rs.dot(Mr) - gJ.dot((Js.transpose() * MJ).ldlt().solve(gJ));
+  out.dof = 2 * static_cast<int>(obs.size()) - 3;
+  out.chi2_p_value = ChiSquareUpperTail(out.chi2, out.dof);
+  return out;
+}
+
+// The pixel of `o` against the projection of X: residual (px) and its whitened norm.
+std::pair<Eigen::Vector2d, double> PixelResidual(const BaProblem& problem,
+                                                  const BaResult& result,
+                                                  const PixelObservation& o,
+                                                  const Eigen::Vector3d& X) {
+  const StateLayout& L = *result.layout;
+  const BaView& v = problem.views[o.view];
+  double uv[2];
+  if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
+                           X.data(), uv, nullptr, nullptr, nullptr)) {
+    return {Eigen::Vector2d::Constant(std::nan("")), std::nan("")};
+  }
+  const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
+  return {r, std::sqrt(r.dot(o.covariance_px2.ldlt().solve(r)))};
+}
+
+}  // namespace
+
+StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
+                                             const BaResult& result,
+                                             const std::vector<PixelObservation>& obs,
+                                             const TriangulationOptions& options) {
+  std::string err;
+  if (!options.Check(&err)) return Status::Error(err);
+  if (!result.covariance) return Status::Error("the solve has no covariance");
+  auto point = TriangulateAll(problem, result, obs, options);
+  if (!point.ok()) return point;
+  std::vector<size_t> used(obs.size());
+  for (size_t i = 0; i < obs.size(); ++i) used[i] = i;
+  std::vector<std::string> rejections;
+  // Reject the most inconsistent ray while the rays do not meet and three or more remain.
+  while (point->chi2_p_value < options.outlier_p && used.size() >= 3) {
+    int best = -1;
+    StatusOr<TriangulatedPoint> best_point = Status::Error("");
+    for (size_t k = 0; k < used.size(); ++k) {
+      std::vector<PixelObservation> rest;
+      for (size_t m = 0; m < used.size(); ++m) {
+        if (m != k) rest.push_back(obs[used[m]]);
+      }
+      auto t = TriangulateAll(problem, result, rest, options);
+      if (t.ok() && (best < 0 || t->chi2 < best_point->chi2)) best = static_cast<int>(k), best_point = t;
+    }
+    if (best < 0) break;
+    const PixelObservation& out_obs = obs[used[best]];
+    const auto [r, n_sigma] = PixelResidual(problem, result, out_obs, best_point->p_in_object);
+    rejections.push_back("the ray of view '" + problem.views[out_obs.view].id +
+                         "' was rejected as an outlier: its pixel (" + Fmt("%.2f", out_obs.uv_px[0]) +
+                         ", " + Fmt("%.2f", out_obs.uv_px[1]) + ") lies " + Fmt("%.3g", r.norm()) +
+                         " px (" + Fmt("%.3g", n_sigma) + " sigma) from the point the other " +
+                         std::to_string(used.size() - 1) + " rays give (chi-square of all rays " +
+                         Fmt("%.3g", point->chi2) + " on " + std::to_string(point->dof) +
+                         " dof, P = " + Fmt("%.2g", point->chi2_p_value) + ")");
+    used.erase(used.begin() + best);
+    point = best_point;
+  }
+  TriangulatedPoint out = std::move(*point);
+  // Residuals and flags per observation as given.
+  out.residual_px.assign(obs.size(), Eigen::Vector2d::Zero());
+  out.rejected.assign(obs.size(), 1);
+  for (size_t i = 0; i < obs.size(); ++i) {
+    out.residual_px[i] = PixelResidual(problem, result, obs[i], out.p_in_object).first;
+  }
+  for (size_t i : used) out.rejected[i] = 0;
+  out.warnings.insert(out.warnings.end(), rejections.begin(), rejections.end());
+  if (!problem.markers.empty()) {
+    // Far outside the markers (the points the poses were estimated from).
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& m : problem.markers) c += m.p_ct;
+    c /= static_cast<double>(problem.markers.size());
+    double extent = 0;
+    for (const auto& m : problem.markers) extent = std::max(extent, (m.p_ct - c).norm());
+    const double d = (out.p_in_object - c).norm();
+    if (extent > 0 && d > kOutsideMarkersFactor * extent) {
+      out.warnings.push_back("the point is " + Fmt("%.0f", d) + " mm from the markers' centroid, " +
+                             "more than " + Fmt("%g", kOutsideMarkersFactor) +
+                             " x their extent (" + Fmt("%.0f", extent) +
+                             " mm): far outside the markers the poses were estimated from");
+    }
+  }
+  if (out.chi2_p_value < options.outlier_p) {
+    double worst = 0;
+    for (size_t i : used) worst = std::max(worst, out.residual_px[i].norm());
+    out.warnings.push_back(
+        "the rays do not meet within their pixel covariances: chi-square " + Fmt("%.3g", out.chi2) +
+        " on " + std::to_string(out.dof) + " dof (P = " + Fmt("%.2g", out.chi2_p_value) +
+        "), a residual of " + Fmt("%.3g", worst) + " px" +
+        (used.size() < 3 ? "; with two rays the wrong one cannot be told: check the pixels"
+                         : "") +
+        "; the covariance assumes they do");
   }
   return out;
 }

@@ -21,6 +21,13 @@
 // W_i dq_i/dc) and through the solve's estimate (D = dtheta/dc, ba/covariance.h), so
 //   C_X += (G D + Gc) Sigma_c (G D + Gc)^T   (covariance_calibration, budget kCalibration).
 //
+// Self-check: the stacked pixel residuals r against their covariance M = Sigma (the pixels) +
+// B C_theta B^T (the solve's, correlated between the views), the point's directions taken out:
+// chi2 = min_dX (r + J dX)^T M^-1 (r + J dX) on 2n - 3 degrees of freedom. Outside its band (P < 0.5 %) with three or more rays, the ray whose removal leaves the
+// smallest chi-square is rejected (its pixel is reported against the point the others give) and
+// the point triangulated again, while at least three rays remain and the chi-square is out of
+// band; a point whose rays still do not meet within their covariances is a warning.
+//
 // Warnings and errors: fewer than two views is an error ("seen in one view only"), as are a
 // plate view, a view given twice, non-finite pixels, a pixel that cannot be undistorted, rays
 // that meet behind a source and rays so parallel that N is singular. Rays closer than
@@ -46,6 +53,7 @@ struct PixelObservation {
 
 struct TriangulationOptions {
   double min_ray_angle_deg = 5.0;   // warn when the widest pair of rays is closer than this
+  double outlier_p = 0.005;         // chi-square tail below which the rays are inconsistent
   int max_iterations = 50;          // Gauss-Newton
   bool Check(std::string* error) const;
 };
@@ -60,10 +68,20 @@ struct TriangulatedPoint {
   // (ba/problem.h Source order; kCalibration is covariance_calibration's trace).
   std::array<double, kNumSources> solve_trace_by_source{};
   double max_ray_angle_deg = 0;     // widest angle between two of the rays
-  std::vector<Eigen::Vector2d> residual_px;  // q_i(X) - z_i, per observation
-  double rms_px = 0;                // per coordinate
-  std::string warning;              // nearly parallel rays (empty if none)
+  // q_i(X) - z_i, per observation as given (rejected ones too, against the final point).
+  std::vector<Eigen::Vector2d> residual_px;
+  std::vector<char> rejected;       // per observation as given: 1 if rejected as an outlier
+  double rms_px = 0;                // per coordinate, over the rays used
+  double chi2 = 0;                  // of the rays used, whitened by their pixel covariances
+  int dof = 0;                      // 2 x rays used - 3
+  double chi2_p_value = 1;
+  // One sentence each: nearly parallel rays, a rejected ray, rays that do not meet.
+  std::vector<std::string> warnings;
 };
+
+// A point farther than this many times the markers' largest distance from their centroid is
+// "far outside the markers" (a warning).
+constexpr double kOutsideMarkersFactor = 2.0;
 
 StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
                                              const BaResult& result,

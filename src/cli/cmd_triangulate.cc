@@ -246,13 +246,14 @@ int RunTriangulate() {
     }
     const Eigen::Vector3d X = F * t->p_in_object;
     const Eigen::Matrix3d C = F * t->covariance * F;
-    if (!t->warning.empty()) warnings.push_back("point '" + p.name + "': " + t->warning);
+    for (const auto& w : t->warnings) warnings.push_back("point '" + p.name + "': " + w);
     nlohmann::json views = nlohmann::json::array();
     for (size_t i = 0; i < obs.size(); ++i) {
       views.push_back({{"view", bp.views[obs[i].view].id},
                        {"u_px", obs[i].uv_px[0]},
                        {"v_px", obs[i].uv_px[1]},
-                       {"residual_px", {JsonNumber(t->residual_px[i][0]), JsonNumber(t->residual_px[i][1])}}});
+                       {"residual_px", {JsonNumber(t->residual_px[i][0]), JsonNumber(t->residual_px[i][1])}},
+                       {"rejected", t->rejected[i] != 0}});
     }
     nlohmann::json by_source;
     for (int s = 0; s < ba::kNumSources; ++s) {
@@ -271,7 +272,10 @@ int RunTriangulate() {
                        {"max_ray_angle_deg", JsonNumber(t->max_ray_angle_deg)},
                        {"rms_px", JsonNumber(t->rms_px)},
                        {"views", views},
-                       {"warning", t->warning.empty() ? nlohmann::json() : nlohmann::json(t->warning)}});
+                       {"chi2", JsonNumber(t->chi2)},
+                       {"dof", t->dof},
+                       {"chi2_p_value", JsonNumber(t->chi2_p_value)},
+                       {"warnings", t->warnings}});
     char line[512];
     std::snprintf(line, sizeof line, "%s,%.6f,%.6f,%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n",
                   p.name.c_str(), X[0], X[1], X[2], C(0, 0), C(0, 1), C(0, 2), C(1, 1), C(1, 2),

@@ -160,8 +160,8 @@ ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& s) {
   std::string text = std::string("Model `") + IntrinsicsModelName(problem) + "`";
   if (problem.smooth) {
     text += ": fx, fy, cx, cy as functions of the angles (Fourier order " +
-            std::to_string(problem.smooth_basis.primary_order) + " in the primary angle, degree " +
-            std::to_string(problem.smooth_basis.secondary_degree) +
+            std::to_string(s.smooth_basis.primary_order) + " in the primary angle, degree " +
+            std::to_string(s.smooth_basis.secondary_degree) +
             " in the secondary), distortion shared; a view's intrinsics and their sigma follow from "
             "the coefficients' covariance, also between the calibrated angles";
   }

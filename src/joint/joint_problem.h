@@ -57,6 +57,7 @@
 
 #include "ba/bundle_adjuster.h"
 #include "ba/flex_models.h"
+#include "ba/lens_models.h"
 #include "ba/quantities.h"
 #include "ba/relative_pose.h"
 #include "ba/tre.h"
@@ -108,6 +109,7 @@ struct JointProblem {
   std::map<std::string, std::string> group_of_view;  // per_group: view id -> group name
   bool smooth = false;                               // model smooth
   ba::SmoothBasis smooth_basis;
+  bool secondary_degree_given = false;  // intrinsics.secondary_degree was in the file
   bool select_model = true;
   // C-arm angles (deg) by view id (plate view ids as plate_view_ids, object view ids), and where
   // each came from ("views.csv:12", "DICOM image.dcm").
@@ -146,6 +148,15 @@ struct JointSolution {
   std::string initial_intrinsics_from;           // "camera.json", "Zhang + calibration" ...
   std::optional<ba::ModelSelection> selection;   // intrinsics models compared (flex)
   std::string selection_error;                   // why not (if asked and it failed)
+  // The smooth model as solved: the problem's, with secondary_degree 0 when the plate views
+  // cover one secondary angle and the file did not set it (model_note says so).
+  ba::SmoothBasis smooth_basis;
+  std::string model_note;
+  // The distortion models compared on the plate views (ba/lens_models.h; one shared group), and
+  // the warning when the solved model's principal point strays from the recommended one's.
+  std::optional<ba::DistortionSelection> distortion;
+  std::string distortion_error;
+  std::string distortion_warning;
   // Relative poses of object views with 6x6 covariances (ba/relative_pose.h: every pair when
   // there are at most 10 object views, else the validation pairs); the leave-one-marker-out TRE
   // when the config has tre: true (ba/tre.h).

@@ -311,6 +311,7 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
   intr.Get("prior", &p.camera_prior);
   intr.GetInRange("primary_order", &p.smooth_basis.primary_order, kSmoothOrder);
   intr.GetInRange("secondary_degree", &p.smooth_basis.secondary_degree, kSmoothOrder);
+  p.secondary_degree_given = intr.Has("secondary_degree");
   const bool has_select = intr.Has("select");
   intr.Get("select", &p.select_model);
   std::string angles_file;

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "ba/calibrated_range.h"
 #include "ba/view_intrinsics.h"
 #include "calib/conditioning.h"
 #include "geometry/rotation.h"
@@ -14,6 +15,73 @@
 
 namespace carmba {
 namespace {
+
+nlohmann::json DistortionSelectionJson(const JointSolution& s, const SolverConfig& config) {
+  if (!s.distortion) return {{"error", s.distortion_error}};
+  const ba::DistortionSelection& d = *s.distortion;
+  nlohmann::json scores = nlohmann::json::array();
+  for (const auto& sc : d.scores) {
+    nlohmann::json o = {{"model", ba::DistortionModelName(sc.model)}, {"ok", sc.ok}};
+    if (!sc.ok) {
+      o["error"] = sc.error;
+    } else {
+      o.update({{"num_free", sc.num_free},
+                {"num_residuals", sc.num_residuals},
+                {"chi2", JsonNumber(sc.chi2)},
+                {"aic", JsonNumber(sc.aic)},
+                {"bic", JsonNumber(sc.bic)},
+                {"held_out_chi2_per_residual", JsonNumber(sc.held_out_chi2_per_residual)},
+                {"held_out_rms_px", JsonNumber(sc.held_out_rms_px)},
+                {"cx", JsonNumber(sc.principal_point[0])},
+                {"cy", JsonNumber(sc.principal_point[1])},
+                {"sigma_cx", JsonNumber(std::sqrt(sc.principal_point_covariance(0, 0)))},
+                {"sigma_cy", JsonNumber(std::sqrt(sc.principal_point_covariance(1, 1)))}});
+    }
+    scores.push_back(o);
+  }
+  return {{"recommended", ba::DistortionModelName(d.recommended)},
+          {"why", d.why},
+          {"folds", d.folds},
+          {"applied", config.distortion_auto},
+          {"scores", scores}};
+}
+
+ReportDoc DistortionSelectionDoc(const JointSolution& s, const SolverConfig& config) {
+  ReportDoc d;
+  if (!s.distortion && s.distortion_error.empty()) return d;
+  d.Heading(2, "Distortion model: which terms the plate views support");
+  if (!s.distortion) {
+    d.Paragraph("Not compared: " + s.distortion_error + ".");
+    return d;
+  }
+  const ba::DistortionSelection& sel = *s.distortion;
+  d.Paragraph("Each candidate fitted to the plate views alone (AIC = chi-square + 2 x free "
+              "parameters), and by " + std::to_string(sel.folds) +
+              "-fold held-out plate views (fitted without them, their poses refitted with the "
+              "intrinsics held). Recommended: **" + ba::DistortionModelName(sel.recommended) +
+              "**: " + sel.why + ". " +
+              (config.distortion_auto ? "Applied (`distortion: auto`)."
+                                      : "Not applied: the config gives the terms (`distortion: given`)."));
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& sc : sel.scores) {
+    if (!sc.ok) {
+      rows.push_back({ba::DistortionModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
+      continue;
+    }
+    rows.push_back({ba::DistortionModelName(sc.model), Fmt("%.1f", sc.chi2), std::to_string(sc.num_free),
+                    Fmt("%.1f", sc.aic), Fmt("%.1f", sc.bic),
+                    Fmt("%.4f", sc.held_out_chi2_per_residual) + " (" + Fmt("%.4f", sc.held_out_rms_px) + " px)",
+                    Fmt("%.2f", sc.principal_point[0]) + " +- " +
+                        Fmt("%.2f", std::sqrt(sc.principal_point_covariance(0, 0))) + ", " +
+                        Fmt("%.2f", sc.principal_point[1]) + " +- " +
+                        Fmt("%.2f", std::sqrt(sc.principal_point_covariance(1, 1)))});
+  }
+  d.Table({"model", "chi-square", "free", "AIC", "BIC", "held-out chi-square / residual (RMS)",
+           "cx, cy (px)"},
+          rows);
+  if (!s.distortion_warning.empty()) d.Warning(s.distortion_warning);
+  return d;
+}
 
 // The group's intrinsics as camera.json writes them, with the joint covariance (a smooth group:
 // its coefficients, FlexModelJson).
@@ -223,6 +291,9 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                      {"num_parameters", r.num_free},
                      {"covariance_scale", ba::CovarianceScaleName(config.covariance_scale)}};
   j["variance_components"] = VarianceComponentsJson(r);
+  if (s.distortion || !s.distortion_error.empty()) {
+    j["distortion_selection"] = DistortionSelectionJson(s, config);
+  }
   j["solver"] = {{"config", config.name},
                  {"engine", "ceres (src/ba)"},
                  {"iterations", r.iterations},
@@ -262,6 +333,9 @@ std::vector<std::string> JointWarnings(const JointSolution& s) {
     out.insert(out.end(), w.begin(), w.end());
   }
   for (auto& w : ba::SolveWarnings(s.result)) out.push_back(std::move(w));
+  for (auto& w : ba::CalibratedRangeWarnings(bp, s.result)) out.push_back(std::move(w));
+  if (!s.model_note.empty()) out.push_back(s.model_note);
+  if (!s.distortion_warning.empty()) out.push_back(s.distortion_warning);
   return out;
 }
 
@@ -323,6 +397,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   d.Table(header, rows);
   d.Figures({"distortion", "projection-uncertainty"});
   d.Append(FlexReportDoc(problem, s));  // C-arm flex: intrinsics per view, model selection
+  d.Append(DistortionSelectionDoc(s, config));
 
   {
     const auto warnings = JointWarnings(s);

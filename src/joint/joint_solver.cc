@@ -5,7 +5,9 @@
 #include <set>
 
 #include "calib/calibrate.h"
+#include "ba/lens_models.h"
 #include "joint/joint_problem.h"
+#include "report/format.h"
 
 namespace carmba {
 namespace {
@@ -77,6 +79,59 @@ ba::BaProblem ObjectViewsOnly(const ba::BaProblem& bp,
   new_pairs->clear();
   for (const auto& [a, b] : pairs) new_pairs->emplace_back(index.at(a), index.at(b));
   return out;
+}
+
+}  // namespace
+
+namespace {
+
+// The smooth model's basis for the plate views' angles: plate views at one secondary angle (a
+// C-arm calibrated along its orbit only) cannot determine a dependence on it, so the model takes
+// secondary_degree 0 and says so in `note`; when the file asked for more, an error that says what
+// to do.
+StatusOr<ba::SmoothBasis> SmoothBasisForPlateAngles(const JointProblem& problem,
+                                                    const ba::BaProblem& bp,
+                                                    std::string* note) {
+  ba::SmoothBasis basis = problem.smooth_basis;
+  std::set<double> secondaries;
+  for (const auto& v : bp.views) {
+    if (v.kind == ba::ViewKind::kPlate && v.has_angles) secondaries.insert(v.secondary_deg);
+  }
+  if (secondaries.size() != 1 || basis.secondary_degree == 0) return basis;
+  const std::string at = Fmt("%g", *secondaries.begin());
+  if (problem.secondary_degree_given) {
+    return Status::Error("intrinsics.secondary_degree " + std::to_string(basis.secondary_degree) +
+                         ": every plate view is at secondary angle " + at +
+                         " deg, so no dependence on it can be estimated; set secondary_degree: 0 "
+                         "(the intrinsics follow the primary angle only) or add plate views at "
+                         "another secondary angle");
+  }
+  basis.secondary_degree = 0;
+  *note = "every plate view is at secondary angle " + at +
+          " deg: the smooth model takes secondary_degree 0 (the intrinsics follow the primary "
+          "angle only); object views at other secondary angles are extrapolated";
+  return basis;
+}
+
+// The distortion models compared on the plate views (ba/lens_models.h), for one shared group;
+// with distortion: auto the recommended one is applied to `bp`.
+void SelectDistortion(const JointProblem& problem, const SolverConfig& config,
+                      const ba::BaOptions& options, ba::BaProblem* bp, JointSolution* sol) {
+  if (problem.plate.views.empty()) return;
+  if (problem.smooth || problem.per_group || bp->groups.size() != 1) {
+    if (config.distortion_auto) {
+      sol->distortion_error = std::string("distortion: auto is for one shared intrinsics group (model ") +
+                              IntrinsicsModelName(problem) + "): the distortion terms are those `fix` leaves free";
+    }
+    return;
+  }
+  auto sel = ba::SelectDistortionModel(*bp, options);
+  if (!sel.ok()) {
+    sol->distortion_error = sel.status().message();
+    return;
+  }
+  sol->distortion = *sel;
+  if (config.distortion_auto) ba::ApplyDistortionModel(sel->recommended, bp);
 }
 
 }  // namespace
@@ -255,9 +310,16 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
   }
 
   const ba::BaOptions options = BaOptionsFromConfig(config);
+  SelectDistortion(problem, config, options, &bp, &sol);
+  sol.smooth_basis = problem.smooth_basis;
+  if (problem.smooth) {
+    auto basis = SmoothBasisForPlateAngles(problem, bp, &sol.model_note);
+    if (!basis.ok()) return Status::Error(problem.path + ": " + basis.status().message());
+    sol.smooth_basis = *basis;
+  }
   if (problem.select_model && !problem.plate.views.empty()) {
     auto sel = ba::SelectIntrinsicsModel(
-        bp, problem.smooth_basis, options,
+        bp, sol.smooth_basis, options,
         {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth});
     if (sel.ok()) {
       sol.selection = *sel;
@@ -266,12 +328,18 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     }
   }
   if (problem.smooth) {
-    const Status s = ba::ApplyIntrinsicsModel(ba::IntrinsicsModel::kSmooth, problem.smooth_basis, &bp);
+    const Status s = ba::ApplyIntrinsicsModel(ba::IntrinsicsModel::kSmooth, sol.smooth_basis, &bp);
     if (!s.ok()) return Status::Error(problem.path + ": " + s.message());
   }
   auto r = ba::SolveBundleAdjustment(bp, options);
   if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
   sol.result = std::move(*r);
+  ba::DistortionModel solved;
+  if (sol.distortion && !config.distortion_auto &&
+      ba::DistortionModelOf(bp.groups[0].free, &solved)) {
+    const double* K = sol.result.block(sol.result.layout->group_block(0));
+    sol.distortion_warning = ba::DistortionWarning(*sol.distortion, solved, Eigen::Vector2d(K[kCx], K[kCy]));
+  }
   sol.budget = ba::ComputeErrorBudget(bp, sol.result, sol.pairs);
   sol.relative_poses = ba::EstimateRelativePoses(sol.result, ba::RelativePosePairs(bp, sol.pairs));
   if (config.tre) {

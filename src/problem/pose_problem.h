@@ -178,6 +178,11 @@ struct SolverConfig {
   // Joint problems (joint/joint_problem.h): intrinsics held at their initial values, by name
   // (fx fy cx cy k1 k2 p1 p2 k3); pose problems hold all of them.
   std::vector<std::string> fix;
+  // Joint problems with plate views: auto selects the distortion terms (k1 k2 | + p1 p2 | + k3 |
+  // all) by AIC with held-out plate views (ba/lens_models.h); `fix` then names none of them.
+  // given: the terms `fix` leaves free (the selection is still run and warns when the given
+  // model's principal point is more than 2 sigma from the recommended one's).
+  bool distortion_auto = false;
   // Observations whose whitened residual exceeds outlier_sigma are listed; reject_sigma > 0
   // drops them one at a time and solves again (ba/bundle_adjuster.h).
   double outlier_sigma = 4.0;

@@ -404,6 +404,15 @@ bool SolverConfig::Check(std::string* error) const {
       !CheckRange("num_threads", num_threads, pl::kThreads, error)) {
     return false;
   }
+  if (distortion_auto) {
+    for (const auto& n : fix) {
+      if (n == "k1" || n == "k2" || n == "p1" || n == "p2" || n == "k3") {
+        return *error = "fix: '" + n + "' with distortion: auto (the selection decides the " +
+                        "distortion terms: remove it from fix, or set distortion: given)",
+               false;
+      }
+    }
+  }
   if (covariance_algorithm != "schur" && covariance_algorithm != "dense_svd" &&
       covariance_algorithm != "sparse_qr" && covariance_algorithm != "eigen_sparse_qr") {
     return *error = "covariance.algorithm '" + covariance_algorithm +
@@ -450,6 +459,9 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   cov.GetEnum("scale", {"per_group", "apriori", "global", "aposteriori"}, &scale);
   root.GetInRange("num_threads", &c.num_threads, plausible::kThreads);
   root.Get("fix", &c.fix);
+  std::string distortion = "given";
+  root.GetEnum("distortion", {"given", "auto"}, &distortion);
+  c.distortion_auto = distortion == "auto";
   for (const auto& n : c.fix) {
     if (std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, n) ==
         kIntrinsicNames + kNumIntrinsics) {

@@ -298,6 +298,7 @@ py::dict Statistics(const Solved& s) {
     d["chi2_p_value"] = p.chi2_p_value;
     d["num_residuals"] = p.num_residuals;
     d["num_parameters"] = p.num_parameters;
+    if (p.ba_result) d["covariance_scale"] = ba::CovarianceScaleName(p.ba_result->scale_mode);
     d["iterations"] = p.iterations;
     d["termination"] = p.termination;
     return d;
@@ -311,6 +312,7 @@ py::dict Statistics(const Solved& s) {
   d["chi2_p_value"] = r.chi2_p_value;
   d["num_residuals"] = r.num_residuals;
   d["num_parameters"] = r.num_free;
+  d["covariance_scale"] = ba::CovarianceScaleName(r.scale_mode);
   d["iterations"] = r.iterations;
   d["termination"] = r.termination;
   return d;
@@ -447,7 +449,11 @@ py::dict Triangulate(const Solved& s,
   d["residual_px"] = ToNumpy(res);
   d["max_ray_angle_deg"] = t.max_ray_angle_deg;
   d["rms_px"] = t.rms_px;
-  d["warning"] = t.warning.empty() ? py::object(py::none()) : py::object(py::str(t.warning));
+  d["rejected"] = std::vector<bool>(t.rejected.begin(), t.rejected.end());
+  d["chi2"] = t.chi2;
+  d["dof"] = t.dof;
+  d["chi2_p_value"] = t.chi2_p_value;
+  d["warnings"] = t.warnings;
   return d;
 }
 
@@ -560,6 +566,14 @@ void BindSolve(py::module_& m) {
       .def_property_readonly("error_budget", &ErrorBudget)
       .def_property_readonly("relative_poses", &RelativePoses)
       .def_property_readonly("statistics", &Statistics)
+      .def_property_readonly("variance_components",
+                             [](const Solved& s) {
+                               return ToPython(s.json.value("variance_components", nlohmann::json()));
+                             })
+      .def_property_readonly("warnings",
+                             [](const Solved& s) {
+                               return ToPython(s.json.value("warnings", nlohmann::json::array()));
+                             })
       .def_property_readonly("tre", [](const Solved& s) {
         const auto& tre = s.kind == "joint" ? s.joint->tre : s.pose->tre;
         return tre ? ToPython(TreJson(*tre)) : py::object(py::none());

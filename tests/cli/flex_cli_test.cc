@@ -132,10 +132,49 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   // Plate views at 3 orientations only (primary +-40 -> +-20, secondary +-20 -> 0).
   std::string three = Replace(Replace(angles, ",-40,0\n", ",-20,0\n"), ",40,0\n", ",20,0\n");
   three = Replace(Replace(three, ",0,-20\n", ",0,0\n"), ",0,20\n", ",0,0\n");
-  expect_error(three, "smooth",
-               "model smooth has 4 coefficients per intrinsic (Fourier order 1 in the primary angle, "
-               "degree 1 in the secondary) but the plate views cover 3 orientation group(s); it "
-               "needs at least 4");
+  // One secondary angle: the smooth model takes secondary_degree 0 itself and says so, and the
+  // object views at secondary angles it was not calibrated at are named.
+  {
+    ScratchDir one;
+    one.Write("views.csv", three);
+    one.Write("problem.yaml", Replace(problem, scene + "/views.csv", one.File("views.csv")));
+    auto e = RunCarmba("solve --problem " + one.File("problem.yaml") + config + " --no-plots --no-mrcal --out " + one.File("out"));
+    ASSERT_EQ(e.exit_code, 0) << e.err;
+    EXPECT_NE(e.err.find("warning: every plate view is at secondary angle 0 deg: the smooth model "
+                         "takes secondary_degree 0"),
+              std::string::npos)
+        << e.err;
+    EXPECT_NE(e.err.find("warning: object view 'obj_pp10_sp10' (primary 10 deg, secondary 10 deg) "
+                         "is outside the calibrated angles of the smooth intrinsics model"),
+              std::string::npos)
+        << e.err;
+    const nlohmann::json j1 = ReadJsonFile(one.File("out/result.json"));
+    bool said = false;
+    for (const auto& w : j1.at("warnings")) said |= w.get<std::string>().find("secondary_degree 0") != std::string::npos;
+    EXPECT_TRUE(said);
+  }
+  // Asked for explicitly, a degree the angles cannot support is an error that says what to do.
+  {
+    ScratchDir bad;
+    bad.Write("views.csv", three);
+    bad.Write("problem.yaml",
+              Replace(Replace(problem, scene + "/views.csv", bad.File("views.csv")),
+                      "intrinsics: {model: smooth}", "intrinsics: {model: smooth, secondary_degree: 1}"));
+    auto e = RunCarmba("solve --problem " + bad.File("problem.yaml") + config + " --out " + bad.File("out"));
+    EXPECT_NE(e.exit_code, 0);
+    EXPECT_NE(e.err.find("intrinsics.secondary_degree 1: every plate view is at secondary angle 0 "
+                         "deg, so no dependence on it can be estimated; set secondary_degree: 0"),
+              std::string::npos)
+        << e.err;
+    EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << e.err;
+    EXPECT_FALSE(std::filesystem::exists(bad.File("out")));
+  }
+  // Too few orientations for the primary order: an error.
+  std::string two = Replace(Replace(three, ",-20,0\n", ",0,0\n"), ",20,0\n", ",0,0\n");
+  expect_error(two, "smooth",
+               "model smooth has 3 coefficients per intrinsic (Fourier order 1 in the primary angle, "
+               "degree 0 in the secondary) but the plate views cover 1 orientation group(s); it "
+               "needs at least 3");
   expect_error(angles + "nosuchview,0,0\n", "smooth", "view 'nosuchview' is not a view of the problem");
 }
 

@@ -185,7 +185,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   ExpectReportRenders(dir.File("out/report.html"), 8);
   // The pixel sigma behind the uncertainties is named; correlated intrinsics are warnings in
   // result.json, the report and on stderr, or the report says there are none.
-  EXPECT_NE(rs.str().find("Sigmas from the a-p"), std::string::npos);
+  EXPECT_NE(rs.str().find("Sigmas: the stated sigmas"), std::string::npos);
   ASSERT_TRUE(j.at("warnings").is_array());
   for (const auto& w : j.at("warnings")) {
     EXPECT_NE(rs.str().find("**Warning:** " + w.get<std::string>()), std::string::npos) << w;

@@ -230,3 +230,12 @@ def test_import_is_fast_and_starts_no_subprocess():
     assert float(dt) < 1.0
     assert int(maxrss) == 0 and float(cpu) == 0.0
     assert mpl == "False"
+
+
+def test_variance_components_and_warnings(result, cli):
+    # The self-check is the command's, value for value.
+    assert result.variance_components == cli["variance_components"]
+    assert result.warnings == cli["warnings"]
+    groups = {g["group"]: g for g in result.variance_components["groups"]}
+    assert "object_pixels" in groups and "ct" in groups
+    assert abs(sum(g["redundancy"] for g in groups.values()) - cli["statistics"]["dof"]) < 1e-6
