@@ -116,6 +116,28 @@ double PrincipalPointSigmas(const DistortionScore& s, const Eigen::Vector2d& pp)
   return std::sqrt(d.dot(s.principal_point_covariance.ldlt().solve(d)));
 }
 
+// The chi-squares and covariances of every score at the pixel sigma of the full model's fit
+// (the scores were computed at the stated sigma, whatever it was).
+void RescaleToEstimatedSigma(double stated_sigma_px, DistortionSelection* sel) {
+  const DistortionScore* full = nullptr;
+  for (const auto& sc : sel->scores) {
+    if (sc.ok && sc.model == DistortionModel::kFull) full = &sc;
+  }
+  if (!full || full->num_residuals <= full->num_free) return;
+  const double s2 = full->chi2 / (full->num_residuals - full->num_free);
+  if (!(s2 > 0)) return;
+  sel->sigma_estimated = true;
+  sel->sigma_px = std::sqrt(s2) * stated_sigma_px;
+  for (auto& sc : sel->scores) {
+    if (!sc.ok) continue;
+    sc.chi2 /= s2;
+    sc.aic = sc.chi2 + 2.0 * sc.num_free;
+    sc.bic = sc.chi2 + sc.num_free * std::log(static_cast<double>(sc.num_residuals));
+    sc.held_out_chi2_per_residual /= s2;
+    sc.principal_point_covariance *= s2;
+  }
+}
+
 }  // namespace
 
 const char* DistortionModelName(DistortionModel m) {
@@ -164,7 +186,8 @@ const DistortionScore* DistortionSelection::Score(DistortionModel m) const {
 
 StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
                                                     const BaOptions& options,
-                                                    int folds) {
+                                                    int folds,
+                                                    bool estimate_sigma) {
   if (problem.groups.size() != 1 || problem.groups[0].smooth) {
     return Status::Error("the distortion model is selected for one shared intrinsics group (have " +
                          std::to_string(problem.groups.size()) +
@@ -199,6 +222,7 @@ StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
     if (!s.ok()) sc.error = s.message();
     sel.scores.push_back(sc);
   }
+  if (estimate_sigma) RescaleToEstimatedSigma(plates.views[0].sigma_px, &sel);
   const DistortionScore* best_held_out = nullptr;
   for (const auto& sc : sel.scores) {
     if (!sc.ok) continue;

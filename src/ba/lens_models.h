@@ -68,6 +68,11 @@ struct DistortionSelection {
   std::vector<DistortionScore> scores;  // kDistortionModels order
   DistortionModel recommended = DistortionModel::kRadial2;
   int folds = 0;
+  // With an unknown pixel sigma (a calibration without pixel_sigma_px): every chi-square is at
+  // the sigma the full model's residuals give, sqrt(chi2 / dof) of its fit, and every covariance
+  // scaled to it (AIC needs the noise level; the largest model's is the least biased).
+  bool sigma_estimated = false;
+  double sigma_px = 0;
   std::string why;
   const DistortionScore* Score(DistortionModel m) const;
 };
@@ -76,7 +81,8 @@ struct DistortionSelection {
 // views for the folds, every candidate failing.
 StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
                                                     const BaOptions& options,
-                                                    int folds = kDistortionFolds);
+                                                    int folds = kDistortionFolds,
+                                                    bool estimate_sigma = false);
 
 // The warning of a solve with distortion model `solved` and principal point (cx, cy) (empty when
 // it is the recommended model or within kPrincipalPointWarnSigma of it).

@@ -18,6 +18,7 @@
 
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
+#include "report/lens_report.h"
 #include "report/format.h"
 #include "report/plots.h"
 #include "util/file_util.h"
@@ -295,6 +296,7 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
   d.Table(header, rows);
   d.Figures({"projection-uncertainty"});
 
+  d.Append(DistortionSelectionDoc(r.distortion ? &*r.distortion : nullptr, "", true, ""));
   d.Heading(2, "Cross-check: mrcal");
   if (!m) {
     d.Paragraph("Not run: " + run.mrcal_error);

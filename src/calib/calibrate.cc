@@ -219,6 +219,17 @@ bool CalibrationOptions::Check(std::string* error) const {
       return false;
     }
   }
+  if (distortion_auto) {
+    const char* conflict = zero_tangential ? "zero_tangential" : fix_k3 ? "fix_k3" : nullptr;
+    for (const auto& n : fix) {
+      if (!conflict && IntrinsicIndexOf(n) >= kK1) conflict = "fix";
+    }
+    if (conflict) {
+      *error = std::string("distortion: auto chooses the distortion terms itself; remove ") +
+               conflict + " (or set distortion: given)";
+      return false;
+    }
+  }
   if (!initial_intrinsics.empty() && initial_intrinsics.size() != kNumIntrinsics) {
     *error = "initial_intrinsics: expected 9 values [fx, fy, cx, cy, k1, k2, p1, p2, k3]";
     return false;
@@ -285,6 +296,9 @@ Status LoadCalibrationOptions(const std::string& path,
   m.Get("fix_principal_point", &o->fix_principal_point);
   m.Get("principal_point_px", &o->principal_point_px);
   m.Get("fix_k3", &o->fix_k3);
+  std::string distortion = "given";
+  m.GetEnum("distortion", {"given", "auto"}, &distortion);
+  o->distortion_auto = distortion == "auto";
   m.Get("initial_intrinsics", &o->initial_intrinsics);
   m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &o->robust_loss);
   m.GetInRange("robust_loss_scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
@@ -472,6 +486,25 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
     bool any_distortion = false;
     for (int i = kK1; i < kNumIntrinsics; ++i) any_distortion |= core[i], core[i] = false;
     if (any_distortion) CARMBA_RETURN_IF_ERROR(run_stage(core, true).status());
+  }
+  if (opt.distortion_auto) {
+    // The distortion terms chosen by the data (ba/lens_models.h), seeded by the pinhole stage;
+    // with an unknown pixel sigma the comparison estimates it from the full model.
+    std::array<bool, kNumIntrinsics> all = free;
+    for (int i = kK1; i < kNumIntrinsics; ++i) all[i] = true;
+    ba::BaProblem p = CalibrationProblem(obs, x, all, fy_over_fx, sigma_solve, r.cam_from_plate);
+    ba::BaOptions so = bo;
+    so.function_tolerance = 1e-10, so.gradient_tolerance = 1e-14, so.parameter_tolerance = 1e-10;
+    so.compute_covariance = so.evaluate_solution = true;
+    auto sel = ba::SelectDistortionModel(p, so, ba::kDistortionFolds, opt.pixel_sigma_px == 0);
+    if (!sel.ok()) return Status::Error("distortion: auto: " + sel.status().message());
+    ba::ApplyDistortionModel(sel->recommended, &p);
+    for (int i = kK1; i < kNumIntrinsics; ++i) {
+      free[i] = p.groups[0].free[i];
+      r.free[i] = free[i];
+      if (!free[i]) x[i] = 0;
+    }
+    r.distortion = *sel;
   }
   auto solved = run_stage(free, false);
   if (!solved.ok()) return solved.status();

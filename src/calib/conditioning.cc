@@ -25,7 +25,9 @@ std::vector<std::string> IntrinsicsCorrelationWarnings(const Eigen::MatrixXd& co
         << "): the data determine little more than one combination of them, so their separate "
            "values and sigmas mean little; "
         << (j >= kK1 ? "hold the distortion term (fix_k3, zero_tangential: "
-                       "configs/calib_radial.yaml) or add views that separate them."
+                       "configs/calib_radial.yaml) only if the lens is known to lack it (held, "
+                       "the other parameter's sigma no longer carries the trade-off), or add "
+                       "views that separate them."
                      : "add views that separate them (stronger tilts, a wider range of "
                        "distances).");
       found.emplace_back(std::abs(c), w.str());

@@ -11,77 +11,12 @@
 #include "report/format.h"
 #include "report/plots.h"
 #include "report/relative_tre_report.h"
+#include "report/lens_report.h"
 #include "report/variance_report.h"
 
 namespace carmba {
 namespace {
 
-nlohmann::json DistortionSelectionJson(const JointSolution& s, const SolverConfig& config) {
-  if (!s.distortion) return {{"error", s.distortion_error}};
-  const ba::DistortionSelection& d = *s.distortion;
-  nlohmann::json scores = nlohmann::json::array();
-  for (const auto& sc : d.scores) {
-    nlohmann::json o = {{"model", ba::DistortionModelName(sc.model)}, {"ok", sc.ok}};
-    if (!sc.ok) {
-      o["error"] = sc.error;
-    } else {
-      o.update({{"num_free", sc.num_free},
-                {"num_residuals", sc.num_residuals},
-                {"chi2", JsonNumber(sc.chi2)},
-                {"aic", JsonNumber(sc.aic)},
-                {"bic", JsonNumber(sc.bic)},
-                {"held_out_chi2_per_residual", JsonNumber(sc.held_out_chi2_per_residual)},
-                {"held_out_rms_px", JsonNumber(sc.held_out_rms_px)},
-                {"cx", JsonNumber(sc.principal_point[0])},
-                {"cy", JsonNumber(sc.principal_point[1])},
-                {"sigma_cx", JsonNumber(std::sqrt(sc.principal_point_covariance(0, 0)))},
-                {"sigma_cy", JsonNumber(std::sqrt(sc.principal_point_covariance(1, 1)))}});
-    }
-    scores.push_back(o);
-  }
-  return {{"recommended", ba::DistortionModelName(d.recommended)},
-          {"why", d.why},
-          {"folds", d.folds},
-          {"applied", config.distortion_auto},
-          {"scores", scores}};
-}
-
-ReportDoc DistortionSelectionDoc(const JointSolution& s, const SolverConfig& config) {
-  ReportDoc d;
-  if (!s.distortion && s.distortion_error.empty()) return d;
-  d.Heading(2, "Distortion model: which terms the plate views support");
-  if (!s.distortion) {
-    d.Paragraph("Not compared: " + s.distortion_error + ".");
-    return d;
-  }
-  const ba::DistortionSelection& sel = *s.distortion;
-  d.Paragraph("Each candidate fitted to the plate views alone (AIC = chi-square + 2 x free "
-              "parameters), and by " + std::to_string(sel.folds) +
-              "-fold held-out plate views (fitted without them, their poses refitted with the "
-              "intrinsics held). Recommended: **" + ba::DistortionModelName(sel.recommended) +
-              "**: " + sel.why + ". " +
-              (config.distortion_auto ? "Applied (`distortion: auto`)."
-                                      : "Not applied: the config gives the terms (`distortion: given`)."));
-  std::vector<std::vector<std::string>> rows;
-  for (const auto& sc : sel.scores) {
-    if (!sc.ok) {
-      rows.push_back({ba::DistortionModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
-      continue;
-    }
-    rows.push_back({ba::DistortionModelName(sc.model), Fmt("%.1f", sc.chi2), std::to_string(sc.num_free),
-                    Fmt("%.1f", sc.aic), Fmt("%.1f", sc.bic),
-                    Fmt("%.4f", sc.held_out_chi2_per_residual) + " (" + Fmt("%.4f", sc.held_out_rms_px) + " px)",
-                    Fmt("%.2f", sc.principal_point[0]) + " +- " +
-                        Fmt("%.2f", std::sqrt(sc.principal_point_covariance(0, 0))) + ", " +
-                        Fmt("%.2f", sc.principal_point[1]) + " +- " +
-                        Fmt("%.2f", std::sqrt(sc.principal_point_covariance(1, 1)))});
-  }
-  d.Table({"model", "chi-square", "free", "AIC", "BIC", "held-out chi-square / residual (RMS)",
-           "cx, cy (px)"},
-          rows);
-  if (!s.distortion_warning.empty()) d.Warning(s.distortion_warning);
-  return d;
-}
 
 // The group's intrinsics as camera.json writes them, with the joint covariance (a smooth group:
 // its coefficients, FlexModelJson).
@@ -292,7 +227,9 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                      {"covariance_scale", ba::CovarianceScaleName(config.covariance_scale)}};
   j["variance_components"] = VarianceComponentsJson(r);
   if (s.distortion || !s.distortion_error.empty()) {
-    j["distortion_selection"] = DistortionSelectionJson(s, config);
+    j["distortion_selection"] =
+        DistortionSelectionJson(s.distortion ? &*s.distortion : nullptr, s.distortion_error,
+                                config.distortion_auto);
   }
   j["solver"] = {{"config", config.name},
                  {"engine", "ceres (src/ba)"},
@@ -397,7 +334,8 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   d.Table(header, rows);
   d.Figures({"distortion", "projection-uncertainty"});
   d.Append(FlexReportDoc(problem, s));  // C-arm flex: intrinsics per view, model selection
-  d.Append(DistortionSelectionDoc(s, config));
+  d.Append(DistortionSelectionDoc(s.distortion ? &*s.distortion : nullptr, s.distortion_error,
+                                   config.distortion_auto, s.distortion_warning));
 
   {
     const auto warnings = JointWarnings(s);

@@ -92,9 +92,8 @@ ReportDoc VarianceComponentsDoc(const ba::BaResult& result) {
   d.Table({"group", "rows", "redundancy", "chi-square (stated)", "factor", "P", "band 0.5-99.5 %",
            "covariance"},
           rows);
-  for (const auto& w : ba::VarianceComponentWarnings(result.variance_components, scale)) {
-    d.Warning(w);
-  }
+  // The groups outside their band are warnings of the solve (ba::SolveWarnings), listed where
+  // the report lists the solve's warnings.
   return d;
 }
 

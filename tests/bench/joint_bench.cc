@@ -9,6 +9,7 @@
 #include <random>
 
 #include "ba/bundle_adjuster.h"
+#include "ba/lens_models.h"
 #include "ba/quantities.h"
 #include "ba/synthetic.h"
 #include "problem/pose_problem.h"
@@ -50,6 +51,40 @@ void BM_JointSolveCovarianceBudget(benchmark::State& state) {
   state.counters["iterations"] = iterations;
   state.counters["sigma_fx_px"] = sigma_fx;
 }
+
+// The self-checks of issue 21 against that solve, in one run: 0 the a-priori solve (as before),
+// 1 with covariance.scale per_group (variance components, iterated), 2 per_group and the
+// distortion models compared (4 models, 5 held-out folds: ba/lens_models.h), as
+// `carmba solve --config configs/joint.yaml` runs them.
+//   build/tests/carmba_bench --benchmark_filter='JointSelfChecks' --benchmark_repetitions=5
+void BM_JointSelfChecks(benchmark::State& state) {
+  ba::SyntheticJointSpec spec;
+  const ba::SyntheticJoint sj = Perturbed(spec, 42);
+  ba::BaOptions o;
+  if (state.range(0) >= 1) o.covariance_scale = ba::CovarianceScale::kPerGroup;
+  int variance_iterations = 0;
+  for (auto _ : state) {
+    ba::BaProblem p = sj.problem;
+    if (state.range(0) == 2) {
+      auto sel = ba::SelectDistortionModel(p, o);
+      if (!sel.ok()) {
+        state.SkipWithError(sel.status().message().c_str());
+        return;
+      }
+      ba::ApplyDistortionModel(sel->recommended, &p);
+    }
+    auto r = ba::SolveBundleAdjustment(p, o);
+    if (!r.ok()) {
+      state.SkipWithError(r.status().message().c_str());
+      return;
+    }
+    const auto budget = ba::ComputeErrorBudget(p, *r, sj.pairs);
+    variance_iterations = r->variance_iterations;
+    benchmark::DoNotOptimize(budget.back().sigma);
+  }
+  state.counters["variance_iterations"] = variance_iterations;
+}
+BENCHMARK(BM_JointSelfChecks)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 // One object view, 9 markers: POSIT initial pose, then the engine with the intrinsics held and the
 // markers tied to their CT centres, covariance of the pose.

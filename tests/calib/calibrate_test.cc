@@ -276,3 +276,52 @@ TEST(CalibrateTest, TooFewViewsAndBadOptions) {
 
 }  // namespace
 }  // namespace carmba
+
+namespace carmba {
+namespace {
+
+// `distortion: auto` in a calibration (the pixel sigma unknown, estimated from the full model):
+// on the tangential C-arm above the recommended model is the one solved, every free intrinsic lands
+// within 3 sigma of the truth, and the estimated pixel sigma is the noise's; conflicting flags are
+// refused.
+TEST(CalibrateTest, DistortionAutoChoosesTheTermsAndRefusesConflictingFlags) {
+  SyntheticViewsOptions so;
+  so.noise_sigma_px = 0.1;
+  so.num_views = 20;
+  so.seed = 61;
+  const ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
+  CalibrationOptions opt;
+  opt.distortion_auto = true;
+  auto r = Calibrate(obs, opt);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  ASSERT_TRUE(r->distortion.has_value());
+  EXPECT_TRUE(r->distortion->sigma_estimated);
+  EXPECT_NEAR(r->distortion->sigma_px, 0.1, 0.02);
+  // The free terms are the recommended model's (here k1 k2: at these pixel sigmas the principal
+  // point's sigma, 6.4 px, covers what p1 p2 would move it by).
+  ba::DistortionModel solved;
+  std::array<bool, kNumIntrinsics> free{};
+  for (int i = 0; i < kNumIntrinsics; ++i) free[i] = r->free[i];
+  ASSERT_TRUE(ba::DistortionModelOf(free, &solved));
+  EXPECT_EQ(solved, r->distortion->recommended) << r->distortion->why;
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (!r->free[i]) {
+      EXPECT_EQ(r->camera.params[i], 0.0) << kIntrinsicNames[i];
+      continue;
+    }
+    EXPECT_LT(std::abs(r->camera.params[i] - kTruth[i]), 3 * r->sigma[i]) << kIntrinsicNames[i];
+  }
+  std::string err;
+  CalibrationOptions bad = opt;
+  bad.zero_tangential = true;
+  EXPECT_FALSE(bad.Check(&err));
+  EXPECT_EQ(err, "distortion: auto chooses the distortion terms itself; remove zero_tangential "
+                 "(or set distortion: given)");
+  bad = opt;
+  bad.fix = {"k3"};
+  EXPECT_FALSE(bad.Check(&err));
+  EXPECT_NE(err.find("remove fix"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace carmba

@@ -23,15 +23,28 @@ sys.path.insert(0, PYTHON_DIR)
 REL = 1e-12
 
 
-def assert_rel(actual, expected, rel=REL, what=""):
-    """Elementwise |a - e| <= rel * max|e| (a covariance's small off-diagonal terms are compared
-    at the scale of the matrix)."""
+def assert_rel(actual, expected, rel=REL, what="", per_entry=True):
+    """Elementwise |a - e| <= rel * scale. A covariance (square, positive diagonal) is compared
+    entry by entry at sqrt(e_ii e_jj), so a rotation block in rad^2 is held to 1e-12 of itself,
+    not of the mm^2 block beside it; other arrays entry by entry at |e| (at least 1e-9 of the
+    array's largest entry, for the zeros among them). per_entry=False: every entry at the
+    array's largest (finite differences, whose error is absolute)."""
     a = np.asarray(actual, dtype=float)
     e = np.asarray(expected, dtype=float)
     assert a.shape == e.shape, f"{what}: shape {a.shape} != {e.shape}"
-    scale = np.max(np.abs(e)) if e.size else 0.0
-    err = np.max(np.abs(a - e)) if e.size else 0.0
-    assert err <= rel * scale, f"{what}: max |diff| {err:.3g} > {rel:g} * {scale:.3g}"
+    if not e.size:
+        return
+    d = np.diag(e) if e.ndim == 2 and e.shape[0] == e.shape[1] else None
+    if not per_entry:
+        scale = np.full(e.shape, np.max(np.abs(e)))
+    elif d is not None and np.all(d > 0):
+        scale = np.sqrt(np.outer(d, d))
+    else:
+        scale = np.maximum(np.abs(e), 1e-9 * np.max(np.abs(e)))
+    ratio = np.abs(a - e) / np.where(scale > 0, scale, 1.0)
+    worst = np.unravel_index(np.argmax(ratio), ratio.shape)
+    assert ratio[worst] <= rel, (f"{what}: entry {tuple(int(i) for i in worst)} differs by "
+                                 f"{ratio[worst]:.3g} of its scale (> {rel:g})")
 
 
 def source(*parts):

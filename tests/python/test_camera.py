@@ -136,8 +136,8 @@ def test_project_gradients_against_finite_differences(carmba):
     for k in range(len(pts)):
         fd_p = finite_difference(lambda p: carmba.project(p, carmba.Camera(DISTORTED)), pts[k])
         fd_i = finite_difference(lambda i: carmba.project(pts[k], carmba.Camera(i)), DISTORTED)
-        assert_rel(dq_dp[k], fd_p, FD_REL, what=f"dq/dp point {k}")
-        assert_rel(dq_di[k], fd_i, FD_REL, what=f"dq/dintrinsics point {k}")
+        assert_rel(dq_dp[k], fd_p, FD_REL, what=f"dq/dp point {k}", per_entry=False)
+        assert_rel(dq_di[k], fd_i, FD_REL, what=f"dq/dintrinsics point {k}", per_entry=False)
 
 
 def test_project_errors(carmba):

@@ -88,6 +88,12 @@ def test_relative_poses(result, cli):
         assert_rel(r["covariance_6x6"], c["covariance_6x6"], what=f"{r['a']}->{r['b']} cov")
         assert_rel(r["angle_deg"], c["angle_deg"], what="angle")
         assert_rel(r["sigma_angle_deg"], c["sigma_angle_deg"], what="sigma angle")
+        assert_rel(r["baseline_mm"], c["baseline_mm"], what="baseline")
+        assert_rel(r["sigma_rotation_deg"], c["sigma_rotation_deg"], what="sigma rotation")
+        assert_rel(r["sigma_translation_mm"], c["sigma_translation_mm"], what="sigma translation")
+        if "covariance_calibration_6x6" in c:
+            assert_rel(r["covariance_calibration_6x6"], c["covariance_calibration_6x6"],
+                       what=f"{r['a']}->{r['b']} calibration part")
 
 
 def test_statistics(result, cli):
@@ -147,6 +153,10 @@ def test_triangulate_equals_the_command(carmba, result, tmp_path):
     assert_rel(t["residual_px"], [v["residual_px"] for v in c["views"]], what="residuals")
     for k, v in c["variance_by_source_mm2"].items():
         assert t["variance_by_source_mm2"][k] == v, k
+    assert_rel(t["covariance_calibration_mm2"], c["covariance_calibration_mm2"], what="calibration part")
+    assert t["rejected"] == [v["rejected"] for v in c["views"]]
+    assert (t["chi2"], t["dof"], t["chi2_p_value"]) == (c["chi2"], c["dof"], c["chi2_p_value"])
+    assert t["warnings"] == c["warnings"]
     with pytest.raises(carmba.Error, match="view '45' is not an object view"):
         carmba.triangulate(result, {"0": (1.0, 2.0), "45": (3.0, 4.0)})
 
