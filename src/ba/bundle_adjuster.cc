@@ -368,6 +368,7 @@ bool EvaluateBlock(const BuiltBlock& bb,
   if (!lin) return true;
   lin->source = bb.source;
   lin->group = bb.group;
+  lin->r = *r;
   lin->blocks.reserve(bb.blocks.size());
   lin->J.reserve(bb.blocks.size());
   for (size_t i = 0; i < bb.blocks.size(); ++i) {

@@ -57,6 +57,7 @@ namespace ba {
 struct LinearizedBlock {
   Source source = Source::kPlatePixels;
   NoiseGroup group = NoiseGroup::kPlatePixels;  // for the variance components
+  Eigen::VectorXd r;              // the whitened residuals at the solution (no loss)
   std::vector<int> blocks;        // layout blocks (free ones only) this residual block touches
   std::vector<Eigen::MatrixXd> J; // per block: rows x |free parameters of the block|
   // The considered intrinsics block it touches (-1: none) and the Jacobian over its considered

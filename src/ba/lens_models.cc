@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <map>
 
 namespace carmba {
 namespace ba {
@@ -37,9 +38,8 @@ BaProblem PlateViews(const BaProblem& p, int fold, int folds, bool in_fold) {
   return out;
 }
 
-// The full fit's scores and principal point; `poses` gets each plate view's solved pose.
-Status FitFull(const BaProblem& plates, const BaOptions& o, DistortionScore* sc,
-               std::vector<Pose6>* poses) {
+// The full fit's scores and principal point.
+StatusOr<BaResult> FitFull(const BaProblem& plates, const BaOptions& o, DistortionScore* sc) {
   auto r = SolveBundleAdjustment(plates, o);
   if (!r.ok()) return r.status();
   sc->num_free = r->num_free;
@@ -51,53 +51,93 @@ Status FitFull(const BaProblem& plates, const BaOptions& o, DistortionScore* sc,
   for (int i = 0; i < kNumIntrinsics; ++i) sc->intrinsics[i] = r->block(gb)[i];
   sc->principal_point = Eigen::Vector2d(sc->intrinsics[kCx], sc->intrinsics[kCy]);
   sc->principal_point_covariance = r->Covariance({gb}).block<2, 2>(kCx, kCx);
-  poses->clear();
-  for (size_t v = 0; v < plates.views.size(); ++v) {
-    Pose6 x;
-    for (int i = 0; i < 6; ++i) x[i] = r->block(r->layout->view_block(static_cast<int>(v)))[i];
-    poses->push_back(x);
-  }
-  return Status::Ok();
+  return r;
 }
 
-// Held-out chi2 and squared pixel residuals of fold `f`: trained without it, its views' poses
-// refitted with the intrinsics held at the training fit.
-Status HeldOut(const BaProblem& plates, const std::vector<Pose6>& poses, const BaOptions& o, int f,
-               int folds, double* chi2, long* residuals, double* ss_px, long* coords) {
-  const BaProblem train = PlateViews(plates, f, folds, false);
-  BaOptions ot = o;
-  ot.compute_covariance = false;
-  auto rt = SolveBundleAdjustment(train, ot);
-  if (!rt.ok()) return Status::Error("without fold " + std::to_string(f + 1) + ": " + rt.status().message());
-  BaProblem test = PlateViews(plates, f, folds, true);
-  IntrinsicsGroup& g = test.groups[0];
-  for (int i = 0; i < kNumIntrinsics; ++i) g.initial[i] = rt->block(rt->layout->group_block(0))[i];
-  g.free.fill(false);
-  g.fy_over_fx = 0;
-  for (size_t v = 0, k = 0; v < plates.views.size(); ++v) {
-    if (static_cast<int>(v % folds) == f) test.views[k++].initial = poses[v];
+// The plate views' linearised rows at a fit, by view: J over the view's pose (Jp), over the
+// free intrinsics (Ji), the whitened residuals r, and the view's pixel sigma.
+struct ViewRows {
+  Eigen::MatrixXd Jp, Ji;
+  Eigen::VectorXd r;
+  // The residuals with the pose's directions taken out: P = I - Jp (Jp^T Jp)^-1 Jp^T.
+  Eigen::MatrixXd P;
+};
+
+std::vector<ViewRows> RowsByView(const BaProblem& plates, const BaResult& r) {
+  const StateLayout& L = *r.layout;
+  const int gb = L.group_block(0);
+  std::vector<ViewRows> out(plates.views.size());
+  std::map<int, int> view_of_block;
+  for (size_t v = 0; v < plates.views.size(); ++v) view_of_block[L.view_block(static_cast<int>(v))] = static_cast<int>(v);
+  for (const LinearizedBlock& row : r.linearization->rows) {
+    int v = -1;
+    Eigen::MatrixXd Jp, Ji;
+    for (size_t k = 0; k < row.blocks.size(); ++k) {
+      if (row.blocks[k] == gb) Ji = row.J[k];
+      auto it = view_of_block.find(row.blocks[k]);
+      if (it != view_of_block.end()) v = it->second, Jp = row.J[k];
+    }
+    if (v < 0) continue;
+    if (Ji.size() == 0) Ji = Eigen::MatrixXd::Zero(Jp.rows(), 0);
+    ViewRows& vr = out[v];
+    const Eigen::Index n0 = vr.r.size(), nr = row.r.size();
+    vr.Jp.conservativeResize(n0 + nr, Jp.cols());
+    vr.Ji.conservativeResize(n0 + nr, Ji.cols());
+    vr.r.conservativeResize(n0 + nr);
+    vr.Jp.bottomRows(nr) = Jp;
+    vr.Ji.bottomRows(nr) = Ji;
+    vr.r.tail(nr) = row.r;
   }
-  auto rp = SolveBundleAdjustment(test, ot);
-  if (!rp.ok()) return Status::Error("predicting fold " + std::to_string(f + 1) + ": " + rp.status().message());
-  *chi2 += rp->chi2;
-  *residuals += rp->num_residuals;
-  for (const auto& vs : rp->views) {
-    *ss_px += vs.rms_px * vs.rms_px * 2.0 * vs.num_observations;
-    *coords += 2L * vs.num_observations;
+  for (ViewRows& vr : out) {
+    const Eigen::Index n = vr.r.size();
+    vr.P = Eigen::MatrixXd::Identity(n, n) -
+           vr.Jp * (vr.Jp.transpose() * vr.Jp).ldlt().solve(vr.Jp.transpose());
   }
-  return Status::Ok();
+  return out;
 }
 
-Status ScoreModel(const BaProblem& plates, const BaOptions& o, int folds, DistortionScore* sc) {
-  std::vector<Pose6> poses;
-  CARMBA_RETURN_IF_ERROR(FitFull(plates, o, sc, &poses));
-  double chi2 = 0, ss = 0;
-  long n = 0, coords = 0;
+// Held-out scores of `folds` folds from the fit's linearisation (one Gauss-Newton step, exact
+// for a linear model): without fold F the intrinsics move by
+//   d = S_-F^-1 sum_{v in F} g_v,   S_v = Ji^T P Ji,  g_v = Ji^T P r,  S_-F = sum_{v not in F} S_v
+// (the poses eliminated; at the optimum sum_v g_v = 0), and fold F's views, their poses refitted
+// with the intrinsics held there, leave the residuals P (r + Ji d).
+void HeldOutScores(const std::vector<ViewRows>& rows, double sigma_px, int folds,
+                   DistortionScore* sc) {
+  const Eigen::Index k = rows.empty() ? 0 : rows[0].Ji.cols();
+  std::vector<Eigen::MatrixXd> S(rows.size());
+  std::vector<Eigen::VectorXd> g(rows.size());
+  Eigen::MatrixXd S_all = Eigen::MatrixXd::Zero(k, k);
+  for (size_t v = 0; v < rows.size(); ++v) {
+    S[v] = rows[v].Ji.transpose() * rows[v].P * rows[v].Ji;
+    g[v] = rows[v].Ji.transpose() * rows[v].P * rows[v].r;
+    S_all += S[v];
+  }
+  double chi2 = 0;
+  long n = 0;
   for (int f = 0; f < folds; ++f) {
-    CARMBA_RETURN_IF_ERROR(HeldOut(plates, poses, o, f, folds, &chi2, &n, &ss, &coords));
+    Eigen::MatrixXd S_f = S_all;
+    Eigen::VectorXd g_f = Eigen::VectorXd::Zero(k);
+    for (size_t v = f; v < rows.size(); v += folds) S_f -= S[v], g_f += g[v];
+    const Eigen::VectorXd d = S_f.ldlt().solve(g_f);
+    for (size_t v = f; v < rows.size(); v += folds) {
+      chi2 += (rows[v].P * (rows[v].r + rows[v].Ji * d)).squaredNorm();
+      n += rows[v].r.size();
+    }
   }
   sc->held_out_chi2_per_residual = chi2 / static_cast<double>(n);
-  sc->held_out_rms_px = std::sqrt(ss / static_cast<double>(coords));
+  sc->held_out_rms_px = std::sqrt(chi2 / static_cast<double>(n)) * sigma_px;
+}
+
+// `poses`: the plate views' solved poses (to start the next model from).
+Status ScoreModel(const BaProblem& plates, const BaOptions& o, int folds, DistortionScore* sc,
+                  std::vector<Pose6>* poses) {
+  auto r = FitFull(plates, o, sc);
+  if (!r.ok()) return r.status();
+  poses->clear();
+  for (size_t v = 0; v < plates.views.size(); ++v) {
+    poses->push_back(Eigen::Map<const Pose6>(r->block(r->layout->view_block(static_cast<int>(v)))));
+  }
+  HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
   return Status::Ok();
 }
 
@@ -212,15 +252,26 @@ StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
   DistortionSelection sel;
   sel.folds = std::min(folds, num_plates);
   const DistortionScore* best = nullptr;
+  // Each model starts from the first one's solution (k1 k2: every candidate's terms include it,
+  // the others start at 0): a few iterations instead of a solve from the seed.
+  sel.scores.reserve(kDistortionModels.size());  // `warm` points into it
+  const DistortionScore* warm = nullptr;
+  std::vector<Pose6> warm_poses, poses;
   for (DistortionModel m : kDistortionModels) {
     DistortionScore sc;
     sc.model = m;
     BaProblem p = plates;
+    if (warm) {
+      p.groups[0].initial = warm->intrinsics;
+      for (size_t v = 0; v < p.views.size(); ++v) p.views[v].initial = warm_poses[v];
+    }
     ApplyDistortionModel(m, &p);
-    const Status s = ScoreModel(p, o, sel.folds, &sc);
+    const Status s = ScoreModel(p, o, sel.folds, &sc, &poses);
+    if (s.ok() && sel.scores.empty()) warm_poses = poses;
     sc.ok = s.ok();
     if (!s.ok()) sc.error = s.message();
     sel.scores.push_back(sc);
+    if (s.ok() && sel.scores.size() == 1) warm = &sel.scores.front();
   }
   if (estimate_sigma) RescaleToEstimatedSigma(plates.views[0].sigma_px, &sel);
   const DistortionScore* best_held_out = nullptr;

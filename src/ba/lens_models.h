@@ -10,9 +10,10 @@
 //   * the full fit: chi2 at the stated sigmas, free parameters k, residuals n;
 //       AIC = chi2 + 2k,  BIC = chi2 + k ln(n);
 //     its principal point with covariance;
-//   * held-out (k-fold over the plate views, view i in fold i mod k): the model fitted without
-//     the fold, then the fold's views fitted with the intrinsics held at that fit and only their
-//     poses free; the held-out chi2 per residual and RMS.
+//   * held-out (k-fold over the plate views, view i in fold i mod k): the intrinsics the model
+//     would take without the fold (one Gauss-Newton step from the full fit, the poses eliminated:
+//     exact for a linear model, no further solve), then the fold's views with the intrinsics held
+//     there and only their poses free; the held-out chi2 per residual and RMS.
 // RECOMMENDATION: the lowest AIC (the expected held-out log-likelihood; a term is kept when it
 // lowers the chi-square by more than 2 per parameter) -- unless a model with more terms moves the
 // principal point by more than kPrincipalPointWarnSigma of the AIC-best's sigma. In a C-arm's

@@ -43,13 +43,34 @@ std::array<double, kNumNoiseGroups> GroupRedundancies(const StateLayout& layout,
   for (int k = 0; k < kNumNoiseGroups; ++k) red[k] = residuals.rows[k];
   const int n = covariance.num_free();
   if (n == 0) return red;
-  const Eigen::MatrixXd C = covariance.Solve(Eigen::MatrixXd::Identity(n, n));
+  // sum_i a_i^T C a_i over ALL rows is trace(C H) = n: the group with the most rows gets its
+  // share by subtraction, so C is needed only over the blocks the other groups' rows touch.
+  int largest = 0;
+  for (int k = 1; k < kNumNoiseGroups; ++k) {
+    if (residuals.rows[k] > residuals.rows[largest]) largest = k;
+  }
+  std::vector<int> column_of(n, -1), columns;
+  for (const LinearizedBlock& row : lin.rows) {
+    if (static_cast<int>(row.group) == largest) continue;
+    for (int b : row.blocks) {
+      const BlockInfo& bi = layout.block(b);
+      for (size_t c = 0; c < bi.free.size(); ++c) {
+        const int k = bi.free_offset + static_cast<int>(c);
+        if (column_of[k] < 0) column_of[k] = static_cast<int>(columns.size()), columns.push_back(k);
+      }
+    }
+  }
+  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(columns.size()));
+  for (size_t c = 0; c < columns.size(); ++c) E(columns[c], static_cast<Eigen::Index>(c)) = 1;
+  const Eigen::MatrixXd C = E.transpose() * covariance.Solve(E);  // over `columns`
+  double others = 0;
   std::vector<int> idx;
   for (const LinearizedBlock& row : lin.rows) {
+    if (static_cast<int>(row.group) == largest) continue;
     idx.clear();
     for (int b : row.blocks) {
       const BlockInfo& bi = layout.block(b);
-      for (size_t c = 0; c < bi.free.size(); ++c) idx.push_back(bi.free_offset + static_cast<int>(c));
+      for (size_t c = 0; c < bi.free.size(); ++c) idx.push_back(column_of[bi.free_offset + static_cast<int>(c)]);
     }
     if (idx.empty()) continue;
     const Eigen::Index nr = row.J.front().rows();
@@ -60,11 +81,14 @@ std::array<double, kNumNoiseGroups> GroupRedundancies(const StateLayout& layout,
       col += J.cols();
     }
     Eigen::MatrixXd Csub(idx.size(), idx.size());
-    for (size_t i = 0; i < idx.size(); ++i) {
-      for (size_t j = 0; j < idx.size(); ++j) Csub(i, j) = C(idx[i], idx[j]);
+    for (size_t a = 0; a < idx.size(); ++a) {
+      for (size_t b = 0; b < idx.size(); ++b) Csub(a, b) = C(idx[a], idx[b]);
     }
-    red[static_cast<int>(row.group)] -= (A * Csub * A.transpose()).trace();
+    const double t = (A * Csub * A.transpose()).trace();
+    red[static_cast<int>(row.group)] -= t;
+    others += t;
   }
+  red[largest] -= n - others;
   return red;
 }
 

@@ -54,8 +54,8 @@ ReportDoc DistortionSelectionDoc(const ba::DistortionSelection* selection, const
           : "";
   d.Paragraph("Each candidate fitted to the plate views alone (AIC = chi-square + 2 x free "
               "parameters" + sigma + "), and by " + std::to_string(sel.folds) +
-              "-fold held-out plate views (fitted without them, their poses refitted with the "
-              "intrinsics held). Recommended: **" + ba::DistortionModelName(sel.recommended) +
+              "-fold held-out plate views (the intrinsics without them, one Gauss-Newton step "
+              "from the full fit; their poses refitted with those intrinsics held). Recommended: **" + ba::DistortionModelName(sel.recommended) +
               "**: " + sel.why + ". " +
               (applied ? "Applied (`distortion: auto`)."
                        : "Not applied: the config gives the terms (`distortion: given`)."));
