@@ -23,17 +23,13 @@ std::array<bool, 5> DistortionFree(DistortionModel m) {
   return {};
 }
 
-// The plate views of `p` (all, or those whose index among the plate views is / is not in `fold`
-// of `folds`), no markers.
-BaProblem PlateViews(const BaProblem& p, int fold, int folds, bool in_fold) {
+// The plate views of `p` alone (no object views, no markers): a calibration.
+BaProblem PlateViews(const BaProblem& p) {
   BaProblem out = p;
   out.views.clear();
   out.markers.clear();
-  int k = 0;
   for (const auto& v : p.views) {
-    if (v.kind != ViewKind::kPlate) continue;
-    if (fold < 0 || ((k % folds) == fold) == in_fold) out.views.push_back(v);
-    ++k;
+    if (v.kind == ViewKind::kPlate) out.views.push_back(v);
   }
   return out;
 }
@@ -55,7 +51,7 @@ StatusOr<BaResult> FitFull(const BaProblem& plates, const BaOptions& o, Distorti
 }
 
 // The plate views' linearised rows at a fit, by view: J over the view's pose (Jp), over the
-// free intrinsics (Ji), the whitened residuals r, and the view's pixel sigma.
+// free intrinsics (Ji), and the whitened residuals r.
 struct ViewRows {
   Eigen::MatrixXd Jp, Ji;
   Eigen::VectorXd r;
@@ -128,15 +124,9 @@ void HeldOutScores(const std::vector<ViewRows>& rows, double sigma_px, int folds
   sc->held_out_rms_px = std::sqrt(chi2 / static_cast<double>(n)) * sigma_px;
 }
 
-// `poses`: the plate views' solved poses (to start the next model from).
-Status ScoreModel(const BaProblem& plates, const BaOptions& o, int folds, DistortionScore* sc,
-                  std::vector<Pose6>* poses) {
+Status ScoreModel(const BaProblem& plates, const BaOptions& o, int folds, DistortionScore* sc) {
   auto r = FitFull(plates, o, sc);
   if (!r.ok()) return r.status();
-  poses->clear();
-  for (size_t v = 0; v < plates.views.size(); ++v) {
-    poses->push_back(Eigen::Map<const Pose6>(r->block(r->layout->view_block(static_cast<int>(v)))));
-  }
   HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
   return Status::Ok();
 }
@@ -233,7 +223,7 @@ StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
                          std::to_string(problem.groups.size()) +
                          (problem.groups.size() == 1 ? ", smooth" : "") + ")");
   }
-  const BaProblem plates = PlateViews(problem, -1, 1, true);
+  const BaProblem plates = PlateViews(problem);
   const int num_plates = static_cast<int>(plates.views.size());
   if (num_plates < 2) {
     return Status::Error("the distortion model is selected on plate views: " +
@@ -252,26 +242,15 @@ StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
   DistortionSelection sel;
   sel.folds = std::min(folds, num_plates);
   const DistortionScore* best = nullptr;
-  // Each model starts from the first one's solution (k1 k2: every candidate's terms include it,
-  // the others start at 0): a few iterations instead of a solve from the seed.
-  sel.scores.reserve(kDistortionModels.size());  // `warm` points into it
-  const DistortionScore* warm = nullptr;
-  std::vector<Pose6> warm_poses, poses;
   for (DistortionModel m : kDistortionModels) {
     DistortionScore sc;
     sc.model = m;
     BaProblem p = plates;
-    if (warm) {
-      p.groups[0].initial = warm->intrinsics;
-      for (size_t v = 0; v < p.views.size(); ++v) p.views[v].initial = warm_poses[v];
-    }
     ApplyDistortionModel(m, &p);
-    const Status s = ScoreModel(p, o, sel.folds, &sc, &poses);
-    if (s.ok() && sel.scores.empty()) warm_poses = poses;
+    const Status s = ScoreModel(p, o, sel.folds, &sc);
     sc.ok = s.ok();
     if (!s.ok()) sc.error = s.message();
     sel.scores.push_back(sc);
-    if (s.ok() && sel.scores.size() == 1) warm = &sel.scores.front();
   }
   if (estimate_sigma) RescaleToEstimatedSigma(plates.views[0].sigma_px, &sel);
   const DistortionScore* best_held_out = nullptr;

@@ -42,7 +42,7 @@ nlohmann::json VarianceComponentsJson(const ba::BaResult& result) {
 namespace {
 
 std::string WhatWasDone(const ba::VarianceComponent& c, ba::CovarianceScale scale) {
-  if (c.applied) return "sigmas x " + Fmt("%.3f", std::sqrt(c.factor));
+  if (c.applied) return "sigmas x " + Fmt("%.3f", c.SigmaScale());
   if (!c.estimable) return "stated (redundancy < " + Fmt("%g", ba::kMinVarianceComponentRedundancy) + ")";
   return scale == ba::CovarianceScale::kGlobal ? "global sigma0^2" : "stated (apriori)";
 }
