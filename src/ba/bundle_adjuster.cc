@@ -239,6 +239,11 @@ Status Assemble(const BaProblem& problem,
                         ? static_cast<ceres::CostFunction*>(
                               new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
                         : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
+          : view.rig >= 0
+              ? (o.analytic_jacobians
+                     ? static_cast<ceres::CostFunction*>(
+                           new RigReprojectionError(q.x(), q.y(), w, view.cam_from_rig.data()))
+                     : RigReprojectionErrorAutoDiff::Create(q.x(), q.y(), w, view.cam_from_rig.data()))
           : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), w)
                                  : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
       ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i) * sigma_scale);
@@ -558,6 +563,7 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
               break;
             case BlockKind::kPlatePose:
             case BlockKind::kObjectPose:
+            case BlockKind::kRigPose:
               group = any_point ? 1 : 0;
               break;
             case BlockKind::kIntrinsics:

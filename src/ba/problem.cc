@@ -122,6 +122,12 @@ Status BaProblem::Check() const {
       return Status::Error("marker " + std::to_string(m.id) + ": non-finite position or covariance");
     }
   }
+  std::set<std::string> rig_ids;
+  for (const auto& r : rigs) {
+    if (!rig_ids.insert(r.id).second) return Status::Error("rig '" + r.id + "' is given twice");
+    if (!r.initial.allFinite()) return Status::Error("rig '" + r.id + "': no initial pose");
+  }
+  std::vector<int> rig_observations(rigs.size(), 0);
   std::vector<int> plate_views_of(groups.size(), 0), views_of(groups.size(), 0);
   for (const auto& v : views) {
     if (!view_ids.insert(v.id).second) return Status::Error("view '" + v.id + "' is given twice");
@@ -154,9 +160,20 @@ Status BaProblem::Check() const {
                              "definite");
       }
     }
-    if (v.point_ids.size() < 4) {
+    if (v.rig >= static_cast<int>(rigs.size()) || v.rig < -1) {
+      return Status::Error("view '" + v.id + "': unknown rig " + std::to_string(v.rig));
+    }
+    if (v.rig >= 0) {
+      if (v.kind != ViewKind::kObject) return Status::Error("view '" + v.id + "': only object views can be in a rig");
+      if (!v.cam_from_rig.allFinite()) return Status::Error("view '" + v.id + "': non-finite cam_from_rig");
+      if (groups[v.group].smooth) {
+        return Status::Error("view '" + v.id + "': a rig view's intrinsics group cannot be smooth");
+      }
+      rig_observations[v.rig] += static_cast<int>(v.point_ids.size());
+    }
+    if (v.point_ids.size() < (v.rig >= 0 ? 1u : 4u)) {
       return Status::Error("view '" + v.id + "': " + std::to_string(v.point_ids.size()) +
-                           " observation(s), at least 4 needed");
+                           " observation(s), at least " + (v.rig >= 0 ? "1" : "4") + " needed");
     }
     if (!v.initial.allFinite()) return Status::Error("view '" + v.id + "': no initial pose");
     std::set<int> seen;
@@ -223,6 +240,12 @@ Status BaProblem::Check() const {
           std::to_string(primaries.size()) + ") and >= " +
           std::to_string(basis.secondary_degree + 1) + " distinct secondary angles (have " +
           std::to_string(secondaries.size()) + ")");
+    }
+  }
+  for (size_t r = 0; r < rigs.size(); ++r) {
+    if (rig_observations[r] < 4) {
+      return Status::Error("rig '" + rigs[r].id + "': " + std::to_string(rig_observations[r]) +
+                           " observation(s) over its views, at least 4 needed");
     }
   }
   for (size_t g = 0; g < groups.size(); ++g) {
@@ -310,12 +333,19 @@ StateLayout::StateLayout(const BaProblem& problem) {
   view_block_.assign(problem.views.size(), -1);
   for (ViewKind kind : {ViewKind::kPlate, ViewKind::kObject}) {
     for (size_t v = 0; v < problem.views.size(); ++v) {
-      if (problem.views[v].kind != kind) continue;
+      if (problem.views[v].kind != kind || problem.views[v].rig >= 0) continue;
       view_block_[v] = add(kind == ViewKind::kPlate ? BlockKind::kPlatePose : BlockKind::kObjectPose,
                            static_cast<int>(v), 6,
                            (kind == ViewKind::kPlate ? "plate " : "view ") + problem.views[v].id,
                            false, all(6));
     }
+  }
+  for (size_t r = 0; r < problem.rigs.size(); ++r) {
+    rig_block_.push_back(add(BlockKind::kRigPose, static_cast<int>(r), 6,
+                             "rig " + problem.rigs[r].id, problem.rigs[r].constant, all(6)));
+  }
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    if (problem.views[v].rig >= 0) view_block_[v] = rig_block_[problem.views[v].rig];
   }
   for (size_t m = 0; m < problem.markers.size(); ++m) {
     marker_block_.push_back(add(BlockKind::kMarker, static_cast<int>(m), 3,
@@ -366,7 +396,8 @@ std::string StateLayout::ParameterName(int b, int i) const {
   switch (blk.kind) {
     case BlockKind::kIntrinsics: p = kIntrinsicNames[i]; break;
     case BlockKind::kPlatePose:
-    case BlockKind::kObjectPose: p = kPose[i]; break;
+    case BlockKind::kObjectPose:
+    case BlockKind::kRigPose: p = kPose[i]; break;
     case BlockKind::kMarker:
     case BlockKind::kPlatePoint: p = kPoint[i]; break;
   }
@@ -446,6 +477,9 @@ std::vector<double> InitialState(const BaProblem& problem, const StateLayout& la
       case BlockKind::kPlatePose:
       case BlockKind::kObjectPose:
         for (int i = 0; i < 6; ++i) dst[i] = problem.views[b.index].initial[i];
+        break;
+      case BlockKind::kRigPose:
+        for (int i = 0; i < 6; ++i) dst[i] = problem.rigs[b.index].initial[i];
         break;
       case BlockKind::kMarker:
         for (int i = 0; i < 3; ++i) dst[i] = problem.markers[b.index].p_ct[i];

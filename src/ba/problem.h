@@ -8,6 +8,10 @@
 //     a subset of the names, e.g. an earlier calibration's camera.json).
 //   * one pose per view, `cam_from_plate` for a plate view, `cam_from_object` for an object view:
 //     [rx, ry, rz (rad), tx, ty, tz (mm)], p_in_cam = R(r) p + t.
+//   * or, for object views taken together by cameras of known relative pose (a RIG: the views of
+//     one frame of a calibrated biplane system), one pose per rig, `rig_from_object`, shared by
+//     its views: cam_from_object = cam_from_rig (held, per view) * rig_from_object. A constant
+//     rig fixes the gauge (frame 1 of `carmba track`); COLMAP's rigs.
 //   * the object's markers p_in_object (mm), tied to their CT centres by priors whitened with each
 //     marker's 3x3 CT covariance (the CT frame is the object frame: the priors fix the gauge).
 //   * the plate's sphere positions (mm), held at the nominal grid, or free and tied to it by a
@@ -116,6 +120,10 @@ enum class ViewKind { kPlate, kObject };
 
 struct BaView {
   std::string id;
+  // >= 0: an object view of rig `rig` (BaProblem::rigs): its pose is cam_from_rig * the rig's
+  // rig_from_object, and `initial` is unused.
+  int rig = -1;
+  Pose6 cam_from_rig = Pose6::Zero();
   ViewKind kind = ViewKind::kObject;
   int group = 0;                      // index into BaProblem::groups
   Pose6 initial = Pose6::Zero();      // cam_from_plate / cam_from_object, set by the front end
@@ -153,8 +161,16 @@ struct BaPlate {
                                         // (0 with free: no prior -- a gauge freedom)
 };
 
+// The views of one rig share its pose rig_from_object (see the header comment).
+struct BaRig {
+  std::string id;
+  Pose6 initial = Pose6::Zero();  // rig_from_object
+  bool constant = false;          // held at `initial` (the gauge)
+};
+
 struct BaProblem {
   std::string name;
+  std::vector<BaRig> rigs;
   std::vector<IntrinsicsGroup> groups;
   std::vector<BaView> views;
   std::vector<BaMarker> markers;
@@ -169,14 +185,15 @@ struct BaProblem {
   Status Check() const;
 };
 
-enum class BlockKind { kIntrinsics, kPlatePose, kObjectPose, kMarker, kPlatePoint };
+enum class BlockKind { kIntrinsics, kPlatePose, kObjectPose, kRigPose, kMarker, kPlatePoint };
 
 struct BlockInfo {
   BlockKind kind;
   int index = 0;           // group / view / marker or plate-point index in the problem
   int offset = 0;          // into the parameter buffer
   int size = 0;            // 9 (4K + 5 for smooth intrinsics), 6 or 3
-  std::string label;       // "" (one group), "lao30", "plate 3", "view lao+030", "marker 7", ...
+  // "" (one group), "lao30", "plate 3", "view lao+030", "rig frame 2 radius", "marker 7", ...
+  std::string label;
   bool constant = false;   // held entirely
   std::vector<int> free;   // free parameter indices within the block (empty if constant)
   int free_offset = -1;    // into the free state (-1 if constant)
@@ -203,7 +220,9 @@ class StateLayout {
   const std::vector<BlockInfo>& blocks() const { return blocks_; }
   const BlockInfo& block(int b) const { return blocks_[b]; }
   int group_block(int g) const { return group_block_[g]; }
+  // The pose block of view v (its rig's for a rig view).
   int view_block(int v) const { return view_block_[v]; }
+  int rig_block(int r) const { return rig_block_[r]; }
   int marker_block(int m) const { return marker_block_[m]; }        // m: index in problem.markers
   int plate_point_block(int p) const { return plate_point_block_[p]; }  // p: point id
   // Name of parameter `i` of block `b`, e.g. "view lao+030 rz".
@@ -220,7 +239,7 @@ class StateLayout {
 
  private:
   std::vector<BlockInfo> blocks_;
-  std::vector<int> group_block_, view_block_, marker_block_, plate_point_block_;
+  std::vector<int> group_block_, view_block_, rig_block_, marker_block_, plate_point_block_;
   std::vector<std::pair<int, int>> free_index_, consider_index_;
   int buffer_size_ = 0, num_free_ = 0, num_consider_ = 0;
   Eigen::MatrixXd consider_covariance_;

@@ -34,6 +34,56 @@ bool ReprojectionError::Evaluate(double const* const* parameters,
   return true;
 }
 
+RigReprojectionError::RigReprojectionError(double u_px, double v_px, const PixelWhitening& w,
+                                           const double* cam_from_rig)
+    : u_(u_px), v_(v_px), w_(w) {
+  ceres::AngleAxisToRotationMatrix(cam_from_rig, ceres::ColumnMajorAdapter3x3(Rc_.data()));
+  tc_ = Eigen::Vector3d(cam_from_rig[3], cam_from_rig[4], cam_from_rig[5]);
+}
+
+bool RigReprojectionError::Evaluate(double const* const* parameters,
+                                    double* residuals,
+                                    double** jacobians) const {
+  const double* rig_pose = parameters[0];
+  const double* point = parameters[1];
+  double* J_pose = jacobians ? jacobians[0] : nullptr;
+  double* J_point = jacobians ? jacobians[1] : nullptr;
+  double* J_intr = jacobians ? jacobians[2] : nullptr;
+  Eigen::Vector3d Rp;
+  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> J_Rp_r;
+  RotatePointWithJac(rig_pose, point, Rp.data(), J_pose ? J_Rp_r.data() : nullptr);
+  const Eigen::Vector3d p_cam = Rc_ * (Rp + Eigen::Vector3d(rig_pose[3], rig_pose[4], rig_pose[5])) + tc_;
+  double uv[2];
+  Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_cam;
+  if (!ProjectCamPointWithJac(parameters[2], p_cam.data(), uv, J_intr,
+                              (J_pose || J_point) ? J_cam.data() : nullptr)) {
+    return false;
+  }
+  Eigen::Matrix2d L_inv;
+  L_inv << w_.a, 0, w_.b, w_.c;
+  const Eigen::Vector2d r = L_inv * Eigen::Vector2d(uv[0] - u_, uv[1] - v_);
+  residuals[0] = r[0];
+  residuals[1] = r[1];
+  if (!r.allFinite()) return false;
+  const Eigen::Matrix<double, 2, 3> J_rig = L_inv * J_cam * Rc_;  // whitened d r / d p_in_rig
+  if (J_pose) {
+    Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>> J(J_pose);
+    J.leftCols<3>() = J_rig * J_Rp_r;
+    J.rightCols<3>() = J_rig;
+  }
+  if (J_point) {
+    Eigen::Matrix3d R;
+    ceres::AngleAxisToRotationMatrix(rig_pose, ceres::ColumnMajorAdapter3x3(R.data()));
+    Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> J(J_point);
+    J = J_rig * R;
+  }
+  if (J_intr) {
+    Eigen::Map<Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>> J(J_intr);
+    J = (L_inv * J).eval();
+  }
+  return true;
+}
+
 bool PixelWhitening::FromCovariance(const Eigen::Matrix2d& C, PixelWhitening* w) {
   if (!C.allFinite() || std::abs(C(0, 1) - C(1, 0)) > 1e-12 * (std::abs(C(0, 0)) + std::abs(C(1, 1))) ||
       !(C(0, 0) > 0)) {

@@ -22,6 +22,7 @@
 #pragma once
 
 #include <ceres/autodiff_cost_function.h>
+#include <ceres/rotation.h>
 #include <ceres/sized_cost_function.h>
 
 #include <Eigen/Core>
@@ -92,6 +93,60 @@ struct ReprojectionErrorAutoDiff {
 
   double u, v;
   PixelWhitening w;
+};
+
+// RigReprojectionError: ReprojectionError for a view of a rig (ba/problem.h): the pose block is
+// the rig's rig_from_object, and the view's held cam_from_rig = (Rc, tc) is a constant:
+//   p_in_cam = Rc (R(r) p + t) + tc.
+// Analytic Jacobians by the chain rule through ProjectCamPointWithJac and RotatePointWithJac
+// (camera/camera_model.h); RigReprojectionErrorAutoDiff is its autodiff twin.
+class RigReprojectionError final : public ceres::SizedCostFunction<2, 6, 3, 9> {
+ public:
+  RigReprojectionError(double u_px, double v_px, const PixelWhitening& w, const double* cam_from_rig);
+
+  bool Evaluate(double const* const* parameters,
+                double* residuals,
+                double** jacobians) const override;
+
+ private:
+  double u_, v_;
+  PixelWhitening w_;
+  Eigen::Matrix3d Rc_;
+  Eigen::Vector3d tc_;
+};
+
+struct RigReprojectionErrorAutoDiff {
+  RigReprojectionErrorAutoDiff(double u_px, double v_px, const PixelWhitening& whitening,
+                               const double* cam_from_rig)
+      : u(u_px), v(v_px), w(whitening) {
+    for (int i = 0; i < 6; ++i) cam_from_rig_[i] = cam_from_rig[i];
+  }
+
+  template <typename T>
+  bool operator()(const T* rig_pose, const T* point, const T* intrinsics, T* residuals) const {
+    T p_rig[3], p_cam[3];
+    ceres::AngleAxisRotatePoint(rig_pose, point, p_rig);
+    for (int k = 0; k < 3; ++k) p_rig[k] += rig_pose[3 + k];
+    const T rc[3] = {T(cam_from_rig_[0]), T(cam_from_rig_[1]), T(cam_from_rig_[2])};
+    ceres::AngleAxisRotatePoint(rc, p_rig, p_cam);
+    for (int k = 0; k < 3; ++k) p_cam[k] += T(cam_from_rig_[3 + k]);
+    T uv[2];
+    if (!ProjectCamPoint(intrinsics, p_cam, uv)) return false;
+    const T e0 = uv[0] - T(u), e1 = uv[1] - T(v);
+    residuals[0] = T(w.a) * e0;
+    residuals[1] = T(w.b) * e0 + T(w.c) * e1;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double u_px, double v_px, const PixelWhitening& w,
+                                     const double* cam_from_rig) {
+    return new ceres::AutoDiffCostFunction<RigReprojectionErrorAutoDiff, 2, 6, 3, 9>(
+        new RigReprojectionErrorAutoDiff(u_px, v_px, w, cam_from_rig));
+  }
+
+  double u, v;
+  PixelWhitening w;
+  double cam_from_rig_[6];
 };
 
 // PlateViewReprojection: all observed points of one plate view with the plate held (its points

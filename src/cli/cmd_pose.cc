@@ -25,9 +25,6 @@
 DEFINE_string(fiducials, "", "CT marker centres with covariances (fiducials.csv as `carmba "
                              "ct-fiducials` writes it: id, x_mm, y_mm, z_mm, cov_xx..cov_zz).");
 
-DEFINE_double(marker_diameter_mm, 0, "Marker diameter (mm), converted to px with the nominal "
-                                     "magnification (fx / SOD of the DICOM frame, or "
-                                     "--source-to-object-mm).");
 DEFINE_string(diameter_px, "", "Marker diameter range 'min,max' in px (instead of "
                                "--marker-diameter-mm).");
 DEFINE_double(source_to_object_mm, 0, "Source-to-object distance (mm) for images without a "
@@ -181,7 +178,7 @@ int RunPose() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force,plots");
+CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force,plots,marker_diameter_mm");
 CARMBA_REGISTER_COMMAND(pose,
                         "Object poses from X-ray images: marker blobs, automatic labelling with the "
                         "CT fiducials, bundle adjustment.",

@@ -1,0 +1,338 @@
+#include "track/track_output.h"
+
+#include <ceres/rotation.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "geometry/rotation.h"
+#include "report/format.h"
+#include "util/file_util.h"
+
+namespace carmba {
+
+namespace {
+
+std::string G(double x) { return Fmt("%.9g", x); }
+
+Eigen::Matrix3d RotationOf(const double* rvec) {
+  Eigen::Matrix3d R;
+  ceres::AngleAxisToRotationMatrix(rvec, ceres::ColumnMajorAdapter3x3(R.data()));
+  return R;
+}
+
+// The 6x6 covariance with the rotation rows and columns in degrees.
+Matrix6 InDegrees(const Matrix6& C) {
+  Matrix6 D = Matrix6::Identity();
+  for (int i = 0; i < 3; ++i) D(i, i) = kRadToDeg;
+  return D * C * D;
+}
+
+const char* Verdict(bool ok) { return ok ? "yes" : "**no**"; }
+
+}  // namespace
+
+std::string TrackPointsCsv(const TrackResult& r) {
+  std::ostringstream o;
+  o << "# carmba track: each bead per frame in the cameras' lab frame (mm) from the bundle adjustment "
+       "over all frames, its covariance (mm^2; poses and beads jointly), the cameras that saw it and "
+       "its reprojection RMS (px per coordinate)\n";
+  o << "frame,point,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,num_views,rms_px\n";
+  for (size_t f = 0; f < r.frames.size(); ++f) {
+    for (size_t b = 0; b < r.beads.size(); ++b) {
+      if (r.bead_num_views[f][b] == 0) continue;
+      const Eigen::Vector3d& x = r.bead_lab[f][b];
+      const Eigen::Matrix3d& C = r.bead_lab_covariance[f][b];
+      o << r.frames[f].number << ',' << r.beads[b].id << ',' << G(x[0]) << ',' << G(x[1]) << ','
+        << G(x[2]) << ',' << G(C(0, 0)) << ',' << G(C(0, 1)) << ',' << G(C(0, 2)) << ','
+        << G(C(1, 1)) << ',' << G(C(1, 2)) << ',' << G(C(2, 2)) << ',' << r.bead_num_views[f][b] << ','
+        << Fmt("%.4f", r.bead_rms_px[f][b]) << '\n';
+    }
+  }
+  return o.str();
+}
+
+std::string TrackObservationsCsv(const TrackResult& r) {
+  std::ostringstream o;
+  o << "# carmba track: the bead pixels the bundle adjustment used (px) and their covariances "
+       "(px^2, the detector's)\n";
+  o << "frame,camera,point,u_px,v_px,cov_uu,cov_uv,cov_vv\n";
+  for (size_t f = 0; f < r.frames.size(); ++f) {
+    for (const TrackBead& bead : r.beads) {
+      const int k = bead.candidate[f];
+      if (k < 0) continue;
+      for (const TrackObservation& ob : r.candidates[f][k].observations) {
+        o << r.frames[f].number << ',' << r.cameras[ob.camera].name << ',' << bead.id << ','
+          << Fmt("%.4f", ob.uv_px[0]) << ',' << Fmt("%.4f", ob.uv_px[1]) << ','
+          << G(ob.covariance_px2(0, 0)) << ',' << G(ob.covariance_px2(0, 1)) << ','
+          << G(ob.covariance_px2(1, 1)) << '\n';
+      }
+    }
+  }
+  return o.str();
+}
+
+nlohmann::json TrackBodiesJson(const TrackResult& r) {
+  nlohmann::json j;
+  j["frame_of_reference"] =
+      "lab (the cameras' calibration frame); a body's frame is the lab frame at the first frame";
+  j["frames"] = nlohmann::json::array();
+  for (const TrackFrame& f : r.frames) j["frames"].push_back(f.number);
+  j["bodies"] = nlohmann::json::array();
+  for (const TrackBody& body : r.bodies) {
+    nlohmann::json b;
+    b["id"] = body.id;
+    b["points"] = nlohmann::json::array();
+    for (int bi : body.beads) {
+      const Eigen::Vector3d& p = r.bead_in_body[bi];
+      const Eigen::Matrix3d& C = r.bead_covariance[bi];
+      b["points"].push_back({{"point", r.beads[bi].id},
+                             {"p_in_body_mm", {p[0], p[1], p[2]}},
+                             {"covariance_mm2", {{C(0, 0), C(0, 1), C(0, 2)},
+                                                 {C(1, 0), C(1, 1), C(1, 2)},
+                                                 {C(2, 0), C(2, 1), C(2, 2)}}}});
+    }
+    b["poses"] = nlohmann::json::array();
+    for (size_t f = 0; f < r.frames.size(); ++f) {
+      if (!body.found[f]) continue;
+      const Pose6& p = body.lab_from_body[f];
+      const Matrix6 C = InDegrees(body.covariance[f]);
+      nlohmann::json cov = nlohmann::json::array();
+      for (int i = 0; i < 6; ++i) {
+        nlohmann::json row = nlohmann::json::array();
+        for (int k = 0; k < 6; ++k) row.push_back(C(i, k));
+        cov.push_back(row);
+      }
+      b["poses"].push_back({{"frame", r.frames[f].number},
+                            {"lab_from_body_rotation_deg",
+                             {p[0] * kRadToDeg, p[1] * kRadToDeg, p[2] * kRadToDeg}},
+                            {"lab_from_body_translation_mm", {p[3], p[4], p[5]}},
+                            {"covariance_6x6", cov}});
+    }
+    b["distances"] = nlohmann::json::array();
+    for (const BodyDistance& d : r.distances) {
+      if (d.body != body.id) continue;
+      nlohmann::json dist = nlohmann::json::array(), sig = nlohmann::json::array();
+      for (size_t f = 0; f < r.frames.size(); ++f) {
+        dist.push_back(std::isfinite(d.distance_mm[f]) ? nlohmann::json(d.distance_mm[f]) : nlohmann::json());
+        sig.push_back(std::isfinite(d.sigma_mm[f]) ? nlohmann::json(d.sigma_mm[f]) : nlohmann::json());
+      }
+      b["distances"].push_back({{"points", {d.bead_a, d.bead_b}},
+                                {"distance_mm", dist},
+                                {"sigma_mm", sig},
+                                {"spread_mm", d.spread_mm},
+                                {"max_change_sigmas", d.max_change_sigmas}});
+    }
+    j["bodies"].push_back(b);
+  }
+  const TrackChecks& c = r.checks;
+  j["checks"] = {{"min_beads_per_frame", c.min_beads_per_frame},
+                 {"rms_px", c.rms_px},
+                 {"max_change_sigmas", c.max_change_sigmas},
+                 {"max_spread_mm", c.max_spread_mm},
+                 {"rms_spread_mm", c.rms_spread_mm},
+                 {"distance_chi2", c.distance_chi2},
+                 {"distance_dof", c.distance_dof},
+                 {"distance_chi2_p_value", c.distance_chi2_p}};
+  j["bundle_adjustment"] = {{"chi2", r.ba_chi2}, {"dof", r.ba_dof}, {"sigma0", r.ba_sigma0}};
+  j["warnings"] = r.warnings;
+  return j;
+}
+
+std::string TrackOverlayName(const TrackResult& r, size_t i) {
+  const TrackImage& im = r.images[i];
+  return "overlays/frame" + std::to_string(r.frames[im.frame].number) + "_" + r.cameras[im.camera].name + ".png";
+}
+
+cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
+  const TrackImage& im = r.images[i];
+  cv::Mat grey = cv::imread(im.path, cv::IMREAD_GRAYSCALE);
+  if (grey.empty()) return grey;
+  cv::Mat out;
+  cv::cvtColor(grey, out, cv::COLOR_GRAY2BGR);
+  const TrackCamera& cam = r.cameras[im.camera];
+  const auto& cands = r.candidates[im.frame];
+  // Epipolar lines: the rays of the other cameras' labelled beads, projected into this camera.
+  for (const TrackBead& bead : r.beads) {
+    const int k = bead.candidate[im.frame];
+    if (k < 0) continue;
+    for (const TrackObservation& ob : cands[k].observations) {
+      if (ob.camera == im.camera) continue;
+      const TrackCamera& other = r.cameras[ob.camera];
+      double xy[2];
+      if (!UnprojectToNormalized(other.intrinsics.data(), ob.uv_px.data(), xy)) continue;
+      const Eigen::Matrix3d Ro = RotationOf(other.cam_from_lab.data());
+      const Eigen::Vector3d c = other.CentreInLab();
+      const Eigen::Vector3d d = (Ro.transpose() * Eigen::Vector3d(xy[0], xy[1], 1)).normalized();
+      const double depth = (cands[k].point.p_lab - c).norm();
+      std::vector<cv::Point> pts;
+      for (double s : {depth - 150.0, depth + 150.0}) {
+        const Eigen::Vector3d p = c + s * d;
+        const Eigen::Matrix3d R = RotationOf(cam.cam_from_lab.data());
+        const Eigen::Vector3d pc = R * p + cam.cam_from_lab.tail<3>();
+        double uv[2];
+        if (ProjectCamPoint(cam.intrinsics.data(), pc.data(), uv)) pts.emplace_back(cvRound(uv[0]), cvRound(uv[1]));
+      }
+      if (pts.size() == 2) cv::line(out, pts[0], pts[1], cv::Scalar(255, 200, 0), 1, cv::LINE_AA);
+    }
+  }
+  for (const RejectedBlob& rb : im.detection.rejected) {
+    if (rb.why == "low contrast") continue;  // thousands of them: background texture
+    const cv::Point p(cvRound(rb.uv_px.x), cvRound(rb.uv_px.y));
+    cv::drawMarker(out, p, cv::Scalar(0, 0, 255), cv::MARKER_TILTED_CROSS, 9, 1);
+    cv::putText(out, rb.why, p + cv::Point(6, -4), cv::FONT_HERSHEY_PLAIN, 0.9, cv::Scalar(0, 0, 255), 1);
+  }
+  std::map<int, int> id_of_blob;
+  for (const TrackBead& bead : r.beads) {
+    const int k = bead.candidate[im.frame];
+    if (k < 0) continue;
+    for (const TrackObservation& ob : cands[k].observations)
+      if (ob.camera == im.camera) id_of_blob[ob.blob] = bead.id;
+  }
+  for (size_t b = 0; b < im.detection.blobs.size(); ++b) {
+    const MarkerBlob& blob = im.detection.blobs[b];
+    const cv::Point p(cvRound(blob.uv_px.x), cvRound(blob.uv_px.y));
+    const int radius = std::max(4, cvRound(blob.diameter_px));
+    const auto it = id_of_blob.find(static_cast<int>(b));
+    if (it != id_of_blob.end()) {
+      cv::circle(out, p, radius, cv::Scalar(0, 220, 0), 1, cv::LINE_AA);
+      cv::putText(out, std::to_string(it->second), p + cv::Point(radius + 2, radius + 2),
+                  cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 220, 0), 1, cv::LINE_AA);
+    } else {
+      cv::circle(out, p, radius, cv::Scalar(0, 220, 255), 1, cv::LINE_AA);
+      cv::putText(out, "no id", p + cv::Point(radius + 2, -radius), cv::FONT_HERSHEY_PLAIN, 0.9,
+                  cv::Scalar(0, 220, 255), 1);
+    }
+  }
+  const std::string title = "frame " + std::to_string(r.frames[im.frame].number) + ", camera " + cam.name +
+                            ": green = bead (id), yellow = blob without id, red = rejected (reason), "
+                            "cyan = epipolar lines of the other cameras' beads";
+  cv::putText(out, title, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 2);
+  return out;
+}
+
+ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
+  ReportDoc doc;
+  const TrackChecks& c = r.checks;
+  doc.Heading(1, "carmba track");
+  doc.Paragraph(std::to_string(r.cameras.size()) + " cameras, " + std::to_string(r.frames.size()) +
+                " frames, " + std::to_string(r.beads.size()) + " beads in " + std::to_string(r.bodies.size()) +
+                " rigid bodies. Positions are in the cameras' lab frame (mm); a body's frame is the lab "
+                "frame at the first frame (frame " + std::to_string(r.frames.front().number) + ").");
+  for (const std::string& w : r.warnings) doc.Warning(w);
+  doc.Heading(2, "Checks");
+  doc.Paragraph("Without ground truth: the distances between the beads of one body, triangulated in each "
+                "frame on its own (pixels only, the cameras held), must not change between frames beyond "
+                "their predicted sigmas. The chi-square treats the distances as independent (beads shared "
+                "by two distances make them correlated).");
+  doc.Table({"check", "target", "measured", "holds"},
+            {{"beads per frame from >= 2 cameras (least frame)", ">= " + std::to_string(t.min_beads_per_frame),
+              std::to_string(c.min_beads_per_frame), Verdict(c.min_beads_per_frame >= t.min_beads_per_frame)},
+             {"reprojection RMS (bundle adjustment, px per coordinate)", "<= " + Fmt("%.2f", t.max_rms_px),
+              Fmt("%.3f", c.rms_px), Verdict(c.rms_px <= t.max_rms_px)},
+             {"largest change of a body distance between frames", "<= " + Fmt("%.0f", t.max_change_sigmas) + " sigma",
+              Fmt("%.2f", c.max_change_sigmas) + " sigma", Verdict(c.max_change_sigmas <= t.max_change_sigmas)},
+             {"largest spread of a body distance over the frames", "<= " + Fmt("%.2f", t.max_spread_mm) + " mm",
+              Fmt("%.3f", c.max_spread_mm) + " mm", Verdict(c.max_spread_mm <= t.max_spread_mm)},
+             {"RMS of the distances about their means", "", Fmt("%.4f", c.rms_spread_mm) + " mm", ""},
+             {"chi-square of the distances about their means", "P >= 0.005",
+              Fmt("%.1f", c.distance_chi2) + " on " + std::to_string(c.distance_dof) + " dof, P = " +
+                  Fmt("%.3g", c.distance_chi2_p),
+              Verdict(c.distance_chi2_p >= 0.005)}});
+  doc.Heading(2, "Frames");
+  std::vector<std::vector<std::string>> rows;
+  for (size_t f = 0; f < r.frames.size(); ++f) {
+    int beads = 0, blobs = 0;
+    for (size_t b = 0; b < r.beads.size(); ++b) beads += r.bead_num_views[f][b] >= 2;
+    std::string per_cam;
+    for (const TrackImage& im : r.images) {
+      if (im.frame != static_cast<int>(f)) continue;
+      blobs += static_cast<int>(im.detection.blobs.size());
+      per_cam += (per_cam.empty() ? "" : ", ") + r.cameras[im.camera].name + " " +
+                 std::to_string(im.detection.blobs.size());
+    }
+    rows.push_back({std::to_string(r.frames[f].number), per_cam, std::to_string(r.candidates[f].size()),
+                    std::to_string(beads)});
+  }
+  doc.Table({"frame", "blobs per camera", "epipolar candidates", "beads with an id"}, rows);
+  doc.Heading(2, "Rigid bodies");
+  rows.clear();
+  for (const TrackBody& body : r.bodies) {
+    std::string ids;
+    for (int bi : body.beads) ids += (ids.empty() ? "" : " ") + std::to_string(r.beads[bi].id);
+    for (size_t f = 0; f < r.frames.size(); ++f) {
+      if (!body.found[f]) {
+        rows.push_back({std::to_string(body.id), ids, std::to_string(r.frames[f].number), "not found", "", ""});
+        continue;
+      }
+      const Pose6& p = body.lab_from_body[f];
+      const Matrix6 C = InDegrees(body.covariance[f]);
+      const double angle = Eigen::Vector3d(p[0], p[1], p[2]).norm() * kRadToDeg;
+      rows.push_back({std::to_string(body.id), ids, std::to_string(r.frames[f].number),
+                      Fmt("%.2f", angle),
+                      Fmt("%.2f", p[3]) + ", " + Fmt("%.2f", p[4]) + ", " + Fmt("%.2f", p[5]),
+                      f == 0 ? "held (gauge)"
+                             : Fmt("%.3f", std::sqrt(C.topLeftCorner<3, 3>().trace())) + " deg, " +
+                                   Fmt("%.3f", std::sqrt(C.bottomRightCorner<3, 3>().trace())) + " mm"});
+    }
+  }
+  doc.Table({"body", "beads", "frame", "rotation from the first frame (deg)", "translation (mm)",
+             "sigma (rotation, translation; root of the trace)"},
+            rows);
+  doc.Heading(2, "Distances within the bodies");
+  rows.clear();
+  for (const BodyDistance& d : r.distances) {
+    std::string per_frame;
+    for (size_t f = 0; f < r.frames.size(); ++f) {
+      per_frame += (f ? ", " : "") + (std::isfinite(d.distance_mm[f]) ? Fmt("%.3f", d.distance_mm[f]) : std::string("-"));
+    }
+    double sigma = 0;
+    for (double s : d.sigma_mm) if (std::isfinite(s)) sigma = std::max(sigma, s);
+    rows.push_back({std::to_string(d.body), std::to_string(d.bead_a) + "-" + std::to_string(d.bead_b), per_frame,
+                    Fmt("%.3f", sigma), Fmt("%.3f", d.spread_mm), Fmt("%.2f", d.max_change_sigmas)});
+  }
+  doc.Table({"body", "beads", "distance per frame (mm)", "sigma (mm, largest)", "spread (mm)",
+             "largest change (sigma)"},
+            rows);
+  doc.Heading(2, "Bundle adjustment");
+  doc.Paragraph("Beads in their body's frame and the bodies' poses per frame, the cameras held, the first "
+                "frame's poses held at the identity; pixels whitened by the detector's 2x2 covariances, "
+                "scaled per noise group (covariance.scale per_group). Chi-square " +
+                Fmt("%.1f", r.ba_chi2) + " on " + std::to_string(r.ba_dof) + " dof at the detector's "
+                "covariances (sigma0 " + Fmt("%.2f", r.ba_sigma0) + ").");
+  doc.Paragraph("Time: detection " + Fmt("%.2f", r.time_detect_s) + " s, matching and identity " +
+                Fmt("%.3f", r.time_match_s) + " s, bundle adjustment " + Fmt("%.3f", r.time_ba_s) + " s.");
+  doc.Heading(2, "Overlays");
+  std::vector<std::string> items;
+  for (size_t i = 0; i < r.images.size(); ++i) items.push_back("`" + TrackOverlayName(r, i) + "`");
+  doc.List(items);
+  return doc;
+}
+
+Status WriteTrackOutputs(const TrackResult& r, const TrackTargets& targets, const std::string& dir) {
+  if (Status s = WriteFileAtomic(JoinPath(dir, "points.csv"), TrackPointsCsv(r)); !s.ok()) return s;
+  if (Status s = WriteFileAtomic(JoinPath(dir, "observations.csv"), TrackObservationsCsv(r)); !s.ok()) return s;
+  if (Status s = WriteFileAtomic(JoinPath(dir, "rigid_bodies.json"), TrackBodiesJson(r).dump(2) + "\n"); !s.ok()) {
+    return s;
+  }
+  const ReportDoc doc = TrackReportDoc(r, targets);
+  if (Status s = WriteFileAtomic(JoinPath(dir, "report.md"), doc.Markdown()); !s.ok()) return s;
+  if (Status s = WriteFileAtomic(JoinPath(dir, "report.html"),
+                                 doc.Html("carmba track", {}, "The overlays are PNG files beside the report."));
+      !s.ok()) {
+    return s;
+  }
+  if (Status s = MakeDirs(JoinPath(dir, "overlays")); !s.ok()) return s;
+  for (size_t i = 0; i < r.images.size(); ++i) {
+    const cv::Mat overlay = DrawTrackOverlay(r, i);
+    const std::string path = JoinPath(dir, TrackOverlayName(r, i));
+    if (overlay.empty() || !cv::imwrite(path, overlay)) return Status::Error(path + ": cannot be written");
+  }
+  return Status::Ok();
+}
+
+}  // namespace carmba

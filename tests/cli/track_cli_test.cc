@@ -1,0 +1,109 @@
+// `carmba track` on the real Autoscoper wrist radiographs (data/real/autoscoper-wrist: two
+// calibrated cameras, three frames of 1760 x 1760): every output written and consistent, and the
+// checks that hold without ground truth measured and printed. Bad command lines: one line, exit 2
+// or 1, nothing written.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "cli_test_util.h"
+
+namespace carmba::test {
+namespace {
+
+const std::string kWrist = std::string(CARMBA_SOURCE_DIR) + "/data/real/autoscoper-wrist";
+
+std::string WristArgs(const std::string& out) {
+  return "track --cameras '" + std::string("cam01=") + kWrist + "/calibration/xr_calib_wrist_cam01.txt;cam02=" +
+         kWrist + "/calibration/xr_calib_wrist_cam02.txt' --images 'cam01=" + kWrist + "/images/cam01;cam02=" +
+         kWrist + "/images/cam02' --marker-diameter-mm 1 --out " + out;
+}
+
+TEST(TrackCli, RealWristRadiographsTrackedWithEveryOutput) {
+  ScratchDir dir("track_cli");
+  const std::string out = dir.File("out");
+  const auto r = RunCarmba(WristArgs(out));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::printf("%s", r.out.c_str());
+  for (const char* f : {"points.csv", "observations.csv", "rigid_bodies.json", "report.md", "report.html",
+                        "overlays/frame2_cam01.png", "overlays/frame158_cam02.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
+  }
+  const std::string points = ReadTextFile(out + "/points.csv");
+  EXPECT_NE(points.find("frame,point,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,num_views,rms_px\n"),
+            std::string::npos);
+  const nlohmann::json j = ReadJsonFile(out + "/rigid_bodies.json");
+  ASSERT_TRUE(j.is_object());
+  ASSERT_GE(j["bodies"].size(), 1u);
+  // Every body has a pose in the first frame held at the identity, and a 6x6 covariance per pose.
+  for (const auto& body : j["bodies"]) {
+    ASSERT_GE(body["points"].size(), 3u);
+    EXPECT_EQ(body["poses"][0]["frame"], 2);
+    EXPECT_EQ(body["poses"][0]["lab_from_body_translation_mm"][0], 0.0);
+    for (const auto& pose : body["poses"]) EXPECT_EQ(pose["covariance_6x6"].size(), 6u);
+  }
+  // The measured checks, against what was measured when this test was written (the issue's
+  // targets are in the report; tests/track/track_test.cc and the closing note say which hold).
+  const auto& c = j["checks"];
+  std::printf("wrist: >= %d beads per frame, RMS %.3f px, spread <= %.3f mm, change <= %.2f sigma\n",
+              c["min_beads_per_frame"].get<int>(), c["rms_px"].get<double>(), c["max_spread_mm"].get<double>(),
+              c["max_change_sigmas"].get<double>());
+  EXPECT_GE(c["min_beads_per_frame"].get<int>(), 3);
+  EXPECT_LE(c["rms_px"].get<double>(), 0.6);
+  // Every observation row names a bead of points.csv in the same frame.
+  std::istringstream obs(ReadTextFile(out + "/observations.csv"));
+  int rows = 0;
+  for (std::string line; std::getline(obs, line);) {
+    if (line.empty() || line[0] == '#' || line.rfind("frame,", 0) == 0) continue;
+    std::istringstream fields(line);
+    std::string frame, camera, point;
+    std::getline(fields, frame, ',');
+    std::getline(fields, camera, ',');
+    std::getline(fields, point, ',');
+    EXPECT_NE(points.find("\n" + frame + "," + point + ","), std::string::npos) << line;
+    ++rows;
+  }
+  EXPECT_GE(rows, 18);
+  const std::string report = ReadTextFile(out + "/report.md");
+  EXPECT_NE(report.find("## Checks"), std::string::npos);
+}
+
+TEST(TrackCli, BadCommandLinesAreOneLineAndWriteNothing) {
+  ScratchDir dir("track_cli_bad");
+  const std::string out = dir.File("out");
+  struct Case {
+    std::string args, expected;
+    int code;
+  };
+  const std::string cams = "--cameras 'cam01=" + kWrist + "/calibration/xr_calib_wrist_cam01.txt;cam02=" + kWrist +
+                           "/calibration/xr_calib_wrist_cam02.txt'";
+  const std::vector<Case> cases = {
+      {"track " + cams + " --images 'cam01=" + kWrist + "/images/cam01' --marker-diameter-mm 1 --out " + out,
+       "--images: expected at least two cameras", 2},
+      {"track " + cams + " --images 'cam01=" + kWrist + "/images/cam01;cam03=" + kWrist +
+           "/images/cam02' --marker-diameter-mm 1 --out " + out,
+       "no images for camera 'cam02'", 2},
+      {"track " + cams + " --images 'cam01=" + kWrist + "/images/cam01;cam02=" + kWrist +
+           "/images/cam02' --marker-diameter-mm 0.001 --out " + out,
+       "--marker-diameter-mm: expected 0.1 .. 100 mm, got 0.001 (a diameter in metres?)", 2},
+      {"track --cameras 'cam01=" + kWrist + "/LICENSE;cam02=" + kWrist +
+           "/calibration/xr_calib_wrist_cam02.txt' --images 'cam01=" + kWrist + "/images/cam01;cam02=" + kWrist +
+           "/images/cam02' --marker-diameter-mm 1 --out " + out,
+       "LICENSE:1: unknown section", 1},
+      {"track " + cams + " --images 'cam01=" + kWrist + "/images/cam01;cam02=" + kWrist +
+           "/images/cam02' --marker-diameter-mm 1 --out " + kWrist + "/images",
+       "contains the input --images cam01", 2},
+  };
+  for (const Case& c : cases) {
+    const auto r = RunCarmba(c.args);
+    EXPECT_EQ(r.exit_code, c.code) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out)) << c.args;
+  }
+}
+
+}  // namespace
+}  // namespace carmba::test
