@@ -147,6 +147,9 @@ TEST(InputsNotOutputs, TableCoversEveryCommandWithOut) {
     ++commands;
     const auto help = RunCarmba("help " + name);
     if (help.out.find("\n  --out=") == std::string::npos) continue;
+    // track's inputs are NAME=PATH lists (--cameras, --images), not one path per flag: its own
+    // test covers them (TrackCli.BadCommandLinesAreOneLineAndWriteNothing).
+    if (name == "track") continue;
     EXPECT_TRUE(InputFlagsByCommand().count(name)) << name << " has --out but is not in the table";
   }
   EXPECT_GE(commands, 11);

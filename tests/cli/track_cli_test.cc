@@ -95,6 +95,9 @@ TEST(TrackCli, BadCommandLinesAreOneLineAndWriteNothing) {
       {"track " + cams + " --images 'cam01=" + kWrist + "/images/cam01;cam02=" + kWrist +
            "/images/cam02' --marker-diameter-mm 1 --out " + kWrist + "/images",
        "contains the input --images cam01", 2},
+      {"track " + cams + " --images 'cam01=" + kWrist + "/images/cam01;cam02=" + kWrist +
+           "/images/cam02' --marker-diameter-mm 1 --force --out " + kWrist + "/calibration/xr_calib_wrist_cam02.txt",
+       "is the input --cameras cam02", 2},
   };
   for (const Case& c : cases) {
     const auto r = RunCarmba(c.args);
