@@ -25,7 +25,7 @@ DEFINE_string(cameras, "",
               "The calibrated cameras, 'NAME=FILE;NAME=FILE': XMALab / Autoscoper calibration texts "
               "(image size, camera matrix, rotation, translation; x_cam = R x_lab + t).");
 DEFINE_double(epipolar_px, 2.0, "Rays of one bead meet within this many px in every image.");
-DEFINE_double(rigid_tolerance_mm, 0.5,
+DEFINE_double(rigid_tolerance_mm, 0.3,
               "Distances within a rigid body agree between frames within this (mm).");
 
 namespace {

@@ -45,6 +45,13 @@ cv::Mat FlatFieldedSearchImage(const cv::Mat& f, const cv::Mat& mask, double blo
 struct CentroidNoise {
   double rho1 = 0.0;
   double correlation_factor = 1.0;
+  // Input: the least sigma_gray the covariance uses, sqrt(max(floor_variance_per_grey x
+  // background, floor_variance_gray)). A ring with no noise to measure (clipped at the image's
+  // maximum, e.g. saturated skin edges of an 8-bit radiograph) must not give a zero covariance;
+  // the marker detector sets them from the image's quantum noise (a quarter of its variance at
+  // the ring's level) and an integer image's quantisation (1/12 grey^2).
+  double floor_variance_per_grey = 0.0;
+  double floor_variance_gray = 0.0;
   cv::Matx22d covariance_px2 = cv::Matx22d::zeros();
   double sigma_gray = 0;
   double peak_contrast = 0;

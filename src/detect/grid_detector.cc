@@ -280,11 +280,14 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
         }
       }
       cov_pix(1, 0) = cov_pix(0, 1);
-      const double sigma2 = ring_sigma * ring_sigma;
+      const double sigma_used = std::max(
+          ring_sigma, std::sqrt(std::max(noise->floor_variance_per_grey * std::max(0.0, plane[0]),
+                                         noise->floor_variance_gray)));
+      const double sigma2 = sigma_used * sigma_used;
       const cv::Matx22d cov =
           (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) * sigma2;
       noise->covariance_px2 = cov;
-      noise->sigma_gray = ring_sigma;
+      noise->sigma_gray = sigma_used;
       noise->peak_contrast = peak;
       noise->background = plane[0];
     }

@@ -84,7 +84,7 @@ struct Piece {
 
 }  // namespace
 
-double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1) {
+double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1, double* sigma_pixel) {
   std::vector<float> d1, d2;
   d1.reserve(f.total() / 8);
   d2.reserve(f.total() / 8);
@@ -99,6 +99,7 @@ double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho
   }
   const double s1 = RobustSigma(&d1), s2 = RobustSigma(&d2);
   if (rho1) *rho1 = 0;
+  if (sigma_pixel) *sigma_pixel = s1 / std::sqrt(2.0);
   if (!(s1 > 0)) return 1.0;
   // var d2 / var d1 = (1 - rho^4) / (1 - rho) = 1 + rho + rho^2 + rho^3: solve for rho.
   const double ratio = std::clamp(s2 * s2 / (s1 * s1), 1.0, 3.99);
@@ -109,6 +110,7 @@ double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho
   }
   const double rho = 0.5 * (lo + hi);
   if (rho1) *rho1 = rho;
+  if (sigma_pixel) *sigma_pixel = s1 / std::sqrt(2.0 * std::max(1e-3, 1.0 - rho));  // var d1 = 2 s^2 (1 - rho)
   double F = 0;
   for (int kx = -4; kx <= 4; ++kx) {
     for (int ky = -4; ky <= 4; ++ky) F += std::pow(rho, kx * kx + ky * ky);
@@ -148,7 +150,24 @@ MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOpti
   if (vals.size() < 100) return det.reason = "field of view / region of interest is (almost) empty", det;
   const double s = std::max(RobustSigma(&vals), 1.0 / 255.0);
   det.noise_contrast = s;
-  det.correlation_factor = NoiseCorrelationFactor(f, fov.refine_valid, &det.noise_rho1);
+  double sigma_pixel = 0;
+  det.correlation_factor = NoiseCorrelationFactor(f, fov.refine_valid, &det.noise_rho1, &sigma_pixel);
+  // The least ring noise a centre's covariance uses (detect_steps.h CentroidNoise): half the
+  // quantum noise expected at the ring's level (variance proportional to the grey level, scaled
+  // from the image's pixel noise at its median level), and an integer image's quantisation.
+  std::vector<float> levels;
+  for (int y = 0; y < f.rows; y += 8) {
+    for (int x = 0; x < f.cols; x += 8) {
+      if (fov.refine_valid.at<uint8_t>(y, x)) levels.push_back(f.at<float>(y, x));
+    }
+  }
+  double median_level = 0;
+  if (!levels.empty()) {
+    std::nth_element(levels.begin(), levels.begin() + levels.size() / 2, levels.end());
+    median_level = levels[levels.size() / 2];
+  }
+  const double floor_per_grey = median_level > 0 ? 0.25 * sigma_pixel * sigma_pixel / median_level : 0.0;
+  const double floor_gray = image.depth() == CV_32F || image.depth() == CV_64F ? 0.0 : 1.0 / 12.0;
   const double t_low = std::max(4.0 * s, 0.3 * o.min_contrast);
   const double t_peak = std::max(8.0 * s, o.min_contrast);
   cv::Mat cand = contrast > t_low;
@@ -253,6 +272,8 @@ MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOpti
     CentroidNoise noise;
     noise.correlation_factor = det.correlation_factor;
     noise.rho1 = det.noise_rho1;
+    noise.floor_variance_per_grey = floor_per_grey;
+    noise.floor_variance_gray = floor_gray;
     const bool refined =
         RefineCentroid(f, fov.refine_valid, /*dark=*/true, nn, 1.5 * r_nom + 2.0, &q, &r_half, &noise, &shift);
     if (!refined) {

@@ -34,7 +34,9 @@
 //      the noise's correlation measured once per image from horizontal pixel differences at
 //      lags 1 and 2 inside the field (var d2 / var d1 = 1 + rho + rho^2 + rho^3 for a Gaussian
 //      correlation rho^(k^2); F = sum over lags |k| <= 4 of rho^(kx^2 + ky^2); rho = 0, F = 1
-//      for white noise). Checked against a seeded Monte Carlo (tests/detect/marker_views_test.cc
+//      for white noise). The ring's noise is floored at half the image's pixel noise and an integer
+//      image's quantisation (a ring clipped at the image's maximum has none to measure: a zero
+//      covariance would be an infinitely trusted centre). Checked against a seeded Monte Carlo (tests/detect/marker_views_test.cc
 //      MarkerBlobs.CovarianceAgreesWithMonteCarlo).
 // Polarity: dark blobs (metal on a bright background, the X-ray convention of carmba's images).
 #pragma once
@@ -102,6 +104,8 @@ struct MarkerBlobDetection {
 MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOptions& options);
 
 // The noise correlation factor F of step 6 for a float image inside `mask`, and rho (`rho1`).
-double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1 = nullptr);
+// `sigma_pixel`: the pixels' noise sigma (grey levels) from the same differences.
+double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1 = nullptr,
+                              double* sigma_pixel = nullptr);
 
 }  // namespace carmba

@@ -12,8 +12,10 @@
 #include <set>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "ba/bundle_adjuster.h"
+#include "detect/blob_pair_fit.h"
 #include "util/plausible.h"
 #include "util/stats.h"
 
@@ -177,6 +179,38 @@ Pose6 RigidFit(const std::vector<Eigen::Vector3d>& ref, const std::vector<Eigen:
 std::string FrameLabel(const TrackResult& r, size_t f) { return "frame " + std::to_string(r.frames[f].number); }
 
 }  // namespace
+
+void SplitMergedPairs(const cv::Mat& image, const MarkerBlobOptions& blobs, TrackImage* ti) {
+  cv::Mat grey = image;
+  if (grey.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  grey.convertTo(grey, CV_32F);
+  const auto [d_min, d_max] = blobs.DiameterRangePx();
+  const double d_nom = 0.5 * (d_min + d_max);
+  MarkerBlobDetection& det = ti->detection;
+  std::vector<RejectedBlob> kept;
+  for (const RejectedBlob& rb : det.rejected) {
+    // A pair of touching blobs is at most about two diameters long (area-equivalent diameter
+    // about 1.4 of one); larger merged regions are clusters or anatomy, not fitted.
+    if (rb.why != "merged" || rb.diameter_px > 2.0 * d_max) {
+      kept.push_back(rb);
+      continue;
+    }
+    bool done = false;  // both pieces of one pair are listed: fit it once
+    for (const MarkerBlob& b : det.blobs) done |= std::hypot(b.uv_px.x - rb.uv_px.x, b.uv_px.y - rb.uv_px.y) < 0.8 * d_nom;
+    if (done) continue;
+    std::string why;
+    const auto pair = FitBlobPair(grey, rb.uv_px, d_nom, blobs.min_contrast, det.correlation_factor, &why);
+    if (!pair) {
+      RejectedBlob r = rb;
+      r.why = "merged (" + why + ")";
+      kept.push_back(r);
+      continue;
+    }
+    for (const MarkerBlob& b : pair->blobs) det.blobs.push_back(b);
+    ++ti->split_pairs;
+  }
+  det.rejected = std::move(kept);
+}
 
 bool TrackOptions::Check(std::string* error) const {
   if (!CheckRange("marker_diameter_mm", marker_diameter_mm, plausible::kMarkerDiameterMm, error)) return false;
@@ -524,6 +558,7 @@ Status SolveTrack(TrackResult* r) {
   r->ba_dof = res.dof;
   r->ba_sigma0 = res.sigma0;
   r->checks.rms_px = res.rms_object_px;
+  r->checks.pixel_sigma_scale = res.group_sigma_scale[static_cast<int>(ba::NoiseGroup::kDetectedBlobs)];
   for (const std::string& w : ba::SolveWarnings(res)) r->warnings.push_back("bundle adjustment: " + w);
   const size_t F = r->frames.size(), B = r->beads.size();
   r->bead_in_body.assign(B, Eigen::Vector3d::Zero());
@@ -605,7 +640,7 @@ void CheckTrack(TrackResult* r) {
           const HeldPoint& pb = r->candidates[f][b.candidate[f]].point;
           const Eigen::Vector3d u = (pa.p_lab - pb.p_lab).normalized();
           d.distance_mm[f] = (pa.p_lab - pb.p_lab).norm();
-          d.sigma_mm[f] = std::sqrt(u.dot((pa.covariance + pb.covariance) * u));
+          d.sigma_mm[f] = c.pixel_sigma_scale * std::sqrt(u.dot((pa.covariance + pb.covariance) * u));
           wsum += 1.0 / (d.sigma_mm[f] * d.sigma_mm[f]);
           wd += d.distance_mm[f] / (d.sigma_mm[f] * d.sigma_mm[f]);
           lo = std::min(lo, d.distance_mm[f]);
@@ -632,6 +667,7 @@ void CheckTrack(TrackResult* r) {
         d.spread_mm = hi - lo;
         c.max_spread_mm = std::max(c.max_spread_mm, d.spread_mm);
         c.max_change_sigmas = std::max(c.max_change_sigmas, d.max_change_sigmas);
+        c.max_change_sigmas_stated = std::max(c.max_change_sigmas_stated, d.max_change_sigmas * c.pixel_sigma_scale);
         r->distances.push_back(d);
       }
     }
@@ -675,6 +711,8 @@ StatusOr<TrackResult> Track(const std::vector<TrackCamera>& cameras,
       ti.detection = DetectMarkerBlobs(image, blobs);
       if (!ti.detection.ok) {
         r.warnings.push_back(path + ": no beads: " + ti.detection.reason);
+      } else {
+        SplitMergedPairs(image, blobs, &ti);
       }
       r.images.push_back(std::move(ti));
     }

@@ -69,7 +69,7 @@ struct TrackOptions {
   double marker_diameter_mm = 1.0;
   double diameter_tolerance = 0.35;  // of the expected diameter in px
   double epipolar_px = 2.0;          // rays of one bead meet within this (px, per image)
-  double rigid_tolerance_mm = 0.5;   // a body's distances agree between frames within this
+  double rigid_tolerance_mm = 0.3;   // a body's distances agree between frames within this
   int min_body_beads = 3;
   // The detector's options; the diameter fields are set from marker_diameter_mm. Beads are metal
   // (tantalum): they attenuate by far more than bone edges and skin discs, min_contrast 0.15.
@@ -87,7 +87,13 @@ struct TrackImage {
   int frame = 0, camera = 0;
   std::string path;
   MarkerBlobDetection detection;
+  int split_pairs = 0;  // "merged" blobs separated into two by FitBlobPair
 };
+
+// Stage 1's second step: every blob the detector rejected as "merged" is fitted as a pair of
+// touching blobs (detect/blob_pair_fit.h); the two centres join the blobs, a failed fit stays
+// rejected with its reason.
+void SplitMergedPairs(const cv::Mat& image, const MarkerBlobOptions& blobs, TrackImage* ti);
 
 // A bead triangulated from its pixels with the cameras held.
 struct HeldPoint {
@@ -139,6 +145,11 @@ struct BodyDistance {
 };
 
 struct TrackChecks {
+  // The detector's pixel covariances times this squared (the bundle adjustment's per-group
+  // variance component of the detected blobs, 1 when it could not be estimated) are the pixel
+  // noise the distance checks below use: the data's own estimate of the noise, not the stated one.
+  double pixel_sigma_scale = 1;
+  double max_change_sigmas_stated = 0;   // the same check at the detector's stated covariances
   int min_beads_per_frame = 0;           // triangulated from >= 2 cameras, with an id
   double rms_px = 0;                     // the bundle adjustment's, per coordinate
   double max_change_sigmas = 0;          // over all body distances

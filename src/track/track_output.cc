@@ -131,6 +131,8 @@ nlohmann::json TrackBodiesJson(const TrackResult& r) {
   }
   const TrackChecks& c = r.checks;
   j["checks"] = {{"min_beads_per_frame", c.min_beads_per_frame},
+                 {"pixel_sigma_scale", c.pixel_sigma_scale},
+                 {"max_change_sigmas_stated", c.max_change_sigmas_stated},
                  {"rms_px", c.rms_px},
                  {"max_change_sigmas", c.max_change_sigmas},
                  {"max_spread_mm", c.max_spread_mm},
@@ -227,8 +229,11 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
   doc.Heading(2, "Checks");
   doc.Paragraph("Without ground truth: the distances between the beads of one body, triangulated in each "
                 "frame on its own (pixels only, the cameras held), must not change between frames beyond "
-                "their predicted sigmas. The chi-square treats the distances as independent (beads shared "
-                "by two distances make them correlated).");
+                "their predicted sigmas. The sigmas use the detector's pixel covariances scaled by the "
+                "bundle adjustment's variance component of the detected blobs (sigma x " +
+                Fmt("%.2f", c.pixel_sigma_scale) + "); at the detector's stated covariances the largest "
+                "change is " + Fmt("%.2f", c.max_change_sigmas_stated) + " sigma. The chi-square treats the "
+                "distances as independent (beads shared by two distances make them correlated).");
   doc.Table({"check", "target", "measured", "holds"},
             {{"beads per frame from >= 2 cameras (least frame)", ">= " + std::to_string(t.min_beads_per_frame),
               std::to_string(c.min_beads_per_frame), Verdict(c.min_beads_per_frame >= t.min_beads_per_frame)},
@@ -246,14 +251,14 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
   doc.Heading(2, "Frames");
   std::vector<std::vector<std::string>> rows;
   for (size_t f = 0; f < r.frames.size(); ++f) {
-    int beads = 0, blobs = 0;
+    int beads = 0;
     for (size_t b = 0; b < r.beads.size(); ++b) beads += r.bead_num_views[f][b] >= 2;
     std::string per_cam;
     for (const TrackImage& im : r.images) {
       if (im.frame != static_cast<int>(f)) continue;
-      blobs += static_cast<int>(im.detection.blobs.size());
       per_cam += (per_cam.empty() ? "" : ", ") + r.cameras[im.camera].name + " " +
-                 std::to_string(im.detection.blobs.size());
+                 std::to_string(im.detection.blobs.size()) +
+                 (im.split_pairs ? " (" + std::to_string(2 * im.split_pairs) + " from split pairs)" : "");
     }
     rows.push_back({std::to_string(r.frames[f].number), per_cam, std::to_string(r.candidates[f].size()),
                     std::to_string(beads)});

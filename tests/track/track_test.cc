@@ -208,11 +208,12 @@ TEST(Track, SyntheticBeadsAreIdentifiedInEveryFrameAndTheirCovariancesHold) {
   std::printf("track synthetic (seed %u): %d trials (%d failed), %d of %d bead-frames tracked (%.1f %%), "
               "%d wrong, bead NEES per dof %.3f\n",
               seed, trials, failed, found, total, 100.0 * found / total, wrong, nees);
-  // Measured (seed 22, 40 trials): 92.4 % tracked, 8 of 1320 wrong; seed 901, 200 trials: 93.9 %,
-  // 18 of 6600 wrong. The misses and wrong ones are beads whose images overlap within a few px in
-  // one camera (ghost pairings): issue 22's "no wrong match" does not hold yet there.
-  EXPECT_LE(wrong, 0.01 * total);
-  EXPECT_GE(found, 0.9 * total);
+  // Measured (seed 22, 40 trials): 98.3 % tracked, 3 of 1320 wrong; seed 901, 200 trials: 98.7 %,
+  // 3 of 6600 wrong. The misses and wrong ones are beads whose images overlap within a few px in
+  // one camera (ghost pairings; a real detector would merge them): issue 22's "no wrong match"
+  // does not hold there.
+  EXPECT_LE(wrong, 0.005 * total);
+  EXPECT_GE(found, 0.97 * total);
   // The lab positions of one body's beads share its pose: correlated, but each one's NEES is
   // chi-square with 3 dof.
   EXPECT_GT(nees, 0.75);
