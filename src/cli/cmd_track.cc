@@ -6,7 +6,8 @@
 //                --images 'cam01=DIR_OR_GLOB;cam02=DIR_OR_GLOB' --marker-diameter-mm D --out DIR
 //
 // FILE: the XMALab / Autoscoper calibration text (image size, camera matrix, rotation,
-// translation; x_cam = R x_lab + t). Frames are paired by the number in the file names.
+// translation; x_cam = R x_lab + t), or CAMERA_JSON+POSE_JSON: carmba's camera.json (with its
+// distortion) and {"cam_from_lab": {"rvec": [rad], "t_mm": [mm]}}. Frames are paired by the number in the file names.
 // Writes into --out: points.csv, observations.csv, rigid_bodies.json, report.md, report.html,
 // overlays/; all or nothing (track/track_output.h).
 #include <gflags/gflags.h>
@@ -23,7 +24,8 @@
 
 DEFINE_string(cameras, "",
               "The calibrated cameras, 'NAME=FILE;NAME=FILE': XMALab / Autoscoper calibration texts "
-              "(image size, camera matrix, rotation, translation; x_cam = R x_lab + t).");
+              "(image size, camera matrix, rotation, translation; x_cam = R x_lab + t), or "
+              "NAME=camera.json+pose.json (carmba's camera and {\"cam_from_lab\": {\"rvec\", \"t_mm\"}}).");
 DEFINE_double(epipolar_px, 2.0, "Rays of one bead meet within this many px in every image.");
 DEFINE_double(rigid_tolerance_mm, 0.3,
               "Distances within a rigid body agree between frames within this (mm).");
@@ -77,7 +79,11 @@ int RunTrack() {
   auto image_sets = NamedList("--images", FLAGS_images);
   if (!image_sets.ok()) return cli::FailUsage(kCmd, image_sets.status());
   std::vector<cli::InputPath> inputs;
-  for (const auto& [n, p] : *camera_files) inputs.push_back({"--cameras " + n, p});
+  for (const auto& [n, p] : *camera_files) {
+    const auto plus = p.find('+');
+    inputs.push_back({"--cameras " + n, p.substr(0, plus)});
+    if (plus != std::string::npos) inputs.push_back({"--cameras " + n, p.substr(plus + 1)});
+  }
   for (const auto& [n, p] : *image_sets) inputs.push_back({"--images " + n, p});
   if (Status s = cli::CheckOutIsNoInput(inputs); !s.ok()) return cli::FailUsage(kCmd, s);
   if (Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail(kCmd, s);
@@ -87,7 +93,7 @@ int RunTrack() {
   std::vector<TrackCamera> cameras;
   std::vector<std::vector<std::string>> images;
   for (const auto& [name, file] : *camera_files) {
-    auto cam = ReadXmaCalibration(file, name);
+    auto cam = ReadTrackCamera(name, file);
     if (!cam.ok()) return cli::Fail(kCmd, cam.status());
     cameras.push_back(*cam);
     if (!images_of.count(name)) {

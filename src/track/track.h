@@ -51,6 +51,13 @@ struct TrackCamera {
 // "rotation" (3 rows, x_cam = R x_lab + t); "translation" (3 rows). Errors name path:line.
 StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::string& name);
 
+// carmba's camera.json (intrinsics with distortion) and a pose file {"cam_from_lab": {"rvec":
+// [rad x3], "t_mm": [mm x3]}} (x_cam = R(rvec) x_lab + t). Errors name the file and key.
+StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json, const std::string& pose_json,
+                                             const std::string& name);
+// `spec` as --cameras gives it: FILE (the XMALab text) or CAMERA_JSON+POSE_JSON.
+StatusOr<TrackCamera> ReadTrackCamera(const std::string& name, const std::string& spec);
+
 // The frame number of an image file: the last run of digits in its name before the extension
 // ("xr_cam01_UND.0099.tif" -> 99). Error when the name has none.
 StatusOr<int> FrameNumberOfFile(const std::string& path);

@@ -9,7 +9,9 @@
 #include <map>
 #include <sstream>
 
+#include "camera/camera.h"
 #include "track/track.h"
+#include "util/file_util.h"
 #include "util/plausible.h"
 
 namespace carmba {
@@ -139,6 +141,48 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
                          " (translation in metres?)");
   }
   return cam;
+}
+
+StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json, const std::string& pose_json,
+                                             const std::string& name) {
+  auto camera = ReadCameraJson(camera_json);
+  if (!camera.ok()) return camera.status();
+  auto j = ReadJsonFile(pose_json, "a JSON object with cam_from_lab {rvec, t_mm}");
+  if (!j.ok()) return j.status();
+  const nlohmann::json* pose = j->is_object() && j->contains("cam_from_lab") ? &(*j)["cam_from_lab"] : nullptr;
+  auto vec3 = [&](const char* key, Eigen::Vector3d* out) {
+    if (!pose || !pose->is_object() || !pose->contains(key) || !(*pose)[key].is_array() || (*pose)[key].size() != 3) {
+      return false;
+    }
+    for (int i = 0; i < 3; ++i) {
+      if (!(*pose)[key][i].is_number()) return false;
+      (*out)[i] = (*pose)[key][i].get<double>();
+    }
+    return out->allFinite();
+  };
+  Eigen::Vector3d r, t;
+  if (!vec3("rvec", &r) || !vec3("t_mm", &t)) {
+    return Status::Error(pose_json + ": key 'cam_from_lab': expected {\"rvec\": [3 numbers, rad], \"t_mm\": [3 numbers, mm]}");
+  }
+  if (r.norm() > 2 * M_PI + 1e-9) return Status::Error(pose_json + ": key 'cam_from_lab.rvec': a rotation vector of at most 2 pi rad (degrees given?)");
+  TrackCamera cam;
+  cam.name = name;
+  cam.width = camera->width;
+  cam.height = camera->height;
+  cam.intrinsics = camera->params;
+  cam.cam_from_lab << r, t;
+  if (!InRange(cam.CentreInLab().norm(), plausible::kSourceToObjectMm)) {
+    return Status::Error(pose_json + ": the source lies " + FormatCompact(cam.CentreInLab().norm()) +
+                         " mm from the lab origin, outside " + FormatRange(plausible::kSourceToObjectMm) +
+                         " (t_mm in metres?)");
+  }
+  return cam;
+}
+
+StatusOr<TrackCamera> ReadTrackCamera(const std::string& name, const std::string& spec) {
+  const auto plus = spec.find('+');
+  if (plus == std::string::npos) return ReadXmaCalibration(spec, name);
+  return ReadCameraJsonWithPose(spec.substr(0, plus), spec.substr(plus + 1), name);
 }
 
 StatusOr<int> FrameNumberOfFile(const std::string& path) {

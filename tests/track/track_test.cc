@@ -11,6 +11,7 @@
 #include <map>
 #include <random>
 
+#include "camera/camera.h"
 #include "scratch.h"
 #include "track/track.h"
 
@@ -69,6 +70,34 @@ TEST(TrackInputs, BadCalibrationTextNamesTheLine) {
     EXPECT_NE(cam.status().message().find(expected), std::string::npos) << cam.status().message();
   }
   EXPECT_FALSE(ReadXmaCalibration(dir.File("missing.txt"), "c").ok());
+}
+
+TEST(TrackInputs, CameraJsonAndPoseGiveTheSameCamera) {
+  test::ScratchDir dir("track_camera_json");
+  const TrackCamera xma = WristCameras()[0];
+  Camera cam;
+  cam.width = xma.width;
+  cam.height = xma.height;
+  cam.params = xma.intrinsics;
+  dir.Write("camera.json", CameraToJson(cam).dump(2));
+  dir.Write("pose.json", "{\"cam_from_lab\": {\"rvec\": [" + std::to_string(xma.cam_from_lab[0]) + ", " +
+                             std::to_string(xma.cam_from_lab[1]) + ", " + std::to_string(xma.cam_from_lab[2]) +
+                             "], \"t_mm\": [" + std::to_string(xma.cam_from_lab[3]) + ", " +
+                             std::to_string(xma.cam_from_lab[4]) + ", " + std::to_string(xma.cam_from_lab[5]) + "]}}");
+  auto c = ReadTrackCamera("cam01", dir.File("camera.json") + "+" + dir.File("pose.json"));
+  ASSERT_TRUE(c.ok()) << c.status().message();
+  EXPECT_EQ(c->width, 1760);
+  EXPECT_NEAR((c->CentreInLab() - xma.CentreInLab()).norm(), 0, 1e-3);
+  EXPECT_DOUBLE_EQ(c->intrinsics[kFx], xma.intrinsics[kFx]);
+  // Bad pose files name the key.
+  dir.Write("bad.json", "{\"cam_from_lab\": {\"rvec\": [1, 2], \"t_mm\": [0, 0, 900]}}");
+  auto bad = ReadTrackCamera("cam01", dir.File("camera.json") + "+" + dir.File("bad.json"));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("key 'cam_from_lab'"), std::string::npos) << bad.status().message();
+  dir.Write("deg.json", "{\"cam_from_lab\": {\"rvec\": [0, 90, 0], \"t_mm\": [0, 0, 900]}}");
+  bad = ReadTrackCamera("cam01", dir.File("camera.json") + "+" + dir.File("deg.json"));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("degrees given?"), std::string::npos) << bad.status().message();
 }
 
 TEST(TrackInputs, FramesPairByTheNumberInTheFileName) {
