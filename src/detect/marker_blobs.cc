@@ -88,11 +88,18 @@ double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho
   std::vector<float> d1, d2;
   d1.reserve(f.total() / 8);
   d2.reserve(f.total() / 8);
+  // Pixels at the image's extremes are clipped (an 8-bit radiograph's white skin edges): they
+  // have no noise, and where they fill much of the field they would make it look noise-free.
+  double f_min = 0, f_max = 0;
+  cv::minMaxLoc(f, &f_min, &f_max, nullptr, nullptr, mask);
   for (int y = 0; y < f.rows; y += 4) {
     const float* r = f.ptr<float>(y);
     const uint8_t* m = mask.ptr<uint8_t>(y);
     for (int x = 0; x + 2 < f.cols; x += 2) {
       if (!m[x] || !m[x + 2]) continue;
+      const bool clipped = r[x] <= f_min || r[x] >= f_max || r[x + 1] <= f_min || r[x + 1] >= f_max ||
+                           r[x + 2] <= f_min || r[x + 2] >= f_max;
+      if (clipped) continue;
       d1.push_back(r[x + 1] - r[x]);
       d2.push_back(r[x + 2] - r[x]);
     }
