@@ -11,6 +11,7 @@
 
 #include "geometry/rotation.h"
 #include "report/format.h"
+#include "util/base64.h"
 #include "util/file_util.h"
 
 namespace carmba {
@@ -186,7 +187,9 @@ cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
     if (rb.why == "low contrast") continue;  // thousands of them: background texture
     const cv::Point p(cvRound(rb.uv_px.x), cvRound(rb.uv_px.y));
     cv::drawMarker(out, p, cv::Scalar(0, 0, 255), cv::MARKER_TILTED_CROSS, 9, 1);
-    cv::putText(out, rb.why, p + cv::Point(6, -4), cv::FONT_HERSHEY_PLAIN, 0.9, cv::Scalar(0, 0, 255), 1);
+    // The reason's head only ("merged", not the pair fit's detail: the report has room for it).
+    cv::putText(out, rb.why.substr(0, rb.why.find(" (")), p + cv::Point(6, -4), cv::FONT_HERSHEY_PLAIN, 0.9,
+                cv::Scalar(0, 0, 255), 1);
   }
   std::map<int, int> id_of_blob;
   for (const TrackBead& bead : r.beads) {
@@ -271,22 +274,32 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
     for (int bi : body.beads) ids += (ids.empty() ? "" : " ") + std::to_string(r.beads[bi].id);
     for (size_t f = 0; f < r.frames.size(); ++f) {
       if (!body.found[f]) {
-        rows.push_back({std::to_string(body.id), ids, std::to_string(r.frames[f].number), "not found", "", ""});
+        rows.push_back({std::to_string(body.id), ids, std::to_string(r.frames[f].number), "not found", "", "", ""});
         continue;
       }
       const Pose6& p = body.lab_from_body[f];
       const Matrix6 C = InDegrees(body.covariance[f]);
       const double angle = Eigen::Vector3d(p[0], p[1], p[2]).norm() * kRadToDeg;
+      // The beads' centroid moves by R c + t - c: its sigma, from the pose's covariance (the
+      // translation's own sigma is about the lab origin, far from the body).
+      Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+      for (int bi : body.beads) centroid += r.bead_in_body[bi];
+      centroid /= static_cast<double>(body.beads.size());
+      Eigen::Vector3d Rc;
+      Eigen::Matrix<double, 3, 3, Eigen::RowMajor> J_r;
+      RotatePointWithJac(p.data(), centroid.data(), Rc.data(), J_r.data());
+      Eigen::Matrix<double, 3, 6> J;
+      J << J_r, Eigen::Matrix3d::Identity();
+      const double centroid_sigma = std::sqrt((J * body.covariance[f] * J.transpose()).trace());
       rows.push_back({std::to_string(body.id), ids, std::to_string(r.frames[f].number),
                       Fmt("%.2f", angle),
                       Fmt("%.2f", p[3]) + ", " + Fmt("%.2f", p[4]) + ", " + Fmt("%.2f", p[5]),
-                      f == 0 ? "held (gauge)"
-                             : Fmt("%.3f", std::sqrt(C.topLeftCorner<3, 3>().trace())) + " deg, " +
-                                   Fmt("%.3f", std::sqrt(C.bottomRightCorner<3, 3>().trace())) + " mm"});
+                      f == 0 ? "held (gauge)" : Fmt("%.3f", std::sqrt(C.topLeftCorner<3, 3>().trace())) + " deg",
+                      f == 0 ? "" : Fmt("%.3f", centroid_sigma) + " mm"});
     }
   }
-  doc.Table({"body", "beads", "frame", "rotation from the first frame (deg)", "translation (mm)",
-             "sigma (rotation, translation; root of the trace)"},
+  doc.Table({"body", "beads", "frame", "rotation from the first frame (deg)", "translation (mm, lab_from_body)",
+             "sigma of the rotation (root of the trace)", "sigma of the beads' centroid (root of the trace)"},
             rows);
   doc.Heading(2, "Distances within the bodies");
   rows.clear();
@@ -312,10 +325,44 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
   doc.Paragraph("Time: detection " + Fmt("%.2f", r.time_detect_s) + " s, matching and identity " +
                 Fmt("%.3f", r.time_match_s) + " s, bundle adjustment " + Fmt("%.3f", r.time_ba_s) + " s.");
   doc.Heading(2, "Overlays");
+  doc.Paragraph("Around the beads (report.html); the whole images are in `overlays/`. Green: a bead and its "
+                "id; yellow: a blob without an id; red: a rejected blob and the reason; cyan: the epipolar "
+                "lines of the other cameras' beads.");
+  doc.Figures({"overlay-"});
   std::vector<std::string> items;
   for (size_t i = 0; i < r.images.size(); ++i) items.push_back("`" + TrackOverlayName(r, i) + "`");
   doc.List(items);
   return doc;
+}
+
+std::vector<ReportPlot> TrackOverlayPlots(const TrackResult& r, const std::vector<cv::Mat>& overlays) {
+  std::vector<ReportPlot> plots;
+  for (size_t i = 0; i < r.images.size() && i < overlays.size(); ++i) {
+    const TrackImage& im = r.images[i];
+    // The beads' bounding box with a margin (the whole overlay when none has an id).
+    cv::Rect box;
+    for (const TrackBead& bead : r.beads) {
+      const int k = bead.candidate[im.frame];
+      if (k < 0) continue;
+      for (const TrackObservation& ob : r.candidates[im.frame][k].observations) {
+        if (ob.camera != im.camera) continue;
+        const cv::Rect p(cvRound(ob.uv_px[0]) - 60, cvRound(ob.uv_px[1]) - 60, 121, 121);
+        box = box.area() == 0 ? p : (box | p);
+      }
+    }
+    box = box.area() == 0 ? cv::Rect(0, 0, overlays[i].cols, overlays[i].rows)
+                          : box & cv::Rect(0, 0, overlays[i].cols, overlays[i].rows);
+    std::vector<uint8_t> png;
+    if (!cv::imencode(".png", overlays[i](box), png)) continue;
+    ReportPlot p;
+    p.id = "overlay-" + std::to_string(i);
+    p.title = "frame " + std::to_string(r.frames[im.frame].number) + ", " + r.cameras[im.camera].name;
+    p.caption = "Pixels " + std::to_string(box.x) + ".." + std::to_string(box.x + box.width) + " x " +
+                std::to_string(box.y) + ".." + std::to_string(box.y + box.height) + " of " + TrackOverlayName(r, i) + ".";
+    p.png_base64 = Base64(png);
+    plots.push_back(std::move(p));
+  }
+  return plots;
 }
 
 Status WriteTrackOutputs(const TrackResult& r, const TrackTargets& targets, const std::string& dir) {
@@ -324,20 +371,16 @@ Status WriteTrackOutputs(const TrackResult& r, const TrackTargets& targets, cons
   if (Status s = WriteFileAtomic(JoinPath(dir, "rigid_bodies.json"), TrackBodiesJson(r).dump(2) + "\n"); !s.ok()) {
     return s;
   }
+  if (Status s = MakeDirs(JoinPath(dir, "overlays")); !s.ok()) return s;
+  std::vector<cv::Mat> overlays;
+  for (size_t i = 0; i < r.images.size(); ++i) {
+    overlays.push_back(DrawTrackOverlay(r, i));
+    const std::string path = JoinPath(dir, TrackOverlayName(r, i));
+    if (overlays.back().empty() || !cv::imwrite(path, overlays.back())) return Status::Error(path + ": cannot be written");
+  }
   const ReportDoc doc = TrackReportDoc(r, targets);
   if (Status s = WriteFileAtomic(JoinPath(dir, "report.md"), doc.Markdown()); !s.ok()) return s;
-  if (Status s = WriteFileAtomic(JoinPath(dir, "report.html"),
-                                 doc.Html("carmba track", {}, "The overlays are PNG files beside the report."));
-      !s.ok()) {
-    return s;
-  }
-  if (Status s = MakeDirs(JoinPath(dir, "overlays")); !s.ok()) return s;
-  for (size_t i = 0; i < r.images.size(); ++i) {
-    const cv::Mat overlay = DrawTrackOverlay(r, i);
-    const std::string path = JoinPath(dir, TrackOverlayName(r, i));
-    if (overlay.empty() || !cv::imwrite(path, overlay)) return Status::Error(path + ": cannot be written");
-  }
-  return Status::Ok();
+  return WriteFileAtomic(JoinPath(dir, "report.html"), doc.Html("carmba track", TrackOverlayPlots(r, overlays), ""));
 }
 
 }  // namespace carmba
