@@ -495,6 +495,59 @@ void FindBodies(const TrackOptions& o, TrackResult* r) {
   }
 }
 
+void AddSingleCameraBeads(const TrackOptions& o, TrackResult* r) {
+  const auto& ref = r->candidates[0];
+  for (size_t f = 1; f < r->frames.size(); ++f) {
+    // Blobs already taken by a bead in this frame, per camera.
+    std::set<std::pair<int, int>> used;
+    for (const TrackBead& bead : r->beads) {
+      if (bead.candidate[f] < 0) continue;
+      for (const TrackObservation& ob : r->candidates[f][bead.candidate[f]].observations) used.insert({ob.camera, ob.blob});
+    }
+    for (const TrackBody& body : r->bodies) {
+      if (!body.found[f]) continue;
+      const Eigen::Matrix3d R = RotationOf(body.lab_from_body[f].data());
+      for (int bi : body.beads) {
+        TrackBead& bead = r->beads[bi];
+        if (bead.candidate[f] >= 0) continue;
+        const Eigen::Vector3d predicted = R * ref[bead.candidate[0]].point.p_lab + body.lab_from_body[f].tail<3>();
+        // The nearest unused blob to the prediction in each camera; only a bead that exactly one
+        // camera sees this way is added (two would have been an epipolar candidate).
+        std::vector<TrackObservation> found;
+        for (const TrackImage& im : r->images) {
+          if (im.frame != static_cast<int>(f)) continue;
+          Eigen::Vector2d uv;
+          if (!Project(r->cameras[im.camera], predicted, &uv)) continue;
+          int best = -1;
+          double best_d = o.epipolar_px;
+          for (size_t j = 0; j < im.detection.blobs.size(); ++j) {
+            if (used.count({im.camera, static_cast<int>(j)})) continue;
+            const cv::Point2d& q = im.detection.blobs[j].uv_px;
+            const double d = std::hypot(q.x - uv[0], q.y - uv[1]);
+            if (d < best_d) best_d = d, best = static_cast<int>(j);
+          }
+          if (best < 0) continue;
+          const MarkerBlob& b = im.detection.blobs[best];
+          TrackObservation t;
+          t.camera = im.camera;
+          t.blob = best;
+          t.uv_px = Eigen::Vector2d(b.uv_px.x, b.uv_px.y);
+          t.covariance_px2 << b.covariance_px2(0, 0), b.covariance_px2(0, 1), b.covariance_px2(1, 0),
+              b.covariance_px2(1, 1);
+          found.push_back(t);
+        }
+        if (found.size() != 1) continue;
+        TrackCandidate c;
+        c.observations = found;
+        c.point.p_lab = predicted;
+        used.insert({found[0].camera, found[0].blob});
+        bead.candidate[f] = static_cast<int>(r->candidates[f].size());
+        r->candidates[f].push_back(c);
+      }
+    }
+  }
+}
+
 Status SolveTrack(TrackResult* r) {
   ba::BaProblem problem;
   problem.name = "track";
@@ -636,6 +689,11 @@ void CheckTrack(TrackResult* r) {
         double wsum = 0, wd = 0, lo = 1e300, hi = -1e300;
         for (size_t f = 0; f < F; ++f) {
           if (a.candidate[f] < 0 || b.candidate[f] < 0) continue;
+          // A bead seen by one camera has no triangulation of its own in this frame.
+          if (r->candidates[f][a.candidate[f]].observations.size() < 2 ||
+              r->candidates[f][b.candidate[f]].observations.size() < 2) {
+            continue;
+          }
           const HeldPoint& pa = r->candidates[f][a.candidate[f]].point;
           const HeldPoint& pb = r->candidates[f][b.candidate[f]].point;
           const Eigen::Vector3d u = (pa.p_lab - pb.p_lab).normalized();
@@ -750,6 +808,7 @@ StatusOr<TrackResult> TrackDetections(const std::vector<TrackCamera>& cameras,
   }
   // 3. Identity and bodies.
   FindBodies(options, &r);
+  AddSingleCameraBeads(options, &r);
   r.time_match_s = Seconds(t0);
   if (r.bodies.empty()) {
     return Status::Error("no rigid body of >= " + std::to_string(options.min_body_beads) +

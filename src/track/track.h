@@ -15,6 +15,7 @@
 //      cliques, one blob used once, are the rigid bodies (>= 3 beads). A candidate in no body
 //      (a wrong epipolar pairing, a bead seen moving alone) gets no id. Every bead has one id in
 //      all frames; body membership must hold in every frame pair.
+//      A bead missed in one camera joins with its single pixel (AddSingleCameraBeads).
 //   4. One bundle adjustment over all frames in the engine (ba/problem.h rigs): the beads in
 //      each body's frame (the lab frame at the first frame) and each body's pose per later frame,
 //      lab_from_body, are the unknowns; the cameras are held; the first frame's poses are held
@@ -212,6 +213,11 @@ StatusOr<HeldPoint> TriangulateHeld(const std::vector<TrackCamera>& cameras,
                                     const std::vector<TrackObservation>& observations);
 // Stage 3 on the result's candidates: fills beads and bodies (poses from the candidates).
 void FindBodies(const TrackOptions& options, TrackResult* result);
+// Stage 3b: a bead of an identified body that no epipolar candidate gave in a frame, but whose
+// predicted position (the body's pose) falls within epipolar_px of an unused blob in exactly one
+// camera, gets that single observation (the bundle adjustment uses it; the per-frame distance
+// checks do not, having no triangulation of it).
+void AddSingleCameraBeads(const TrackOptions& options, TrackResult* result);
 // Stage 4: the bundle adjustment (fills the bodies' poses and covariances and the beads).
 Status SolveTrack(TrackResult* result);
 // Stage 5.

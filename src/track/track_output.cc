@@ -254,8 +254,11 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
   doc.Heading(2, "Frames");
   std::vector<std::vector<std::string>> rows;
   for (size_t f = 0; f < r.frames.size(); ++f) {
-    int beads = 0;
-    for (size_t b = 0; b < r.beads.size(); ++b) beads += r.bead_num_views[f][b] >= 2;
+    int beads = 0, single = 0;
+    for (size_t b = 0; b < r.beads.size(); ++b) {
+      beads += r.bead_num_views[f][b] >= 2;
+      single += r.bead_num_views[f][b] == 1;
+    }
     std::string per_cam;
     for (const TrackImage& im : r.images) {
       if (im.frame != static_cast<int>(f)) continue;
@@ -263,10 +266,12 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
                  std::to_string(im.detection.blobs.size()) +
                  (im.split_pairs ? " (" + std::to_string(2 * im.split_pairs) + " from split pairs)" : "");
     }
-    rows.push_back({std::to_string(r.frames[f].number), per_cam, std::to_string(r.candidates[f].size()),
-                    std::to_string(beads)});
+    rows.push_back({std::to_string(r.frames[f].number), per_cam, std::to_string(r.candidates[f].size() - single),
+                    std::to_string(beads), std::to_string(single)});
   }
-  doc.Table({"frame", "blobs per camera", "epipolar candidates", "beads with an id"}, rows);
+  doc.Table({"frame", "blobs per camera", "epipolar candidates", "beads with an id (2+ cameras)",
+             "beads seen by one camera (by prediction)"},
+            rows);
   doc.Heading(2, "Rigid bodies");
   rows.clear();
   for (const TrackBody& body : r.bodies) {
