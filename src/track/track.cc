@@ -558,6 +558,13 @@ Status SolveTrack(TrackResult* r) {
     g.height = c.height;
     g.initial = c.intrinsics;
     g.free.fill(false);
+    if (!c.covariance_indices.empty()) {
+      g.has_prior = true;
+      g.prior.mean = c.intrinsics;
+      g.prior.indices = c.covariance_indices;
+      g.prior.covariance = c.covariance;
+      for (int i : c.covariance_indices) g.free[i] = true;
+    }
     problem.groups.push_back(g);
   }
   for (const TrackBead& bead : r->beads) {

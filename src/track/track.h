@@ -18,8 +18,9 @@
 //      A bead missed in one camera joins with its single pixel (AddSingleCameraBeads).
 //   4. One bundle adjustment over all frames in the engine (ba/problem.h rigs): the beads in
 //      each body's frame (the lab frame at the first frame) and each body's pose per later frame,
-//      lab_from_body, are the unknowns; the cameras are held; the first frame's poses are held
-//      at the identity (the gauge). Its covariance gives each bead's 3x3 and each pose's 6x6.
+//      lab_from_body, are the unknowns; the cameras are held (intrinsics with a camera.json
+//      covariance free within it, as a prior; the cameras' poses always held); the first frame's
+//      poses are held at the identity (the gauge). Its covariance gives each bead's 3x3 and each pose's 6x6.
 //   5. Checks without ground truth (TrackChecks): per frame independent triangulations, the
 //      distances within each body compared between frames against their predicted sigmas.
 #pragma once
@@ -44,6 +45,10 @@ struct TrackCamera {
   int width = 0, height = 0;
   std::array<double, kNumIntrinsics> intrinsics{};
   Pose6 cam_from_lab = Pose6::Zero();
+  // camera.json's covariance of some intrinsics (IntrinsicIndex order as listed; empty: none). The
+  // bundle adjustment then frees those intrinsics within it (a prior), the others held.
+  std::vector<int> covariance_indices;
+  Eigen::MatrixXd covariance;
   Eigen::Vector3d CentreInLab() const;   // the source (focal spot) in the lab frame
   Eigen::Vector3d AxisInLab() const;     // the optical axis (unit), source towards the detector
 };

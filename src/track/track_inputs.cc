@@ -171,6 +171,14 @@ StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json, con
   cam.height = camera->height;
   cam.intrinsics = camera->params;
   cam.cam_from_lab << r, t;
+  const auto n = static_cast<Eigen::Index>(camera->covariance_names.size());
+  cam.covariance = Eigen::MatrixXd::Zero(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto it = std::find_if(std::begin(kIntrinsicNames), std::end(kIntrinsicNames),
+                                 [&](const char* k) { return camera->covariance_names[i] == k; });
+    cam.covariance_indices.push_back(static_cast<int>(it - std::begin(kIntrinsicNames)));
+    for (Eigen::Index k = 0; k < n; ++k) cam.covariance(i, k) = camera->covariance[i][k];
+  }
   if (!InRange(cam.CentreInLab().norm(), plausible::kSourceToObjectMm)) {
     return Status::Error(pose_json + ": the source lies " + FormatCompact(cam.CentreInLab().norm()) +
                          " mm from the lab origin, outside " + FormatRange(plausible::kSourceToObjectMm) +

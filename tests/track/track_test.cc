@@ -271,6 +271,33 @@ TEST(Track, ABeadMissedByOneCameraJoinsWithItsSinglePixel) {
   }
 }
 
+TEST(Track, CamerasWithACovarianceAreFreeWithinIt) {
+  auto cams = WristCameras();
+  std::mt19937 rng(41);
+  const Scene s = MakeScene(cams, &rng, 0.08);
+  auto held = TrackDetections(cams, s.frames, s.images, TrackOptions());
+  ASSERT_TRUE(held.ok()) << held.status().message();
+  for (TrackCamera& c : cams) {
+    c.covariance_indices = {kFx, kFy, kCx, kCy};
+    c.covariance = Eigen::Vector4d(400, 400, 100, 100).asDiagonal();  // sigma 20, 20, 10, 10 px
+  }
+  auto free = TrackDetections(cams, s.frames, s.images, TrackOptions());
+  ASSERT_TRUE(free.ok()) << free.status().message();
+  ASSERT_EQ(free->beads.size(), held->beads.size());
+  // The lab positions carry the calibration's uncertainty (the two sources' depth scale is free
+  // within the focal lengths' sigmas): a larger covariance, and the truth within it.
+  double trace_held = 0, trace_free = 0;
+  const std::vector<int> id = MatchTruth(*held, s);
+  for (size_t i = 0; i < id.size(); ++i) {
+    ASSERT_GE(id[i], 0);
+    trace_held += held->bead_lab_covariance[1][id[i]].trace();
+    trace_free += free->bead_lab_covariance[1][id[i]].trace();
+    const Eigen::Vector3d e = free->bead_lab[1][id[i]] - s.truth[1][i];
+    EXPECT_LT(e.dot(free->bead_lab_covariance[1][id[i]].ldlt().solve(e)), 16.3);  // chi-square 3 dof, 0.1 %
+  }
+  EXPECT_GT(trace_free, 1.5 * trace_held);
+}
+
 TEST(Track, BadOptionsAndTooFewBeadsAreErrors) {
   const auto cams = WristCameras();
   TrackOptions o;
