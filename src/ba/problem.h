@@ -11,7 +11,10 @@
 //   * or, for object views taken together by cameras of known relative pose (a RIG: the views of
 //     one frame of a calibrated biplane system), one pose per rig, `rig_from_object`, shared by
 //     its views: cam_from_object = cam_from_rig (held, per view) * rig_from_object. A constant
-//     rig fixes the gauge (frame 1 of `carmba track`); COLMAP's rigs.
+//     rig fixes the gauge (frame 1 of `carmba track`); COLMAP's rigs. The solve, its covariance
+//     and the variance components handle rigs; the derived quantities, relative poses, TRE and
+//     triangulation read each view's block as its own cam_from_object and take problems without
+//     rigs (TriangulatePoint and LeaveOneMarkerOut refuse them).
 //   * the object's markers p_in_object (mm), tied to their CT centres by priors whitened with each
 //     marker's 3x3 CT covariance (the CT frame is the object frame: the priors fix the gauge).
 //   * the plate's sphere positions (mm), held at the nominal grid, or free and tied to it by a

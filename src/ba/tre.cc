@@ -42,6 +42,7 @@ StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
                                       const BaOptions& options_in) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!full.covariance) return Status::Error("leave-one-marker-out: the solve has no covariance");
+  if (!problem.rigs.empty()) return Status::Error("leave-one-marker-out: a problem with rigs is not supported");
   const StateLayout& L = *full.layout;
   BaOptions options = options_in;
   options.reject_sigma = 0;

@@ -7,7 +7,7 @@
 #include "ba/quantities.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
-#include "report/format.h"
+#include "util/number_format.h"
 #include "util/stats.h"
 
 namespace carmba {
@@ -257,6 +257,10 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
   std::string err;
   if (!options.Check(&err)) return Status::Error(err);
   if (!result.covariance) return Status::Error("the solve has no covariance");
+  if (!problem.rigs.empty()) {
+    return Status::Error("triangulation through a solve with rigs is not supported (its views' poses are "
+                         "composed; carmba track triangulates its own beads)");
+  }
   auto point = TriangulateAll(problem, result, obs, options);
   if (!point.ok()) return point;
   std::vector<size_t> used(obs.size());

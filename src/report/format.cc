@@ -5,13 +5,6 @@
 
 namespace carmba {
 
-std::string Fmt(const char* format, double v) {
-  if (!std::isfinite(v)) return "n/a";
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), format, v);
-  return buf;
-}
-
 std::string Fixed(double v, int digits) {
   if (!std::isfinite(v)) return "n/a";
   char buf[64];

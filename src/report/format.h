@@ -10,10 +10,9 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
-namespace carmba {
+#include "util/number_format.h"  // Fmt
 
-// printf(`format`, v) for one double; "n/a" when v is not finite.
-std::string Fmt(const char* format, double v);
+namespace carmba {
 // Fixed point with `digits` decimals ("%.*f"); "n/a" when not finite.
 std::string Fixed(double v, int digits = 4);
 // All 17 significant digits ("%.17g"): round-trips a double.
