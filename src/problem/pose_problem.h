@@ -294,9 +294,6 @@ Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m
 // their bands, outliers), one sentence each: in result.json "warnings", the report and on stderr.
 std::vector<std::string> PoseWarnings(const PoseSolution& solution);
 
-// result.json (the schema in the foundation issue: views[], validation[], statistics, solver).
-nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& solution);
-
 // geometry.json's content (export/view_geometry.h): per view the problem's camera and
 // cam_from_ct = cam_from_object (with the mirror when handedness is mirrored), the reference
 // point the CT markers' centroid.

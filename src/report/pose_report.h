@@ -47,6 +47,10 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
 
 nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseComparison& c);
 
+// result.json (the schema in the foundation issue: views[], validation[], statistics, solver);
+// report/pose_json.cc (an output beside report.md, so it sits with the reports).
+nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& solution);
+
 // result.json as `carmba solve` writes it for a pose problem: PoseSolutionToJson with the
 // comparison (legacy POSIT, the other handedness) under "comparison". The CLI and the Python
 // module (src/python/) both write it through this.
