@@ -218,6 +218,14 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
         predicted = PoseFromRigid(*v.nominal_cam_from_patient * patient_from_object);
       }
       CorrespondenceOptions co = o.correspondence;
+      if (co.separation_px == 0 && !v.detection.blobs.empty()) {
+        // Markers closer than the detector's merge distance make one rejected blob: the median
+        // blob's diameter times merge_distance (detect/marker_blobs.h).
+        std::vector<double> d;
+        for (const MarkerBlob& b : v.detection.blobs) d.push_back(b.diameter_px);
+        std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+        co.separation_px = bo.merge_distance * d[d.size() / 2];
+      }
       if (co.px_per_mm == 0) {
         // The nominal magnification: the blob options', else fx / SOD when the file has it.
         co.px_per_mm = bo.diameter_px.empty() ? bo.px_per_mm : sod ? camera.params[kFx] / *sod : 0.0;

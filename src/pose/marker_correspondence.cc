@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <sstream>
 
@@ -54,6 +55,14 @@ struct Scored {
   double Rms() const { return num_labelled ? std::sqrt(ss / (2.0 * num_labelled)) : 0; }
   double ScoreRms() const { return counted ? std::sqrt(score / (2.0 * counted)) : 0; }
 };
+
+// "60 %" of a fraction; "1.00" of a number.
+std::string Percent(double fraction) { return std::to_string(static_cast<int>(std::lround(100 * fraction))) + " %"; }
+std::string Fixed2(double v) {
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.2f", v);
+  return b;
+}
 
 class Labeller {
  public:
@@ -174,24 +183,62 @@ class Labeller {
     return s;
   }
 
-  bool Accepted(const Scored& s) const {
-    if (!(s.num_labelled >= o_.min_markers && s.Rms() <= o_.accept_rms_px &&
-          s.num_labelled >= o_.min_fraction * static_cast<double>(P_.size()))) {
-      return false;
+  // Markers predicted separable at `pose`: in the image, and farther than separation_px from
+  // every other marker's projection.
+  int Separable(const Pose6& pose) const {
+    std::vector<Eigen::Vector2d> uv(P_.size());
+    std::vector<char> in(P_.size(), 0);
+    for (size_t a = 0; a < P_.size(); ++a) {
+      in[a] = ProjectPoint(cam_.params.data(), pose.data(), P_[a].data(), uv[a].data()) && uv[a].allFinite() &&
+              uv[a].x() >= -0.5 && uv[a].y() >= -0.5 && uv[a].x() <= cam_.width - 0.5 &&
+              uv[a].y() <= cam_.height - 0.5;
     }
+    int n = 0;
+    for (size_t a = 0; a < P_.size(); ++a) {
+      if (!in[a]) continue;
+      bool apart = true;
+      for (size_t b = 0; b < P_.size() && apart; ++b) {
+        apart = b == a || !in[b] || (uv[a] - uv[b]).norm() >= o_.separation_px;
+      }
+      n += apart;
+    }
+    return n;
+  }
+  // The markers a labelling at `pose` must pair: min_markers, and min_fraction of the separable.
+  int Needed(const Pose6& pose) const {
+    return std::max(o_.min_markers,
+                    static_cast<int>(std::ceil(o_.min_fraction * Separable(pose) - 1e-9)));
+  }
+  // Why `s` is not accepted ("" when it is).
+  std::string Rejection(const Scored& s) const {
+    const int needed = Needed(s.pose);
+    if (s.num_labelled < needed) {
+      return "needs " + std::to_string(needed) + " markers (at least " + std::to_string(o_.min_markers) +
+             ", and " + Percent(o_.min_fraction) + " of the " + std::to_string(Separable(s.pose)) +
+             " its pose predicts separable in the image)";
+    }
+    if (!(s.Rms() <= o_.accept_rms_px)) return "needs an RMS within " + Fixed2(o_.accept_rms_px) + " px";
     if (o_.px_per_mm > 0) {
-      // The object's magnification (fx / depth of the markers' centroid) near the nominal one.
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (const auto& p : P_) c += p;
-      c /= static_cast<double>(P_.size());
-      Eigen::Vector3d c_cam;
-      ceres::AngleAxisRotatePoint(s.pose.data(), c.data(), c_cam.data());
-      const double z = c_cam.z() + s.pose[5];
-      const double mag = z > 0 ? cam_.params[kFx] / z : 0;
+      const double mag = Magnification(s.pose);
       const double k = 1 + o_.scale_tolerance;
-      if (!(mag > o_.px_per_mm / k && mag < o_.px_per_mm * k)) return false;
+      if (!(mag > o_.px_per_mm / k && mag < o_.px_per_mm * k)) {
+        return "its magnification " + Fixed2(mag) + " px/mm is not within " + Percent(o_.scale_tolerance) +
+               " of the nominal " + Fixed2(o_.px_per_mm);
+      }
     }
-    return true;
+    return "";
+  }
+  bool Accepted(const Scored& s) const { return Rejection(s).empty(); }
+
+  // fx / depth of the markers' centroid at `pose`.
+  double Magnification(const Pose6& pose) const {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : P_) c += p;
+    c /= static_cast<double>(P_.size());
+    Eigen::Vector3d c_cam;
+    ceres::AngleAxisRotatePoint(pose.data(), c.data(), c_cam.data());
+    const double z = c_cam.z() + pose[5];
+    return z > 0 ? cam_.params[kFx] / z : 0;
   }
 
   const std::vector<Eigen::Vector3d>& markers() const { return P_; }
@@ -388,12 +435,13 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
     }
   }
   if (accepted.empty()) {
+    // Why the best labelling found was not taken, stated at its own pose.
     return Status::Error("no labelling of the " + std::to_string(m) + " fiducials explains the " +
                          std::to_string(n) + " blobs (best: " +
-                         (best_any.num_labelled ? Describe(best_any) : std::string("none")) +
-                         "; needs " + std::to_string(o.min_markers) + " markers within " +
-                         std::to_string(o.accept_rms_px).substr(0, 4) +
-                         " px RMS): fiducials of another object, or a wrong camera?");
+                         (best_any.num_labelled ? Describe(best_any) + ", which " + lab.Rejection(best_any)
+                                                : std::string("none; a labelling needs " +
+                                                              std::to_string(o.min_markers) + " markers")) +
+                         "): fiducials of another object, or a wrong camera?");
   }
   // The best and the best labelling contradicting it.
   std::sort(accepted.begin(), accepted.end(), Better);

@@ -14,8 +14,9 @@
 //     -> pose refined on the pairs (Gauss-Newton, full camera model) and re-paired -> score.
 //     A triple of markers all found in the best labelling was searched exhaustively (every
 //     labelling that pairs those three markers with blobs has been seen), and the search stops.
-//   * A labelling is accepted when it pairs >= min_markers markers, and >= min_fraction of all
-//     markers, with RMS (per coordinate) <= accept_rms_px, and (when
+//   * A labelling is accepted when it pairs >= min_markers markers, and >= min_fraction of the
+//     markers its pose predicts separable in the image (separation_px), with RMS (per coordinate)
+//     <= accept_rms_px, and (when
 //     px_per_mm is known) its pose puts the markers' centroid at a magnification fx / z within
 //     the scale tolerance of px_per_mm: among thousands of hypotheses, a 4-marker labelling of a
 //     foreign layout fits to a few tenths of a px by chance, but at a wrong depth. The best
@@ -53,6 +54,11 @@ struct CorrespondenceOptions {
   // outside the image; the true labelling pairs all markers but the hidden ones). A view seeing
   // fewer (e.g. 5 of 9 markers at 0.6) is skipped as unlabelled.
   double min_fraction = 0.6;
+  // Of the markers it can see: those whose projection at the labelling's pose lies in the image
+  // and farther than `separation_px` from every other marker's (closer ones merge into one blob,
+  // which the detector rejects). 0: every marker in the image counts. carmba pose sets it to the
+  // detector's merge distance in px.
+  double separation_px = 0;
   double ambiguity_margin_px = 0.5;
   int max_blobs = 40;              // more candidate blobs is an error (the search is cubic)
   // Nominal magnification at the object (px per mm; focal length / source-to-object distance);

@@ -264,6 +264,39 @@ TEST(MarkerCorrespondence, TwoSpuriousBlobsAndOneMissingMarkerPerView) {
   EXPECT_EQ(wrong, 0);
 }
 
+// min_fraction counts the markers the pose predicts separable: two pairs of markers 1 mm apart
+// (about 3 px, one merged blob each, which the detector rejects) do not count, so 5 of 9 markers
+// labelled is enough (5 >= 60 % of 5); before, 5 < 60 % of 9 refused the view. And the message
+// of a refused view states the requirement it applied, at the best labelling's own pose.
+TEST(MarkerCorrespondence, MinFractionCountsOnlySeparableMarkers) {
+  const Camera cam = TestCamera();
+  auto P = ThesisLayout();
+  P.resize(5);
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(20, 20, 20), Eigen::Vector3d(-30, -10, 10)}) {
+    P.push_back(p);
+    P.push_back(p + Eigen::Vector3d(1, 0, 0));
+  }
+  std::mt19937_64 rng(11);
+  const Pose6 pose = RandomPose(rng, P);
+  auto uv = Project(cam, pose, P);
+  uv.resize(5);  // the separable markers' blobs only
+  CorrespondenceOptions co;
+  co.separation_px = 8;
+  auto lab = LabelMarkerBlobs(cam, P, uv, co);
+  ASSERT_TRUE(lab.ok()) << lab.status().message();
+  EXPECT_EQ(lab->num_labelled, 5);
+  co.separation_px = 0;  // every marker in the image counts: 5 < 60 % of 9
+  EXPECT_FALSE(LabelMarkerBlobs(cam, P, uv, co).ok());
+  co.min_fraction = 1.0;  // and every marker counts: all 9 needed
+  auto refused = LabelMarkerBlobs(cam, P, uv, co);
+  ASSERT_FALSE(refused.ok());
+  const std::string msg = refused.status().message();
+  EXPECT_NE(msg.find("best: 5 markers"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("which needs 9 markers (at least 4, and 100 % of the 9 its pose predicts separable"),
+            std::string::npos)
+      << msg;
+}
+
 TEST(MarkerCorrespondence, SymmetricLayoutIsAnAmbiguityError) {
   const Camera cam = TestCamera();
   // A rectangle and its centre raised: invariant under a half turn about z.
