@@ -27,13 +27,7 @@ double RobustWeight(const std::string& loss, double scale_whitened, double s) {
   return 1.0;
 }
 
-// Rotation matrix and SO(3) left Jacobian of a rotation vector (camera/camera_model.h).
-Eigen::Matrix3d RotationOf(const double* rvec) {
-  double r[9];
-  ceres::AngleAxisToRotationMatrix(rvec, ceres::RowMajorAdapter3x3(r));
-  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
-}
-
+// SO(3) left Jacobian of a rotation vector (camera/camera_model.h).
 Eigen::Matrix3d LeftJacobianOf(const double* rvec) {
   double jl[9];
   SO3LeftJacobian(rvec, jl);

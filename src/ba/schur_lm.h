@@ -16,6 +16,8 @@
 // all views.
 #pragma once
 
+#include "geometry/rotation.h"
+
 #include <Eigen/Core>
 #include <array>
 #include <string>
@@ -36,8 +38,8 @@ using Mat69 = Eigen::Matrix<double, 6, kNumIntrinsics>;
 // Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2); "none" -> 1.
 double RobustWeight(const std::string& loss, double scale_whitened, double s);
 
-// Rotation matrix and SO(3) left Jacobian of a rotation vector (camera/camera_model.h).
-Eigen::Matrix3d RotationOf(const double* rvec);
+// SO(3) left Jacobian of a rotation vector (camera/camera_model.h); the rotation matrix is
+// geometry/rotation.h's RotationOf.
 Eigen::Matrix3d LeftJacobianOf(const double* rvec);
 
 // Inverse of a symmetric positive definite 6x6 matrix by Cholesky; false if a pivot is not

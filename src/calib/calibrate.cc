@@ -22,7 +22,6 @@ namespace {
 
 using ba::LeftJacobianOf;
 using ba::RobustWeight;
-using ba::RotationOf;
 
 double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();

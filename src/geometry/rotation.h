@@ -25,6 +25,13 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kRadToDeg = 180.0 / kPi;
 constexpr double kDegToRad = kPi / 180.0;
 
+// The rotation matrix of a rotation vector (rad; the first three entries of a Pose6).
+inline Eigen::Matrix3d RotationOf(const double* rvec) {
+  Eigen::Matrix3d R;
+  ceres::AngleAxisToRotationMatrix(rvec, ceres::ColumnMajorAdapter3x3(R.data()));
+  return R;
+}
+
 template <typename T>
 T ViewDirectionAngle(const T* pose_a, const T* pose_b) {
   using std::atan2;

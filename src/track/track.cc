@@ -1,3 +1,4 @@
+#include "geometry/rotation.h"
 #include "track/track.h"
 
 #include <ceres/rotation.h>
@@ -26,12 +27,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double Seconds(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-Eigen::Matrix3d RotationOf(const double* rvec) {
-  Eigen::Matrix3d R;
-  ceres::AngleAxisToRotationMatrix(rvec, ceres::ColumnMajorAdapter3x3(R.data()));
-  return R;
 }
 
 Pose6 PoseOf(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "camera/camera.h"
+#include "geometry/rotation.h"
 #include "track/track.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -17,12 +18,6 @@
 namespace carmba {
 
 namespace {
-
-Eigen::Matrix3d RotationOf(const Pose6& pose) {
-  Eigen::Matrix3d R;
-  ceres::AngleAxisToRotationMatrix(pose.data(), ceres::ColumnMajorAdapter3x3(R.data()));
-  return R;
-}
 
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -56,11 +51,11 @@ bool ParseNumbers(const std::string& line, std::vector<double>* out) {
 }  // namespace
 
 Eigen::Vector3d TrackCamera::CentreInLab() const {
-  return -RotationOf(cam_from_lab).transpose() * cam_from_lab.tail<3>();
+  return -RotationOf(cam_from_lab.data()).transpose() * cam_from_lab.tail<3>();
 }
 
 Eigen::Vector3d TrackCamera::AxisInLab() const {
-  return RotationOf(cam_from_lab).transpose() * Eigen::Vector3d::UnitZ();
+  return RotationOf(cam_from_lab.data()).transpose() * Eigen::Vector3d::UnitZ();
 }
 
 StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::string& name) {

@@ -20,12 +20,6 @@ namespace {
 
 std::string G(double x) { return Fmt("%.9g", x); }
 
-Eigen::Matrix3d RotationOf(const double* rvec) {
-  Eigen::Matrix3d R;
-  ceres::AngleAxisToRotationMatrix(rvec, ceres::ColumnMajorAdapter3x3(R.data()));
-  return R;
-}
-
 // The 6x6 covariance with the rotation rows and columns in degrees.
 Matrix6 InDegrees(const Matrix6& C) {
   Matrix6 D = Matrix6::Identity();
