@@ -53,20 +53,21 @@ double Evaluate(const Window& w, const Vec& p, Eigen::VectorXd* r, Eigen::Matrix
   return sum;
 }
 
-bool Refuse(std::string* why, const std::string& text) {
+// No pair: `why` says the reason.
+std::optional<BlobPairFit> Refuse(std::string* why, const std::string& text) {
   if (why) *why = text;
-  return false;
+  return std::nullopt;
 }
 
 }  // namespace
 
 std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, double diameter_px,
                                        double min_contrast, double correlation_factor, std::string* why) {
-  if (grey.type() != CV_32F || !(diameter_px > 1)) return Refuse(why, "bad input"), std::nullopt;
+  if (grey.type() != CV_32F || !(diameter_px > 1)) return Refuse(why, "bad input");
   const int half = static_cast<int>(std::ceil(1.6 * diameter_px));
   const cv::Rect box = cv::Rect(cvRound(centre.x) - half, cvRound(centre.y) - half, 2 * half + 1, 2 * half + 1) &
                        cv::Rect(0, 0, grey.cols, grey.rows);
-  if (box.width < 2 * half + 1 || box.height < 2 * half + 1) return Refuse(why, "at the image border"), std::nullopt;
+  if (box.width < 2 * half + 1 || box.height < 2 * half + 1) return Refuse(why, "at the image border");
   const cv::Mat patch = grey(box);
   Window w;
   w.origin = cv::Point2d(box.x + half, box.y + half);
@@ -98,9 +99,9 @@ std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, 
   };
   const cv::Point p1 = darkest(nullptr);
   const cv::Point p2 = darkest(&p1);
-  if (p1.x < 0 || p2.x < 0) return Refuse(why, "no second dark blob"), std::nullopt;
+  if (p1.x < 0 || p2.x < 0) return Refuse(why, "no second dark blob");
   if (!(background - blurred.at<float>(p2) > min_contrast * background)) {
-    return Refuse(why, "one of the two is fainter than min_contrast"), std::nullopt;
+    return Refuse(why, "one of the two is fainter than min_contrast");
   }
   Vec p;
   p << background, 0, 0, background - blurred.at<float>(p1), p1.x - half, p1.y - half,
@@ -118,7 +119,7 @@ std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, 
       Eigen::MatrixXd A = H;
       A.diagonal() += lambda * H.diagonal().cwiseMax(1e-12);
       const Vec step = -A.ldlt().solve(g);
-      if (!step.allFinite()) return Refuse(why, "singular fit"), std::nullopt;
+      if (!step.allFinite()) return Refuse(why, "singular fit");
       const Vec q = p + step;
       if (!(q[9] > 0)) {
         lambda *= 10;
@@ -137,22 +138,22 @@ std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, 
       if (tries == 9) converged = true;  // no further decrease: at the minimum
     }
   }
-  if (!converged) return Refuse(why, "the fit did not converge"), std::nullopt;
+  if (!converged) return Refuse(why, "the fit did not converge");
   const double separation = std::hypot(p[4] - p[7], p[5] - p[8]);
   const double bg = p[0];
   if (!(p[3] > min_contrast * bg) || !(p[6] > min_contrast * bg)) {
-    return Refuse(why, "one of the two is fainter than min_contrast"), std::nullopt;
+    return Refuse(why, "one of the two is fainter than min_contrast");
   }
   if (separation < 0.5 * diameter_px || separation > 2.5 * diameter_px) {
-    return Refuse(why, "the two centres are not 0.5-2.5 diameters apart"), std::nullopt;
+    return Refuse(why, "the two centres are not 0.5-2.5 diameters apart");
   }
   if (p[9] < 0.1 * diameter_px || p[9] > 0.6 * diameter_px) {
-    return Refuse(why, "the fitted width is not blob-sized"), std::nullopt;
+    return Refuse(why, "the fitted width is not blob-sized");
   }
   const auto n = static_cast<double>(w.value.size());
   const double sigma2 = cost / (n - kParams);
   const Eigen::MatrixXd C = (J.transpose() * J).inverse() * sigma2 * std::max(1.0, correlation_factor);
-  if (!C.allFinite()) return Refuse(why, "singular fit"), std::nullopt;
+  if (!C.allFinite()) return Refuse(why, "singular fit");
   BlobPairFit out;
   out.rms_grey = std::sqrt(cost / n);
   out.iterations = it;

@@ -6,11 +6,11 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <sstream>
 
 #include "camera/camera_model.h"
+#include "util/number_format.h"
 
 namespace carmba {
 
@@ -56,13 +56,8 @@ struct Scored {
   double ScoreRms() const { return counted ? std::sqrt(score / (2.0 * counted)) : 0; }
 };
 
-// "60 %" of a fraction; "1.00" of a number.
-std::string Percent(double fraction) { return std::to_string(static_cast<int>(std::lround(100 * fraction))) + " %"; }
-std::string Fixed2(double v) {
-  char b[32];
-  std::snprintf(b, sizeof(b), "%.2f", v);
-  return b;
-}
+// "60 %" of a fraction.
+std::string Percent(double fraction) { return Fmt("%.0f", 100 * fraction) + " %"; }
 
 class Labeller {
  public:
@@ -217,13 +212,13 @@ class Labeller {
              ", and " + Percent(o_.min_fraction) + " of the " + std::to_string(Separable(s.pose)) +
              " its pose predicts separable in the image)";
     }
-    if (!(s.Rms() <= o_.accept_rms_px)) return "needs an RMS within " + Fixed2(o_.accept_rms_px) + " px";
+    if (!(s.Rms() <= o_.accept_rms_px)) return "needs an RMS within " + Fmt("%.2f", o_.accept_rms_px) + " px";
     if (o_.px_per_mm > 0) {
       const double mag = Magnification(s.pose);
       const double k = 1 + o_.scale_tolerance;
       if (!(mag > o_.px_per_mm / k && mag < o_.px_per_mm * k)) {
-        return "its magnification " + Fixed2(mag) + " px/mm is not within " + Percent(o_.scale_tolerance) +
-               " of the nominal " + Fixed2(o_.px_per_mm);
+        return "its magnification " + Fmt("%.2f", mag) + " px/mm is not within " + Percent(o_.scale_tolerance) +
+               " of the nominal " + Fmt("%.2f", o_.px_per_mm);
       }
     }
     return "";

@@ -49,16 +49,15 @@ Eigen::Vector3d CommonFieldCentre(const std::vector<TrackCamera>& cameras) {
   return A.ldlt().solve(b);
 }
 
+// The camera model's projection through cam_from_lab, with d uv / d p_lab.
 bool Project(const TrackCamera& cam, const Eigen::Vector3d& p_lab, Eigen::Vector2d* uv,
              Eigen::Matrix<double, 2, 3>* J_lab = nullptr) {
-  const Eigen::Matrix3d R = RotationOf(cam.cam_from_lab.data());
-  const Eigen::Vector3d p_cam = R * p_lab + cam.cam_from_lab.tail<3>();
-  Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_cam;
-  if (!ProjectCamPointWithJac(cam.intrinsics.data(), p_cam.data(), uv->data(), nullptr,
-                              J_lab ? J_cam.data() : nullptr)) {
+  Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J;
+  if (!ProjectPointWithJac(cam.intrinsics.data(), cam.cam_from_lab.data(), p_lab.data(), uv->data(), nullptr,
+                           nullptr, J_lab ? J.data() : nullptr)) {
     return false;
   }
-  if (J_lab) *J_lab = J_cam * R;
+  if (J_lab) *J_lab = J;
   return true;
 }
 
@@ -242,7 +241,6 @@ StatusOr<HeldPoint> TriangulateHeld(const std::vector<TrackCamera>& cameras,
   for (int it = 0; it < 20; ++it) {
     N.setZero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
-    double chi2 = 0, sq = 0;
     for (const auto& o : obs) {
       Eigen::Vector2d uv;
       Eigen::Matrix<double, 2, 3> J;
@@ -253,11 +251,7 @@ StatusOr<HeldPoint> TriangulateHeld(const std::vector<TrackCamera>& cameras,
       const Eigen::Vector2d e = uv - o.uv_px;
       N += J.transpose() * W * J;
       g += J.transpose() * W * e;
-      chi2 += e.dot(W * e);
-      sq += e.squaredNorm();
     }
-    out.chi2 = chi2;
-    out.rms_px = std::sqrt(sq / (2.0 * obs.size()));
     const Eigen::Vector3d step = -N.ldlt().solve(g);
     if (!step.allFinite()) return Status::Error("the rays are parallel");
     out.p_lab += step;
@@ -763,7 +757,6 @@ StatusOr<TrackResult> Track(const std::vector<TrackCamera>& cameras,
       blobs.diameter_mm = options.marker_diameter_mm;
       blobs.px_per_mm = cameras[c].intrinsics[kFx] / (centre - cameras[c].CentreInLab()).norm();
       blobs.diameter_tolerance = options.diameter_tolerance;
-      if (c == 0) r.px_per_mm_nominal = blobs.px_per_mm;
       TrackImage ti;
       ti.frame = static_cast<int>(f);
       ti.camera = static_cast<int>(c);
@@ -781,7 +774,6 @@ StatusOr<TrackResult> Track(const std::vector<TrackCamera>& cameras,
   auto tracked = TrackDetections(cameras, frames, std::move(r.images), options);
   if (!tracked.ok()) return tracked.status();
   tracked->time_detect_s = r.time_detect_s;
-  tracked->px_per_mm_nominal = r.px_per_mm_nominal;
   tracked->warnings.insert(tracked->warnings.begin(), r.warnings.begin(), r.warnings.end());
   return tracked;
 }

@@ -112,8 +112,6 @@ void SplitMergedPairs(const cv::Mat& image, const MarkerBlobOptions& blobs, Trac
 struct HeldPoint {
   Eigen::Vector3d p_lab = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // from the pixels' covariances, mm^2
-  double rms_px = 0;       // per coordinate
-  double chi2 = 0;         // 2 n - 3 dof
 };
 
 struct TrackObservation {
@@ -195,7 +193,6 @@ struct TrackResult {
   int ba_dof = 0;
   double ba_sigma0 = 0;
   std::vector<std::string> warnings;
-  double px_per_mm_nominal = 0;                        // of the first camera
   double time_detect_s = 0, time_match_s = 0, time_ba_s = 0;
 };
 

@@ -169,10 +169,10 @@ cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
       std::vector<cv::Point> pts;
       for (double s : {depth - 150.0, depth + 150.0}) {
         const Eigen::Vector3d p = c + s * d;
-        const Eigen::Matrix3d R = RotationOf(cam.cam_from_lab.data());
-        const Eigen::Vector3d pc = R * p + cam.cam_from_lab.tail<3>();
         double uv[2];
-        if (ProjectCamPoint(cam.intrinsics.data(), pc.data(), uv)) pts.emplace_back(cvRound(uv[0]), cvRound(uv[1]));
+        if (ProjectPoint(cam.intrinsics.data(), cam.cam_from_lab.data(), p.data(), uv)) {
+          pts.emplace_back(cvRound(uv[0]), cvRound(uv[1]));
+        }
       }
       if (pts.size() == 2) cv::line(out, pts[0], pts[1], cv::Scalar(255, 200, 0), 1, cv::LINE_AA);
     }
