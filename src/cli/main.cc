@@ -26,6 +26,7 @@
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
+#include "util/file_util.h"
 #include "util/temp_paths.h"
 #include "util/text_match.h"
 
@@ -63,11 +64,6 @@ std::vector<std::string> SplitCsv(const std::string& csv) {
 
 bool Contains(const std::vector<std::string>& v, const std::string& s) {
   return std::find(v.begin(), v.end(), s) != v.end();
-}
-
-std::string BaseName(const std::string& p) {
-  const auto pos = p.find_last_of('/');
-  return pos == std::string::npos ? p : p.substr(pos + 1);
 }
 
 bool IsSharedFlagFile(const std::string& filename) {

@@ -51,11 +51,6 @@ std::string Stem(const std::string& path) {
   return path;
 }
 
-std::string BaseName(const std::string& p) {
-  const auto pos = p.find_last_of('/');
-  return pos == std::string::npos ? p : p.substr(pos + 1);
-}
-
 }  // namespace
 
 bool CtFiducialsOptions::Check(std::string* error) const {

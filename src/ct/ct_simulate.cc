@@ -8,16 +8,15 @@
 #include "util/csv.h"
 #include "util/plausible.h"
 #include "util/file_util.h"
+#include "util/number_format.h"
 
 namespace carmba {
 
 namespace {
 
-std::string V3(const Eigen::Vector3d& v) {
-  char b[128];
-  std::snprintf(b, sizeof(b), "(%.3f, %.3f, %.3f)", v.x(), v.y(), v.z());
-  return b;
-}
+// "(x, y, z)" to the micrometre.
+std::string Mm3(const Eigen::Vector3d& v) { return FmtTriple("%.3f", v.x(), v.y(), v.z()); }
+
 
 uint64_t Fnv1a(const std::string& s) {
   uint64_t h = 1469598103934665603ull;
@@ -54,7 +53,7 @@ void CheckEach(YamlMap& m,
   }
 }
 
-Status ReadMarkersCsv(const std::string& path,
+Status ReadPhantomMarkersCsv(const std::string& path,
                       const std::string& id_column_in,
                       const std::vector<std::string>& columns,
                       const std::string& where,
@@ -212,7 +211,7 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
 
   // Markers.
   const std::string csv_path = JoinPath(DirName(scene.file()), csv);
-  CARMBA_RETURN_IF_ERROR(ReadMarkersCsv(csv_path, id_column, columns,
+  CARMBA_RETURN_IF_ERROR(ReadPhantomMarkersCsv(csv_path, id_column, columns,
                                         scene.file() + ": key 'markers.csv'",
                                         &s.phantom.markers));
   Eigen::Vector3d lo = s.phantom.markers[0].centre_mm, hi = lo;
@@ -259,7 +258,7 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
       const double r = radius / s.geometry.spacing_mm[a] + 1;
       if (idx[a] - r < 0 || idx[a] + r > size[a] - 1) {
         return Status::Error(scene.file() + ": key 'ct': marker " + std::to_string(m.id) +
-                             " at " + V3(m.centre_mm) +
+                             " at " + Mm3(m.centre_mm) +
                              " mm does not lie wholly inside the CT volume (grow 'ct.slices', "
                              "'ct.rows'/'ct.columns' or move 'ct.centre_mm')");
       }
@@ -267,10 +266,10 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   }
 
   // Deterministic UIDs from the scene's content and seed (2.25.<64-bit hash>.<n>).
-  std::string key = std::to_string(seed) + "|" + V3(s.geometry.origin_mm) + "|" +
+  std::string key = std::to_string(seed) + "|" + Mm3(s.geometry.origin_mm) + "|" +
                     std::to_string(columns_px) + "x" + std::to_string(rows_px) + "x" +
                     std::to_string(slices) + "|" + std::to_string(tilt_deg);
-  for (const auto& m : s.phantom.markers) key += "|" + V3(m.centre_mm);
+  for (const auto& m : s.phantom.markers) key += "|" + Mm3(m.centre_mm);
   const std::string root = "2.25." + std::to_string(Fnv1a(key));
   s.write.study_uid = root + ".1";
   s.write.series_uid = root + ".2";

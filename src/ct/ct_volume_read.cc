@@ -32,7 +32,7 @@ namespace {
 using gdcm_util::GetString;
 using gdcm_util::Trim;
 
-std::string Fmt(double v, int precision = 6) {
+std::string FixedDecimals(double v, int precision = 6) {
   char b[64];
   std::snprintf(b, sizeof(b), "%.*f", precision, v);
   return b;
@@ -159,11 +159,6 @@ Status ReadSlice(const std::string& path, Slice* slice, bool* is_image) {
   return Status::Ok();
 }
 
-std::string BaseName(const std::string& p) {
-  const auto pos = p.find_last_of('/');
-  return pos == std::string::npos ? p : p.substr(pos + 1);
-}
-
 }  // namespace
 
 bool CtReadOptions::Check(std::string* error) const {
@@ -281,7 +276,7 @@ StatusOr<CtVolume> ReadCtSeries(const std::string& dir,
       const double d = slices[k + 1].position - slices[k].position;
       if (d < 1e-3) {
         return Status::Error(dir + ": two slices at the same position " +
-                             Fmt(slices[k].position, 3) + " mm along the normal: " +
+                             FixedDecimals(slices[k].position, 3) + " mm along the normal: " +
                              BaseName(slices[k].file) + " and " + BaseName(slices[k + 1].file));
       }
       steps.push_back(d);
@@ -293,10 +288,10 @@ StatusOr<CtVolume> ReadCtSeries(const std::string& dir,
       if (std::abs(steps[k] - expected) > options.spacing_tolerance_mm) {
         const double missing = steps[k] / expected - 1;
         return Status::Error(
-            dir + ": unevenly spaced or missing slices: gap of " + Fmt(steps[k], 3) +
-            " mm between " + BaseName(slices[k].file) + " (at " + Fmt(slices[k].position, 3) +
+            dir + ": unevenly spaced or missing slices: gap of " + FixedDecimals(steps[k], 3) +
+            " mm between " + BaseName(slices[k].file) + " (at " + FixedDecimals(slices[k].position, 3) +
             " mm along the slice normal) and " + BaseName(slices[k + 1].file) + " (at " +
-            Fmt(slices[k + 1].position, 3) + " mm), expected " + Fmt(expected, 3) +
+            FixedDecimals(slices[k + 1].position, 3) + " mm), expected " + FixedDecimals(expected, 3) +
             " mm like the other slices" +
             (missing > 0.5 ? " (about " + std::to_string(static_cast<int>(std::lround(missing))) +
                                  " slices missing)"
@@ -309,10 +304,10 @@ StatusOr<CtVolume> ReadCtSeries(const std::string& dir,
       if ((d - step).norm() > options.spacing_tolerance_mm + 1e-6 * step.norm()) {
         return Status::Error(dir + ": inconsistent in-plane offset between " +
                              BaseName(slices[k].file) + " and " + BaseName(slices[k + 1].file) +
-                             ": ImagePositionPatient moves by (" + Fmt(d.x(), 3) + ", " +
-                             Fmt(d.y(), 3) + ", " + Fmt(d.z(), 3) + ") mm, expected (" +
-                             Fmt(step.x(), 3) + ", " + Fmt(step.y(), 3) + ", " +
-                             Fmt(step.z(), 3) + ")");
+                             ": ImagePositionPatient moves by (" + FixedDecimals(d.x(), 3) + ", " +
+                             FixedDecimals(d.y(), 3) + ", " + FixedDecimals(d.z(), 3) + ") mm, expected (" +
+                             FixedDecimals(step.x(), 3) + ", " + FixedDecimals(step.y(), 3) + ", " +
+                             FixedDecimals(step.z(), 3) + ")");
       }
     }
   }

@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "util/plausible.h"
+#include "util/number_format.h"
 
 namespace carmba {
 
@@ -95,11 +96,7 @@ struct UnionFind {
   }
 };
 
-std::string V3(const Eigen::Vector3d& v) {
-  char b[96];
-  std::snprintf(b, sizeof(b), "(%.2f, %.2f, %.2f)", v.x(), v.y(), v.z());
-  return b;
-}
+std::string Mm2(const Eigen::Vector3d& v) { return FmtTriple("%.2f", v.x(), v.y(), v.z()); }
 
 double Median(std::vector<double>* v) {
   const size_t m = v->size() / 2;
@@ -1222,7 +1219,7 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
     if (opt.expected_count > 0) msg += ", expected " + std::to_string(opt.expected_count);
     if (found > 0) {
       msg += "; found at";
-      for (const auto& m : out.markers) msg += " " + V3(m.centre_mm);
+      for (const auto& m : out.markers) msg += " " + Mm2(m.centre_mm);
     }
     if (!out.rejected.empty()) {
       msg += "; rejected " + std::to_string(out.rejected.size()) + " component(s):";
@@ -1232,7 +1229,7 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
           msg += " ...";
           break;
         }
-        msg += " " + V3(r.centroid_mm) + " " + r.reason + ";";
+        msg += " " + Mm2(r.centroid_mm) + " " + r.reason + ";";
       }
     }
     return Status::Error(msg);

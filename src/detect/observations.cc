@@ -8,6 +8,7 @@
 #include "util/csv.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
+#include "util/number_format.h"
 
 namespace carmba {
 
@@ -50,26 +51,18 @@ int ObservationSet::NumPoints() const {
   return n;
 }
 
-namespace {
-std::string Fmt(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
-}  // namespace
-
 Status WriteObservationsCsv(const ObservationSet& obs, const std::string& path) {
   std::ostringstream o;
   o << "# carmba observations\n";
   o << "# grid: " << GridPatternName(obs.grid.pattern) << " " << obs.grid.rows << " "
-    << obs.grid.cols << " " << Fmt(obs.grid.spacing_mm) << "\n";
+    << obs.grid.cols << " " << FmtRoundTrip(obs.grid.spacing_mm) << "\n";
   o << "# image_size: " << obs.width << " " << obs.height << "\n";
   o << "view,image,point,u_px,v_px\n";
   for (size_t v = 0; v < obs.views.size(); ++v) {
     const auto& view = obs.views[v];
     for (size_t i = 0; i < view.uv_px.size(); ++i) {
-      o << v << "," << view.image << "," << view.point_ids[i] << "," << Fmt(view.uv_px[i].x())
-        << "," << Fmt(view.uv_px[i].y()) << "\n";
+      o << v << "," << view.image << "," << view.point_ids[i] << "," << FmtRoundTrip(view.uv_px[i].x())
+        << "," << FmtRoundTrip(view.uv_px[i].y()) << "\n";
     }
   }
   return WriteFileAtomic(path, o.str());
@@ -165,7 +158,7 @@ std::string CornersVnl(const ObservationSet& obs) {
       if (where[id] < 0) {
         o << name << " nan nan -\n";
       } else {
-        o << name << " " << Fmt(view.uv_px[where[id]].x()) << " " << Fmt(view.uv_px[where[id]].y())
+        o << name << " " << FmtRoundTrip(view.uv_px[where[id]].x()) << " " << FmtRoundTrip(view.uv_px[where[id]].y())
           << " 0\n";
       }
     }

@@ -7,19 +7,14 @@
 
 #include "geometry/rotation.h"
 #include "util/file_util.h"
+#include "util/number_format.h"
 #include "util/plausible.h"
 
 namespace carmba {
 namespace {
 
-std::string Num17(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
-
 std::string Triple(const Eigen::Vector3d& v) {
-  return Num17(v[0]) + " " + Num17(v[1]) + " " + Num17(v[2]);
+  return FmtRoundTrip(v[0]) + " " + FmtRoundTrip(v[1]) + " " + FmtRoundTrip(v[2]);
 }
 
 }  // namespace
@@ -68,20 +63,20 @@ StatusOr<std::vector<PlastimatchProjMat>> PlastimatchFromGeometry(const Geometry
 
 std::string PlastimatchProjMatText(const PlastimatchProjMat& pm) {
   std::ostringstream o;
-  o << Num17(pm.ic[0]) << " " << Num17(pm.ic[1]) << "\n";
+  o << FmtRoundTrip(pm.ic[0]) << " " << FmtRoundTrip(pm.ic[1]) << "\n";
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 4; ++c) o << (c ? " " : "") << Num17(pm.matrix(r, c));
+    for (int c = 0; c < 4; ++c) o << (c ? " " : "") << FmtRoundTrip(pm.matrix(r, c));
     o << "\n";
   }
-  o << Num17(pm.sad_mm) << "\n" << Num17(pm.sid_mm) << "\n" << Triple(pm.nrm) << "\n";
+  o << FmtRoundTrip(pm.sad_mm) << "\n" << FmtRoundTrip(pm.sid_mm) << "\n" << Triple(pm.nrm) << "\n";
   o << "Extrinsic\n";
   for (int r = 0; r < 4; ++r) {
-    for (int c = 0; c < 4; ++c) o << (c ? " " : "") << Num17(pm.extrinsic(r, c));
+    for (int c = 0; c < 4; ++c) o << (c ? " " : "") << FmtRoundTrip(pm.extrinsic(r, c));
     o << "\n";
   }
   o << "Intrinsic\n";
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 4; ++c) o << (c ? " " : "") << Num17(pm.intrinsic(r, c));
+    for (int c = 0; c < 4; ++c) o << (c ? " " : "") << FmtRoundTrip(pm.intrinsic(r, c));
     o << "\n";
   }
   return o.str();
@@ -121,10 +116,10 @@ Matrix34 PixelMatrixFromPlastimatch(const PlastimatchProjMat& pm) {
 std::string PlastimatchDrrArgs(const PlastimatchProjMat& pm) {
   const double ps_u = 1 / pm.intrinsic(0, 0), ps_v = 1 / pm.intrinsic(1, 1);
   std::ostringstream o;
-  o << "-r \"" << pm.width << " " << pm.height << "\" -z \"" << Num17(pm.width * ps_u) << " "
-    << Num17(pm.height * ps_v) << "\" -c \"" << Num17(pm.ic[0]) << " " << Num17(pm.ic[1])
+  o << "-r \"" << pm.width << " " << pm.height << "\" -z \"" << FmtRoundTrip(pm.width * ps_u) << " "
+    << FmtRoundTrip(pm.height * ps_v) << "\" -c \"" << FmtRoundTrip(pm.ic[0]) << " " << FmtRoundTrip(pm.ic[1])
     << "\" -o \"" << Triple(pm.isocentre_ct_mm) << "\" -n \"" << Triple(-pm.nrm) << "\" --vup \""
-    << Triple(pm.vup) << "\" --sad " << Num17(pm.sad_mm) << " --sid " << Num17(pm.sid_mm);
+    << Triple(pm.vup) << "\" --sad " << FmtRoundTrip(pm.sad_mm) << " --sid " << FmtRoundTrip(pm.sid_mm);
   return o.str();
 }
 

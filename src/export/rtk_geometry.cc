@@ -9,6 +9,7 @@
 
 #include "geometry/rotation.h"
 #include "util/file_util.h"
+#include "util/number_format.h"
 #include "util/plausible.h"
 
 namespace carmba {
@@ -45,12 +46,6 @@ Eigen::Matrix3d PixelToDetector(const RtkDetector& d) {
   A(1, 1) = -d.spacing_v_mm;
   A(1, 2) = 0.5 * (d.height - 1) * d.spacing_v_mm;
   return A;
-}
-
-std::string Num17(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
 }
 
 }  // namespace
@@ -162,13 +157,13 @@ std::string RtkGeometryXml(const std::vector<RtkProjection>& ps) {
   bool same_sdd = true;
   for (const auto& p : ps) same_sdd = same_sdd && p.sdd_mm == ps[0].sdd_mm;
   if (same_sdd && !ps.empty()) {
-    o << "  <SourceToDetectorDistance>" << Num17(ps[0].sdd_mm) << "</SourceToDetectorDistance>\n";
+    o << "  <SourceToDetectorDistance>" << FmtRoundTrip(ps[0].sdd_mm) << "</SourceToDetectorDistance>\n";
   }
   for (const auto& p : ps) {
     o << "  <Projection>\n";
     o << "    <!-- carmba view " << std::regex_replace(p.id, std::regex("--"), "- -") << " -->\n";
     auto el = [&](const char* name, double v) {
-      o << "    <" << name << ">" << Num17(v) << "</" << name << ">\n";
+      o << "    <" << name << ">" << FmtRoundTrip(v) << "</" << name << ">\n";
     };
     el("GantryAngle", p.gantry_deg);
     el("SourceToIsocenterDistance", p.sid_mm);
@@ -182,7 +177,7 @@ std::string RtkGeometryXml(const std::vector<RtkProjection>& ps) {
     o << "    <Matrix>\n";
     for (int r = 0; r < 3; ++r) {
       o << "     ";
-      for (int c = 0; c < 4; ++c) o << " " << Num17(p.matrix(r, c));
+      for (int c = 0; c < 4; ++c) o << " " << FmtRoundTrip(p.matrix(r, c));
       o << "\n";
     }
     o << "    </Matrix>\n  </Projection>\n";

@@ -1,4 +1,5 @@
 #include "sim/carm_geometry.h"
+#include "geometry/rotation.h"
 
 #include <cmath>
 
@@ -7,7 +8,6 @@
 namespace carmba::sim {
 
 namespace {
-constexpr double kDegToRad = M_PI / 180.0;
 }  // namespace
 
 Eigen::Vector3d Rigid3::Rvec() const {

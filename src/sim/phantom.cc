@@ -20,7 +20,7 @@ std::map<std::string, double> DefaultMaterials() {
 }
 
 namespace {
-StatusOr<double> Mu(const std::map<std::string, double>& materials, const std::string& name) {
+StatusOr<double> MaterialMu(const std::map<std::string, double>& materials, const std::string& name) {
   auto it = materials.find(name);
   if (it == materials.end()) {
     std::string known;
@@ -86,9 +86,9 @@ StatusOr<Phantom> MakePlatePhantom(const PlateSpec& spec,
                                    const std::map<std::string, double>& materials) {
   std::string error;
   if (!spec.Check(&error)) return Status::Error(error);
-  auto mu_sphere = Mu(materials, spec.sphere_material);
+  auto mu_sphere = MaterialMu(materials, spec.sphere_material);
   if (!mu_sphere.ok()) return mu_sphere.status();
-  auto mu_plate = Mu(materials, spec.plate_material);
+  auto mu_plate = MaterialMu(materials, spec.plate_material);
   if (!mu_plate.ok()) return mu_plate.status();
   Phantom p;
   p.frame = "plate";
@@ -122,13 +122,13 @@ StatusOr<Phantom> MakeMarkerPhantom(const MarkerSpec& spec,
                                     const std::map<std::string, double>& materials) {
   std::string error;
   if (!spec.Check(&error)) return Status::Error(error);
-  auto mu_sphere = Mu(materials, spec.sphere_material);
+  auto mu_sphere = MaterialMu(materials, spec.sphere_material);
   if (!mu_sphere.ok()) return mu_sphere.status();
   Phantom p;
   p.frame = "object";
   int host = -1;
   if (spec.block) {
-    auto mu_block = Mu(materials, spec.block_material);
+    auto mu_block = MaterialMu(materials, spec.block_material);
     if (!mu_block.ok()) return mu_block.status();
     Eigen::Vector3d lo = spec.centers_mm[0], hi = spec.centers_mm[0];
     for (const auto& c : spec.centers_mm) {

@@ -5,17 +5,18 @@
 #include <set>
 
 #include "camera/camera_model.h"
+#include "geometry/rotation.h"
 #include "io/dicom_xray.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
+#include "util/number_format.h"
 
 namespace carmba::sim {
 
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
 
-uint64_t SplitMix64(uint64_t x) {
+uint64_t SceneSeedMix(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
   x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
   x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
@@ -37,18 +38,12 @@ bool GetVec(YamlMap& m, const std::string& key, int n, double* out, bool require
   return true;
 }
 
-bool ValidName(const std::string& s) {
+bool ValidSceneName(const std::string& s) {
   if (s.empty()) return false;
   for (char c : s) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-')) return false;
   }
   return true;
-}
-
-std::string Fmt(double x) {
-  char b[32];
-  std::snprintf(b, sizeof(b), "%.1f", x);
-  return b;
 }
 
 Rigid3 ObjectPlacement(const Eigen::Vector3d& centroid,
@@ -62,12 +57,12 @@ Rigid3 ObjectPlacement(const Eigen::Vector3d& centroid,
   return p;
 }
 
-nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+nlohmann::json Vec3Json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 }  // namespace
 
 uint64_t ViewSeed(uint64_t seed, int index) {
-  return SplitMix64(seed * 0x100000001B3ull + static_cast<uint64_t>(index)) >> 11;
+  return SceneSeedMix(seed * 0x100000001B3ull + static_cast<uint64_t>(index)) >> 11;
 }
 
 void ReseedXrayScene(uint64_t seed, XrayScene* scene) {
@@ -118,7 +113,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   if (cm.status().ok() && !(carm.sod_mm < carm.sid_mm)) {
     cm.Fail("sod_mm",
             "expected the source-to-isocentre distance to be smaller than sid_mm (" +
-                Fmt(carm.sid_mm) + ")");
+                Fmt("%.1f", carm.sid_mm) + ")");
   }
 
   YamlMap& cam = scene.Map("camera", true);
@@ -374,7 +369,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     std::snprintf(def, sizeof(def), "view_%03zu", i);
     v.name = def;
     vm.Get("name", &v.name);
-    if (vm.status().ok() && !ValidName(v.name)) {
+    if (vm.status().ok() && !ValidSceneName(v.name)) {
       vm.Fail("name", "expected letters, digits, '_' or '-', got '" + v.name + "'");
     }
     if (vm.status().ok() && !names.insert(v.name).second) {
@@ -445,8 +440,8 @@ Status CheckViewsInsideFov(const XrayScene& s) {
                              " is not in front of the X-ray source");
       }
       const double r = SphereImageRadius(camera, c, sp.radius_mm, {uv[0], uv[1]});
-      const std::string at = "sphere " + std::to_string(sp.id) + " projects to (" + Fmt(uv[0]) +
-                             ", " + Fmt(uv[1]) + ") px with radius " + Fmt(r) + " px, ";
+      const std::string at = "sphere " + std::to_string(sp.id) + " projects to (" + Fmt("%.1f", uv[0]) +
+                             ", " + Fmt("%.1f", uv[1]) + ") px with radius " + Fmt("%.1f", r) + " px, ";
       if (!(uv[0] - r >= 0 && uv[0] + r <= W - 1 && uv[1] - r >= 0 && uv[1] + r <= H - 1)) {
         return Status::Error(where + ": " + at + "outside the " + std::to_string(s.camera.width) +
                              "x" + std::to_string(s.camera.height) +
@@ -456,8 +451,8 @@ Status CheckViewsInsideFov(const XrayScene& s) {
       const double usable = fr - s.render.fov_edge_px - 1.0;
       if (s.render.circular_fov && !(std::hypot(uv[0] - fu, uv[1] - fv) + r <= usable)) {
         return Status::Error(where + ": " + at + "outside the circular field of view (centre (" +
-                             Fmt(fu) + ", " + Fmt(fv) + "), radius " + Fmt(fr) + " px, edge " +
-                             Fmt(s.render.fov_edge_px) +
+                             Fmt("%.1f", fu) + ", " + Fmt("%.1f", fv) + "), radius " + Fmt("%.1f", fr) + " px, edge " +
+                             Fmt("%.1f", s.render.fov_edge_px) +
                              " px; the pattern is larger than the field of view?)");
       }
     }
@@ -502,7 +497,7 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   nlohmann::json px = nlohmann::json::array(), cam = nlohmann::json::array();
   for (size_t k = 0; k < out.centers_px.size(); ++k) {
     px.push_back({out.centers_px[k].x(), out.centers_px[k].y()});
-    cam.push_back(Vec(out.cam_from_object * scene.phantom.spheres[k].center_mm));
+    cam.push_back(Vec3Json(out.cam_from_object * scene.phantom.spheres[k].center_mm));
   }
   j["centers_px"] = px;
   j["centers_in_cam_mm"] = cam;
@@ -549,7 +544,7 @@ Status SimulateXrayScene(const XrayScene& scene,
   const CarmGeometry& c = scene.views[0].carm;
   t["carm"] = {{"sid_mm", c.sid_mm},
                {"sod_mm", c.sod_mm},
-               {"isocenter_mm", Vec(c.isocenter_mm)},
+               {"isocenter_mm", Vec3Json(c.isocenter_mm)},
                {"axis_offset_mm", {c.axis_offset_mm.x(), c.axis_offset_mm.y()}}};
   nlohmann::json obj;
   obj["kind"] = scene.object_kind;
@@ -557,7 +552,7 @@ Status SimulateXrayScene(const XrayScene& scene,
   nlohmann::json ids = nlohmann::json::array(), centers = nlohmann::json::array();
   for (const auto& sp : scene.phantom.spheres) {
     ids.push_back(sp.id);
-    centers.push_back(Vec(sp.center_mm));
+    centers.push_back(Vec3Json(sp.center_mm));
   }
   obj["sphere_ids"] = ids;
   obj["centers_mm"] = centers;

@@ -348,7 +348,7 @@ bool IsJoint(const StudyProblem& p) {
 }
 
 // One run's record: convergence, errors against the truth, signed errors with their sigmas, values.
-nlohmann::json RunRecord(bool converged,
+nlohmann::json RunRecordJson(bool converged,
                          const std::string& termination,
                          const nlohmann::json& errors,
                          const nlohmann::json& signed_errors,
@@ -482,7 +482,7 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
       values[std::string("held_out_d2_") + ba::IntrinsicsModelName(sc.model)] = Num(sc.held_out_d2_mean);
     }
   }
-  return RunRecord(r->converged, r->termination, errors, signed_errors, sigmas, values);
+  return RunRecordJson(r->converged, r->termination, errors, signed_errors, sigmas, values);
 }
 
 std::string BudgetKey(ba::Source s) {
@@ -702,7 +702,7 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   double worst = 0;
   for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
   values["projection_sigma_worst_px"] = Num(worst);
-  return RunRecord(result->converged, result->termination, errors, signed_errors, sigmas, values);
+  return RunRecordJson(result->converged, result->termination, errors, signed_errors, sigmas, values);
 }
 
 // The predicted error budget of the first view from the engine (ba/quantities.h): the shares of

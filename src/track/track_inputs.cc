@@ -12,6 +12,7 @@
 #include "camera/camera.h"
 #include "geometry/rotation.h"
 #include "track/track.h"
+#include "util/csv.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
 
@@ -22,12 +23,6 @@ namespace {
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
-}
-
-std::string Trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  if (b == std::string::npos) return "";
-  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
 }
 
 // The numbers of one line: separated by commas, spaces or tabs. False on anything else.
@@ -69,7 +64,7 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
   int line_no = 0;
   while (std::getline(in, line)) {
     ++line_no;
-    const std::string t = Trim(line);
+    const std::string t = TrimSpaces(line);
     if (t.empty()) continue;
     const std::string where = path + ":" + std::to_string(line_no);
     if (std::isalpha(static_cast<unsigned char>(t[0]))) {

@@ -10,20 +10,21 @@
 #include "util/file_util.h"
 
 namespace carmba {
-namespace {
 
-std::string Trim(const std::string& s) {
+std::string TrimSpaces(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r");
   if (b == std::string::npos) return "";
   const auto e = s.find_last_not_of(" \t\r");
   return s.substr(b, e - b + 1);
 }
 
+namespace {
+
 std::vector<std::string> SplitFields(const std::string& line) {
   std::vector<std::string> out;
   std::string field;
   std::istringstream ss(line);
-  while (std::getline(ss, field, ',')) out.push_back(Trim(field));
+  while (std::getline(ss, field, ',')) out.push_back(TrimSpaces(field));
   if (!line.empty() && line.back() == ',') out.push_back("");
   return out;
 }
@@ -31,7 +32,7 @@ std::vector<std::string> SplitFields(const std::string& line) {
 }  // namespace
 
 bool ParseFiniteDouble(const std::string& s, double* value) {
-  const std::string t = Trim(s);
+  const std::string t = TrimSpaces(s);
   if (t.empty()) return false;
   // Decimal notation only: strtod would also take hexadecimal ("0x10" = 16), "inf" and "nan".
   for (char c : t) {
@@ -103,7 +104,7 @@ StatusOr<CsvTable> ParseCsv(const std::string& text, const std::string& path) {
   int lineno = 0;
   while (std::getline(in, line)) {
     ++lineno;
-    const std::string s = Trim(line);
+    const std::string s = TrimSpaces(line);
     if (s.empty()) continue;
     if (s[0] == '#') {
       t.comments.push_back(s.substr(1));

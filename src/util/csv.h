@@ -40,4 +40,7 @@ StatusOr<CsvTable> ReadCsv(const std::string& path);
 // Parses a string as a finite double, the whole string (surrounding blanks allowed).
 bool ParseFiniteDouble(const std::string& s, double* value);
 
+// `s` without leading and trailing spaces, tabs and carriage returns.
+std::string TrimSpaces(const std::string& s);
+
 }  // namespace carmba

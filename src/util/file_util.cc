@@ -346,6 +346,11 @@ std::string DirName(const std::string& path) {
   return path.substr(0, pos);
 }
 
+std::string BaseName(const std::string& path) {
+  const auto pos = path.find_last_of('/');
+  return pos == std::string::npos ? path : path.substr(pos + 1);
+}
+
 StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob) {
   std::vector<std::string> files;
   if (IsDirectory(dir_or_glob)) {

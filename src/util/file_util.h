@@ -103,6 +103,8 @@ bool IsDirectory(const std::string& path);
 std::string JoinPath(const std::string& a, const std::string& b);
 // Directory part of a path ("." when there is none).
 std::string DirName(const std::string& path);
+// The last component of `path` (everything after the last '/'; the path itself without one).
+std::string BaseName(const std::string& path);
 
 // Expands a directory (all regular files, sorted by name) or a glob pattern (sorted matches).
 // Error when nothing matches.

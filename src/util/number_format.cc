@@ -12,4 +12,14 @@ std::string Fmt(const char* format, double v) {
   return buf;
 }
 
+std::string FmtRoundTrip(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+std::string FmtTriple(const char* format, double x, double y, double z) {
+  return "(" + Fmt(format, x) + ", " + Fmt(format, y) + ", " + Fmt(format, z) + ")";
+}
+
 }  // namespace carmba

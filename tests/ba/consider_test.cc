@@ -35,7 +35,7 @@ namespace carmba {
 namespace ba {
 namespace {
 
-constexpr double kJacTol = 1e-10;       // analytic vs ceres::Jet: the same arithmetic
+constexpr double kConsiderJacTol = 1e-10;       // analytic vs ceres::Jet: the same arithmetic
 constexpr double kFiniteDiffTol = 1e-6; // central differences: truncation + rounding ~1e-7 rel.
 constexpr double kNeesLow = 0.8, kNeesHigh = 1.25;  // the band
 
@@ -59,10 +59,10 @@ TEST(PixelWhitening, FullCovarianceAnalyticEqualsJetsAndFiniteDifferences) {
     ASSERT_TRUE(analytic.Evaluate(params, r1, ja));
     ASSERT_TRUE(autodiff->Evaluate(params, r2, jb));
     const int sizes[3] = {6, 3, 9};
-    for (int k = 0; k < 2; ++k) EXPECT_NEAR(r1[k], r2[k], kJacTol);
+    for (int k = 0; k < 2; ++k) EXPECT_NEAR(r1[k], r2[k], kConsiderJacTol);
     for (int blk = 0; blk < 3; ++blk) {
       for (int i = 0; i < 2 * sizes[blk]; ++i) {
-        EXPECT_NEAR(a[blk][i], b[blk][i], kJacTol * std::max(1.0, std::abs(b[blk][i])))
+        EXPECT_NEAR(a[blk][i], b[blk][i], kConsiderJacTol * std::max(1.0, std::abs(b[blk][i])))
             << "block " << blk << " index " << i;
       }
     }

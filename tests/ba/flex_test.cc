@@ -24,13 +24,13 @@ namespace ba {
 namespace {
 
 // Analytic and autodiff derivatives of the same expression agree to rounding.
-constexpr double kJacTol = 1e-10;
+constexpr double kFlexJacTol = 1e-10;
 // Finite differences (GradientChecker, relative error) of a residual whose intrinsics are ~2000 px:
 // the central differences' rounding error is ~1e-13 absolute, which is ~1e-5 relative for the
 // smallest entries (dr/dk3 ~ r^6 ~ 1e-8 near the image centre).
 constexpr double kFdTol = 1e-4;
 // Schur complement vs ceres::Covariance dense SVD: two factorisations of a matrix of condition ~1e9.
-constexpr double kCovTol = 1e-6;
+constexpr double kFlexCovTol = 1e-6;
 
 const std::vector<IntrinsicsModel> kAllModels = {IntrinsicsModel::kShared, IntrinsicsModel::kPerGroup,
                                                  IntrinsicsModel::kSmooth};
@@ -81,10 +81,10 @@ TEST(SmoothIntrinsics, AnalyticJacobianEqualsAutodiffAndFiniteDifferences) {
     double* jt[3] = {Jt[0].data(), Jt[1].data(), Jt[2].data()};
     ASSERT_TRUE(analytic.Evaluate(params, ra, ja));
     ASSERT_TRUE(twin->Evaluate(params, rt, jt));
-    for (int r = 0; r < 2; ++r) EXPECT_NEAR(ra[r], rt[r], kJacTol);
+    for (int r = 0; r < 2; ++r) EXPECT_NEAR(ra[r], rt[r], kFlexJacTol);
     for (int blk = 0; blk < 3; ++blk) {
       for (size_t i = 0; i < Ja[blk].size(); ++i) {
-        EXPECT_NEAR(Ja[blk][i], Jt[blk][i], kJacTol * (1 + std::abs(Jt[blk][i])))
+        EXPECT_NEAR(Ja[blk][i], Jt[blk][i], kFlexJacTol * (1 + std::abs(Jt[blk][i])))
             << "trial " << trial << " block " << blk << " index " << i;
       }
     }
@@ -117,7 +117,7 @@ TEST(SmoothIntrinsics, SchurCovarianceEqualsCeresAndAnalyticEqualsAutodiff) {
   ASSERT_TRUE(C.ok()) << C.status().message();
   for (Eigen::Index i = 0; i < S.rows(); ++i) {
     for (Eigen::Index j = 0; j < S.cols(); ++j) {
-      EXPECT_NEAR(S(i, j), (*C)(i, j), kCovTol * std::sqrt(std::abs(S(i, i) * S(j, j))) + 1e-15)
+      EXPECT_NEAR(S(i, j), (*C)(i, j), kFlexCovTol * std::sqrt(std::abs(S(i, i) * S(j, j))) + 1e-15)
           << r->layout->ParameterName(i < 21 ? gb : vb, static_cast<int>(i < 21 ? i : i - 21));
     }
   }

@@ -29,9 +29,9 @@ namespace carmba {
 namespace ba {
 namespace {
 
-constexpr double kNeesLow = 0.8, kNeesHigh = 1.25;  // the band
+constexpr double kTriNeesLow = 0.8, kTriNeesHigh = 1.25;  // the band
 
-SyntheticJointSpec Spec() {
+SyntheticJointSpec TriangulationSpec() {
   SyntheticJointSpec s;
   s.num_plate_views = 10;
   s.intrinsics_prior = true;
@@ -74,14 +74,14 @@ TEST(RelativePose, JacobianMatchesCentralDifferences) {
 
 TEST(RelativePose, MonteCarloNeesAndThreeSigma) {
   constexpr int kTrials = 200;
-  const SyntheticJoint ref = MakeSyntheticJoint(Spec(), NoiseSwitches(), 0);
+  const SyntheticJoint ref = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 0);
   const auto pairs = RelativePosePairs(ref.problem, ref.pairs);
   ASSERT_EQ(pairs.size(), 21u);  // 7 object views: all pairs
   std::vector<double> nees(pairs.size(), 0.0);
   int within3 = 0, total = 0;
   double worst_sigma = 0, us = 0, us_batch = 0;
   for (int t = 0; t < kTrials; ++t) {
-    const SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches(), 7000 + t);
+    const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 7000 + t);
     auto r = SolveBundleAdjustment(sj.problem, BaOptions());
     ASSERT_TRUE(r.ok()) << r.status().message();
     const auto tb = std::chrono::steady_clock::now();
@@ -112,8 +112,8 @@ TEST(RelativePose, MonteCarloNeesAndThreeSigma) {
   for (double& x : nees) {
     x /= kTrials;
     lo = std::min(lo, x), hi = std::max(hi, x), mean += x / nees.size();
-    EXPECT_GE(x, kNeesLow);
-    EXPECT_LE(x, kNeesHigh);
+    EXPECT_GE(x, kTriNeesLow);
+    EXPECT_LE(x, kTriNeesHigh);
   }
   // The rotation part's Mahalanobis distance (3 dof) is below 3 with probability 0.971.
   const double frac = static_cast<double>(within3) / total;
@@ -147,7 +147,7 @@ TEST(Triangulation, MonteCarloNees) {
     int flagged = 0;
     double chi2_per_dof = 0;
     for (int t = 0; t < kTrials; ++t) {
-      const SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches(), 9000 + t);
+      const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 9000 + t);
       auto r = SolveBundleAdjustment(sj.problem, BaOptions());
       ASSERT_TRUE(r.ok()) << r.status().message();
       std::vector<int> views = ObjectViews(sj.problem);
@@ -177,8 +177,8 @@ TEST(Triangulation, MonteCarloNees) {
                 two_views ? "views +000 and +090" : "all 7 views", kTrials, nees,
                 100 * share_pixels, 100 * share[1], 100 * share[2], 100 * share[0], 100 * share[4],
                 us / kTrials);
-    EXPECT_GE(nees, kNeesLow);
-    EXPECT_LE(nees, kNeesHigh);
+    EXPECT_GE(nees, kTriNeesLow);
+    EXPECT_LE(nees, kTriNeesHigh);
   }
 }
 
@@ -186,7 +186,7 @@ TEST(Triangulation, MonteCarloNees) {
 // its covariance of the truth; with two rays it cannot be told which is wrong, and the point is
 // flagged instead of reported silently.
 TEST(Triangulation, AMisclickedRayIsRejectedOrFlagged) {
-  const SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches(), 31337);
+  const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 31337);
   auto r = SolveBundleAdjustment(sj.problem, BaOptions());
   ASSERT_TRUE(r.ok()) << r.status().message();
   std::mt19937_64 rng(5);
@@ -231,7 +231,7 @@ TEST(Triangulation, EachSourceAloneMatchesItsShare) {
     double e2 = 0, predicted = 0;
     std::mt19937_64 rng(7);
     for (int t = 0; t < kTrials; ++t) {
-      const SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches::Only(src), 20000 + t);
+      const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches::Only(src), 20000 + t);
       auto r = SolveBundleAdjustment(sj.problem, BaOptions());
       ASSERT_TRUE(r.ok()) << r.status().message();
       const std::vector<int> views = ObjectViews(sj.problem);
@@ -243,8 +243,8 @@ TEST(Triangulation, EachSourceAloneMatchesItsShare) {
     const double ratio = e2 / predicted;
     std::printf("tip error from %s alone: mean squared error / predicted share = %.3f (RMS %.4f mm)\n",
                 SourceName(src), ratio, std::sqrt(e2 / kTrials));
-    EXPECT_GE(ratio, kNeesLow) << SourceName(src);
-    EXPECT_LE(ratio, kNeesHigh) << SourceName(src);
+    EXPECT_GE(ratio, kTriNeesLow) << SourceName(src);
+    EXPECT_LE(ratio, kTriNeesHigh) << SourceName(src);
   }
 }
 
@@ -255,7 +255,7 @@ TEST(Triangulation, CovarianceIgnoringTheSolveIsTooSmall) {
   double nees_pixels = 0;
   std::mt19937_64 rng(43);
   for (int t = 0; t < kTrials; ++t) {
-    const SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches(), 11000 + t);
+    const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 11000 + t);
     auto r = SolveBundleAdjustment(sj.problem, BaOptions());
     ASSERT_TRUE(r.ok());
     const std::vector<int> views = ObjectViews(sj.problem);
@@ -269,7 +269,7 @@ TEST(Triangulation, CovarianceIgnoringTheSolveIsTooSmall) {
 }
 
 TEST(Triangulation, BadInput) {
-  const SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches(), 1);
+  const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 1);
   auto r = SolveBundleAdjustment(sj.problem, BaOptions());
   ASSERT_TRUE(r.ok());
   const std::vector<int> views = ObjectViews(sj.problem);
@@ -355,7 +355,7 @@ TEST(LeaveOneMarkerOut, MonteCarloMeanSquaredErrorOverPredicted) {
   int n = 0;
   double time_s = 0;
   for (int t = 0; t < kTrials; ++t) {
-    const SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches(), 13000 + t);
+    const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 13000 + t);
     auto r = SolveBundleAdjustment(sj.problem, BaOptions());
     ASSERT_TRUE(r.ok());
     auto tre = LeaveOneMarkerOut(sj.problem, *r, BaOptions());
@@ -380,15 +380,15 @@ TEST(LeaveOneMarkerOut, MonteCarloMeanSquaredErrorOverPredicted) {
               "%.3f mm, predicted %.3f mm, Fitzpatrick %.3f mm; %.1f ms per leave-one-out run\n",
               kTrials, n / kTrials, ratio, ratio_true, sum_m / n, std::sqrt(sum_e2 / n),
               std::sqrt(sum_pred2 / n), std::sqrt(sum_fitz2 / n), 1e3 * time_s / kTrials);
-  EXPECT_GE(ratio, kNeesLow);
-  EXPECT_LE(ratio, kNeesHigh);
-  EXPECT_GE(ratio_true, kNeesLow);
-  EXPECT_LE(ratio_true, kNeesHigh);
+  EXPECT_GE(ratio, kTriNeesLow);
+  EXPECT_LE(ratio, kTriNeesHigh);
+  EXPECT_GE(ratio_true, kTriNeesLow);
+  EXPECT_LE(ratio_true, kTriNeesHigh);
 }
 
 TEST(LeaveOneMarkerOut, FourMarkersPerViewAreSkippedWithTheReason) {
   // Views with four markers: leaving one out leaves three, so every view drops out of the solve.
-  SyntheticJoint sj = MakeSyntheticJoint(Spec(), NoiseSwitches(), 3);
+  SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 3);
   for (auto& v : sj.problem.views) {
     if (v.kind != ViewKind::kObject) continue;
     v.point_ids.resize(4);

@@ -15,7 +15,7 @@
 namespace carmba {
 namespace {
 
-const std::array<double, kNumIntrinsics> kTruth = {2061.4, 2254.6, 203.7, 205.1, -0.3,
+const std::array<double, kNumIntrinsics> kCrosscheckTruth = {2061.4, 2254.6, 203.7, 205.1, -0.3,
                                                    2.0,    0.0005, -0.0003, 0.0};
 
 TEST(CrossCheckTest, EmbeddedScriptMatchesFile) {
@@ -32,7 +32,7 @@ class CrossCheck : public ::testing::Test {
     so.seed = 21;
     so.noise_sigma_px = 0.3;
     GridSpec g;
-    obs_ = MakeSyntheticViews(kTruth, 408, 408, g, so);
+    obs_ = MakeSyntheticViews(kCrosscheckTruth, 408, 408, g, so);
     auto r = Calibrate(obs_, CalibrationOptions());
     ASSERT_TRUE(r.ok()) << r.status().message();
     result_ = *r;
@@ -49,7 +49,7 @@ TEST_F(CrossCheck, MrcalAgrees) {
   MrcalCrossCheckOptions mo;
   const test::ScratchDir work("crosscheck_test");  // kept with CARMBA_KEEP_TMP set
   mo.work_dir = work.path();
-  auto m = RunMrcalCrossCheck(obs_, result_, {{"truth", kTruth}}, mo);
+  auto m = RunMrcalCrossCheck(obs_, result_, {{"truth", kCrosscheckTruth}}, mo);
   ASSERT_TRUE(m.ok()) << m.status().message();
   const double mrms = (*m)["rms_px"].get<double>();
   EXPECT_NEAR(result_.rms_px / mrms, 1.0, kRmsRelTol);

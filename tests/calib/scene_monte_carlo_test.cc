@@ -61,8 +61,8 @@ void Print(const std::string& what, const McResult& m) {
 
 // 200 trials: the sample standard deviation of 200 draws is itself uncertain by 1/sqrt(2 * 199) =
 // 5 %, so 15 % (the bound) is a 3-sigma test.
-constexpr int kTrials = 200;
-constexpr double kSigmaRelTol = 0.15;
+constexpr int kSceneTrials = 200;
+constexpr double kSceneSigmaRelTol = 0.15;
 // The scenes' images give detection errors of 0.032 px (thesis) and 0.017 px (pincushion) RMS
 // against the truth (tests/detect/simulated_scene_test.cc); 0.03 px covers both.
 constexpr double kSceneNoisePx = 0.03;
@@ -73,8 +73,8 @@ const char* const kScenes[] = {"thesis_calibration", "calib_7x6_pincushion"};
 
 void ExpectMatches(const std::string& what, const McResult& m, std::initializer_list<int> which) {
   for (int i : which) {
-    EXPECT_NEAR(m.spread[i] / m.at_truth[i], 1.0, kSigmaRelTol) << what << " " << kIntrinsicNames[i];
-    EXPECT_NEAR(m.spread[i] / m.rms_reported[i], 1.0, kSigmaRelTol) << what << " " << kIntrinsicNames[i];
+    EXPECT_NEAR(m.spread[i] / m.at_truth[i], 1.0, kSceneSigmaRelTol) << what << " " << kIntrinsicNames[i];
+    EXPECT_NEAR(m.spread[i] / m.rms_reported[i], 1.0, kSceneSigmaRelTol) << what << " " << kIntrinsicNames[i];
   }
 }
 
@@ -84,7 +84,7 @@ TEST(SceneMonteCarlo, FullModelAtTheScenesDetectionNoise) {
   // reported 0.99-1.08 (thesis), 0.95-1.03 (pincushion).
   for (const char* name : kScenes) {
     const McResult m = RunMonteCarlo(SceneTruthObservations(LoadShippedScene(name)),
-                                     CalibrationOptions(), kTrials, kSceneNoisePx);
+                                     CalibrationOptions(), kSceneTrials, kSceneNoisePx);
     Print(std::string(name) + " OPENCV5, 0.03 px", m);
     ExpectMatches(name, m, {0, 1, 2, 3});
   }
@@ -101,7 +101,7 @@ TEST(SceneMonteCarlo, TangentialAndK3HeldAtCoarseNoise) {
     opt.zero_tangential = true;
     opt.fix_k3 = true;
     const McResult m =
-        RunMonteCarlo(SceneTruthObservations(LoadShippedScene(name)), opt, kTrials, kCoarseNoisePx);
+        RunMonteCarlo(SceneTruthObservations(LoadShippedScene(name)), opt, kSceneTrials, kCoarseNoisePx);
     Print(std::string(name) + " p1 = p2 = k3 = 0, 0.3 px", m);
     ExpectMatches(name, m, {0, 1, 2, 3});
   }
@@ -119,14 +119,14 @@ TEST(SceneMonteCarlo, FreeTangentialAtCoarseNoiseIsNonlinearNotACovarianceBug) {
   // test); holding only k2 and k3 does not cure it (1.14-1.26x). fx, fy stay honest throughout.
   for (const char* name : kScenes) {
     const McResult m = RunMonteCarlo(SceneTruthObservations(LoadShippedScene(name)),
-                                     CalibrationOptions(), kTrials, kCoarseNoisePx);
+                                     CalibrationOptions(), kSceneTrials, kCoarseNoisePx);
     Print(std::string(name) + " OPENCV5, 0.3 px", m);
     ExpectMatches(name, m, {0, 1});
     for (int i : {2, 3}) {
       EXPECT_GT(m.max_reported[i] / m.min_reported[i], 2.0) << name << " " << kIntrinsicNames[i];
     }
     EXPECT_GT(std::max(m.spread[2] / m.rms_reported[2], m.spread[3] / m.rms_reported[3]),
-              1.0 + kSigmaRelTol)
+              1.0 + kSceneSigmaRelTol)
         << name;
   }
 }

@@ -19,7 +19,7 @@
 namespace carmba {
 namespace {
 
-const std::array<double, kNumIntrinsics> kTruth = {2061.4, 2254.6, 203.7, 205.1, -0.3,
+const std::array<double, kNumIntrinsics> kSolverTruth = {2061.4, 2254.6, 203.7, 205.1, -0.3,
                                                    2.0,    0.0005, -0.0003, 0.0};
 
 ObservationSet Views(int n, uint64_t seed) {
@@ -27,7 +27,7 @@ ObservationSet Views(int n, uint64_t seed) {
   so.num_views = n;
   so.seed = seed;
   so.noise_sigma_px = 0.3;
-  return MakeSyntheticViews(kTruth, 408, 408, GridSpec(), so);
+  return MakeSyntheticViews(kSolverTruth, 408, 408, GridSpec(), so);
 }
 
 // H = sum w J^T J and g = sum w J^T e over [poses (6 per view) | free intrinsics (A)], unwhitened

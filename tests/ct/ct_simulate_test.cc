@@ -22,7 +22,7 @@ constexpr double kRoundTripTolHu = 0.5 + 1e-3;
 // Positions are written as DICOM decimal strings of up to 16 characters.
 constexpr double kGeometryTolMm = 1e-6;
 
-const char* kMarkers =
+const char* kSceneMarkersYaml =
     "id,x_mm,y_mm,z_mm\n"
     "1,0.3,-0.2,0.1\n"
     "2,6.0,1.0,-2.0\n";
@@ -37,7 +37,7 @@ std::string SmallScene(const std::string& ct_extra, int slices = 24) {
 TEST(CtSimulate, SeriesReadsBackAsTheVolumeAndGeometryThatWentIn) {
   for (double tilt : {0.0, 20.0}) {
     ScratchDir dir("roundtrip");
-    WriteText(dir.File("markers.csv"), kMarkers);
+    WriteText(dir.File("markers.csv"), kSceneMarkersYaml);
     WriteText(dir.File("scene.yaml"),
               SmallScene("  tilt_deg: " + std::to_string(tilt) + "\n  rescale_slope: 0.5\n" +
                          "  rescale_intercept: -1000\n"));
@@ -75,7 +75,7 @@ TEST(CtSimulate, SeriesReadsBackAsTheVolumeAndGeometryThatWentIn) {
 
 TEST(CtSimulate, SameSeedSameSeriesOtherSeedOtherNoise) {
   ScratchDir dir("seed");
-  WriteText(dir.File("markers.csv"), kMarkers);
+  WriteText(dir.File("markers.csv"), kSceneMarkersYaml);
   WriteText(dir.File("scene.yaml"), SmallScene(""));
   CtScene a, b;
   YamlMap ya = YamlMap::Load(dir.File("scene.yaml"));
@@ -95,7 +95,7 @@ TEST(CtSimulate, PartialVolumeMatchesTheSphereVolume) {
   // Noiseless, no block: sum over voxels of (HU - air) / (metal - air) * voxel volume is the
   // sphere's volume up to the supersampling's quantisation.
   ScratchDir dir("pv");
-  WriteText(dir.File("markers.csv"), kMarkers);
+  WriteText(dir.File("markers.csv"), kSceneMarkersYaml);
   WriteText(dir.File("scene.yaml"),
             SmallScene("  noise_hu: 0\n  supersampling: 12\n") + "block:\n  enabled: false\n");
   YamlMap y = YamlMap::Load(dir.File("scene.yaml"));
@@ -131,7 +131,7 @@ TEST(CtSimulate, BadScenesAreRejectedWithOneLineErrors) {
   };
   for (const auto& c : cases) {
     ScratchDir dir("bad");
-    WriteText(dir.File("markers.csv"), kMarkers);
+    WriteText(dir.File("markers.csv"), kSceneMarkersYaml);
     WriteText(dir.File("scene.yaml"), c.text);
     YamlMap y = YamlMap::Load(dir.File("scene.yaml"));
     nlohmann::json truth;
@@ -203,7 +203,7 @@ TEST(CtSimulate, MetalStreaksAreLinesThroughTheMarkersAndBandsBetweenThem) {
 
 TEST(CtSimulate, RefusesToOverwriteANonEmptySeriesDirectory) {
   ScratchDir dir("exists");
-  WriteText(dir.File("markers.csv"), kMarkers);
+  WriteText(dir.File("markers.csv"), kSceneMarkersYaml);
   WriteText(dir.File("scene.yaml"), SmallScene(""));
   fs::create_directories(dir.File("out/ct"));
   WriteText(dir.File("out/ct/old.dcm"), "x");

@@ -16,7 +16,7 @@ namespace {
 
 // A sphere's shadow (chord length through a ball of radius R px, blurred by the focal spot),
 // attenuating by `depth` at its centre, on background `bg` with a slope; noise sigma ~ sqrt(I).
-cv::Mat Render(const std::vector<cv::Point2d>& centres, double R, double depth, double bg, std::mt19937* rng,
+cv::Mat RenderPair(const std::vector<cv::Point2d>& centres, double R, double depth, double bg, std::mt19937* rng,
                double noise_scale = 0.25) {
   cv::Mat f(64, 64, CV_32F);
   for (int y = 0; y < f.rows; ++y) {
@@ -53,7 +53,7 @@ TEST(BlobPairFit, TouchingBlobsSeparatedWithinTheirCovariances) {
   int n = 0, refused = 0;
   for (int trial = 0; trial < 60; ++trial) {
     const cv::Point2d a(28 + u(rng), 32 + u(rng)), b(36 + u(rng), 31 + u(rng));  // 8 px apart
-    const cv::Mat f = Render({a, b}, 3.0, 0.9, 150, &rng);
+    const cv::Mat f = RenderPair({a, b}, 3.0, 0.9, 150, &rng);
     std::string why;
     const auto fit = FitBlobPair(f, 0.5 * (a + b), 6.0, 0.15, 1.0, &why);
     if (!fit) {
@@ -78,9 +78,9 @@ TEST(BlobPairFit, TouchingBlobsSeparatedWithinTheirCovariances) {
 TEST(BlobPairFit, OneBlobOrAFaintSecondIsRefused) {
   std::mt19937 rng(8);
   std::string why;
-  EXPECT_FALSE(FitBlobPair(Render({{32, 32}}, 3.0, 0.9, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
+  EXPECT_FALSE(FitBlobPair(RenderPair({{32, 32}}, 3.0, 0.9, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
   EXPECT_FALSE(why.empty());
-  EXPECT_FALSE(FitBlobPair(Render({{28, 32}, {36, 32}}, 3.0, 0.05, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
+  EXPECT_FALSE(FitBlobPair(RenderPair({{28, 32}, {36, 32}}, 3.0, 0.05, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
   EXPECT_NE(why.find("fainter"), std::string::npos) << why;
 }
 

@@ -64,7 +64,7 @@ double NonPlanarity(const cv::Mat& gain, const Eigen::Vector2d& c, double r) {
 struct Bins {
   static constexpr double kEdges[] = {0.0, 0.005, 0.01, 0.02, 0.04, 1e9};
   static constexpr int kNum = 5;
-  Tally t[kNum];
+  RecallTally t[kNum];
   void Add(double nonplanar, const Eigen::Vector2d& e) {
     int b = 0;
     while (b + 1 < kNum && nonplanar >= kEdges[b + 1]) ++b;
@@ -83,7 +83,7 @@ struct Bins {
 };
 
 struct RunStats {
-  Tally all;
+  RecallTally all;
   Bins bins;
   int over_02 = 0, over_05 = 0;
   std::vector<std::pair<double, double>> shift_vs_error;  // (background_shift_px, |error|)
@@ -161,7 +161,7 @@ TEST(EdgeAccuracy, CentresNextToSharpAnatomy) {
   EXPECT_LT(noisy.all.worst, kMaxErrorPx);
   EXPECT_LT(clean.all.Rms(), kCleanRmsPx);
   EXPECT_LT(noisy.all.Rms(), kNoisyRmsPx);
-  Tally rough;  // noise-free, non-planarity >= 2 %
+  RecallTally rough;  // noise-free, non-planarity >= 2 %
   for (int b = 3; b < Bins::kNum; ++b) {
     rough.n += clean.bins.t[b].n;
     rough.sum2 += clean.bins.t[b].sum2;

@@ -28,15 +28,15 @@ cv::Point2d PlateToPixel(const Eigen::Vector3d& P, int size, double scale_px_per
           size / 2.0 + scale_px_per_mm * (s * x + c * y) / w};
 }
 
-struct Rendered {
+struct RenderedGrid {
   cv::Mat image;
   std::vector<cv::Point2d> centres;  // by grid id
 };
 
 // `extra_mm`: further discs (not grid points) at these plate positions.
-Rendered RenderCircles(const GridSpec& g, int size, bool dark, int depth, double radius_px,
+RenderedGrid RenderCircles(const GridSpec& g, int size, bool dark, int depth, double radius_px,
                        double scale, uint64_t seed, const std::vector<Eigen::Vector3d>& extra_mm = {}) {
-  Rendered out;
+  RenderedGrid out;
   cv::Mat big(size * kSuper, size * kSuper, CV_32F, cv::Scalar(0));
   // Bright circular field of view with vignetting, dark outside.
   for (int y = 0; y < big.rows; ++y) {
@@ -88,13 +88,13 @@ double MaxError(const GridDetection& d, const std::vector<cv::Point2d>& truth) {
   return worst;
 }
 
-// Rendered with AA discs and 1 grey level of noise: the centroid error budget.
+// RenderedGrid with AA discs and 1 grey level of noise: the centroid error budget.
 constexpr double kSubPixelTol = 0.08;  // px
 
 TEST(GridDetectorTest, XrayLikeSymmetricGrid8And16Bit) {
   GridSpec g;  // 5 x 5, 20 mm
   for (int depth : {CV_8U, CV_16U}) {
-    Rendered r = RenderCircles(g, 408, true, depth, 4.0, 2.2, 1);
+    RenderedGrid r = RenderCircles(g, 408, true, depth, 4.0, 2.2, 1);
     GridDetection d = DetectGrid(r.image, g, DetectionOptions());
     ASSERT_TRUE(d.found) << d.reason;
     EXPECT_EQ(d.polarity, "dark");
@@ -108,7 +108,7 @@ TEST(GridDetectorTest, BrightBlobsAndNonSquareGrid) {
   g.rows = 4;
   g.cols = 6;
   g.spacing_mm = 15;
-  Rendered r = RenderCircles(g, 408, false, CV_8U, 3.5, 2.6, 2);
+  RenderedGrid r = RenderCircles(g, 408, false, CV_8U, 3.5, 2.6, 2);
   GridDetection d = DetectGrid(r.image, g, DetectionOptions());
   ASSERT_TRUE(d.found) << d.reason;
   EXPECT_EQ(d.polarity, "bright");
@@ -124,7 +124,7 @@ TEST(GridDetectorTest, AsymmetricGridKeepsOpenCvOrdering) {
   g.rows = 7;
   g.cols = 4;
   g.spacing_mm = 10;
-  Rendered r = RenderCircles(g, 408, true, CV_8U, 3.0, 2.5, 3);
+  RenderedGrid r = RenderCircles(g, 408, true, CV_8U, 3.0, 2.5, 3);
   GridDetection d = DetectGrid(r.image, g, DetectionOptions());
   ASSERT_TRUE(d.found) << d.reason;
   EXPECT_LT(MaxError(d, r.centres), kSubPixelTol);
@@ -143,7 +143,7 @@ TEST(GridDetectorTest, LargeCirclesSubPixel) {
   const double scale = 2.5;  // px per mm: 25 px pitch
   for (double ratio : {0.4, 0.5, 0.6, 0.7, 0.8}) {
     const double radius = 0.5 * ratio * sym.spacing_mm * scale;
-    Rendered r = RenderCircles(sym, 408, true, CV_8U, radius, scale, 11);
+    RenderedGrid r = RenderCircles(sym, 408, true, CV_8U, radius, scale, 11);
     GridDetection d = DetectGrid(r.image, sym, DetectionOptions());
     ASSERT_TRUE(d.found) << "symmetric, diameter " << ratio << " x pitch: " << d.reason;
     EXPECT_EQ(d.view.uv_px.size(), 48u) << ratio;
@@ -159,7 +159,7 @@ TEST(GridDetectorTest, LargeCirclesSubPixel) {
   const double asym_scale = 2.0;
   for (double ratio : {0.6, 0.8, 1.0, 1.1}) {
     const double radius = 0.5 * ratio * asym.spacing_mm * asym_scale;
-    Rendered r = RenderCircles(asym, 408, true, CV_8U, radius, asym_scale, 12);
+    RenderedGrid r = RenderCircles(asym, 408, true, CV_8U, radius, asym_scale, 12);
     GridDetection d = DetectGrid(r.image, asym, DetectionOptions());
     ASSERT_TRUE(d.found) << "asymmetric, diameter " << ratio << " x spacing: " << d.reason;
     EXPECT_EQ(d.view.uv_px.size(), 44u) << ratio;
@@ -174,7 +174,7 @@ TEST(GridDetectorTest, LargeCirclesSubPixel) {
 TEST(GridDetectorTest, PatternSmallerThanThePlateIsAmbiguous) {
   GridSpec g;  // 5 x 5, 20 mm
   const std::vector<Eigen::Vector3d> stray = {{-30, 17, 0}, {110, 63, 0}, {47, -28, 0}, {100, 40, 0}};
-  Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 7, stray);
+  RenderedGrid r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 7, stray);
   GridDetection d = DetectGrid(r.image, g, DetectionOptions());
   ASSERT_TRUE(d.found) << d.reason;
   EXPECT_EQ(d.view.uv_px.size(), 25u);
@@ -194,7 +194,7 @@ TEST(GridDetectorTest, PatternSmallerThanThePlateIsAmbiguous) {
   asym.rows = 11;
   asym.cols = 4;
   asym.spacing_mm = 10;
-  Rendered a = RenderCircles(asym, 408, true, CV_8U, 3.0, 2.0, 8);
+  RenderedGrid a = RenderCircles(asym, 408, true, CV_8U, 3.0, 2.0, 8);
   d = DetectGrid(a.image, asym, DetectionOptions());
   ASSERT_TRUE(d.found) << d.reason;
   for (auto [rows, cols] : {std::pair{9, 4}, {11, 3}}) {
@@ -209,7 +209,7 @@ TEST(GridDetectorTest, PatternSmallerThanThePlateIsAmbiguous) {
 
 TEST(GridDetectorTest, ReasonsWhenNotFound) {
   GridSpec g;
-  Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 4);
+  RenderedGrid r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 4);
   GridSpec bigger = g;
   bigger.rows = 6;
   GridDetection d = DetectGrid(r.image, bigger, DetectionOptions());
@@ -231,7 +231,7 @@ TEST(GridDetectorTest, ReasonsWhenNotFound) {
 TEST(GridDetectorTest, RejectedBlobsAndOverlay) {
   GridSpec g;
   // A stray disc well off the lattice (between grid points, 0.5 pitch from each line).
-  Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 7, {Eigen::Vector3d(30, 30, 0)});
+  RenderedGrid r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 7, {Eigen::Vector3d(30, 30, 0)});
   GridDetection d = DetectGrid(r.image, g, DetectionOptions());
   ASSERT_TRUE(d.found) << d.reason;
   EXPECT_EQ(d.view.uv_px.size(), 25u);
@@ -265,7 +265,7 @@ TEST(GridDetectorTest, RejectedBlobsAndOverlay) {
 
 TEST(GridDetectorTest, RoiKeepsFullImageCoordinates) {
   GridSpec g;
-  Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 5);
+  RenderedGrid r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 5);
   DetectionOptions roi;
   roi.roi_px = {40, 30, 340, 350};
   GridDetection d = DetectGrid(r.image, g, roi);
@@ -279,7 +279,7 @@ TEST(GridDetectorTest, UnderTenMillisecondsPer408Image) {
   // failed under load with the same work).
   constexpr double kBudgetMs = 10.0;
   GridSpec g;
-  Rendered r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 6);
+  RenderedGrid r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 6);
   auto cpu_ms = [] {
     timespec ts;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);

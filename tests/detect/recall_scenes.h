@@ -35,7 +35,7 @@ struct Plate {
   double pitch_mm, diameter_mm;
 };
 
-struct Tally {
+struct RecallTally {
   int views = 0, views_found = 0, wrong_grids = 0;
   long spheres = 0, found = 0;
   int n = 0;
@@ -173,7 +173,7 @@ struct Matched {
 // `t->wrong_grids` and adds no points.
 inline GridDetection Score(const Plate& plate, const cv::Mat& image,
                            const std::vector<Eigen::Vector2d>& truth, const std::string& label,
-                           Tally* t, std::vector<Matched>* matched = nullptr) {
+                           RecallTally* t, std::vector<Matched>* matched = nullptr) {
   GridSpec g;
   g.rows = plate.rows;
   g.cols = plate.cols;

@@ -40,7 +40,7 @@ constexpr double kMinRecall = 0.995;
 constexpr double kSystematicRmsPx = 0.006;
 constexpr double kSystematicAnatomyRmsPx = 0.02;
 constexpr double kSystematicMeanPx = 0.003;
-constexpr double kNoisyRmsPx = 0.035;
+constexpr double kRecallNoisyRmsPx = 0.035;
 
 TEST(DetectionRecall, IntensifierEffectsAndAnatomy) {
   if (!std::filesystem::exists(kXaFrame)) GTEST_SKIP() << kXaFrame << " not installed";
@@ -55,7 +55,7 @@ TEST(DetectionRecall, IntensifierEffectsAndAnatomy) {
   constexpr int kCleanViewsPerPlate = 3;
   // CARMBA_RECALL_SEED=S: other scenes (seeds S + 1000 p + v instead of 1000 p + v).
   const uint64_t seed_base = testing::EnvOr<uint64_t>("CARMBA_RECALL_SEED", 0);
-  Tally noisy, clean, flat;
+  RecallTally noisy, clean, flat;
   for (size_t p = 0; p < plates.size(); ++p) {
     const Plate& plate = plates[p];
     for (int v = 0; v < kViewsPerPlate; ++v) {
@@ -107,11 +107,11 @@ TEST(DetectionRecall, IntensifierEffectsAndAnatomy) {
   EXPECT_EQ(flat.found, flat.spheres);
   EXPECT_LT(flat.Rms(), kSystematicRmsPx);
   EXPECT_LT(clean.Rms(), kSystematicAnatomyRmsPx);
-  for (const Tally* t : {&clean, &flat}) {
+  for (const RecallTally* t : {&clean, &flat}) {
     EXPECT_LT(std::abs(t->sum.x() / std::max(t->n, 1)), kSystematicMeanPx);
     EXPECT_LT(std::abs(t->sum.y() / std::max(t->n, 1)), kSystematicMeanPx);
   }
-  EXPECT_LT(noisy.Rms(), kNoisyRmsPx);
+  EXPECT_LT(noisy.Rms(), kRecallNoisyRmsPx);
 }
 
 }  // namespace

@@ -83,7 +83,7 @@ sim::XrayScene Scene(const std::string& name) {
 // max 0.19 / 0.32 px at the intensifier rim, radial -0.009 px per 100 px (vignetting); now
 // ~0.004 px RMS, ~0.015 px max, ~0.002 px per 100 px (the remaining radial part follows the sign
 // of k1: the centroid of a distorted blob is not the distorted centre).
-constexpr double kSystematicRmsPx = 0.006;
+constexpr double kSceneSystematicRmsPx = 0.006;
 constexpr double kSystematicMaxPx = 0.03;
 constexpr double kRadialPer100Px = 0.005;
 // The noise-driven scatter must dominate: its RMS at least this many times the systematic RMS
@@ -104,7 +104,7 @@ TEST(SimulatedSceneDetection, SystematicErrorWellBelowTheNoise) {
               << noise_rms / sys.rms_px << " x the systematic RMS\n";
     const int spheres = static_cast<int>(scene.phantom.spheres.size() * scene.views.size());
     EXPECT_GE(sys.n, spheres - 2) << name;  // at most 2 points dropped at the rim
-    EXPECT_LT(sys.rms_px, kSystematicRmsPx) << name;
+    EXPECT_LT(sys.rms_px, kSceneSystematicRmsPx) << name;
     EXPECT_LT(sys.max_px, kSystematicMaxPx) << name;
     EXPECT_LT(std::abs(sys.radial_slope) * 100, kRadialPer100Px) << name;
     EXPECT_GT(noise_rms, kNoiseOverSystematic * sys.rms_px) << name;

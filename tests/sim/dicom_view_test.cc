@@ -54,7 +54,7 @@ XrayFrameGeometry Geometry(double primary_deg, double secondary_deg) {
 }
 
 // The beam (camera z) and the source position, in the patient frame (LPS, origin = isocentre).
-Eigen::Vector3d Beam(const Rigid3& cam_from_patient) {
+Eigen::Vector3d BeamOfView(const Rigid3& cam_from_patient) {
   return cam_from_patient.R.transpose() * Eigen::Vector3d::UnitZ();
 }
 Eigen::Vector3d Source(const Rigid3& cam_from_patient) { return cam_from_patient.Inverse().t; }
@@ -62,8 +62,8 @@ Eigen::Vector3d Source(const Rigid3& cam_from_patient) { return cam_from_patient
 TEST(DicomView, ZeroZeroIsAnteroPosterior) {
   const NominalDicomView v = ViewFromFile(Geometry(0, 0));
   ASSERT_TRUE(v.cam_from_patient.has_value());
-  // Beam from the posterior source to the anterior detector: -y in LPS.
-  EXPECT_LT((Beam(*v.cam_from_patient) - Eigen::Vector3d(0, -1, 0)).norm(), kTol);
+  // BeamOfView from the posterior source to the anterior detector: -y in LPS.
+  EXPECT_LT((BeamOfView(*v.cam_from_patient) - Eigen::Vector3d(0, -1, 0)).norm(), kTol);
   EXPECT_LT((Source(*v.cam_from_patient) - Eigen::Vector3d(0, 600, 0)).norm(), 1e-9 * 600);
   // The isocentre is on the optical axis, SOD in front of the source.
   EXPECT_LT(((*v.cam_from_patient) * Eigen::Vector3d::Zero() - Eigen::Vector3d(0, 0, 600)).norm(),
@@ -77,7 +77,7 @@ TEST(DicomView, ZeroZeroIsAnteroPosterior) {
 TEST(DicomView, PositivePrimaryIsLao) {
   const NominalDicomView v = ViewFromFile(Geometry(30, 0));
   ASSERT_TRUE(v.cam_from_patient.has_value());
-  const Eigen::Vector3d beam = Beam(*v.cam_from_patient);
+  const Eigen::Vector3d beam = BeamOfView(*v.cam_from_patient);
   // The detector at the patient's left-anterior: the beam goes towards +x (left) and -y
   // (anterior); the source sits right-posterior.
   EXPECT_LT((beam - Eigen::Vector3d(std::sin(M_PI / 6), -std::cos(M_PI / 6), 0)).norm(), kTol);
@@ -88,14 +88,14 @@ TEST(DicomView, NegativePrimaryIsRao) {
   const NominalDicomView v = ViewFromFile(Geometry(-90, 0));
   ASSERT_TRUE(v.cam_from_patient.has_value());
   // RAO 90: the detector at the patient's right, the beam along -x (left to right).
-  EXPECT_LT((Beam(*v.cam_from_patient) - Eigen::Vector3d(-1, 0, 0)).norm(), kTol);
+  EXPECT_LT((BeamOfView(*v.cam_from_patient) - Eigen::Vector3d(-1, 0, 0)).norm(), kTol);
   EXPECT_GT(Source(*v.cam_from_patient).x(), 599);
 }
 
 TEST(DicomView, PositiveSecondaryIsCranial) {
   const NominalDicomView v = ViewFromFile(Geometry(0, 20));
   ASSERT_TRUE(v.cam_from_patient.has_value());
-  const Eigen::Vector3d beam = Beam(*v.cam_from_patient);
+  const Eigen::Vector3d beam = BeamOfView(*v.cam_from_patient);
   // The detector tilted towards the head: the beam gains +z (superior), the source is caudal.
   const double b = 20 * M_PI / 180;
   EXPECT_LT((beam - Eigen::Vector3d(0, -std::cos(b), std::sin(b))).norm(), kTol);
@@ -105,7 +105,7 @@ TEST(DicomView, PositiveSecondaryIsCranial) {
 TEST(DicomView, NegativeSecondaryIsCaudal) {
   const NominalDicomView v = ViewFromFile(Geometry(0, -20));
   ASSERT_TRUE(v.cam_from_patient.has_value());
-  EXPECT_LT(Beam(*v.cam_from_patient).z(), -0.34);
+  EXPECT_LT(BeamOfView(*v.cam_from_patient).z(), -0.34);
   EXPECT_GT(Source(*v.cam_from_patient).z(), 200);
 }
 
@@ -117,7 +117,7 @@ TEST(DicomView, CombinedAnglesFollowTheClosedForm) {
   const double ar = a * M_PI / 180, br = b * M_PI / 180;
   const Eigen::Vector3d expected(
       std::sin(ar) * std::cos(br), -std::cos(ar) * std::cos(br), std::sin(br));
-  EXPECT_LT((Beam(*v.cam_from_patient) - expected).norm(), kTol);
+  EXPECT_LT((BeamOfView(*v.cam_from_patient) - expected).norm(), kTol);
 }
 
 // Imager Pixel Spacing is "row spacing\column spacing": fx = SID / column spacing.

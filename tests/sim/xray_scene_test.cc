@@ -14,7 +14,7 @@ namespace carmba::sim {
 namespace {
 
 // Projection of a JSON pose re-done with camera_model.h: agreement to rounding of ~1000 mm.
-constexpr double kTolPx = 1e-9;
+constexpr double kSceneTolPx = 1e-9;
 
 const std::string kSource = CARMBA_SOURCE_DIR;
 
@@ -81,8 +81,8 @@ TEST(XrayScene, BaseSceneParsesAndTruthMatchesCameraModel) {
       double uv[2];
       ASSERT_TRUE(ProjectPoint(
           scene->camera.params.data(), pose, scene->phantom.spheres[k].center_mm.data(), uv));
-      EXPECT_NEAR(uv[0], view->truth["centers_px"][k][0].get<double>(), kTolPx);
-      EXPECT_NEAR(uv[1], view->truth["centers_px"][k][1].get<double>(), kTolPx);
+      EXPECT_NEAR(uv[0], view->truth["centers_px"][k][0].get<double>(), kSceneTolPx);
+      EXPECT_NEAR(uv[1], view->truth["centers_px"][k][1].get<double>(), kSceneTolPx);
     }
     // cam_from_plate = cam_from_world * world_from_object.
     const Rigid3 composed = CamFromWorld(scene->views[i].carm) * scene->views[i].world_from_object;
