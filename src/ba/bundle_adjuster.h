@@ -29,6 +29,7 @@
 
 #include "ba/covariance.h"
 #include "ba/problem.h"
+#include "ba/shadow_correction.h"
 #include "ba/variance_components.h"
 #include "util/status.h"
 
@@ -64,6 +65,10 @@ struct BaOptions {
   double outlier_sigma = 4.0;           // list observations with |r| above this (whitened)
   double reject_sigma = 0;              // > 0: drop observations above it and re-solve
   double min_reciprocal_condition = 1e-14;
+  // Remove the offset of each sphere's cone-beam shadow centre from its projected centre
+  // (ba/shadow_correction.h) when the sphere radii are known and the offset reaches 0.1 sigma:
+  // one more solve.
+  bool shadow_correction = true;
 
   bool Check(std::string* error) const;
 };
@@ -95,6 +100,10 @@ struct BaResult {
   CovarianceScale scale_mode = CovarianceScale::kApriori;  // BaOptions::covariance_scale
   // The groups' sigma scales the final solve was weighted with (1: the stated sigmas).
   std::array<double, kNumNoiseGroups> group_sigma_scale{1, 1, 1, 1, 1, 1};
+
+  // The cone-beam shadow-centre correction (ba/shadow_correction.h): evaluated when a sphere
+  // radius is known; when applied, every statistic above and below is of the corrected pixels.
+  ShadowCorrectionSummary shadow;
 
   std::vector<BaViewStats> views;  // problem order
   double rms_plate_px = 0, rms_object_px = 0;  // per coordinate (NaN when no such view)

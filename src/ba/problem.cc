@@ -263,6 +263,11 @@ Status BaProblem::Check() const {
   if (plate.free && !(plate.sigma_mm >= 0 && std::isfinite(plate.sigma_mm))) {
     return Status::Error("the plate's manufacturing sigma_mm must be >= 0 (0: no prior)");
   }
+  for (double r : {marker_radius_mm, plate.sphere_radius_mm}) {
+    if (!(r >= 0 && r <= 100)) {
+      return Status::Error("a sphere radius must be in 0 .. 100 mm (0: unknown), not " + std::to_string(r));
+    }
+  }
   return Status::Ok();
 }
 

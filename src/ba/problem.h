@@ -162,6 +162,7 @@ struct BaPlate {
   bool free = false;                    // estimate them, tied to the nominal grid
   double sigma_mm = 0;                  // manufacturing tolerance, 1 sigma per coordinate
                                         // (0 with free: no prior -- a gauge freedom)
+  double sphere_radius_mm = 0;          // the plate's spheres (0 = unknown: no shadow correction)
 };
 
 // The views of one rig share its pose rig_from_object (see the header comment).
@@ -179,6 +180,9 @@ struct BaProblem {
   std::vector<BaMarker> markers;
   bool markers_free = true;   // estimate the markers (else held at their CT centres)
   bool marker_priors = true;  // tie free markers to their CT centres (the CT prior)
+  // Radius of the marker spheres (mm); 0 = unknown: no cone-beam shadow-centre correction for
+  // object views (ba/shadow_correction.h).
+  double marker_radius_mm = 0;
   BaPlate plate;
 
   // Consistency, before anything is built: groups and views valid, ids unique, every observation

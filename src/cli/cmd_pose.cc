@@ -113,6 +113,7 @@ int RunPose() {
   problem.camera = *camera;
   problem.sigma_px = 1.0;  // every observation carries its own sigma
   problem.markers = *markers;
+  problem.marker_diameter_mm = options.blobs.diameter_mm;
   problem.views = ToPoseViews(*views, options.sigma_floor_px);
   {
     const Status s = problem.Check();

@@ -100,6 +100,9 @@ struct JointProblem {
   // Object views.
   std::vector<JointObjectView> object_views;
   double object_sigma_px = 0;  // from images: the median of the per-observation sigmas
+  // From images: the detection's marker diameter (mm), for the engine's cone-beam shadow
+  // correction (ba/shadow_correction.h); 0 = unknown.
+  double marker_diameter_mm = 0;
   std::vector<std::string> skipped_object_views;  // object images not labelled ("view: why")
   std::vector<Marker> fiducials;
   // Intrinsics.

@@ -273,6 +273,7 @@ Status DetectObjectViews(const ObjectImages& in, const std::string& base, const 
   if (!files.ok()) return files.status().WithContext(where + ": object_views.images");
   auto views = DetectAndLabelObjectViews(*files, *p->camera, p->fiducials, in.options);
   if (!views.ok()) return views.status();
+  p->marker_diameter_mm = in.options.blobs.diameter_mm;
   std::vector<double> all;
   for (const PoseView& pv : ToPoseViews(*views, in.options.sigma_floor_px)) {
     JointObjectView ov;

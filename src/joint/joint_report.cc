@@ -226,6 +226,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                      {"num_parameters", r.num_free},
                      {"covariance_scale", ba::CovarianceScaleName(config.covariance_scale)}};
   j["variance_components"] = VarianceComponentsJson(r);
+  j["shadow_correction"] = ShadowCorrectionJson(r);
   if (s.distortion || !s.distortion_error.empty()) {
     j["distortion_selection"] =
         DistortionSelectionJson(s.distortion ? &*s.distortion : nullptr, s.distortion_error,
@@ -307,6 +308,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   if (!r.converged) d.Warning("the solve did not converge (" + r.termination + ").");
   d.Figures({"residuals-per-view", "residual-field"});
   d.Append(VarianceComponentsDoc(r));
+  d.Append(ShadowCorrectionDoc(r));
 
   d.Heading(2, "Intrinsics");
   std::vector<std::string> header = {"group", "parameter", "value", "sigma"};

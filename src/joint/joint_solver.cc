@@ -168,6 +168,7 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
   JointSolution sol;
   ba::BaProblem& bp = sol.ba_problem;
   bp.name = problem.name;
+  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
   std::array<bool, kNumIntrinsics> free{};
   free.fill(true);
   for (const auto& n : config.fix) free[IntrinsicIndexByName(n)] = false;

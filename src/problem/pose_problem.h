@@ -136,6 +136,9 @@ struct PoseProblem {
   Camera camera;
   double sigma_px = 1.0;
   std::vector<Marker> markers;
+  // Diameter of the marker spheres (mm), when known (detected from images): the engine then
+  // corrects each blob for its cone-beam shadow's offset (ba/shadow_correction.h). 0 = unknown.
+  double marker_diameter_mm = 0;
   std::vector<PoseView> views;
   Handedness handedness = Handedness::kAsGiven;
   std::vector<ValidationPair> validation;

@@ -172,6 +172,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
   // pose view, the observed markers tied to their CT measurements.
   ba::BaProblem bp;
   bp.name = problem.name;
+  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
   ba::IntrinsicsGroup g;
   std::copy(problem.camera.params.begin(), problem.camera.params.end(), g.initial.begin());
   g.free.fill(false);

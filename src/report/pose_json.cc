@@ -10,17 +10,17 @@
 namespace carmba {
 namespace {
 
-nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+nlohmann::json FiniteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
-nlohmann::json Vec(const Eigen::VectorXd& v) {
+nlohmann::json FiniteOrNullArray(const Eigen::VectorXd& v) {
   nlohmann::json a = nlohmann::json::array();
-  for (int i = 0; i < v.size(); ++i) a.push_back(Num(v[i]));
+  for (int i = 0; i < v.size(); ++i) a.push_back(FiniteOrNull(v[i]));
   return a;
 }
 
 nlohmann::json MatRows(const Eigen::MatrixXd& m) {
   nlohmann::json a = nlohmann::json::array();
-  for (int i = 0; i < m.rows(); ++i) a.push_back(Vec(m.row(i).transpose()));
+  for (int i = 0; i < m.rows(); ++i) a.push_back(FiniteOrNullArray(m.row(i).transpose()));
   return a;
 }
 
@@ -30,7 +30,7 @@ nlohmann::json PoseJson(const Pose6& p) {
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) Rj.push_back(R(i, j));
   }
-  return {{"R", Rj}, {"rvec", Vec(p.head<3>())}, {"t_mm", Vec(p.tail<3>())}};
+  return {{"R", Rj}, {"rvec", FiniteOrNullArray(p.head<3>())}, {"t_mm", FiniteOrNullArray(p.tail<3>())}};
 }
 
 }  // namespace
@@ -50,12 +50,12 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
     vj["cam_from_object"] = PoseJson(v.cam_from_object);
     vj["covariance_6x6"] = s.has_covariance ? MatRows(v.covariance) : nlohmann::json();
     vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
-    vj["sigma_rotation_deg"] = Vec(v.sigma_rotation_deg);
-    vj["sigma_translation_mm"] = Vec(v.sigma_translation_mm);
-    vj["rms_px"] = Num(v.rms_px);
+    vj["sigma_rotation_deg"] = FiniteOrNullArray(v.sigma_rotation_deg);
+    vj["sigma_translation_mm"] = FiniteOrNullArray(v.sigma_translation_mm);
+    vj["rms_px"] = FiniteOrNull(v.rms_px);
     vj["num_observations"] = v.num_observations;
     vj["initial"] = PoseJson(v.initial);
-    vj["initial_rms_px"] = Num(v.initial_rms_px);
+    vj["initial_rms_px"] = FiniteOrNull(v.initial_rms_px);
     if (problem.truth_poses.count(v.id)) {
       const Pose6& t = problem.truth_poses.at(v.id);
       vj["truth"] = PoseJson(t);
@@ -72,37 +72,38 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
   for (const auto& p : s.validation) {
     val.push_back({{"a", p.a},
                    {"b", p.b},
-                   {"angle_view_dirs_deg", Num(p.angle_view_dirs_deg)},
-                   {"sigma_view_dirs_deg", Num(p.sigma_view_dirs_deg)},
-                   {"relative_rotation_deg", Num(p.relative_rotation_deg)},
-                   {"sigma_relative_rotation_deg", Num(p.sigma_relative_rotation_deg)},
+                   {"angle_view_dirs_deg", FiniteOrNull(p.angle_view_dirs_deg)},
+                   {"sigma_view_dirs_deg", FiniteOrNull(p.sigma_view_dirs_deg)},
+                   {"relative_rotation_deg", FiniteOrNull(p.relative_rotation_deg)},
+                   {"sigma_relative_rotation_deg", FiniteOrNull(p.sigma_relative_rotation_deg)},
                    {"expected_deg", p.expected_deg ? nlohmann::json(*p.expected_deg)
                                                    : nlohmann::json()}});
   }
   j["validation"] = val;
   nlohmann::json markers = nlohmann::json::array();
   for (const auto& [id, p] : s.markers) {
-    markers.push_back({{"id", id}, {"p_in_object_mm", Vec(p)}});
+    markers.push_back({{"id", id}, {"p_in_object_mm", FiniteOrNullArray(p)}});
   }
   j["markers"] = markers;
-  j["statistics"] = {{"rms_px", Num(s.rms_px)},
-                     {"sigma_aposteriori_px", Num(s.sigma_aposteriori_px)},
-                     {"sigma0", Num(s.sigma0)},
-                     {"chi2", Num(s.chi2)},
+  j["statistics"] = {{"rms_px", FiniteOrNull(s.rms_px)},
+                     {"sigma_aposteriori_px", FiniteOrNull(s.sigma_aposteriori_px)},
+                     {"sigma0", FiniteOrNull(s.sigma0)},
+                     {"chi2", FiniteOrNull(s.chi2)},
                      {"dof", s.dof},
-                     {"chi2_p_value", Num(s.chi2_p_value)},
+                     {"chi2_p_value", FiniteOrNull(s.chi2_p_value)},
                      {"num_residuals", s.num_residuals},
                      {"num_parameters", s.num_parameters}};
   if (s.ba_result) {
     j["statistics"]["covariance_scale"] = ba::CovarianceScaleName(s.ba_result->scale_mode);
     j["variance_components"] = VarianceComponentsJson(*s.ba_result);
+    j["shadow_correction"] = ShadowCorrectionJson(*s.ba_result);
   }
   j["warnings"] = PoseWarnings(s);
   j["solver"] = {{"config", s.config_name},
                  {"iterations", s.iterations},
                  {"termination", s.termination},
-                 {"initial_cost", Num(s.initial_cost)},
-                 {"final_cost", Num(s.final_cost)},
+                 {"initial_cost", FiniteOrNull(s.initial_cost)},
+                 {"final_cost", FiniteOrNull(s.final_cost)},
                  {"time_s", s.time_s}};
   if (s.has_covariance) j["joint_covariance"] = MatRows(s.joint_covariance);
   if (s.ba_problem) j["relative_poses"] = RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth_poses);

@@ -269,7 +269,10 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
                                        : " (consistent with the stated sigmas)"),
           "Covariance: " + config.covariance_algorithm + ", " +
               CovarianceScaleNote(config.covariance_scale)});
-  if (s.ba_result) d.Append(VarianceComponentsDoc(*s.ba_result));
+  if (s.ba_result) {
+    d.Append(VarianceComponentsDoc(*s.ba_result));
+    d.Append(ShadowCorrectionDoc(*s.ba_result));
+  }
   {
     const auto warnings = PoseWarnings(s);
     if (warnings.empty()) d.Paragraph("The solve checked itself and found nothing to warn about.");

@@ -21,4 +21,10 @@ nlohmann::json VarianceComponentsJson(const ba::BaResult& result);
 // groups outside their band.
 ReportDoc VarianceComponentsDoc(const ba::BaResult& result);
 
+// result.json's "shadow_correction" (ba/shadow_correction.h): {"evaluated", "applied",
+// "observations", "max_px", "rms_px", "max_sigma"}; null when no sphere radius was known.
+nlohmann::json ShadowCorrectionJson(const ba::BaResult& result);
+// The report's paragraph on it (empty when not evaluated).
+ReportDoc ShadowCorrectionDoc(const ba::BaResult& result);
+
 }  // namespace carmba

@@ -537,9 +537,10 @@ void AddSingleCameraBeads(const TrackOptions& o, TrackResult* r) {
   }
 }
 
-Status SolveTrack(TrackResult* r) {
+Status SolveTrack(double marker_diameter_mm, TrackResult* r) {
   ba::BaProblem problem;
   problem.name = "track";
+  problem.marker_radius_mm = marker_diameter_mm / 2;
   for (const TrackCamera& c : r->cameras) {
     ba::IntrinsicsGroup g;
     g.name = c.name;
@@ -835,7 +836,7 @@ StatusOr<TrackResult> TrackDetections(const std::vector<TrackCamera>& cameras,
   }
   // 4. One bundle adjustment.
   t0 = Clock::now();
-  if (Status s = SolveTrack(&r); !s.ok()) return s;
+  if (Status s = SolveTrack(options.marker_diameter_mm, &r); !s.ok()) return s;
   r.time_ba_s = Seconds(t0);
   // 5. Checks.
   CheckTrack(&r);
