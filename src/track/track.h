@@ -165,6 +165,10 @@ struct TrackChecks {
   double rms_px = 0;                     // the bundle adjustment's, per coordinate
   double max_change_sigmas = 0;          // over all body distances
   double max_spread_mm = 0;
+  // What the noise alone gives: the expected largest spread over the same distances and frames
+  // with each distance drawn from N(d, sigma_f) (seeded Monte Carlo, kSpreadDraws draws). A spread
+  // target below it is out of reach on these data.
+  double predicted_max_spread_mm = 0;
   double rms_spread_mm = 0;              // RMS over the distances of (d_f - mean d)
   double distance_chi2 = 0;              // sum over distances and frames of ((d_f - mean)/sigma)^2
   int distance_dof = 0;
