@@ -18,14 +18,6 @@ namespace carmba::test {
 namespace {
 
 namespace fs = std::filesystem;
-const std::string kSource = CARMBA_SOURCE_DIR;
-
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // Replaces the one occurrence of `from` in `text` by `to`.
 std::string Corrupt(std::string text, const std::string& from, const std::string& to) {
@@ -45,7 +37,7 @@ class AbsurdInput : public ::testing::Test {
     const auto obs =
         MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
     ASSERT_TRUE(WriteObservationsCsv(obs, dir_.File("obs.csv")).ok());
-    obs_csv_ = Slurp(dir_.File("obs.csv"));
+    obs_csv_ = ReadTextFile(dir_.File("obs.csv"));
   }
   // Runs `carmba <args> --out <out>`: non-zero exit, one line on stderr containing `expected`,
   // no number printed digit by digit, nothing at <out>.
@@ -163,7 +155,7 @@ TEST_F(AbsurdInput, CtFiducialsFlags) {
 }
 
 TEST_F(AbsurdInput, SceneFile) {
-  const std::string scene = Slurp(kSource + "/configs/scenes/thesis_calibration.yaml");
+  const std::string scene = ReadTextFile(kSource + "/configs/scenes/thesis_calibration.yaml");
   ASSERT_FALSE(scene.empty());
   dir_.Write("sid.yaml", Corrupt(scene, "sid_mm: 1000 ", "sid_mm: 1e300 "));
   ExpectFails("simulate --scene " + dir_.File("sid.yaml"),
@@ -182,7 +174,7 @@ TEST_F(AbsurdInput, SceneFile) {
 }
 
 TEST_F(AbsurdInput, CtSceneFile) {
-  const std::string scene = Slurp(kSource + "/configs/scenes/thesis_ct.yaml");
+  const std::string scene = ReadTextFile(kSource + "/configs/scenes/thesis_ct.yaml");
   ASSERT_FALSE(scene.empty());
   dir_.Write("pixel.yaml",
              Corrupt(scene, "pixel_spacing_mm: 0.3515625", "pixel_spacing_mm: 1e300"));

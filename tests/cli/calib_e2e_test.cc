@@ -21,6 +21,7 @@
 #include "detect/observations.h"
 #include "report_browser.h"
 #include "scratch.h"
+#include "cli_test_util.h"
 
 namespace {
 
@@ -30,13 +31,6 @@ struct CliRun {
   int code;
   std::string out, err;
 };
-
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // `name` in this process's scratch directory (shared by the tests of one run of the binary, so
 // that a scene is rendered once; removed at exit).
@@ -48,10 +42,10 @@ std::string Tmp(const std::string& name) {
 CliRun Carmba(const std::string& args) {
   const std::string o = Tmp("stdout.txt"), e = Tmp("stderr.txt");
   const int status = std::system((std::string(CARMBA_BIN) + " " + args + " >" + o + " 2>" + e).c_str());
-  return {WEXITSTATUS(status), Slurp(o), Slurp(e)};
+  return {WEXITSTATUS(status), carmba::test::ReadTextFile(o), carmba::test::ReadTextFile(e)};
 }
 
-nlohmann::json Json(const fs::path& p) { return nlohmann::json::parse(Slurp(p)); }
+nlohmann::json Json(const fs::path& p) { return nlohmann::json::parse(carmba::test::ReadTextFile(p)); }
 
 // Renders a shipped scene once per test binary run.
 std::string Simulated(const std::string& scene) {
@@ -95,7 +89,7 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
                          "print(repr(m.intrinsics()[1][0]), repr(f.getNode('camera_matrix').mat()[0][0]))\" > " +
                          Tmp("py.txt");
   ASSERT_EQ(std::system(py.c_str()), 0);
-  std::istringstream py_out(Slurp(Tmp("py.txt")));
+  std::istringstream py_out(carmba::test::ReadTextFile(Tmp("py.txt")));
   double fx_mrcal = 0, fx_cv = 0;
   py_out >> fx_mrcal >> fx_cv;
   EXPECT_DOUBLE_EQ(fx_mrcal, cam["fx"].get<double>());
@@ -126,7 +120,7 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
     const char* k = carmba::kIntrinsicNames[i];
     EXPECT_NEAR(cam["sigmas"][k].get<double>() / m["sigma"][i].get<double>(), 1.0, 0.10) << k;
   }
-  const std::string report = Slurp(out + "/report.md");
+  const std::string report = carmba::test::ReadTextFile(out + "/report.md");
   EXPECT_EQ(report.find("FAIL"), std::string::npos) << report;
   EXPECT_NE(report.find("## Against the truth"), std::string::npos);
   EXPECT_NE(report.find("| whole image | 441 |"), std::string::npos) << report;
@@ -180,7 +174,7 @@ TEST(CalibE2E, ThesisConfigHoldsTheThesisConstraints) {
   EXPECT_EQ(cam["distortion"][2].get<double>(), 0.0);
   EXPECT_EQ(cam["distortion"][3].get<double>(), 0.0);
   EXPECT_NEAR(cam["fy"].get<double>() / cam["fx"].get<double>(), 1.09375, 1e-12);
-  EXPECT_NE(Slurp(out + "/report.md").find("Not the same problem"), std::string::npos);
+  EXPECT_NE(carmba::test::ReadTextFile(out + "/report.md").find("Not the same problem"), std::string::npos);
 }
 
 TEST(CalibE2E, DetectThenCalibrateFromObservations) {
@@ -193,7 +187,7 @@ TEST(CalibE2E, DetectThenCalibrateFromObservations) {
   EXPECT_NE(d.out.find("found the grid in 20 of 20"), std::string::npos) << d.out;
   CliRun r = Carmba("calibrate --observations " + csv + " --out " + out + " --nomrcal --noopencv");
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(Slurp(out + "/report.md").find("Not run: disabled"), std::string::npos);
+  EXPECT_NE(carmba::test::ReadTextFile(out + "/report.md").find("Not run: disabled"), std::string::npos);
 }
 
 TEST(CalibE2E, OpenCvChessboardPhotosAgreeWithOpenCvAndMrcal) {
@@ -284,7 +278,7 @@ TEST(CalibE2E, TruncatedImageAndPatternSmallerThanPlate) {
     const std::string name = "calib_00" + std::to_string(i) + ".png";
     fs::copy_file(sim + "/" + name, dir + "/" + name);
   }
-  const std::string whole = Slurp(sim + "/calib_004.png");
+  const std::string whole = carmba::test::ReadTextFile(sim + "/calib_004.png");
   std::ofstream(dir + "/calib_004.png", std::ios::binary) << whole.substr(0, whole.size() / 2);
   const std::string out = Tmp("out_truncated");
   fs::remove_all(out);

@@ -19,6 +19,9 @@
 
 namespace carmba::test {
 
+// The source tree (configs/, problems/, data/, src/docs/).
+inline const std::string kSource = CARMBA_SOURCE_DIR;
+
 struct CommandResult {
   int exit_code = -1;
   std::string out;  // stdout

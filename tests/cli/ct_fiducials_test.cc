@@ -14,6 +14,7 @@
 #include "ct/ct_fiducials.h"
 #include "report_browser.h"
 #include "scratch.h"
+#include "cli_test_util.h"
 
 namespace carmba {
 namespace {
@@ -25,21 +26,14 @@ struct CmdResult {
   std::string out, err;
 };
 
-std::string Slurp(const std::string& path) {
-  std::ifstream f(path);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
 CmdResult RunCarmba(const std::string& args, const std::string& scratch) {
   const std::string out = scratch + "/stdout.txt", err = scratch + "/stderr.txt";
   const std::string cmd = std::string(CARMBA_BIN) + " " + args + " >" + out + " 2>" + err;
   CmdResult r;
   const int status = std::system(cmd.c_str());
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = Slurp(out);
-  r.err = Slurp(err);
+  r.out = test::ReadTextFile(out);
+  r.err = test::ReadTextFile(err);
   return r;
 }
 
@@ -97,12 +91,12 @@ TEST_F(CtFiducialsCli, ThesisCtCentresWithinATenthOfAMillimetreTiltedTheSame) {
       EXPECT_LT((m.p_mm - truth.at(m.id)).norm(), kCentreTolMm) << scene << " marker " << m.id;
     }
     rows[scene] = *f;
-    const std::string md = Slurp(root_ + "/" + scene + ".md");
+    const std::string md = test::ReadTextFile(root_ + "/" + scene + ".md");
     EXPECT_NE(md.find("bbox centre"), std::string::npos);
     EXPECT_NE(md.find("rigid fit model <- CT"), std::string::npos);
   }
   // <stem>.html: the same tables and the markers with their covariance ellipsoids, rendered.
-  const std::string html = Slurp(root_ + "/thesis_ct.html");
+  const std::string html = test::ReadTextFile(root_ + "/thesis_ct.html");
   EXPECT_NE(html.find("data-plot=\"markers\""), std::string::npos);
   EXPECT_NE(html.find("<th>bbox centre</th>"), std::string::npos);
   test::ExpectReportRenders(root_ + "/thesis_ct.html", 1);

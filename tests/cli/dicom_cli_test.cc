@@ -22,13 +22,6 @@ namespace fs = std::filesystem;
 using test::RunCarmba;
 using test::ScratchDir;
 
-std::string Slurp(const std::string& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // Renders the scene's views (3 x 3 supersampling instead of the scene's 5 x 5: twice as fast, and
 // PNG and DICOM get the same pixels either way) into dir/png/*.png and dir/dcm/run.dcm.
 void RenderBoth(const ScratchDir& dir) {
@@ -93,8 +86,8 @@ TEST(DicomCli, DetectAndCalibrateFromAMultiFrameXaFileAsFromPngs) {
   auto c_dcm = RunCarmba("calibrate --images " + dir.File("dcm") + grid + " --nomrcal --noopencv" +
                          " --out " + dir.File("cal_dcm"));
   ASSERT_EQ(c_dcm.exit_code, 0) << c_dcm.err;
-  const auto a = nlohmann::json::parse(Slurp(dir.File("cal_png/camera.json")));
-  const auto b = nlohmann::json::parse(Slurp(dir.File("cal_dcm/camera.json")));
+  const auto a = nlohmann::json::parse(test::ReadTextFile(dir.File("cal_png/camera.json")));
+  const auto b = nlohmann::json::parse(test::ReadTextFile(dir.File("cal_dcm/camera.json")));
   for (const char* k : {"fx", "fy", "cx", "cy"}) {
     ASSERT_TRUE(a.contains(k)) << k;
     EXPECT_EQ(a[k].get<double>(), b[k].get<double>()) << k;

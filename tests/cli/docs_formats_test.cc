@@ -30,19 +30,12 @@ namespace fs = std::filesystem;
 using test::JoinSet;
 using test::Minus;
 
-const std::string kDoc = std::string(CARMBA_SOURCE_DIR) + "/src/docs/formats.md";
+const std::string kFormatsDoc = std::string(CARMBA_SOURCE_DIR) + "/src/docs/formats.md";
 
 // Tables of output files: compared with real outputs by DocsOwnData (docs_own_data_test.cc).
 // json-result-joint-flex by FlexCli (flex_cli_test.cc).
 const std::set<std::string> kOutputTables = {"json-camera", "json-result-pose", "json-result-joint",
                                              "json-geometry", "json-result-joint-flex"};
-
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // Reads an example with the reader of its kind, in this process. Returns false for kinds read by
 // the command (or by another example, as the CSVs and camera.json).
@@ -75,8 +68,8 @@ bool ReadInProcess(const std::string& kind, const std::string& path, Status* sta
 class DocsFormats : public ::testing::Test {
  protected:
   void SetUp() override {
-    doc_ = test::ReadMarkdownDoc(kDoc);
-    ASSERT_FALSE(doc_.blocks.empty()) << kDoc << ": no fenced blocks (is the file there?)";
+    doc_ = test::ReadMarkdownDoc(kFormatsDoc);
+    ASSERT_FALSE(doc_.blocks.empty()) << kFormatsDoc << ": no fenced blocks (is the file there?)";
     for (const auto& b : doc_.blocks) {
       if (!b.file.empty()) dir_.Write(b.file, b.text);
     }
@@ -134,7 +127,7 @@ TEST_F(DocsFormats, ExamplesReadAndKeyTablesMatchTheReaders) {
         << "example kinds that no reader in this test reads";
   }
   {
-    std::istringstream in(Slurp(keys_file));
+    std::istringstream in(test::ReadTextFile(keys_file));
     std::string line;
     while (std::getline(in, line)) {
       const auto tab = line.find('\t');
@@ -198,7 +191,7 @@ TEST_F(DocsFormats, ShippedFilesUseOnlyDocumentedKeys) {
     for (const auto& e : fs::directory_iterator(std::string(CARMBA_SOURCE_DIR) + "/" + sub)) {
       if (e.path().extension() != ".yaml") continue;
       const std::string path = e.path().string(), dir = std::string(sub);
-      const std::string text = Slurp(path);
+      const std::string text = test::ReadTextFile(path);
       if (dir == "problems") {
         try_read(IsJointProblemFile(path) ? "joint-problem" : "pose-problem", path);
       } else if (dir == "configs") {
@@ -240,7 +233,7 @@ TEST_F(DocsFormats, EveryKeyNameInTheReadersIsDocumented) {
   std::set<std::string> in_source;
   for (const auto& e : fs::recursive_directory_iterator(std::string(CARMBA_SOURCE_DIR) + "/src")) {
     if (e.path().extension() != ".cc") continue;
-    const std::string text = Slurp(e.path().string());
+    const std::string text = test::ReadTextFile(e.path().string());
     // Files with a key reader: YAML (util/yaml_reader.h) or the study's JSON mappings.
     if (text.find("YamlMap") == std::string::npos && text.find("JsonMap") == std::string::npos) {
       continue;

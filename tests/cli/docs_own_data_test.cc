@@ -29,8 +29,8 @@ namespace {
 namespace fs = std::filesystem;
 using test::JoinSet;
 
-const std::string kSrc = CARMBA_SOURCE_DIR;
-const std::string kDoc = kSrc + "/src/docs/own-data.md";
+const std::string kOwnDataSrc = CARMBA_SOURCE_DIR;
+const std::string kOwnDataDoc = kOwnDataSrc + "/src/docs/own-data.md";
 
 // The programs the walk-through may run: carmba and the shell's file basics (a doc edit that
 // adds anything else is a deliberate change of this test).
@@ -112,14 +112,14 @@ std::string TextBefore(const std::vector<std::string>& lines, const test::Markdo
 void ExportWalkThroughEnvironment() {
   const std::string bin_dir = fs::path(CARMBA_BIN).parent_path().string();
   const char* path = std::getenv("PATH");
-  ::setenv("CARMBA_DIR", kSrc.c_str(), 1);
+  ::setenv("CARMBA_DIR", kOwnDataSrc.c_str(), 1);
   ::setenv("PATH", (bin_dir + ":" + (path ? path : "/usr/bin:/bin")).c_str(), 1);
 }
 
 TEST(DocsOwnData, WalkThroughRunsAsWritten) {
-  const test::MarkdownDoc doc = test::ReadMarkdownDoc(kDoc);
-  const std::vector<std::string> lines = Lines(kDoc);
-  const test::MarkdownDoc formats = test::ReadMarkdownDoc(kSrc + "/src/docs/formats.md");
+  const test::MarkdownDoc doc = test::ReadMarkdownDoc(kOwnDataDoc);
+  const std::vector<std::string> lines = Lines(kOwnDataDoc);
+  const test::MarkdownDoc formats = test::ReadMarkdownDoc(kOwnDataSrc + "/src/docs/formats.md");
   const test::ScratchDir dir("docs_own_data");   // the reader's empty directory
   const test::ScratchDir logs("docs_own_data_log");  // each command's stdout and stderr
   ExportWalkThroughEnvironment();

@@ -18,8 +18,7 @@
 namespace carmba::test {
 namespace {
 
-const std::string kSource = CARMBA_SOURCE_DIR;
-constexpr double kSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
+constexpr double kFlexSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
 
 std::string Replace(std::string s, const std::string& from, const std::string& to) {
   for (size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + to.size())) {
@@ -61,7 +60,7 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
       const std::string k = names.at(i);
       const double e = in.at(k).get<double>() - true_intr.at(id).at(k).get<double>();
       const double s = std::sqrt(in.at("covariance").at("matrix").at(i).at(i).get<double>());
-      EXPECT_LT(std::abs(e), kSigmas * s) << id << " " << k << ": error " << e << " sigma " << s;
+      EXPECT_LT(std::abs(e), kFlexSigmas * s) << id << " " << k << ": error " << e << " sigma " << s;
     }
     ++n_views;
     if (v.at("kind") != "object") continue;
@@ -73,7 +72,7 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
       const double x = i < 3 ? est.at("rvec").at(i).get<double>() : est.at("t_mm").at(i - 3).get<double>();
       const double t = i < 3 ? tp.at("rvec").at(i).get<double>() : tp.at("t_mm").at(i - 3).get<double>();
       const double s = std::sqrt(C.at(i).at(i).get<double>());
-      EXPECT_LT(std::abs(x - t), kSigmas * s) << id << " pose " << i;
+      EXPECT_LT(std::abs(x - t), kFlexSigmas * s) << id << " pose " << i;
     }
     const double p = v.at("primary_deg"), sec = v.at("secondary_deg");
     const bool between = std::abs(std::fmod(std::abs(p), 20.0)) > 1e-9 || sec != 0;

@@ -17,7 +17,6 @@
 namespace carmba::test {
 namespace {
 
-const std::string kSource = CARMBA_SOURCE_DIR;
 
 TEST(GeometryCli, PoseSolveWritesTheProjectionMatricesOfItsPoses) {
   ScratchDir out;

@@ -11,7 +11,6 @@ namespace carmba::test {
 namespace {
 
 namespace fs = std::filesystem;
-const std::string kSource = CARMBA_SOURCE_DIR;
 
 class InputGuards : public ::testing::Test {
  protected:

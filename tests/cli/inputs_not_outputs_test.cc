@@ -26,7 +26,6 @@ namespace carmba::test {
 namespace {
 
 namespace fs = std::filesystem;
-const std::string kSource = CARMBA_SOURCE_DIR;
 
 // Stand-in inputs: one directory of "images" and one file per other input.
 struct Inputs {

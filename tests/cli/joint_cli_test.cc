@@ -17,8 +17,7 @@
 namespace carmba::test {
 namespace {
 
-const std::string kSource = CARMBA_SOURCE_DIR;
-constexpr double kSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
+constexpr double kJointSigmas = 3.0;  // the acceptance: within 3 sigma of the truth
 
 TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   ScratchDir dir;
@@ -53,7 +52,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
     const double e = intr.at(k).get<double>() - truth.at("camera").at(k).get<double>();
     const double s = intr.at("sigmas").at(k).get<double>();
     std::printf("%s: error %.3f px, sigma %.3f px (%.2f sigma)\n", k, e, s, e / s);
-    EXPECT_LT(std::abs(e), kSigmas * s) << k;
+    EXPECT_LT(std::abs(e), kJointSigmas * s) << k;
   }
   EXPECT_EQ(intr.at("covariance").at("names").size(), 9u);
   // Every relative rotation within 3 sigma of the true one.
@@ -65,7 +64,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
     std::printf("%s-%s: error %.4f deg, sigma %.4f deg (%.2f sigma)\n",
                 v.at("a").get<std::string>().c_str(), v.at("b").get<std::string>().c_str(), e, s,
                 e / s);
-    EXPECT_LT(std::abs(e), kSigmas * s);
+    EXPECT_LT(std::abs(e), kJointSigmas * s);
   }
   // Relative poses: all 21 pairs of the 7 object views, each rotation within 3 sigma of the
   // truth (the rotation part's Mahalanobis distance, 3 dof).
@@ -76,7 +75,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
     const double m = p.at("rotation_error_sigma").get<double>();
     worst = std::max(worst, m);
     nees += p.at("nees").get<double>() / 6 / 21;
-    EXPECT_LT(m, kSigmas) << p.at("a") << "-" << p.at("b");
+    EXPECT_LT(m, kJointSigmas) << p.at("a") << "-" << p.at("b");
   }
   std::printf("relative poses: worst rotation error %.2f sigma over 21 pairs, mean NEES / 6 %.2f\n",
               worst, nees);
@@ -136,7 +135,7 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
                   "plate-pixel variance %.2e mm^2 of %.2e\n",
                   id, p.at("views").size(), e.norm(), m,
                   p.at("variance_by_source_mm2").at("plate pixels").get<double>(), C.trace());
-      EXPECT_LT(m, kSigmas);
+      EXPECT_LT(m, kJointSigmas);
       EXPECT_GT(p.at("variance_by_source_mm2").at("plate pixels").get<double>(), 0.0);
     }
   }

@@ -23,9 +23,8 @@ namespace carmba::test {
 namespace {
 
 namespace fs = std::filesystem;
-const std::string kSource = CARMBA_SOURCE_DIR;
 
-std::string Slurp(const std::string& p) {
+std::string ContentsOrMissing(const std::string& p) {
   auto s = ReadFile(p);
   return s.ok() ? *s : "<missing " + p + ">";
 }
@@ -79,14 +78,14 @@ class OutContract : public ::testing::Test {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const std::string probe_path = probe.empty() ? out : out + "/" + probe;
     ASSERT_TRUE(fs::exists(probe_path)) << probe_path;
-    const std::string before = Slurp(probe_path);
+    const std::string before = ContentsOrMissing(probe_path);
 
     r = RunCarmba(cmd + " " + args(out));
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_EQ(CountLines(r.err), 1) << r.err;
     EXPECT_EQ(r.err.rfind("carmba " + cmd + ": error: --out " + out + ": ", 0), 0u) << r.err;
     EXPECT_NE(r.err.find("--force"), std::string::npos) << r.err;
-    EXPECT_EQ(Slurp(probe_path), before);
+    EXPECT_EQ(ContentsOrMissing(probe_path), before);
 
     r = RunCarmba(cmd + " " + args(out) + " --force");
     EXPECT_EQ(r.exit_code, 0) << r.err;
@@ -230,7 +229,7 @@ TEST_F(OutContract, CalibrateProgress) {
                           root.File("tty") + "\" /dev/null";
   const std::string log = root.File("tty.log");
   ASSERT_EQ(std::system((cmd + " > " + log + " 2>&1").c_str()), 0);
-  const std::string tty = Slurp(log);
+  const std::string tty = ContentsOrMissing(log);
   EXPECT_NE(tty.find("\rcalibrate: detecting ["), std::string::npos) << tty;
   EXPECT_NE(tty.find("] 20/20 images 100%"), std::string::npos) << tty;
 }

@@ -23,7 +23,6 @@ namespace carmba::test {
 namespace {
 
 namespace fs = std::filesystem;
-const std::string kSource = CARMBA_SOURCE_DIR;
 
 // `mount --bind src dst` (read-only if asked) for the lifetime of the object; ok() is false when
 // mounting is not allowed here.

@@ -17,13 +17,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 class PoseCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -31,7 +24,7 @@ class PoseCli : public ::testing::Test {
     const auto r = RunCarmba("simulate --scene " + std::string(CARMBA_SOURCE_DIR) +
                              "/configs/scenes/markers_clutter.yaml --out " + dir_->File("sim"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    truth_ = nlohmann::json::parse(Slurp(dir_->File("sim/truth.json")));
+    truth_ = nlohmann::json::parse(ReadTextFile(dir_->File("sim/truth.json")));
     // camera.json: the simulator's camera; fiducials.csv: the object's true centres with a
     // 0.1 mm CT sigma (as `carmba ct-fiducials` writes them).
     std::ofstream(dir_->File("camera.json")) << truth_["camera"].dump(2);
@@ -62,14 +55,14 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
   const std::string out = dir_->File("out");
   const auto r = RunCarmba(Args(dir_->File("sim/*.png")) + " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const std::string csv = Slurp(out + "/observations.csv");
+  const std::string csv = ReadTextFile(out + "/observations.csv");
   EXPECT_NE(csv.find("\nview,marker,u_px,v_px,cov_uu,cov_uv,cov_vv\n"), std::string::npos);
   // 9 markers in 5 views, 8 in the partial view, 7 in the overlap view.
   EXPECT_EQ(CountLines(csv) - 3, 5 * 9 + 8 + 7);
   int overlays = 0;
   for (const auto& e : fs::directory_iterator(out)) overlays += e.path().filename().string().rfind("overlay_", 0) == 0;
   EXPECT_EQ(overlays, 7);
-  const auto j = nlohmann::json::parse(Slurp(out + "/result.json"));
+  const auto j = nlohmann::json::parse(ReadTextFile(out + "/result.json"));
   ASSERT_EQ(j["views"].size(), 7u);
   // The per-blob covariances are honest: the a-posteriori factor near 1 (true camera, exact CT
   // centres, so the pixel noise is all there is; each observation whitened by its blob's full 2x2
@@ -97,9 +90,9 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
           << jv["id"] << " axis " << a;
     }
   }
-  EXPECT_NE(Slurp(out + "/report.md").find("Marker detection and labelling"), std::string::npos);
+  EXPECT_NE(ReadTextFile(out + "/report.md").find("Marker detection and labelling"), std::string::npos);
   // report.html: the same report with its plots, rendered in a browser.
-  EXPECT_NE(Slurp(out + "/report.html").find("Marker detection and labelling"), std::string::npos);
+  EXPECT_NE(ReadTextFile(out + "/report.html").find("Marker detection and labelling"), std::string::npos);
   ExpectReportRenders(out + "/report.html", 2);
 }
 

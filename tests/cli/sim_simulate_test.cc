@@ -27,13 +27,6 @@ SimRun Simulate(const std::string& args) {
   return {r.exit_code, r.err};
 }
 
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 const std::string kScenes = std::string(CARMBA_SOURCE_DIR) + "/configs/scenes/";
 
 TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
@@ -41,7 +34,7 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   const fs::path out = tmp.File("pose");
   const SimRun r = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
-  nlohmann::json truth = nlohmann::json::parse(Slurp(out / "truth.json"));
+  nlohmann::json truth = nlohmann::json::parse(carmba::test::ReadTextFile(out / "truth.json"));
   EXPECT_EQ(truth["kind"], "xray");
   EXPECT_EQ(truth["camera"]["fx"].get<double>(), 2061.389);
   ASSERT_EQ(truth["views"].size(), 7u);
@@ -75,9 +68,9 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   const fs::path out2 = tmp.File("pose2");
   ASSERT_EQ(Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out2.string()).code, 0);
   for (const auto& e : fs::directory_iterator(out)) {
-    EXPECT_EQ(Slurp(e.path()).size(), Slurp(out2 / e.path().filename()).size());
+    EXPECT_EQ(carmba::test::ReadTextFile(e.path()).size(), carmba::test::ReadTextFile(out2 / e.path().filename()).size());
     if (e.path().filename() != "truth.json") {
-      EXPECT_TRUE(Slurp(e.path()) == Slurp(out2 / e.path().filename())) << e.path();
+      EXPECT_TRUE(carmba::test::ReadTextFile(e.path()) == carmba::test::ReadTextFile(out2 / e.path().filename())) << e.path();
     }
   }
 
@@ -85,10 +78,10 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   const fs::path out3 = tmp.File("pose3");
   ASSERT_EQ(
       Simulate("--scene=" + kScenes + "thesis_pose.yaml --seed=77 --out=" + out3.string()).code, 0);
-  const nlohmann::json truth3 = nlohmann::json::parse(Slurp(out3 / "truth.json"));
+  const nlohmann::json truth3 = nlohmann::json::parse(carmba::test::ReadTextFile(out3 / "truth.json"));
   EXPECT_EQ(truth3["seed"], 77);
   EXPECT_EQ(truth3["views"][0]["centers_px"], truth["views"][0]["centers_px"]);
-  EXPECT_FALSE(Slurp(out3 / "orient_000.png") == Slurp(out / "orient_000.png"));
+  EXPECT_FALSE(carmba::test::ReadTextFile(out3 / "orient_000.png") == carmba::test::ReadTextFile(out / "orient_000.png"));
 
   // An existing non-empty output is not overwritten without --force ...
   const SimRun again = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
@@ -107,7 +100,7 @@ TEST(SimulateCli, CtSceneIsDispatched) {
   const fs::path out = tmp.File("ct");
   const SimRun r = Simulate("--scene=" + kScenes + "thesis_ct.yaml --out=" + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
-  const nlohmann::json truth = nlohmann::json::parse(Slurp(out / "truth.json"));
+  const nlohmann::json truth = nlohmann::json::parse(carmba::test::ReadTextFile(out / "truth.json"));
   EXPECT_EQ(truth["kind"], "ct");
   EXPECT_EQ(truth["markers"].size(), 9u);
   EXPECT_TRUE(fs::is_directory(out / "ct"));
@@ -118,7 +111,7 @@ TEST(SimulateCli, BadSceneLeavesNoOutput) {
   const carmba::test::ScratchDir tmp("sim_cli_bad");
   const fs::path dir = tmp.path();
   // The shipped scene plus a last view that puts the plate outside the field of view.
-  std::string text = Slurp(kScenes + "thesis_calibration.yaml");
+  std::string text = carmba::test::ReadTextFile(kScenes + "thesis_calibration.yaml");
   text +=
       "  - {name: too_far, primary_deg: 0, object_rotation_deg: [90, 0, 0], "
       "object_center_mm: [80, 0, 0]}\n";

@@ -12,7 +12,6 @@
 namespace carmba::test {
 namespace {
 
-const std::string kSource = CARMBA_SOURCE_DIR;
 
 // Every line of `err` that is not a warning is a step ("carmba CMD: what"), a step's time
 // ("carmba CMD: what: 0.123 s") or the total, and the last line is the total.

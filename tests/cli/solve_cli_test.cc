@@ -12,7 +12,6 @@
 namespace carmba::test {
 namespace {
 
-const std::string kSource = CARMBA_SOURCE_DIR;
 
 TEST(SolveCli, ThesisJobWritesResultAndReport) {
   ScratchDir out;

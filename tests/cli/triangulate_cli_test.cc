@@ -18,7 +18,6 @@
 namespace carmba::test {
 namespace {
 
-const std::string kSource = CARMBA_SOURCE_DIR;
 
 class TriangulateCli : public ::testing::Test {
  protected:
