@@ -799,7 +799,8 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
   }
   const double first_time_s = res->time_s;
   const int first_iterations = res->iterations;
-  res = SolveWithNoiseModel(WithShadowOffsetsRemoved(problem, offsets), options, &res->state);
+  const std::vector<double> solved_state = res->state;
+  res = SolveWithNoiseModel(WithShadowOffsetsRemoved(problem, offsets), options, &solved_state);
   if (!res.ok()) return res;
   res->shadow = shadow;
   res->time_s += first_time_s;
