@@ -7,6 +7,8 @@
 #include <iostream>
 #include <random>
 
+#include <Eigen/Geometry>
+
 #include "ba/bundle_adjuster.h"
 #include "ba/shadow_correction.h"
 #include "camera/camera_model.h"
@@ -221,6 +223,43 @@ TEST(ShadowCorrection, TheEngineRemovesTheBiasOfLargeSpheres) {
   ASSERT_TRUE(off.ok());
   EXPECT_FALSE(off->shadow.evaluated);
   EXPECT_NEAR(off->block(off->layout->view_block(0))[5], biased->block(biased->layout->view_block(0))[5], 1e-9);
+}
+
+TEST(ShadowCorrection, RigViewsUseTheirComposedPose) {
+  // The same scene with each view's pose split into a held cam_from_rig and a free rig: the
+  // offsets are evaluated at the composed pose, so the corrected answer is the same.
+  const ShadowScene s = MakeScene(5.0, 0.01, 11);
+  BaProblem plain = s.problem;
+  plain.marker_radius_mm = 5.0;
+  BaProblem rigged = plain;
+  for (size_t v = 0; v < rigged.views.size(); ++v) {
+    BaView& view = rigged.views[v];
+    view.cam_from_rig << 0.2, -0.1 * v, 0.3, 5.0 * v, -3, 10;
+    const Eigen::Matrix3d Rc = RotationOf(view.cam_from_rig.data()), Rp = RotationOf(view.initial.data());
+    const Eigen::AngleAxisd aa(Rc.transpose() * Rp);
+    BaRig rig;
+    rig.id = "r" + std::to_string(v);
+    rig.initial.head<3>() = aa.angle() * aa.axis();
+    rig.initial.tail<3>() = Rc.transpose() * (view.initial.tail<3>() - view.cam_from_rig.tail<3>());
+    rigged.rigs.push_back(rig);
+    view.rig = static_cast<int>(v);
+  }
+  auto a = SolveBundleAdjustment(plain, BaOptions());
+  auto b = SolveBundleAdjustment(rigged, BaOptions());
+  ASSERT_TRUE(a.ok()) << a.status().message();
+  ASSERT_TRUE(b.ok()) << b.status().message();
+  ASSERT_TRUE(a->shadow.applied);
+  ASSERT_TRUE(b->shadow.applied);
+  EXPECT_NEAR(a->shadow.max_px, b->shadow.max_px, 1e-9);
+  EXPECT_NEAR(a->shadow.rms_px, b->shadow.rms_px, 1e-9);
+  for (size_t v = 0; v < plain.views.size(); ++v) {
+    const double* pa = a->block(a->layout->view_block(static_cast<int>(v)));
+    const double* rb = b->block(b->layout->view_block(static_cast<int>(v)));
+    const Eigen::Matrix3d Rc = RotationOf(rigged.views[v].cam_from_rig.data());
+    const Eigen::Vector3d t = Rc * Eigen::Vector3d(rb[3], rb[4], rb[5]) + rigged.views[v].cam_from_rig.tail<3>();
+    EXPECT_NEAR(t.z(), pa[5], 1e-6) << v;
+    EXPECT_NEAR(t.x(), pa[3], 1e-6) << v;
+  }
 }
 
 TEST(ShadowCorrection, SmallSpheresAreEvaluatedButNotCorrected) {
