@@ -3,6 +3,7 @@
 
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
+#include "report/format.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
 #include "report/variance_report.h"
@@ -10,27 +11,13 @@
 namespace carmba {
 namespace {
 
-nlohmann::json FiniteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
-
-nlohmann::json FiniteOrNullArray(const Eigen::VectorXd& v) {
-  nlohmann::json a = nlohmann::json::array();
-  for (int i = 0; i < v.size(); ++i) a.push_back(FiniteOrNull(v[i]));
-  return a;
-}
-
-nlohmann::json MatRows(const Eigen::MatrixXd& m) {
-  nlohmann::json a = nlohmann::json::array();
-  for (int i = 0; i < m.rows(); ++i) a.push_back(FiniteOrNullArray(m.row(i).transpose()));
-  return a;
-}
-
 nlohmann::json PoseJson(const Pose6& p) {
   const Eigen::Matrix3d R = RotationFromRvec(p.head<3>());
   nlohmann::json Rj = nlohmann::json::array();
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) Rj.push_back(R(i, j));
   }
-  return {{"R", Rj}, {"rvec", FiniteOrNullArray(p.head<3>())}, {"t_mm", FiniteOrNullArray(p.tail<3>())}};
+  return {{"R", Rj}, {"rvec", JsonVector(p.head<3>())}, {"t_mm", JsonVector(p.tail<3>())}};
 }
 
 }  // namespace
@@ -48,14 +35,14 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
     nlohmann::json vj;
     vj["id"] = v.id;
     vj["cam_from_object"] = PoseJson(v.cam_from_object);
-    vj["covariance_6x6"] = s.has_covariance ? MatRows(v.covariance) : nlohmann::json();
+    vj["covariance_6x6"] = s.has_covariance ? JsonRows(v.covariance) : nlohmann::json();
     vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
-    vj["sigma_rotation_deg"] = FiniteOrNullArray(v.sigma_rotation_deg);
-    vj["sigma_translation_mm"] = FiniteOrNullArray(v.sigma_translation_mm);
-    vj["rms_px"] = FiniteOrNull(v.rms_px);
+    vj["sigma_rotation_deg"] = JsonVector(v.sigma_rotation_deg);
+    vj["sigma_translation_mm"] = JsonVector(v.sigma_translation_mm);
+    vj["rms_px"] = JsonNumber(v.rms_px);
     vj["num_observations"] = v.num_observations;
     vj["initial"] = PoseJson(v.initial);
-    vj["initial_rms_px"] = FiniteOrNull(v.initial_rms_px);
+    vj["initial_rms_px"] = JsonNumber(v.initial_rms_px);
     if (problem.truth_poses.count(v.id)) {
       const Pose6& t = problem.truth_poses.at(v.id);
       vj["truth"] = PoseJson(t);
@@ -72,25 +59,25 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
   for (const auto& p : s.validation) {
     val.push_back({{"a", p.a},
                    {"b", p.b},
-                   {"angle_view_dirs_deg", FiniteOrNull(p.angle_view_dirs_deg)},
-                   {"sigma_view_dirs_deg", FiniteOrNull(p.sigma_view_dirs_deg)},
-                   {"relative_rotation_deg", FiniteOrNull(p.relative_rotation_deg)},
-                   {"sigma_relative_rotation_deg", FiniteOrNull(p.sigma_relative_rotation_deg)},
+                   {"angle_view_dirs_deg", JsonNumber(p.angle_view_dirs_deg)},
+                   {"sigma_view_dirs_deg", JsonNumber(p.sigma_view_dirs_deg)},
+                   {"relative_rotation_deg", JsonNumber(p.relative_rotation_deg)},
+                   {"sigma_relative_rotation_deg", JsonNumber(p.sigma_relative_rotation_deg)},
                    {"expected_deg", p.expected_deg ? nlohmann::json(*p.expected_deg)
                                                    : nlohmann::json()}});
   }
   j["validation"] = val;
   nlohmann::json markers = nlohmann::json::array();
   for (const auto& [id, p] : s.markers) {
-    markers.push_back({{"id", id}, {"p_in_object_mm", FiniteOrNullArray(p)}});
+    markers.push_back({{"id", id}, {"p_in_object_mm", JsonVector(p)}});
   }
   j["markers"] = markers;
-  j["statistics"] = {{"rms_px", FiniteOrNull(s.rms_px)},
-                     {"sigma_aposteriori_px", FiniteOrNull(s.sigma_aposteriori_px)},
-                     {"sigma0", FiniteOrNull(s.sigma0)},
-                     {"chi2", FiniteOrNull(s.chi2)},
+  j["statistics"] = {{"rms_px", JsonNumber(s.rms_px)},
+                     {"sigma_aposteriori_px", JsonNumber(s.sigma_aposteriori_px)},
+                     {"sigma0", JsonNumber(s.sigma0)},
+                     {"chi2", JsonNumber(s.chi2)},
                      {"dof", s.dof},
-                     {"chi2_p_value", FiniteOrNull(s.chi2_p_value)},
+                     {"chi2_p_value", JsonNumber(s.chi2_p_value)},
                      {"num_residuals", s.num_residuals},
                      {"num_parameters", s.num_parameters}};
   if (s.ba_result) {
@@ -102,10 +89,10 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
   j["solver"] = {{"config", s.config_name},
                  {"iterations", s.iterations},
                  {"termination", s.termination},
-                 {"initial_cost", FiniteOrNull(s.initial_cost)},
-                 {"final_cost", FiniteOrNull(s.final_cost)},
+                 {"initial_cost", JsonNumber(s.initial_cost)},
+                 {"final_cost", JsonNumber(s.final_cost)},
                  {"time_s", s.time_s}};
-  if (s.has_covariance) j["joint_covariance"] = MatRows(s.joint_covariance);
+  if (s.has_covariance) j["joint_covariance"] = JsonRows(s.joint_covariance);
   if (s.ba_problem) j["relative_poses"] = RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth_poses);
   if (s.tre) j["tre"] = TreJson(*s.tre);
   return j;

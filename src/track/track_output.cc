@@ -113,8 +113,8 @@ nlohmann::json TrackBodiesJson(const TrackResult& r) {
       if (d.body != body.id) continue;
       nlohmann::json dist = nlohmann::json::array(), sig = nlohmann::json::array();
       for (size_t f = 0; f < r.frames.size(); ++f) {
-        dist.push_back(std::isfinite(d.distance_mm[f]) ? nlohmann::json(d.distance_mm[f]) : nlohmann::json());
-        sig.push_back(std::isfinite(d.sigma_mm[f]) ? nlohmann::json(d.sigma_mm[f]) : nlohmann::json());
+        dist.push_back(JsonNumber(d.distance_mm[f]));
+        sig.push_back(JsonNumber(d.sigma_mm[f]));
       }
       b["distances"].push_back({{"points", {d.bead_a, d.bead_b}},
                                 {"distance_mm", dist},
@@ -219,7 +219,7 @@ namespace {
 
 // What the spread check says about the data: met; out of reach (the noise alone exceeds the
 // target); or beyond what the noise explains (a wrong match or a body that is not rigid).
-std::string SpreadVerdictOnly(const TrackChecks& c, const TrackTargets& t) {
+std::string SpreadVerdict(const TrackChecks& c, const TrackTargets& t) {
   const std::string measured = Fmt("%.3f", c.max_spread_mm) + " mm", predicted = Fmt("%.3f", c.predicted_max_spread_mm) + " mm";
   if (c.max_spread_mm <= t.max_spread_mm) {
     return "The spread target holds: the largest spread is " + measured + " (the noise alone would give " + predicted + ").";
@@ -241,12 +241,6 @@ std::string SpreadVerdictOnly(const TrackChecks& c, const TrackTargets& t) {
   }
   return "The largest spread, " + measured + ", exceeds both the target and what the noise alone gives (" + predicted +
          "): look for a wrong match or a body that is not rigid (the distances table above).";
-}
-
-std::string SpreadVerdict(const TrackChecks& c, const TrackTargets& t) {
-  return SpreadVerdictOnly(c, t) + " (Published marker-tracking precisions are usually a standard deviation of each "
-         "inter-marker distance over the frames; its analogue here, the RMS of the distances about their means, is " +
-         Fmt("%.3f", c.rms_spread_mm) + " mm.)";
 }
 
 }  // namespace
@@ -284,7 +278,9 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
               Fmt("%.1f", c.distance_chi2) + " on " + std::to_string(c.distance_dof) + " dof, P = " +
                   Fmt("%.3g", c.distance_chi2_p),
               Verdict(c.distance_chi2_p >= 0.005)}});
-  doc.Paragraph(SpreadVerdict(c, t));
+  doc.Paragraph(SpreadVerdict(c, t) + " (Published marker-tracking precisions are usually a standard deviation of "
+                "each inter-marker distance over the frames; its analogue here, the RMS of the distances about "
+                "their means, is " + Fmt("%.3f", c.rms_spread_mm) + " mm.)");
   doc.Heading(2, "Frames");
   std::vector<std::vector<std::string>> rows;
   for (size_t f = 0; f < r.frames.size(); ++f) {
