@@ -58,35 +58,37 @@ Eigen::Vector2d SphereShadowOffsetPx(const double* intrinsics, const Eigen::Vect
   Eigen::Vector2d uv_p, uv_e;
   if (!Lens(intrinsics, p, &uv_p) || !Lens(intrinsics, e, &uv_e)) return Eigen::Vector2d::Zero();
   const double h = 1e-3;
-  Eigen::Matrix2d J, Jp[2], Jm[2];
+  Eigen::Matrix2d J;
   if (!LensJacobian(intrinsics, e, h, &J)) return Eigen::Vector2d::Zero();
   Eigen::Vector2d curvature = Eigen::Vector2d::Zero(), grad_log_det;
   for (int k = 0; k < 2; ++k) {
     const Eigen::Vector2d step = h * Eigen::Vector2d::Unit(k);
-    if (!LensJacobian(intrinsics, e + step, h, &Jp[k]) || !LensJacobian(intrinsics, e - step, h, &Jm[k])) {
+    Eigen::Matrix2d Jp, Jm;
+    if (!LensJacobian(intrinsics, e + step, h, &Jp) || !LensJacobian(intrinsics, e - step, h, &Jm)) {
       return Eigen::Vector2d::Zero();
     }
     // Column k of the Hessians: d J / d x_k, and d ln|det J| / d x_k.
-    const Eigen::Matrix2d dJ = (Jp[k] - Jm[k]) / (2 * h);
+    const Eigen::Matrix2d dJ = (Jp - Jm) / (2 * h);
     for (int l = 0; l < 2; ++l) curvature += 0.5 * dJ.col(l) * M(l, k);
-    grad_log_det[k] = (std::log(std::abs(Jp[k].determinant())) - std::log(std::abs(Jm[k].determinant()))) / (2 * h);
+    grad_log_det[k] = (std::log(std::abs(Jp.determinant())) - std::log(std::abs(Jm.determinant()))) / (2 * h);
   }
   return uv_e + curvature + J * M * grad_log_det - uv_p;
 }
 
 namespace {
 
-// cam_from_source of view v at the solution (a rig view's composed pose).
-Pose6 ViewPose(const BaProblem& problem, const BaResult& result, int v) {
+// The rotation and translation of view v's cam_from_source at the solution (a rig view's
+// composed with its held cam_from_rig).
+void ViewTransform(const BaProblem& problem, const BaResult& result, int v, Eigen::Matrix3d* R,
+                   Eigen::Vector3d* t) {
   const double* block = result.block(result.layout->view_block(v));
-  Pose6 pose = Eigen::Map<const Pose6>(block);
+  *R = RotationOf(block);
+  *t = Eigen::Vector3d(block[3], block[4], block[5]);
   const BaView& view = problem.views[v];
-  if (view.rig < 0) return pose;
-  const Eigen::Matrix3d Rc = RotationOf(view.cam_from_rig.data()), Rr = RotationOf(block);
-  const Eigen::AngleAxisd aa(Rc * Rr);
-  pose.head<3>() = aa.angle() * aa.axis();
-  pose.tail<3>() = Rc * Eigen::Vector3d(block[3], block[4], block[5]) + view.cam_from_rig.tail<3>();
-  return pose;
+  if (view.rig < 0) return;
+  const Eigen::Matrix3d Rc = RotationOf(view.cam_from_rig.data());
+  *R = Rc * *R;
+  *t = Rc * *t + view.cam_from_rig.tail<3>();
 }
 
 // The solved position of point `id` of view v (its plate point or marker), or false.
@@ -117,12 +119,13 @@ std::vector<std::vector<Eigen::Vector2d>> ShadowOffsets(const BaProblem& problem
         view.kind == ViewKind::kPlate ? problem.plate.sphere_radius_mm : problem.marker_radius_mm;
     if (!(radius > 0)) continue;
     const auto intrinsics = IntrinsicsValueOfView(problem, result, static_cast<int>(v));
-    const Pose6 pose = ViewPose(problem, result, static_cast<int>(v));
-    const Eigen::Matrix3d R = RotationOf(pose.data());
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+    ViewTransform(problem, result, static_cast<int>(v), &R, &t);
     for (size_t i = 0; i < view.point_ids.size(); ++i) {
       Eigen::Vector3d p;
       if (!PointOf(problem, result, view, view.point_ids[i], &p)) continue;
-      out[v][i] = SphereShadowOffsetPx(intrinsics.data(), R * p + pose.tail<3>(), radius);
+      out[v][i] = SphereShadowOffsetPx(intrinsics.data(), R * p + t, radius);
     }
   }
   return out;
