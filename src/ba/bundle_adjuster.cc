@@ -162,178 +162,224 @@ ceres::Problem::Options ProblemOptions(ceres::Context* context) {
   return popts;
 }
 
-// Builds the residual blocks of `problem` (skipping observations in `dropped`) and adds them to
-// `cp` unless it is null (the carmba_lm back end evaluates them without Ceres).
+// Builds the residual blocks of `problem` (skipping observations in `dropped`) into an Assembly
+// and adds them to `cp` unless it is null (the carmba_lm back end evaluates them without Ceres).
+// One stage per kind of block; Assemble below runs them in order.
+class Assembler {
+ public:
+  Assembler(const BaProblem& problem, const StateLayout& layout, const BaOptions& o,
+            const std::vector<std::vector<char>>& dropped, Assembly* as, ceres::Problem* cp)
+      : problem_(problem), layout_(layout), o_(o), dropped_(dropped), as_(as), cp_(cp) {
+    for (size_t m = 0; m < problem.markers.size(); ++m) marker_index_[problem.markers[m].id] = static_cast<int>(m);
+  }
+
+  Status AddView(int v) {
+    const BaView& view = problem_.views[v];
+    const bool smooth = problem_.groups[view.group].smooth;
+    if (view.kind == ViewKind::kPlate && !problem_.plate.free && o_.loss == "trivial" &&
+        o_.analytic_jacobians && view.obs_sigma_px.empty() && view.obs_covariance_px2.empty() &&
+        !smooth) {
+      AddHeldPlateView(v);
+      return Status::Ok();
+    }
+    const Eigen::MatrixXd A = smooth ? ViewIntrinsicsMap(problem_, v) : Eigen::MatrixXd();
+    for (size_t i = 0; i < view.point_ids.size(); ++i) {
+      if (dropped_[v][i]) continue;
+      CARMBA_RETURN_IF_ERROR(AddObservation(v, static_cast<int>(i), A));
+    }
+    return Status::Ok();
+  }
+
+  Status AddMarkerPriors() {
+    if (!problem_.markers_free || !problem_.marker_priors) return Status::Ok();
+    for (size_t m = 0; m < problem_.markers.size(); ++m) {
+      Eigen::Matrix3d S;
+      if (!SqrtInformation(problem_.markers[m].covariance, &S)) {
+        return Status::Error("marker " + std::to_string(problem_.markers[m].id) +
+                             ": CT covariance is not symmetric positive definite");
+      }
+      AddPointPrior(layout_.marker_block(static_cast<int>(m)), problem_.markers[m].p_ct, S, Source::kCt);
+    }
+    return Status::Ok();
+  }
+
+  void AddPlatePriors() {
+    if (!problem_.plate.free || !(problem_.plate.sigma_mm > 0)) return;
+    const Eigen::Matrix3d S = Eigen::Matrix3d::Identity() / problem_.plate.sigma_mm;
+    for (size_t p = 0; p < problem_.plate.points.size(); ++p) {
+      AddPointPrior(layout_.plate_point_block(static_cast<int>(p)), problem_.plate.points[p], S,
+                    Source::kPlateManufacturing);
+    }
+  }
+
+  Status AddIntrinsicsPriors() {
+    for (size_t g = 0; g < problem_.groups.size(); ++g) {
+      const IntrinsicsGroup& grp = problem_.groups[g];
+      if (!grp.has_prior) continue;
+      Eigen::MatrixXd S;
+      if (!SqrtInformationN(grp.prior.covariance, &S)) {
+        return Status::Error("group '" + grp.name +
+                             "': intrinsics prior covariance is not symmetric positive definite");
+      }
+      const int b = layout_.group_block(static_cast<int>(g));
+      ceres::CostFunction* c =
+          o_.analytic_jacobians
+              ? static_cast<ceres::CostFunction*>(
+                    new IntrinsicsPriorError(grp.prior.mean.data(), grp.prior.indices, S))
+              : IntrinsicsPriorAutoDiff::Create(grp.prior.mean.data(), grp.prior.indices, S);
+      AddPrior(c, Source::kIntrinsicsPrior, b, 0);
+    }
+    return Status::Ok();
+  }
+
+  // Held parameters: constant blocks, affine subspaces (ties), subsets.
+  void HoldParameters() {
+    if (!cp_) return;
+    for (const BlockInfo& b : layout_.blocks()) {
+      double* p = as_->buffer.data() + b.offset;
+      if (!cp_->HasParameterBlock(p)) continue;
+      if (b.constant) {
+        cp_->SetParameterBlockConstant(p);
+      } else if (!b.selection) {
+        cp_->SetManifold(p, new AffineSubspaceManifold(b.basis));
+      } else if (static_cast<int>(b.free.size()) < b.size) {
+        std::vector<int> held;
+        for (int i = 0; i < b.size; ++i) {
+          if (std::find(b.free.begin(), b.free.end(), i) == b.free.end()) held.push_back(i);
+        }
+        cp_->SetManifold(p, new ceres::SubsetManifold(b.size, held));
+      }
+    }
+  }
+
+ private:
+  double* Ptr(int b) const { return as_->buffer.data() + layout_.block(b).offset; }
+  void Own(ceres::CostFunction* c, ceres::LossFunction* l) {
+    as_->costs.emplace_back(c);
+    if (l) as_->losses.emplace_back(l);
+  }
+  // The cost as solved: `c` (owned) with its group's sigma scale applied.
+  ceres::CostFunction* Scaled(ceres::CostFunction* c, NoiseGroup g) {
+    const double k = o_.group_sigma_scale[static_cast<int>(g)];
+    if (k == 1.0) return c;
+    auto* w = new ScaledCost(c, k);
+    as_->costs.emplace_back(w);
+    return w;
+  }
+
+  // The held plate without a loss: the whole view in one block (ba/reprojection_error.h; not for
+  // a smooth group: the block takes the 9 intrinsics, the group holds coefficients).
+  void AddHeldPlateView(int v) {
+    const BaView& view = problem_.views[v];
+    std::vector<Eigen::Vector3d> p;
+    std::vector<Eigen::Vector2d> uv;
+    std::vector<int> kept;
+    for (size_t i = 0; i < view.point_ids.size(); ++i) {
+      if (dropped_[v][i]) continue;
+      p.push_back(problem_.plate.points[view.point_ids[i]]);
+      uv.push_back(view.uv_px[i]);
+      kept.push_back(static_cast<int>(i));
+    }
+    if (kept.empty()) return;
+    const int pose_b = layout_.view_block(v), intr_b = layout_.group_block(view.group);
+    auto* inner = new PlateViewReprojection(std::move(p), std::move(uv), view.sigma_px);
+    Own(inner, nullptr);
+    ceres::CostFunction* cost = Scaled(inner, NoiseGroup::kPlatePixels);
+    if (cp_) cp_->AddResidualBlock(cost, nullptr, Ptr(pose_b), Ptr(intr_b));
+    BuiltBlock bb(cost, nullptr, Source::kPlatePixels, {pose_b, intr_b}, v);
+    bb.view_obs = std::move(kept);
+    as_->built.push_back(std::move(bb));
+  }
+
+  // Observation i of view v: its reprojection residual (smooth, rig or plain; analytic or
+  // autodiff), whitened by its 2x2 covariance or sigma. A smooth group's residual whitens
+  // isotropically (SigmaPx: the larger eigenvalue of a 2x2 covariance, a conservative bound).
+  Status AddObservation(int v, int i, const Eigen::MatrixXd& A) {
+    const BaView& view = problem_.views[v];
+    const int pose_b = layout_.view_block(v), intr_b = layout_.group_block(view.group);
+    const int point_b = view.kind == ViewKind::kPlate ? layout_.plate_point_block(view.point_ids[i])
+                                                      : layout_.marker_block(marker_index_.at(view.point_ids[i]));
+    const Eigen::Vector2d& q = view.uv_px[i];
+    PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(i));
+    if (!view.obs_covariance_px2.empty() && !PixelWhitening::FromCovariance(view.obs_covariance_px2[i], &w)) {
+      return Status::Error("view '" + view.id + "' point " + std::to_string(view.point_ids[i]) +
+                           ": the pixel covariance is not symmetric positive definite");
+    }
+    const Source source = view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels;
+    const NoiseGroup group = GroupOf(source, &view);
+    const double sigma_scale = o_.group_sigma_scale[static_cast<int>(group)];
+    const bool analytic = o_.analytic_jacobians;
+    ceres::CostFunction* inner =
+        problem_.groups[view.group].smooth
+            ? (analytic ? static_cast<ceres::CostFunction*>(
+                              new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
+                        : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
+        : view.rig >= 0
+            ? (analytic ? static_cast<ceres::CostFunction*>(
+                              new RigReprojectionError(q.x(), q.y(), w, view.cam_from_rig.data()))
+                        : RigReprojectionErrorAutoDiff::Create(q.x(), q.y(), w, view.cam_from_rig.data()))
+        : analytic ? ReprojectionError::Create(q.x(), q.y(), w)
+                   : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
+    ceres::LossFunction* loss = MakeLoss(o_, view.SigmaPx(i) * sigma_scale);
+    Own(inner, loss);
+    ceres::CostFunction* cost = Scaled(inner, group);
+    if (cp_) cp_->AddResidualBlock(cost, loss, Ptr(pose_b), Ptr(point_b), Ptr(intr_b));
+    as_->built.emplace_back(cost, loss, source, std::vector<int>{pose_b, point_b, intr_b}, v, i);
+    as_->built.back().group = group;
+    return Status::Ok();
+  }
+
+  // A prior's residual block, scaled by its group's sigma scale.
+  void AddPrior(ceres::CostFunction* c, Source s, int b, int zero_rows) {
+    Own(c, nullptr);
+    const NoiseGroup g = GroupOf(s, nullptr);
+    ceres::CostFunction* cost = Scaled(c, g);
+    if (cp_) cp_->AddResidualBlock(cost, nullptr, Ptr(b));
+    as_->built.push_back({cost, nullptr, s, {b}, -1, -1, zero_rows});
+    as_->built.back().group = g;
+  }
+
+  void AddPointPrior(int b, const Eigen::Vector3d& p, const Eigen::Matrix3d& S, Source s) {
+    const auto [rows01, row2] = PointPriorRows::Split(p, S);
+    if (o_.analytic_jacobians) {
+      AddPrior(rows01, s, b, 0);
+      AddPrior(row2, s, b, 1);
+      return;
+    }
+    Eigen::Matrix<double, 2, 3> top = S.topRows<2>(), last = Eigen::Matrix<double, 2, 3>::Zero();
+    last.row(0) = S.row(2);
+    delete rows01;
+    delete row2;
+    int zero_rows = 0;
+    for (const auto& A : {top, last}) {
+      AddPrior(PointPriorRowsAutoDiff::Create(p, A), s, b, zero_rows);
+      zero_rows = 1;
+    }
+  }
+
+  const BaProblem& problem_;
+  const StateLayout& layout_;
+  const BaOptions& o_;
+  const std::vector<std::vector<char>>& dropped_;
+  Assembly* as_;
+  ceres::Problem* cp_;
+  std::map<int, int> marker_index_;
+};
+
 Status Assemble(const BaProblem& problem,
                 const StateLayout& layout,
                 const BaOptions& o,
                 const std::vector<std::vector<char>>& dropped,
                 Assembly* as,
                 ceres::Problem* cp) {
-  auto ptr = [&](int b) { return as->buffer.data() + layout.block(b).offset; };
-  auto own = [&](ceres::CostFunction* c, ceres::LossFunction* l) {
-    as->costs.emplace_back(c);
-    if (l) as->losses.emplace_back(l);
-  };
-  // The cost as solved: `c` (owned) with its group's sigma scale applied.
-  auto scaled = [&](ceres::CostFunction* c, NoiseGroup g) -> ceres::CostFunction* {
-    const double k = o.group_sigma_scale[static_cast<int>(g)];
-    if (k == 1.0) return c;
-    auto* w = new ScaledCost(c, k);
-    as->costs.emplace_back(w);
-    return w;
-  };
-  std::map<int, int> marker_index;
-  for (size_t m = 0; m < problem.markers.size(); ++m)
-    marker_index[problem.markers[m].id] = static_cast<int>(m);
+  Assembler assembler(problem, layout, o, dropped, as, cp);
   for (size_t v = 0; v < problem.views.size(); ++v) {
-    const BaView& view = problem.views[v];
-    const int pose_b = layout.view_block(static_cast<int>(v));
-    const int intr_b = layout.group_block(view.group);
-    const bool smooth = problem.groups[view.group].smooth;
-    const Eigen::MatrixXd A = smooth ? ViewIntrinsicsMap(problem, static_cast<int>(v)) : Eigen::MatrixXd();
-    if (view.kind == ViewKind::kPlate && !problem.plate.free && o.loss == "trivial" &&
-        o.analytic_jacobians && view.obs_sigma_px.empty() && view.obs_covariance_px2.empty() &&
-        !smooth) {
-      // The held plate without a loss: the whole view in one block (ba/reprojection_error.h;
-      // not for a smooth group: the block takes the 9 intrinsics, the group holds coefficients).
-      std::vector<Eigen::Vector3d> p;
-      std::vector<Eigen::Vector2d> uv;
-      std::vector<int> kept;
-      for (size_t i = 0; i < view.point_ids.size(); ++i) {
-        if (dropped[v][i]) continue;
-        p.push_back(problem.plate.points[view.point_ids[i]]);
-        uv.push_back(view.uv_px[i]);
-        kept.push_back(static_cast<int>(i));
-      }
-      if (kept.empty()) continue;
-      auto* inner = new PlateViewReprojection(std::move(p), std::move(uv), view.sigma_px);
-      own(inner, nullptr);
-      ceres::CostFunction* cost = scaled(inner, NoiseGroup::kPlatePixels);
-      if (cp) cp->AddResidualBlock(cost, nullptr, ptr(pose_b), ptr(intr_b));
-      BuiltBlock bb(cost, nullptr, Source::kPlatePixels, {pose_b, intr_b}, static_cast<int>(v));
-      bb.view_obs = std::move(kept);
-      as->built.push_back(std::move(bb));
-      continue;
-    }
-    for (size_t i = 0; i < view.point_ids.size(); ++i) {
-      if (dropped[v][i]) continue;
-      const int point_b = view.kind == ViewKind::kPlate
-                              ? layout.plate_point_block(view.point_ids[i])
-                              : layout.marker_block(marker_index.at(view.point_ids[i]));
-      const Eigen::Vector2d& q = view.uv_px[i];
-      PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(i));
-      if (!view.obs_covariance_px2.empty() &&
-          !PixelWhitening::FromCovariance(view.obs_covariance_px2[i], &w)) {
-        return Status::Error("view '" + view.id + "' point " + std::to_string(view.point_ids[i]) +
-                             ": the pixel covariance is not symmetric positive definite");
-      }
-      // A smooth group's residual whitens isotropically (SigmaPx: the larger eigenvalue of a
-      // 2x2 covariance, a conservative bound); the others by the full 2x2.
-      const Source source =
-          view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels;
-      const NoiseGroup group = GroupOf(source, &view);
-      const double sigma_scale = o.group_sigma_scale[static_cast<int>(group)];
-      ceres::CostFunction* inner =
-          smooth ? (o.analytic_jacobians
-                        ? static_cast<ceres::CostFunction*>(
-                              new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
-                        : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
-          : view.rig >= 0
-              ? (o.analytic_jacobians
-                     ? static_cast<ceres::CostFunction*>(
-                           new RigReprojectionError(q.x(), q.y(), w, view.cam_from_rig.data()))
-                     : RigReprojectionErrorAutoDiff::Create(q.x(), q.y(), w, view.cam_from_rig.data()))
-          : o.analytic_jacobians ? ReprojectionError::Create(q.x(), q.y(), w)
-                                 : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
-      ceres::LossFunction* loss = MakeLoss(o, view.SigmaPx(i) * sigma_scale);
-      own(inner, loss);
-      ceres::CostFunction* cost = scaled(inner, group);
-      if (cp) cp->AddResidualBlock(cost, loss, ptr(pose_b), ptr(point_b), ptr(intr_b));
-      as->built.emplace_back(cost, loss, source, std::vector<int>{pose_b, point_b, intr_b},
-                             static_cast<int>(v), static_cast<int>(i));
-      as->built.back().group = group;
-    }
+    CARMBA_RETURN_IF_ERROR(assembler.AddView(static_cast<int>(v)));
   }
-  // A prior's residual block, scaled by its group's sigma scale.
-  auto add_prior = [&](ceres::CostFunction* c, Source s, int b, int zero_rows) {
-    own(c, nullptr);
-    const NoiseGroup g = GroupOf(s, nullptr);
-    ceres::CostFunction* cost = scaled(c, g);
-    if (cp) cp->AddResidualBlock(cost, nullptr, ptr(b));
-    as->built.push_back({cost, nullptr, s, {b}, -1, -1, zero_rows});
-    as->built.back().group = g;
-  };
-  auto add_point_prior = [&](int b, const Eigen::Vector3d& p, const Eigen::Matrix3d& S, Source s) {
-    const auto [rows01, row2] = PointPriorRows::Split(p, S);
-    if (o.analytic_jacobians) {
-      add_prior(rows01, s, b, 0);
-      add_prior(row2, s, b, 1);
-    } else {
-      Eigen::Matrix<double, 2, 3> top = S.topRows<2>(), last = Eigen::Matrix<double, 2, 3>::Zero();
-      last.row(0) = S.row(2);
-      delete rows01;
-      delete row2;
-      int zero_rows = 0;
-      for (const auto& A : {top, last}) {
-        add_prior(PointPriorRowsAutoDiff::Create(p, A), s, b, zero_rows);
-        zero_rows = 1;
-      }
-    }
-  };
-  if (problem.markers_free && problem.marker_priors) {
-    for (size_t m = 0; m < problem.markers.size(); ++m) {
-      Eigen::Matrix3d S;
-      if (!SqrtInformation(problem.markers[m].covariance, &S)) {
-        return Status::Error("marker " + std::to_string(problem.markers[m].id) +
-                             ": CT covariance is not symmetric positive definite");
-      }
-      add_point_prior(
-          layout.marker_block(static_cast<int>(m)), problem.markers[m].p_ct, S, Source::kCt);
-    }
-  }
-  if (problem.plate.free && problem.plate.sigma_mm > 0) {
-    const Eigen::Matrix3d S = Eigen::Matrix3d::Identity() / problem.plate.sigma_mm;
-    for (size_t p = 0; p < problem.plate.points.size(); ++p) {
-      add_point_prior(layout.plate_point_block(static_cast<int>(p)),
-                      problem.plate.points[p],
-                      S,
-                      Source::kPlateManufacturing);
-    }
-  }
-  for (size_t g = 0; g < problem.groups.size(); ++g) {
-    const IntrinsicsGroup& grp = problem.groups[g];
-    if (!grp.has_prior) continue;
-    Eigen::MatrixXd S;
-    if (!SqrtInformationN(grp.prior.covariance, &S)) {
-      return Status::Error("group '" + grp.name +
-                           "': intrinsics prior covariance is not symmetric positive definite");
-    }
-    const int b = layout.group_block(static_cast<int>(g));
-    ceres::CostFunction* c =
-        o.analytic_jacobians
-            ? static_cast<ceres::CostFunction*>(
-                  new IntrinsicsPriorError(grp.prior.mean.data(), grp.prior.indices, S))
-            : IntrinsicsPriorAutoDiff::Create(grp.prior.mean.data(), grp.prior.indices, S);
-    add_prior(c, Source::kIntrinsicsPrior, b, 0);
-  }
-  // Held parameters.
-  if (!cp) return Status::Ok();
-  for (const BlockInfo& b : layout.blocks()) {
-    double* p = as->buffer.data() + b.offset;
-    if (!cp->HasParameterBlock(p)) continue;
-    if (b.constant) {
-      cp->SetParameterBlockConstant(p);
-    } else if (!b.selection) {
-      cp->SetManifold(p, new AffineSubspaceManifold(b.basis));
-    } else if (static_cast<int>(b.free.size()) < b.size) {
-      std::vector<int> held;
-      for (int i = 0; i < b.size; ++i) {
-        if (std::find(b.free.begin(), b.free.end(), i) == b.free.end()) held.push_back(i);
-      }
-      cp->SetManifold(p, new ceres::SubsetManifold(b.size, held));
-    }
-  }
+  CARMBA_RETURN_IF_ERROR(assembler.AddMarkerPriors());
+  assembler.AddPlatePriors();
+  CARMBA_RETURN_IF_ERROR(assembler.AddIntrinsicsPriors());
+  assembler.HoldParameters();
   return Status::Ok();
 }
 
@@ -492,9 +538,217 @@ bool BaOptions::Check(std::string* error) const {
 
 namespace {
 
+// 0.5 chi2 of the assembled problem at its initial state, evaluated directly; a non-finite
+// residual is an error naming where.
+StatusOr<double> InitialCost(const BaProblem& problem, const StateLayout& layout, const Assembly& as) {
+  double chi2_0 = 0;
+  for (const auto& bb : as.built) {
+    Eigen::VectorXd r;
+    if (!EvaluateBlock(bb, layout, as.buffer, &r, nullptr)) {
+      const std::string what =
+          bb.view < 0    ? std::string("a prior")
+          : bb.obs < 0   ? "view '" + problem.views[bb.view].id + "'"
+                         : "view '" + problem.views[bb.view].id + "' point " +
+                             std::to_string(problem.views[bb.view].point_ids[bb.obs]);
+      return Status::Error("the initial state gives a non-finite residual at " + what +
+                           " (behind the source? a wrong initial pose?)",
+                           ErrorKind::kNonFiniteInitialState);
+    }
+    chi2_0 += r.squaredNorm();
+  }
+  return 0.5 * chi2_0;
+}
+
+// The Schur elimination order for Ceres: points first, then poses, then intrinsics.
+std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(const StateLayout& layout,
+                                                             const ceres::Problem& cp,
+                                                             std::vector<double>* buffer) {
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  bool any_point = false;
+  for (const BlockInfo& b : layout.blocks()) {
+    const bool point = b.kind == BlockKind::kMarker || b.kind == BlockKind::kPlatePoint;
+    any_point |= point && !b.constant && cp.HasParameterBlock(buffer->data() + b.offset);
+  }
+  for (const BlockInfo& b : layout.blocks()) {
+    double* p = buffer->data() + b.offset;
+    if (!cp.HasParameterBlock(p) || cp.IsParameterBlockConstant(p)) continue;
+    int group = 0;
+    switch (b.kind) {
+      case BlockKind::kMarker:
+      case BlockKind::kPlatePoint:
+        group = 0;
+        break;
+      case BlockKind::kPlatePose:
+      case BlockKind::kObjectPose:
+      case BlockKind::kRigPose:
+        group = any_point ? 1 : 0;
+        break;
+      case BlockKind::kIntrinsics:
+        group = any_point ? 2 : 1;
+        break;
+    }
+    ordering->AddElementToGroup(p, group);
+  }
+  return ordering;
+}
+
+// Minimises the assembled Ceres problem in place (as->buffer); iterations and termination
+// into res.
+Status SolveWithCeres(const BaOptions& o, const StateLayout& layout, ceres::Problem* cp,
+                      Assembly* as, BaResult* res) {
+  ceres::Solver::Options so;
+  LinearSolverType(o.linear_solver, &so.linear_solver_type);
+  so.max_num_iterations = o.max_iterations;
+  so.function_tolerance = o.function_tolerance;
+  so.gradient_tolerance = o.gradient_tolerance;
+  so.parameter_tolerance = o.parameter_tolerance;
+  so.num_threads = o.num_threads;
+  so.logging_type = ceres::SILENT;
+  if (so.linear_solver_type == ceres::DENSE_SCHUR || so.linear_solver_type == ceres::SPARSE_SCHUR ||
+      so.linear_solver_type == ceres::ITERATIVE_SCHUR) {
+    so.linear_solver_ordering = SchurOrdering(layout, *cp, &as->buffer);
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, cp, &summary);
+  res->iterations += static_cast<int>(summary.iterations.size()) - 1;
+  res->termination = ceres::TerminationTypeToString(summary.termination_type);
+  res->converged = summary.termination_type == ceres::CONVERGENCE;
+  if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
+    return Status::Error("bundle adjustment failed: " + summary.message);
+  }
+  return Status::Ok();
+}
+
+// What the evaluation at a solution gathers besides BaResult: the views' sums of squared pixel
+// residuals, and the worst observation above reject_sigma (the candidate for rejection).
+struct SolutionEvaluation {
+  std::vector<double> view_ss;
+  std::vector<int> view_n;
+  int worst_view = -1, worst_obs = -1;
+  double worst_sigma = 0;
+  BaOutlier worst_out;
+  bool any_rejected = false;
+};
+
+// The residuals at `state`: chi2 and residual counts, the groups' sums, the linearisation, the
+// outliers (sorted, largest first) and the worst observation above reject_sigma when rejection
+// may still run (`may_reject`).
+Status EvaluateSolution(const BaProblem& problem,
+                        const BaOptions& o,
+                        const StateLayout& layout,
+                        const Assembly& as,
+                        const std::vector<double>& state,
+                        bool may_reject,
+                        BaResult* res,
+                        GroupResiduals* groups,
+                        SolutionEvaluation* ev) {
+  auto lin = std::make_shared<Linearization>();
+  res->outliers.clear();
+  res->chi2 = 0;
+  res->num_residuals = 0;
+  *groups = GroupResiduals();
+  ev->view_ss.assign(problem.views.size(), 0.0);
+  ev->view_n.assign(problem.views.size(), 0);
+  for (const auto& bb : as.built) {
+    Eigen::VectorXd r;
+    LinearizedBlock lb;
+    if (!EvaluateBlock(bb, layout, state, &r, &lb)) {
+      return Status::Error("a residual is not finite at the solution (a point behind the source?)");
+    }
+    res->chi2 += r.squaredNorm();
+    res->num_residuals += static_cast<int>(r.size()) - bb.zero_rows;
+    groups->chi2[static_cast<int>(bb.group)] += r.squaredNorm();
+    groups->rows[static_cast<int>(bb.group)] += static_cast<int>(r.size()) - bb.zero_rows;
+    if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
+    if (bb.view < 0) continue;
+    const BaView& view = problem.views[bb.view];
+    // One observation's whitened residual r2.
+    auto observe = [&](int obs, const Eigen::Vector2d& r2) {
+      const double n_sigma = r2.norm();
+      PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(obs));
+      if (!view.obs_covariance_px2.empty() && !problem.groups[view.group].smooth) {
+        PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
+      }
+      // px (the residual is whitened by the stated sigmas times the group's scale)
+      const Eigen::Vector2d e = w.Unwhiten(r2 * o.group_sigma_scale[static_cast<int>(bb.group)]);
+      ev->view_ss[bb.view] += e.squaredNorm();
+      ev->view_n[bb.view] += 1;
+      BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
+      if (n_sigma > o.outlier_sigma) res->outliers.push_back(out);
+      if (may_reject && o.reject_sigma > 0 && n_sigma > o.reject_sigma && n_sigma > ev->worst_sigma) {
+        ev->worst_sigma = n_sigma;
+        ev->worst_view = bb.view;
+        ev->worst_obs = obs;
+        ev->worst_out = out;
+        ev->any_rejected = true;
+      }
+    };
+    if (bb.obs >= 0) {
+      observe(bb.obs, r.head<2>());
+    } else {
+      for (size_t k = 0; k < bb.view_obs.size(); ++k) {
+        observe(bb.view_obs[k], r.segment<2>(2 * static_cast<Eigen::Index>(k)));
+      }
+    }
+  }
+  std::sort(res->outliers.begin(), res->outliers.end(), [](const BaOutlier& a, const BaOutlier& b) {
+    return a.residual_sigma > b.residual_sigma;
+  });
+  res->linearization = lin;
+  return Status::Ok();
+}
+
+// The final statistics: per view and per kind of view RMS in px, the degrees of freedom,
+// sigma0 and the chi-square tail probability.
+void SolutionStatistics(const BaProblem& problem, const StateLayout& layout,
+                        const SolutionEvaluation& ev, BaResult* res) {
+  res->final_cost = 0.5 * res->chi2;
+  res->views.clear();
+  double ss_plate = 0, ss_object = 0;
+  int n_plate = 0, n_object = 0;
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    BaViewStats vs;
+    vs.id = problem.views[v].id;
+    vs.num_observations = ev.view_n[v];
+    vs.rms_px = ev.view_n[v] ? std::sqrt(ev.view_ss[v] / (2.0 * ev.view_n[v])) : 0.0;
+    res->views.push_back(vs);
+    if (problem.views[v].kind == ViewKind::kPlate) {
+      ss_plate += ev.view_ss[v], n_plate += ev.view_n[v];
+    } else {
+      ss_object += ev.view_ss[v], n_object += ev.view_n[v];
+    }
+  }
+  res->rms_plate_px = n_plate ? std::sqrt(ss_plate / (2.0 * n_plate)) : std::nan("");
+  res->rms_object_px = n_object ? std::sqrt(ss_object / (2.0 * n_object)) : std::nan("");
+  res->num_free = layout.num_free();
+  res->dof = res->num_residuals - res->num_free;
+  res->sigma0 = res->dof > 0 ? std::sqrt(res->chi2 / res->dof) : std::nan("");
+  res->chi2_p_value = ChiSquareUpperTail(res->chi2, res->dof);
+}
+
+// Drops the evaluation's worst observation above reject_sigma; an error when a view is left with
+// fewer than 4 observations.
+Status RejectWorst(const BaProblem& problem, const BaOptions& o, const SolutionEvaluation& ev,
+                   std::vector<std::vector<char>>* dropped, BaResult* res) {
+  (*dropped)[ev.worst_view][ev.worst_obs] = 1;
+  res->rejected.push_back(ev.worst_out);
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    const auto left = std::count((*dropped)[v].begin(), (*dropped)[v].end(), 0);
+    if (left < 4) {
+      return Status::Error("outlier rejection (reject_sigma " + std::to_string(o.reject_sigma) +
+                           ") leaves view '" + problem.views[v].id + "' with " +
+                           std::to_string(left) + " observations, at least 4 needed");
+    }
+  }
+  return Status::Ok();
+}
+
 // One solve at the options' group sigma scales from `state`, with the observations in `dropped`
 // left out (the rejection pass may add to them): the estimate, its statistics (chi2 at the
 // scaled sigmas), the linearisation, the covariance, and the groups' residual sums.
+// The rejection pass drops the worst observation above reject_sigma, then solves again: one gross
+// error pulls the residuals of the observations that share its marker, pose or intrinsics up too,
+// so dropping all above the threshold at once would throw good observations away with it.
 StatusOr<BaResult> SolveOnce(const BaProblem& problem,
                              const BaOptions& o,
                              std::shared_ptr<StateLayout> layout_ptr,
@@ -514,179 +768,24 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
     as.buffer = state;
     ceres::Problem cp(ProblemOptions(context.get()));
     CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, dropped, &as, use_lm ? nullptr : &cp));
-    // Initial cost, evaluated directly.
-    double chi2_0 = 0;
-    for (const auto& bb : as.built) {
-      Eigen::VectorXd r;
-      if (!EvaluateBlock(bb, layout, as.buffer, &r, nullptr)) {
-        const std::string what =
-            bb.view < 0    ? std::string("a prior")
-            : bb.obs < 0   ? "view '" + problem.views[bb.view].id + "'"
-                           : "view '" + problem.views[bb.view].id + "' point " +
-                               std::to_string(problem.views[bb.view].point_ids[bb.obs]);
-        return Status::Error("the initial state gives a non-finite residual at " + what +
-                             " (behind the source? a wrong initial pose?)");
-      }
-      chi2_0 += r.squaredNorm();
-    }
-    if (pass == 0) res.initial_cost = 0.5 * chi2_0;
-
+    auto initial_cost = InitialCost(problem, layout, as);
+    if (!initial_cost.ok()) return initial_cost.status();
+    if (pass == 0) res.initial_cost = *initial_cost;
     if (use_lm) {
       CARMBA_RETURN_IF_ERROR(SolveWithCarmbaLm(problem, layout, o, &as.buffer, &res));
-      state = as.buffer;
     } else {
-      ceres::Solver::Options so;
-      LinearSolverType(o.linear_solver, &so.linear_solver_type);
-      so.max_num_iterations = o.max_iterations;
-      so.function_tolerance = o.function_tolerance;
-      so.gradient_tolerance = o.gradient_tolerance;
-      so.parameter_tolerance = o.parameter_tolerance;
-      so.num_threads = o.num_threads;
-      so.logging_type = ceres::SILENT;
-      if (so.linear_solver_type == ceres::DENSE_SCHUR ||
-          so.linear_solver_type == ceres::SPARSE_SCHUR ||
-          so.linear_solver_type == ceres::ITERATIVE_SCHUR) {
-        auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-        bool any_point = false;
-        for (const BlockInfo& b : layout.blocks()) {
-          const bool point = b.kind == BlockKind::kMarker || b.kind == BlockKind::kPlatePoint;
-          any_point |= point && !b.constant && cp.HasParameterBlock(as.buffer.data() + b.offset);
-        }
-        for (const BlockInfo& b : layout.blocks()) {
-          double* p = as.buffer.data() + b.offset;
-          if (!cp.HasParameterBlock(p) || cp.IsParameterBlockConstant(p)) continue;
-          int group = 0;
-          switch (b.kind) {
-            case BlockKind::kMarker:
-            case BlockKind::kPlatePoint:
-              group = 0;
-              break;
-            case BlockKind::kPlatePose:
-            case BlockKind::kObjectPose:
-            case BlockKind::kRigPose:
-              group = any_point ? 1 : 0;
-              break;
-            case BlockKind::kIntrinsics:
-              group = any_point ? 2 : 1;
-              break;
-          }
-          ordering->AddElementToGroup(p, group);
-        }
-        so.linear_solver_ordering = ordering;
-      }
-      ceres::Solver::Summary summary;
-      ceres::Solve(so, &cp, &summary);
-      res.iterations += static_cast<int>(summary.iterations.size()) - 1;
-      res.termination = ceres::TerminationTypeToString(summary.termination_type);
-      res.converged = summary.termination_type == ceres::CONVERGENCE;
-      if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
-        return Status::Error("bundle adjustment failed: " + summary.message);
-      }
-      state = as.buffer;
+      CARMBA_RETURN_IF_ERROR(SolveWithCeres(o, layout, &cp, &as, &res));
     }
-
+    state = as.buffer;
     if (!o.evaluate_solution) break;
-    // Residuals, outliers, statistics and the linearisation at the solution.
-    auto lin = std::make_shared<Linearization>();
-    res.outliers.clear();
-    res.chi2 = 0;
-    res.num_residuals = 0;
-    *groups = GroupResiduals();
-    std::vector<double> view_ss(problem.views.size(), 0.0);
-    std::vector<int> view_n(problem.views.size(), 0);
-    // The rejection pass drops the worst observation above reject_sigma, then solves again: one
-    // gross error pulls the residuals of the observations that share its marker, pose or
-    // intrinsics up too, so dropping all above the threshold at once would throw good
-    // observations away with it.
-    int worst_view = -1, worst_obs = -1;
-    double worst_sigma = 0;
-    BaOutlier worst_out;
-    bool any_rejected = false;
-    for (const auto& bb : as.built) {
-      Eigen::VectorXd r;
-      LinearizedBlock lb;
-      if (!EvaluateBlock(bb, layout, state, &r, &lb)) {
-        return Status::Error(
-            "a residual is not finite at the solution (a point behind the source?)");
-      }
-      res.chi2 += r.squaredNorm();
-      res.num_residuals += static_cast<int>(r.size()) - bb.zero_rows;
-      groups->chi2[static_cast<int>(bb.group)] += r.squaredNorm();
-      groups->rows[static_cast<int>(bb.group)] += static_cast<int>(r.size()) - bb.zero_rows;
-      if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
-      if (bb.view < 0) continue;
-      const BaView& view = problem.views[bb.view];
-      // One observation's whitened residual r2.
-      auto observe = [&](int obs, const Eigen::Vector2d& r2) {
-        const double n_sigma = r2.norm();
-        PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(obs));
-        if (!view.obs_covariance_px2.empty() && !problem.groups[view.group].smooth) {
-          PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
-        }
-        // px (the residual is whitened by the stated sigmas times the group's scale)
-        const Eigen::Vector2d e = w.Unwhiten(r2 * o.group_sigma_scale[static_cast<int>(bb.group)]);
-        view_ss[bb.view] += e.squaredNorm();
-        view_n[bb.view] += 1;
-        BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
-        if (n_sigma > o.outlier_sigma) res.outliers.push_back(out);
-        if (pass < kMaxRejectionPasses && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
-            n_sigma > worst_sigma) {
-          worst_sigma = n_sigma;
-          worst_view = bb.view;
-          worst_obs = obs;
-          worst_out = out;
-          any_rejected = true;
-        }
-      };
-      if (bb.obs >= 0) {
-        observe(bb.obs, r.head<2>());
-      } else {
-        for (size_t k = 0; k < bb.view_obs.size(); ++k) {
-          observe(bb.view_obs[k], r.segment<2>(2 * static_cast<Eigen::Index>(k)));
-        }
-      }
+    SolutionEvaluation ev;
+    CARMBA_RETURN_IF_ERROR(
+        EvaluateSolution(problem, o, layout, as, state, pass < kMaxRejectionPasses, &res, groups, &ev));
+    if (ev.any_rejected) {
+      CARMBA_RETURN_IF_ERROR(RejectWorst(problem, o, ev, &dropped, &res));
+      continue;  // solve again without it
     }
-    if (any_rejected) {
-      dropped[worst_view][worst_obs] = 1;
-      res.rejected.push_back(worst_out);
-    }
-    std::sort(res.outliers.begin(), res.outliers.end(), [](const BaOutlier& a, const BaOutlier& b) {
-      return a.residual_sigma > b.residual_sigma;
-    });
-    if (any_rejected) {
-      for (size_t v = 0; v < problem.views.size(); ++v) {
-        const auto left = std::count(dropped[v].begin(), dropped[v].end(), 0);
-        if (left < 4) {
-          return Status::Error("outlier rejection (reject_sigma " + std::to_string(o.reject_sigma) +
-                               ") leaves view '" + problem.views[v].id + "' with " +
-                               std::to_string(left) + " observations, at least 4 needed");
-        }
-      }
-      continue;  // solve again without them
-    }
-    res.final_cost = 0.5 * res.chi2;
-    res.views.clear();
-    double ss_plate = 0, ss_object = 0;
-    int n_plate = 0, n_object = 0;
-    for (size_t v = 0; v < problem.views.size(); ++v) {
-      BaViewStats vs;
-      vs.id = problem.views[v].id;
-      vs.num_observations = view_n[v];
-      vs.rms_px = view_n[v] ? std::sqrt(view_ss[v] / (2.0 * view_n[v])) : 0.0;
-      res.views.push_back(vs);
-      if (problem.views[v].kind == ViewKind::kPlate) {
-        ss_plate += view_ss[v], n_plate += view_n[v];
-      } else {
-        ss_object += view_ss[v], n_object += view_n[v];
-      }
-    }
-    res.rms_plate_px = n_plate ? std::sqrt(ss_plate / (2.0 * n_plate)) : std::nan("");
-    res.rms_object_px = n_object ? std::sqrt(ss_object / (2.0 * n_object)) : std::nan("");
-    res.num_free = layout.num_free();
-    res.dof = res.num_residuals - res.num_free;
-    res.sigma0 = res.dof > 0 ? std::sqrt(res.chi2 / res.dof) : std::nan("");
-    res.chi2_p_value = ChiSquareUpperTail(res.chi2, res.dof);
-    res.linearization = lin;
+    SolutionStatistics(problem, layout, ev, &res);
     break;
   }
   res.state = state;
@@ -880,7 +979,8 @@ StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
     for (size_t j = i; j < ptrs.size(); ++j) pairs.emplace_back(ptrs[i], ptrs[j]);
   }
   if (!cov.Compute(pairs, &cp)) {
-    return Status::Error("ceres::Covariance (" + algorithm + "): rank-deficient");
+    return Status::Error("ceres::Covariance (" + algorithm + "): rank-deficient",
+                         ErrorKind::kNotDetermined);
   }
   int n = 0;
   for (int b : blocks) n += layout.block(b).size;

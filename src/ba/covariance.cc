@@ -10,9 +10,6 @@ namespace carmba {
 namespace ba {
 namespace {
 
-// Block-sparse symmetric matrix over layout blocks: adjacency[b][c] = H_bc (both directions).
-using BlockRow = std::map<int, Eigen::MatrixXd>;
-
 std::string JoinNames(const std::vector<std::string>& names) {
   std::string s;
   for (size_t i = 0; i < names.size(); ++i) s += (i ? ", " : "") + names[i];
@@ -48,22 +45,24 @@ int SchurCovariance::num_eliminated_blocks() const {
   return n;
 }
 
-StatusOr<std::shared_ptr<SchurCovariance>> SchurCovariance::Compute(const StateLayout& layout,
-                                                                    const Linearization& lin,
-                                                                    double min_rcond) {
-  std::shared_ptr<SchurCovariance> out(new SchurCovariance());
-  out->layout_ = &layout;
-  out->n_ = layout.num_free();
+namespace {
+
+using BlockRows = std::vector<std::map<int, Eigen::MatrixXd>>;
+
+// H = J^T J in blocks over the linearisation's rows, and its diagonal over the free state. Every
+// free block must be in some residual.
+Status NormalBlocks(const StateLayout& layout, const Linearization& lin, BlockRows* H, Eigen::VectorXd* diag) {
   const int nb = static_cast<int>(layout.blocks().size());
-  std::vector<BlockRow> H(nb);
-  Eigen::VectorXd diag = Eigen::VectorXd::Zero(layout.num_free());
+  H->assign(nb, {});
+  *diag = Eigen::VectorXd::Zero(layout.num_free());
   for (const LinearizedBlock& r : lin.rows) {
     for (size_t i = 0; i < r.blocks.size(); ++i) {
       if (!r.J[i].allFinite()) return Status::Error("covariance: non-finite Jacobian at the solution");
       for (size_t j = 0; j < r.blocks.size(); ++j) {
-        auto it = H[r.blocks[i]].find(r.blocks[j]);
-        if (it == H[r.blocks[i]].end()) {
-          H[r.blocks[i]].emplace(r.blocks[j], r.J[i].transpose().lazyProduct(r.J[j]));
+        auto& row = (*H)[r.blocks[i]];
+        auto it = row.find(r.blocks[j]);
+        if (it == row.end()) {
+          row.emplace(r.blocks[j], r.J[i].transpose().lazyProduct(r.J[j]));
         } else {
           // Tiny blocks (2 x 6, 2 x 9): the coefficient-wise product beats the GEMM path.
           it->second.noalias() += r.J[i].transpose().lazyProduct(r.J[j]);
@@ -74,169 +73,208 @@ StatusOr<std::shared_ptr<SchurCovariance>> SchurCovariance::Compute(const StateL
   for (int b = 0; b < nb; ++b) {
     const BlockInfo& bi = layout.block(b);
     if (bi.constant) continue;
-    auto it = H[b].find(b);
-    if (it == H[b].end()) {
+    auto it = (*H)[b].find(b);
+    if (it == (*H)[b].end()) {
       return Status::Error("covariance: " + layout.ParameterName(b, bi.free[0]) +
                            " is in no residual (not observed)");
     }
-    diag.segment(bi.free_offset, bi.free.size()) = it->second.diagonal();
+    diag->segment(bi.free_offset, bi.free.size()) = it->second.diagonal();
   }
+  return Status::Ok();
+}
 
-  // The levels: points, then plate poses if still mutually uncoupled.
-  std::vector<int> level1, level2;
-  for (int b = 0; b < nb; ++b) {
+// The first level: the free points (markers, plate points).
+std::vector<int> PointBlocks(const StateLayout& layout) {
+  std::vector<int> level;
+  for (int b = 0; b < static_cast<int>(layout.blocks().size()); ++b) {
     const BlockInfo& bi = layout.block(b);
-    if (bi.constant) continue;
-    if (bi.kind == BlockKind::kMarker || bi.kind == BlockKind::kPlatePoint) level1.push_back(b);
+    if (!bi.constant && (bi.kind == BlockKind::kMarker || bi.kind == BlockKind::kPlatePoint)) level.push_back(b);
   }
-  auto eliminate = [&](const std::vector<int>& level) -> Status {
-    std::vector<Eliminated> done;
-    const std::set<int> in_level(level.begin(), level.end());
-    for (int e : level) {
-      const BlockInfo& bi = layout.block(e);
-      const Eigen::MatrixXd& Hee = H[e].at(e);
-      Eigen::LLT<Eigen::MatrixXd> llt(Hee);
-      const Eigen::VectorXd d = Hee.diagonal();
-      bool ok = llt.info() == Eigen::Success && (d.array() > 0).all();
-      if (ok) {
-        const Eigen::VectorXd is = d.cwiseSqrt().cwiseInverse();
-        Eigen::LLT<Eigen::MatrixXd> scaled(is.asDiagonal() * Hee * is.asDiagonal());
-        ok = scaled.info() == Eigen::Success && scaled.rcond() > min_rcond;
-      }
-      if (!ok) {
-        std::vector<std::string> names;
-        for (int i : bi.free) names.push_back(layout.ParameterName(e, i));
-        return Status::Error("rank-deficient: " + JoinNames(names) +
-                             " not determined (too few observations and no prior)");
-      }
-      Eliminated el;
-      el.block = e;
-      el.H_inv = llt.solve(Eigen::MatrixXd::Identity(Hee.rows(), Hee.cols()));
-      for (auto& [r, Her] : H[e]) {
-        if (r == e) continue;
-        if (in_level.count(r)) return Status::Error("covariance: coupled blocks in one level");
-        el.H_er.emplace_back(r, Her);
-      }
-      for (auto& [r1, H1e] : el.H_er) {
-        const Eigen::MatrixXd A = H1e.transpose() * el.H_inv;  // H_r1e H_ee^-1
-        for (auto& [r2, He2] : el.H_er) {
-          Eigen::MatrixXd upd = -A * He2;
-          auto it = H[r1].find(r2);
-          if (it == H[r1].end()) {
-            H[r1].emplace(r2, std::move(upd));
-          } else {
-            it->second += upd;
-          }
-        }
-        H[r1].erase(e);
-      }
-      H[e].clear();
-      done.push_back(std::move(el));
-    }
-    out->levels_.push_back(std::move(done));
-    return Status::Ok();
-  };
-  if (!level1.empty()) CARMBA_RETURN_IF_ERROR(eliminate(level1));
-  {
-    bool coupled = false;
-    for (int b = 0; b < nb && !coupled; ++b) {
-      const BlockInfo& bi = layout.block(b);
-      if (bi.constant || bi.kind != BlockKind::kPlatePose) continue;
-      level2.push_back(b);
-      for (auto& [c, m] : H[b]) {
-        if (c != b && layout.block(c).kind == BlockKind::kPlatePose) coupled = true;
-      }
-    }
-    if (coupled) level2.clear();
-  }
-  if (!level2.empty()) CARMBA_RETURN_IF_ERROR(eliminate(level2));
+  return level;
+}
 
-  // The kept part, dense.
+// The second level: the free plate poses, if still mutually uncoupled (else none).
+std::vector<int> UncoupledPlatePoses(const StateLayout& layout, const BlockRows& H) {
+  std::vector<int> level;
+  for (int b = 0; b < static_cast<int>(layout.blocks().size()); ++b) {
+    const BlockInfo& bi = layout.block(b);
+    if (bi.constant || bi.kind != BlockKind::kPlatePose) continue;
+    level.push_back(b);
+    for (auto& [c, m] : H[b]) {
+      if (c != b && layout.block(c).kind == BlockKind::kPlatePose) return {};
+    }
+  }
+  return level;
+}
+
+}  // namespace
+
+Status SchurCovariance::EliminateLevel(const std::vector<int>& level, double min_rcond, BlockRows* H_ptr) {
+  BlockRows& H = *H_ptr;
+  const StateLayout& layout = *layout_;
+  std::vector<Eliminated> done;
+  const std::set<int> in_level(level.begin(), level.end());
+  for (int e : level) {
+    const BlockInfo& bi = layout.block(e);
+    const Eigen::MatrixXd& Hee = H[e].at(e);
+    Eigen::LLT<Eigen::MatrixXd> llt(Hee);
+    const Eigen::VectorXd d = Hee.diagonal();
+    bool ok = llt.info() == Eigen::Success && (d.array() > 0).all();
+    if (ok) {
+      const Eigen::VectorXd is = d.cwiseSqrt().cwiseInverse();
+      Eigen::LLT<Eigen::MatrixXd> scaled(is.asDiagonal() * Hee * is.asDiagonal());
+      ok = scaled.info() == Eigen::Success && scaled.rcond() > min_rcond;
+    }
+    if (!ok) {
+      std::vector<std::string> names;
+      for (int i : bi.free) names.push_back(layout.ParameterName(e, i));
+      return Status::Error("rank-deficient: " + JoinNames(names) +
+                           " not determined (too few observations and no prior)",
+                           ErrorKind::kNotDetermined);
+    }
+    Eliminated el;
+    el.block = e;
+    el.H_inv = llt.solve(Eigen::MatrixXd::Identity(Hee.rows(), Hee.cols()));
+    for (auto& [r, Her] : H[e]) {
+      if (r == e) continue;
+      if (in_level.count(r)) return Status::Error("covariance: coupled blocks in one level");
+      el.H_er.emplace_back(r, Her);
+    }
+    for (auto& [r1, H1e] : el.H_er) {
+      const Eigen::MatrixXd A = H1e.transpose() * el.H_inv;  // H_r1e H_ee^-1
+      for (auto& [r2, He2] : el.H_er) {
+        Eigen::MatrixXd upd = -A * He2;
+        auto it = H[r1].find(r2);
+        if (it == H[r1].end()) {
+          H[r1].emplace(r2, std::move(upd));
+        } else {
+          it->second += upd;
+        }
+      }
+      H[r1].erase(e);
+    }
+    H[e].clear();
+    done.push_back(std::move(el));
+  }
+  levels_.push_back(std::move(done));
+  return Status::Ok();
+}
+
+Status SchurCovariance::NullDirectionError(const Eigen::MatrixXd& S, const Eigen::VectorXd& is,
+                                           double rcond, const Eigen::VectorXd& diag) const {
+  const StateLayout& layout = *layout_;
+  const Eigen::Index K = kept_dim_;
+  Eigen::MatrixXd Sc = is.asDiagonal() * S * is.asDiagonal();
+  if (!Sc.allFinite()) Sc = Eigen::MatrixXd::Identity(K, K);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Sc);
+  const Eigen::VectorXd xk = is.asDiagonal() * es.eigenvectors().col(0);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(n_);
+  for (size_t i = 0; i < kept_blocks_.size(); ++i) {
+    const BlockInfo& bi = layout.block(kept_blocks_[i]);
+    x.segment(bi.free_offset, bi.free.size()) = xk.segment(kept_offset_[i], bi.free.size());
+  }
+  for (auto l = levels_.rbegin(); l != levels_.rend(); ++l) {
+    for (const auto& e : *l) {
+      const BlockInfo& be = layout.block(e.block);
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(be.free.size());
+      for (const auto& [r, Her] : e.H_er) {
+        const BlockInfo& br = layout.block(r);
+        rhs -= Her * x.segment(br.free_offset, br.free.size());
+      }
+      x.segment(be.free_offset, be.free.size()) = e.H_inv * rhs;
+    }
+  }
+  char rc[32];
+  std::snprintf(rc, sizeof rc, "%.1e", rcond);
+  return Status::Error(
+      std::string("rank-deficient (reciprocal condition ") + rc +
+          "): a free direction (gauge) moves " + NullDirectionNames(layout, x, diag) +
+          "; fix it with priors (CT priors on the markers, the plate prior, an intrinsics prior) "
+          "or hold parameters",
+      ErrorKind::kNotDetermined);
+}
+
+Status SchurCovariance::InvertKept(const BlockRows& H, const Eigen::VectorXd& diag, double min_rcond) {
+  const StateLayout& layout = *layout_;
+  const int nb = static_cast<int>(layout.blocks().size());
   std::set<int> eliminated;
-  for (const auto& l : out->levels_) {
+  for (const auto& l : levels_) {
     for (const auto& e : l) eliminated.insert(e.block);
   }
   for (int b = 0; b < nb; ++b) {
     const BlockInfo& bi = layout.block(b);
     if (bi.constant || eliminated.count(b)) continue;
-    out->kept_offset_.push_back(static_cast<int>(out->kept_dim_));
-    out->kept_blocks_.push_back(b);
-    out->kept_dim_ += static_cast<Eigen::Index>(bi.free.size());
+    kept_offset_.push_back(static_cast<int>(kept_dim_));
+    kept_blocks_.push_back(b);
+    kept_dim_ += static_cast<Eigen::Index>(bi.free.size());
   }
-  const Eigen::Index K = out->kept_dim_;
+  const Eigen::Index K = kept_dim_;
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(K, K);
   std::map<int, int> kept_index;
-  for (size_t i = 0; i < out->kept_blocks_.size(); ++i) kept_index[out->kept_blocks_[i]] = static_cast<int>(i);
-  for (size_t i = 0; i < out->kept_blocks_.size(); ++i) {
-    const int b = out->kept_blocks_[i];
-    for (auto& [c, m] : H[b]) {
+  for (size_t i = 0; i < kept_blocks_.size(); ++i) kept_index[kept_blocks_[i]] = static_cast<int>(i);
+  for (size_t i = 0; i < kept_blocks_.size(); ++i) {
+    for (auto& [c, m] : H[kept_blocks_[i]]) {
       const int j = kept_index.at(c);
-      S.block(out->kept_offset_[i], out->kept_offset_[j], m.rows(), m.cols()) = m;
+      S.block(kept_offset_[i], kept_offset_[j], m.rows(), m.cols()) = m;
     }
   }
   S = 0.5 * (S + S.transpose()).eval();
-  if (K > 0) {
-    const Eigen::VectorXd d = S.diagonal();
-    bool ok = S.allFinite() && (d.array() > 0).all();
-    Eigen::VectorXd is = Eigen::VectorXd::Ones(K);
-    Eigen::LLT<Eigen::MatrixXd> llt;
-    if (ok) {
-      is = d.cwiseSqrt().cwiseInverse();
-      llt.compute(is.asDiagonal() * S * is.asDiagonal());
-      ok = llt.info() == Eigen::Success && llt.rcond() > min_rcond;
-    }
-    if (!ok) {
-      // Name the null direction: the smallest eigenvector of the scaled S, carried back.
-      Eigen::MatrixXd Sc = is.asDiagonal() * S * is.asDiagonal();
-      if (!Sc.allFinite()) Sc = Eigen::MatrixXd::Identity(K, K);
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Sc);
-      const Eigen::VectorXd xk = is.asDiagonal() * es.eigenvectors().col(0);
-      Eigen::VectorXd x = Eigen::VectorXd::Zero(out->n_);
-      for (size_t i = 0; i < out->kept_blocks_.size(); ++i) {
-        const BlockInfo& bi = layout.block(out->kept_blocks_[i]);
-        x.segment(bi.free_offset, bi.free.size()) = xk.segment(out->kept_offset_[i], bi.free.size());
-      }
-      for (auto l = out->levels_.rbegin(); l != out->levels_.rend(); ++l) {
-        for (const auto& e : *l) {
-          const BlockInfo& be = layout.block(e.block);
-          Eigen::VectorXd rhs = Eigen::VectorXd::Zero(be.free.size());
-          for (const auto& [r, Her] : e.H_er) {
-            const BlockInfo& br = layout.block(r);
-            rhs -= Her * x.segment(br.free_offset, br.free.size());
-          }
-          x.segment(be.free_offset, be.free.size()) = e.H_inv * rhs;
-        }
-      }
-      char rc[32];
-      std::snprintf(rc, sizeof rc, "%.1e", ok ? 0.0 : (llt.info() == Eigen::Success ? llt.rcond() : 0.0));
-      return Status::Error(
-          std::string("rank-deficient (reciprocal condition ") + rc +
-          "): a free direction (gauge) moves " + NullDirectionNames(layout, x, diag) +
-          "; fix it with priors (CT priors on the markers, the plate prior, an intrinsics prior) "
-          "or hold parameters");
-    }
-    const Eigen::MatrixXd Sc_inv = llt.solve(Eigen::MatrixXd::Identity(K, K));
-    out->S_inv_ = is.asDiagonal() * Sc_inv * is.asDiagonal();
-    out->S_inv_ = 0.5 * (out->S_inv_ + out->S_inv_.transpose()).eval();
+  if (K == 0) return Status::Ok();
+  const Eigen::VectorXd d = S.diagonal();
+  bool ok = S.allFinite() && (d.array() > 0).all();
+  Eigen::VectorXd is = Eigen::VectorXd::Ones(K);
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  if (ok) {
+    is = d.cwiseSqrt().cwiseInverse();
+    llt.compute(is.asDiagonal() * S * is.asDiagonal());
+    ok = llt.info() == Eigen::Success && llt.rcond() > min_rcond;
   }
+  if (!ok) {
+    return NullDirectionError(S, is, llt.info() == Eigen::Success ? llt.rcond() : 0.0, diag);
+  }
+  const Eigen::MatrixXd Sc_inv = llt.solve(Eigen::MatrixXd::Identity(K, K));
+  S_inv_ = is.asDiagonal() * Sc_inv * is.asDiagonal();
+  S_inv_ = 0.5 * (S_inv_ + S_inv_.transpose()).eval();
+  return Status::Ok();
+}
+
+Status SchurCovariance::AddConsideredCalibration(const Linearization& lin) {
   // Considered calibration: H_fc from the held intrinsics' columns, D = -H_ff^-1 H_fc.
+  const StateLayout& layout = *layout_;
   const int nc = layout.num_consider();
-  out->consider_covariance_ = layout.consider_covariance();
-  out->D_ = Eigen::MatrixXd::Zero(out->n_, nc);
-  if (nc > 0) {
-    Eigen::MatrixXd H_fc = Eigen::MatrixXd::Zero(out->n_, nc);
-    for (const LinearizedBlock& r : lin.rows) {
-      if (r.consider_block < 0) continue;
-      if (!r.J_consider.allFinite()) return Status::Error("covariance: non-finite Jacobian at the solution");
-      const BlockInfo& bc = layout.block(r.consider_block);
-      for (size_t i = 0; i < r.blocks.size(); ++i) {
-        const BlockInfo& bi = layout.block(r.blocks[i]);
-        H_fc.block(bi.free_offset, bc.consider_offset, bi.free.size(), bc.consider.size()).noalias() +=
-            r.J[i].transpose() * r.J_consider;
-      }
+  consider_covariance_ = layout.consider_covariance();
+  D_ = Eigen::MatrixXd::Zero(n_, nc);
+  if (nc == 0) return Status::Ok();
+  Eigen::MatrixXd H_fc = Eigen::MatrixXd::Zero(n_, nc);
+  for (const LinearizedBlock& r : lin.rows) {
+    if (r.consider_block < 0) continue;
+    if (!r.J_consider.allFinite()) return Status::Error("covariance: non-finite Jacobian at the solution");
+    const BlockInfo& bc = layout.block(r.consider_block);
+    for (size_t i = 0; i < r.blocks.size(); ++i) {
+      const BlockInfo& bi = layout.block(r.blocks[i]);
+      H_fc.block(bi.free_offset, bc.consider_offset, bi.free.size(), bc.consider.size()).noalias() +=
+          r.J[i].transpose() * r.J_consider;
     }
-    out->D_ = -out->Solve(H_fc);
   }
+  D_ = -Solve(H_fc);
+  return Status::Ok();
+}
+
+StatusOr<std::shared_ptr<SchurCovariance>> SchurCovariance::Compute(const StateLayout& layout,
+                                                                    const Linearization& lin,
+                                                                    double min_rcond) {
+  std::shared_ptr<SchurCovariance> out(new SchurCovariance());
+  out->layout_ = &layout;
+  out->n_ = layout.num_free();
+  BlockRows H;
+  Eigen::VectorXd diag;
+  CARMBA_RETURN_IF_ERROR(NormalBlocks(layout, lin, &H, &diag));
+  const std::vector<int> points = PointBlocks(layout);
+  if (!points.empty()) CARMBA_RETURN_IF_ERROR(out->EliminateLevel(points, min_rcond, &H));
+  const std::vector<int> plate_poses = UncoupledPlatePoses(layout, H);
+  if (!plate_poses.empty()) CARMBA_RETURN_IF_ERROR(out->EliminateLevel(plate_poses, min_rcond, &H));
+  CARMBA_RETURN_IF_ERROR(out->InvertKept(H, diag, min_rcond));
+  CARMBA_RETURN_IF_ERROR(out->AddConsideredCalibration(lin));
   return out;
 }
 

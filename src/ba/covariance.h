@@ -110,12 +110,24 @@ class SchurCovariance {
   int kept_size() const { return static_cast<int>(kept_dim_); }
 
  private:
+  // Block-sparse symmetric matrix over layout blocks: H[b][c] = H_bc (both directions).
+  using BlockRows = std::vector<std::map<int, Eigen::MatrixXd>>;
   SchurCovariance() = default;
   struct Eliminated {
     int block;                         // layout block
     Eigen::MatrixXd H_inv;             // (H_ee)^-1 at its level
     std::vector<std::pair<int, Eigen::MatrixXd>> H_er;  // neighbours at its level
   };
+  // The stages of Compute: eliminate one level of mutually uncoupled blocks from H (into
+  // levels_), invert the Schur complement of the blocks kept (diag: H's diagonal, to name a null
+  // direction), and the considered calibration's sensitivity D.
+  Status EliminateLevel(const std::vector<int>& level, double min_rcond, BlockRows* H);
+  Status InvertKept(const BlockRows& H, const Eigen::VectorXd& diag, double min_rcond);
+  // The rank-deficiency error naming the free direction: the smallest eigenvector of the scaled
+  // complement Sc (scaling `is`), carried back through the eliminated levels.
+  Status NullDirectionError(const Eigen::MatrixXd& S, const Eigen::VectorXd& is, double rcond,
+                            const Eigen::VectorXd& diag) const;
+  Status AddConsideredCalibration(const Linearization& lin);
   const StateLayout* layout_ = nullptr;
   int n_ = 0;
   std::vector<std::vector<Eliminated>> levels_;

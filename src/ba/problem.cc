@@ -22,6 +22,225 @@ const char* SourceName(Source s) {
   return "?";
 }
 
+namespace {
+
+// One intrinsics group on its own: finite intrinsics with fx, fy > 0, a consistent smooth model,
+// aspect-ratio tie and prior.
+Status CheckIntrinsicsGroup(const IntrinsicsGroup& g) {
+  for (double x : g.initial) {
+    if (!std::isfinite(x)) return Status::Error("group '" + g.name + "': non-finite intrinsics");
+  }
+  if (!(g.initial[kFx] > 0) || !(g.initial[kFy] > 0)) {
+    return Status::Error("group '" + g.name + "': fx and fy must be > 0");
+  }
+  if (g.smooth && g.has_prior) {
+    return Status::Error("group '" + g.name + "': an intrinsics prior is not supported with the "
+                         "smooth (angle-dependent) model");
+  }
+  if (g.smooth && (g.basis.primary_order < 0 || g.basis.secondary_degree < 0)) {
+    return Status::Error("group '" + g.name + "': the smooth basis needs orders >= 0");
+  }
+  if (g.smooth && !g.initial_coefficients.empty() &&
+      static_cast<int>(g.initial_coefficients.size()) != g.basis.BlockSize()) {
+    return Status::Error("group '" + g.name + "': " + std::to_string(g.initial_coefficients.size()) +
+                         " initial coefficients, expected " + std::to_string(g.basis.BlockSize()));
+  }
+  if (g.smooth && g.fy_over_fx != 0) {
+    return Status::Error("group '" + g.name + "': a fixed aspect ratio (fy_over_fx) is not "
+                         "supported with the smooth (angle-dependent) model");
+  }
+  if (g.fy_over_fx != 0) {
+    if (!(g.fy_over_fx > 0) || !std::isfinite(g.fy_over_fx)) {
+      return Status::Error("group '" + g.name + "': fy_over_fx must be > 0 (0: fy free)");
+    }
+    if (std::abs(g.initial[kFy] - g.fy_over_fx * g.initial[kFx]) > 1e-9 * g.initial[kFy]) {
+      return Status::Error("group '" + g.name + "': the initial fy is not fy_over_fx * fx");
+    }
+    if (g.free[kFx] != g.free[kFy]) {
+      return Status::Error("group '" + g.name +
+                           "': with a fixed aspect ratio fx and fy are free or held together");
+    }
+  }
+  if (g.has_prior) {
+    const auto n = static_cast<Eigen::Index>(g.prior.indices.size());
+    if (n == 0 || g.prior.covariance.rows() != n || g.prior.covariance.cols() != n ||
+        !g.prior.covariance.allFinite()) {
+      return Status::Error("group '" + g.name + "': the intrinsics prior needs a finite " +
+                           std::to_string(n) + "x" + std::to_string(n) + " covariance");
+    }
+    Eigen::LLT<Eigen::MatrixXd> llt(g.prior.covariance);
+    if (llt.info() != Eigen::Success) {
+      return Status::Error("group '" + g.name +
+                           "': the intrinsics prior's covariance is not positive definite");
+    }
+  }
+  return Status::Ok();
+}
+
+// A group's considered calibration: a finite, symmetric positive semi-definite covariance over
+// distinct held intrinsics.
+Status CheckConsideredCalibration(const IntrinsicsGroup& g) {
+  const auto n = static_cast<Eigen::Index>(g.consider_indices.size());
+  if (n == 0 && g.consider_covariance.size() == 0) return Status::Ok();
+  if (n == 0 || g.consider_covariance.rows() != n || g.consider_covariance.cols() != n ||
+      !g.consider_covariance.allFinite()) {
+    return Status::Error("group '" + g.name + "': the considered calibration needs a finite " +
+                         std::to_string(n) + "x" + std::to_string(n) + " covariance");
+  }
+  if (g.smooth) {
+    return Status::Error("group '" + g.name + "': a considered calibration is not supported with "
+                         "the smooth (angle-dependent) model");
+  }
+  std::set<int> distinct;
+  for (int i : g.consider_indices) {
+    if (i < 0 || i >= kNumIntrinsics || !distinct.insert(i).second) {
+      return Status::Error("group '" + g.name + "': considered intrinsic index " +
+                           std::to_string(i) + " is out of range or given twice");
+    }
+    const bool held = !g.free[i] && !(i == kFy && g.fy_over_fx > 0 && g.free[kFx]);
+    if (!held) {
+      return Status::Error("group '" + g.name + "': intrinsic " + kIntrinsicNames[i] +
+                           " is free: only held intrinsics are considered");
+    }
+  }
+  if (!g.consider_covariance.isApprox(g.consider_covariance.transpose(), 1e-9) ||
+      Eigen::LDLT<Eigen::MatrixXd>(g.consider_covariance).info() != Eigen::Success ||
+      !(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g.consider_covariance)
+            .eigenvalues()
+            .minCoeff() >= 0)) {
+    return Status::Error("group '" + g.name +
+                         "': the considered calibration covariance is not symmetric positive "
+                         "semi-definite");
+  }
+  return Status::Ok();
+}
+
+// One view against the problem: its group and rig, sigmas and covariances, at least 4
+// observations (1 in a rig), each of a known point or marker, once, with a finite pixel; C-arm
+// angles when its group is smooth.
+Status CheckBaView(const BaProblem& p,
+                   const BaView& v,
+                   const std::map<int, const BaMarker*>& marker_by_id,
+                   std::vector<int>* rig_observations) {
+  const auto& groups = p.groups;
+  const auto& rigs = p.rigs;
+  const auto& plate = p.plate;
+  if (v.group < 0 || v.group >= static_cast<int>(groups.size())) {
+    return Status::Error("view '" + v.id + "': unknown intrinsics group");
+  }
+  if (!(v.sigma_px > 0) || !std::isfinite(v.sigma_px)) {
+    return Status::Error("view '" + v.id + "': sigma_px must be > 0");
+  }
+  if (v.point_ids.size() != v.uv_px.size()) {
+    return Status::Error("view '" + v.id + "': ids and pixels differ in number");
+  }
+  if (!v.obs_sigma_px.empty() && v.obs_sigma_px.size() != v.uv_px.size()) {
+    return Status::Error("view '" + v.id + "': per-observation sigmas and pixels differ in number");
+  }
+  for (double s : v.obs_sigma_px) {
+    if (!(s > 0) || !std::isfinite(s)) {
+      return Status::Error("view '" + v.id + "': a per-observation sigma_px is not > 0");
+    }
+  }
+  if (!v.obs_covariance_px2.empty() && v.obs_covariance_px2.size() != v.uv_px.size()) {
+    return Status::Error("view '" + v.id +
+                         "': per-observation covariances and pixels differ in number");
+  }
+  for (const Eigen::Matrix2d& C : v.obs_covariance_px2) {
+    if (!C.allFinite() || std::abs(C(0, 1) - C(1, 0)) > 1e-12 * (C(0, 0) + C(1, 1)) ||
+        !(C(0, 0) > 0) || !(C.determinant() > 0)) {
+      return Status::Error("view '" + v.id +
+                           "': a per-observation pixel covariance is not symmetric positive "
+                           "definite");
+    }
+  }
+  if (v.rig >= static_cast<int>(rigs.size()) || v.rig < -1) {
+    return Status::Error("view '" + v.id + "': unknown rig " + std::to_string(v.rig));
+  }
+  if (v.rig >= 0) {
+    if (v.kind != ViewKind::kObject) return Status::Error("view '" + v.id + "': only object views can be in a rig");
+    if (!v.cam_from_rig.allFinite()) return Status::Error("view '" + v.id + "': non-finite cam_from_rig");
+    if (groups[v.group].smooth) {
+      return Status::Error("view '" + v.id + "': a rig view's intrinsics group cannot be smooth");
+    }
+    (*rig_observations)[v.rig] += static_cast<int>(v.point_ids.size());
+  }
+  if (v.point_ids.size() < (v.rig >= 0 ? 1u : 4u)) {
+    return Status::Error("view '" + v.id + "': " + std::to_string(v.point_ids.size()) +
+                         " observation(s), at least " + (v.rig >= 0 ? "1" : "4") + " needed");
+  }
+  if (!v.initial.allFinite()) return Status::Error("view '" + v.id + "': no initial pose");
+  std::set<int> seen;
+  for (size_t i = 0; i < v.point_ids.size(); ++i) {
+    const int id = v.point_ids[i];
+    if (!seen.insert(id).second) {
+      return Status::Error("view '" + v.id + "': point " + std::to_string(id) +
+                           " observed twice");
+    }
+    if (!v.uv_px[i].allFinite()) {
+      return Status::Error("view '" + v.id + "': non-finite pixel of point " +
+                           std::to_string(id));
+    }
+    if (v.kind == ViewKind::kPlate) {
+      if (id < 0 || id >= static_cast<int>(plate.points.size())) {
+        return Status::Error("view '" + v.id + "': plate point " + std::to_string(id) +
+                             " is not on the plate (" + std::to_string(plate.points.size()) +
+                             " points)");
+      }
+    } else if (!marker_by_id.count(id)) {
+      return Status::Error("view '" + v.id + "': marker " + std::to_string(id) +
+                           " is not among the fiducials");
+    }
+  }
+  if (groups[v.group].smooth) {
+    if (!v.has_angles) {
+      return Status::Error("view '" + v.id + "' has no C-arm angles, but its intrinsics group '" +
+                           groups[v.group].name +
+                           "' is smooth (intrinsics as functions of the angles)");
+    }
+    if (!std::isfinite(v.primary_deg) || !std::isfinite(v.secondary_deg)) {
+      return Status::Error("view '" + v.id + "': non-finite C-arm angles");
+    }
+  }
+  return Status::Ok();
+}
+
+// A smooth group's plate views cover enough orientations, primary and secondary angles for its
+// basis.
+Status CheckSmoothCoverage(const IntrinsicsGroup& group, int g, const std::vector<BaView>& views) {
+  const SmoothBasis& basis = group.basis;
+  std::set<std::pair<long, long>> orientations;
+  std::set<long> primaries, secondaries;
+  for (const auto& v : views) {
+    if (v.group != g || v.kind != ViewKind::kPlate) continue;
+    const long a = std::lround(v.primary_deg * 100), b = std::lround(v.secondary_deg * 100);
+    orientations.insert({a, b});
+    primaries.insert(a);
+    secondaries.insert(b);
+  }
+  const int K = basis.NumTerms();
+  if (static_cast<int>(orientations.size()) < K) {
+    return Status::Error(
+        "intrinsics group '" + group.name + "': model smooth has " + std::to_string(K) +
+        " coefficients per intrinsic (Fourier order " + std::to_string(basis.primary_order) +
+        " in the primary angle, degree " + std::to_string(basis.secondary_degree) +
+        " in the secondary) but the plate views cover " + std::to_string(orientations.size()) +
+        " orientation group(s); it needs at least " + std::to_string(K));
+  }
+  if (static_cast<int>(primaries.size()) < 2 * basis.primary_order + 1 ||
+      static_cast<int>(secondaries.size()) < basis.secondary_degree + 1) {
+    return Status::Error(
+        "intrinsics group '" + group.name + "': model smooth needs plate views at >= " +
+        std::to_string(2 * basis.primary_order + 1) + " distinct primary angles (have " +
+        std::to_string(primaries.size()) + ") and >= " +
+        std::to_string(basis.secondary_degree + 1) + " distinct secondary angles (have " +
+        std::to_string(secondaries.size()) + ")");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status BaProblem::Check() const {
   if (groups.empty()) return Status::Error("no intrinsics group");
   if (views.empty()) return Status::Error("no views");
@@ -30,88 +249,9 @@ Status BaProblem::Check() const {
     if (!group_names.insert(g.name).second) {
       return Status::Error("intrinsics group '" + g.name + "' is given twice");
     }
-    for (double x : g.initial) {
-      if (!std::isfinite(x)) return Status::Error("group '" + g.name + "': non-finite intrinsics");
-    }
-    if (!(g.initial[kFx] > 0) || !(g.initial[kFy] > 0)) {
-      return Status::Error("group '" + g.name + "': fx and fy must be > 0");
-    }
-    if (g.smooth && g.has_prior) {
-      return Status::Error("group '" + g.name + "': an intrinsics prior is not supported with the "
-                           "smooth (angle-dependent) model");
-    }
-    if (g.smooth && (g.basis.primary_order < 0 || g.basis.secondary_degree < 0)) {
-      return Status::Error("group '" + g.name + "': the smooth basis needs orders >= 0");
-    }
-    if (g.smooth && !g.initial_coefficients.empty() &&
-        static_cast<int>(g.initial_coefficients.size()) != g.basis.BlockSize()) {
-      return Status::Error("group '" + g.name + "': " + std::to_string(g.initial_coefficients.size()) +
-                           " initial coefficients, expected " + std::to_string(g.basis.BlockSize()));
-    }
-    if (g.smooth && g.fy_over_fx != 0) {
-      return Status::Error("group '" + g.name + "': a fixed aspect ratio (fy_over_fx) is not "
-                           "supported with the smooth (angle-dependent) model");
-    }
-    if (g.fy_over_fx != 0) {
-      if (!(g.fy_over_fx > 0) || !std::isfinite(g.fy_over_fx)) {
-        return Status::Error("group '" + g.name + "': fy_over_fx must be > 0 (0: fy free)");
-      }
-      if (std::abs(g.initial[kFy] - g.fy_over_fx * g.initial[kFx]) > 1e-9 * g.initial[kFy]) {
-        return Status::Error("group '" + g.name + "': the initial fy is not fy_over_fx * fx");
-      }
-      if (g.free[kFx] != g.free[kFy]) {
-        return Status::Error("group '" + g.name +
-                             "': with a fixed aspect ratio fx and fy are free or held together");
-      }
-    }
-    if (g.has_prior) {
-      const auto n = static_cast<Eigen::Index>(g.prior.indices.size());
-      if (n == 0 || g.prior.covariance.rows() != n || g.prior.covariance.cols() != n ||
-          !g.prior.covariance.allFinite()) {
-        return Status::Error("group '" + g.name + "': the intrinsics prior needs a finite " +
-                             std::to_string(n) + "x" + std::to_string(n) + " covariance");
-      }
-      Eigen::LLT<Eigen::MatrixXd> llt(g.prior.covariance);
-      if (llt.info() != Eigen::Success) {
-        return Status::Error("group '" + g.name +
-                             "': the intrinsics prior's covariance is not positive definite");
-      }
-    }
+    CARMBA_RETURN_IF_ERROR(CheckIntrinsicsGroup(g));
   }
-  for (const auto& g : groups) {
-    const auto n = static_cast<Eigen::Index>(g.consider_indices.size());
-    if (n == 0 && g.consider_covariance.size() == 0) continue;
-    if (n == 0 || g.consider_covariance.rows() != n || g.consider_covariance.cols() != n ||
-        !g.consider_covariance.allFinite()) {
-      return Status::Error("group '" + g.name + "': the considered calibration needs a finite " +
-                           std::to_string(n) + "x" + std::to_string(n) + " covariance");
-    }
-    if (g.smooth) {
-      return Status::Error("group '" + g.name + "': a considered calibration is not supported with "
-                           "the smooth (angle-dependent) model");
-    }
-    std::set<int> distinct;
-    for (int i : g.consider_indices) {
-      if (i < 0 || i >= kNumIntrinsics || !distinct.insert(i).second) {
-        return Status::Error("group '" + g.name + "': considered intrinsic index " +
-                             std::to_string(i) + " is out of range or given twice");
-      }
-      const bool held = !g.free[i] && !(i == kFy && g.fy_over_fx > 0 && g.free[kFx]);
-      if (!held) {
-        return Status::Error("group '" + g.name + "': intrinsic " + kIntrinsicNames[i] +
-                             " is free: only held intrinsics are considered");
-      }
-    }
-    if (!g.consider_covariance.isApprox(g.consider_covariance.transpose(), 1e-9) ||
-        Eigen::LDLT<Eigen::MatrixXd>(g.consider_covariance).info() != Eigen::Success ||
-        !(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g.consider_covariance)
-              .eigenvalues()
-              .minCoeff() >= 0)) {
-      return Status::Error("group '" + g.name +
-                           "': the considered calibration covariance is not symmetric positive "
-                           "semi-definite");
-    }
-  }
+  for (const auto& g : groups) CARMBA_RETURN_IF_ERROR(CheckConsideredCalibration(g));
   std::set<std::string> view_ids;
   std::map<int, const BaMarker*> marker_by_id;
   for (const auto& m : markers) {
@@ -131,116 +271,12 @@ Status BaProblem::Check() const {
   std::vector<int> plate_views_of(groups.size(), 0), views_of(groups.size(), 0);
   for (const auto& v : views) {
     if (!view_ids.insert(v.id).second) return Status::Error("view '" + v.id + "' is given twice");
-    if (v.group < 0 || v.group >= static_cast<int>(groups.size())) {
-      return Status::Error("view '" + v.id + "': unknown intrinsics group");
-    }
-    if (!(v.sigma_px > 0) || !std::isfinite(v.sigma_px)) {
-      return Status::Error("view '" + v.id + "': sigma_px must be > 0");
-    }
-    if (v.point_ids.size() != v.uv_px.size()) {
-      return Status::Error("view '" + v.id + "': ids and pixels differ in number");
-    }
-    if (!v.obs_sigma_px.empty() && v.obs_sigma_px.size() != v.uv_px.size()) {
-      return Status::Error("view '" + v.id + "': per-observation sigmas and pixels differ in number");
-    }
-    for (double s : v.obs_sigma_px) {
-      if (!(s > 0) || !std::isfinite(s)) {
-        return Status::Error("view '" + v.id + "': a per-observation sigma_px is not > 0");
-      }
-    }
-    if (!v.obs_covariance_px2.empty() && v.obs_covariance_px2.size() != v.uv_px.size()) {
-      return Status::Error("view '" + v.id +
-                           "': per-observation covariances and pixels differ in number");
-    }
-    for (const Eigen::Matrix2d& C : v.obs_covariance_px2) {
-      if (!C.allFinite() || std::abs(C(0, 1) - C(1, 0)) > 1e-12 * (C(0, 0) + C(1, 1)) ||
-          !(C(0, 0) > 0) || !(C.determinant() > 0)) {
-        return Status::Error("view '" + v.id +
-                             "': a per-observation pixel covariance is not symmetric positive "
-                             "definite");
-      }
-    }
-    if (v.rig >= static_cast<int>(rigs.size()) || v.rig < -1) {
-      return Status::Error("view '" + v.id + "': unknown rig " + std::to_string(v.rig));
-    }
-    if (v.rig >= 0) {
-      if (v.kind != ViewKind::kObject) return Status::Error("view '" + v.id + "': only object views can be in a rig");
-      if (!v.cam_from_rig.allFinite()) return Status::Error("view '" + v.id + "': non-finite cam_from_rig");
-      if (groups[v.group].smooth) {
-        return Status::Error("view '" + v.id + "': a rig view's intrinsics group cannot be smooth");
-      }
-      rig_observations[v.rig] += static_cast<int>(v.point_ids.size());
-    }
-    if (v.point_ids.size() < (v.rig >= 0 ? 1u : 4u)) {
-      return Status::Error("view '" + v.id + "': " + std::to_string(v.point_ids.size()) +
-                           " observation(s), at least " + (v.rig >= 0 ? "1" : "4") + " needed");
-    }
-    if (!v.initial.allFinite()) return Status::Error("view '" + v.id + "': no initial pose");
-    std::set<int> seen;
-    for (size_t i = 0; i < v.point_ids.size(); ++i) {
-      const int id = v.point_ids[i];
-      if (!seen.insert(id).second) {
-        return Status::Error("view '" + v.id + "': point " + std::to_string(id) +
-                             " observed twice");
-      }
-      if (!v.uv_px[i].allFinite()) {
-        return Status::Error("view '" + v.id + "': non-finite pixel of point " +
-                             std::to_string(id));
-      }
-      if (v.kind == ViewKind::kPlate) {
-        if (id < 0 || id >= static_cast<int>(plate.points.size())) {
-          return Status::Error("view '" + v.id + "': plate point " + std::to_string(id) +
-                               " is not on the plate (" + std::to_string(plate.points.size()) +
-                               " points)");
-        }
-      } else if (!marker_by_id.count(id)) {
-        return Status::Error("view '" + v.id + "': marker " + std::to_string(id) +
-                             " is not among the fiducials");
-      }
-    }
-    if (groups[v.group].smooth) {
-      if (!v.has_angles) {
-        return Status::Error("view '" + v.id + "' has no C-arm angles, but its intrinsics group '" +
-                             groups[v.group].name +
-                             "' is smooth (intrinsics as functions of the angles)");
-      }
-      if (!std::isfinite(v.primary_deg) || !std::isfinite(v.secondary_deg)) {
-        return Status::Error("view '" + v.id + "': non-finite C-arm angles");
-      }
-    }
+    CARMBA_RETURN_IF_ERROR(CheckBaView(*this, v, marker_by_id, &rig_observations));
     ++views_of[v.group];
     if (v.kind == ViewKind::kPlate) ++plate_views_of[v.group];
   }
   for (size_t g = 0; g < groups.size(); ++g) {
-    if (!groups[g].smooth) continue;
-    const SmoothBasis& basis = groups[g].basis;
-    std::set<std::pair<long, long>> orientations;
-    std::set<long> primaries, secondaries;
-    for (const auto& v : views) {
-      if (v.group != static_cast<int>(g) || v.kind != ViewKind::kPlate) continue;
-      const long a = std::lround(v.primary_deg * 100), b = std::lround(v.secondary_deg * 100);
-      orientations.insert({a, b});
-      primaries.insert(a);
-      secondaries.insert(b);
-    }
-    const int K = basis.NumTerms();
-    if (static_cast<int>(orientations.size()) < K) {
-      return Status::Error(
-          "intrinsics group '" + groups[g].name + "': model smooth has " + std::to_string(K) +
-          " coefficients per intrinsic (Fourier order " + std::to_string(basis.primary_order) +
-          " in the primary angle, degree " + std::to_string(basis.secondary_degree) +
-          " in the secondary) but the plate views cover " + std::to_string(orientations.size()) +
-          " orientation group(s); it needs at least " + std::to_string(K));
-    }
-    if (static_cast<int>(primaries.size()) < 2 * basis.primary_order + 1 ||
-        static_cast<int>(secondaries.size()) < basis.secondary_degree + 1) {
-      return Status::Error(
-          "intrinsics group '" + groups[g].name + "': model smooth needs plate views at >= " +
-          std::to_string(2 * basis.primary_order + 1) + " distinct primary angles (have " +
-          std::to_string(primaries.size()) + ") and >= " +
-          std::to_string(basis.secondary_degree + 1) + " distinct secondary angles (have " +
-          std::to_string(secondaries.size()) + ")");
-    }
+    if (groups[g].smooth) CARMBA_RETURN_IF_ERROR(CheckSmoothCoverage(groups[g], static_cast<int>(g), views));
   }
   for (size_t r = 0; r < rigs.size(); ++r) {
     if (rig_observations[r] < 4) {

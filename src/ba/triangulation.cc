@@ -27,20 +27,15 @@ bool TriangulationOptions::Check(std::string* error) const {
 
 namespace {
 
-// The point from all of `obs`, with its covariance and residuals (no self-check).
-StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
-                                           const BaResult& result,
-                                           const std::vector<PixelObservation>& obs,
-                                           const TriangulationOptions& options) {
+// Each observation's ray in the object frame: origin = the source -R^T t, direction
+// R^T (x, y, 1) normalised. Errors name the view that cannot give one.
+Status ObjectRays(const BaProblem& problem,
+                  const BaResult& result,
+                  const std::vector<PixelObservation>& obs,
+                  std::vector<Eigen::Vector3d>* origin,
+                  std::vector<Eigen::Vector3d>* dir) {
   const StateLayout& L = *result.layout;
-  if (obs.size() < 2) {
-    return Status::Error(obs.empty() ? std::string("no observations")
-                                     : "seen in one view only ('" + problem.views[obs[0].view].id +
-                                           "'): at least two views are needed");
-  }
-  // Rays in the object frame: origin = the source -R^T t, direction R^T (x, y, 1).
   std::set<int> seen;
-  std::vector<Eigen::Vector3d> origin, dir;
   for (const auto& o : obs) {
     if (o.view < 0 || o.view >= static_cast<int>(problem.views.size())) {
       return Status::Error("view index " + std::to_string(o.view) + " is not in the problem");
@@ -70,26 +65,30 @@ StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
     }
     const Eigen::Matrix3d R = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
     const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
-    origin.push_back(-R.transpose() * t);
-    dir.push_back((R.transpose() * Eigen::Vector3d(xy[0], xy[1], 1.0)).normalized());
+    origin->push_back(-R.transpose() * t);
+    dir->push_back((R.transpose() * Eigen::Vector3d(xy[0], xy[1], 1.0)).normalized());
   }
-  TriangulatedPoint out;
-  int wa = 0, wb = 1;
+  return Status::Ok();
+}
+
+// The widest angle between two rays (deg) and their indices.
+double WidestRayPair(const std::vector<Eigen::Vector3d>& dir, int* wa, int* wb) {
+  double widest = 0;
+  *wa = 0, *wb = 1;
   for (size_t i = 0; i < dir.size(); ++i) {
     for (size_t j = i + 1; j < dir.size(); ++j) {
       const double a = std::atan2(dir[i].cross(dir[j]).norm(), dir[i].dot(dir[j]));
-      if (a * kRadToDeg > out.max_ray_angle_deg) {
-        out.max_ray_angle_deg = a * kRadToDeg;
-        wa = static_cast<int>(i), wb = static_cast<int>(j);
+      if (a * kRadToDeg > widest) {
+        widest = a * kRadToDeg;
+        *wa = static_cast<int>(i), *wb = static_cast<int>(j);
       }
     }
   }
-  constexpr double kParallelDeg = 1e-6;  // below: the depth is not determined at all
-  if (out.max_ray_angle_deg < kParallelDeg) {
-    return Status::Error("the rays are parallel (" + Fmt("%.2g", out.max_ray_angle_deg) +
-                         " deg apart): the depth along them is not determined");
-  }
-  // Least-squares midpoint of the rays.
+  return widest;
+}
+
+// The least-squares midpoint of the rays.
+Eigen::Vector3d RayMidpoint(const std::vector<Eigen::Vector3d>& origin, const std::vector<Eigen::Vector3d>& dir) {
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < dir.size(); ++i) {
@@ -97,66 +96,92 @@ StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
     A += P;
     b += P * origin[i];
   }
-  Eigen::Vector3d X = A.ldlt().solve(b);
-  // Gauss-Newton in pixels.
-  Eigen::Matrix3d N;
-  auto evaluate = [&](const Eigen::Vector3d& p, Eigen::Matrix3d* N_out, Eigen::Vector3d* g,
-                      double* cost) -> Status {
-    N_out->setZero();
-    g->setZero();
-    *cost = 0;
-    for (const auto& o : obs) {
-      const BaView& v = problem.views[o.view];
-      double uv[2], Jp[6];
-      if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
-                               p.data(), uv, nullptr, nullptr, Jp)) {
-        return Status::Error("the rays meet behind the source of view '" + v.id + "'");
-      }
-      const Eigen::Matrix<double, 2, 3> J = Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
-      const Eigen::Matrix2d W = o.covariance_px2.inverse();
-      const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
-      *N_out += J.transpose() * W * J;
-      *g += J.transpose() * W * r;
-      *cost += r.dot(W * r);
+  return A.ldlt().solve(b);
+}
+
+// The normal equations of the point's pixel residuals at p (whitened by each pixel covariance):
+// N = sum J^T W J, g = sum J^T W r and the cost r^T W r.
+Status PointNormalEquations(const BaProblem& problem,
+                            const BaResult& result,
+                            const std::vector<PixelObservation>& obs,
+                            const Eigen::Vector3d& p,
+                            Eigen::Matrix3d* N,
+                            Eigen::Vector3d* g,
+                            double* cost) {
+  const StateLayout& L = *result.layout;
+  N->setZero();
+  g->setZero();
+  *cost = 0;
+  for (const auto& o : obs) {
+    const BaView& v = problem.views[o.view];
+    double uv[2], Jp[6];
+    if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
+                             p.data(), uv, nullptr, nullptr, Jp)) {
+      return Status::Error("the rays meet behind the source of view '" + v.id + "'");
     }
-    return Status::Ok();
-  };
+    const Eigen::Matrix<double, 2, 3> J = Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
+    const Eigen::Matrix2d W = o.covariance_px2.inverse();
+    const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
+    *N += J.transpose() * W * J;
+    *g += J.transpose() * W * r;
+    *cost += r.dot(W * r);
+  }
+  return Status::Ok();
+}
+
+// Gauss-Newton in pixels from X, halving a step while it does not lower the cost (far from the
+// optimum only); N: the normal matrix at the result.
+Status RefineInPixels(const BaProblem& problem,
+                      const BaResult& result,
+                      const std::vector<PixelObservation>& obs,
+                      int max_iterations,
+                      Eigen::Vector3d* X,
+                      Eigen::Matrix3d* N) {
   Eigen::Vector3d g;
   double cost = 0;
-  for (int it = 0; it < options.max_iterations; ++it) {
-    CARMBA_RETURN_IF_ERROR(evaluate(X, &N, &g, &cost));
-    const Eigen::Vector3d step = -N.ldlt().solve(g);
+  for (int it = 0; it < max_iterations; ++it) {
+    CARMBA_RETURN_IF_ERROR(PointNormalEquations(problem, result, obs, *X, N, &g, &cost));
+    const Eigen::Vector3d step = -N->ldlt().solve(g);
     if (!step.allFinite()) break;
-    // Halve the step while it does not lower the cost (far from the optimum only).
     double a = 1.0, new_cost = cost;
     Eigen::Matrix3d N2;
     Eigen::Vector3d g2;
     for (int k = 0; k < 30; ++k, a *= 0.5) {
-      if (evaluate(X + a * step, &N2, &g2, &new_cost).ok() && new_cost <= cost) break;
+      if (PointNormalEquations(problem, result, obs, *X + a * step, &N2, &g2, &new_cost).ok() &&
+          new_cost <= cost) {
+        break;
+      }
     }
     if (!(new_cost <= cost)) break;
-    X += a * step;
-    if ((a * step).norm() < 1e-10 * (1.0 + X.norm())) break;
+    *X += a * step;
+    if ((a * step).norm() < 1e-10 * (1.0 + X->norm())) break;
   }
-  CARMBA_RETURN_IF_ERROR(evaluate(X, &N, &g, &cost));
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(N);
-  if (!(eig.eigenvalues()[0] > 1e-14 * eig.eigenvalues()[2])) {
-    return Status::Error("the rays are too close to parallel (" +
-                         Fmt("%.2g", out.max_ray_angle_deg) +
-                         " deg apart): the depth along them is not determined");
-  }
-  out.p_in_object = X;
-  out.covariance_pixels = N.inverse();
-  // The solve's share: G = -N^-1 sum_i J_i^T W_i B_i over the free state.
-  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3, L.num_free());
-  Eigen::MatrixXd Kc = Eigen::MatrixXd::Zero(3, L.num_consider());  // over considered intrinsics
-  // The stacked pixel Jacobians over the point (Js) and over the solve's state (Bs, Bcs), for
-  // the self-check's residual covariance.
+  return PointNormalEquations(problem, result, obs, *X, N, &g, &cost);
+}
+
+// The point's pixel Jacobians stacked over its observations: over the point (Js), over the
+// solve's free state (Bs) and considered intrinsics (Bcs); the residuals and their covariance;
+// and K, Kc = sum_i J_i^T W_i B_i over the free state and the considered intrinsics.
+struct StackedPointJacobians {
+  Eigen::MatrixXd K, Kc, Js, Bs, Bcs, Sigma;
+  Eigen::VectorXd rs;
+};
+
+StackedPointJacobians StackPointJacobians(const BaProblem& problem,
+                                          const BaResult& result,
+                                          const std::vector<PixelObservation>& obs,
+                                          const Eigen::Vector3d& X,
+                                          TriangulatedPoint* out) {
+  const StateLayout& L = *result.layout;
+  StackedPointJacobians s;
+  s.K = Eigen::MatrixXd::Zero(3, L.num_free());
+  s.Kc = Eigen::MatrixXd::Zero(3, L.num_consider());
   const Eigen::Index n2 = 2 * static_cast<Eigen::Index>(obs.size());
-  Eigen::MatrixXd Js(n2, 3), Bs = Eigen::MatrixXd::Zero(n2, L.num_free()),
-                  Bcs = Eigen::MatrixXd::Zero(n2, L.num_consider());
-  Eigen::VectorXd rs(n2);
-  Eigen::MatrixXd Sigma = Eigen::MatrixXd::Zero(n2, n2);
+  s.Js.resize(n2, 3);
+  s.Bs = Eigen::MatrixXd::Zero(n2, L.num_free());
+  s.Bcs = Eigen::MatrixXd::Zero(n2, L.num_consider());
+  s.rs.resize(n2);
+  s.Sigma = Eigen::MatrixXd::Zero(n2, n2);
   int oi = 0;
   double ss = 0;
   for (const auto& o : obs) {
@@ -172,40 +197,99 @@ StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
     const Eigen::Matrix<double, 3, kNumIntrinsics, Eigen::RowMajor> Ki = JW * Bi;
     const Eigen::Matrix<double, 3, 6, Eigen::RowMajor> Kp = JW * Bp;
     for (int row = 0; row < 3; ++row) {
-      AddGradientRow(L, gb, Ki.row(row).data(), row, &K);
-      AddGradientRow(L, vb, Kp.row(row).data(), row, &K);
-      AddConsiderGradientRow(L, gb, Ki.row(row).data(), row, &Kc);
+      AddGradientRow(L, gb, Ki.row(row).data(), row, &s.K);
+      AddGradientRow(L, vb, Kp.row(row).data(), row, &s.K);
+      AddConsiderGradientRow(L, gb, Ki.row(row).data(), row, &s.Kc);
     }
     const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
-    out.residual_px.push_back(r);
+    out->residual_px.push_back(r);
     ss += r.squaredNorm();
     for (int row = 0; row < 2; ++row) {
-      AddGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &Bs);
-      AddGradientRow(L, vb, Jpose + row * 6, 2 * oi + row, &Bs);
-      AddConsiderGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &Bcs);
+      AddGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &s.Bs);
+      AddGradientRow(L, vb, Jpose + row * 6, 2 * oi + row, &s.Bs);
+      AddConsiderGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &s.Bcs);
     }
-    Js.middleRows<2>(2 * oi) = J;
-    rs.segment<2>(2 * oi) = r;
-    Sigma.block<2, 2>(2 * oi, 2 * oi) = o.covariance_px2;
+    s.Js.middleRows<2>(2 * oi) = J;
+    s.rs.segment<2>(2 * oi) = r;
+    s.Sigma.block<2, 2>(2 * oi, 2 * oi) = o.covariance_px2;
     ++oi;
   }
-  out.rms_px = std::sqrt(ss / (2.0 * obs.size()));
-  const Eigen::MatrixXd G = -out.covariance_pixels * K;
-  const Eigen::MatrixXd Gc = -out.covariance_pixels * Kc;
-  out.covariance_solve = G * result.covariance->Solve(G.transpose()) * result.covariance_scale;
-  out.covariance_solve = 0.5 * (out.covariance_solve + out.covariance_solve.transpose()).eval();
+  out->rms_px = std::sqrt(ss / (2.0 * obs.size()));
+  return s;
+}
+
+// The solve's and the considered calibration's shares of the point's covariance, with G = -N^-1 K
+// (and the budget's traces by source), into out; out->covariance the total.
+void PointSolveShares(const BaResult& result, const StackedPointJacobians& s, TriangulatedPoint* out) {
+  const Eigen::MatrixXd G = -out->covariance_pixels * s.K;
+  const Eigen::MatrixXd Gc = -out->covariance_pixels * s.Kc;
+  out->covariance_solve = G * result.covariance->Solve(G.transpose()) * result.covariance_scale;
+  out->covariance_solve = 0.5 * (out->covariance_solve + out->covariance_solve.transpose()).eval();
   if (result.covariance->num_consider() > 0) {
     const Eigen::MatrixXd T = result.covariance->ConsiderGradient(G, Gc);  // 3 x nc
-    out.covariance_calibration = T * result.covariance->consider_covariance() * T.transpose();
-    out.covariance_calibration =
-        0.5 * (out.covariance_calibration + out.covariance_calibration.transpose()).eval();
+    out->covariance_calibration = T * result.covariance->consider_covariance() * T.transpose();
+    out->covariance_calibration =
+        0.5 * (out->covariance_calibration + out->covariance_calibration.transpose()).eval();
   }
   if (result.linearization) {
     const ErrorBudget eb =
         result.covariance->Budget(G, *result.linearization, result.covariance_scale, Gc);
-    for (int s = 0; s < kNumSources; ++s) out.solve_trace_by_source[s] = eb.by_source.col(s).sum();
+    for (int k = 0; k < kNumSources; ++k) out->solve_trace_by_source[k] = eb.by_source.col(k).sum();
   }
-  out.covariance = out.covariance_pixels + out.covariance_solve + out.covariance_calibration;
+  out->covariance = out->covariance_pixels + out->covariance_solve + out->covariance_calibration;
+}
+
+// Self-check: the residuals against their covariance M = the pixels' + the solve's projected
+// (B C B^T, correlated between views through the shared intrinsics and markers), with the
+// point's 3 directions taken out: chi2 = min_dX (r + J dX)^T M^-1 (r + J dX).
+void TriangulationSelfCheck(const BaResult& result, const StackedPointJacobians& s, int num_obs, TriangulatedPoint* out) {
+  Eigen::MatrixXd M = s.Sigma + s.Bs * result.covariance->Solve(s.Bs.transpose()) * result.covariance_scale;
+  if (result.covariance->num_consider() > 0) {
+    const Eigen::MatrixXd T = result.covariance->ConsiderGradient(s.Bs, s.Bcs);
+    M += T * result.covariance->consider_covariance() * T.transpose();
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> Mi(0.5 * (M + M.transpose()));
+  const Eigen::VectorXd Mr = Mi.solve(s.rs);
+  const Eigen::MatrixXd MJ = Mi.solve(s.Js);
+  const Eigen::Vector3d gJ = s.Js.transpose() * Mr;
+  out->chi2 = s.rs.dot(Mr) - gJ.dot((s.Js.transpose() * MJ).ldlt().solve(gJ));
+  out->dof = 2 * num_obs - 3;
+  out->chi2_p_value = ChiSquareUpperTail(out->chi2, out->dof);
+}
+
+// The point from all of `obs`, with its covariance and residuals.
+StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
+                                           const BaResult& result,
+                                           const std::vector<PixelObservation>& obs,
+                                           const TriangulationOptions& options) {
+  if (obs.size() < 2) {
+    return Status::Error(obs.empty() ? std::string("no observations")
+                                     : "seen in one view only ('" + problem.views[obs[0].view].id +
+                                           "'): at least two views are needed");
+  }
+  std::vector<Eigen::Vector3d> origin, dir;
+  CARMBA_RETURN_IF_ERROR(ObjectRays(problem, result, obs, &origin, &dir));
+  TriangulatedPoint out;
+  int wa = 0, wb = 1;
+  out.max_ray_angle_deg = WidestRayPair(dir, &wa, &wb);
+  constexpr double kParallelDeg = 1e-6;  // below: the depth is not determined at all
+  if (out.max_ray_angle_deg < kParallelDeg) {
+    return Status::Error("the rays are parallel (" + Fmt("%.2g", out.max_ray_angle_deg) +
+                         " deg apart): the depth along them is not determined");
+  }
+  Eigen::Vector3d X = RayMidpoint(origin, dir);
+  Eigen::Matrix3d N;
+  CARMBA_RETURN_IF_ERROR(RefineInPixels(problem, result, obs, options.max_iterations, &X, &N));
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(N);
+  if (!(eig.eigenvalues()[0] > 1e-14 * eig.eigenvalues()[2])) {
+    return Status::Error("the rays are too close to parallel (" +
+                         Fmt("%.2g", out.max_ray_angle_deg) +
+                         " deg apart): the depth along them is not determined");
+  }
+  out.p_in_object = X;
+  out.covariance_pixels = N.inverse();
+  const StackedPointJacobians stacked = StackPointJacobians(problem, result, obs, X, &out);
+  PointSolveShares(result, stacked, &out);
   if (out.max_ray_angle_deg < options.min_ray_angle_deg) {
     const Eigen::Vector3d along = (dir[wa] + dir[wb]).normalized();
     out.warnings.push_back("the rays are nearly parallel: the widest pair (views '" +
@@ -214,21 +298,7 @@ StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
                   Fmt("%g", options.min_ray_angle_deg) + "); sigma along the rays " +
                   Fmt("%.3g", std::sqrt(along.dot(out.covariance * along))) + " mm");
   }
-  // Self-check: the residuals against their covariance M = the pixels' + the solve's projected
-  // (B C B^T, correlated between views through the shared intrinsics and markers), with the
-  // point's 3 directions taken out: chi2 = min_dX (r + J dX)^T M^-1 (r + J dX).
-  Eigen::MatrixXd M = Sigma + Bs * result.covariance->Solve(Bs.transpose()) * result.covariance_scale;
-  if (result.covariance->num_consider() > 0) {
-    const Eigen::MatrixXd T = result.covariance->ConsiderGradient(Bs, Bcs);
-    M += T * result.covariance->consider_covariance() * T.transpose();
-  }
-  const Eigen::LDLT<Eigen::MatrixXd> Mi(0.5 * (M + M.transpose()));
-  const Eigen::VectorXd Mr = Mi.solve(rs);
-  const Eigen::MatrixXd MJ = Mi.solve(Js);
-  const Eigen::Vector3d gJ = Js.transpose() * Mr;
-  out.chi2 = rs.dot(Mr) - gJ.dot((Js.transpose() * MJ).ldlt().solve(gJ));
-  out.dof = 2 * static_cast<int>(obs.size()) - 3;
-  out.chi2_p_value = ChiSquareUpperTail(out.chi2, out.dof);
+  TriangulationSelfCheck(result, stacked, static_cast<int>(obs.size()), &out);
   return out;
 }
 

@@ -12,13 +12,29 @@
 
 namespace carmba {
 
+// The failures a caller reacts to without reading the message; every other error is kOther.
+// The bundle-adjustment engine sets them (as Ceres's TerminationType and COLMAP's
+// BundleAdjustmentSummary type theirs), and the front ends add their advice by kind.
+enum class ErrorKind {
+  kOther,
+  // Parameters the observations and priors do not determine: a rank-deficient covariance, a free
+  // direction (gauge).
+  kNotDetermined,
+  // The initial state gives a non-finite residual (a point behind the source, a wrong start).
+  kNonFiniteInitialState,
+};
+
 class Status {
  public:
   Status() = default;  // OK
   static Status Ok() { return Status(); }
-  static Status Error(std::string message) { return Status(std::move(message)); }
+  static Status Error(std::string message, ErrorKind kind = ErrorKind::kOther) {
+    return Status(std::move(message), kind);
+  }
 
   bool ok() const { return !message_.has_value(); }
+  // kOther for ok() and for errors without a kind.
+  ErrorKind kind() const { return kind_; }
   // The one-line reason; empty when ok().
   const std::string& message() const {
     static const std::string kEmpty;
@@ -26,12 +42,13 @@ class Status {
   }
   // Returns a copy whose message is prefixed with `context: `.
   Status WithContext(const std::string& context) const {
-    return ok() ? *this : Status(context + ": " + *message_);
+    return ok() ? *this : Status(context + ": " + *message_, kind_);
   }
 
  private:
-  explicit Status(std::string m) : message_(std::move(m)) {}
+  Status(std::string m, ErrorKind kind) : message_(std::move(m)), kind_(kind) {}
   std::optional<std::string> message_;
+  ErrorKind kind_ = ErrorKind::kOther;
 };
 
 // A value or an error. Accessing value() of an error is a programmer bug.
