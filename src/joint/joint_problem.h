@@ -226,7 +226,4 @@ ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& soluti
 // ("intrinsics_vs_angle", drawn by scripts/report_plots.py); nothing without angles.
 void AddFlexPlotData(const nlohmann::json& result, nlohmann::json* plot_data);
 
-// The options of the engine from a solver config (one vocabulary for pose and joint).
-ba::BaOptions BaOptionsFromConfig(const SolverConfig& config);
-
 }  // namespace carmba

@@ -134,27 +134,7 @@ void SelectDistortion(const JointProblem& problem, const SolverConfig& config,
   if (config.distortion_auto) ba::ApplyDistortionModel(sel->recommended, bp);
 }
 
-}  // namespace
-
-ba::BaOptions BaOptionsFromConfig(const SolverConfig& c) {
-  ba::BaOptions o;
-  o.analytic_jacobians = c.analytic_jacobians;
-  o.loss = c.loss;
-  o.loss_scale_px = c.loss_scale_px;
-  o.linear_solver = c.linear_solver;
-  o.max_iterations = c.max_iterations;
-  o.function_tolerance = c.function_tolerance;
-  o.gradient_tolerance = c.gradient_tolerance;
-  o.parameter_tolerance = c.parameter_tolerance;
-  o.num_threads = c.num_threads;
-  o.covariance_scale = c.covariance_scale;
-  o.outlier_sigma = c.outlier_sigma;
-  o.reject_sigma = c.reject_sigma;
-  o.backend = c.backend;
-  return o;
-}
-
-StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config) {
+Status CheckJointConfig(const SolverConfig& config) {
   std::string err;
   if (!config.Check(&err)) return Status::Error(config.path + ": " + err);
   if (!config.refine) {
@@ -165,101 +145,105 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
                          "': joint problems use the engine's Schur covariance (schur), which the "
                          "error budget is built on; ceres::Covariance is its test reference");
   }
-  JointSolution sol;
-  ba::BaProblem& bp = sol.ba_problem;
-  bp.name = problem.name;
-  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
-  std::array<bool, kNumIntrinsics> free{};
-  free.fill(true);
-  for (const auto& n : config.fix) free[IntrinsicIndexByName(n)] = false;
+  return Status::Ok();
+}
 
-  // Groups, in order of first appearance.
-  std::vector<std::string> group_names;
-  auto group_index = [&](const std::string& g) {
-    auto it = std::find(group_names.begin(), group_names.end(), g);
-    if (it != group_names.end()) return static_cast<int>(it - group_names.begin());
-    group_names.push_back(g);
-    return static_cast<int>(group_names.size()) - 1;
-  };
-  std::vector<int> plate_group(problem.plate.views.size());
+// The intrinsics groups, in order of first appearance, and each view's group.
+struct GroupAssignment {
+  std::vector<std::string> names;
+  std::vector<int> of_plate_view, of_object_view;
+  std::vector<std::vector<int>> plate_views;  // per group
+
+  explicit GroupAssignment(const JointProblem& problem) {
+    for (size_t v = 0; v < problem.plate.views.size(); ++v) {
+      of_plate_view.push_back(Index(GroupOfPlateView(problem, v)));
+    }
+    for (const auto& v : problem.object_views) of_object_view.push_back(Index(GroupOfObjectView(problem, v.id)));
+    plate_views.resize(names.size());
+    for (size_t v = 0; v < of_plate_view.size(); ++v) plate_views[of_plate_view[v]].push_back(static_cast<int>(v));
+  }
+
+ private:
+  int Index(const std::string& g) {
+    auto it = std::find(names.begin(), names.end(), g);
+    if (it != names.end()) return static_cast<int>(it - names.begin());
+    names.push_back(g);
+    return static_cast<int>(names.size()) - 1;
+  }
+};
+
+// camera.json's intrinsics and their variances > 0 as a prior on a group.
+void SetCameraPrior(const Camera& c, ba::IntrinsicsGroup* grp) {
+  grp->has_prior = true;
+  std::copy(c.params.begin(), c.params.end(), grp->prior.mean.begin());
+  std::vector<int> names_index;
+  for (size_t i = 0; i < c.covariance_names.size(); ++i) {
+    const int k = IntrinsicIndexByName(c.covariance_names[i]);
+    if (k >= 0 && c.covariance[i][i] > 0) {
+      grp->prior.indices.push_back(k);
+      names_index.push_back(static_cast<int>(i));
+    }
+  }
+  const int n = static_cast<int>(names_index.size());
+  grp->prior.covariance.resize(n, n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) grp->prior.covariance(i, j) = c.covariance[names_index[i]][names_index[j]];
+  }
+}
+
+// Group g's initial intrinsics and plate poses: carmba's calibration of the group's plate views
+// (Zhang, then its bundle adjustment), from camera.json's intrinsics when given.
+StatusOr<ba::IntrinsicsGroup> InitialGroup(const JointProblem& problem,
+                                           const SolverConfig& config,
+                                           const GroupAssignment& groups,
+                                           size_t g,
+                                           std::vector<std::array<double, 6>>* plate_poses) {
+  ba::IntrinsicsGroup grp;
+  grp.name = groups.names[g];
+  grp.free.fill(true);
+  for (const auto& n : config.fix) grp.free[IntrinsicIndexByName(n)] = false;
+  if (problem.camera) {
+    std::copy(problem.camera->params.begin(), problem.camera->params.end(), grp.initial.begin());
+    grp.width = problem.camera->width;
+    grp.height = problem.camera->height;
+  }
+  if (!groups.plate_views[g].empty()) {
+    ObservationSet sub;
+    sub.grid = problem.plate.grid;
+    sub.width = problem.plate.width;
+    sub.height = problem.plate.height;
+    for (int v : groups.plate_views[g]) sub.views.push_back(problem.plate.views[v]);
+    CalibrationOptions co;
+    co.fix = config.fix;
+    co.pixel_sigma_px = problem.plate_sigma_px;
+    co.min_views = 1;
+    co.max_iterations = std::max(config.max_iterations, 1);
+    if (problem.camera) co.initial_intrinsics.assign(grp.initial.begin(), grp.initial.end());
+    auto cal = Calibrate(sub, co);
+    if (!cal.ok()) {
+      return Status::Error(problem.path + ": plate views of group '" + grp.name +
+                           "': " + cal.status().message());
+    }
+    std::copy(cal->camera.params.begin(), cal->camera.params.end(), grp.initial.begin());
+    grp.width = problem.plate.width;
+    grp.height = problem.plate.height;
+    *plate_poses = cal->cam_from_plate;
+  } else if (!problem.camera) {
+    return Status::Error(problem.path + ": intrinsics group '" + grp.name +
+                         "' has no plate views and no camera file");
+  }
+  if (problem.camera_prior) SetCameraPrior(*problem.camera, &grp);
+  return grp;
+}
+
+// The plate views, each initialised by its group's calibration.
+void AddPlateViews(const JointProblem& problem,
+                   const GroupAssignment& groups,
+                   const std::vector<std::vector<std::array<double, 6>>>& plate_poses,
+                   ba::BaProblem* bp) {
+  std::vector<size_t> next_pose(groups.names.size(), 0);
   for (size_t v = 0; v < problem.plate.views.size(); ++v) {
-    plate_group[v] = group_index(GroupOfPlateView(problem, v));
-  }
-  std::vector<int> object_group;
-  for (const auto& v : problem.object_views) object_group.push_back(group_index(GroupOfObjectView(problem, v.id)));
-
-  // Plate points (nominal grid).
-  for (int id = 0; id < problem.plate.grid.NumPoints() && !problem.plate.views.empty(); ++id) {
-    bp.plate.points.push_back(problem.plate.grid.PointInPlate(id));
-  }
-  bp.plate.free = problem.plate_free;
-  bp.plate.sigma_mm = problem.plate_sigma_mm;
-
-  // Intrinsics and plate poses per group: carmba's calibration of the group's plate views (Zhang,
-  // then its bundle adjustment), from camera.json's intrinsics when given.
-  std::vector<std::vector<std::array<double, 6>>> plate_poses(group_names.size());
-  std::vector<std::vector<int>> plate_views_of(group_names.size());
-  for (size_t v = 0; v < problem.plate.views.size(); ++v) plate_views_of[plate_group[v]].push_back(static_cast<int>(v));
-  sol.initial_intrinsics_from = problem.camera ? "camera file" : "calibration of the plate views";
-  for (size_t g = 0; g < group_names.size(); ++g) {
-    ba::IntrinsicsGroup grp;
-    grp.name = group_names[g];
-    grp.free = free;
-    if (problem.camera) {
-      std::copy(problem.camera->params.begin(), problem.camera->params.end(), grp.initial.begin());
-      grp.width = problem.camera->width;
-      grp.height = problem.camera->height;
-    }
-    if (!plate_views_of[g].empty()) {
-      ObservationSet sub;
-      sub.grid = problem.plate.grid;
-      sub.width = problem.plate.width;
-      sub.height = problem.plate.height;
-      for (int v : plate_views_of[g]) sub.views.push_back(problem.plate.views[v]);
-      CalibrationOptions co;
-      co.fix = config.fix;
-      co.pixel_sigma_px = problem.plate_sigma_px;
-      co.min_views = 1;
-      co.max_iterations = std::max(config.max_iterations, 1);
-      if (problem.camera) co.initial_intrinsics.assign(grp.initial.begin(), grp.initial.end());
-      auto cal = Calibrate(sub, co);
-      if (!cal.ok()) {
-        return Status::Error(problem.path + ": plate views of group '" + grp.name +
-                             "': " + cal.status().message());
-      }
-      std::copy(cal->camera.params.begin(), cal->camera.params.end(), grp.initial.begin());
-      grp.width = problem.plate.width;
-      grp.height = problem.plate.height;
-      plate_poses[g] = cal->cam_from_plate;
-    } else if (!problem.camera) {
-      return Status::Error(problem.path + ": intrinsics group '" + grp.name +
-                           "' has no plate views and no camera file");
-    }
-    if (problem.camera_prior) {
-      grp.has_prior = true;
-      std::copy(problem.camera->params.begin(), problem.camera->params.end(), grp.prior.mean.begin());
-      const Camera& c = *problem.camera;
-      std::vector<int> names_index;
-      for (size_t i = 0; i < c.covariance_names.size(); ++i) {
-        const int k = IntrinsicIndexByName(c.covariance_names[i]);
-        if (k >= 0 && c.covariance[i][i] > 0) {
-          grp.prior.indices.push_back(k);
-          names_index.push_back(static_cast<int>(i));
-        }
-      }
-      const int n = static_cast<int>(names_index.size());
-      grp.prior.covariance.resize(n, n);
-      for (int i = 0; i < n; ++i) {
-        for (int j = 0; j < n; ++j) grp.prior.covariance(i, j) = c.covariance[names_index[i]][names_index[j]];
-      }
-    }
-    bp.groups.push_back(grp);
-  }
-
-  // Views: plate, then object.
-  std::vector<size_t> next_pose(group_names.size(), 0);
-  for (size_t v = 0; v < problem.plate.views.size(); ++v) {
-    const int g = plate_group[v];
+    const int g = groups.of_plate_view[v];
     ba::BaView view;
     view.id = problem.plate_view_ids[v];
     view.kind = ba::ViewKind::kPlate;
@@ -269,12 +253,21 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     for (int i = 0; i < 6; ++i) view.initial[i] = pose[i];
     view.point_ids = problem.plate.views[v].point_ids;
     view.uv_px = problem.plate.views[v].uv_px;
-    bp.views.push_back(view);
+    bp->views.push_back(view);
   }
+}
+
+// The fiducials and the object views, each initialised by the config's initializer with its
+// group's initial intrinsics; the validation pairs as view indices into sol->pairs.
+Status AddObjectViews(const JointProblem& problem,
+                      const SolverConfig& config,
+                      const GroupAssignment& groups,
+                      ba::BaProblem* bp,
+                      JointSolution* sol) {
   std::map<int, Eigen::Vector3d> fiducial;
   for (const auto& m : problem.fiducials) {
     fiducial[m.id] = m.p_in_object;
-    bp.markers.push_back({m.id, m.p_in_object, m.covariance});
+    bp->markers.push_back({m.id, m.p_in_object, m.covariance});
   }
   std::map<std::string, int> object_index;
   for (size_t k = 0; k < problem.object_views.size(); ++k) {
@@ -282,14 +275,14 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     ba::BaView view;
     view.id = ov.id;
     view.kind = ba::ViewKind::kObject;
-    view.group = object_group[k];
+    view.group = groups.of_object_view[k];
     view.sigma_px = problem.object_sigma_px;
     view.obs_sigma_px = ov.sigma_px;
     view.obs_covariance_px2 = ov.covariance_px2;
     view.point_ids = ov.marker_ids;
     view.uv_px = ov.uv_px;
     Camera cam;
-    std::copy(bp.groups[view.group].initial.begin(), bp.groups[view.group].initial.end(), cam.params.begin());
+    std::copy(bp->groups[view.group].initial.begin(), bp->groups[view.group].initial.end(), cam.params.begin());
     std::vector<Eigen::Vector3d> pts;
     for (int id : ov.marker_ids) pts.push_back(fiducial.at(id));
     auto init = InitialObjectPose(cam, config.initializer, pts, ov.uv_px);
@@ -297,11 +290,34 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
       return Status::Error(problem.path + ": object view '" + ov.id + "': " + init.status().message());
     }
     view.initial = *init;
-    object_index[ov.id] = static_cast<int>(bp.views.size());
-    bp.views.push_back(view);
+    object_index[ov.id] = static_cast<int>(bp->views.size());
+    bp->views.push_back(view);
   }
-  for (const auto& vp : problem.validation) sol.pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
-  // C-arm angles, and the angle-dependent models.
+  for (const auto& vp : problem.validation) sol->pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
+  return Status::Ok();
+}
+
+// The engine's problem with initial values: groups, plate points, plate views, fiducials and
+// object views, the C-arm angles of the views that have them.
+Status JointBaProblem(const JointProblem& problem, const SolverConfig& config, JointSolution* sol) {
+  ba::BaProblem& bp = sol->ba_problem;
+  bp.name = problem.name;
+  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
+  const GroupAssignment groups(problem);
+  for (int id = 0; id < problem.plate.grid.NumPoints() && !problem.plate.views.empty(); ++id) {
+    bp.plate.points.push_back(problem.plate.grid.PointInPlate(id));
+  }
+  bp.plate.free = problem.plate_free;
+  bp.plate.sigma_mm = problem.plate_sigma_mm;
+  std::vector<std::vector<std::array<double, 6>>> plate_poses(groups.names.size());
+  sol->initial_intrinsics_from = problem.camera ? "camera file" : "calibration of the plate views";
+  for (size_t g = 0; g < groups.names.size(); ++g) {
+    auto grp = InitialGroup(problem, config, groups, g, &plate_poses[g]);
+    if (!grp.ok()) return grp.status();
+    bp.groups.push_back(*grp);
+  }
+  AddPlateViews(problem, groups, plate_poses, &bp);
+  CARMBA_RETURN_IF_ERROR(AddObjectViews(problem, config, groups, &bp, sol));
   for (auto& v : bp.views) {
     auto it = problem.angles.find(v.id);
     if (it == problem.angles.end()) continue;
@@ -309,29 +325,119 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     v.primary_deg = it->second.first;
     v.secondary_deg = it->second.second;
   }
+  return Status::Ok();
+}
 
-  const ba::BaOptions options = BaOptionsFromConfig(config);
-  SelectDistortion(problem, config, options, &bp, &sol);
-  sol.smooth_basis = problem.smooth_basis;
+// The intrinsics and distortion models: the distortion selection, the smooth model's basis,
+// the comparison of the intrinsics models when asked, and the smooth model applied.
+Status ApplyModels(const JointProblem& problem,
+                   const SolverConfig& config,
+                   const ba::BaOptions& options,
+                   JointSolution* sol) {
+  ba::BaProblem& bp = sol->ba_problem;
+  SelectDistortion(problem, config, options, &bp, sol);
+  sol->smooth_basis = problem.smooth_basis;
   if (problem.smooth) {
-    auto basis = SmoothBasisForPlateAngles(problem, bp, &sol.model_note);
+    auto basis = SmoothBasisForPlateAngles(problem, bp, &sol->model_note);
     if (!basis.ok()) return Status::Error(problem.path + ": " + basis.status().message());
-    sol.smooth_basis = *basis;
+    sol->smooth_basis = *basis;
   }
   if (problem.select_model && !problem.plate.views.empty()) {
     auto sel = ba::SelectIntrinsicsModel(
-        bp, sol.smooth_basis, options,
+        bp, sol->smooth_basis, options,
         {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth});
     if (sel.ok()) {
-      sol.selection = *sel;
+      sol->selection = *sel;
     } else {
-      sol.selection_error = sel.status().message();
+      sol->selection_error = sel.status().message();
     }
   }
   if (problem.smooth) {
-    const Status s = ba::ApplyIntrinsicsModel(ba::IntrinsicsModel::kSmooth, sol.smooth_basis, &bp);
+    const Status s = ba::ApplyIntrinsicsModel(ba::IntrinsicsModel::kSmooth, sol->smooth_basis, &bp);
     if (!s.ok()) return Status::Error(problem.path + ": " + s.message());
   }
+  return Status::Ok();
+}
+
+// The object views alone with each group's intrinsics from `calibration`: held (two_step) or
+// free with the calibration's covariance as prior (with_prior).
+void TwoStepProblems(const ba::BaProblem& bp,
+                     const ba::BaResult& calibration,
+                     const std::vector<std::pair<int, int>>& pairs,
+                     ba::BaProblem* two_step,
+                     ba::BaProblem* with_prior,
+                     std::vector<std::pair<int, int>>* two_step_pairs) {
+  *two_step = ObjectViewsOnly(bp, pairs, two_step_pairs);
+  *with_prior = *two_step;
+  for (size_t g = 0; g < bp.groups.size(); ++g) {
+    const int b = calibration.layout->group_block(static_cast<int>(g));
+    const double* x = calibration.block(b);
+    const Eigen::MatrixXd C = calibration.Covariance({b});
+    ba::IntrinsicsGroup& g2 = two_step->groups[g];
+    std::copy(x, x + kNumIntrinsics, g2.initial.begin());
+    g2.free.fill(false);
+    g2.has_prior = false;
+    ba::IntrinsicsGroup& g3 = with_prior->groups[g];
+    std::copy(x, x + kNumIntrinsics, g3.initial.begin());
+    g3.has_prior = true;
+    std::copy(x, x + kNumIntrinsics, g3.prior.mean.begin());
+    g3.prior.indices.clear();
+    for (int i = 0; i < kNumIntrinsics; ++i) {
+      if (g3.free[i]) g3.prior.indices.push_back(i);
+    }
+    const int n = static_cast<int>(g3.prior.indices.size());
+    g3.prior.covariance.resize(n, n);
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) g3.prior.covariance(i, j) = C(g3.prior.indices[i], g3.prior.indices[j]);
+    }
+  }
+}
+
+// The joint solve against the two-step one (calibration alone, then the object views with its
+// intrinsics held, or with its covariance as prior): sol->comparison, or why it is missing.
+void CompareWithTwoStep(const JointProblem& problem, const ba::BaOptions& options, JointSolution* sol) {
+  if (problem.object_views.empty() || problem.plate.views.empty()) {
+    sol->comparison_error = "needs both plate and object views";
+    return;
+  }
+  if (problem.smooth) {
+    sol->comparison_error = "not built for the smooth intrinsics model";
+    return;
+  }
+  const ba::BaProblem& bp = sol->ba_problem;
+  sol->comparison.push_back(SigmasOf("joint", bp, sol->result, sol->pairs));
+  ba::BaProblem calib = bp;
+  calib.views.erase(std::remove_if(calib.views.begin(), calib.views.end(),
+                                   [](const ba::BaView& v) { return v.kind == ba::ViewKind::kObject; }),
+                    calib.views.end());
+  calib.markers.clear();
+  auto rc = ba::SolveBundleAdjustment(calib, options);
+  if (!rc.ok()) {
+    sol->comparison_error = "calibration alone: " + rc.status().message();
+    return;
+  }
+  std::vector<std::pair<int, int>> pairs2;
+  ba::BaProblem two_step, with_prior;
+  TwoStepProblems(bp, *rc, sol->pairs, &two_step, &with_prior, &pairs2);
+  auto r2 = ba::SolveBundleAdjustment(two_step, options);
+  auto r3 = ba::SolveBundleAdjustment(with_prior, options);
+  if (!r2.ok() || !r3.ok()) {
+    sol->comparison_error = "two-step: " + (r2.ok() ? r3.status().message() : r2.status().message());
+    return;
+  }
+  sol->comparison.push_back(SigmasOf("two-step (intrinsics fixed)", two_step, *r2, pairs2));
+  sol->comparison.push_back(SigmasOf("two-step with the calibration's covariance as prior", with_prior, *r3, pairs2));
+}
+
+}  // namespace
+
+StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config) {
+  CARMBA_RETURN_IF_ERROR(CheckJointConfig(config));
+  JointSolution sol;
+  CARMBA_RETURN_IF_ERROR(JointBaProblem(problem, config, &sol));
+  const ba::BaOptions options = config.ToBaOptions();
+  CARMBA_RETURN_IF_ERROR(ApplyModels(problem, config, options, &sol));
+  const ba::BaProblem& bp = sol.ba_problem;
   auto r = ba::SolveBundleAdjustment(bp, options);
   if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
   sol.result = std::move(*r);
@@ -348,61 +454,7 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
     if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
     sol.tre = *tre;
   }
-
-  // Two-step comparison: needs both kinds of view.
-  if (problem.object_views.empty() || problem.plate.views.empty()) {
-    sol.comparison_error = "needs both plate and object views";
-    return sol;
-  }
-  if (problem.smooth) {
-    sol.comparison_error = "not built for the smooth intrinsics model";
-    return sol;
-  }
-  sol.comparison.push_back(SigmasOf("joint", bp, sol.result, sol.pairs));
-  // Step 1: calibration alone (the plate views).
-  ba::BaProblem calib = bp;
-  calib.views.erase(std::remove_if(calib.views.begin(), calib.views.end(),
-                                   [](const ba::BaView& v) { return v.kind == ba::ViewKind::kObject; }),
-                    calib.views.end());
-  calib.markers.clear();
-  auto rc = ba::SolveBundleAdjustment(calib, options);
-  if (!rc.ok()) {
-    sol.comparison_error = "calibration alone: " + rc.status().message();
-    return sol;
-  }
-  std::vector<std::pair<int, int>> pairs2;
-  ba::BaProblem two_step = ObjectViewsOnly(bp, sol.pairs, &pairs2);
-  ba::BaProblem with_prior = two_step;
-  for (size_t g = 0; g < bp.groups.size(); ++g) {
-    const int b = rc->layout->group_block(static_cast<int>(g));
-    const double* x = rc->block(b);
-    const Eigen::MatrixXd C = rc->Covariance({b});
-    ba::IntrinsicsGroup& g2 = two_step.groups[g];
-    std::copy(x, x + kNumIntrinsics, g2.initial.begin());
-    g2.free.fill(false);
-    g2.has_prior = false;
-    ba::IntrinsicsGroup& g3 = with_prior.groups[g];
-    std::copy(x, x + kNumIntrinsics, g3.initial.begin());
-    g3.has_prior = true;
-    std::copy(x, x + kNumIntrinsics, g3.prior.mean.begin());
-    g3.prior.indices.clear();
-    for (int i = 0; i < kNumIntrinsics; ++i) {
-      if (g3.free[i]) g3.prior.indices.push_back(i);
-    }
-    const int n = static_cast<int>(g3.prior.indices.size());
-    g3.prior.covariance.resize(n, n);
-    for (int i = 0; i < n; ++i) {
-      for (int j = 0; j < n; ++j) g3.prior.covariance(i, j) = C(g3.prior.indices[i], g3.prior.indices[j]);
-    }
-  }
-  auto r2 = ba::SolveBundleAdjustment(two_step, options);
-  auto r3 = ba::SolveBundleAdjustment(with_prior, options);
-  if (!r2.ok() || !r3.ok()) {
-    sol.comparison_error = "two-step: " + (r2.ok() ? r3.status().message() : r2.status().message());
-    return sol;
-  }
-  sol.comparison.push_back(SigmasOf("two-step (intrinsics fixed)", two_step, *r2, pairs2));
-  sol.comparison.push_back(SigmasOf("two-step with the calibration's covariance as prior", with_prior, *r3, pairs2));
+  CompareWithTwoStep(problem, options, &sol);
   return sol;
 }
 

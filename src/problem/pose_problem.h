@@ -201,6 +201,10 @@ struct SolverConfig {
   bool consider_calibration = true;
 
   bool Check(std::string* error) const;
+  // The engine's options: the one mapping of a solver config onto ba::BaOptions, for every
+  // problem kind. refine: false gives a solve of 0 iterations with no covariance and no
+  // rejection (the initial poses evaluated).
+  ba::BaOptions ToBaOptions() const;
 };
 
 StatusOr<PoseProblem> LoadPoseProblem(const std::string& yaml_path);

@@ -394,6 +394,27 @@ const char* InitializerName(Initializer i) {
   return "?";
 }
 
+ba::BaOptions SolverConfig::ToBaOptions() const {
+  ba::BaOptions o;
+  o.backend = backend;
+  o.analytic_jacobians = analytic_jacobians;
+  o.loss = loss;
+  o.loss_scale_px = loss_scale_px;
+  o.linear_solver = linear_solver;
+  o.max_iterations = refine ? max_iterations : 0;
+  o.function_tolerance = function_tolerance;
+  o.gradient_tolerance = gradient_tolerance;
+  o.parameter_tolerance = parameter_tolerance;
+  o.num_threads = num_threads;
+  o.covariance_scale = covariance_scale;
+  // The engine's covariance, for every covariance algorithm: the variance components
+  // (covariance.scale) and a considered calibration's term rest on it.
+  o.compute_covariance = refine;
+  o.outlier_sigma = outlier_sigma;
+  o.reject_sigma = refine ? reject_sigma : 0;
+  return o;
+}
+
 bool SolverConfig::Check(std::string* error) const {
   namespace pl = plausible;
   if (!CheckRange("max_iterations", max_iterations, pl::kMaxIterations, error) ||

@@ -145,34 +145,25 @@ std::vector<std::string> PoseWarnings(const PoseSolution& solution) {
   return ba::SolveWarnings(*solution.ba_result);
 }
 
-StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
-                                        const SolverConfig& config,
-                                        const ProgressFn& progress) {
-  const auto t0 = std::chrono::steady_clock::now();
-  std::string err;
-  if (!config.Check(&err)) return Status::Error(config.path + ": " + err);
-  CARMBA_RETURN_IF_ERROR(problem.Check());
+namespace {
 
-  PoseSolution sol;
-  sol.config_name = config.name;
-  // Markers: only those that some view observes (an unobserved marker would add nothing but its
-  // own prior).
+// The markers some view observes, in the problem frame (an unobserved marker would add nothing
+// but its own prior).
+std::map<int, Eigen::Vector3d> ObservedMarkers(const PoseProblem& problem) {
   std::set<int> observed;
   for (const auto& v : problem.views) {
     for (const auto& o : v.observations) observed.insert(o.marker_id);
   }
-  std::map<int, Eigen::Vector3d> markers;  // problem frame
-  std::map<int, const Marker*> marker_by_id;
+  std::map<int, Eigen::Vector3d> markers;
   for (const auto& m : problem.markers) {
-    marker_by_id[m.id] = &m;
     if (observed.count(m.id)) markers[m.id] = MarkerInProblemFrame(problem, m);
   }
+  return markers;
+}
 
-  // The engine's problem: one intrinsics group held at the camera's values, one object view per
-  // pose view, the observed markers tied to their CT measurements.
-  ba::BaProblem bp;
-  bp.name = problem.name;
-  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
+// One intrinsics group held at the camera's values, with camera.json's covariance considered
+// when the config asks.
+StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const PoseProblem& problem, const SolverConfig& config) {
   ba::IntrinsicsGroup g;
   std::copy(problem.camera.params.begin(), problem.camera.params.end(), g.initial.begin());
   g.free.fill(false);
@@ -184,196 +175,243 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
     g.consider_indices = considered->first;
     g.consider_covariance = considered->second;
   }
-  bp.groups.push_back(g);
-  for (const auto& [id, p] : markers) {
-    const Marker& m = *marker_by_id.at(id);
-    bp.markers.push_back({id, p, MarkerCovarianceInProblemFrame(problem, m)});
+  return g;
+}
+
+// The engine's view of pose view `v`: its observations with their sigmas or covariances (the
+// problem's sigma where an observation has none), no initial pose yet.
+ba::BaView ObjectView(const PoseProblem& problem, size_t v) {
+  ba::BaView view;
+  view.id = problem.views[v].id;
+  view.kind = ba::ViewKind::kObject;
+  view.sigma_px = problem.sigma_px;
+  bool per_observation = false, full = false;
+  for (const auto& o : problem.views[v].observations) {
+    per_observation |= o.sigma_px > 0;
+    full |= o.HasCovariance();
   }
-  const size_t V = problem.views.size();
-  sol.views.resize(V);
-  for (size_t v = 0; v < V; ++v) {
+  for (const auto& o : problem.views[v].observations) {
+    view.point_ids.push_back(o.marker_id);
+    view.uv_px.push_back(o.uv_px);
+    const double sigma = o.sigma_px > 0 ? o.sigma_px : problem.sigma_px;
+    if (per_observation) view.obs_sigma_px.push_back(sigma);
+    if (full) {
+      view.obs_covariance_px2.push_back(
+          o.HasCovariance() ? o.covariance_px2 : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
+    }
+  }
+  return view;
+}
+
+// The engine's problem: the held intrinsics, one object view per pose view initialised by the
+// config's initializer, the observed markers tied to their CT measurements. Fills each view's
+// initial pose and RMS into `sol`.
+StatusOr<ba::BaProblem> PoseBaProblem(const PoseProblem& problem,
+                                      const SolverConfig& config,
+                                      const std::map<int, Eigen::Vector3d>& markers,
+                                      const ProgressFn& progress,
+                                      PoseSolution* sol) {
+  ba::BaProblem bp;
+  bp.name = problem.name;
+  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
+  auto group = HeldIntrinsics(problem, config);
+  if (!group.ok()) return group.status();
+  bp.groups.push_back(*group);
+  std::map<int, const Marker*> marker_by_id;
+  for (const auto& m : problem.markers) marker_by_id[m.id] = &m;
+  for (const auto& [id, p] : markers) {
+    bp.markers.push_back({id, p, MarkerCovarianceInProblemFrame(problem, *marker_by_id.at(id))});
+  }
+  sol->views.resize(problem.views.size());
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    ba::BaView view = ObjectView(problem, v);
     std::vector<Eigen::Vector3d> pts;
-    std::vector<Eigen::Vector2d> uv;
-    ba::BaView view;
-    view.id = problem.views[v].id;
-    view.kind = ba::ViewKind::kObject;
-    view.sigma_px = problem.sigma_px;
-    bool per_observation = false, full = false;
-    for (const auto& o : problem.views[v].observations) {
-      per_observation |= o.sigma_px > 0;
-      full |= o.HasCovariance();
-    }
-    for (const auto& o : problem.views[v].observations) {
-      pts.push_back(markers.at(o.marker_id));
-      uv.push_back(o.uv_px);
-      view.point_ids.push_back(o.marker_id);
-      view.uv_px.push_back(o.uv_px);
-      const double sigma = o.sigma_px > 0 ? o.sigma_px : problem.sigma_px;
-      if (per_observation) view.obs_sigma_px.push_back(sigma);
-      if (full) {
-        view.obs_covariance_px2.push_back(
-            o.HasCovariance() ? o.covariance_px2 : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
-      }
-    }
-    auto init = InitialObjectPose(problem.camera, config.initializer, pts, uv);
+    for (int id : view.point_ids) pts.push_back(markers.at(id));
+    auto init = InitialObjectPose(problem.camera, config.initializer, pts, view.uv_px);
     if (!init.ok()) {
       return Status::Error(problem.path + ": view '" + problem.views[v].id + "': " +
                            init.status().message());
     }
     view.initial = *init;
     bp.views.push_back(view);
-    sol.views[v].id = problem.views[v].id;
-    sol.views[v].initial = *init;
-    sol.views[v].initial_rms_px = ViewRms(problem, problem.views[v], *init, markers);
-    sol.views[v].num_observations = static_cast<int>(problem.views[v].observations.size());
+    ViewSolution& vs = sol->views[v];
+    vs.id = problem.views[v].id;
+    vs.initial = *init;
+    vs.initial_rms_px = ViewRms(problem, problem.views[v], *init, markers);
+    vs.num_observations = static_cast<int>(problem.views[v].observations.size());
     if (progress) progress(problem.views[v].id);
   }
+  return bp;
+}
 
-  ba::BaOptions options;
-  options.analytic_jacobians = config.analytic_jacobians;
-  options.loss = config.loss;
-  options.loss_scale_px = config.loss_scale_px;
-  options.linear_solver = config.linear_solver;
-  options.max_iterations = config.refine ? config.max_iterations : 0;
-  options.function_tolerance = config.function_tolerance;
-  options.gradient_tolerance = config.gradient_tolerance;
-  options.parameter_tolerance = config.parameter_tolerance;
-  options.num_threads = config.num_threads;
-  options.covariance_scale = config.covariance_scale;
-  // The engine's covariance, for every algorithm: the variance components (covariance.scale)
-  // and a considered calibration's term rest on it.
-  options.compute_covariance = config.refine;
-  options.outlier_sigma = config.outlier_sigma;
-  options.reject_sigma = config.refine ? config.reject_sigma : 0;
-  auto solved = ba::SolveBundleAdjustment(bp, options);
-  if (!solved.ok()) {
-    const std::string& m = solved.status().message();
-    if (m.find("rank-deficient") != std::string::npos) {
-      return Status::Error(problem.path + ": " + m +
+// The engine's failures with the pose problem's advice.
+Status PoseSolveError(const PoseProblem& problem, const Status& s) {
+  switch (s.kind()) {
+    case ErrorKind::kNotDetermined:
+      return Status::Error(problem.path + ": " + s.message() +
                            " (degenerate geometry: too few or (near-)coplanar markers in a view?)");
-    }
-    if (m.find("the initial state") != std::string::npos) {
+    case ErrorKind::kNonFiniteInitialState:
       return Status::Error(problem.path + ": the initial poses give a non-finite cost (a marker "
                                           "behind the source?)");
-    }
-    return Status::Error(problem.path + ": " + m);
+    case ErrorKind::kOther:
+      break;
   }
-  sol.ba_problem = std::make_shared<const ba::BaProblem>(bp);
-  sol.ba_result = std::make_shared<const ba::BaResult>(std::move(*solved));
-  const ba::BaResult& r = *sol.ba_result;
+  return Status::Error(problem.path + ": " + s.message());
+}
+
+// The solution's poses, markers and statistics from the engine's result.
+std::vector<Pose6> TakePoseSolution(const PoseProblem& problem,
+                                    const SolverConfig& config,
+                                    std::map<int, Eigen::Vector3d> markers,
+                                    PoseSolution* sol) {
+  const ba::BaResult& r = *sol->ba_result;
   const ba::StateLayout& L = *r.layout;
-  sol.iterations = r.iterations;
-  sol.initial_cost = r.initial_cost;
-  if (config.refine) {
-    sol.termination = r.termination;
-    sol.final_cost = r.final_cost;
-  } else {
-    sol.termination = "NOT_REFINED";
-    sol.final_cost = sol.initial_cost;
-  }
+  sol->iterations = r.iterations;
+  sol->initial_cost = r.initial_cost;
+  sol->termination = config.refine ? r.termination : "NOT_REFINED";
+  sol->final_cost = config.refine ? r.final_cost : sol->initial_cost;
+  const size_t V = problem.views.size();
   std::vector<Pose6> poses(V);
   for (size_t v = 0; v < V; ++v) {
     for (int i = 0; i < 6; ++i) poses[v][i] = r.block(L.view_block(static_cast<int>(v)))[i];
   }
-  {
-    size_t k = 0;
-    for (auto& [id, p] : markers) {
-      for (int i = 0; i < 3; ++i) p[i] = r.block(L.marker_block(static_cast<int>(k)))[i];
-      ++k;
-    }
+  size_t k = 0;
+  for (auto& [id, p] : markers) {
+    for (int i = 0; i < 3; ++i) p[i] = r.block(L.marker_block(static_cast<int>(k)))[i];
+    ++k;
   }
-  sol.chi2 = r.chi2;
-  sol.num_residuals = r.num_residuals;
+  sol->chi2 = r.chi2;
+  sol->num_residuals = r.num_residuals;
   double ss = 0;
   int n = 0;
   for (size_t v = 0; v < V; ++v) {
-    sol.views[v].cam_from_object = poses[v];
-    sol.views[v].rms_px = ViewRms(problem, problem.views[v], poses[v], markers);
-    ss += sol.views[v].rms_px * sol.views[v].rms_px * 2 * sol.views[v].num_observations;
-    n += 2 * sol.views[v].num_observations;
+    ViewSolution& vs = sol->views[v];
+    vs.cam_from_object = poses[v];
+    vs.rms_px = ViewRms(problem, problem.views[v], poses[v], markers);
+    ss += vs.rms_px * vs.rms_px * 2 * vs.num_observations;
+    n += 2 * vs.num_observations;
   }
-  sol.rms_px = std::sqrt(ss / n);
-  sol.markers = markers;
-  sol.num_parameters = r.num_free;
-  sol.dof = r.dof;
-  sol.sigma0 = r.sigma0;
-  sol.sigma_aposteriori_px = sol.sigma0 * problem.sigma_px;
-  sol.chi2_p_value = r.chi2_p_value;
+  sol->rms_px = std::sqrt(ss / n);
+  sol->markers = std::move(markers);
+  sol->num_parameters = r.num_free;
+  sol->dof = r.dof;
+  sol->sigma0 = r.sigma0;
+  sol->sigma_aposteriori_px = sol->sigma0 * problem.sigma_px;
+  sol->chi2_p_value = r.chi2_p_value;
+  return poses;
+}
 
-  // Joint covariance of all poses: the engine's Schur covariance, or ceres::Covariance over the
-  // same problem (the configs' reference algorithms).
+// The joint covariance of all poses -- the engine's Schur covariance, or ceres::Covariance over
+// the same problem (the configs' reference algorithms) -- and each view's sigmas (NaN unrefined).
+Status PoseCovariance(const PoseProblem& problem,
+                      const SolverConfig& config,
+                      const ba::BaOptions& options,
+                      const std::vector<Pose6>& poses,
+                      PoseSolution* sol) {
+  const ba::BaResult& r = *sol->ba_result;
+  if (!config.refine) {
+    for (auto& vs : sol->views) {
+      vs.covariance.setConstant(std::nan(""));
+      vs.sigma_rotation_deg.setConstant(std::nan(""));
+      vs.sigma_translation_mm.setConstant(std::nan(""));
+    }
+    return Status::Ok();
+  }
   std::vector<int> pose_blocks;
-  for (size_t v = 0; v < V; ++v) pose_blocks.push_back(L.view_block(static_cast<int>(v)));
-  if (config.refine && config.covariance_algorithm == "schur") {
-    sol.joint_covariance = r.Covariance(pose_blocks);
-  } else if (config.refine) {
-    auto cov = ba::CeresBlockCovariance(bp, options, r, pose_blocks, config.covariance_algorithm);
+  for (size_t v = 0; v < poses.size(); ++v) pose_blocks.push_back(r.layout->view_block(static_cast<int>(v)));
+  if (config.covariance_algorithm == "schur") {
+    sol->joint_covariance = r.Covariance(pose_blocks);
+  } else {
+    auto cov = ba::CeresBlockCovariance(*sol->ba_problem, options, r, pose_blocks, config.covariance_algorithm);
     if (!cov.ok()) {
       return Status::Error(problem.path +
                            ": the covariance is rank-deficient (degenerate geometry: too few or "
                            "(near-)coplanar markers in a view?)");
     }
-    sol.joint_covariance = *cov;  // scaled as the engine's (BaResult::covariance_scale)
-    if (r.covariance) sol.joint_covariance += r.CalibrationCovariance(pose_blocks);
+    sol->joint_covariance = *cov;  // scaled as the engine's (BaResult::covariance_scale)
+    if (r.covariance) sol->joint_covariance += r.CalibrationCovariance(pose_blocks);
   }
-  if (config.refine) {
-    sol.has_covariance = sol.joint_covariance.allFinite();
-    for (size_t v = 0; v < V; ++v) {
-      ViewSolution& vs = sol.views[v];
-      vs.covariance = sol.joint_covariance.block<6, 6>(6 * v, 6 * v);
-      Eigen::Matrix3d Jl;
-      SO3LeftJacobian(poses[v].data(), Jl.data());  // row-major into column-major storage
-      Jl.transposeInPlace();
-      const Eigen::Matrix3d local = Jl * vs.covariance.topLeftCorner<3, 3>() * Jl.transpose();
-      vs.sigma_rotation_deg = local.diagonal().cwiseSqrt() * kRadToDeg;
-      vs.sigma_translation_mm = vs.covariance.bottomRightCorner<3, 3>().diagonal().cwiseSqrt();
-    }
-  } else {
-    for (auto& vs : sol.views) {
-      vs.covariance.setConstant(std::nan(""));
-      vs.sigma_rotation_deg.setConstant(std::nan(""));
-      vs.sigma_translation_mm.setConstant(std::nan(""));
-    }
+  sol->has_covariance = sol->joint_covariance.allFinite();
+  for (size_t v = 0; v < poses.size(); ++v) {
+    ViewSolution& vs = sol->views[v];
+    vs.covariance = sol->joint_covariance.block<6, 6>(6 * v, 6 * v);
+    Eigen::Matrix3d Jl;
+    SO3LeftJacobian(poses[v].data(), Jl.data());  // row-major into column-major storage
+    Jl.transposeInPlace();
+    const Eigen::Matrix3d local = Jl * vs.covariance.topLeftCorner<3, 3>() * Jl.transpose();
+    vs.sigma_rotation_deg = local.diagonal().cwiseSqrt() * kRadToDeg;
+    vs.sigma_translation_mm = vs.covariance.bottomRightCorner<3, 3>().diagonal().cwiseSqrt();
   }
+  return Status::Ok();
+}
 
-  // Validation pairs.
+// The angle between the viewing directions and the relative rotation of a validation pair, with
+// their sigmas from the joint covariance.
+PairSolution ValidationPairSolution(const ValidationPair& pair,
+                                    size_t ia,
+                                    size_t ib,
+                                    const std::vector<Pose6>& poses,
+                                    const PoseSolution& sol) {
+  PairSolution ps;
+  ps.a = pair.a, ps.b = pair.b, ps.expected_deg = pair.expected_deg;
+  Eigen::Matrix<double, 12, 12> C;
+  if (sol.has_covariance) {
+    C.topLeftCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ia, 6 * ia);
+    C.topRightCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ia, 6 * ib);
+    C.bottomLeftCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ib, 6 * ia);
+    C.bottomRightCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ib, 6 * ib);
+  }
+  Eigen::Matrix<double, 12, 1> g;
+  const double vd = PairMetricWithGradient(
+      poses[ia].data(), poses[ib].data(),
+      [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, g.data());
+  ps.angle_view_dirs_deg = vd * kRadToDeg;
+  ps.sigma_view_dirs_deg = sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");
+  const double rr = PairMetricWithGradient(
+      poses[ia].data(), poses[ib].data(),
+      [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g.data());
+  ps.relative_rotation_deg = rr * kRadToDeg;
+  ps.sigma_relative_rotation_deg =
+      sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");
+  return ps;
+}
+
+}  // namespace
+
+StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
+                                        const SolverConfig& config,
+                                        const ProgressFn& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string err;
+  if (!config.Check(&err)) return Status::Error(config.path + ": " + err);
+  CARMBA_RETURN_IF_ERROR(problem.Check());
+  PoseSolution sol;
+  sol.config_name = config.name;
+  const std::map<int, Eigen::Vector3d> markers = ObservedMarkers(problem);
+  auto bp = PoseBaProblem(problem, config, markers, progress, &sol);
+  if (!bp.ok()) return bp.status();
+  const ba::BaOptions options = config.ToBaOptions();
+  auto solved = ba::SolveBundleAdjustment(*bp, options);
+  if (!solved.ok()) return PoseSolveError(problem, solved.status());
+  sol.ba_problem = std::make_shared<const ba::BaProblem>(std::move(*bp));
+  sol.ba_result = std::make_shared<const ba::BaResult>(std::move(*solved));
+  const std::vector<Pose6> poses = TakePoseSolution(problem, config, markers, &sol);
+  CARMBA_RETURN_IF_ERROR(PoseCovariance(problem, config, options, poses, &sol));
+
   std::map<std::string, size_t> index;
-  for (size_t v = 0; v < V; ++v) index[problem.views[v].id] = v;
+  for (size_t v = 0; v < problem.views.size(); ++v) index[problem.views[v].id] = v;
+  std::vector<std::pair<int, int>> validation_pairs;
   for (const auto& pr : problem.validation) {
-    PairSolution ps;
-    ps.a = pr.a, ps.b = pr.b, ps.expected_deg = pr.expected_deg;
     const size_t ia = index.at(pr.a), ib = index.at(pr.b);
-    Eigen::Matrix<double, 12, 12> C;
-    if (sol.has_covariance) {
-      C.topLeftCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ia, 6 * ia);
-      C.topRightCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ia, 6 * ib);
-      C.bottomLeftCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ib, 6 * ia);
-      C.bottomRightCorner<6, 6>() = sol.joint_covariance.block<6, 6>(6 * ib, 6 * ib);
-    }
-    Eigen::Matrix<double, 12, 1> g;
-    const double vd = PairMetricWithGradient(
-        poses[ia].data(), poses[ib].data(),
-        [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, g.data());
-    ps.angle_view_dirs_deg = vd * kRadToDeg;
-    ps.sigma_view_dirs_deg =
-        sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");
-    const double rr = PairMetricWithGradient(
-        poses[ia].data(), poses[ib].data(),
-        [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g.data());
-    ps.relative_rotation_deg = rr * kRadToDeg;
-    ps.sigma_relative_rotation_deg =
-        sol.has_covariance ? std::sqrt(g.dot(C * g)) * kRadToDeg : std::nan("");
-    sol.validation.push_back(ps);
+    sol.validation.push_back(ValidationPairSolution(pr, ia, ib, poses, sol));
+    validation_pairs.emplace_back(static_cast<int>(ia), static_cast<int>(ib));
   }
   // Relative poses (every pair of few views, else the validation pairs) and, when asked, the
   // leave-one-marker-out TRE: both from the engine's covariance.
+  const ba::BaResult& r = *sol.ba_result;
   const bool engine_covariance = config.refine && config.covariance_algorithm == "schur" && r.covariance;
   if (engine_covariance) {
-    std::vector<std::pair<int, int>> validation_pairs;
-    for (const auto& pr : problem.validation) {
-      validation_pairs.emplace_back(static_cast<int>(index.at(pr.a)), static_cast<int>(index.at(pr.b)));
-    }
-    sol.relative_poses = ba::EstimateRelativePoses(r, ba::RelativePosePairs(bp, validation_pairs));
+    sol.relative_poses = ba::EstimateRelativePoses(r, ba::RelativePosePairs(*sol.ba_problem, validation_pairs));
   }
   sol.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (config.tre) {
@@ -381,7 +419,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
       return Status::Error(config.path + ": tre: true needs the refined solve with the engine's "
                                          "covariance (refine: true, covariance: {algorithm: schur})");
     }
-    auto tre = ba::LeaveOneMarkerOut(bp, r, options);
+    auto tre = ba::LeaveOneMarkerOut(*sol.ba_problem, r, options);
     if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
     sol.tre = *tre;
   }

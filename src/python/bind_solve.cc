@@ -464,7 +464,7 @@ py::object Tre(const Solved& s) {
   ba::TreResult t;
   {
     py::gil_scoped_release release;
-    t = ValueOrThrow(ba::LeaveOneMarkerOut(s.problem(), r, BaOptionsFromConfig(s.config)));
+    t = ValueOrThrow(ba::LeaveOneMarkerOut(s.problem(), r, s.config.ToBaOptions()));
   }
   return ToPython(TreJson(t));
 }

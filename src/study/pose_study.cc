@@ -411,7 +411,7 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
                scale * t.cy_secondary_px, scale * t.f_primary, scale * t.f_secondary};
   auto config = state->configs.Get(run.config->file, [&] { return LoadSolverConfig(run.config->file); });
   if (!config->ok()) return config->status();
-  ba::BaOptions options = BaOptionsFromConfig(config->value());
+  ba::BaOptions options = config->value().ToBaOptions();
   options.num_threads = 1;
   const ba::SyntheticFlex sf = ba::MakeSyntheticFlex(spec, run.seed);
   ba::BaProblem p = sf.problem;
@@ -539,7 +539,7 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   const StudyConfig& sc = *run.config;
   auto config = state->configs.Get(sc.file, [&] { return LoadSolverConfig(sc.file); });
   if (!config->ok()) return config->status();
-  ba::BaOptions options = BaOptionsFromConfig(config->value());
+  ba::BaOptions options = config->value().ToBaOptions();
   options.num_threads = 1;
   ba::SyntheticJoint sj = ba::MakeSyntheticJoint(spec, ba::NoiseSwitches(), run.seed);
   for (const auto& n : config->value().fix) {
