@@ -3,6 +3,7 @@
 #include "calib/truth_check.h"
 
 #include "calib/conditioning.h"
+#include "calib/projection_uncertainty.h"
 #include "util/yaml_reader.h"
 
 #include <opencv2/core.hpp>
@@ -140,12 +141,14 @@ std::string OpenCvCalibrationYaml(const CalibrationRun& run) {
   return fs.releaseAndGetString();
 }
 
-ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
+namespace {
+
+// The title, the command and what was solved how.
+void CalibrationSummaryDoc(const CalibrationRun& run, ReportDoc* doc) {
+  ReportDoc& d = *doc;
   const CalibrationResult& r = run.result;
   const ObservationSet& obs = run.observations;
   const CalibrationOptions& opt = run.options;
-  ReportDoc d;
-  std::vector<std::vector<std::string>> rows;
   d.Heading(1, "carmba calibration report");
   if (!run.command_line.empty()) d.Paragraph("Command: `" + run.command_line + "`");
   std::string held;
@@ -171,6 +174,13 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
           loss + "; solver: " + r.termination + " after " + std::to_string(r.iterations) +
               " iterations, " + Fixed(r.solve_seconds * 1e3, 1) + " ms; covariance " +
               Fixed(r.covariance_seconds * 1e3, 1) + " ms"});
+}
+
+// Per image: points found, blobs rejected and why; or the images skipped.
+void CalibrationDetectionDoc(const CalibrationRun& run, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const ObservationSet& obs = run.observations;
+  std::vector<std::vector<std::string>> rows;
   if (!run.detections.empty()) {
     d.Heading(2, "Detection per image");
     d.Paragraph("Overlays (found points with ids, rejected blobs and why): `overlays/`.");
@@ -197,6 +207,10 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
     d.List(run.skipped);
   }
 
+}
+
+void CalibrationResidualsDoc(const CalibrationResult& r, ReportDoc* doc) {
+  ReportDoc& d = *doc;
   d.Heading(2, "Residuals");
   d.List({"RMS per coordinate: **" + Fixed(r.rms_px) +
               " px** (sqrt(SSR / 2N), mrcal's rms_reproj_error__pixels)",
@@ -204,8 +218,12 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
           "Pixel sigma for the covariance: " + Fixed(r.sigma_px) + " px, " + PixelSigmaKind(r)});
   d.Figures({"residuals-per-view", "residual-field"});
 
-  const nlohmann::json* m = run.mrcal ? &*run.mrcal : nullptr;
-  const OpenCvReference* cvr = run.opencv ? &*run.opencv : nullptr;
+}
+
+// The intrinsics with their sigmas, against mrcal (m) and OpenCV (cvr) when they ran.
+void CalibrationIntrinsicsDoc(const CalibrationResult& r, const nlohmann::json* m, const OpenCvReference* cvr, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  std::vector<std::vector<std::string>> rows;
   d.Heading(2, "Intrinsics (1-sigma marginal over the plate poses)");
   d.Paragraph("Sigmas from the " + PixelSigmaKind(r) + " pixel sigma " + Fixed(r.sigma_px) +
               " px; mrcal's sigmas (its formula, at its own solution) use the same pixel sigma.");
@@ -237,39 +255,47 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
   d.Table(header, rows);
   d.Figures({"distortion"});
 
-  {
-    const ConditioningReport cond =
-        AssessConditioning(r, run.observations.width, run.observations.height);
-    d.Heading(2, "Conditioning");
-    std::string text;
-    if (cond.warnings.empty()) {
-      text = "No warnings: the principal point's sigmas are under " +
-             Fixed(100 * kPrincipalPointSigmaWarnFraction, 0) +
-             " % of the image, where the linearised covariance matched a seeded Monte Carlo, and "
-             "no two intrinsics correlate beyond " + Fixed(kIntrinsicsCorrelationWarn, 2) + ".";
-    }
-    std::vector<std::string> items;
-    for (const auto& w : cond.warnings) items.push_back("WARNING: " + w);
-    if (!cond.max_pp_distortion_pair.empty()) {
-      const std::string corr = "Largest principal-point / distortion correlation: " +
-                               cond.max_pp_distortion_pair + " " +
-                               Fixed(cond.max_pp_distortion_correlation, 4) + ".";
-      if (cond.warnings.empty()) {
-        text += " " + corr;
-      } else {
-        items.push_back(corr);
-      }
-    }
-    if (!text.empty()) d.Paragraph(text);
-    d.List(items);
-  }
+}
 
+void CalibrationConditioningDoc(const CalibrationRun& run, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const CalibrationResult& r = run.result;
+  const ConditioningReport cond =
+      AssessConditioning(r, run.observations.width, run.observations.height);
+  d.Heading(2, "Conditioning");
+  std::string text;
+  if (cond.warnings.empty()) {
+    text = "No warnings: the principal point's sigmas are under " +
+           Fixed(100 * kPrincipalPointSigmaWarnFraction, 0) +
+           " % of the image, where the linearised covariance matched a seeded Monte Carlo, and "
+           "no two intrinsics correlate beyond " + Fixed(kIntrinsicsCorrelationWarn, 2) + ".";
+  }
+  std::vector<std::string> items;
+  for (const auto& w : cond.warnings) items.push_back("WARNING: " + w);
+  if (!cond.max_pp_distortion_pair.empty()) {
+    const std::string corr = "Largest principal-point / distortion correlation: " +
+                             cond.max_pp_distortion_pair + " " +
+                             Fixed(cond.max_pp_distortion_correlation, 4) + ".";
+    if (cond.warnings.empty()) {
+      text += " " + corr;
+    } else {
+      items.push_back(corr);
+    }
+  }
+  if (!text.empty()) d.Paragraph(text);
+  d.List(items);
+}
+
+// The projection uncertainty at the centre and the corners, against mrcal's (m).
+void CalibrationProjectionDoc(const CalibrationResult& r, const nlohmann::json* m, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  std::vector<std::vector<std::string>> rows;
   d.Heading(2, "Projection uncertainty at " + Fixed(r.uncertainty_distance_mm, 1) + " mm");
   d.Paragraph("A point at this range along the pixel's ray, fixed in the frame averaged over the "
               "plate poses (mrcal's definition); 1-sigma, px, from the " + PixelSigmaKind(r) +
               " pixel sigma " + Fixed(r.sigma_px) +
               " px (mrcal's columns: mrcal.projection_uncertainty given the same pixel sigma).");
-  header = {"where", "pixel", "carmba sigma_u", "carmba sigma_v", "carmba worst"};
+  std::vector<std::string> header = {"where", "pixel", "carmba sigma_u", "carmba sigma_v", "carmba worst"};
   if (m) {
     header.push_back("mrcal formula at carmba's solution");
     header.push_back("mrcal at its solution");
@@ -296,7 +322,14 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
   d.Table(header, rows);
   d.Figures({"projection-uncertainty"});
 
-  d.Append(DistortionSelectionDoc(r.distortion ? &*r.distortion : nullptr, "", true, ""));
+}
+
+// The mrcal cross-check (m: its output, or null when it did not run).
+void MrcalCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const CalibrationResult& r = run.result;
+  const CalibrationOptions& opt = run.options;
+  std::vector<std::vector<std::string>> rows;
   d.Heading(2, "Cross-check: mrcal");
   if (!m) {
     d.Paragraph("Not run: " + run.mrcal_error);
@@ -360,6 +393,12 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
                 "residuals and frees all 9 intrinsics).");
   }
 
+}
+
+// The OpenCV cross-check (cvr, or null when it did not run).
+void OpenCvCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, const OpenCvReference* cvr, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const CalibrationResult& r = run.result;
   d.Heading(2, "Cross-check: OpenCV calibrateCamera");
   if (!cvr) {
     d.Paragraph("Not run: " + run.opencv_error);
@@ -386,6 +425,13 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
                     "OpenCV 4.6's are known to exceed the Monte Carlo spread by 1.5-1.65x.");
     d.List(items);
   }
+}
+
+// The estimate against the truth, when the run has one.
+void CalibrationTruthDoc(const CalibrationRun& run, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const CalibrationResult& r = run.result;
+  std::vector<std::vector<std::string>> rows;
   if (run.truth) {
     d.Heading(2, "Against the truth");
     auto tc = CompareWithTruth(r, *run.truth, run.observations);
@@ -418,6 +464,15 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
     }
   }
 
+}
+
+// Per view, per point, the worst residuals and the outliers.
+void CalibrationPerViewDoc(const CalibrationRun& run, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const CalibrationResult& r = run.result;
+  const ObservationSet& obs = run.observations;
+  const CalibrationOptions& opt = run.options;
+  std::vector<std::vector<std::string>> rows;
   d.Heading(2, "Per view");
   rows.clear();
   for (size_t i = 0; i < r.views.size(); ++i) {
@@ -452,6 +507,26 @@ ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
                     std::to_string(w.point_id) + ": " + Fixed(w.norm_px) + " px");
   }
   d.List(items);
+}
+
+}  // namespace
+
+ReportDoc CalibrationReportDoc(const CalibrationRun& run) {
+  const CalibrationResult& r = run.result;
+  ReportDoc d;
+  CalibrationSummaryDoc(run, &d);
+  CalibrationDetectionDoc(run, &d);
+  CalibrationResidualsDoc(r, &d);
+  const nlohmann::json* m = run.mrcal ? &*run.mrcal : nullptr;
+  const OpenCvReference* cvr = run.opencv ? &*run.opencv : nullptr;
+  CalibrationIntrinsicsDoc(r, m, cvr, &d);
+  CalibrationConditioningDoc(run, &d);
+  CalibrationProjectionDoc(r, m, &d);
+  d.Append(DistortionSelectionDoc(r.distortion ? &*r.distortion : nullptr, "", true, ""));
+  MrcalCrossCheckDoc(run, m, &d);
+  OpenCvCrossCheckDoc(run, m, cvr, &d);
+  CalibrationTruthDoc(run, &d);
+  CalibrationPerViewDoc(run, &d);
   return d;
 }
 

@@ -1,7 +1,5 @@
 #include "calib/calibrate.h"
 
-#include <ceres/rotation.h>
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
@@ -13,6 +11,8 @@
 #include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
 #include "ba/schur_lm.h"
+#include "calib/projection_uncertainty.h"
+#include "calib/zhang_init.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
 
@@ -20,7 +20,6 @@ namespace carmba {
 
 namespace {
 
-using ba::LeftJacobianOf;
 using ba::RobustWeight;
 
 double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
@@ -32,70 +31,6 @@ int IntrinsicIndexOf(const std::string& name) {
     if (name == kIntrinsicNames[i]) return i;
   }
   return -1;
-}
-
-// Normalised DLT homography: plate (x, y) mm -> pixel.
-bool FitHomography(const std::vector<Eigen::Vector2d>& src,
-                   const std::vector<Eigen::Vector2d>& dst,
-                   Eigen::Matrix3d* H) {
-  const int n = static_cast<int>(src.size());
-  auto normaliser = [n](const std::vector<Eigen::Vector2d>& p) {
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    for (const auto& q : p) mean += q;
-    mean /= n;
-    double d = 0;
-    for (const auto& q : p) d += (q - mean).norm();
-    d /= n;
-    const double s = d > 0 ? std::sqrt(2.0) / d : 1.0;
-    Eigen::Matrix3d T;
-    T << s, 0, -s * mean.x(), 0, s, -s * mean.y(), 0, 0, 1;
-    return T;
-  };
-  const Eigen::Matrix3d Ts = normaliser(src), Td = normaliser(dst);
-  Eigen::Matrix<double, 9, 9> AtA = Eigen::Matrix<double, 9, 9>::Zero();
-  for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3d s = Ts * src[i].homogeneous();
-    const Eigen::Vector3d d = Td * dst[i].homogeneous();
-    Eigen::Matrix<double, 9, 1> r1, r2;
-    r1 << s.x(), s.y(), 1, 0, 0, 0, -d.x() * s.x(), -d.x() * s.y(), -d.x();
-    r2 << 0, 0, 0, s.x(), s.y(), 1, -d.y() * s.x(), -d.y() * s.y(), -d.y();
-    AtA.noalias() += r1 * r1.transpose() + r2 * r2.transpose();
-  }
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 9, 9>> es(AtA);
-  if (es.info() != Eigen::Success) return false;
-  const Eigen::Matrix<double, 9, 1> h = es.eigenvectors().col(0);
-  Eigen::Matrix3d Hn;
-  Hn << h(0), h(1), h(2), h(3), h(4), h(5), h(6), h(7), h(8);
-  *H = Td.inverse() * Hn * Ts;
-  if (!H->allFinite() || std::abs((*H)(2, 2)) < 1e-300) return false;
-  *H /= (*H)(2, 2);
-  return true;
-}
-
-// Pose from a homography and K: K^-1 H = lambda [r1 r2 t].
-void PoseFromHomography(const Eigen::Matrix3d& H, const double* intr, std::array<double, 6>* pose) {
-  Eigen::Matrix3d K;
-  K << intr[kFx], 0, intr[kCx], 0, intr[kFy], intr[kCy], 0, 0, 1;
-  const Eigen::Matrix3d M = K.inverse() * H;
-  double lambda = 2.0 / (M.col(0).norm() + M.col(1).norm());
-  if (M(2, 2) * lambda < 0) lambda = -lambda;
-  Eigen::Matrix3d R;
-  R.col(0) = lambda * M.col(0);
-  R.col(1) = lambda * M.col(1);
-  R.col(2) = R.col(0).cross(R.col(1));
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d Ro = svd.matrixU() * svd.matrixV().transpose();
-  if (Ro.determinant() < 0) {
-    Eigen::Matrix3d U = svd.matrixU();
-    U.col(2) *= -1;
-    Ro = U * svd.matrixV().transpose();
-  }
-  const Eigen::Vector3d t = lambda * M.col(2);
-  double Rc[9];
-  Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::ColMajor>> Rc_map(Rc);
-  Rc_map = Ro;
-  ceres::RotationMatrixToAngleAxis(Rc, pose->data());
-  (*pose)[3] = t.x(), (*pose)[4] = t.y(), (*pose)[5] = t.z();
 }
 
 // The calibration as a problem of the bundle-adjustment engine: one intrinsics group, one plate
@@ -133,65 +68,286 @@ ba::BaProblem CalibrationProblem(const ObservationSet& obs,
   return p;
 }
 
-// Gradient (2 x free state) of mrcal's projection of pixel (u, v) at distance d: the point
-// p_cam = d * unproject(q) is fixed in the frame averaged over the plate poses,
-//   q(theta) = project(intrinsics, mean_i T_i(theta) T_i0^-1 p_cam);
-// each view maps p_cam back to itself at the solution, so view i's pose gradient is
-// [((p_cam - t_i) x a) J_l(r_i), a] / n per row a of dq/dp_cam. False if q cannot be unprojected.
-bool ProjectionGradient(const ba::BaResult& e,
-                        double u,
-                        double v,
-                        double distance_mm,
-                        Eigen::MatrixXd* G) {
-  const ba::StateLayout& L = *e.layout;
-  const int gb = L.group_block(0);
-  const double* intr = e.block(gb);
-  const double q[2] = {u, v};
-  double xy[2];
-  if (!UnprojectToNormalized(intr, q, xy)) return false;
-  Eigen::Vector3d p_cam(xy[0], xy[1], 1.0);
-  p_cam *= distance_mm / p_cam.norm();
-  double uv[2], Jpc[6];
-  Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor> Ji;
-  if (!ProjectCamPointWithJac(intr, p_cam.data(), uv, Ji.data(), Jpc)) return false;
-  *G = Eigen::MatrixXd::Zero(2, L.num_free());
-  const int num_views = static_cast<int>(e.views.size());
-  for (int row = 0; row < 2; ++row) {
-    ba::AddGradientRow(L, gb, Ji.row(row).data(), row, G);
-    const double* c = Jpc + 3 * row;
-    for (int i = 0; i < num_views; ++i) {
-      const int vb = L.view_block(i);
-      const double* pose = e.block(vb);
-      const Eigen::Vector3d Rp = p_cam - Eigen::Vector3d(pose[3], pose[4], pose[5]);
-      const Eigen::RowVector3d w(Rp.y() * c[2] - Rp.z() * c[1], Rp.z() * c[0] - Rp.x() * c[2],
-                                 Rp.x() * c[1] - Rp.y() * c[0]);
-      double g[6];
-      const Eigen::RowVector3d gr = w * LeftJacobianOf(pose) / num_views;
-      for (int k = 0; k < 3; ++k) g[k] = gr(k);
-      for (int k = 0; k < 3; ++k) g[3 + k] = c[k] / num_views;
-      ba::AddGradientRow(L, vb, g, row, G);
+Status CheckCalibrationInput(const ObservationSet& obs, const CalibrationOptions& opt) {
+  std::string err;
+  if (!opt.Check(&err)) return Status::Error("calibration options: " + err);
+  if (!obs.grid.Check(&err)) return Status::Error(err);
+  if (obs.width <= 0 || obs.height <= 0) return Status::Error("image size unknown (expected > 0)");
+  const int num_views = static_cast<int>(obs.views.size());
+  if (num_views < opt.min_views) {
+    return Status::Error("only " + std::to_string(num_views) + " usable view(s), min_views is " +
+                         std::to_string(opt.min_views));
+  }
+  for (int v = 0; v < num_views; ++v) {
+    const auto& view = obs.views[v];
+    if (view.uv_px.size() < 4 || view.uv_px.size() != view.point_ids.size()) {
+      return Status::Error("view " + std::to_string(v) + " (" + view.image +
+                           "): expected at least 4 points, got " +
+                           std::to_string(view.uv_px.size()));
+    }
+    for (size_t j = 0; j < view.uv_px.size(); ++j) {
+      if (!view.uv_px[j].allFinite()) {
+        return Status::Error("view " + std::to_string(v) + " (" + view.image + "): point " +
+                             std::to_string(view.point_ids[j]) + " is not finite");
+      }
     }
   }
-  return true;
+  return Status::Ok();
 }
 
-// Cov(q) of the projection of (u, v) at distance_mm, in px^2 (scaled to the result's sigma_px).
-bool ProjectionSigmaAt(const CalibrationResult& r,
-                       double u,
-                       double v,
-                       double distance_mm,
-                       ProjectionSigma* ps) {
-  const ba::BaResult& e = *r.engine;
-  Eigen::MatrixXd G;
-  if (!ProjectionGradient(e, u, v, distance_mm, &G)) return false;
-  Eigen::Matrix2d cov = G * e.covariance->Solve(G.transpose());
-  cov *= r.covariance_scale;
-  ps->u_px = u, ps->v_px = v;
-  ps->sigma_u_px = std::sqrt(std::max(0.0, cov(0, 0)));
-  ps->sigma_v_px = std::sqrt(std::max(0.0, cov(1, 1)));
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
-  ps->worst_px = std::sqrt(std::max(0.0, es.eigenvalues()(1)));
-  return true;
+// Per intrinsic: estimated (not held) under the options' constraints; fy follows fx when the
+// aspect ratio is held.
+std::vector<bool> FreeIntrinsics(const CalibrationOptions& opt) {
+  std::vector<bool> free(kNumIntrinsics, true);
+  for (const auto& n : opt.fix) free[IntrinsicIndexOf(n)] = false;
+  if (opt.fix_principal_point) free[kCx] = free[kCy] = false;
+  if (opt.zero_tangential) free[kP1] = free[kP2] = false;
+  if (opt.fix_k3) free[kK3] = false;
+  if (opt.fix_aspect_ratio) free[kFy] = free[kFx];
+  return free;
+}
+
+// The calibration solved through the engine in stages, each seeded by the one before: the
+// pinhole core with the distortion held at its initial value (mrcal seeds the same way), the
+// distortion terms chosen by the data (distortion: auto), then everything. Back end: carmba's
+// Schur LM (solver: lm, no robust loss) or Ceres.
+class StagedCalibration {
+ public:
+  StagedCalibration(const ObservationSet& obs,
+                    const CalibrationOptions& opt,
+                    const CalibrationStart& start,
+                    double sigma_solve)
+      : obs_(obs), opt_(opt), fy_over_fx_(start.fy_over_fx), sigma_solve_(sigma_solve),
+        x_(start.intrinsics), poses_(start.cam_from_plate) {
+    options_.backend = own_lm() ? "carmba_lm" : "ceres";
+    options_.loss = opt.robust_loss == "none" ? "trivial" : opt.robust_loss;
+    options_.loss_scale_px = opt.robust_loss_scale_px;
+    options_.linear_solver = "dense_schur";
+    options_.max_iterations = opt.max_iterations;
+    options_.num_threads = opt.num_threads;
+    options_.outlier_sigma = opt.outlier_threshold_sigma;
+  }
+
+  bool own_lm() const { return opt_.solver == "lm" && opt_.robust_loss == "none"; }
+  const std::array<double, kNumIntrinsics>& intrinsics() const { return x_; }
+  const std::vector<std::array<double, 6>>& poses() const { return poses_; }
+
+  // The pinhole core alone, when any distortion term is free: only a seed, loose tolerances.
+  Status SolveCore(const std::array<bool, kNumIntrinsics>& free) {
+    std::array<bool, kNumIntrinsics> core = free;
+    bool any_distortion = false;
+    for (int i = kK1; i < kNumIntrinsics; ++i) any_distortion |= core[i], core[i] = false;
+    return any_distortion ? Solve(core, true).status() : Status::Ok();
+  }
+
+  // distortion: auto -- the distortion terms chosen by the data (ba/lens_models.h), seeded by the
+  // pinhole stage; with an unknown pixel sigma the comparison estimates it from the full model.
+  // Sets the distortion part of `free`; the terms left out are held at 0.
+  StatusOr<ba::DistortionSelection> SelectDistortion(std::array<bool, kNumIntrinsics>* free) {
+    std::array<bool, kNumIntrinsics> all = *free;
+    for (int i = kK1; i < kNumIntrinsics; ++i) all[i] = true;
+    ba::BaProblem p = CalibrationProblem(obs_, x_, all, fy_over_fx_, sigma_solve_, poses_);
+    ba::BaOptions so = options_;
+    so.function_tolerance = 1e-10, so.gradient_tolerance = 1e-14, so.parameter_tolerance = 1e-10;
+    so.compute_covariance = so.evaluate_solution = true;
+    auto sel = ba::SelectDistortionModel(p, so, ba::kDistortionFolds, opt_.pixel_sigma_px == 0);
+    if (!sel.ok()) return Status::Error("distortion: auto: " + sel.status().message());
+    ba::ApplyDistortionModel(sel->recommended, &p);
+    for (int i = kK1; i < kNumIntrinsics; ++i) {
+      (*free)[i] = p.groups[0].free[i];
+      if (!(*free)[i]) x_[i] = 0;
+    }
+    return sel;
+  }
+
+  // One stage from the current state; a coarse one returns the solved state only. The engine's
+  // typed failures get the calibration's advice.
+  StatusOr<ba::BaResult> Solve(const std::array<bool, kNumIntrinsics>& free, bool coarse) {
+    options_.function_tolerance = coarse ? 1e-6 : 1e-10;
+    options_.gradient_tolerance = coarse ? 1e-10 : 1e-14;
+    options_.parameter_tolerance = coarse ? 1e-6 : 1e-10;
+    options_.compute_covariance = !coarse;
+    options_.evaluate_solution = !coarse;
+    const ba::BaProblem p = CalibrationProblem(obs_, x_, free, fy_over_fx_, sigma_solve_, poses_);
+    auto res = ba::SolveBundleAdjustment(p, options_);
+    if (!res.ok()) {
+      const std::string& m = res.status().message();
+      switch (res.status().kind()) {
+        case ErrorKind::kNotDetermined:
+          return Status::Error("the views do not determine the intrinsics (" + m +
+                               "); degenerate views, e.g. all fronto-parallel or too few tilts");
+        case ErrorKind::kNonFiniteInitialState:
+          return Status::Error(
+              "initialisation puts grid points behind the source (bad detections?)");
+        case ErrorKind::kOther:
+          break;
+      }
+      return res.status();
+    }
+    const ba::StateLayout& L = *res->layout;
+    std::copy(res->block(L.group_block(0)), res->block(L.group_block(0)) + kNumIntrinsics,
+              x_.begin());
+    for (size_t v = 0; v < poses_.size(); ++v) {
+      std::copy(res->block(L.view_block(v)), res->block(L.view_block(v)) + 6, poses_[v].begin());
+    }
+    return res;
+  }
+
+ private:
+  const ObservationSet& obs_;
+  const CalibrationOptions& opt_;
+  const double fy_over_fx_;
+  const double sigma_solve_;
+  ba::BaOptions options_;
+  std::array<double, kNumIntrinsics> x_;
+  std::vector<std::array<double, 6>> poses_;
+};
+
+// Every point's residual at the solution (r->camera.params, r->cam_from_plate) into the view and
+// point statistics; returns them all, with the sums of squares (the weighted one by the robust
+// loss the solve used).
+std::vector<PointResidual> Residuals(const ObservationSet& obs,
+                                     const CalibrationOptions& opt,
+                                     double sigma_solve,
+                                     double* ssr,
+                                     double* ssr_weighted,
+                                     CalibrationResult* r) {
+  *ssr = 0, *ssr_weighted = 0;
+  std::vector<PointResidual> all;
+  r->points.resize(obs.grid.NumPoints());
+  std::vector<double> point_ssr(obs.grid.NumPoints(), 0.0);
+  const double* x = r->camera.params.data();
+  for (size_t v = 0; v < obs.views.size(); ++v) {
+    const auto& view = obs.views[v];
+    const std::array<double, 6>& pose = r->cam_from_plate[v];
+    ViewStats vs;
+    vs.image = view.image;
+    vs.num_points = static_cast<int>(view.uv_px.size());
+    double vssr = 0;
+    const Eigen::Matrix3d R = RotationOf(pose.data());
+    const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
+    for (size_t j = 0; j < view.uv_px.size(); ++j) {
+      // A point behind the source (not at a solution that passed the solver) reads as NaN.
+      double uv[2] = {std::nan(""), std::nan("")};
+      const Eigen::Vector3d pc = R * obs.grid.PointInPlate(view.point_ids[j]) + t;
+      ProjectCamPoint(x, pc.data(), uv);
+      PointResidual pr;
+      pr.view = static_cast<int>(v);
+      pr.point_id = view.point_ids[j];
+      pr.du_px = uv[0] - view.uv_px[j].x();
+      pr.dv_px = uv[1] - view.uv_px[j].y();
+      const double e2 = pr.du_px * pr.du_px + pr.dv_px * pr.dv_px;
+      pr.norm_px = std::sqrt(e2);
+      vssr += e2;
+      vs.max_px = std::max(vs.max_px, pr.norm_px);
+      point_ssr[pr.point_id] += e2;
+      r->points[pr.point_id].num_views++;
+      const double w = opt.robust_loss == "none"
+                           ? 1.0
+                           : RobustWeight(opt.robust_loss, opt.robust_loss_scale_px / sigma_solve,
+                                          e2 / (sigma_solve * sigma_solve));
+      *ssr_weighted += w * e2;
+      all.push_back(pr);
+    }
+    *ssr += vssr;
+    vs.rms_px = std::sqrt(vssr / (2.0 * vs.num_points));
+    vs.tilt_deg = std::acos(std::min(1.0, std::abs(R(2, 2)))) * 180.0 / M_PI;
+    vs.distance_mm = t.norm();
+    r->views.push_back(vs);
+  }
+  for (int id = 0; id < obs.grid.NumPoints(); ++id) {
+    r->points[id].point_id = id;
+    if (r->points[id].num_views > 0) {
+      r->points[id].rms_px = std::sqrt(point_ssr[id] / (2.0 * r->points[id].num_views));
+    }
+  }
+  return all;
+}
+
+// The residual statistics: RMS, degrees of freedom, the pixel sigma (given, or estimated from
+// the residuals), the outliers and the 10 worst.
+Status ResidualStatistics(const ObservationSet& obs,
+                          const CalibrationOptions& opt,
+                          double sigma_solve,
+                          CalibrationResult* r) {
+  double ssr = 0, ssr_weighted = 0;
+  std::vector<PointResidual> all = Residuals(obs, opt, sigma_solve, &ssr, &ssr_weighted, r);
+  const int num_parameters = 6 * static_cast<int>(obs.views.size()) + r->num_free_intrinsics;
+  r->num_points = static_cast<int>(all.size());
+  r->dof = 2 * r->num_points - num_parameters;
+  r->rms_px = std::sqrt(ssr / (2.0 * r->num_points));
+  r->rms_opencv_px = std::sqrt(ssr / r->num_points);
+  if (opt.pixel_sigma_px > 0) {
+    r->sigma_px = opt.pixel_sigma_px;
+  } else {
+    if (r->dof <= 0) {
+      return Status::Error("cannot estimate the pixel sigma: " + std::to_string(2 * r->num_points) +
+                           " residuals for " + std::to_string(num_parameters) +
+                           " parameters (give pixel_sigma_px or more points)");
+    }
+    r->sigma_px = std::sqrt(ssr_weighted / r->dof);
+    r->sigma_estimated = true;
+  }
+  // Outliers and the 10 worst, largest first (only those are sorted).
+  const auto larger = [](const PointResidual& a, const PointResidual& b) {
+    return a.norm_px > b.norm_px;
+  };
+  for (const auto& pr : all) {
+    if (pr.norm_px > opt.outlier_threshold_sigma * r->sigma_px) r->outliers.push_back(pr);
+  }
+  std::sort(r->outliers.begin(), r->outliers.end(), larger);
+  const size_t num_worst = std::min<size_t>(all.size(), 10);
+  std::partial_sort(all.begin(), all.begin() + num_worst, all.end(), larger);
+  all.resize(num_worst);
+  r->worst = all;
+  return Status::Ok();
+}
+
+// The covariance of the intrinsics, marginal over the poses (the engine's Schur covariance), in
+// units of the pixel sigma used, into r and its camera. A focal length known to worse than 10 %
+// means the views do not constrain it (a fronto-parallel set is exactly singular without noise,
+// nearly singular with it).
+Status IntrinsicsCovariance(double sigma_solve, CalibrationResult* r) {
+  const ba::BaResult& engine = *r->engine;
+  r->covariance_scale = (r->sigma_px / sigma_solve) * (r->sigma_px / sigma_solve);
+  r->covariance = engine.Covariance({engine.layout->group_block(0)}) * r->covariance_scale;
+  for (int i = 0; i < kNumIntrinsics; ++i) r->sigma[i] = std::sqrt(std::max(0.0, r->covariance(i, i)));
+  constexpr double kMaxRelativeFocalSigma = 0.1;
+  for (int i : {kFx, kFy}) {
+    if (r->free[i] && !(r->sigma[i] < kMaxRelativeFocalSigma * r->camera.params[i])) {
+      return Status::Error(std::string("the views do not determine ") + kIntrinsicNames[i] +
+                           " (sigma " + std::to_string(r->sigma[i]) + " px for " +
+                           std::to_string(r->camera.params[i]) +
+                           " px); degenerate views, e.g. all fronto-parallel");
+    }
+  }
+  r->camera.covariance_names.assign(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics);
+  r->camera.covariance.assign(kNumIntrinsics, std::vector<double>(kNumIntrinsics));
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    for (int j = 0; j < kNumIntrinsics; ++j) r->camera.covariance[i][j] = r->covariance(i, j);
+  }
+  return Status::Ok();
+}
+
+// The solution of the final stage into r: the intrinsics and poses, the engine's termination,
+// the basis of the free intrinsics.
+void TakeSolution(const StagedCalibration& solve,
+                  std::shared_ptr<const ba::BaResult> engine,
+                  int width,
+                  int height,
+                  CalibrationResult* r) {
+  r->iterations = engine->iterations;
+  r->termination = engine->termination + (solve.own_lm() ? "" : " (Ceres)");
+  r->converged = engine->converged;
+  const ba::BlockInfo& gi = engine->layout->block(engine->layout->group_block(0));
+  r->intrinsics_from_free = gi.constant ? Eigen::MatrixXd::Zero(kNumIntrinsics, 0) : gi.basis;
+  r->num_free_intrinsics = static_cast<int>(r->intrinsics_from_free.cols());
+  const auto& x = solve.intrinsics();
+  std::copy(x.begin(), x.end(), r->camera.params.begin());
+  r->camera.width = width;
+  r->camera.height = height;
+  r->cam_from_plate = solve.poses();
+  r->engine = std::move(engine);
 }
 
 }  // namespace
@@ -318,378 +474,41 @@ Status LoadCalibrationOptions(const std::string& path,
 }
 
 StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const CalibrationOptions& opt) {
-  std::string err;
-  if (!opt.Check(&err)) return Status::Error("calibration options: " + err);
-  if (!obs.grid.Check(&err)) return Status::Error(err);
-  if (obs.width <= 0 || obs.height <= 0) return Status::Error("image size unknown (expected > 0)");
-  const int num_views = static_cast<int>(obs.views.size());
-  if (num_views < opt.min_views) {
-    return Status::Error("only " + std::to_string(num_views) + " usable view(s), min_views is " +
-                         std::to_string(opt.min_views));
-  }
-  std::vector<std::vector<Eigen::Vector3d>> plate(num_views);
-  for (int v = 0; v < num_views; ++v) {
-    const auto& view = obs.views[v];
-    if (view.uv_px.size() < 4 || view.uv_px.size() != view.point_ids.size()) {
-      return Status::Error("view " + std::to_string(v) + " (" + view.image +
-                           "): expected at least 4 points, got " +
-                           std::to_string(view.uv_px.size()));
-    }
-    for (size_t j = 0; j < view.uv_px.size(); ++j) {
-      if (!view.uv_px[j].allFinite()) {
-        return Status::Error("view " + std::to_string(v) + " (" + view.image + "): point " +
-                             std::to_string(view.point_ids[j]) + " is not finite");
-      }
-      plate[v].push_back(obs.grid.PointInPlate(view.point_ids[j]));
-    }
-  }
+  CARMBA_RETURN_IF_ERROR(CheckCalibrationInput(obs, opt));
   const auto t0 = std::chrono::steady_clock::now();
-
-  // --- Closed-form initialisation.
+  auto start = InitialiseCalibration(obs, opt);
+  if (!start.ok()) return start.status();
   CalibrationResult r;
-  double cx = (obs.width - 1) * 0.5, cy = (obs.height - 1) * 0.5;
-  if (!opt.principal_point_px.empty()) {
-    cx = opt.principal_point_px[0];
-    cy = opt.principal_point_px[1];
-  }
-  std::vector<Eigen::Matrix3d> H(num_views);
-  for (int v = 0; v < num_views; ++v) {
-    std::vector<Eigen::Vector2d> src;
-    for (const auto& p : plate[v]) src.emplace_back(p.x(), p.y());
-    if (!FitHomography(src, obs.views[v].uv_px, &H[v])) {
-      return Status::Error("view " + std::to_string(v) + " (" + obs.views[v].image +
-                           "): no homography (collinear points?)");
-    }
-  }
-  std::array<double, kNumIntrinsics> x0{};
-  if (!opt.initial_intrinsics.empty()) {
-    std::copy(opt.initial_intrinsics.begin(), opt.initial_intrinsics.end(), x0.begin());
-  } else {
-    // Zhang with known principal point and zero skew, in units of s = max(w, h) px.
-    const double s = std::max(obs.width, obs.height);
-    Eigen::Matrix3d N;
-    N << 1 / s, 0, -cx / s, 0, 1 / s, -cy / s, 0, 0, 1;
-    Eigen::MatrixXd V(2 * num_views, 3);
-    for (int v = 0; v < num_views; ++v) {
-      Eigen::Matrix3d Hn = N * H[v];
-      Hn /= Hn.col(0).norm() + Hn.col(1).norm();
-      const Eigen::Vector3d h1 = Hn.col(0), h2 = Hn.col(1);
-      V.row(2 * v) << h1(0) * h2(0), h1(1) * h2(1), h1(2) * h2(2);
-      V.row(2 * v + 1) << h1(0) * h1(0) - h2(0) * h2(0), h1(1) * h1(1) - h2(1) * h2(1),
-          h1(2) * h1(2) - h2(2) * h2(2);
-    }
-    double b1, b2, b3;
-    const double ratio = opt.fix_aspect_ratio ? opt.aspect_ratio_fy_over_fx : 0.0;
-    if (ratio > 0) {
-      // b2 = b1 / r^2: unknowns (b1, b3).
-      Eigen::MatrixXd V2(V.rows(), 2);
-      V2.col(0) = V.col(0) + V.col(1) / (ratio * ratio);
-      V2.col(1) = V.col(2);
-      Eigen::JacobiSVD<Eigen::MatrixXd> svd(V2, Eigen::ComputeFullV);
-      const Eigen::Vector2d b = svd.matrixV().col(1);
-      b1 = b(0), b2 = b(0) / (ratio * ratio), b3 = b(1);
-    } else {
-      Eigen::JacobiSVD<Eigen::MatrixXd> svd(V, Eigen::ComputeFullV);
-      const Eigen::Vector3d b = svd.matrixV().col(2);
-      b1 = b(0), b2 = b(1), b3 = b(2);
-    }
-    if (!(b1 / b3 > 0) || !(b2 / b3 > 0) || !std::isfinite(b1 / b3) || !std::isfinite(b2 / b3)) {
-      return Status::Error("closed-form initialisation failed: the views do not determine the "
-                           "focal length (degenerate views, e.g. all fronto-parallel; tilt the "
-                           "plate in several views)");
-    }
-    x0[kFx] = s * std::sqrt(b3 / b1);
-    x0[kFy] = s * std::sqrt(b3 / b2);
-    x0[kCx] = cx, x0[kCy] = cy;
-    if (!(x0[kFx] < 1e4 * s) || !(x0[kFy] < 1e4 * s)) {
-      return Status::Error("closed-form initialisation failed: focal length " +
-                           std::to_string(x0[kFx]) +
-                           " px is not determined (degenerate views, e.g. all fronto-parallel)");
-    }
-  }
-  if (opt.fix_principal_point) x0[kCx] = cx, x0[kCy] = cy;
-  if (opt.zero_tangential) x0[kP1] = x0[kP2] = 0;
-  if (opt.fix_k3) x0[kK3] = 0;
-  double ratio = opt.aspect_ratio_fy_over_fx;
-  if (opt.fix_aspect_ratio) {
-    if (ratio == 0) ratio = x0[kFy] / x0[kFx];
-    const double f = std::sqrt(x0[kFx] * x0[kFy] / ratio);
-    x0[kFx] = f, x0[kFy] = ratio * f;
-  }
-  r.initial_intrinsics = x0;
-  r.cam_from_plate.resize(num_views);
-  for (int v = 0; v < num_views; ++v) PoseFromHomography(H[v], x0.data(), &r.cam_from_plate[v]);
-  r.initial_cam_from_plate = r.cam_from_plate;
-
-  // --- What is free: intrinsics = x0 + A delta (held parameters, fy = r fx), the engine's basis.
-  r.free.assign(kNumIntrinsics, true);
-  for (const auto& n : opt.fix) r.free[IntrinsicIndexOf(n)] = false;
-  if (opt.fix_principal_point) r.free[kCx] = r.free[kCy] = false;
-  if (opt.zero_tangential) r.free[kP1] = r.free[kP2] = false;
-  if (opt.fix_k3) r.free[kK3] = false;
-  if (opt.fix_aspect_ratio) r.free[kFy] = r.free[kFx];  // fy follows fx
-  std::array<bool, kNumIntrinsics> free{};
-  for (int i = 0; i < kNumIntrinsics; ++i) free[i] = r.free[i];
-  const double fy_over_fx = opt.fix_aspect_ratio ? ratio : 0.0;
+  r.initial_intrinsics = start->intrinsics;
+  r.initial_cam_from_plate = start->cam_from_plate;
+  r.free = FreeIntrinsics(opt);
   r.robust_loss = opt.robust_loss;
   r.robust_loss_scale_px = opt.robust_loss_scale_px;
+  std::array<bool, kNumIntrinsics> free{};
+  for (int i = 0; i < kNumIntrinsics; ++i) free[i] = r.free[i];
 
-  // --- Bundle adjustment through the engine, in two stages when distortion is estimated: first
-  // the pinhole core with the distortion held at its initial value (mrcal seeds the same way),
-  // then everything. Back end: carmba's Schur LM (solver: lm, no robust loss) or Ceres.
   const double sigma_solve = opt.pixel_sigma_px > 0 ? opt.pixel_sigma_px : 1.0;
-  const bool own_lm = opt.solver == "lm" && opt.robust_loss == "none";
-  ba::BaOptions bo;
-  bo.backend = own_lm ? "carmba_lm" : "ceres";
-  bo.loss = opt.robust_loss == "none" ? "trivial" : opt.robust_loss;
-  bo.loss_scale_px = opt.robust_loss_scale_px;
-  bo.linear_solver = "dense_schur";
-  bo.max_iterations = opt.max_iterations;
-  bo.num_threads = opt.num_threads;
-  bo.outlier_sigma = opt.outlier_threshold_sigma;
-  std::array<double, kNumIntrinsics> x = x0;
-  auto run_stage = [&](const std::array<bool, kNumIntrinsics>& stage_free, bool coarse)
-      -> StatusOr<ba::BaResult> {
-    // The pinhole stage only seeds the full solve: loose tolerances.
-    bo.function_tolerance = coarse ? 1e-6 : 1e-10;
-    bo.gradient_tolerance = coarse ? 1e-10 : 1e-14;
-    bo.parameter_tolerance = coarse ? 1e-6 : 1e-10;
-    bo.compute_covariance = !coarse;
-    bo.evaluate_solution = !coarse;
-    const ba::BaProblem p =
-        CalibrationProblem(obs, x, stage_free, fy_over_fx, sigma_solve, r.cam_from_plate);
-    auto res = ba::SolveBundleAdjustment(p, bo);
-    if (!res.ok()) {
-      const std::string& m = res.status().message();
-      if (m.find("not determined") != std::string::npos ||
-          m.find("free direction") != std::string::npos) {
-        return Status::Error("the views do not determine the intrinsics (" + m +
-                             "); degenerate views, e.g. all fronto-parallel or too few tilts");
-      }
-      if (m.find("non-finite residual") != std::string::npos) {
-        return Status::Error("initialisation puts grid points behind the source (bad detections?)");
-      }
-      return res.status();
-    }
-    const ba::StateLayout& L = *res->layout;
-    std::copy(res->block(L.group_block(0)), res->block(L.group_block(0)) + kNumIntrinsics,
-              x.begin());
-    for (int v = 0; v < num_views; ++v) {
-      std::copy(res->block(L.view_block(v)), res->block(L.view_block(v)) + 6,
-                r.cam_from_plate[v].begin());
-    }
-    return res;
-  };
-  {
-    std::array<bool, kNumIntrinsics> core = free;
-    bool any_distortion = false;
-    for (int i = kK1; i < kNumIntrinsics; ++i) any_distortion |= core[i], core[i] = false;
-    if (any_distortion) CARMBA_RETURN_IF_ERROR(run_stage(core, true).status());
-  }
+  StagedCalibration solve(obs, opt, *start, sigma_solve);
+  CARMBA_RETURN_IF_ERROR(solve.SolveCore(free));
   if (opt.distortion_auto) {
-    // The distortion terms chosen by the data (ba/lens_models.h), seeded by the pinhole stage;
-    // with an unknown pixel sigma the comparison estimates it from the full model.
-    std::array<bool, kNumIntrinsics> all = free;
-    for (int i = kK1; i < kNumIntrinsics; ++i) all[i] = true;
-    ba::BaProblem p = CalibrationProblem(obs, x, all, fy_over_fx, sigma_solve, r.cam_from_plate);
-    ba::BaOptions so = bo;
-    so.function_tolerance = 1e-10, so.gradient_tolerance = 1e-14, so.parameter_tolerance = 1e-10;
-    so.compute_covariance = so.evaluate_solution = true;
-    auto sel = ba::SelectDistortionModel(p, so, ba::kDistortionFolds, opt.pixel_sigma_px == 0);
-    if (!sel.ok()) return Status::Error("distortion: auto: " + sel.status().message());
-    ba::ApplyDistortionModel(sel->recommended, &p);
-    for (int i = kK1; i < kNumIntrinsics; ++i) {
-      free[i] = p.groups[0].free[i];
-      r.free[i] = free[i];
-      if (!free[i]) x[i] = 0;
-    }
-    r.distortion = *sel;
+    auto selection = solve.SelectDistortion(&free);
+    if (!selection.ok()) return selection.status();
+    for (int i = kK1; i < kNumIntrinsics; ++i) r.free[i] = free[i];
+    r.distortion = *selection;
   }
-  auto solved = run_stage(free, false);
+  auto solved = solve.Solve(free, false);
   if (!solved.ok()) return solved.status();
-  auto engine = std::make_shared<ba::BaResult>(std::move(*solved));
-  r.iterations = engine->iterations;
-  r.termination = engine->termination + (own_lm ? "" : " (Ceres)");
-  r.converged = engine->converged;
-  {
-    const ba::BlockInfo& gi = engine->layout->block(engine->layout->group_block(0));
-    r.intrinsics_from_free =
-        gi.constant ? Eigen::MatrixXd::Zero(kNumIntrinsics, 0) : gi.basis;
-  }
-  const int k = static_cast<int>(r.intrinsics_from_free.cols());
-  r.num_free_intrinsics = k;
-  std::copy(x.begin(), x.end(), r.camera.params.begin());
-  r.camera.width = obs.width;
-  r.camera.height = obs.height;
+  TakeSolution(solve, std::make_shared<ba::BaResult>(std::move(*solved)), obs.width, obs.height, &r);
   const auto t1 = std::chrono::steady_clock::now();
   r.solve_seconds = Seconds(t0, t1);
 
-  // --- Residual statistics.
-  double ssr = 0, ssr_weighted = 0;
-  std::vector<PointResidual> all;
-  r.points.resize(obs.grid.NumPoints());
-  std::vector<double> point_ssr(obs.grid.NumPoints(), 0.0);
-  for (int v = 0; v < num_views; ++v) {
-    const auto& view = obs.views[v];
-    ViewStats vs;
-    vs.image = view.image;
-    vs.num_points = static_cast<int>(view.uv_px.size());
-    double vssr = 0;
-    const Eigen::Matrix3d R = RotationOf(r.cam_from_plate[v].data());
-    const Eigen::Vector3d t(r.cam_from_plate[v][3], r.cam_from_plate[v][4], r.cam_from_plate[v][5]);
-    for (size_t j = 0; j < view.uv_px.size(); ++j) {
-      // A point behind the source (not at a solution that passed the solver) reads as NaN.
-      double uv[2] = {std::nan(""), std::nan("")};
-      const Eigen::Vector3d pc = R * plate[v][j] + t;
-      ProjectCamPoint(x.data(), pc.data(), uv);
-      PointResidual pr;
-      pr.view = v;
-      pr.point_id = view.point_ids[j];
-      pr.du_px = uv[0] - view.uv_px[j].x();
-      pr.dv_px = uv[1] - view.uv_px[j].y();
-      const double e2 = pr.du_px * pr.du_px + pr.dv_px * pr.dv_px;
-      pr.norm_px = std::sqrt(e2);
-      vssr += e2;
-      vs.max_px = std::max(vs.max_px, pr.norm_px);
-      point_ssr[pr.point_id] += e2;
-      r.points[pr.point_id].num_views++;
-      const double w = opt.robust_loss == "none"
-                           ? 1.0
-                           : RobustWeight(opt.robust_loss, opt.robust_loss_scale_px / sigma_solve,
-                                          e2 / (sigma_solve * sigma_solve));
-      ssr_weighted += w * e2;
-      all.push_back(pr);
-    }
-    ssr += vssr;
-    vs.rms_px = std::sqrt(vssr / (2.0 * vs.num_points));
-    vs.tilt_deg = std::acos(std::min(1.0, std::abs(R(2, 2)))) * 180.0 / M_PI;
-    vs.distance_mm = Eigen::Vector3d(r.cam_from_plate[v][3], r.cam_from_plate[v][4],
-                                     r.cam_from_plate[v][5])
-                         .norm();
-    r.views.push_back(vs);
-  }
-  for (int id = 0; id < obs.grid.NumPoints(); ++id) {
-    r.points[id].point_id = id;
-    if (r.points[id].num_views > 0) {
-      r.points[id].rms_px = std::sqrt(point_ssr[id] / (2.0 * r.points[id].num_views));
-    }
-  }
-  r.num_points = static_cast<int>(all.size());
-  r.dof = 2 * r.num_points - (6 * num_views + k);
-  r.rms_px = std::sqrt(ssr / (2.0 * r.num_points));
-  r.rms_opencv_px = std::sqrt(ssr / r.num_points);
-  if (opt.pixel_sigma_px > 0) {
-    r.sigma_px = opt.pixel_sigma_px;
-  } else {
-    if (r.dof <= 0) {
-      return Status::Error("cannot estimate the pixel sigma: " + std::to_string(2 * r.num_points) +
-                           " residuals for " + std::to_string(6 * num_views + k) +
-                           " parameters (give pixel_sigma_px or more points)");
-    }
-    r.sigma_px = std::sqrt(ssr_weighted / r.dof);
-    r.sigma_estimated = true;
-  }
-  // Outliers and the 10 worst, largest first (only those are sorted).
-  const auto larger = [](const PointResidual& a, const PointResidual& b) {
-    return a.norm_px > b.norm_px;
-  };
-  for (const auto& pr : all) {
-    if (pr.norm_px > opt.outlier_threshold_sigma * r.sigma_px) r.outliers.push_back(pr);
-  }
-  std::sort(r.outliers.begin(), r.outliers.end(), larger);
-  const size_t num_worst = std::min<size_t>(all.size(), 10);
-  std::partial_sort(all.begin(), all.begin() + num_worst, all.end(), larger);
-  all.resize(num_worst);
-  r.worst = all;
-
-  // --- Covariance of the intrinsics, marginal over the poses (the engine's Schur covariance),
-  // in units of the pixel sigma used.
-  r.covariance_scale = (r.sigma_px / sigma_solve) * (r.sigma_px / sigma_solve);
-  r.covariance = engine->Covariance({engine->layout->group_block(0)}) * r.covariance_scale;
-  for (int i = 0; i < kNumIntrinsics; ++i) r.sigma[i] = std::sqrt(std::max(0.0, r.covariance(i, i)));
-  r.engine = engine;
-  // A focal length known to worse than 10 % means the views do not constrain it (a fronto-parallel
-  // set is exactly singular without noise, nearly singular with it).
-  constexpr double kMaxRelativeFocalSigma = 0.1;
-  for (int i : {kFx, kFy}) {
-    if (r.free[i] && !(r.sigma[i] < kMaxRelativeFocalSigma * r.camera.params[i])) {
-      return Status::Error(std::string("the views do not determine ") + kIntrinsicNames[i] +
-                           " (sigma " + std::to_string(r.sigma[i]) + " px for " +
-                           std::to_string(r.camera.params[i]) +
-                           " px); degenerate views, e.g. all fronto-parallel");
-    }
-  }
-  r.camera.covariance_names.assign(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics);
-  r.camera.covariance.assign(kNumIntrinsics, std::vector<double>(kNumIntrinsics));
-  for (int i = 0; i < kNumIntrinsics; ++i) {
-    for (int j = 0; j < kNumIntrinsics; ++j) r.camera.covariance[i][j] = r.covariance(i, j);
-  }
-
-  // --- Projection uncertainty at the centre and the corners.
-  if (opt.uncertainty_distance_mm > 0) {
-    r.uncertainty_distance_mm = opt.uncertainty_distance_mm;
-  } else {
-    std::vector<double> d;
-    for (const auto& vs : r.views) d.push_back(vs.distance_mm);
-    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-    r.uncertainty_distance_mm = d[d.size() / 2];
-  }
-  const double W = obs.width - 1, Hh = obs.height - 1;
-  const std::pair<const char*, Eigen::Vector2d> where[] = {
-      {"centre", {W / 2, Hh / 2}}, {"top-left", {0, 0}},      {"top-right", {W, 0}},
-      {"bottom-left", {0, Hh}},    {"bottom-right", {W, Hh}}};
-  for (const auto& [name, q] : where) {
-    ProjectionSigma ps;
-    if (!ProjectionSigmaAt(r, q.x(), q.y(), r.uncertainty_distance_mm, &ps)) continue;
-    ps.where = name;
-    r.projection_sigma.push_back(ps);
-  }
+  CARMBA_RETURN_IF_ERROR(ResidualStatistics(obs, opt, sigma_solve, &r));
+  CARMBA_RETURN_IF_ERROR(IntrinsicsCovariance(sigma_solve, &r));
+  ProjectionSigmaAtCentreAndCorners(obs.width, obs.height, opt.uncertainty_distance_mm, &r);
   r.covariance_seconds = Seconds(t1, std::chrono::steady_clock::now());
   Status s = r.camera.Check();
   if (!s.ok()) return s.WithContext("calibrated camera");
   return r;
-}
-
-StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& obs,
-                                                const CalibrationResult& result,
-                                                double u_px,
-                                                double v_px,
-                                                double distance_mm) {
-  if (!result.engine || !result.engine->covariance) {
-    return Status::Error("projection uncertainty: the calibration has no covariance");
-  }
-  if (result.engine->views.size() != obs.views.size()) {
-    return Status::Error("projection uncertainty: the observations are not the calibration's");
-  }
-  ProjectionSigma ps;
-  if (!ProjectionSigmaAt(result, u_px, v_px, distance_mm, &ps)) {
-    return Status::Error("pixel cannot be unprojected with the calibrated distortion");
-  }
-  return ps;
-}
-
-StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
-    const ObservationSet& obs,
-    const CalibrationResult& result,
-    const std::vector<Eigen::Vector2d>& pixels,
-    double distance_mm) {
-  if (!result.engine || !result.engine->covariance) {
-    return Status::Error("projection uncertainty: the calibration has no covariance");
-  }
-  if (result.engine->views.size() != obs.views.size()) {
-    return Status::Error("projection uncertainty: the observations are not the calibration's");
-  }
-  std::vector<ProjectionSigma> out;
-  for (const auto& q : pixels) {
-    ProjectionSigma ps;
-    if (!ProjectionSigmaAt(result, q.x(), q.y(), distance_mm, &ps)) {
-      ps.u_px = q.x();
-      ps.v_px = q.y();
-      ps.sigma_u_px = ps.sigma_v_px = ps.worst_px = std::numeric_limits<double>::quiet_NaN();
-    }
-    out.push_back(ps);
-  }
-  return out;
 }
 
 Status CheckPlateDistance(const CalibrationResult& result,

@@ -7,14 +7,7 @@
 //
 //   residual of point j in view i:  r_ij = (project(intrinsics, pose_i, P_j) - q_ij) / sigma_px
 //
-// Initialisation (closed form, no OpenCV calibrateCamera): Zhang's homography method with the
-// principal point held at the image centre (or the given one) and zero skew. Each view's
-// homography H (plate mm -> pixel relative to the principal point, normalised DLT) gives two linear
-// constraints on B = K^-T K^-1 = diag(1/fx^2, 1/fy^2, 1):
-//   h1^T B h2 = 0,   h1^T B h1 - h2^T B h2 = 0
-// solved for (b11, b22, b33) by SVD; then the poses follow from K^-1 H = lambda [r1 r2 t].
-// Distortion starts at 0. If the views do not determine the focal lengths (e.g. all
-// fronto-parallel: the b33 column vanishes) the initialisation fails with a clear error.
+// Initialisation: closed form, Zhang's homography method (calib/zhang_init.h).
 //
 // Constraints (the thesis's OpenCV flags): fixed parameters, a fixed aspect ratio fy = r fx, zero
 // tangential distortion, a fixed principal point and fixed k3 are the engine's free mask and tie
@@ -24,11 +17,7 @@
 // Covariance: Cov(theta) = sigma^2 (J^T J)^-1 with J the unwhitened Jacobian at the solution and
 // sigma the pixel noise (given, or estimated as sqrt(SSR / (2N - n_free))). The intrinsics block
 // is marginal over the plate poses (the engine's Schur complement eliminates them).
-// Projection uncertainty at a pixel and a distance follows mrcal's definition: the point
-// p_cam = d * unproject(q) is fixed in the frame averaged over the plate poses,
-//   q(theta) = project(intrinsics, mean_i T_i(theta) T_i0^-1 p_cam),
-// and Cov(q) = G H^-1 G^T with G = dq/dtheta over the engine's free state, by the same Schur
-// covariance (SchurCovariance::Solve).
+// Projection uncertainty at a pixel and a distance: mrcal's definition, calib/projection_uncertainty.h.
 #pragma once
 
 #include <Eigen/Core>
@@ -170,14 +159,6 @@ struct CalibrationResult {
 StatusOr<CalibrationResult> Calibrate(const ObservationSet& observations,
                                       const CalibrationOptions& options);
 
-// Projection uncertainty (mrcal definition, see above) of pixel `uv_px` at `distance_mm` for a
-// solved problem. Exposed for tests.
-StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& observations,
-                                                const CalibrationResult& result,
-                                                double u_px,
-                                                double v_px,
-                                                double distance_mm);
-
 // The solved plate's distance from the source, the median of the views' distance_mm, checked
 // against plausible::kPlateDistanceMm. The solve is consistent at any scale: only the grid pitch
 // fixes the distance, so a distance outside says the pitch is wrong (--spacing-mm 2 for 20 mm put
@@ -188,13 +169,5 @@ StatusOr<ProjectionSigma> ProjectionUncertainty(const ObservationSet& observatio
 Status CheckPlateDistance(const CalibrationResult& result,
                           double spacing_mm,
                           const std::string& pitch_source);
-
-// The same for many pixels at once (the normal blocks built once); a pixel that cannot be
-// unprojected gets NaN sigmas.
-StatusOr<std::vector<ProjectionSigma>> ProjectionUncertainties(
-    const ObservationSet& observations,
-    const CalibrationResult& result,
-    const std::vector<Eigen::Vector2d>& pixels,
-    double distance_mm);
 
 }  // namespace carmba

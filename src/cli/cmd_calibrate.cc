@@ -68,204 +68,170 @@ Status LoadConfig(const std::string& path,
   return c.Finish();
 }
 
-int RunCalibrate() {
-  const char* kCmd = "calibrate";
+// What `carmba calibrate` reads: the flags, completed by a --problem file.
+struct CalibrateInputs {
   std::string images = FLAGS_images, observations = FLAGS_observations, config = FLAGS_config;
   std::string truth = FLAGS_truth, pattern = FLAGS_pattern;
   int rows = FLAGS_rows, cols = FLAGS_cols;
   double spacing = FLAGS_spacing_mm;
-  {
-    std::string err;
-    if (!cli::CheckGridFlags(&err)) return cli::FailUsage(kCmd, err);
-  }
-  if (!FLAGS_problem.empty()) {
-    YamlMap p = YamlMap::Load(FLAGS_problem);
-    if (!p.status().ok()) return cli::Fail(kCmd, p.status());
-    const std::string dir = DirName(FLAGS_problem);
-    std::string name, description, p_images, p_obs, p_config, p_truth;
-    p.Get("name", &name);
-    p.Get("description", &description);
-    p.Get("images", &p_images);
-    p.Get("observations", &p_obs);
-    p.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &pattern);
-    p.GetInRange("rows", &rows, plausible::kGridRowsCols);
-    p.GetInRange("cols", &cols, plausible::kGridRowsCols);
-    double p_spacing = 0;
-    p.GetInRange("spacing_mm", &p_spacing, plausible::kGridSpacingMm);
-    p.Get("config", &p_config);
-    p.Get("truth", &p_truth);
-    Status s = p.Finish();
-    if (!s.ok()) return cli::Fail(kCmd, s);
-    if (images.empty() && !p_images.empty()) images = JoinPath(dir, p_images);
-    if (observations.empty() && !p_obs.empty()) observations = JoinPath(dir, p_obs);
-    if (config.empty() && !p_config.empty()) config = JoinPath(dir, p_config);
-    if (truth.empty() && !p_truth.empty()) truth = JoinPath(dir, p_truth);
-    if (spacing == 0) spacing = p_spacing;
-    const std::string key = "--problem key ";
-    const Status in = cli::CheckOutIsNoInput({{key + "'images'", images},
-                                              {key + "'observations'", observations},
-                                              {key + "'config'", config},
-                                              {key + "'truth'", truth}});
-    if (!in.ok()) return cli::FailUsage(kCmd, in);
-  }
-  // --out is required (checked before this runs: cli/command.h).
-  if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail(kCmd, s);
-  if (images.empty() == observations.empty()) {
-    return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
-  }
-  CalibrationOptions options;
-  DetectionOptions detect;
-  CrossCheckConfig cross;
-  if (!config.empty()) {
-    Status s = LoadConfig(config, &options, &detect, &cross);
-    if (!s.ok()) return cli::Fail(kCmd, s);
-  }
-  if (!FLAGS_mrcal) cross.mrcal = false;
-  if (!FLAGS_opencv) cross.opencv = false;
-  // The plot and mrcal interpreters start now: their imports overlap the detection and the
-  // solve; the plots are then drawn while the cross-checks run.
-  PlotOptions plot_options;
-  plot_options.enabled = FLAGS_plots;
-  PlotProcess plots(plot_options);
-  std::unique_ptr<PythonWorker> mrcal_python;
-  if (cross.mrcal) mrcal_python = StartMrcalPython(cross.python);
+};
 
-  CalibrationRun run;
-  run.options = options;
-  auto pat = ParseGridPattern(pattern);
-  if (!pat.ok()) return cli::FailUsage(kCmd, pat.status().WithContext("--pattern"));
-  if (!observations.empty()) {
-    auto obs = ReadObservationsCsv(observations);
-    if (!obs.ok()) return cli::Fail(kCmd, obs.status());
-    run.observations = *obs;
-    if (spacing > 0) run.observations.grid.spacing_mm = spacing;
-  } else {
-    GridSpec grid;
-    grid.pattern = *pat;
-    grid.rows = rows;
-    grid.cols = cols;
-    grid.spacing_mm = spacing > 0 ? spacing : 20.0;
-    std::string err;
-    if (!grid.Check(&err)) return cli::Fail(kCmd, err);
-    auto files = ListImageFiles(images);
-    if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
-    cli::Step(kCmd, "detecting the grid in " + std::to_string(files->size()) + " images");
-    double per_image = 0;
-    StatusOr<ObservationSet> obs = Status::Error("not detected");
-    {
-      auto progress =
-          cli::MakeProgress("calibrate: detecting", static_cast<int>(files->size()), "images");
-      obs = DetectGridInFiles(*files, grid, detect, &run.skipped, &per_image, &run.detections,
-                              progress->Callback());
-    }
-    if (!obs.ok()) return cli::Fail(kCmd, obs.status());
-    run.observations = *obs;
-    for (const auto& s : run.skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";
-    if (static_cast<int>(run.observations.views.size()) < options.min_views) {
-      return cli::Fail(kCmd, "the grid (" + pattern + " " + std::to_string(rows) + " x " +
-                                 std::to_string(cols) + ") was found in " +
-                                 std::to_string(run.observations.views.size()) + " of " +
-                                 std::to_string(run.observations.views.size() +
-                                                run.skipped.size()) +
-                                 " images, min_views is " +
-                                 std::to_string(options.min_views) +
-                                 (run.skipped.empty() ? "" : "; first skipped: " + run.skipped[0]));
-    }
-  }
-  cli::Step(kCmd, "bundle adjustment over " + std::to_string(run.observations.views.size()) +
-                     " views");
-  auto result = Calibrate(run.observations, options);
-  if (!result.ok()) return cli::Fail(kCmd, result.status());
-  run.result = *result;
-  {
-    // Where the pitch came from, for the error on an implausible plate distance.
-    const std::string pitch_source = FLAGS_spacing_mm > 0 ? "--spacing-mm"
-                                     : spacing > 0        ? "--problem key 'spacing_mm'"
-                                     : !observations.empty() ? observations + " spacing_mm"
-                                                             : "--spacing-mm (default)";
-    const Status s = CheckPlateDistance(run.result, run.observations.grid.spacing_mm, pitch_source);
-    if (!s.ok()) return cli::Fail(kCmd, s);
-  }
-  plots.Draw(CalibrationPlotData(run));
+// A calibration problem file (problems/calib_*.yaml): its keys fill what the flags left empty,
+// paths relative to the file.
+Status ReadCalibrationProblemFile(const std::string& path, CalibrateInputs* in) {
+  YamlMap p = YamlMap::Load(path);
+  CARMBA_RETURN_IF_ERROR(p.status());
+  const std::string dir = DirName(path);
+  std::string name, description, p_images, p_obs, p_config, p_truth;
+  p.Get("name", &name);
+  p.Get("description", &description);
+  p.Get("images", &p_images);
+  p.Get("observations", &p_obs);
+  p.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &in->pattern);
+  p.GetInRange("rows", &in->rows, plausible::kGridRowsCols);
+  p.GetInRange("cols", &in->cols, plausible::kGridRowsCols);
+  double p_spacing = 0;
+  p.GetInRange("spacing_mm", &p_spacing, plausible::kGridSpacingMm);
+  p.Get("config", &p_config);
+  p.Get("truth", &p_truth);
+  CARMBA_RETURN_IF_ERROR(p.Finish());
+  if (in->images.empty() && !p_images.empty()) in->images = JoinPath(dir, p_images);
+  if (in->observations.empty() && !p_obs.empty()) in->observations = JoinPath(dir, p_obs);
+  if (in->config.empty() && !p_config.empty()) in->config = JoinPath(dir, p_config);
+  if (in->truth.empty() && !p_truth.empty()) in->truth = JoinPath(dir, p_truth);
+  if (in->spacing == 0) in->spacing = p_spacing;
+  return Status::Ok();
+}
 
-  std::map<std::string, std::array<double, kNumIntrinsics>> others;
-  if (!truth.empty()) {
-    auto text = ReadFile(truth);
-    if (!text.ok()) return cli::Fail(kCmd, text.status().WithContext("--truth"));
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(*text);
-    } catch (const std::exception& e) {
-      return cli::Fail(kCmd, truth + ": invalid JSON: " + e.what());
-    }
-    auto cam = CameraFromJson(j.contains("camera") ? j["camera"] : j, truth);
-    if (!cam.ok()) return cli::Fail(kCmd, cam.status());
-    run.truth = *cam;
-    others["truth"] = cam->params;
+// The grid's observations: read from the CSV, or detected in the images (skipped images and
+// detections into run). Errors when fewer than min_views images show the grid.
+Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
+                               const DetectionOptions& detect, const CalibrationOptions& options,
+                               CalibrationRun* run) {
+  if (!in.observations.empty()) {
+    auto obs = ReadObservationsCsv(in.observations);
+    if (!obs.ok()) return obs.status();
+    run->observations = *obs;
+    if (in.spacing > 0) run->observations.grid.spacing_mm = in.spacing;
+    return Status::Ok();
   }
-  if (cross.opencv) {
-    if (static_cast<int>(run.observations.views.size()) > cross.opencv_max_views) {
-      run.opencv_error = std::to_string(run.observations.views.size()) +
-                         " views > crosscheck.opencv_max_views (" +
-                         std::to_string(cross.opencv_max_views) + "): calibrateCamera too slow";
-    } else {
-      cli::Step(kCmd, "OpenCV cross-check (cv::calibrateCamera)");
-      auto ref = RunOpenCvCalibration(run.observations, options, run.result);
-      if (ref.ok()) {
-        run.opencv = *ref;
-        others["opencv"] = ref->intrinsics;
-      } else {
-        run.opencv_error = ref.status().message();
-      }
-    }
+  GridSpec grid;
+  grid.pattern = pattern;
+  grid.rows = in.rows;
+  grid.cols = in.cols;
+  grid.spacing_mm = in.spacing > 0 ? in.spacing : 20.0;
+  std::string err;
+  if (!grid.Check(&err)) return Status::Error(err);
+  auto files = ListImageFiles(in.images);
+  if (!files.ok()) return files.status().WithContext("--images");
+  cli::Step("calibrate", "detecting the grid in " + std::to_string(files->size()) + " images");
+  double per_image = 0;
+  StatusOr<ObservationSet> obs = Status::Error("not detected");
+  {
+    auto progress = cli::MakeProgress("calibrate: detecting", static_cast<int>(files->size()), "images");
+    obs = DetectGridInFiles(*files, grid, detect, &run->skipped, &per_image, &run->detections,
+                            progress->Callback());
+  }
+  if (!obs.ok()) return obs.status();
+  run->observations = *obs;
+  for (const auto& s : run->skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";
+  const size_t found = run->observations.views.size();
+  if (static_cast<int>(found) < options.min_views) {
+    return Status::Error("the grid (" + in.pattern + " " + std::to_string(in.rows) + " x " +
+                         std::to_string(in.cols) + ") was found in " + std::to_string(found) +
+                         " of " + std::to_string(found + run->skipped.size()) +
+                         " images, min_views is " + std::to_string(options.min_views) +
+                         (run->skipped.empty() ? "" : "; first skipped: " + run->skipped[0]));
+  }
+  return Status::Ok();
+}
+
+// --truth: the true camera (truth.json's "camera", or a camera.json), into run and `others`.
+Status ReadCalibrationTruth(const std::string& truth, CalibrationRun* run,
+                            std::map<std::string, std::array<double, kNumIntrinsics>>* others) {
+  auto text = ReadFile(truth);
+  if (!text.ok()) return text.status().WithContext("--truth");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(*text);
+  } catch (const std::exception& e) {
+    return Status::Error(truth + ": invalid JSON: " + e.what());
+  }
+  auto cam = CameraFromJson(j.contains("camera") ? j["camera"] : j, truth);
+  if (!cam.ok()) return cam.status();
+  run->truth = *cam;
+  (*others)["truth"] = cam->params;
+  return Status::Ok();
+}
+
+// The OpenCV cross-check (when enabled and the views are few enough for it), into run.
+void OpenCvCrossCheck(const CrossCheckConfig& cross, const CalibrationOptions& options, CalibrationRun* run,
+                      std::map<std::string, std::array<double, kNumIntrinsics>>* others) {
+  if (!cross.opencv) {
+    run->opencv_error = "disabled";
+    return;
+  }
+  if (static_cast<int>(run->observations.views.size()) > cross.opencv_max_views) {
+    run->opencv_error = std::to_string(run->observations.views.size()) +
+                        " views > crosscheck.opencv_max_views (" +
+                        std::to_string(cross.opencv_max_views) + "): calibrateCamera too slow";
+    return;
+  }
+  cli::Step("calibrate", "OpenCV cross-check (cv::calibrateCamera)");
+  auto ref = RunOpenCvCalibration(run->observations, options, run->result);
+  if (ref.ok()) {
+    run->opencv = *ref;
+    (*others)["opencv"] = ref->intrinsics;
   } else {
-    run.opencv_error = "disabled";
+    run->opencv_error = ref.status().message();
   }
-  const ScopedTempPath work_dir(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
-  const std::string& work = work_dir.path();
-  if (cross.mrcal) {
-    cli::Step(kCmd, "mrcal cross-check (" + cross.python + ")");
-    MrcalCrossCheckOptions mo;
-    mo.python = cross.python;
-    mo.work_dir = work;
-    mo.warm = mrcal_python.get();
-    auto m = RunMrcalCrossCheck(run.observations, run.result, others, mo);
-    if (m.ok()) {
-      run.mrcal = *m;
-    } else {
-      run.mrcal_error = m.status().message();
-      std::cerr << "carmba calibrate: warning: " << run.mrcal_error << "\n";
-    }
+}
+
+// The mrcal cross-check in `work` (when enabled), into run.
+void MrcalCrossCheck(const CrossCheckConfig& cross, PythonWorker* warm, const std::string& work,
+                     const std::map<std::string, std::array<double, kNumIntrinsics>>& others,
+                     CalibrationRun* run) {
+  if (!cross.mrcal) {
+    run->mrcal_error = "disabled";
+    return;
+  }
+  cli::Step("calibrate", "mrcal cross-check (" + cross.python + ")");
+  MrcalCrossCheckOptions mo;
+  mo.python = cross.python;
+  mo.work_dir = work;
+  mo.warm = warm;
+  auto m = RunMrcalCrossCheck(run->observations, run->result, others, mo);
+  if (m.ok()) {
+    run->mrcal = *m;
   } else {
-    run.mrcal_error = "disabled";
+    run->mrcal_error = m.status().message();
+    std::cerr << "carmba calibrate: warning: " << run->mrcal_error << "\n";
   }
-  // The effective inputs (after the problem file), so that the line reproduces this run.
+}
+
+// The effective inputs (after the problem file) as a command line that reproduces this run.
+std::string CalibrateCommandLine(const CalibrateInputs& in, const CalibrationRun& run,
+                                 const CrossCheckConfig& cross) {
   auto quoted = [](const std::string& v) { return "'" + v + "'"; };
   std::ostringstream cmd;
   cmd << "carmba calibrate";
-  if (!images.empty()) {
-    cmd << " --images " << quoted(images) << " --pattern " << pattern << " --rows " << rows
-        << " --cols " << cols;
+  if (!in.images.empty()) {
+    cmd << " --images " << quoted(in.images) << " --pattern " << in.pattern << " --rows " << in.rows
+        << " --cols " << in.cols;
   } else {
-    cmd << " --observations " << quoted(observations);
+    cmd << " --observations " << quoted(in.observations);
   }
   cmd << " --spacing-mm " << run.observations.grid.spacing_mm;
-  if (!config.empty()) cmd << " --config " << quoted(config);
-  if (!truth.empty()) cmd << " --truth " << quoted(truth);
+  if (!in.config.empty()) cmd << " --config " << quoted(in.config);
+  if (!in.truth.empty()) cmd << " --truth " << quoted(in.truth);
   if (!cross.mrcal) cmd << " --no-mrcal";
   if (!cross.opencv) cmd << " --no-opencv";
   cmd << " --out " << quoted(FLAGS_out);
-  run.command_line = cmd.str();
-  std::string report_warning;
-  cli::Step(kCmd, "waiting for the plots");
-  const PlotSet plot_set = plots.Result();
-  cli::Step(kCmd, "writing the outputs");
-  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning,
-                                     &plot_set);
-  if (!s.ok()) return cli::Fail(kCmd, s);
-  if (!report_warning.empty()) {
-    std::cerr << "carmba " << kCmd << ": warning: " << report_warning << std::endl;
-  }
+  return cmd.str();
+}
+
+// The conditioning warnings on stderr, the one-line summary on stdout.
+void PrintCalibrationSummary(const CalibrationRun& run) {
   const auto& r = run.result;
   for (const auto& w :
        AssessConditioning(r, run.observations.width, run.observations.height).warnings) {
@@ -281,6 +247,83 @@ int RunCalibrate() {
   if (run.mrcal) std::cout << "; mrcal RMS " << (*run.mrcal)["rms_px"].get<double>();
   std::cout << "; wrote " << FLAGS_out << "/{camera.json, camera.cameramodel, camera_opencv.yml, "
             << "observations.csv, corners.vnl, report.md, report.html}" << std::endl;
+}
+
+int RunCalibrate() {
+  const char* kCmd = "calibrate";
+  CalibrateInputs in;
+  {
+    std::string err;
+    if (!cli::CheckGridFlags(&err)) return cli::FailUsage(kCmd, err);
+  }
+  if (!FLAGS_problem.empty()) {
+    if (const Status s = ReadCalibrationProblemFile(FLAGS_problem, &in); !s.ok()) return cli::Fail(kCmd, s);
+    const std::string key = "--problem key ";
+    const Status s = cli::CheckOutIsNoInput({{key + "'images'", in.images},
+                                             {key + "'observations'", in.observations},
+                                             {key + "'config'", in.config},
+                                             {key + "'truth'", in.truth}});
+    if (!s.ok()) return cli::FailUsage(kCmd, s);
+  }
+  // --out is required (checked before this runs: cli/command.h).
+  if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail(kCmd, s);
+  if (in.images.empty() == in.observations.empty()) {
+    return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
+  }
+  CalibrationOptions options;
+  DetectionOptions detect;
+  CrossCheckConfig cross;
+  if (!in.config.empty()) {
+    if (const Status s = LoadConfig(in.config, &options, &detect, &cross); !s.ok()) return cli::Fail(kCmd, s);
+  }
+  if (!FLAGS_mrcal) cross.mrcal = false;
+  if (!FLAGS_opencv) cross.opencv = false;
+  // The plot and mrcal interpreters start now: their imports overlap the detection and the
+  // solve; the plots are then drawn while the cross-checks run.
+  PlotOptions plot_options;
+  plot_options.enabled = FLAGS_plots;
+  PlotProcess plots(plot_options);
+  std::unique_ptr<PythonWorker> mrcal_python;
+  if (cross.mrcal) mrcal_python = StartMrcalPython(cross.python);
+
+  CalibrationRun run;
+  run.options = options;
+  auto pat = ParseGridPattern(in.pattern);
+  if (!pat.ok()) return cli::FailUsage(kCmd, pat.status().WithContext("--pattern"));
+  if (const Status s = CalibrationObservations(in, *pat, detect, options, &run); !s.ok()) return cli::Fail(kCmd, s);
+  cli::Step(kCmd, "bundle adjustment over " + std::to_string(run.observations.views.size()) + " views");
+  auto result = Calibrate(run.observations, options);
+  if (!result.ok()) return cli::Fail(kCmd, result.status());
+  run.result = *result;
+  // Where the pitch came from, for the error on an implausible plate distance.
+  const std::string pitch_source = FLAGS_spacing_mm > 0      ? "--spacing-mm"
+                                   : in.spacing > 0           ? "--problem key 'spacing_mm'"
+                                   : !in.observations.empty() ? in.observations + " spacing_mm"
+                                                              : "--spacing-mm (default)";
+  if (const Status s = CheckPlateDistance(run.result, run.observations.grid.spacing_mm, pitch_source); !s.ok()) {
+    return cli::Fail(kCmd, s);
+  }
+  plots.Draw(CalibrationPlotData(run));
+
+  std::map<std::string, std::array<double, kNumIntrinsics>> others;
+  if (!in.truth.empty()) {
+    if (const Status s = ReadCalibrationTruth(in.truth, &run, &others); !s.ok()) return cli::Fail(kCmd, s);
+  }
+  OpenCvCrossCheck(cross, options, &run, &others);
+  const ScopedTempPath work_dir(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
+  const std::string& work = work_dir.path();
+  MrcalCrossCheck(cross, mrcal_python.get(), work, others, &run);
+  run.command_line = CalibrateCommandLine(in, run, cross);
+  std::string report_warning;
+  cli::Step(kCmd, "waiting for the plots");
+  const PlotSet plot_set = plots.Result();
+  cli::Step(kCmd, "writing the outputs");
+  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning, &plot_set);
+  if (!s.ok()) return cli::Fail(kCmd, s);
+  if (!report_warning.empty()) {
+    std::cerr << "carmba " << kCmd << ": warning: " << report_warning << std::endl;
+  }
+  PrintCalibrationSummary(run);
   return 0;
 }
 

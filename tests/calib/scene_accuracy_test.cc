@@ -19,6 +19,7 @@
 #include <iostream>
 
 #include "calib/calibrate.h"
+#include "calib/projection_uncertainty.h"
 #include "calib/synthetic_views.h"
 #include "camera/camera_model.h"
 #include "detect/grid_detector.h"

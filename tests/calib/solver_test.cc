@@ -14,6 +14,7 @@
 #include <cmath>
 
 #include "calib/calibrate.h"
+#include "calib/projection_uncertainty.h"
 #include "calib/synthetic_views.h"
 
 namespace carmba {
