@@ -295,6 +295,156 @@ Status DetectObjectViews(const ObjectImages& in, const std::string& base, const 
   return Status::Ok();
 }
 
+namespace {
+
+// The `fiducials` key: a CSV path, or {file, id_column, columns, sigma_mm}.
+struct FiducialsKey {
+  std::string file, id_column = "id", sigma_key;
+  std::vector<std::string> columns = {"x_mm", "y_mm", "z_mm"};
+  double sigma_mm = -1;
+};
+
+void ReadFiducialsKey(YamlMap& root, bool has_object, FiducialsKey* f) {
+  f->sigma_key = root.KeyPath("fiducials") + ".sigma_mm";
+  if (!has_object) {
+    if (root.Has("fiducials")) root.Raw("fiducials");
+    return;
+  }
+  if (!root.Has("fiducials")) {
+    root.Fail("fiducials", "object views need the fiducials (CSV from `carmba ct-fiducials`)");
+  } else if (root.Raw("fiducials").IsScalar()) {
+    f->file = root.Raw("fiducials").Scalar();
+  } else {
+    YamlMap& m = root.Map("fiducials");
+    m.Get("file", &f->file, true);
+    m.Get("id_column", &f->id_column);
+    m.Get("columns", &f->columns);
+    m.GetInRange("sigma_mm", &f->sigma_mm, plausible::kCtSigmaMm);
+    if (f->columns.size() != 3) m.Fail("columns", "expected three column names (x, y, z)");
+  }
+}
+
+// The fiducials, and every object view's markers among them (at least 4 per view).
+Status ReadFiducials(const FiducialsKey& key, const std::string& base, const std::string& observations_key,
+                     const std::string& yaml_path, JointProblem* p) {
+  auto markers = ReadMarkersCsv(JoinPath(base, key.file), key.id_column, key.columns, key.sigma_mm, key.sigma_key);
+  if (!markers.ok()) return markers.status();
+  p->fiducials = *markers;
+  std::set<int> ids;
+  for (const auto& m : p->fiducials) ids.insert(m.id);
+  for (const auto& v : p->object_views) {
+    for (int id : v.marker_ids) {
+      if (!ids.count(id)) {
+        return Status::Error(JoinPath(base, observations_key) + ": view '" + v.id +
+                             "' observes marker " + std::to_string(id) +
+                             ", which is not in the fiducials " + JoinPath(base, key.file));
+      }
+    }
+    if (v.marker_ids.size() < 4) {
+      return Status::Error(yaml_path + ": object view '" + v.id + "' has " +
+                           std::to_string(v.marker_ids.size()) + " markers; a pose needs at least 4");
+    }
+  }
+  return Status::Ok();
+}
+
+// Every view an angle source names is a view of the problem; a plate view may be named by its
+// number in views.csv.
+Status ResolveAngleViews(JointProblem* p) {
+  std::set<std::string> known(p->plate_view_ids.begin(), p->plate_view_ids.end());
+  for (size_t v = 0; v < p->plate_view_ids.size(); ++v) known.insert(std::to_string(v));
+  for (const auto& v : p->object_views) known.insert(v.id);
+  for (const auto& [id, from] : p->angles_from) {
+    if (!known.count(id)) return Status::Error(from + ": view '" + id + "' is not a view of the problem");
+  }
+  for (size_t v = 0; v < p->plate_view_ids.size(); ++v) {
+    auto it = p->angles.find(std::to_string(v));
+    if (!p->angles.count(p->plate_view_ids[v]) && it != p->angles.end()) {
+      p->angles[p->plate_view_ids[v]] = it->second;
+      p->angles_from[p->plate_view_ids[v]] = p->angles_from[it->first];
+    }
+  }
+  return Status::Ok();
+}
+
+// The first view without C-arm angles ("plate view 'x'"), or "" when every view has them.
+std::string FirstViewWithoutAngles(const JointProblem& p) {
+  for (const auto& id : p.plate_view_ids) {
+    if (!p.angles.count(id)) return "plate view '" + id + "'";
+  }
+  for (const auto& v : p.object_views) {
+    if (!p.angles.count(v.id)) return "object view '" + v.id + "'";
+  }
+  return "";
+}
+
+// model: per_group without a groups file: one group per plate orientation; an object view joins
+// the nearest.
+void GroupsByOrientation(JointProblem* p) {
+  std::vector<std::pair<double, double>> orientations;
+  for (const auto& id : p->plate_view_ids) {
+    const auto a = p->angles.at(id);
+    if (std::find(orientations.begin(), orientations.end(), a) == orientations.end()) orientations.push_back(a);
+  }
+  auto nearest = [&](const std::pair<double, double>& a) {
+    size_t best = 0;
+    for (size_t k = 1; k < orientations.size(); ++k) {
+      if (std::hypot(orientations[k].first - a.first, orientations[k].second - a.second) <
+          std::hypot(orientations[best].first - a.first, orientations[best].second - a.second)) {
+        best = k;
+      }
+    }
+    return ba::OrientationName(orientations[best].first, orientations[best].second);
+  };
+  for (const auto& id : p->plate_view_ids) p->group_of_view[id] = nearest(p->angles.at(id));
+  for (const auto& v : p->object_views) p->group_of_view[v.id] = nearest(p->angles.at(v.id));
+}
+
+// model: per_group with a groups file: every view has a group (a plate view by id or number).
+Status GroupsFromFile(const std::string& path, JointProblem* p) {
+  CARMBA_RETURN_IF_ERROR(ReadGroups(path, p));
+  auto check = [&](const std::string& id, const std::string& number) -> Status {
+    if (p->group_of_view.count(id) || (!number.empty() && p->group_of_view.count(number))) {
+      return Status::Ok();
+    }
+    return Status::Error(path + ": view '" + id + "' has no group");
+  };
+  for (size_t v = 0; v < p->plate_view_ids.size(); ++v) {
+    CARMBA_RETURN_IF_ERROR(check(p->plate_view_ids[v], std::to_string(v)));
+  }
+  for (const auto& v : p->object_views) CARMBA_RETURN_IF_ERROR(check(v.id, ""));
+  return Status::Ok();
+}
+
+// The intrinsics model with its angle requirements, the model selection's default, the groups.
+Status ApplyIntrinsicsModelKeys(const std::string& yaml_path, const std::string& base, const std::string& model,
+                                const std::string& groups_file, bool has_select, JointProblem* p) {
+  const std::string first_without = FirstViewWithoutAngles(*p);
+  const bool all_angles = first_without.empty();
+  p->smooth = model == "smooth";
+  if ((p->smooth || (model == "per_group" && groups_file.empty())) && !all_angles) {
+    return Status::Error(yaml_path + ": " + first_without + " has no C-arm angles; intrinsics model " +
+                         model + (p->smooth ? "" : " without groups") +
+                         " needs them (DICOM positioner angles, or angles: views.csv)");
+  }
+  if (has_select && p->select_model && !all_angles) {
+    return Status::Error(yaml_path + ": intrinsics.select: " + first_without +
+                         " has no C-arm angles; the model selection needs them for every view");
+  }
+  if (!has_select) p->select_model = all_angles;
+  p->per_group = model == "per_group";
+  if (p->per_group && groups_file.empty()) {
+    GroupsByOrientation(p);
+  } else if (p->per_group) {
+    CARMBA_RETURN_IF_ERROR(GroupsFromFile(JoinPath(base, groups_file), p));
+  } else if (!groups_file.empty()) {
+    return Status::Error(yaml_path + ": intrinsics.groups is only for model: per_group");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
   YamlMap root = YamlMap::Load(yaml_path);
   if (!root.status().ok()) return root.status();
@@ -326,52 +476,14 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
   YamlMap& plate = root.Map("plate_views");
   YamlMap& object = root.Map("object_views");
   if (!has_plate && !has_object) root.Fail("plate_views", "give plate_views, object_views or both");
-  std::string fiducials_file, id_column = "id";
-  std::vector<std::string> columns = {"x_mm", "y_mm", "z_mm"};
-  double fid_sigma_mm = -1;
-  std::string sigma_key = root.KeyPath("fiducials") + ".sigma_mm";
-  if (has_object) {
-    if (!root.Has("fiducials")) {
-      root.Fail("fiducials", "object views need the fiducials (CSV from `carmba ct-fiducials`)");
-    } else if (root.Raw("fiducials").IsScalar()) {
-      fiducials_file = root.Raw("fiducials").Scalar();
-    } else {
-      YamlMap& f = root.Map("fiducials");
-      f.Get("file", &fiducials_file, true);
-      f.Get("id_column", &id_column);
-      f.Get("columns", &columns);
-      f.GetInRange("sigma_mm", &fid_sigma_mm, plausible::kCtSigmaMm);
-      if (columns.size() != 3) f.Fail("columns", "expected three column names (x, y, z)");
-    }
-  } else if (root.Has("fiducials")) {
-    root.Raw("fiducials");
-  }
+  FiducialsKey fiducials;
+  ReadFiducialsKey(root, has_object, &fiducials);
   if (!root.status().ok()) return root.status();
   if (has_plate) CARMBA_RETURN_IF_ERROR(ReadPlateViews(plate, base, &p));
   ObjectImages object_images;
   if (has_object) {
     CARMBA_RETURN_IF_ERROR(ReadObjectViews(object, base, &p, &object_images));
-    auto markers = ReadMarkersCsv(JoinPath(base, fiducials_file), id_column, columns, fid_sigma_mm,
-                                  sigma_key);
-    if (!markers.ok()) return markers.status();
-    p.fiducials = *markers;
-    std::set<int> ids;
-    for (const auto& m : p.fiducials) ids.insert(m.id);
-    for (const auto& v : p.object_views) {
-      for (int id : v.marker_ids) {
-        if (!ids.count(id)) {
-          return Status::Error(JoinPath(base, object.KeyPath("observations")) + ": view '" + v.id +
-                               "' observes marker " + std::to_string(id) +
-                               ", which is not in the fiducials " +
-                               JoinPath(base, fiducials_file));
-        }
-      }
-      if (v.marker_ids.size() < 4) {
-        return Status::Error(yaml_path + ": object view '" + v.id + "' has " +
-                             std::to_string(v.marker_ids.size()) +
-                             " markers; a pose needs at least 4");
-      }
-    }
+    CARMBA_RETURN_IF_ERROR(ReadFiducials(fiducials, base, object.KeyPath("observations"), yaml_path, &p));
   }
   CARMBA_RETURN_IF_ERROR(root.Finish());
   if (!camera_file.empty()) {
@@ -396,78 +508,8 @@ StatusOr<JointProblem> LoadJointProblem(const std::string& yaml_path) {
   // C-arm angles: views.csv, then the DICOM plate images.
   if (!angles_file.empty()) CARMBA_RETURN_IF_ERROR(ReadAngles(JoinPath(base, angles_file), &p));
   CARMBA_RETURN_IF_ERROR(ReadDicomAngles(&p));
-  {
-    std::set<std::string> known(p.plate_view_ids.begin(), p.plate_view_ids.end());
-    for (size_t v = 0; v < p.plate_view_ids.size(); ++v) known.insert(std::to_string(v));
-    for (const auto& v : p.object_views) known.insert(v.id);
-    for (const auto& [id, from] : p.angles_from) {
-      if (!known.count(id)) return Status::Error(from + ": view '" + id + "' is not a view of the problem");
-    }
-    // A plate view may be named by its number in views.csv.
-    for (size_t v = 0; v < p.plate_view_ids.size(); ++v) {
-      auto it = p.angles.find(std::to_string(v));
-      if (!p.angles.count(p.plate_view_ids[v]) && it != p.angles.end()) {
-        p.angles[p.plate_view_ids[v]] = it->second;
-        p.angles_from[p.plate_view_ids[v]] = p.angles_from[it->first];
-      }
-    }
-  }
-  auto angles_of = [&](const std::string& id) { return p.angles.count(id) > 0; };
-  bool all_angles = !p.plate_view_ids.empty() || !p.object_views.empty();
-  std::string first_without;
-  for (const auto& id : p.plate_view_ids) {
-    if (!angles_of(id) && first_without.empty()) first_without = "plate view '" + id + "'";
-  }
-  for (const auto& v : p.object_views) {
-    if (!angles_of(v.id) && first_without.empty()) first_without = "object view '" + v.id + "'";
-  }
-  all_angles = first_without.empty();
-  p.smooth = model == "smooth";
-  if ((p.smooth || (model == "per_group" && groups_file.empty())) && !all_angles) {
-    return Status::Error(yaml_path + ": " + first_without + " has no C-arm angles; intrinsics model " +
-                         model + (p.smooth ? "" : " without groups") +
-                         " needs them (DICOM positioner angles, or angles: views.csv)");
-  }
-  if (has_select && p.select_model && !all_angles) {
-    return Status::Error(yaml_path + ": intrinsics.select: " + first_without +
-                         " has no C-arm angles; the model selection needs them for every view");
-  }
-  if (!has_select) p.select_model = all_angles;
-  p.per_group = model == "per_group";
-  if (p.per_group && groups_file.empty()) {
-    // One group per plate orientation; an object view joins the nearest.
-    std::vector<std::pair<double, double>> orientations;
-    for (const auto& id : p.plate_view_ids) {
-      const auto a = p.angles.at(id);
-      if (std::find(orientations.begin(), orientations.end(), a) == orientations.end()) orientations.push_back(a);
-    }
-    auto nearest = [&](const std::pair<double, double>& a) {
-      size_t best = 0;
-      for (size_t k = 1; k < orientations.size(); ++k) {
-        if (std::hypot(orientations[k].first - a.first, orientations[k].second - a.second) <
-            std::hypot(orientations[best].first - a.first, orientations[best].second - a.second)) {
-          best = k;
-        }
-      }
-      return ba::OrientationName(orientations[best].first, orientations[best].second);
-    };
-    for (const auto& id : p.plate_view_ids) p.group_of_view[id] = nearest(p.angles.at(id));
-    for (const auto& v : p.object_views) p.group_of_view[v.id] = nearest(p.angles.at(v.id));
-  } else if (p.per_group) {
-    CARMBA_RETURN_IF_ERROR(ReadGroups(JoinPath(base, groups_file), &p));
-    auto check = [&](const std::string& id, const std::string& number) -> Status {
-      if (p.group_of_view.count(id) || (!number.empty() && p.group_of_view.count(number))) {
-        return Status::Ok();
-      }
-      return Status::Error(JoinPath(base, groups_file) + ": view '" + id + "' has no group");
-    };
-    for (size_t v = 0; v < p.plate_view_ids.size(); ++v) {
-      CARMBA_RETURN_IF_ERROR(check(p.plate_view_ids[v], std::to_string(v)));
-    }
-    for (const auto& v : p.object_views) CARMBA_RETURN_IF_ERROR(check(v.id, ""));
-  } else if (!groups_file.empty()) {
-    return Status::Error(yaml_path + ": intrinsics.groups is only for model: per_group");
-  }
+  CARMBA_RETURN_IF_ERROR(ResolveAngleViews(&p));
+  CARMBA_RETURN_IF_ERROR(ApplyIntrinsicsModelKeys(yaml_path, base, model, groups_file, has_select, &p));
   std::set<std::string> object_ids;
   for (const auto& v : p.object_views) object_ids.insert(v.id);
   for (const auto& vp : p.validation) {

@@ -75,29 +75,12 @@ GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSoluti
   return g;
 }
 
-nlohmann::json JointSolutionToJson(const JointProblem& problem,
-                                   const SolverConfig& config,
-                                   const JointSolution& s) {
+namespace {
+
+// Every view: its pose, RMS and, for object views, the covariance, sigmas and the truth.
+nlohmann::json ViewsJson(const JointProblem& problem, const JointSolution& s) {
   const ba::StateLayout& L = *s.result.layout;
   const ba::BaResult& r = s.result;
-  nlohmann::json j;
-  j["problem"] = {{"name", problem.name},
-                  {"file", problem.path},
-                  {"kind", "joint"},
-                  {"plate_views", problem.plate.views.size()},
-                  {"object_views", problem.object_views.size()},
-                  {"plate_sigma_px", problem.plate_sigma_px},
-                  {"object_sigma_px", problem.object_sigma_px},
-                  {"intrinsics_model", IntrinsicsModelName(problem)},
-                  {"initial_intrinsics_from", s.initial_intrinsics_from}};
-  j["warnings"] = JointWarnings(s);
-  if (s.ba_problem.groups.size() == 1) {
-    j["intrinsics"] = GroupJson(s, 0);
-  } else {
-    nlohmann::json a = nlohmann::json::array();
-    for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) a.push_back(GroupJson(s, static_cast<int>(g)));
-    j["intrinsics"] = a;
-  }
   nlohmann::json views = nlohmann::json::array();
   for (size_t v = 0; v < s.ba_problem.views.size(); ++v) {
     const ba::BaView& bv = s.ba_problem.views[v];
@@ -134,8 +117,11 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     }
     views.push_back(vj);
   }
-  j["views"] = views;
-  AddFlexJson(problem, s, &j);
+  return views;
+}
+
+// The validation pairs' relative rotations and view-direction angles with their sigmas.
+nlohmann::json ValidationJson(const JointProblem& problem, const JointSolution& s) {
   nlohmann::json val = nlohmann::json::array();
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
@@ -156,9 +142,14 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     }
     val.push_back(pj);
   }
-  j["validation"] = val;
-  j["relative_poses"] = RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
-  if (s.tre) j["tre"] = TreJson(*s.tre);
+  return val;
+}
+
+// The markers as solved, the outliers and the rejected observations.
+void MarkersAndOutliersJson(const JointSolution& s, nlohmann::json* out) {
+  nlohmann::json& j = *out;
+  const ba::StateLayout& L = *s.result.layout;
+  const ba::BaResult& r = s.result;
   nlohmann::json markers = nlohmann::json::array();
   for (size_t m = 0; m < s.ba_problem.markers.size(); ++m) {
     const int b = L.marker_block(static_cast<int>(m));
@@ -182,11 +173,11 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                         {"residual_sigma", JsonNumber(o.residual_sigma)}});
   }
   j["rejected"] = rejected;
-  nlohmann::json layout = nlohmann::json::array();
-  for (int k = 0; k < L.num_free(); ++k) layout.push_back(L.FreeName(k));
-  j["state_layout"] = layout;
+}
+
+nlohmann::json ErrorBudgetJson(const std::vector<ba::BudgetRow>& rows) {
   nlohmann::json budget = nlohmann::json::array();
-  for (const auto& row : s.budget) {
+  for (const auto& row : rows) {
     nlohmann::json src = nlohmann::json::array();
     for (int k = 0; k < ba::kNumSources; ++k) {
       src.push_back({{"source", ba::SourceName(static_cast<ba::Source>(k))},
@@ -199,7 +190,10 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
                       {"sigma", JsonNumber(row.sigma)},
                       {"sources", src}});
   }
-  j["error_budget"] = budget;
+  return budget;
+}
+
+nlohmann::json TwoStepComparisonJson(const JointSolution& s) {
   nlohmann::json cmp = nlohmann::json::array();
   for (const auto& c : s.comparison) {
     nlohmann::json cj;
@@ -214,7 +208,45 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
     cj["relative_rotation_deg"] = c.relative_rotation_deg;
     cmp.push_back(cj);
   }
-  j["two_step_comparison"] = cmp;
+  return cmp;
+}
+
+}  // namespace
+
+nlohmann::json JointSolutionToJson(const JointProblem& problem,
+                                   const SolverConfig& config,
+                                   const JointSolution& s) {
+  const ba::StateLayout& L = *s.result.layout;
+  const ba::BaResult& r = s.result;
+  nlohmann::json j;
+  j["problem"] = {{"name", problem.name},
+                  {"file", problem.path},
+                  {"kind", "joint"},
+                  {"plate_views", problem.plate.views.size()},
+                  {"object_views", problem.object_views.size()},
+                  {"plate_sigma_px", problem.plate_sigma_px},
+                  {"object_sigma_px", problem.object_sigma_px},
+                  {"intrinsics_model", IntrinsicsModelName(problem)},
+                  {"initial_intrinsics_from", s.initial_intrinsics_from}};
+  j["warnings"] = JointWarnings(s);
+  if (s.ba_problem.groups.size() == 1) {
+    j["intrinsics"] = GroupJson(s, 0);
+  } else {
+    nlohmann::json a = nlohmann::json::array();
+    for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) a.push_back(GroupJson(s, static_cast<int>(g)));
+    j["intrinsics"] = a;
+  }
+  j["views"] = ViewsJson(problem, s);
+  AddFlexJson(problem, s, &j);
+  j["validation"] = ValidationJson(problem, s);
+  j["relative_poses"] = RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) j["tre"] = TreJson(*s.tre);
+  MarkersAndOutliersJson(s, &j);
+  nlohmann::json layout = nlohmann::json::array();
+  for (int k = 0; k < L.num_free(); ++k) layout.push_back(L.FreeName(k));
+  j["state_layout"] = layout;
+  j["error_budget"] = ErrorBudgetJson(s.budget);
+  j["two_step_comparison"] = TwoStepComparisonJson(s);
   if (!s.comparison_error.empty()) j["two_step_comparison_error"] = s.comparison_error;
   j["statistics"] = {{"rms_plate_px", JsonNumber(r.rms_plate_px)},
                      {"rms_object_px", JsonNumber(r.rms_object_px)},
@@ -277,11 +309,11 @@ std::vector<std::string> JointWarnings(const JointSolution& s) {
   return out;
 }
 
-ReportDoc JointReportDoc(const JointProblem& problem,
-                         const SolverConfig& config,
-                         const JointSolution& s) {
-  const ba::BaResult& r = s.result;
-  ReportDoc d;
+namespace {
+
+// The title and what was solved how.
+void JointIntroDoc(const JointProblem& problem, const SolverConfig& config, ReportDoc* doc) {
+  ReportDoc& d = *doc;
   d.Heading(1, "Joint bundle adjustment: " + problem.name);
   if (!problem.description.empty()) d.Paragraph(problem.description);
   d.Paragraph("Calibration and pose as one bundle adjustment (src/ba): " +
@@ -296,6 +328,12 @@ ReportDoc JointReportDoc(const JointProblem& problem,
                 std::to_string(problem.skipped_images.size()) + "):");
     d.List(problem.skipped_images);
   }
+}
+
+// The fit: RMS, chi-square, the solver; the variance components and the shadow correction.
+void JointStatisticsDoc(const JointSolution& s, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const ba::BaResult& r = s.result;
   d.Heading(2, "Statistics");
   d.Table({"", ""},
           {{"RMS plate views (px per coordinate)", Fmt("%.4f", r.rms_plate_px)},
@@ -310,6 +348,12 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   d.Append(VarianceComponentsDoc(r));
   d.Append(ShadowCorrectionDoc(r));
 
+}
+
+// The intrinsics of each group (not smooth: FlexReportDoc) against the truth when known.
+void JointIntrinsicsDoc(const JointProblem& problem, const JointSolution& s, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const ba::BaResult& r = s.result;
   d.Heading(2, "Intrinsics");
   std::vector<std::string> header = {"group", "parameter", "value", "sigma"};
   if (problem.truth.camera) {
@@ -334,33 +378,35 @@ ReportDoc JointReportDoc(const JointProblem& problem,
     }
   }
   d.Table(header, rows);
-  d.Figures({"distortion", "projection-uncertainty"});
-  d.Append(FlexReportDoc(problem, s));  // C-arm flex: intrinsics per view, model selection
-  d.Append(DistortionSelectionDoc(s.distortion ? &*s.distortion : nullptr, s.distortion_error,
-                                   config.distortion_auto, s.distortion_warning));
+}
 
-  {
-    const auto warnings = JointWarnings(s);
-    const std::string used = "Sigmas: " + CovarianceScaleNote(config.covariance_scale) + ".";
-    if (warnings.empty()) {
-      d.Paragraph(used + " No two intrinsics correlate beyond " +
-                  Fmt("%.2f", kIntrinsicsCorrelationWarn) + ".");
-    } else {
-      d.Paragraph(used);
-      for (const auto& w : warnings) d.Warning(w);
-    }
+// What the sigmas are and the warnings.
+void JointSigmaWarningsDoc(const SolverConfig& config, const JointSolution& s, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const auto warnings = JointWarnings(s);
+  const std::string used = "Sigmas: " + CovarianceScaleNote(config.covariance_scale) + ".";
+  if (warnings.empty()) {
+    d.Paragraph(used + " No two intrinsics correlate beyond " +
+                Fmt("%.2f", kIntrinsicsCorrelationWarn) + ".");
+  } else {
+    d.Paragraph(used);
+    for (const auto& w : warnings) d.Warning(w);
   }
-  const std::string sigma_note = "Sigmas: " + CovarianceScaleNote(config.covariance_scale) + ".";
+}
+
+// The validation pairs against their expected angles and the truth.
+void JointValidationDoc(const JointProblem& problem, const JointSolution& s, const std::string& sigma_note, ReportDoc* doc) {
+  ReportDoc& d = *doc;
   d.Heading(2, "Validation pairs (object views)");
   d.Paragraph(sigma_note);
   const bool truth_poses = !problem.truth.object_poses.empty();
-  header = {"a", "b", "expected (deg)", "relative rotation (deg)", "sigma",
+  std::vector<std::string> header = {"a", "b", "expected (deg)", "relative rotation (deg)", "sigma",
             "view directions (deg)", "sigma"};
   if (truth_poses) {
     header.push_back("true relative rotation");
     header.push_back("error / sigma");
   }
-  rows.clear();
+  std::vector<std::vector<std::string>> rows;
   for (const auto& vp : problem.validation) {
     const std::string name = "pair " + vp.a + "/" + vp.b;
     const ba::BudgetRow* rr = FindRow(s, name + " relative rotation");
@@ -386,11 +432,11 @@ ReportDoc JointReportDoc(const JointProblem& problem,
     rows.push_back(row);
   }
   d.Table(header, rows);
-  d.Figures({"poses", "markers"});
+}
 
-  AppendRelativePoses(&d, s.ba_problem, s.relative_poses, problem.truth.object_poses);
-  if (s.tre) AppendTre(&d, *s.tre);
-
+// Each quantity's variance by noise source.
+void JointErrorBudgetDoc(const JointSolution& s, const std::string& sigma_note, ReportDoc* doc) {
+  ReportDoc& d = *doc;
   d.Heading(2, "Error budget");
   d.Paragraph(
       "Share of each quantity's variance from each independent noise source "
@@ -399,10 +445,10 @@ ReportDoc JointReportDoc(const JointProblem& problem,
       "`centre projection` is where the ray of the image centre, held fixed at the object "
       "distance, projects with the estimated intrinsics (its value is the image centre, its "
       "sigma the calibration's own uncertainty there). " + sigma_note);
-  header = {"quantity", "unit", "value", "sigma"};
+  std::vector<std::string> header = {"quantity", "unit", "value", "sigma"};
   const std::vector<ba::Source> active = ba::ActiveSources(s.budget);
   for (ba::Source k : active) header.push_back(ba::SourceName(k));
-  rows.clear();
+  std::vector<std::vector<std::string>> rows;
   for (const auto& row : s.budget) {
     std::vector<std::string> cells = {row.quantity.name, row.quantity.unit,
                                       Fmt("%.6g", row.quantity.value), Fmt("%.3g", row.sigma)};
@@ -415,6 +461,11 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   d.Table(header, rows);
   d.Figures({"error-budget"});
 
+}
+
+// The joint sigmas against the two-step ones.
+void JointTwoStepDoc(const JointProblem& problem, const JointSolution& s, ReportDoc* doc) {
+  ReportDoc& d = *doc;
   d.Heading(2, "Joint against two-step");
   if (!s.comparison_error.empty()) {
     d.Paragraph("Not shown: " + s.comparison_error + ".");
@@ -424,11 +475,11 @@ ReportDoc JointReportDoc(const JointProblem& problem,
         "translation sigma of the object poses. Two-step with the intrinsics held leaves the "
         "calibration's uncertainty out (its sigmas are too small); with the calibration's "
         "covariance as a prior it equals the joint result to first order.");
-    header = {"method"};
+    std::vector<std::string> header = {"method"};
     for (const auto& vp : problem.validation) header.push_back(vp.a + "-" + vp.b);
     header.push_back("mean rotation sigma (deg)");
     header.push_back("mean translation sigma (mm)");
-    rows.clear();
+    std::vector<std::vector<std::string>> rows;
     for (const auto& c : s.comparison) {
       std::vector<std::string> cells = {c.method};
       for (double x : c.sigma_relative_rotation_deg) cells.push_back(Fmt("%.4f", x));
@@ -444,11 +495,17 @@ ReportDoc JointReportDoc(const JointProblem& problem,
     }
     d.Table(header, rows);
   }
+}
+
+// Outliers and rejected observations.
+void JointOutliersDoc(const SolverConfig& config, const JointSolution& s, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const ba::BaResult& r = s.result;
   d.Heading(2, "Outliers");
   if (r.outliers.empty()) {
     d.Paragraph("None above " + Fmt("%g", config.outlier_sigma) + " sigma.");
   } else {
-    rows.clear();
+    std::vector<std::vector<std::string>> rows;
     for (const auto& out : r.outliers) {
       rows.push_back({out.view, (out.plate ? "point " : "marker ") + std::to_string(out.id),
                       Fmt("%.1f", out.residual_sigma), Fmt("%.3f", out.du_px),
@@ -465,6 +522,30 @@ ReportDoc JointReportDoc(const JointProblem& problem,
     }
     d.Paragraph(text);
   }
+}
+
+}  // namespace
+
+ReportDoc JointReportDoc(const JointProblem& problem,
+                         const SolverConfig& config,
+                         const JointSolution& s) {
+  ReportDoc d;
+  JointIntroDoc(problem, config, &d);
+  JointStatisticsDoc(s, &d);
+  JointIntrinsicsDoc(problem, s, &d);
+  d.Figures({"distortion", "projection-uncertainty"});
+  d.Append(FlexReportDoc(problem, s));  // C-arm flex: intrinsics per view, model selection
+  d.Append(DistortionSelectionDoc(s.distortion ? &*s.distortion : nullptr, s.distortion_error,
+                                   config.distortion_auto, s.distortion_warning));
+  JointSigmaWarningsDoc(config, s, &d);
+  const std::string sigma_note = "Sigmas: " + CovarianceScaleNote(config.covariance_scale) + ".";
+  JointValidationDoc(problem, s, sigma_note, &d);
+  d.Figures({"poses", "markers"});
+  AppendRelativePoses(&d, s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  if (s.tre) AppendTre(&d, *s.tre);
+  JointErrorBudgetDoc(s, sigma_note, &d);
+  JointTwoStepDoc(problem, s, &d);
+  JointOutliersDoc(config, s, &d);
   return d;
 }
 

@@ -72,28 +72,24 @@ void ReseedXrayScene(uint64_t seed, XrayScene* scene) {
   }
 }
 
-Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
-  XrayScene s;
-  s.path = scene.file();
-  const std::string dir = DirName(scene.file());
-  std::string kind;
-  scene.GetEnum("kind", {"xray"}, &kind, true);
-  scene.Get("description", &s.description);
-  int seed = 1;
-  scene.Get("seed", &seed);
-  if (seed < 0) scene.Fail("seed", "expected a non-negative integer");
-  s.seed = static_cast<uint64_t>(seed);
+namespace {
 
+// The scene's sections, each read into the scene (errors recorded in the YamlMap; Finish reports
+// them).
+void ParseSceneOutput(YamlMap& scene, XrayScene* s) {
   YamlMap& output = scene.Map("output");
-  output.GetEnum("format", {"png", "pgm", "dcm"}, &s.format);
-  output.Get("bit_depth", &s.bit_depth);
-  output.Get("multiframe", &s.multiframe);
-  if (s.multiframe && s.format != "dcm") output.Fail("multiframe", "only with format: dcm");
-  if (output.Has("bit_depth") && s.bit_depth != 8 && s.bit_depth != 16) {
+  output.GetEnum("format", {"png", "pgm", "dcm"}, &s->format);
+  output.Get("bit_depth", &s->bit_depth);
+  output.Get("multiframe", &s->multiframe);
+  if (s->multiframe && s->format != "dcm") output.Fail("multiframe", "only with format: dcm");
+  if (output.Has("bit_depth") && s->bit_depth != 8 && s->bit_depth != 16) {
     output.Fail("bit_depth", "expected 8 or 16");
   }
 
-  // C-arm first: the detector pitch needs the SID.
+}
+
+// The C-arm (before the camera: the detector pitch needs the SID), with its flex.
+CarmGeometry ParseSceneCarm(YamlMap& scene, XrayScene* s) {
   CarmGeometry carm;
   YamlMap& cm = scene.Map("carm");
   cm.GetInRange("sid_mm", &carm.sid_mm, plausible::kDistanceMm);
@@ -103,12 +99,12 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   if (cm.Has("flex")) {
     YamlMap& fx = cm.Map("flex");
     const PlausibleRange kShiftPx{-200, 200, "px"}, kRelative{-0.1, 0.1, ""};
-    fx.GetInRange("cx_primary_px", &s.flex.cx_primary_px, kShiftPx);
-    fx.GetInRange("cx_secondary_px", &s.flex.cx_secondary_px, kShiftPx);
-    fx.GetInRange("cy_primary_px", &s.flex.cy_primary_px, kShiftPx);
-    fx.GetInRange("cy_secondary_px", &s.flex.cy_secondary_px, kShiftPx);
-    fx.GetInRange("f_primary", &s.flex.f_primary, kRelative);
-    fx.GetInRange("f_secondary", &s.flex.f_secondary, kRelative);
+    fx.GetInRange("cx_primary_px", &s->flex.cx_primary_px, kShiftPx);
+    fx.GetInRange("cx_secondary_px", &s->flex.cx_secondary_px, kShiftPx);
+    fx.GetInRange("cy_primary_px", &s->flex.cy_primary_px, kShiftPx);
+    fx.GetInRange("cy_secondary_px", &s->flex.cy_secondary_px, kShiftPx);
+    fx.GetInRange("f_primary", &s->flex.f_primary, kRelative);
+    fx.GetInRange("f_secondary", &s->flex.f_secondary, kRelative);
   }
   if (cm.status().ok() && !(carm.sod_mm < carm.sid_mm)) {
     cm.Fail("sod_mm",
@@ -116,6 +112,11 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
                 Fmt("%.1f", carm.sid_mm) + ")");
   }
 
+  return carm;
+}
+
+// The camera: fx, fy, cx, cy or a detector pitch at the C-arm's SID; distortion.
+void ParseSceneCamera(YamlMap& scene, const CarmGeometry& carm, XrayScene* s) {
   YamlMap& cam = scene.Map("camera", true);
   std::vector<int> size;
   cam.Get("image_size", &size, true);
@@ -131,14 +132,14 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     cam.Fail("fx", "missing, expected fx, fy, cx, cy (px) or pixel_pitch_mm");
   }
   if (cam.status().ok() && size.size() == 2) {
-    s.camera.width = size[0];
-    s.camera.height = size[1];
-    s.camera.params.fill(0.0);
+    s->camera.width = size[0];
+    s->camera.height = size[1];
+    s->camera.params.fill(0.0);
     if (has_f) {
-      cam.GetInRange("fx", &s.camera.params[kFx], plausible::kFocalPx, true);
-      cam.GetInRange("fy", &s.camera.params[kFy], plausible::kFocalPx, true);
-      cam.Get("cx", &s.camera.params[kCx], true);
-      cam.Get("cy", &s.camera.params[kCy], true);
+      cam.GetInRange("fx", &s->camera.params[kFx], plausible::kFocalPx, true);
+      cam.GetInRange("fy", &s->camera.params[kFy], plausible::kFocalPx, true);
+      cam.Get("cx", &s->camera.params[kCx], true);
+      cam.Get("cy", &s->camera.params[kCy], true);
     } else {
       DetectorSpec det;
       det.width_px = size[0];
@@ -162,13 +163,24 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
         }
       }
       GetVec(cam, "principal_offset_px", 2, det.principal_offset_px.data());
-      if (cam.status().ok()) s.camera = CameraFromDetector(det, carm.sid_mm);
+      if (cam.status().ok()) s->camera = CameraFromDetector(det, carm.sid_mm);
     }
-    GetVec(cam, "distortion", 5, &s.camera.params[kK1]);
+    GetVec(cam, "distortion", 5, &s->camera.params[kK1]);
   }
 
+}
+
+// An anatomy background laid over the images (imaging.background).
+struct SceneBackground {
+  std::string file;
+  double strength = 0.3, crop = 1.0;
+};
+
+// The imaging chain: supersampling, dose, noise, blur, vignetting, heel effect, glare, field of
+// view, background.
+void ParseSceneImaging(YamlMap& scene, XrayScene* s, SceneBackground* bg) {
   YamlMap& im = scene.Map("imaging");
-  RenderOptions& r = s.render;
+  RenderOptions& r = s->render;
   im.Get("supersampling", &r.supersampling);
   im.GetPositive("white_level", &r.white_level);
   im.GetInRange("photons_per_pixel", &r.photons_per_pixel, plausible::kPhotonsPerPixel);
@@ -211,15 +223,17 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     r.fov_center_u_px = fov_c[0];
     r.fov_center_v_px = fov_c[1];
   }
-  std::string bg_file;
-  double bg_strength = 0.3, bg_crop = 1.0;
-  YamlMap& bg = im.Map("background");
-  bg.Get("file", &bg_file, im.Has("background"));
-  bg.GetNonNegative("strength", &bg_strength);
-  bg.GetPositive("crop", &bg_crop);
-  if (bg.status().ok() && bg_strength > 1) bg.Fail("strength", "expected a value in [0, 1]");
-  if (bg.status().ok() && bg_crop > 1) bg.Fail("crop", "expected a fraction in (0, 1]");
+  YamlMap& bgm = im.Map("background");
+  bgm.Get("file", &bg->file, im.Has("background"));
+  bgm.GetNonNegative("strength", &bg->strength);
+  bgm.GetPositive("crop", &bg->crop);
+  if (bgm.status().ok() && bg->strength > 1) bgm.Fail("strength", "expected a value in [0, 1]");
+  if (bgm.status().ok() && bg->crop > 1) bgm.Fail("crop", "expected a fraction in (0, 1]");
 
+}
+
+// The attenuation of each material: the defaults and the scene's own.
+std::map<std::string, double> ParseSceneMaterials(YamlMap& scene) {
   std::map<std::string, double> materials = DefaultMaterials();
   if (scene.Has("materials")) {
     YAML::Node mats = scene.Raw("materials");
@@ -241,71 +255,82 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     }
   }
 
+  return materials;
+}
+
+// The object: a calibration plate or a marker object (with its block), as a phantom.
+void ParseSceneObject(YamlMap& scene, const std::string& dir,
+                      const std::map<std::string, double>& materials, XrayScene* s) {
   const bool has_plate = scene.Has("plate"), has_markers = scene.Has("markers");
   if (has_plate == has_markers) {
     scene.Fail(has_plate ? "markers" : "plate",
                "expected exactly one of 'plate' (calibration plate) or 'markers' (marker object)");
   }
   if (has_plate) {
-    s.object_kind = "plate";
+    s->object_kind = "plate";
     YamlMap& pl = scene.Map("plate");
-    pl.Get("rows", &s.plate.rows);
-    pl.Get("cols", &s.plate.cols);
-    pl.GetPositive("pitch_mm", &s.plate.pitch_mm);
-    pl.GetPositive("sphere_diameter_mm", &s.plate.sphere_diameter_mm);
-    pl.GetInRange("thickness_mm", &s.plate.thickness_mm, plausible::kLengthMm);
-    pl.GetInRange("margin_mm", &s.plate.margin_mm, plausible::kLengthMm);
-    pl.Get("sphere_material", &s.plate.sphere_material);
-    pl.Get("plate_material", &s.plate.plate_material);
+    pl.Get("rows", &s->plate.rows);
+    pl.Get("cols", &s->plate.cols);
+    pl.GetPositive("pitch_mm", &s->plate.pitch_mm);
+    pl.GetPositive("sphere_diameter_mm", &s->plate.sphere_diameter_mm);
+    pl.GetInRange("thickness_mm", &s->plate.thickness_mm, plausible::kLengthMm);
+    pl.GetInRange("margin_mm", &s->plate.margin_mm, plausible::kLengthMm);
+    pl.Get("sphere_material", &s->plate.sphere_material);
+    pl.Get("plate_material", &s->plate.plate_material);
     std::string error;
-    if (pl.status().ok() && !s.plate.Check(&error)) {
+    if (pl.status().ok() && !s->plate.Check(&error)) {
       scene.Fail("plate", error.substr(error.find(": ") + 2));
     } else if (pl.status().ok()) {
-      auto ph = MakePlatePhantom(s.plate, materials);
+      auto ph = MakePlatePhantom(s->plate, materials);
       if (!ph.ok()) {
         pl.Fail("sphere_material", ph.status().message());
       } else {
-        s.phantom = *ph;
+        s->phantom = *ph;
       }
     }
   }
   if (has_markers) {
-    s.object_kind = "markers";
+    s->object_kind = "markers";
     YamlMap& mk = scene.Map("markers");
     std::string csv, id_col;
     std::vector<std::string> cols;
     mk.Get("csv", &csv, true);
     mk.Get("id_column", &id_col);
     mk.Get("columns", &cols, true);
-    mk.GetPositive("diameter_mm", &s.markers.sphere_diameter_mm);
-    mk.Get("material", &s.markers.sphere_material);
+    mk.GetPositive("diameter_mm", &s->markers.sphere_diameter_mm);
+    mk.Get("material", &s->markers.sphere_material);
     if (mk.status().ok() && cols.size() != 3) {
       mk.Fail("columns", "expected three column names [x, y, z]");
     }
     YamlMap& bl = scene.Map("block");
-    bl.Get("enabled", &s.markers.block);
-    bl.GetNonNegative("padding_mm", &s.markers.block_margin_mm);
-    bl.Get("material", &s.markers.block_material);
+    bl.Get("enabled", &s->markers.block);
+    bl.GetNonNegative("padding_mm", &s->markers.block_margin_mm);
+    bl.Get("material", &s->markers.block_material);
     if (mk.status().ok() && bl.status().ok()) {
-      Status st = ReadMarkerCsv(JoinPath(dir, csv), id_col, cols[0], cols[1], cols[2], &s.markers);
+      Status st = ReadMarkerCsv(JoinPath(dir, csv), id_col, cols[0], cols[1], cols[2], &s->markers);
       if (!st.ok()) {
         mk.Fail("csv", st.message());
       } else {
-        auto ph = MakeMarkerPhantom(s.markers, materials);
+        auto ph = MakeMarkerPhantom(s->markers, materials);
         if (!ph.ok()) {
           mk.Fail("csv", ph.status().message());
         } else {
-          s.phantom = *ph;
+          s->phantom = *ph;
         }
       }
     }
   } else if (scene.Has("block")) {
     scene.Fail("block", "only valid with 'markers'");
   }
+}
+
+// Spheres and wires on the marker object that are not markers.
+void ParseSceneClutter(YamlMap& scene, const std::map<std::string, double>& materials, XrayScene* s) {
+  const bool has_markers = scene.Has("markers");
   if (scene.Has("clutter")) {
     YamlMap& cl = scene.Map("clutter");
     if (!has_markers) cl.Fail("spheres", "clutter is only valid with 'markers'");
-    s.clutter.frame = "object";
+    s->clutter.frame = "object";
     auto material = [&](YamlMap& m, double* mu) {
       std::string name = "steel";
       m.Get("material", &name);
@@ -324,7 +349,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       sp.radius_mm = 0.5 * d;
       material(*sm, &sp.mu_per_mm);
       sp.id = --k;  // negative: not a marker
-      s.clutter.spheres.push_back(sp);
+      s->clutter.spheres.push_back(sp);
     }
     for (YamlMap* wm : cl.MapList("wires")) {
       Eigen::Vector3d a = Eigen::Vector3d::Zero(), b = Eigen::Vector3d::Zero();
@@ -347,13 +372,17 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
       box.phantom_from_box.R.col(2) = z;
       box.phantom_from_box.t = 0.5 * (a + b);
       box.half_size_mm = Eigen::Vector3d(0.5 * d, 0.5 * d, 0.5 * len);
-      s.clutter.boxes.push_back(box);
+      s->clutter.boxes.push_back(box);
     }
   }
 
+}
+
+// The views: C-arm angles and the object's placement in each.
+void ParseSceneViews(YamlMap& scene, const CarmGeometry& carm, XrayScene* s) {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (const auto& sp : s.phantom.spheres) centroid += sp.center_mm;
-  if (!s.phantom.spheres.empty()) centroid /= static_cast<double>(s.phantom.spheres.size());
+  for (const auto& sp : s->phantom.spheres) centroid += sp.center_mm;
+  if (!s->phantom.spheres.empty()) centroid /= static_cast<double>(s->phantom.spheres.size());
   Eigen::Vector3d rotation_deg = Eigen::Vector3d::Zero(), center_mm = Eigen::Vector3d::Zero();
   YamlMap& op = scene.Map("object_pose");
   GetVec(op, "rotation_deg", 3, rotation_deg.data());
@@ -386,30 +415,61 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
     GetVec(vm, "object_rotation_deg", 3, rot.data());
     GetVec(vm, "object_center_mm", 3, ctr.data());
     v.world_from_object = ObjectPlacement(centroid, rot, ctr);
-    v.seed = ViewSeed(s.seed, static_cast<int>(i));
+    v.seed = ViewSeed(s->seed, static_cast<int>(i));
     vm.Get("partial", &v.partial);
-    s.views.push_back(v);
+    s->views.push_back(v);
   }
 
+}
+
+// After the keys: the background loaded, the camera, imaging and each view's C-arm checked, and
+// every view inside the field of view.
+Status CheckParsedScene(YamlMap& scene, const std::string& dir, const SceneBackground& bg, XrayScene* s) {
   CARMBA_RETURN_IF_ERROR(scene.Finish());
-  if (!bg_file.empty()) {
+  if (!bg.file.empty()) {
     auto gain = LoadBackgroundGain(
-        JoinPath(dir, bg_file), s.camera.width, s.camera.height, bg_strength, bg_crop);
+        JoinPath(dir, bg.file), s->camera.width, s->camera.height, bg.strength, bg.crop);
     if (!gain.ok()) {
       return gain.status().WithContext(scene.file() + ": key 'imaging.background.file'");
     }
-    s.render.background_gain = *gain;
+    s->render.background_gain = *gain;
   }
-  Status cs = s.camera.Check();
+  Status cs = s->camera.Check();
   if (!cs.ok()) return cs.WithContext(scene.file() + ": key 'camera'");
   std::string error;
-  if (!s.render.Check(&error)) return Status::Error(scene.file() + ": key 'imaging': " + error);
-  for (const auto& v : s.views) {
+  if (!s->render.Check(&error)) return Status::Error(scene.file() + ": key 'imaging': " + error);
+  for (const auto& v : s->views) {
     if (!v.carm.Check(&error)) {
       return Status::Error(scene.file() + ": view '" + v.name + "': " + error);
     }
   }
-  CARMBA_RETURN_IF_ERROR(CheckViewsInsideFov(s));
+  CARMBA_RETURN_IF_ERROR(CheckViewsInsideFov(*s));
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
+  XrayScene s;
+  s.path = scene.file();
+  const std::string dir = DirName(scene.file());
+  std::string kind;
+  scene.GetEnum("kind", {"xray"}, &kind, true);
+  scene.Get("description", &s.description);
+  int seed = 1;
+  scene.Get("seed", &seed);
+  if (seed < 0) scene.Fail("seed", "expected a non-negative integer");
+  s.seed = static_cast<uint64_t>(seed);
+  ParseSceneOutput(scene, &s);
+  const CarmGeometry carm = ParseSceneCarm(scene, &s);
+  ParseSceneCamera(scene, carm, &s);
+  SceneBackground bg;
+  ParseSceneImaging(scene, &s, &bg);
+  const std::map<std::string, double> materials = ParseSceneMaterials(scene);
+  ParseSceneObject(scene, dir, materials, &s);
+  ParseSceneClutter(scene, materials, &s);
+  ParseSceneViews(scene, carm, &s);
+  CARMBA_RETURN_IF_ERROR(CheckParsedScene(scene, dir, bg, &s));
   *out = std::move(s);
   return Status::Ok();
 }
