@@ -338,7 +338,238 @@ double MinPeakFraction(const CtVolume& vol, double R) {
   return least;
 }
 
-// Refines one marker's centre (steps 4-5 of the header). Returns false if there is no contrast.
+// The voxels around a centre: the region of interest (within r_roi of c, by the voxel's nearest
+// point) and the shell beyond a gap, with their offsets from c (mm) and HU.
+struct CentroidRegion {
+  std::vector<std::pair<Eigen::Vector3d, double>> roi;
+  std::vector<double> shell;
+  std::vector<Eigen::Vector3d> shell_offsets;  // parallel to `shell`
+};
+
+constexpr double kShellGapMm = 0.5;
+
+void GatherCentroidRegion(const CtVolume& vol, const Eigen::Vector3d& c, const Eigen::Vector3d& e,
+                          double r_roi, double r_outer, CentroidRegion* region) {
+  const Eigen::Vector3d h = vol.spacing_mm;
+  int lo[3], hi[3];
+  const int dims[3] = {vol.columns, vol.rows, vol.slices};
+  for (int a = 0; a < 3; ++a) {
+    const double reach = (r_outer + 0.5 * e[a]) / h[a];
+    lo[a] = std::max(0, static_cast<int>(std::floor(c[a] - reach)));
+    hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(c[a] + reach)));
+  }
+  region->shell.clear();
+  region->shell_offsets.clear();
+  region->roi.clear();
+  for (int k = lo[2]; k <= hi[2]; ++k) {
+    for (int j = lo[1]; j <= hi[1]; ++j) {
+      for (int i = lo[0]; i <= hi[0]; ++i) {
+        const Eigen::Vector3d d((i - c.x()) * h.x(), (j - c.y()) * h.y(), (k - c.z()) * h.z());
+        const Eigen::Vector3d gap = (d.cwiseAbs() - 0.5 * e).cwiseMax(0.0);
+        const double dist = gap.norm();
+        const double v = vol.At(i, j, k);
+        if (dist <= r_roi) {
+          region->roi.emplace_back(d, v);
+        } else if (dist > r_roi + kShellGapMm && dist <= r_outer) {
+          region->shell.push_back(v);
+          region->shell_offsets.push_back(d);
+        }
+      }
+    }
+  }
+}
+
+// Structured background (metal streaks, a neighbour's artefacts, a bone edge) biases the
+// centroid where white noise of the MAD-based sigma would not: only the part of the background
+// that is odd under reflection through the centre moves the first moment. Its RMS, from each
+// voxel of the region's rim and the shell (outside the marker's blur, beyond r_in) against the
+// trilinear value at its reflection through the new centre c + shift, (v - v') / sqrt(2); 0 with
+// fewer than 8 such voxels (white noise gives sigma, a bit less for the interpolated v').
+double OddBackgroundRms(const CtVolume& vol, const CentroidRegion& region, const Eigen::Vector3d& c,
+                        const Eigen::Vector3d& shift_mm, double r_in) {
+  const Eigen::Vector3d h = vol.spacing_mm;
+  double ss = 0;
+  int ns = 0;
+  const Eigen::Vector3d c_new = c + shift_mm.cwiseQuotient(h);
+  auto odd = [&](const Eigen::Vector3d& d, double v) {
+    if ((d - shift_mm).norm() <= r_in) return;
+    const Eigen::Vector3d idx = c + d.cwiseQuotient(h);
+    const Eigen::Vector3d refl = 2 * c_new - idx;
+    const int i0 = static_cast<int>(std::floor(refl.x()));
+    const int j0 = static_cast<int>(std::floor(refl.y()));
+    const int k0 = static_cast<int>(std::floor(refl.z()));
+    if (i0 < 0 || j0 < 0 || k0 < 0 || i0 + 1 >= vol.columns || j0 + 1 >= vol.rows || k0 + 1 >= vol.slices) {
+      return;
+    }
+    const double fx = refl.x() - i0, fy = refl.y() - j0, fz = refl.z() - k0;
+    double r = 0;
+    for (int dk = 0; dk < 2; ++dk) {
+      for (int dj = 0; dj < 2; ++dj) {
+        for (int di = 0; di < 2; ++di) {
+          r += (di ? fx : 1 - fx) * (dj ? fy : 1 - fy) * (dk ? fz : 1 - fz) * vol.At(i0 + di, j0 + dj, k0 + dk);
+        }
+      }
+    }
+    const double dv = v - r;
+    ss += 0.5 * dv * dv;
+    ++ns;
+  };
+  for (const auto& [d, v] : region.roi) odd(d, v);
+  for (size_t q = 0; q < region.shell.size(); ++q) odd(region.shell_offsets[q], region.shell[q]);
+  return ns >= 8 ? std::sqrt(ss / ns) : 0.0;
+}
+
+// The weighted centroid's state: the shell's background and noise, the weight, the
+// white-noise covariance (for the contamination test), whether it succeeded.
+struct WeightedCentroid {
+  bool ok = true;
+  double background = 0, sigma = 0, weight = 0;
+  Eigen::Matrix3d white_covariance = Eigen::Matrix3d::Zero();
+  int roi_voxels = 0;
+};
+
+// The last iteration's covariance in the axis frame (offsets relative to the final centre): the
+// noise's part at the white sigma (centroid_white_cov) and at the larger of it and the odd
+// background's RMS (the marker's covariance_noise_mm2 and covariance_mm2).
+void CentroidCovarianceMm2(const CtVolume& vol, const CentroidRegion& region, const Eigen::Vector3d& c,
+                           const Eigen::Vector3d& shift_mm, double r_in, WeightedCentroid* wc, DetectedMarker* m) {
+  const double W = wc->weight;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  for (const auto& [d, v] : region.roi) {
+    const Eigen::Vector3d r = d - shift_mm;
+    S += r * r.transpose();
+    g += r;
+  }
+  g /= W;
+  m->odd_background_hu = OddBackgroundRms(vol, region, c, shift_mm, r_in);
+  auto noise_of = [&](double s) -> Eigen::Matrix3d {
+    const Eigen::Matrix3d n =
+        s * s * S / (W * W) + s * s / static_cast<double>(region.shell.size()) * g * g.transpose();
+    return vol.axes * n * vol.axes.transpose();
+  };
+  // The contamination test (7.) compares the centroid with the fit at the white-noise
+  // covariance (a bone edge next to the marker should switch to the fit, not widen the
+  // centroid); the centroid's reported covariance takes the odd part.
+  wc->white_covariance = noise_of(wc->sigma) + m->covariance_sampling_mm2;
+  wc->sigma = std::max(wc->sigma, m->odd_background_hu);
+  m->covariance_noise_mm2 = noise_of(wc->sigma);
+  m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
+}
+
+// 4-5. The background-subtracted weighted centroid, iterated from *c: the region of interest
+// (radius plus a margin, the first pass half a voxel wider) against the shell's median; its
+// covariance at the last iteration.
+WeightedCentroid IterateWeightedCentroid(const CtVolume& vol, const MarkerDetectionOptions& opt, double radius,
+                                         const Eigen::Vector3d& e, Eigen::Vector3d* c, DetectedMarker* m) {
+  const Eigen::Vector3d h = vol.spacing_mm;
+  WeightedCentroid wc;
+  CentroidRegion region;
+  for (int it = 0; it <= opt.iterations; ++it) {
+    const double margin = opt.roi_margin_mm + (it == 0 ? 0.5 * e.maxCoeff() : 0.0);
+    const double r_roi = radius + margin;
+    const double r_outer = r_roi + kShellGapMm + opt.shell_mm;
+    GatherCentroidRegion(vol, *c, e, r_roi, r_outer, &region);
+    wc.roi_voxels = static_cast<int>(region.roi.size());
+    if (region.shell.size() < 8 || region.roi.empty()) {
+      wc.ok = false;
+      break;
+    }
+    wc.background = Median(&region.shell);
+    std::vector<double> dev(region.shell.size());
+    for (size_t s = 0; s < region.shell.size(); ++s) dev[s] = std::abs(region.shell[s] - wc.background);
+    wc.sigma = 1.4826 * Median(&dev);
+    wc.weight = 0;
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+    for (const auto& [d, v] : region.roi) {
+      wc.weight += v - wc.background;
+      moment += (v - wc.background) * d;
+    }
+    if (!(wc.weight > 0)) {
+      wc.ok = false;
+      break;
+    }
+    const Eigen::Vector3d shift_mm = moment / wc.weight;
+    *c += shift_mm.cwiseQuotient(h);
+    if (it == opt.iterations) {
+      CentroidCovarianceMm2(vol, region, *c, shift_mm, radius + e.maxCoeff(), &wc, m);
+    }
+  }
+  return wc;
+}
+
+// The robust partial-volume ball fit over the voxels within R + e_max of `start`, re-fitted once
+// over the region around its first result; false when it fails or ends farther from the peak
+// voxel than a ball's peak can be (half a voxel diagonal: it found a neighbour, bone or air).
+bool FitBallFrom(const CtVolume& vol, const MarkerDetectionOptions& opt, const Eigen::Vector3d& e,
+                 const DetectedMarker& m, double background, Eigen::Vector3d start, BallFitResult* fit, int* n_vox) {
+  const Eigen::Vector3d h = vol.spacing_mm;
+  const double r_fit = 0.5 * opt.diameter_mm + e.maxCoeff();
+  const Eigen::Matrix3d A = vol.PatientFromIndexLinear(), A_inv = A.inverse();
+  const int dims[3] = {vol.columns, vol.rows, vol.slices};
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<FitVoxel> vox;
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      const double reach = r_fit / h[a];
+      lo[a] = std::max(0, static_cast<int>(std::floor(start[a] - reach)));
+      hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(start[a] + reach)));
+    }
+    for (int k = lo[2]; k <= hi[2]; ++k) {
+      for (int j = lo[1]; j <= hi[1]; ++j) {
+        for (int i = lo[0]; i <= hi[0]; ++i) {
+          const Eigen::Vector3d d = A * (Eigen::Vector3d(i, j, k) - start);
+          if (d.norm() <= r_fit) vox.push_back({d, vol.At(i, j, k)});
+        }
+      }
+    }
+    if (!FitBall(vox, vol.axes, e, 0.5 * opt.diameter_mm, Eigen::Vector3d::Zero(), m.peak_hu, background, fit)) {
+      return false;
+    }
+    *n_vox = static_cast<int>(vox.size());
+    start += A_inv * fit->centre;
+    fit->centre = start;  // now in continuous voxel indices
+  }
+  return (A * (start - m.peak_index)).norm() <= 0.5 * opt.diameter_mm + 0.5 * e.norm();
+}
+
+// 7. With a ball fit: the centroid and the fit disagree beyond their covariances (bone or air in
+// the region of interest or its shell pulls the centroid) -- or there is no centroid (the
+// surroundings outweigh the marker) -- and the fit is the centre; else the centroid, its
+// covariance widened by the Birge ratio of the disagreement when it exceeds its expectation (3)
+// (the odd part's widening (5.) may already cover it: the larger of the two).
+void ChooseCentroidOrFit(const CtVolume& vol, const MarkerDetectionOptions& opt, const BallFitResult& fit, int n_fit,
+                         bool centroid_ok, const Eigen::Matrix3d& centroid_white_cov, DetectedMarker* m) {
+  const Eigen::Vector3d cf = fit.centre;
+  m->fit_centre_mm = vol.PatientFromIndex(cf);
+  m->fit_covariance_mm2 = fit.covariance;  // patient frame already
+  m->fit_metal_hu = fit.metal_hu;
+  m->fit_metal_sigma_hu = fit.metal_sigma_hu;
+  m->fit_background_hu = fit.background_hu;
+  m->fit_scale_hu = fit.scale_hu;
+  m->fit_outlier_mass = fit.outlier_mass;
+  m->fit_voxels = n_fit;
+  m->fit_inner_fraction = fit.inner_fraction;
+  const Eigen::Vector3d delta = m->centre_mm - m->fit_centre_mm;
+  const Eigen::Matrix3d C = centroid_white_cov + m->fit_covariance_mm2;
+  m->contamination_chi2 = centroid_ok ? delta.dot(C.ldlt().solve(delta)) : -1;
+  if (!centroid_ok || m->contamination_chi2 > opt.contamination_chi2) {
+    m->contaminated = true;
+    m->centroid_mm = m->centre_mm;
+    m->centre_mm = m->fit_centre_mm;
+    m->centre_index = cf;
+    m->covariance_noise_mm2 = m->fit_covariance_mm2;
+    m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
+  } else {
+    m->centroid_mm = m->centre_mm;
+    const Eigen::Matrix3d birge = centroid_white_cov * std::max(1.0, m->contamination_chi2 / 3.0);
+    if (birge.trace() > m->covariance_mm2.trace()) m->covariance_mm2 = birge;
+  }
+}
+
+// Refines one marker's centre (steps 4-5 of the header), then the ball fit (6-7) started from the
+// peak voxel, the seed and the centroid; the fit with the lower mean robust cost is kept.
+// Returns false if there is no contrast.
 bool Refine(const CtVolume& vol,
             const MarkerDetectionOptions& opt,
             double core_radius_mm,
@@ -348,227 +579,40 @@ bool Refine(const CtVolume& vol,
   const double thickness = vol.slice_thickness_mm > 0 ? vol.slice_thickness_mm : h.z();
   const Eigen::Vector3d e(h.x(), h.y(), thickness);  // voxel extent along the axes
   const double radius = std::max(0.5 * opt.diameter_mm, core_radius_mm);
-  constexpr double kShellGapMm = 0.5;
   Eigen::Vector3d c = m->centre_index;
   const Eigen::Vector3d seed_index = c;
-  std::vector<double> shell;
-  std::vector<Eigen::Vector3d> shell_offsets;  // mm offset from c, parallel to `shell`
-  std::vector<std::pair<Eigen::Vector3d, double>> roi;  // mm offset from c, HU
-  double b = 0, sigma = 0, W = 0;
-  bool centroid_ok = true;
-  Eigen::Matrix3d centroid_white_cov = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d sampling = Eigen::Matrix3d::Zero();
   for (int a = 0; a < 3; ++a) {
     sampling(a, a) = SamplingVarianceMm2(0.5 * opt.diameter_mm, h[a], e[a]);
   }
   m->covariance_sampling_mm2 = vol.axes * sampling * vol.axes.transpose();
-  for (int it = 0; it <= opt.iterations; ++it) {
-    const double margin = opt.roi_margin_mm + (it == 0 ? 0.5 * e.maxCoeff() : 0.0);
-    const double r_roi = radius + margin;
-    const double r_outer = r_roi + kShellGapMm + opt.shell_mm;
-    int lo[3], hi[3];
-    const int dims[3] = {vol.columns, vol.rows, vol.slices};
-    for (int a = 0; a < 3; ++a) {
-      const double reach = (r_outer + 0.5 * e[a]) / h[a];
-      lo[a] = std::max(0, static_cast<int>(std::floor(c[a] - reach)));
-      hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(c[a] + reach)));
-    }
-    shell.clear();
-    shell_offsets.clear();
-    roi.clear();
-    for (int k = lo[2]; k <= hi[2]; ++k) {
-      for (int j = lo[1]; j <= hi[1]; ++j) {
-        for (int i = lo[0]; i <= hi[0]; ++i) {
-          const Eigen::Vector3d d((i - c.x()) * h.x(), (j - c.y()) * h.y(), (k - c.z()) * h.z());
-          const Eigen::Vector3d gap = (d.cwiseAbs() - 0.5 * e).cwiseMax(0.0);
-          const double dist = gap.norm();
-          const double v = vol.At(i, j, k);
-          if (dist <= r_roi) {
-            roi.emplace_back(d, v);
-          } else if (dist > r_roi + kShellGapMm && dist <= r_outer) {
-            shell.push_back(v);
-            shell_offsets.push_back(d);
-          }
-        }
-      }
-    }
-    if (shell.size() < 8 || roi.empty()) {
-      centroid_ok = false;
-      break;
-    }
-    b = Median(&shell);
-    std::vector<double> dev(shell.size());
-    for (size_t s = 0; s < shell.size(); ++s) dev[s] = std::abs(shell[s] - b);
-    sigma = 1.4826 * Median(&dev);
-    W = 0;
-    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-    for (const auto& [d, v] : roi) {
-      W += v - b;
-      moment += (v - b) * d;
-    }
-    if (!(W > 0)) {
-      centroid_ok = false;
-      break;
-    }
-    const Eigen::Vector3d shift_mm = moment / W;
-    c += shift_mm.cwiseQuotient(h);
-    if (it == opt.iterations) {
-      // Covariance in the axis frame (offsets relative to the final centre).
-      Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d g = Eigen::Vector3d::Zero();
-      for (const auto& [d, v] : roi) {
-        const Eigen::Vector3d r = d - shift_mm;
-        S += r * r.transpose();
-        g += r;
-      }
-      g /= W;
-      // Structured background (metal streaks, a neighbour's artefacts, a bone edge) biases the
-      // centroid where white noise of the MAD-based sigma would not: only the part of the
-      // background that is odd under reflection through the centre moves the first moment. Its
-      // RMS, from each voxel of the region's rim and the shell (outside the marker's blur)
-      // against the trilinear value at its reflection, (v - v') / sqrt(2), replaces sigma when
-      // larger (white noise gives sigma, a bit less for the interpolated v').
-      double ss = 0;
-      int ns = 0;
-      const double r_in = radius + e.maxCoeff();
-      const Eigen::Vector3d c_new = c + shift_mm.cwiseQuotient(h);
-      auto odd = [&](const Eigen::Vector3d& d, double v) {
-        if ((d - shift_mm).norm() <= r_in) return;
-        const Eigen::Vector3d idx = c + d.cwiseQuotient(h);
-        const Eigen::Vector3d refl = 2 * c_new - idx;
-        const int i0 = static_cast<int>(std::floor(refl.x()));
-        const int j0 = static_cast<int>(std::floor(refl.y()));
-        const int k0 = static_cast<int>(std::floor(refl.z()));
-        if (i0 < 0 || j0 < 0 || k0 < 0 || i0 + 1 >= vol.columns || j0 + 1 >= vol.rows ||
-            k0 + 1 >= vol.slices)
-          return;
-        const double fx = refl.x() - i0, fy = refl.y() - j0, fz = refl.z() - k0;
-        double r = 0;
-        for (int dk = 0; dk < 2; ++dk) {
-          for (int dj = 0; dj < 2; ++dj) {
-            for (int di = 0; di < 2; ++di) {
-              r += (di ? fx : 1 - fx) * (dj ? fy : 1 - fy) * (dk ? fz : 1 - fz) *
-                   vol.At(i0 + di, j0 + dj, k0 + dk);
-            }
-          }
-        }
-        const double dv = v - r;
-        ss += 0.5 * dv * dv;
-        ++ns;
-      };
-      for (const auto& [d, v] : roi) odd(d, v);
-      for (size_t q = 0; q < shell.size(); ++q) odd(shell_offsets[q], shell[q]);
-      m->odd_background_hu = ns >= 8 ? std::sqrt(ss / ns) : 0.0;
-      auto noise_of = [&](double s) -> Eigen::Matrix3d {
-        const Eigen::Matrix3d n = s * s * S / (W * W) +
-                                  s * s / static_cast<double>(shell.size()) * g * g.transpose();
-        return vol.axes * n * vol.axes.transpose();
-      };
-      // The contamination test (7.) compares the centroid with the fit at the white-noise
-      // covariance (a bone edge next to the marker should switch to the fit, not widen the
-      // centroid); the centroid's reported covariance takes the odd part.
-      centroid_white_cov = noise_of(sigma) + m->covariance_sampling_mm2;
-      sigma = std::max(sigma, m->odd_background_hu);
-      m->covariance_noise_mm2 = noise_of(sigma);
-      m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
-    }
-  }
+  const WeightedCentroid wc = IterateWeightedCentroid(vol, opt, radius, e, &c, m);
   m->centre_index = c;
   m->centre_mm = vol.PatientFromIndex(c);
-  {
-    // Robust partial-volume ball fit over the voxels within R + e_max of a start point, started
-    // from the peak voxel, the seed and the centroid, each re-fitted once over the region around
-    // its first result; the fit with the lower mean robust cost is kept.
-    const double r_fit = 0.5 * opt.diameter_mm + e.maxCoeff();
-    const Eigen::Matrix3d A = vol.PatientFromIndexLinear(), A_inv = A.inverse();
-    const int dims[3] = {vol.columns, vol.rows, vol.slices};
-    auto fit_from = [&](Eigen::Vector3d start, BallFitResult* fit, int* n_vox) {
-      for (int pass = 0; pass < 2; ++pass) {
-        std::vector<FitVoxel> vox;
-        int lo[3], hi[3];
-        for (int a = 0; a < 3; ++a) {
-          const double reach = r_fit / h[a];
-          lo[a] = std::max(0, static_cast<int>(std::floor(start[a] - reach)));
-          hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(start[a] + reach)));
-        }
-        for (int k = lo[2]; k <= hi[2]; ++k) {
-          for (int j = lo[1]; j <= hi[1]; ++j) {
-            for (int i = lo[0]; i <= hi[0]; ++i) {
-              const Eigen::Vector3d d = A * (Eigen::Vector3d(i, j, k) - start);
-              if (d.norm() <= r_fit) vox.push_back({d, vol.At(i, j, k)});
-            }
-          }
-        }
-        if (!FitBall(vox, vol.axes, e, 0.5 * opt.diameter_mm, Eigen::Vector3d::Zero(),
-                     m->peak_hu, b, fit)) {
-          return false;
-        }
-        *n_vox = static_cast<int>(vox.size());
-        start += A_inv * fit->centre;
-        fit->centre = start;  // now in continuous voxel indices
-      }
-      // The peak voxel of a ball lies within half a voxel diagonal of its centre: a fit that
-      // ended farther away found a neighbour (bone, air) instead.
-      return (A * (start - m->peak_index)).norm() <= 0.5 * opt.diameter_mm + 0.5 * e.norm();
-    };
-    BallFitResult fit, other;
-    int n_fit = 0, n_other = 0;
-    // "Peak HU consistent with metal": below what the ball of min_metal_hu gives at its least
-    // favourable sub-voxel position, no fit is tried.
-    m->peak_needed_hu = b + min_peak_fraction * (opt.min_metal_hu - b);
-    const bool peak_ok = m->peak_hu >= m->peak_needed_hu;
-    m->fit_ok = peak_ok && fit_from(m->peak_index, &fit, &n_fit);
-    std::vector<Eigen::Vector3d> starts = {seed_index};
-    if (centroid_ok) starts.push_back(c);
-    for (const Eigen::Vector3d& start : starts) {
-      if (peak_ok && fit_from(start, &other, &n_other) &&
-          (!m->fit_ok || other.cost / n_other < fit.cost / n_fit)) {
-        fit = other;
-        n_fit = n_other;
-        m->fit_ok = true;
-      }
-    }
-    if (!centroid_ok && !m->fit_ok) return false;
-    if (m->fit_ok) {
-      const Eigen::Vector3d cf = fit.centre;
-      m->fit_centre_mm = vol.PatientFromIndex(cf);
-      m->fit_covariance_mm2 = fit.covariance;  // patient frame already
-      m->fit_metal_hu = fit.metal_hu;
-      m->fit_metal_sigma_hu = fit.metal_sigma_hu;
-      m->fit_background_hu = fit.background_hu;
-      m->fit_scale_hu = fit.scale_hu;
-      m->fit_outlier_mass = fit.outlier_mass;
-      m->fit_voxels = n_fit;
-      m->fit_inner_fraction = fit.inner_fraction;
-      // Contamination: the weighted centroid and the robust fit disagree beyond their
-      // covariances (bone or air in the region of interest or its shell pulls the centroid).
-      // Without a centroid (the surroundings outweigh the marker), the fit.
-      const Eigen::Vector3d delta = m->centre_mm - m->fit_centre_mm;
-      const Eigen::Matrix3d C = centroid_white_cov + m->fit_covariance_mm2;
-      m->contamination_chi2 = centroid_ok ? delta.dot(C.ldlt().solve(delta)) : -1;
-      if (!centroid_ok || m->contamination_chi2 > opt.contamination_chi2) {
-        m->contaminated = true;
-        m->centroid_mm = m->centre_mm;
-        m->centre_mm = m->fit_centre_mm;
-        m->centre_index = cf;
-        m->covariance_noise_mm2 = m->fit_covariance_mm2;
-        m->covariance_mm2 = m->covariance_noise_mm2 + m->covariance_sampling_mm2;
-      } else {
-        // Consistent within the threshold: the centroid, its covariance widened by the Birge
-        // ratio of the disagreement when it exceeds its expectation (3).
-        // The odd part's widening (5.) may already cover it: the larger of the two.
-        m->centroid_mm = m->centre_mm;
-        const Eigen::Matrix3d birge =
-            centroid_white_cov * std::max(1.0, m->contamination_chi2 / 3.0);
-        if (birge.trace() > m->covariance_mm2.trace()) m->covariance_mm2 = birge;
-      }
+  BallFitResult fit, other;
+  int n_fit = 0, n_other = 0;
+  // "Peak HU consistent with metal": below what the ball of min_metal_hu gives at its least
+  // favourable sub-voxel position, no fit is tried.
+  m->peak_needed_hu = wc.background + min_peak_fraction * (opt.min_metal_hu - wc.background);
+  const bool peak_ok = m->peak_hu >= m->peak_needed_hu;
+  m->fit_ok = peak_ok && FitBallFrom(vol, opt, e, *m, wc.background, m->peak_index, &fit, &n_fit);
+  std::vector<Eigen::Vector3d> starts = {seed_index};
+  if (wc.ok) starts.push_back(c);
+  for (const Eigen::Vector3d& start : starts) {
+    if (peak_ok && FitBallFrom(vol, opt, e, *m, wc.background, start, &other, &n_other) &&
+        (!m->fit_ok || other.cost / n_other < fit.cost / n_fit)) {
+      fit = other;
+      n_fit = n_other;
+      m->fit_ok = true;
     }
   }
-  m->background_hu = b;
-  m->noise_hu = sigma;
-  m->roi_voxels = static_cast<int>(roi.size());
-  const double contrast = m->peak_hu - b;
-  m->weight_volume_mm3 = contrast > 0 ? W * vol.VoxelVolumeMm3() / contrast : 0;
+  if (!wc.ok && !m->fit_ok) return false;
+  if (m->fit_ok) ChooseCentroidOrFit(vol, opt, fit, n_fit, wc.ok, wc.white_covariance, m);
+  m->background_hu = wc.background;
+  m->noise_hu = wc.sigma;
+  m->roi_voxels = wc.roi_voxels;
+  const double contrast = m->peak_hu - wc.background;
+  m->weight_volume_mm3 = contrast > 0 ? wc.weight * vol.VoxelVolumeMm3() / contrast : 0;
   return true;
 }
 
@@ -959,59 +1003,63 @@ bool RefineSaturated(const CtVolume& vol, const MarkerDetectionOptions& opt, dou
 
 }  // namespace
 
-StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
-                                        const MarkerDetectionOptions& opt) {
-  std::string error;
-  if (!opt.Check(&error)) return Status::Error("marker detection options: " + error);
-  const size_t n = vol.hu.size();
-  if (n == 0 || n != static_cast<size_t>(vol.columns) * vol.rows * vol.slices) {
-    return Status::Error("marker detection: empty or inconsistent CT volume");
-  }
-  // 1. Threshold.
+namespace {
+
+// Voxel index -> (i, j, k).
+Eigen::Vector3i VoxelIjk(const CtVolume& vol, size_t v) {
+  const size_t nx = vol.columns, nxy = static_cast<size_t>(vol.columns) * vol.rows;
+  const int k = static_cast<int>(v / nxy);
+  const size_t r = v % nxy;
+  return Eigen::Vector3i(static_cast<int>(r % nx), static_cast<int>(r / nx), k);
+}
+
+// 1. The voxels at or above the threshold; an error when they are too many for markers.
+StatusOr<std::vector<size_t>> ThresholdCore(const CtVolume& vol, const MarkerDetectionOptions& opt) {
   const float thr = static_cast<float>(opt.threshold_hu);
-  const size_t max_core = static_cast<size_t>(opt.max_core_fraction * n) + 1;
+  const size_t max_core = static_cast<size_t>(opt.max_core_fraction * vol.hu.size()) + 1;
   std::vector<size_t> core;
-  for (size_t v = 0; v < n; ++v) {
-    if (vol.hu[v] >= thr) {
-      core.push_back(v);
-      if (core.size() > max_core) {
-        char b[256];
-        std::snprintf(b, sizeof(b),
-                      "more than %.1f%% of the CT's voxels are >= %.0f HU: the threshold is too "
-                      "low for metal markers (set it above the object's and bone's HU)",
-                      100 * opt.max_core_fraction, opt.threshold_hu);
-        return Status::Error(b);
-      }
+  for (size_t v = 0; v < vol.hu.size(); ++v) {
+    if (vol.hu[v] < thr) continue;
+    core.push_back(v);
+    if (core.size() > max_core) {
+      char b[256];
+      std::snprintf(b, sizeof(b),
+                    "more than %.1f%% of the CT's voxels are >= %.0f HU: the threshold is too "
+                    "low for metal markers (set it above the object's and bone's HU)",
+                    100 * opt.max_core_fraction, opt.threshold_hu);
+      return Status::Error(b);
     }
   }
-  MarkerDetection out;
-  out.core_voxels = static_cast<int>(core.size());
-  // 8. The scanner's clip: given, or the largest value when enough voxels hold it.
+  return core;
+}
+
+// 8. The scanner's clip: given, or the largest value when enough voxels hold it; and how many
+// core voxels hold it.
+void ScannerClip(const CtVolume& vol, const MarkerDetectionOptions& opt, const std::vector<size_t>& core,
+                 MarkerDetection* out) {
   if (opt.clip_hu > 0) {
-    out.clip_hu = opt.clip_hu;
+    out->clip_hu = opt.clip_hu;
   } else if (opt.clip_hu == 0 && !core.empty()) {
-    float top = thr;
+    float top = static_cast<float>(opt.threshold_hu);
     for (size_t v : core) top = std::max(top, vol.hu[v]);
     int at_top = 0;
     for (size_t v : core) at_top += vol.hu[v] >= top;
-    if (at_top >= kMinClippedVoxels) out.clip_hu = top;
+    if (at_top >= kMinClippedVoxels) out->clip_hu = top;
   }
-  if (out.clip_hu > 0) {
-    for (size_t v : core) out.clipped_voxels += vol.hu[v] >= out.clip_hu;
+  if (out->clip_hu > 0) {
+    for (size_t v : core) out->clipped_voxels += vol.hu[v] >= out->clip_hu;
   }
-  // 2. 26-connected components.
+}
+
+// 2. The 26-connected components of the core, as positions in `core`, in the order of their
+// first voxel.
+std::vector<std::vector<int>> CoreComponents(const CtVolume& vol, const std::vector<size_t>& core) {
   std::unordered_map<size_t, int> position;
   position.reserve(core.size() * 2);
   for (size_t p = 0; p < core.size(); ++p) position[core[p]] = static_cast<int>(p);
   UnionFind uf(static_cast<int>(core.size()));
-  const size_t nx = vol.columns, nxy = static_cast<size_t>(vol.columns) * vol.rows;
-  auto ijk = [&](size_t v) {
-    const int k = static_cast<int>(v / nxy);
-    const size_t r = v % nxy;
-    return Eigen::Vector3i(static_cast<int>(r % nx), static_cast<int>(r / nx), k);
-  };
   for (size_t p = 0; p < core.size(); ++p) {
-    const Eigen::Vector3i q = ijk(core[p]);
+    const Eigen::Vector3i q = VoxelIjk(vol, core[p]);
     for (int dk = 0; dk <= 1; ++dk) {
       for (int dj = -1; dj <= 1; ++dj) {
         for (int di = -1; di <= 1; ++di) {
@@ -1027,175 +1075,203 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
       }
     }
   }
-  std::unordered_map<int, std::vector<int>> groups;
-  std::vector<int> roots;
+  std::unordered_map<int, int> component_of_root;
+  std::vector<std::vector<int>> components;
   for (size_t p = 0; p < core.size(); ++p) {
     const int r = uf.Find(static_cast<int>(p));
-    if (!groups.count(r)) roots.push_back(r);
-    groups[r].push_back(static_cast<int>(p));
+    auto it = component_of_root.find(r);
+    if (it == component_of_root.end()) {
+      it = component_of_root.emplace(r, static_cast<int>(components.size())).first;
+      components.emplace_back();
+    }
+    components[it->second].push_back(static_cast<int>(p));
   }
-  // 3. Size and border filter, seeds; 4-5. centres; 6. ball fit, validation, contamination.
-  const double voxel_mm3 = vol.VoxelVolumeMm3();
-  const double nominal_mm3 = M_PI / 6.0 * std::pow(opt.diameter_mm, 3);
+  return components;
+}
+
+// A component's extent, centroid and peak (voxel indices).
+struct ComponentStats {
+  Eigen::Vector3i lo, hi;
+  Eigen::Vector3d centroid, peak_at = Eigen::Vector3d::Zero();
+  double peak = -1e30, volume_mm3 = 0;
+};
+
+ComponentStats StatsOfComponent(const CtVolume& vol, const std::vector<size_t>& core, const std::vector<int>& members) {
+  ComponentStats c;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  c.lo = c.hi = VoxelIjk(vol, core[members[0]]);
+  for (int p : members) {
+    const Eigen::Vector3i q = VoxelIjk(vol, core[p]);
+    sum += q.cast<double>();
+    c.lo = c.lo.cwiseMin(q);
+    c.hi = c.hi.cwiseMax(q);
+    if (vol.hu[core[p]] > c.peak) {
+      c.peak = vol.hu[core[p]];
+      c.peak_at = q.cast<double>();
+    }
+  }
+  c.centroid = sum / members.size();
+  c.volume_mm3 = members.size() * vol.VoxelVolumeMm3();
+  return c;
+}
+
+// Where a marker's refinement starts.
+struct MarkerSeed {
+  Eigen::Vector3d index;
+  double core_radius_mm;
+  double peak_hu;
+  Eigen::Vector3d peak_index;
+};
+
+// 3. Seeds: the component itself when it is marker-sized; else (a marker touching bone or
+// another dense structure above the threshold) its local maxima, strongest first, at least one
+// diameter apart, each started with the nominal radius.
+std::vector<MarkerSeed> ComponentSeeds(const CtVolume& vol, const MarkerDetectionOptions& opt,
+                                       const std::vector<size_t>& core, const std::vector<int>& members,
+                                       const ComponentStats& c, bool large) {
+  if (!large) return {{c.centroid, std::cbrt(3.0 * c.volume_mm3 / (4.0 * M_PI)), c.peak, c.peak_at}};
   const double radius = 0.5 * opt.diameter_mm;
   const Eigen::Matrix3d A = vol.PatientFromIndexLinear();
-  const double min_peak_fraction = MinPeakFraction(vol, radius);
-  std::vector<DetectedMarker> accepted;
-  for (int r : roots) {
-    const auto& members = groups[r];
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Vector3i lo = ijk(core[members[0]]), hi = lo;
-    double peak = -1e30;
-    Eigen::Vector3d peak_at = Eigen::Vector3d::Zero();
-    for (int p : members) {
-      const Eigen::Vector3i q = ijk(core[p]);
-      sum += q.cast<double>();
-      lo = lo.cwiseMin(q);
-      hi = hi.cwiseMax(q);
-      if (vol.hu[core[p]] > peak) {
-        peak = vol.hu[core[p]];
-        peak_at = q.cast<double>();
-      }
-    }
-    const Eigen::Vector3d centroid = sum / members.size();
-    const double volume = members.size() * voxel_mm3;
-    RejectedComponent rej;
-    rej.centroid_mm = vol.PatientFromIndex(centroid);
-    rej.volume_mm3 = volume;
-    rej.peak_hu = peak;
-    rej.voxels = static_cast<int>(members.size());
-    char why[200] = "";
-    const bool large = volume > opt.max_volume_fraction * nominal_mm3;
-    if (volume < opt.min_volume_fraction * nominal_mm3) {
-      std::snprintf(why, sizeof(why), "too small: %.3f mm^3 < %.2f x %.3f mm^3", volume,
-                    opt.min_volume_fraction, nominal_mm3);
-    } else if (lo.minCoeff() == 0 || hi.x() == vol.columns - 1 || hi.y() == vol.rows - 1 ||
-               hi.z() == vol.slices - 1) {
-      std::snprintf(why, sizeof(why), "touches the border of the volume");
-    }
-    if (why[0]) {
-      rej.reason = why;
-      out.rejected.push_back(rej);
-      continue;
-    }
-    // Seeds: the component itself when it is marker-sized; else (a marker touching bone or
-    // another dense structure above the threshold) its local maxima, strongest first, at least
-    // one diameter apart, each started with the nominal radius.
-    struct Seed {
-      Eigen::Vector3d index;
-      double core_radius_mm;
-      double peak_hu;
-      Eigen::Vector3d peak_index;
-    };
-    std::vector<Seed> seeds;
-    if (!large) {
-      seeds.push_back({centroid, std::cbrt(3.0 * volume / (4.0 * M_PI)), peak, peak_at});
-    } else {
-      std::vector<std::pair<double, Eigen::Vector3i>> maxima;
-      for (int p : members) {
-        const Eigen::Vector3i q = ijk(core[p]);
-        const float v = vol.hu[core[p]];
-        bool is_max = true;
-        for (int dk = -1; dk <= 1 && is_max; ++dk) {
-          for (int dj = -1; dj <= 1 && is_max; ++dj) {
-            for (int di = -1; di <= 1 && is_max; ++di) {
-              const int i = q.x() + di, j = q.y() + dj, k = q.z() + dk;
-              if (i < 0 || j < 0 || k < 0 || i >= vol.columns || j >= vol.rows ||
-                  k >= vol.slices) {
-                continue;
-              }
-              const float w = vol.At(i, j, k);
-              // Ties: the first in memory order is the maximum.
-              if (w > v || (w == v && vol.Index(i, j, k) < core[p])) is_max = false;
-            }
-          }
+  std::vector<std::pair<double, Eigen::Vector3i>> maxima;
+  for (int p : members) {
+    const Eigen::Vector3i q = VoxelIjk(vol, core[p]);
+    const float v = vol.hu[core[p]];
+    bool is_max = true;
+    for (int dk = -1; dk <= 1 && is_max; ++dk) {
+      for (int dj = -1; dj <= 1 && is_max; ++dj) {
+        for (int di = -1; di <= 1 && is_max; ++di) {
+          const int i = q.x() + di, j = q.y() + dj, k = q.z() + dk;
+          if (i < 0 || j < 0 || k < 0 || i >= vol.columns || j >= vol.rows || k >= vol.slices) continue;
+          const float w = vol.At(i, j, k);
+          // Ties: the first in memory order is the maximum.
+          if (w > v || (w == v && vol.Index(i, j, k) < core[p])) is_max = false;
         }
-        if (is_max) maxima.emplace_back(v, q);
-      }
-      std::sort(maxima.begin(), maxima.end(),
-                [](const auto& a, const auto& b) { return a.first > b.first; });
-      for (const auto& [v, q] : maxima) {
-        const Eigen::Vector3d x = q.cast<double>();
-        bool far = true;
-        for (const auto& s : seeds) far = far && (A * (x - s.index)).norm() >= radius;
-        if (far) seeds.push_back({x, radius, v, x});
-        if (static_cast<int>(seeds.size()) >= opt.max_seeds_per_component) break;
       }
     }
-    int kept = 0;
-    std::string last_reason;
-    for (const auto& seed : seeds) {
-      const Eigen::Vector3d seed_mm = vol.PatientFromIndex(seed.index);
-      bool taken = false;
-      for (const auto& a : accepted) taken = taken || (a.centre_mm - seed_mm).norm() < opt.diameter_mm;
-      if (taken) continue;
-      DetectedMarker m;
-      m.core_voxels = static_cast<int>(members.size());
-      m.volume_mm3 = large ? 0 : volume;
-      m.peak_hu = seed.peak_hu;
-      m.core_centroid_mm = vol.PatientFromIndex(large ? seed.index : centroid);
-      m.bbox_centre_mm = large ? m.core_centroid_mm
-                               : vol.PatientFromIndex(0.5 * (lo + hi).cast<double>());
-      m.centre_index = seed.index;
-      m.peak_index = seed.peak_index;
-      m.merged = large;
-      if (out.clip_hu > 0 && m.peak_hu >= out.clip_hu) {
-        std::string reason;
-        if (!RefineSaturated(vol, opt, out.clip_hu, &m, &reason)) {
-          last_reason = reason;
-          continue;
-        }
-        ++kept;
-        accepted.push_back(m);
-        continue;
-      }
-      if (!Refine(vol, opt, seed.core_radius_mm, min_peak_fraction, &m)) {
-        last_reason = "no contrast against its surroundings (weighted mass <= 0) or no background";
-        continue;
-      }
-      char b[200] = "";
-      if (m.peak_hu < m.peak_needed_hu) {
-        std::snprintf(b, sizeof(b),
-                      "peak %.0f HU < %.0f HU, the least a %.3g mm ball of %.0f HU gives in these "
-                      "voxels over its %.0f HU background (not metal: bone?)",
-                      m.peak_hu, m.peak_needed_hu, opt.diameter_mm, opt.min_metal_hu,
-                      m.background_hu);
-      } else if (!m.fit_ok) {
-        std::snprintf(b, sizeof(b), "the partial-volume ball fit failed");
-      } else if (m.fit_metal_hu < opt.min_metal_hu) {
-        std::snprintf(b, sizeof(b), "fitted ball HU %.0f < %.0f (not metal: bone?)",
-                      m.fit_metal_hu, opt.min_metal_hu);
-      } else if (m.fit_inner_fraction < opt.min_inner_fraction) {
-        std::snprintf(b, sizeof(b),
-                      "not ball-shaped: %.0f%% of the voxels inside the fitted %.3g mm ball are "
-                      "within 25%% of its contrast (< %.0f%%)",
-                      100 * m.fit_inner_fraction, opt.diameter_mm, 100 * opt.min_inner_fraction);
-      } else if ((m.fit_centre_mm - m.core_centroid_mm).norm() > radius + 0.5 * A.colwise().norm().maxCoeff()) {
-        std::snprintf(b, sizeof(b), "the fitted ball is %.2f mm from its seed",
-                      (m.fit_centre_mm - m.core_centroid_mm).norm());
-      }
-      if (b[0]) {
-        last_reason = b;
+    if (is_max) maxima.emplace_back(v, q);
+  }
+  std::sort(maxima.begin(), maxima.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<MarkerSeed> seeds;
+  for (const auto& [v, q] : maxima) {
+    const Eigen::Vector3d x = q.cast<double>();
+    bool far = true;
+    for (const auto& s : seeds) far = far && (A * (x - s.index)).norm() >= radius;
+    if (far) seeds.push_back({x, radius, v, x});
+    if (static_cast<int>(seeds.size()) >= opt.max_seeds_per_component) break;
+  }
+  return seeds;
+}
+
+// 6. Why a refined marker is not accepted (not metal, no ball fit, not ball-shaped, far from its
+// seed), or "".
+std::string RefinedMarkerRejection(const CtVolume& vol, const MarkerDetectionOptions& opt, const DetectedMarker& m) {
+  const double radius = 0.5 * opt.diameter_mm;
+  const Eigen::Matrix3d A = vol.PatientFromIndexLinear();
+  char b[200] = "";
+  if (m.peak_hu < m.peak_needed_hu) {
+    std::snprintf(b, sizeof(b),
+                  "peak %.0f HU < %.0f HU, the least a %.3g mm ball of %.0f HU gives in these "
+                  "voxels over its %.0f HU background (not metal: bone?)",
+                  m.peak_hu, m.peak_needed_hu, opt.diameter_mm, opt.min_metal_hu, m.background_hu);
+  } else if (!m.fit_ok) {
+    std::snprintf(b, sizeof(b), "the partial-volume ball fit failed");
+  } else if (m.fit_metal_hu < opt.min_metal_hu) {
+    std::snprintf(b, sizeof(b), "fitted ball HU %.0f < %.0f (not metal: bone?)", m.fit_metal_hu, opt.min_metal_hu);
+  } else if (m.fit_inner_fraction < opt.min_inner_fraction) {
+    std::snprintf(b, sizeof(b),
+                  "not ball-shaped: %.0f%% of the voxels inside the fitted %.3g mm ball are "
+                  "within 25%% of its contrast (< %.0f%%)",
+                  100 * m.fit_inner_fraction, opt.diameter_mm, 100 * opt.min_inner_fraction);
+  } else if ((m.fit_centre_mm - m.core_centroid_mm).norm() > radius + 0.5 * A.colwise().norm().maxCoeff()) {
+    std::snprintf(b, sizeof(b), "the fitted ball is %.2f mm from its seed", (m.fit_centre_mm - m.core_centroid_mm).norm());
+  }
+  return b;
+}
+
+// One component: rejected by size or the volume's border, or its seeds refined (4-6; saturated
+// metal: 8) into markers not already taken. A component that gives none is rejected with the
+// last seed's reason.
+void DetectInComponent(const CtVolume& vol, const MarkerDetectionOptions& opt, const std::vector<size_t>& core,
+                       const std::vector<int>& members, double min_peak_fraction,
+                       std::vector<DetectedMarker>* accepted, MarkerDetection* out) {
+  const double nominal_mm3 = M_PI / 6.0 * std::pow(opt.diameter_mm, 3);
+  const ComponentStats c = StatsOfComponent(vol, core, members);
+  const double volume = c.volume_mm3;
+  RejectedComponent rej;
+  rej.centroid_mm = vol.PatientFromIndex(c.centroid);
+  rej.volume_mm3 = volume;
+  rej.peak_hu = c.peak;
+  rej.voxels = static_cast<int>(members.size());
+  char why[200] = "";
+  const bool large = volume > opt.max_volume_fraction * nominal_mm3;
+  if (volume < opt.min_volume_fraction * nominal_mm3) {
+    std::snprintf(why, sizeof(why), "too small: %.3f mm^3 < %.2f x %.3f mm^3", volume,
+                  opt.min_volume_fraction, nominal_mm3);
+  } else if (c.lo.minCoeff() == 0 || c.hi.x() == vol.columns - 1 || c.hi.y() == vol.rows - 1 ||
+             c.hi.z() == vol.slices - 1) {
+    std::snprintf(why, sizeof(why), "touches the border of the volume");
+  }
+  if (why[0]) {
+    rej.reason = why;
+    out->rejected.push_back(rej);
+    return;
+  }
+  const std::vector<MarkerSeed> seeds = ComponentSeeds(vol, opt, core, members, c, large);
+  int kept = 0;
+  std::string last_reason;
+  for (const auto& seed : seeds) {
+    const Eigen::Vector3d seed_mm = vol.PatientFromIndex(seed.index);
+    bool taken = false;
+    for (const auto& a : *accepted) taken = taken || (a.centre_mm - seed_mm).norm() < opt.diameter_mm;
+    if (taken) continue;
+    DetectedMarker m;
+    m.core_voxels = static_cast<int>(members.size());
+    m.volume_mm3 = large ? 0 : volume;
+    m.peak_hu = seed.peak_hu;
+    m.core_centroid_mm = vol.PatientFromIndex(large ? seed.index : c.centroid);
+    m.bbox_centre_mm = large ? m.core_centroid_mm : vol.PatientFromIndex(0.5 * (c.lo + c.hi).cast<double>());
+    m.centre_index = seed.index;
+    m.peak_index = seed.peak_index;
+    m.merged = large;
+    if (out->clip_hu > 0 && m.peak_hu >= out->clip_hu) {
+      std::string reason;
+      if (!RefineSaturated(vol, opt, out->clip_hu, &m, &reason)) {
+        last_reason = reason;
         continue;
       }
       ++kept;
-      accepted.push_back(m);
+      accepted->push_back(m);
+      continue;
     }
-    if (kept == 0) {
-      if (large) {
-        std::snprintf(why, sizeof(why),
-                      "too large: %.3f mm^3 > %.2f x %.3f mm^3, and no ball-shaped metal peak in "
-                      "it (%zu seed(s)%s%s)",
-                      volume, opt.max_volume_fraction, nominal_mm3, seeds.size(),
-                      last_reason.empty() ? "" : "; last: ", last_reason.c_str());
-        rej.reason = why;
-      } else {
-        rej.reason = last_reason;
-      }
-      out.rejected.push_back(rej);
+    if (!Refine(vol, opt, seed.core_radius_mm, min_peak_fraction, &m)) {
+      last_reason = "no contrast against its surroundings (weighted mass <= 0) or no background";
+      continue;
     }
+    const std::string reason = RefinedMarkerRejection(vol, opt, m);
+    if (!reason.empty()) {
+      last_reason = reason;
+      continue;
+    }
+    ++kept;
+    accepted->push_back(m);
   }
-  // Two seeds of one marker (a merged component's maxima): keep the better fit.
+  if (kept > 0) return;
+  if (large) {
+    std::snprintf(why, sizeof(why),
+                  "too large: %.3f mm^3 > %.2f x %.3f mm^3, and no ball-shaped metal peak in "
+                  "it (%zu seed(s)%s%s)",
+                  volume, opt.max_volume_fraction, nominal_mm3, seeds.size(),
+                  last_reason.empty() ? "" : "; last: ", last_reason.c_str());
+    rej.reason = why;
+  } else {
+    rej.reason = last_reason;
+  }
+  out->rejected.push_back(rej);
+}
+
+// Two seeds of one marker (a merged component's maxima): the better fit is kept; the markers
+// numbered from 1.
+void KeepDistinctMarkers(const std::vector<DetectedMarker>& accepted, double radius, MarkerDetection* out) {
   std::vector<bool> dropped(accepted.size(), false);
   for (size_t a = 0; a < accepted.size(); ++a) {
     for (size_t b = a + 1; b < accepted.size(); ++b) {
@@ -1207,33 +1283,61 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
   }
   for (size_t a = 0; a < accepted.size(); ++a) {
     if (dropped[a]) continue;
-    accepted[a].id = static_cast<int>(out.markers.size()) + 1;
-    out.markers.push_back(accepted[a]);
+    out->markers.push_back(accepted[a]);
+    out->markers.back().id = static_cast<int>(out->markers.size());
   }
+}
+
+// The error when no marker, or not the expected number, was found: where they were found and
+// the first rejected components with their reasons.
+Status CountError(const MarkerDetection& out, const MarkerDetectionOptions& opt) {
   const int found = static_cast<int>(out.markers.size());
-  if (found == 0 || (opt.expected_count > 0 && found != opt.expected_count)) {
-    char b[200];
-    std::snprintf(b, sizeof(b), "found %d marker%s (threshold %.0f HU, diameter %.2f mm)", found,
-                  found == 1 ? "" : "s", opt.threshold_hu, opt.diameter_mm);
-    std::string msg = b;
-    if (opt.expected_count > 0) msg += ", expected " + std::to_string(opt.expected_count);
-    if (found > 0) {
-      msg += "; found at";
-      for (const auto& m : out.markers) msg += " " + Mm2(m.centre_mm);
-    }
-    if (!out.rejected.empty()) {
-      msg += "; rejected " + std::to_string(out.rejected.size()) + " component(s):";
-      int shown = 0;
-      for (const auto& r : out.rejected) {
-        if (shown++ == 5) {
-          msg += " ...";
-          break;
-        }
-        msg += " " + Mm2(r.centroid_mm) + " " + r.reason + ";";
-      }
-    }
-    return Status::Error(msg);
+  char b[200];
+  std::snprintf(b, sizeof(b), "found %d marker%s (threshold %.0f HU, diameter %.2f mm)", found,
+                found == 1 ? "" : "s", opt.threshold_hu, opt.diameter_mm);
+  std::string msg = b;
+  if (opt.expected_count > 0) msg += ", expected " + std::to_string(opt.expected_count);
+  if (found > 0) {
+    msg += "; found at";
+    for (const auto& m : out.markers) msg += " " + Mm2(m.centre_mm);
   }
+  if (!out.rejected.empty()) {
+    msg += "; rejected " + std::to_string(out.rejected.size()) + " component(s):";
+    int shown = 0;
+    for (const auto& r : out.rejected) {
+      if (shown++ == 5) {
+        msg += " ...";
+        break;
+      }
+      msg += " " + Mm2(r.centroid_mm) + " " + r.reason + ";";
+    }
+  }
+  return Status::Error(msg);
+}
+
+}  // namespace
+
+StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
+                                        const MarkerDetectionOptions& opt) {
+  std::string error;
+  if (!opt.Check(&error)) return Status::Error("marker detection options: " + error);
+  const size_t n = vol.hu.size();
+  if (n == 0 || n != static_cast<size_t>(vol.columns) * vol.rows * vol.slices) {
+    return Status::Error("marker detection: empty or inconsistent CT volume");
+  }
+  auto core = ThresholdCore(vol, opt);
+  if (!core.ok()) return core.status();
+  MarkerDetection out;
+  out.core_voxels = static_cast<int>(core->size());
+  ScannerClip(vol, opt, *core, &out);
+  const double min_peak_fraction = MinPeakFraction(vol, 0.5 * opt.diameter_mm);
+  std::vector<DetectedMarker> accepted;
+  for (const std::vector<int>& members : CoreComponents(vol, *core)) {
+    DetectInComponent(vol, opt, *core, members, min_peak_fraction, &accepted, &out);
+  }
+  KeepDistinctMarkers(accepted, 0.5 * opt.diameter_mm, &out);
+  const int found = static_cast<int>(out.markers.size());
+  if (found == 0 || (opt.expected_count > 0 && found != opt.expected_count)) return CountError(out, opt);
   return out;
 }
 

@@ -113,186 +113,251 @@ constexpr double kCoreFloor = 0.25;
 constexpr double kBlendFromPx = 0.03, kBlendToPx = 0.06;
 }  // namespace
 
+namespace {
+
+// A pixel of the disc or the ring around a blob centre.
+struct CentroidPixel {
+  int ex, ey;   // offset from the rounded centre
+  float value;  // grey level (disc: then contrast)
+};
+
+// The scan geometry around a blob: the disc's radius rho, the ring's width, the half-size of
+// the pixel box scanned.
+struct CentroidWindow {
+  double r_half = 0, rho = -1, ring_width = 3;
+  int rw = 0;
+};
+
+// The blob's half-maximum radius from the window of half-size w around (cx, cy), and from it the
+// disc and ring: the tails and ring fit between the blob (edge r_half) and its neighbours (edge
+// nn_px - r_half), the disc no larger than needed (the centroid's noise grows with its area):
+// within disc_px while the tails stay >= 1 px. False when there is no blob.
+bool SizeCentroidWindow(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
+                        int cx, int cy, int w, CentroidWindow* win) {
+  if (cx < 0 || cy < 0 || cx >= f.cols || cy >= f.rows) return false;
+  std::vector<float> vals, band;
+  vals.reserve((2 * w + 1) * (2 * w + 1));
+  band.reserve(16 * w + 8);
+  float extreme = dark ? 1e30f : -1e30f;
+  for (int y = std::max(0, cy - w); y <= std::min(f.rows - 1, cy + w); ++y) {
+    const float* fr = f.ptr<float>(y);
+    const uint8_t* vr = valid.ptr<uint8_t>(y);
+    const bool edge_row = std::abs(y - cy) >= w - 1;
+    for (int x = std::max(0, cx - w); x <= std::min(f.cols - 1, cx + w); ++x) {
+      if (!vr[x]) continue;
+      vals.push_back(fr[x]);
+      if (edge_row || std::abs(x - cx) >= w - 1) band.push_back(fr[x]);
+      extreme = dark ? std::min(extreme, fr[x]) : std::max(extreme, fr[x]);
+    }
+  }
+  if (vals.size() < 9) return false;
+  std::vector<float>& bg = band.size() >= 8 ? band : vals;
+  std::nth_element(bg.begin(), bg.begin() + bg.size() / 2, bg.end());
+  const float median = bg[bg.size() / 2];
+  const float half = 0.5f * (median + extreme);
+  int area = 0;
+  for (float v : vals) area += dark ? v < half : v > half;
+  if (area == 0 || !(dark ? median > extreme : median < extreme)) return false;
+  const double r_half = std::sqrt(area / M_PI);
+  win->r_half = r_half;
+  const double gap = nn_px - 2.0 * r_half;
+  double tail = std::max(1.0, std::min(0.5 * r_half + 2.0, disc_px - r_half));
+  if (2.0 * tail + win->ring_width > gap) {
+    win->ring_width = std::clamp(gap - 2.0, 2.0, 3.0);
+    tail = std::max(1.0, 0.5 * (gap - win->ring_width));
+  }
+  win->rho = r_half + tail;
+  win->rw = static_cast<int>(std::ceil(win->rho + win->ring_width));
+  return win->rho >= 2.0;
+}
+
+// The disc (within rho of c) and ring pixels around the rounded centre (cx, cy); false when one
+// is invalid (the disc or the ring reaches the field-of-view rim).
+bool CollectDiscAndRing(const cv::Mat& f, const cv::Mat& valid, cv::Point2d c, int cx, int cy,
+                        const CentroidWindow& win, std::vector<CentroidPixel>* disc,
+                        std::vector<CentroidPixel>* ring) {
+  const int rw = win.rw;
+  const double ring_in2 = win.rho * win.rho, ring_out2 = (win.rho + win.ring_width) * (win.rho + win.ring_width);
+  ring->clear();
+  disc->clear();
+  for (int y = cy - rw; y <= cy + rw; ++y) {
+    const float* fr = f.ptr<float>(y);
+    const uint8_t* vr = valid.ptr<uint8_t>(y);
+    const double dy = y - c.y;
+    for (int x = cx - rw; x <= cx + rw; ++x) {
+      const double dx = x - c.x, d2 = dx * dx + dy * dy;
+      if (d2 > ring_out2) continue;
+      if (!vr[x]) return false;
+      (d2 < ring_in2 ? *disc : *ring).push_back({x - cx, y - cy, fr[x]});
+    }
+  }
+  return true;
+}
+
+double PlaneAt(const cv::Vec3d& plane, const CentroidPixel& q) {
+  return plane[0] + plane[1] * q.ex + plane[2] * q.ey;
+}
+
+// The background plane on the ring, robustly refitted once when a ring pixel is off by more than
+// 3 robust sigmas (1.4826 MAD, at least 1e-3 of the background level); the ring's robust sigma
+// and normal matrix. False when the ring is too small or degenerate.
+bool FitRingPlane(const std::vector<CentroidPixel>& ring, cv::Vec3d* plane, double* ring_sigma,
+                  cv::Matx33d* ring_AtA) {
+  *plane = cv::Vec3d(0, 0, 0);
+  *ring_sigma = 0;
+  double cut = 1e300;
+  std::vector<float> res;
+  for (int pass = 0; pass < 2; ++pass) {
+    double s1 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, sv = 0, sxv = 0, syv = 0;
+    for (const CentroidPixel& q : ring) {
+      if (pass == 1 && std::fabs(q.value - PlaneAt(*plane, q)) > cut) continue;
+      const double x = q.ex, y = q.ey, v = q.value;
+      s1 += 1, sx += x, sy += y, sxx += x * x, sxy += x * y, syy += y * y;
+      sv += v, sxv += x * v, syv += y * v;
+    }
+    const cv::Matx33d AtA(s1, sx, sy, sx, sxx, sxy, sy, sxy, syy);
+    const cv::Vec3d Atb(sv, sxv, syv);
+    if (s1 < 8 || !cv::solve(AtA, Atb, *plane, cv::DECOMP_CHOLESKY)) return false;
+    *ring_AtA = AtA;
+    if (pass == 1) break;
+    res.clear();
+    for (const CentroidPixel& q : ring) res.push_back(static_cast<float>(std::fabs(q.value - PlaneAt(*plane, q))));
+    const float largest = *std::max_element(res.begin(), res.end());
+    std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
+    *ring_sigma = 1.4826 * res[res.size() / 2];
+    cut = std::max(3.0 * 1.4826 * res[res.size() / 2], 1e-3 * std::fabs((*plane)[0]));
+    if (largest <= cut) break;  // nothing to drop: the refit would be the same plane
+  }
+  return true;
+}
+
+// The whole-blob and core centroids of the disc's contrast and the blend of the two that is the
+// centre (see the header above RefineCentroid).
+struct CentroidEstimate {
+  double peak = 0, floor = 0, core_floor = 0;
+  double sw = 0, hw = 0;           // weight sums of the whole blob and of the core
+  cv::Point2d full, core, centre;
+  double shift = 0, toward_core = 0;
+};
+
+// Centre covariance (detect_steps.h CentroidNoise): c = sum w_i x_i / S, dc/dw_i = (x_i - c) / S;
+// the centre used, (1 - t) c_full + t c_core (t held), has dc/dw_i = a_i = (1 - t) (x_i - c_full)
+// / S_full [w_i > floor] + t (x_i - c_core) / S_core [w_i > core floor]. w_i depends on the pixel
+// I_i and on the ring's plane p = (a, b, c): dark: w = 1 - I / bg, dw/dI = -1 / bg, dw/dp = I /
+// bg^2 [1, ex, ey], var I_i = sigma^2 I_i / bg_i (quanta); bright: dw/dI = 1, dw/dp = -[1, ex,
+// ey], var I_i = sigma^2. Cov_p = sigma^2 (A^T A)^-1 (the ring fit). Both scaled by the noise's
+// correlation factor. The pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 +
+// dy^2), |d| <= 3: sum_ij g_i g_j^T rho(i - j), g_i = a_i dw/dI sqrt(var I_i / sigma^2).
+void CentroidCovariance(const std::vector<CentroidPixel>& disc, const CentroidEstimate& e, const cv::Vec3d& plane,
+                        double ring_sigma, const cv::Matx33d& ring_AtA, bool dark, int cx, int cy, int rw,
+                        CentroidNoise* noise) {
+  const int side = 2 * rw + 1;
+  std::vector<cv::Vec2d> g(static_cast<size_t>(side) * side, cv::Vec2d(0, 0));
+  cv::Matx23d G = cv::Matx23d::zeros();
+  for (const CentroidPixel& q : disc) {
+    if (q.value - e.floor <= 0) continue;
+    const double x = q.ex + cx, y = q.ey + cy;
+    cv::Vec2d a = cv::Vec2d(x - e.full.x, y - e.full.y) * ((1.0 - e.toward_core) / e.sw);
+    if (q.value - e.core_floor > 0) a += cv::Vec2d(x - e.core.x, y - e.core.y) * (e.toward_core / e.hw);
+    const double bg = PlaneAt(plane, q);
+    const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
+    const double var_I = dark ? std::max(0.0, I / bg) : 1.0;
+    const double dw_dI = dark ? -1.0 / bg : 1.0;
+    g[(q.ey + rw) * side + (q.ex + rw)] = a * (dw_dI * std::sqrt(var_I));
+    const double s_p = dark ? I / (bg * bg) : -1.0;
+    const cv::Vec3d dw_dp(s_p, s_p * q.ex, s_p * q.ey);
+    for (int j = 0; j < 3; ++j) G(0, j) += a[0] * dw_dp[j], G(1, j) += a[1] * dw_dp[j];
+  }
+  double rho[4];
+  for (int k = 0; k < 4; ++k) rho[k] = std::pow(noise->rho1, k * k);
+  cv::Matx22d cov_pix = cv::Matx22d::zeros();
+  for (int y = 0; y < side; ++y) {
+    for (int x = 0; x < side; ++x) {
+      const cv::Vec2d& gi = g[y * side + x];
+      if (gi[0] == 0 && gi[1] == 0) continue;
+      for (int dy = -3; dy <= 3; ++dy) {
+        if (y + dy < 0 || y + dy >= side) continue;
+        for (int dx = -3; dx <= 3; ++dx) {
+          if (x + dx < 0 || x + dx >= side) continue;
+          const cv::Vec2d& gj = g[(y + dy) * side + x + dx];
+          const double r = rho[std::abs(dx)] * rho[std::abs(dy)];
+          cov_pix(0, 0) += r * gi[0] * gj[0], cov_pix(0, 1) += r * gi[0] * gj[1];
+          cov_pix(1, 1) += r * gi[1] * gj[1];
+        }
+      }
+    }
+  }
+  cov_pix(1, 0) = cov_pix(0, 1);
+  const double sigma_used = std::max(
+      ring_sigma, std::sqrt(std::max(noise->floor_variance_per_grey * std::max(0.0, plane[0]),
+                                     noise->floor_variance_gray)));
+  const double sigma2 = sigma_used * sigma_used;
+  const cv::Matx22d cov =
+      (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) * sigma2;
+  noise->covariance_px2 = cov;
+  noise->sigma_gray = sigma_used;
+  noise->peak_contrast = e.peak;
+  noise->background = plane[0];
+}
+
+// The disc's pixels as contrast against the plane, and the centroids; false without contrast.
+bool DiscCentroids(std::vector<CentroidPixel>* disc, const cv::Vec3d& plane, bool dark, int cx, int cy,
+                   CentroidEstimate* e) {
+  for (CentroidPixel& q : *disc) {
+    const double bg = PlaneAt(plane, q);
+    q.value = static_cast<float>(dark ? 1.0 - q.value / bg : q.value - bg);
+    e->peak = std::max(e->peak, static_cast<double>(q.value));
+  }
+  if (!(e->peak > 0)) return false;
+  e->floor = 0.05 * e->peak, e->core_floor = kCoreFloor * e->peak;
+  double sx = 0, sy = 0, hx = 0, hy = 0;
+  for (const CentroidPixel& q : *disc) {
+    const double w = q.value - e->floor;
+    if (w <= 0) continue;
+    e->sw += w, sx += w * (q.ex + cx), sy += w * (q.ey + cy);
+    const double wh = q.value - e->core_floor;
+    if (wh > 0) e->hw += wh, hx += wh * (q.ex + cx), hy += wh * (q.ey + cy);
+  }
+  if (!(e->sw > 0) || !(e->hw > 0)) return false;
+  e->full = cv::Point2d(sx / e->sw, sy / e->sw);
+  e->core = cv::Point2d(hx / e->hw, hy / e->hw);
+  e->shift = cv::norm(e->core - e->full);
+  e->toward_core = std::clamp((e->shift - kBlendFromPx) / (kBlendToPx - kBlendFromPx), 0.0, 1.0);
+  e->centre = e->full + e->toward_core * (e->core - e->full);
+  return true;
+}
+
+}  // namespace
+
 bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
                     cv::Point2d* c, double* r_half_px, CentroidNoise* noise, double* shift_px) {
   const int w = std::max(3, static_cast<int>(std::ceil(0.5 * nn_px)));
-  double rho = -1, ring_width = 3;
-  int rw = w;  // half-size of the pixel box scanned: rho + ring
-  struct Px {
-    int ex, ey;   // offset from the rounded centre
-    float value;  // grey level (disc: then contrast)
-  };
-  std::vector<Px> ring, disc;
-  std::vector<float> res;
+  CentroidWindow win;
+  win.rw = w;
+  std::vector<CentroidPixel> ring, disc;
   for (int it = 0; it < 8; ++it) {
     const int cx = static_cast<int>(std::lround(c->x)), cy = static_cast<int>(std::lround(c->y));
-    if (rho < 0) {
-      // Blob size from the window around the initial centre (clipped to the image).
-      if (cx < 0 || cy < 0 || cx >= f.cols || cy >= f.rows) return false;
-      std::vector<float> vals, band;
-      vals.reserve((2 * w + 1) * (2 * w + 1));
-      band.reserve(16 * w + 8);
-      float extreme = dark ? 1e30f : -1e30f;
-      for (int y = std::max(0, cy - w); y <= std::min(f.rows - 1, cy + w); ++y) {
-        const float* fr = f.ptr<float>(y);
-        const uint8_t* vr = valid.ptr<uint8_t>(y);
-        const bool edge_row = std::abs(y - cy) >= w - 1;
-        for (int x = std::max(0, cx - w); x <= std::min(f.cols - 1, cx + w); ++x) {
-          if (!vr[x]) continue;
-          vals.push_back(fr[x]);
-          if (edge_row || std::abs(x - cx) >= w - 1) band.push_back(fr[x]);
-          extreme = dark ? std::min(extreme, fr[x]) : std::max(extreme, fr[x]);
-        }
+    if (win.rho < 0) {
+      if (!SizeCentroidWindow(f, valid, dark, nn_px, disc_px, cx, cy, w, &win)) {
+        if (win.r_half > 0) *r_half_px = win.r_half;
+        return false;
       }
-      if (vals.size() < 9) return false;
-      std::vector<float>& bg = band.size() >= 8 ? band : vals;
-      std::nth_element(bg.begin(), bg.begin() + bg.size() / 2, bg.end());
-      const float median = bg[bg.size() / 2];
-      const float half = 0.5f * (median + extreme);
-      int area = 0;
-      for (float v : vals) area += dark ? v < half : v > half;
-      if (area == 0 || !(dark ? median > extreme : median < extreme)) return false;
-      const double r_half = std::sqrt(area / M_PI);
-      *r_half_px = r_half;
-      // Tails and ring between the blob (edge r_half) and its neighbours (edge nn_px - r_half).
-      const double gap = nn_px - 2.0 * r_half;
-      // The disc no larger than needed (the centroid's noise grows with its area): within
-      // disc_px while the tails stay >= 1 px.
-      double tail = std::max(1.0, std::min(0.5 * r_half + 2.0, disc_px - r_half));
-      if (2.0 * tail + ring_width > gap) {
-        ring_width = std::clamp(gap - 2.0, 2.0, 3.0);
-        tail = std::max(1.0, 0.5 * (gap - ring_width));
-      }
-      rho = r_half + tail;
-      rw = static_cast<int>(std::ceil(rho + ring_width));
-      if (rho < 2.0) return false;
+      *r_half_px = win.r_half;
     }
+    const int rw = win.rw;
     if (cx - rw < 0 || cy - rw < 0 || cx + rw >= f.cols || cy + rw >= f.rows) return false;
-    const double ring_in2 = rho * rho, ring_out2 = (rho + ring_width) * (rho + ring_width);
-    // Background plane on the ring, robustly refitted once (when a ring pixel is off).
-    ring.clear();
-    disc.clear();
-    for (int y = cy - rw; y <= cy + rw; ++y) {
-      const float* fr = f.ptr<float>(y);
-      const uint8_t* vr = valid.ptr<uint8_t>(y);
-      const double dy = y - c->y;
-      for (int x = cx - rw; x <= cx + rw; ++x) {
-        const double dx = x - c->x, d2 = dx * dx + dy * dy;
-        if (d2 > ring_out2) continue;
-        if (!vr[x]) return false;  // the disc or the ring reaches the field-of-view rim
-        (d2 < ring_in2 ? disc : ring).push_back({x - cx, y - cy, fr[x]});
-      }
-    }
-    cv::Vec3d plane(0, 0, 0);
-    auto background = [&plane](const Px& q) { return plane[0] + plane[1] * q.ex + plane[2] * q.ey; };
-    double cut = 1e300, ring_sigma = 0;
+    if (!CollectDiscAndRing(f, valid, *c, cx, cy, win, &disc, &ring)) return false;
+    cv::Vec3d plane;
+    double ring_sigma = 0;
     cv::Matx33d ring_AtA;
-    for (int pass = 0; pass < 2; ++pass) {
-      double s1 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, sv = 0, sxv = 0, syv = 0;
-      for (const Px& q : ring) {
-        if (pass == 1 && std::fabs(q.value - background(q)) > cut) continue;
-        const double x = q.ex, y = q.ey, v = q.value;
-        s1 += 1, sx += x, sy += y, sxx += x * x, sxy += x * y, syy += y * y;
-        sv += v, sxv += x * v, syv += y * v;
-      }
-      const cv::Matx33d AtA(s1, sx, sy, sx, sxx, sxy, sy, sxy, syy);
-      const cv::Vec3d Atb(sv, sxv, syv);
-      if (s1 < 8 || !cv::solve(AtA, Atb, plane, cv::DECOMP_CHOLESKY)) return false;
-      ring_AtA = AtA;
-      if (pass == 1) break;
-      res.clear();
-      for (const Px& q : ring) res.push_back(static_cast<float>(std::fabs(q.value - background(q))));
-      const float largest = *std::max_element(res.begin(), res.end());
-      std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
-      ring_sigma = 1.4826 * res[res.size() / 2];
-      // 3 robust sigmas (1.4826 MAD), at least 1e-3 of the background level.
-      cut = std::max(3.0 * 1.4826 * res[res.size() / 2], 1e-3 * std::fabs(plane[0]));
-      if (largest <= cut) break;  // nothing to drop: the refit would be the same plane
-    }
+    if (!FitRingPlane(ring, &plane, &ring_sigma, &ring_AtA)) return false;
     if (dark && !(plane[0] > 0)) return false;
-    // Contrast weights on the disc.
-    double peak = 0;
-    for (Px& q : disc) {
-      const double bg = background(q);
-      q.value = static_cast<float>(dark ? 1.0 - q.value / bg : q.value - bg);
-      peak = std::max(peak, static_cast<double>(q.value));
-    }
-    if (!(peak > 0)) return false;
-    const double floor = 0.05 * peak, core_floor = kCoreFloor * peak;
-    double sw = 0, sx = 0, sy = 0, hw = 0, hx = 0, hy = 0;
-    for (const Px& q : disc) {
-      const double w = q.value - floor;
-      if (w <= 0) continue;
-      sw += w, sx += w * (q.ex + cx), sy += w * (q.ey + cy);
-      const double wh = q.value - core_floor;
-      if (wh > 0) hw += wh, hx += wh * (q.ex + cx), hy += wh * (q.ey + cy);
-    }
-    if (!(sw > 0) || !(hw > 0)) return false;
-    const cv::Point2d full(sx / sw, sy / sw), core(hx / hw, hy / hw);
-    const double shift = cv::norm(core - full);
-    const double toward_core = std::clamp((shift - kBlendFromPx) / (kBlendToPx - kBlendFromPx), 0.0, 1.0);
-    const cv::Point2d n = full + toward_core * (core - full);
-    if (shift_px) *shift_px = shift;
-    if (noise) {
-      // Centre covariance (detect_steps.h CentroidNoise): c = sum w_i x_i / S, dc/dw_i =
-      // (x_i - c) / S; the centre used, (1 - t) c_full + t c_core (t held), has dc/dw_i = a_i =
-      // (1 - t) (x_i - c_full) / S_full [w_i > floor] + t (x_i - c_core) / S_core [w_i > core
-      // floor]. w_i depends on the pixel I_i and on the ring's plane p = (a, b, c):
-      // dark: w = 1 - I / bg, dw/dI = -1 / bg, dw/dp = I / bg^2 [1, ex, ey], var I_i = sigma^2
-      // I_i / bg_i (quanta); bright: dw/dI = 1, dw/dp = -[1, ex, ey], var I_i = sigma^2.
-      // Cov_p = sigma^2 (A^T A)^-1 (the ring fit). Both scaled by the noise's correlation factor.
-      // The pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 + dy^2), |d| <= 3:
-      // sum_ij g_i g_j^T rho(i - j), g_i = a_i dw/dI sqrt(var I_i / sigma^2).
-      const int side = 2 * rw + 1;
-      std::vector<cv::Vec2d> g(static_cast<size_t>(side) * side, cv::Vec2d(0, 0));
-      cv::Matx23d G = cv::Matx23d::zeros();
-      for (const Px& q : disc) {
-        if (q.value - floor <= 0) continue;
-        const double x = q.ex + cx, y = q.ey + cy;
-        cv::Vec2d a = cv::Vec2d(x - full.x, y - full.y) * ((1.0 - toward_core) / sw);
-        if (q.value - core_floor > 0) a += cv::Vec2d(x - core.x, y - core.y) * (toward_core / hw);
-        const double bg = background(q);
-        const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
-        const double var_I = dark ? std::max(0.0, I / bg) : 1.0;
-        const double dw_dI = dark ? -1.0 / bg : 1.0;
-        g[(q.ey + rw) * side + (q.ex + rw)] = a * (dw_dI * std::sqrt(var_I));
-        const double s_p = dark ? I / (bg * bg) : -1.0;
-        const cv::Vec3d dw_dp(s_p, s_p * q.ex, s_p * q.ey);
-        for (int j = 0; j < 3; ++j) G(0, j) += a[0] * dw_dp[j], G(1, j) += a[1] * dw_dp[j];
-      }
-      double rho[4];
-      for (int k = 0; k < 4; ++k) rho[k] = std::pow(noise->rho1, k * k);
-      cv::Matx22d cov_pix = cv::Matx22d::zeros();
-      for (int y = 0; y < side; ++y) {
-        for (int x = 0; x < side; ++x) {
-          const cv::Vec2d& gi = g[y * side + x];
-          if (gi[0] == 0 && gi[1] == 0) continue;
-          for (int dy = -3; dy <= 3; ++dy) {
-            if (y + dy < 0 || y + dy >= side) continue;
-            for (int dx = -3; dx <= 3; ++dx) {
-              if (x + dx < 0 || x + dx >= side) continue;
-              const cv::Vec2d& gj = g[(y + dy) * side + x + dx];
-              const double r = rho[std::abs(dx)] * rho[std::abs(dy)];
-              cov_pix(0, 0) += r * gi[0] * gj[0], cov_pix(0, 1) += r * gi[0] * gj[1];
-              cov_pix(1, 1) += r * gi[1] * gj[1];
-            }
-          }
-        }
-      }
-      cov_pix(1, 0) = cov_pix(0, 1);
-      const double sigma_used = std::max(
-          ring_sigma, std::sqrt(std::max(noise->floor_variance_per_grey * std::max(0.0, plane[0]),
-                                         noise->floor_variance_gray)));
-      const double sigma2 = sigma_used * sigma_used;
-      const cv::Matx22d cov =
-          (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) * sigma2;
-      noise->covariance_px2 = cov;
-      noise->sigma_gray = sigma_used;
-      noise->peak_contrast = peak;
-      noise->background = plane[0];
-    }
-    const double move = std::hypot(n.x - c->x, n.y - c->y);
-    *c = n;
+    CentroidEstimate e;
+    if (!DiscCentroids(&disc, plane, dark, cx, cy, &e)) return false;
+    if (shift_px) *shift_px = e.shift;
+    if (noise) CentroidCovariance(disc, e, plane, ring_sigma, ring_AtA, dark, cx, cy, rw, noise);
+    const double move = std::hypot(e.centre.x - c->x, e.centre.y - c->y);
+    *c = e.centre;
     if (move < 1e-3) break;
   }
   return true;

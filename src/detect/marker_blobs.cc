@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <tuple>
 
 #include "detect/detect_steps.h"
 #include "util/yaml_reader.h"
@@ -125,47 +127,45 @@ double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho
   return F;
 }
 
-MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOptions& o) {
-  MarkerBlobDetection det;
-  if (!o.Check(&det.reason)) return det;
-  cv::Mat f;
-  cv::Point offset;
-  if (!ToFloatGrey(image, o.fov, &f, &offset, &det.reason)) return det;
-  const FieldOfView fov = FindFieldOfView(f, o.fov, offset);
-  if (fov.have_circle) {
-    det.fov_centre = fov.centre + cv::Point2d(offset);
-    det.fov_radius = fov.radius;
-  }
-  const auto [d_min, d_max] = o.DiameterRangePx();
-  const double d_nom = 0.5 * (d_min + d_max);
-  const double area_nom = M_PI * 0.25 * d_nom * d_nom;
+namespace {
 
-  // 3. Contrast image and its noise.
-  const cv::Mat search = FlatFieldedSearchImage(f, fov.mask, std::max(d_max, 2.0));
-  cv::Mat contrast;
-  search.convertTo(contrast, CV_32F, -1.0 / 255.0, 1.0);
-  contrast.setTo(0, fov.mask == 0);
+// One connected piece above the threshold, before refinement.
+struct BlobCandidate {
+  cv::Point2d centre;  // the half-peak piece's centre (crop coordinates)
+  double diameter = 0, peak = 0;
+  std::string why;     // empty: accepted so far
+};
+
+// The blob sizes the options allow, in px.
+struct BlobSizes {
+  double d_min = 0, d_max = 0, d_nom = 0, area_nom = 0, min_area = 0;
+};
+
+// The robust sigma of the contrast image in the field of view (every second pixel); 0 when the
+// field of view is (almost) empty.
+double ContrastNoise(const cv::Mat& contrast, const cv::Mat& mask) {
   std::vector<float> vals;
-  vals.reserve(f.total() / 4);
+  vals.reserve(contrast.total() / 4);
   for (int y = 0; y < contrast.rows; y += 2) {
     const float* c = contrast.ptr<float>(y);
-    const uint8_t* m = fov.mask.ptr<uint8_t>(y);
+    const uint8_t* m = mask.ptr<uint8_t>(y);
     for (int x = 0; x < contrast.cols; x += 2) {
       if (m[x]) vals.push_back(c[x]);
     }
   }
-  if (vals.size() < 100) return det.reason = "field of view / region of interest is (almost) empty", det;
-  const double s = std::max(RobustSigma(&vals), 1.0 / 255.0);
-  det.noise_contrast = s;
-  double sigma_pixel = 0;
-  det.correlation_factor = NoiseCorrelationFactor(f, fov.refine_valid, &det.noise_rho1, &sigma_pixel);
-  // The least ring noise a centre's covariance uses (detect_steps.h CentroidNoise): half the
-  // quantum noise expected at the ring's level (variance proportional to the grey level, scaled
-  // from the image's pixel noise at its median level), and an integer image's quantisation.
+  if (vals.size() < 100) return 0;
+  return std::max(RobustSigma(&vals), 1.0 / 255.0);
+}
+
+// The least ring noise a centre's covariance uses (detect_steps.h CentroidNoise): half the
+// quantum noise expected at the ring's level (variance proportional to the grey level, scaled
+// from the image's pixel noise at its median level), and an integer image's quantisation.
+void RingNoiseFloors(const cv::Mat& image, const cv::Mat& f, const cv::Mat& valid, double sigma_pixel,
+                     CentroidNoise* noise) {
   std::vector<float> levels;
   for (int y = 0; y < f.rows; y += 8) {
     for (int x = 0; x < f.cols; x += 8) {
-      if (fov.refine_valid.at<uint8_t>(y, x)) levels.push_back(f.at<float>(y, x));
+      if (valid.at<uint8_t>(y, x)) levels.push_back(f.at<float>(y, x));
     }
   }
   double median_level = 0;
@@ -173,24 +173,69 @@ MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOpti
     std::nth_element(levels.begin(), levels.begin() + levels.size() / 2, levels.end());
     median_level = levels[levels.size() / 2];
   }
-  const double floor_per_grey = median_level > 0 ? 0.25 * sigma_pixel * sigma_pixel / median_level : 0.0;
-  const double floor_gray = image.depth() == CV_32F || image.depth() == CV_64F ? 0.0 : 1.0 / 12.0;
-  const double t_low = std::max(4.0 * s, 0.3 * o.min_contrast);
-  const double t_peak = std::max(8.0 * s, o.min_contrast);
+  noise->floor_variance_per_grey = median_level > 0 ? 0.25 * sigma_pixel * sigma_pixel / median_level : 0.0;
+  noise->floor_variance_gray = image.depth() == CV_32F || image.depth() == CV_64F ? 0.0 : 1.0 / 12.0;
+}
+
+// The pieces above half the component's peak, by their moments.
+std::vector<Piece> HalfPeakPieces(const cv::Mat& labels, const cv::Mat& contrast, int k, const cv::Rect& box,
+                                  double peak, double min_area) {
+  cv::Mat half(box.size(), CV_8U, cv::Scalar(0));
+  for (int y = 0; y < box.height; ++y) {
+    const int* l = labels.ptr<int>(y + box.y);
+    const float* c = contrast.ptr<float>(y + box.y);
+    uint8_t* h = half.ptr<uint8_t>(y);
+    for (int x = 0; x < box.width; ++x) h[x] = (l[x + box.x] == k && c[x + box.x] > 0.5 * peak) ? 255 : 0;
+  }
+  cv::Mat plabels;
+  const int np = cv::connectedComponents(half, plabels, 8, CV_32S);
+  std::vector<Piece> pieces;
+  for (int p = 1; p < np; ++p) {
+    const cv::Moments mo = cv::moments(plabels == p, true);
+    if (mo.m00 < min_area) continue;
+    Piece pc;
+    pc.area = mo.m00;
+    pc.centre = cv::Point2d(mo.m10 / mo.m00 + box.x, mo.m01 / mo.m00 + box.y);
+    const double a = mo.mu20 / mo.m00, b = mo.mu11 / mo.m00, c = mo.mu02 / mo.m00;
+    const double disc = std::sqrt(std::max(0.0, 0.25 * (a - c) * (a - c) + b * b));
+    pc.major = std::sqrt(std::max(1e-12, 0.5 * (a + c) + disc));
+    pc.minor = std::sqrt(std::max(1e-12, 0.5 * (a + c) - disc));
+    pieces.push_back(pc);
+  }
+  return pieces;
+}
+
+// Why piece i is not a single marker (merged, elongated, too large or small), or "".
+std::string PieceRejection(const std::vector<Piece>& pieces, size_t i, const BlobSizes& z,
+                           const MarkerBlobOptions& o) {
+  const Piece& pc = pieces[i];
+  const double d = 2 * std::sqrt(pc.area / M_PI);
+  const double elong = pc.major / pc.minor;
+  const double length = 4 * pc.major;  // full extent of a uniform ellipse along its axis
+  for (size_t j = 0; j < pieces.size(); ++j) {
+    if (j != i && cv::norm(pieces[j].centre - pc.centre) < o.merge_distance * z.d_nom) return "merged";
+  }
+  if (elong > o.max_elongation || pc.area > o.merge_area_ratio * z.area_nom) {
+    if (length > 2.6 * z.d_max) return "elongated";
+    if (4 * pc.minor > 1.3 * z.d_max && elong < 1.15) return "too large";
+    return "merged";
+  }
+  if (d < z.d_min) return "too small";
+  if (d > z.d_max) return "too large";
+  return "";
+}
+
+// 4. The candidates: connected components above t_low; those peaking below t_peak are listed as
+// "low contrast" when blob-sized; the others split into their half-peak pieces, each judged.
+std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low, double t_peak,
+                                          const BlobSizes& z, const MarkerBlobOptions& o) {
   cv::Mat cand = contrast > t_low;
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(cand, labels, stats, centroids, 8, CV_32S);
-
-  struct Candidate {
-    cv::Point2d centre;  // the half-peak piece's centre (crop coordinates)
-    double diameter = 0, peak = 0;
-    std::string why;     // empty: accepted so far
-  };
-  std::vector<Candidate> cands;
-  const double min_area = std::max(2.0, 0.25 * M_PI * 0.25 * d_min * d_min);
+  std::vector<BlobCandidate> cands;
   for (int k = 1; k < n; ++k) {
     const int area = stats.at<int>(k, cv::CC_STAT_AREA);
-    if (area < min_area) continue;  // noise speckle (not listed)
+    if (area < z.min_area) continue;  // noise speckle (not listed)
     const cv::Rect box(stats.at<int>(k, cv::CC_STAT_LEFT), stats.at<int>(k, cv::CC_STAT_TOP),
                        stats.at<int>(k, cv::CC_STAT_WIDTH), stats.at<int>(k, cv::CC_STAT_HEIGHT));
     double peak = 0;
@@ -204,119 +249,115 @@ MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOpti
     const cv::Point2d cc(centroids.at<double>(k, 0), centroids.at<double>(k, 1));
     if (peak < t_peak) {
       // Low-contrast structure: listed only when it is blob-sized (the rest is background).
-      if (area >= 0.5 * area_nom && box.width < 4 * d_max && box.height < 4 * d_max) {
+      if (area >= 0.5 * z.area_nom && box.width < 4 * z.d_max && box.height < 4 * z.d_max) {
         cands.push_back({cc, 2 * std::sqrt(area / M_PI), peak, "low contrast"});
       }
       continue;
     }
-    // Half-peak pieces of this component.
-    cv::Mat half(box.size(), CV_8U, cv::Scalar(0));
-    for (int y = 0; y < box.height; ++y) {
-      const int* l = labels.ptr<int>(y + box.y);
-      const float* c = contrast.ptr<float>(y + box.y);
-      uint8_t* h = half.ptr<uint8_t>(y);
-      for (int x = 0; x < box.width; ++x) h[x] = (l[x + box.x] == k && c[x + box.x] > 0.5 * peak) ? 255 : 0;
-    }
-    cv::Mat plabels;
-    const int np = cv::connectedComponents(half, plabels, 8, CV_32S);
-    std::vector<Piece> pieces;
-    for (int p = 1; p < np; ++p) {
-      const cv::Moments mo = cv::moments(plabels == p, true);
-      if (mo.m00 < min_area) continue;
-      Piece pc;
-      pc.area = mo.m00;
-      pc.centre = cv::Point2d(mo.m10 / mo.m00 + box.x, mo.m01 / mo.m00 + box.y);
-      const double a = mo.mu20 / mo.m00, b = mo.mu11 / mo.m00, c = mo.mu02 / mo.m00;
-      const double disc = std::sqrt(std::max(0.0, 0.25 * (a - c) * (a - c) + b * b));
-      pc.major = std::sqrt(std::max(1e-12, 0.5 * (a + c) + disc));
-      pc.minor = std::sqrt(std::max(1e-12, 0.5 * (a + c) - disc));
-      pieces.push_back(pc);
-    }
+    const std::vector<Piece> pieces = HalfPeakPieces(labels, contrast, k, box, peak, z.min_area);
     for (size_t i = 0; i < pieces.size(); ++i) {
-      const Piece& pc = pieces[i];
-      const double d = 2 * std::sqrt(pc.area / M_PI);
-      const double elong = pc.major / pc.minor;
-      const double length = 4 * pc.major;  // full extent of a uniform ellipse along its axis
-      std::string why;
-      bool close_pair = false;
-      for (size_t j = 0; j < pieces.size(); ++j) {
-        if (j != i && cv::norm(pieces[j].centre - pc.centre) < o.merge_distance * d_nom) close_pair = true;
-      }
-      if (close_pair) {
-        why = "merged";
-      } else if (elong > o.max_elongation || pc.area > o.merge_area_ratio * area_nom) {
-        if (length > 2.6 * d_max) {
-          why = "elongated";
-        } else if (4 * pc.minor > 1.3 * d_max && elong < 1.15) {
-          why = "too large";
-        } else {
-          why = "merged";
-        }
-      } else if (d < d_min) {
-        why = "too small";
-      } else if (d > d_max) {
-        why = "too large";
-      }
-      cands.push_back({pc.centre, d, peak, why});
+      cands.push_back({pieces[i].centre, 2 * std::sqrt(pieces[i].area / M_PI), peak,
+                       PieceRejection(pieces, i, z, o)});
     }
   }
+  return cands;
+}
 
-  // 5, 6. Sub-pixel centres and covariances of the candidates left.
-  const double r_nom = 0.5 * d_nom;
+// Whether the disc or ring of a candidate at `centre` reaches the invalid area (the rim).
+bool NearInvalidArea(const cv::Mat& valid, cv::Point2d centre, double r_nom) {
+  const cv::Point ip(static_cast<int>(std::lround(centre.x)), static_cast<int>(std::lround(centre.y)));
+  const int rr = static_cast<int>(std::ceil(r_nom + 4));
+  for (int y = ip.y - rr; y <= ip.y + rr; ++y) {
+    for (int x = ip.x - rr; x <= ip.x + rr; ++x) {
+      if (x < 0 || y < 0 || x >= valid.cols || y >= valid.rows || !valid.at<uint8_t>(y, x)) return true;
+    }
+  }
+  return false;
+}
+
+// 5, 6. The sub-pixel centre and covariance of candidate i (accepted so far) into det, or its
+// rejection.
+void RefineCandidate(const cv::Mat& f, const cv::Mat& valid, const std::vector<BlobCandidate>& cands,
+                     size_t i, const BlobSizes& z, const CentroidNoise& noise_model,
+                     const MarkerBlobOptions& o, cv::Point offset, MarkerBlobDetection* det) {
+  const BlobCandidate& c = cands[i];
+  const cv::Point2d full = c.centre + cv::Point2d(offset);
+  const double r_nom = 0.5 * z.d_nom;
+  double nn = 3.0 * z.d_max + 8.0;
+  for (size_t j = 0; j < cands.size(); ++j) {
+    if (j != i) nn = std::min(nn, cv::norm(cands[j].centre - c.centre));
+  }
+  cv::Point2d q = c.centre;
+  double r_half = 0, shift = 0;
+  CentroidNoise noise = noise_model;
+  const bool refined = RefineCentroid(f, valid, /*dark=*/true, nn, 1.5 * r_nom + 2.0, &q, &r_half, &noise, &shift);
+  if (!refined) {
+    det->rejected.push_back(
+        {full, c.diameter, NearInvalidArea(valid, c.centre, r_nom) ? "field-of-view border" : "refinement failed"});
+    return;
+  }
+  if (cv::norm(q - c.centre) > std::max(1.5, 0.25 * z.d_nom)) {
+    det->rejected.push_back({full, c.diameter, "refinement failed"});
+    return;
+  }
+  MarkerBlob b;
+  b.uv_px = q + cv::Point2d(offset);
+  b.covariance_px2 = noise.covariance_px2;
+  b.background_shift_px = shift;
+  if (shift > o.unreliable_shift_px) {
+    // The centre's error next to an edge or a wire is a few times the core-to-whole shift
+    // (randomised scenes, tests/detect/marker_recall_test.cc: 2.2-3.1 x): widened by it.
+    const double w = kShiftToErrorFactor * shift;
+    b.covariance_px2(0, 0) += w * w;
+    b.covariance_px2(1, 1) += w * w;
+  }
+  b.diameter_px = 2 * r_half;
+  b.contrast = noise.peak_contrast;
+  det->blobs.push_back(b);
+}
+
+}  // namespace
+
+MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOptions& o) {
+  MarkerBlobDetection det;
+  if (!o.Check(&det.reason)) return det;
+  cv::Mat f;
+  cv::Point offset;
+  if (!ToFloatGrey(image, o.fov, &f, &offset, &det.reason)) return det;
+  const FieldOfView fov = FindFieldOfView(f, o.fov, offset);
+  if (fov.have_circle) {
+    det.fov_centre = fov.centre + cv::Point2d(offset);
+    det.fov_radius = fov.radius;
+  }
+  BlobSizes z;
+  std::tie(z.d_min, z.d_max) = o.DiameterRangePx();
+  z.d_nom = 0.5 * (z.d_min + z.d_max);
+  z.area_nom = M_PI * 0.25 * z.d_nom * z.d_nom;
+  z.min_area = std::max(2.0, 0.25 * M_PI * 0.25 * z.d_min * z.d_min);
+
+  // 3. Contrast image and its noise.
+  const cv::Mat search = FlatFieldedSearchImage(f, fov.mask, std::max(z.d_max, 2.0));
+  cv::Mat contrast;
+  search.convertTo(contrast, CV_32F, -1.0 / 255.0, 1.0);
+  contrast.setTo(0, fov.mask == 0);
+  const double s = ContrastNoise(contrast, fov.mask);
+  if (s == 0) return det.reason = "field of view / region of interest is (almost) empty", det;
+  det.noise_contrast = s;
+  double sigma_pixel = 0;
+  det.correlation_factor = NoiseCorrelationFactor(f, fov.refine_valid, &det.noise_rho1, &sigma_pixel);
+  CentroidNoise noise;
+  noise.correlation_factor = det.correlation_factor;
+  noise.rho1 = det.noise_rho1;
+  RingNoiseFloors(image, f, fov.refine_valid, sigma_pixel, &noise);
+  const double t_low = std::max(4.0 * s, 0.3 * o.min_contrast);
+  const double t_peak = std::max(8.0 * s, o.min_contrast);
+  const std::vector<BlobCandidate> cands = BlobCandidates(contrast, t_low, t_peak, z, o);
   for (size_t i = 0; i < cands.size(); ++i) {
-    Candidate& c = cands[i];
-    const cv::Point2d full = c.centre + cv::Point2d(offset);
-    if (!c.why.empty()) {
-      det.rejected.push_back({full, c.diameter, c.why});
+    if (!cands[i].why.empty()) {
+      det.rejected.push_back({cands[i].centre + cv::Point2d(offset), cands[i].diameter, cands[i].why});
       continue;
     }
-    double nn = 3.0 * d_max + 8.0;
-    for (size_t j = 0; j < cands.size(); ++j) {
-      if (j != i) nn = std::min(nn, cv::norm(cands[j].centre - c.centre));
-    }
-    cv::Point2d q = c.centre;
-    double r_half = 0, shift = 0;
-    CentroidNoise noise;
-    noise.correlation_factor = det.correlation_factor;
-    noise.rho1 = det.noise_rho1;
-    noise.floor_variance_per_grey = floor_per_grey;
-    noise.floor_variance_gray = floor_gray;
-    const bool refined =
-        RefineCentroid(f, fov.refine_valid, /*dark=*/true, nn, 1.5 * r_nom + 2.0, &q, &r_half, &noise, &shift);
-    if (!refined) {
-      // Where the disc or ring reaches the invalid area, the rim is the reason.
-      const cv::Point ip(static_cast<int>(std::lround(c.centre.x)), static_cast<int>(std::lround(c.centre.y)));
-      bool near_rim = false;
-      const int rr = static_cast<int>(std::ceil(r_nom + 4));
-      for (int y = ip.y - rr; y <= ip.y + rr && !near_rim; ++y) {
-        for (int x = ip.x - rr; x <= ip.x + rr; ++x) {
-          if (x < 0 || y < 0 || x >= f.cols || y >= f.rows || !fov.refine_valid.at<uint8_t>(y, x)) {
-            near_rim = true;
-            break;
-          }
-        }
-      }
-      det.rejected.push_back({full, c.diameter, near_rim ? "field-of-view border" : "refinement failed"});
-      continue;
-    }
-    if (cv::norm(q - c.centre) > std::max(1.5, 0.25 * d_nom)) {
-      det.rejected.push_back({full, c.diameter, "refinement failed"});
-      continue;
-    }
-    MarkerBlob b;
-    b.uv_px = q + cv::Point2d(offset);
-    b.covariance_px2 = noise.covariance_px2;
-    b.background_shift_px = shift;
-    if (shift > o.unreliable_shift_px) {
-      // The centre's error next to an edge or a wire is a few times the core-to-whole shift
-      // (randomised scenes, tests/detect/marker_recall_test.cc: 2.2-3.1 x): widened by it.
-      const double w = kShiftToErrorFactor * shift;
-      b.covariance_px2(0, 0) += w * w;
-      b.covariance_px2(1, 1) += w * w;
-    }
-    b.diameter_px = 2 * r_half;
-    b.contrast = noise.peak_contrast;
-    det.blobs.push_back(b);
+    RefineCandidate(f, fov.refine_valid, cands, i, z, noise, o, offset, &det);
   }
   det.ok = true;
   return det;
