@@ -111,6 +111,196 @@ CtVolume MakeCtGeometry(int columns,
   return v;
 }
 
+namespace {
+
+// The scene's `markers` key: the CSV, its id and position columns.
+struct CtMarkersKey {
+  std::string csv, id_column;
+  std::vector<std::string> columns = {"x_mm", "y_mm", "z_mm"};
+};
+
+void ParseCtMarkersKey(YamlMap& scene, CtScene* s, CtMarkersKey* k) {
+  YamlMap& mk = scene.Map("markers", true);
+  mk.Get("csv", &k->csv, true);
+  Opt(mk, "id_column", &k->id_column);
+  Opt(mk, "columns", &k->columns);
+  if (k->columns.size() != 3) mk.Fail("columns", "expected 3 column names (x, y, z)");
+  OptIn(mk, "diameter_mm", &s->phantom.marker_diameter_mm, plausible::kMarkerDiameterMm);
+  OptIn(mk, "hu", &s->phantom.marker_hu, plausible::kHounsfield);
+}
+
+// The scene's `block` key: the plastic block, given (centre, size) or around the markers.
+struct CtBlockKey {
+  double padding_mm = 5;
+  std::vector<double> centre, size;
+};
+
+void ParseCtBlockKey(YamlMap& scene, CtScene* s, CtBlockKey* k) {
+  YamlMap& bl = scene.Map("block");
+  Opt(bl, "enabled", &s->phantom.has_block);
+  OptIn(bl, "padding_mm", &k->padding_mm, plausible::kLengthMm);
+  Opt(bl, "centre_mm", &k->centre);
+  Opt(bl, "size_mm", &k->size);
+  OptIn(bl, "hu", &s->phantom.block_hu, plausible::kHounsfield);
+  CheckEach(bl, "centre_mm", k->centre, plausible::kCoordinateMm);
+  CheckEach(bl, "size_mm", k->size, plausible::kLengthMm);
+  if (!k->centre.empty() && k->centre.size() != 3) bl.Fail("centre_mm", "expected 3 numbers");
+  if (!k->size.empty() && k->size.size() != 3) bl.Fail("size_mm", "expected 3 numbers");
+  if (k->centre.empty() != k->size.empty()) {
+    bl.Fail(k->centre.empty() ? "size_mm" : "centre_mm",
+            "centre_mm and size_mm must be given together");
+  }
+  for (double v : k->size) {
+    if (!(v > 0)) bl.Fail("size_mm", "expected 3 positive sizes");
+  }
+}
+
+// The scene's `ct` key: the grid and the reconstruction's effects.
+struct CtGridKey {
+  int columns_px = 512, rows_px = 512, slices = 120;
+  double pixel_mm = 0.3515625, spacing_mm = 0.6, thickness_mm = 0, tilt_deg = 0;
+  std::vector<double> centre, orientation = {1, 0, 0, 0, 1, 0};
+  Eigen::Vector3d row_dir, col_dir;
+};
+
+void ParseCtGridKey(YamlMap& scene, CtScene* s, CtGridKey* k) {
+  YamlMap& ct = scene.Map("ct");
+  Opt(ct, "columns", &k->columns_px);
+  Opt(ct, "rows", &k->rows_px);
+  Opt(ct, "slices", &k->slices);
+  OptIn(ct, "pixel_spacing_mm", &k->pixel_mm, plausible::kPixelPitchMm);
+  OptIn(ct, "slice_spacing_mm", &k->spacing_mm, plausible::kPixelPitchMm);
+  OptIn(ct, "slice_thickness_mm", &k->thickness_mm, plausible::kPixelPitchMm);
+  Opt(ct, "centre_mm", &k->centre);
+  Opt(ct, "orientation", &k->orientation);
+  Opt(ct, "tilt_deg", &k->tilt_deg);
+  OptIn(ct, "noise_hu", &s->voxelise.noise_hu, kNoiseHu);
+  Opt(ct, "metal_streak_hu", &s->voxelise.metal_streak_hu);
+  if (!(s->voxelise.metal_streak_hu >= 0 && s->voxelise.metal_streak_hu <= 10000)) {
+    ct.Fail("metal_streak_hu", "expected 0 .. 10000 HU");
+  }
+  Opt(ct, "psf_sigma_mm", &s->voxelise.psf_sigma_mm);
+  if (!(s->voxelise.psf_sigma_mm >= 0 && s->voxelise.psf_sigma_mm <= 10)) {
+    ct.Fail("psf_sigma_mm", "expected 0 .. 10 mm");
+  }
+  Opt(ct, "clip_hu", &s->voxelise.clip_hu);
+  if (!(s->voxelise.clip_hu >= 0 && s->voxelise.clip_hu <= 32767)) {
+    ct.Fail("clip_hu", "expected 0 (none) .. 32767 HU");
+  }
+  Opt(ct, "supersampling", &s->voxelise.marker_supersampling);
+  Opt(ct, "block_supersampling", &s->voxelise.block_supersampling);
+  Opt(ct, "rescale_slope", &s->write.rescale_slope);
+  Opt(ct, "rescale_intercept", &s->write.rescale_intercept);
+  if (k->columns_px < 1 || k->columns_px > 4096) ct.Fail("columns", "expected 1 .. 4096");
+  if (k->rows_px < 1 || k->rows_px > 4096) ct.Fail("rows", "expected 1 .. 4096");
+  if (k->slices < 1 || k->slices > 4096) ct.Fail("slices", "expected 1 .. 4096");
+  if (!k->centre.empty() && k->centre.size() != 3) ct.Fail("centre_mm", "expected 3 numbers");
+  CheckEach(ct, "centre_mm", k->centre, plausible::kCoordinateMm);
+  if (k->orientation.size() != 6) ct.Fail("orientation", "expected 6 numbers");
+  if (!(std::abs(k->tilt_deg) < 80)) ct.Fail("tilt_deg", "expected an angle within (-80, 80)");
+  if (s->voxelise.marker_supersampling < 1 || s->voxelise.marker_supersampling > 32) {
+    ct.Fail("supersampling", "expected 1 .. 32");
+  }
+  if (s->voxelise.block_supersampling < 1 || s->voxelise.block_supersampling > 32) {
+    ct.Fail("block_supersampling", "expected 1 .. 32");
+  }
+  if (!(s->write.rescale_slope > 0)) ct.Fail("rescale_slope", "expected a number > 0");
+
+  if (k->orientation.size() == 6) {
+    k->row_dir = Eigen::Vector3d(k->orientation[0], k->orientation[1], k->orientation[2]);
+    k->col_dir = Eigen::Vector3d(k->orientation[3], k->orientation[4], k->orientation[5]);
+    if (std::abs(k->row_dir.norm() - 1) > 1e-6 || std::abs(k->col_dir.norm() - 1) > 1e-6 ||
+        std::abs(k->row_dir.dot(k->col_dir)) > 1e-6) {
+      ct.Fail("orientation", "expected two orthogonal unit vectors");
+    }
+  }
+}
+
+// The markers from the CSV (at least two diameters apart) and the block: given, or the markers'
+// bounding box grown by the padding and a radius; *lo_out, *hi_out the markers' bounding box.
+Status PlaceCtMarkersAndBlock(YamlMap& scene, const CtMarkersKey& markers, const CtBlockKey& block, CtScene* s,
+                              Eigen::Vector3d* lo_out, Eigen::Vector3d* hi_out) {
+  const std::string csv_path = JoinPath(DirName(scene.file()), markers.csv);
+  CARMBA_RETURN_IF_ERROR(ReadPhantomMarkersCsv(csv_path, markers.id_column, markers.columns,
+                                        scene.file() + ": key 'markers.csv'",
+                                        &s->phantom.markers));
+  Eigen::Vector3d& lo = *lo_out;
+  Eigen::Vector3d& hi = *hi_out;
+  lo = s->phantom.markers[0].centre_mm, hi = lo;
+  for (const auto& m : s->phantom.markers) {
+    lo = lo.cwiseMin(m.centre_mm);
+    hi = hi.cwiseMax(m.centre_mm);
+  }
+  const double radius = 0.5 * s->phantom.marker_diameter_mm;
+  for (size_t a = 0; a < s->phantom.markers.size(); ++a) {
+    for (size_t b = a + 1; b < s->phantom.markers.size(); ++b) {
+      const double d =
+          (s->phantom.markers[a].centre_mm - s->phantom.markers[b].centre_mm).norm();
+      if (d < 2 * s->phantom.marker_diameter_mm) {
+        return Status::Error(csv_path + ": markers " + std::to_string(s->phantom.markers[a].id) +
+                             " and " + std::to_string(s->phantom.markers[b].id) + " are " +
+                             std::to_string(d) + " mm apart, expected at least two diameters (" +
+                             std::to_string(2 * s->phantom.marker_diameter_mm) + " mm)");
+      }
+    }
+  }
+  if (block.size.size() == 3) {
+    const Eigen::Vector3d c(block.centre[0], block.centre[1], block.centre[2]);
+    const Eigen::Vector3d h = 0.5 * Eigen::Vector3d(block.size[0], block.size[1], block.size[2]);
+    s->phantom.block_min_mm = c - h;
+    s->phantom.block_max_mm = c + h;
+  } else {
+    const double pad = block.padding_mm + radius;
+    s->phantom.block_min_mm = lo - Eigen::Vector3d::Constant(pad);
+    s->phantom.block_max_mm = hi + Eigen::Vector3d::Constant(pad);
+  }
+  return Status::Ok();
+}
+
+// The CT's geometry (centred on the markers unless given), every marker wholly inside it.
+Status PlaceCtVolume(YamlMap& scene, const CtGridKey& k, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                     CtScene* s) {
+  const double radius = 0.5 * s->phantom.marker_diameter_mm;
+  const double t = k.tilt_deg * M_PI / 180.0;
+  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(t, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const Eigen::Vector3d centre_mm =
+      k.centre.size() == 3 ? Eigen::Vector3d(k.centre[0], k.centre[1], k.centre[2]) : 0.5 * (lo + hi);
+  s->geometry = MakeCtGeometry(k.columns_px, k.rows_px, k.slices, k.pixel_mm, k.spacing_mm, k.thickness_mm,
+                              tilt * k.row_dir, tilt * k.col_dir, centre_mm);
+  const Eigen::Matrix3d A_inv = s->geometry.PatientFromIndexLinear().inverse();
+  const Eigen::Vector3d size(k.columns_px, k.rows_px, k.slices);
+  for (const auto& m : s->phantom.markers) {
+    const Eigen::Vector3d idx = A_inv * (m.centre_mm - s->geometry.origin_mm);
+    for (int a = 0; a < 3; ++a) {
+      const double r = radius / s->geometry.spacing_mm[a] + 1;
+      if (idx[a] - r < 0 || idx[a] + r > size[a] - 1) {
+        return Status::Error(scene.file() + ": key 'ct': marker " + std::to_string(m.id) +
+                             " at " + Mm3(m.centre_mm) +
+                             " mm does not lie wholly inside the CT volume (grow 'ct.slices', "
+                             "'ct.rows'/'ct.columns' or move 'ct.centre_mm')");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+// Deterministic UIDs from the scene's content and seed (2.25.<64-bit hash>.<n>), the series
+// description.
+void SetCtUids(int seed, const CtGridKey& k, const std::string& description, CtScene* s) {
+  std::string key = std::to_string(seed) + "|" + Mm3(s->geometry.origin_mm) + "|" +
+                    std::to_string(k.columns_px) + "x" + std::to_string(k.rows_px) + "x" +
+                    std::to_string(k.slices) + "|" + std::to_string(k.tilt_deg);
+  for (const auto& m : s->phantom.markers) key += "|" + Mm3(m.centre_mm);
+  const std::string root = "2.25." + std::to_string(Fnv1a(key));
+  s->write.study_uid = root + ".1";
+  s->write.series_uid = root + ".2";
+  s->write.frame_of_reference_uid = root + ".3";
+  s->write.series_description = description.empty() ? "carmba simulated CT" : description;
+  if (s->write.series_description.size() > 64) s->write.series_description.resize(64);
+}
+
+}  // namespace
+
 Status ParseCtScene(YamlMap& scene, CtScene* out) {
   CtScene s;
   std::string kind, description;
@@ -121,161 +311,18 @@ Status ParseCtScene(YamlMap& scene, CtScene* out) {
   Opt(scene, "seed", &seed);
   if (seed < 0) scene.Fail("seed", "expected a non-negative integer");
   s.voxelise.seed = static_cast<uint64_t>(seed);
-
-  YamlMap& mk = scene.Map("markers", true);
-  std::string csv, id_column;
-  std::vector<std::string> columns = {"x_mm", "y_mm", "z_mm"};
-  mk.Get("csv", &csv, true);
-  Opt(mk, "id_column", &id_column);
-  Opt(mk, "columns", &columns);
-  if (columns.size() != 3) mk.Fail("columns", "expected 3 column names (x, y, z)");
-  OptIn(mk, "diameter_mm", &s.phantom.marker_diameter_mm, plausible::kMarkerDiameterMm);
-  OptIn(mk, "hu", &s.phantom.marker_hu, plausible::kHounsfield);
-
-  YamlMap& bl = scene.Map("block");
-  double padding_mm = 5;
-  std::vector<double> block_centre, block_size;
-  Opt(bl, "enabled", &s.phantom.has_block);
-  OptIn(bl, "padding_mm", &padding_mm, plausible::kLengthMm);
-  Opt(bl, "centre_mm", &block_centre);
-  Opt(bl, "size_mm", &block_size);
-  OptIn(bl, "hu", &s.phantom.block_hu, plausible::kHounsfield);
-  CheckEach(bl, "centre_mm", block_centre, plausible::kCoordinateMm);
-  CheckEach(bl, "size_mm", block_size, plausible::kLengthMm);
-  if (!block_centre.empty() && block_centre.size() != 3) bl.Fail("centre_mm", "expected 3 numbers");
-  if (!block_size.empty() && block_size.size() != 3) bl.Fail("size_mm", "expected 3 numbers");
-  if (block_centre.empty() != block_size.empty()) {
-    bl.Fail(block_centre.empty() ? "size_mm" : "centre_mm",
-            "centre_mm and size_mm must be given together");
-  }
-  for (double v : block_size) {
-    if (!(v > 0)) bl.Fail("size_mm", "expected 3 positive sizes");
-  }
+  CtMarkersKey markers;
+  ParseCtMarkersKey(scene, &s, &markers);
+  CtBlockKey block;
+  ParseCtBlockKey(scene, &s, &block);
   OptIn(scene, "air_hu", &s.phantom.air_hu, plausible::kHounsfield);
-
-  YamlMap& ct = scene.Map("ct");
-  int columns_px = 512, rows_px = 512, slices = 120;
-  double pixel_mm = 0.3515625, spacing_mm = 0.6, thickness_mm = 0, tilt_deg = 0;
-  std::vector<double> centre, orientation = {1, 0, 0, 0, 1, 0};
-  Opt(ct, "columns", &columns_px);
-  Opt(ct, "rows", &rows_px);
-  Opt(ct, "slices", &slices);
-  OptIn(ct, "pixel_spacing_mm", &pixel_mm, plausible::kPixelPitchMm);
-  OptIn(ct, "slice_spacing_mm", &spacing_mm, plausible::kPixelPitchMm);
-  OptIn(ct, "slice_thickness_mm", &thickness_mm, plausible::kPixelPitchMm);
-  Opt(ct, "centre_mm", &centre);
-  Opt(ct, "orientation", &orientation);
-  Opt(ct, "tilt_deg", &tilt_deg);
-  OptIn(ct, "noise_hu", &s.voxelise.noise_hu, kNoiseHu);
-  Opt(ct, "metal_streak_hu", &s.voxelise.metal_streak_hu);
-  if (!(s.voxelise.metal_streak_hu >= 0 && s.voxelise.metal_streak_hu <= 10000)) {
-    ct.Fail("metal_streak_hu", "expected 0 .. 10000 HU");
-  }
-  Opt(ct, "psf_sigma_mm", &s.voxelise.psf_sigma_mm);
-  if (!(s.voxelise.psf_sigma_mm >= 0 && s.voxelise.psf_sigma_mm <= 10)) {
-    ct.Fail("psf_sigma_mm", "expected 0 .. 10 mm");
-  }
-  Opt(ct, "clip_hu", &s.voxelise.clip_hu);
-  if (!(s.voxelise.clip_hu >= 0 && s.voxelise.clip_hu <= 32767)) {
-    ct.Fail("clip_hu", "expected 0 (none) .. 32767 HU");
-  }
-  Opt(ct, "supersampling", &s.voxelise.marker_supersampling);
-  Opt(ct, "block_supersampling", &s.voxelise.block_supersampling);
-  Opt(ct, "rescale_slope", &s.write.rescale_slope);
-  Opt(ct, "rescale_intercept", &s.write.rescale_intercept);
-  if (columns_px < 1 || columns_px > 4096) ct.Fail("columns", "expected 1 .. 4096");
-  if (rows_px < 1 || rows_px > 4096) ct.Fail("rows", "expected 1 .. 4096");
-  if (slices < 1 || slices > 4096) ct.Fail("slices", "expected 1 .. 4096");
-  if (!centre.empty() && centre.size() != 3) ct.Fail("centre_mm", "expected 3 numbers");
-  CheckEach(ct, "centre_mm", centre, plausible::kCoordinateMm);
-  if (orientation.size() != 6) ct.Fail("orientation", "expected 6 numbers");
-  if (!(std::abs(tilt_deg) < 80)) ct.Fail("tilt_deg", "expected an angle within (-80, 80)");
-  if (s.voxelise.marker_supersampling < 1 || s.voxelise.marker_supersampling > 32) {
-    ct.Fail("supersampling", "expected 1 .. 32");
-  }
-  if (s.voxelise.block_supersampling < 1 || s.voxelise.block_supersampling > 32) {
-    ct.Fail("block_supersampling", "expected 1 .. 32");
-  }
-  if (!(s.write.rescale_slope > 0)) ct.Fail("rescale_slope", "expected a number > 0");
-
-  Eigen::Vector3d row_dir, col_dir;
-  if (orientation.size() == 6) {
-    row_dir = Eigen::Vector3d(orientation[0], orientation[1], orientation[2]);
-    col_dir = Eigen::Vector3d(orientation[3], orientation[4], orientation[5]);
-    if (std::abs(row_dir.norm() - 1) > 1e-6 || std::abs(col_dir.norm() - 1) > 1e-6 ||
-        std::abs(row_dir.dot(col_dir)) > 1e-6) {
-      ct.Fail("orientation", "expected two orthogonal unit vectors");
-    }
-  }
+  CtGridKey grid;
+  ParseCtGridKey(scene, &s, &grid);
   CARMBA_RETURN_IF_ERROR(scene.Finish());
-
-  // Markers.
-  const std::string csv_path = JoinPath(DirName(scene.file()), csv);
-  CARMBA_RETURN_IF_ERROR(ReadPhantomMarkersCsv(csv_path, id_column, columns,
-                                        scene.file() + ": key 'markers.csv'",
-                                        &s.phantom.markers));
-  Eigen::Vector3d lo = s.phantom.markers[0].centre_mm, hi = lo;
-  for (const auto& m : s.phantom.markers) {
-    lo = lo.cwiseMin(m.centre_mm);
-    hi = hi.cwiseMax(m.centre_mm);
-  }
-  const double radius = 0.5 * s.phantom.marker_diameter_mm;
-  for (size_t a = 0; a < s.phantom.markers.size(); ++a) {
-    for (size_t b = a + 1; b < s.phantom.markers.size(); ++b) {
-      const double d =
-          (s.phantom.markers[a].centre_mm - s.phantom.markers[b].centre_mm).norm();
-      if (d < 2 * s.phantom.marker_diameter_mm) {
-        return Status::Error(csv_path + ": markers " + std::to_string(s.phantom.markers[a].id) +
-                             " and " + std::to_string(s.phantom.markers[b].id) + " are " +
-                             std::to_string(d) + " mm apart, expected at least two diameters (" +
-                             std::to_string(2 * s.phantom.marker_diameter_mm) + " mm)");
-      }
-    }
-  }
-  if (block_size.size() == 3) {
-    const Eigen::Vector3d c(block_centre[0], block_centre[1], block_centre[2]);
-    const Eigen::Vector3d h = 0.5 * Eigen::Vector3d(block_size[0], block_size[1], block_size[2]);
-    s.phantom.block_min_mm = c - h;
-    s.phantom.block_max_mm = c + h;
-  } else {
-    const double pad = padding_mm + radius;
-    s.phantom.block_min_mm = lo - Eigen::Vector3d::Constant(pad);
-    s.phantom.block_max_mm = hi + Eigen::Vector3d::Constant(pad);
-  }
-
-  // Geometry.
-  const double t = tilt_deg * M_PI / 180.0;
-  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(t, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  const Eigen::Vector3d centre_mm =
-      centre.size() == 3 ? Eigen::Vector3d(centre[0], centre[1], centre[2]) : 0.5 * (lo + hi);
-  s.geometry = MakeCtGeometry(columns_px, rows_px, slices, pixel_mm, spacing_mm, thickness_mm,
-                              tilt * row_dir, tilt * col_dir, centre_mm);
-  const Eigen::Matrix3d A_inv = s.geometry.PatientFromIndexLinear().inverse();
-  const Eigen::Vector3d size(columns_px, rows_px, slices);
-  for (const auto& m : s.phantom.markers) {
-    const Eigen::Vector3d idx = A_inv * (m.centre_mm - s.geometry.origin_mm);
-    for (int a = 0; a < 3; ++a) {
-      const double r = radius / s.geometry.spacing_mm[a] + 1;
-      if (idx[a] - r < 0 || idx[a] + r > size[a] - 1) {
-        return Status::Error(scene.file() + ": key 'ct': marker " + std::to_string(m.id) +
-                             " at " + Mm3(m.centre_mm) +
-                             " mm does not lie wholly inside the CT volume (grow 'ct.slices', "
-                             "'ct.rows'/'ct.columns' or move 'ct.centre_mm')");
-      }
-    }
-  }
-
-  // Deterministic UIDs from the scene's content and seed (2.25.<64-bit hash>.<n>).
-  std::string key = std::to_string(seed) + "|" + Mm3(s.geometry.origin_mm) + "|" +
-                    std::to_string(columns_px) + "x" + std::to_string(rows_px) + "x" +
-                    std::to_string(slices) + "|" + std::to_string(tilt_deg);
-  for (const auto& m : s.phantom.markers) key += "|" + Mm3(m.centre_mm);
-  const std::string root = "2.25." + std::to_string(Fnv1a(key));
-  s.write.study_uid = root + ".1";
-  s.write.series_uid = root + ".2";
-  s.write.frame_of_reference_uid = root + ".3";
-  s.write.series_description = description.empty() ? "carmba simulated CT" : description;
-  if (s.write.series_description.size() > 64) s.write.series_description.resize(64);
+  Eigen::Vector3d lo, hi;
+  CARMBA_RETURN_IF_ERROR(PlaceCtMarkersAndBlock(scene, markers, block, &s, &lo, &hi));
+  CARMBA_RETURN_IF_ERROR(PlaceCtVolume(scene, grid, lo, hi, &s));
+  SetCtUids(seed, grid, description, &s);
   *out = std::move(s);
   return Status::Ok();
 }

@@ -320,32 +320,16 @@ bool DicomXrayWriteOptions::Check(std::string* error) const {
   return true;
 }
 
-Status WriteDicomXray(const std::string& path,
-                      const std::vector<cv::Mat>& frames,
-                      const DicomXrayWriteOptions& options) {
-  SilenceGdcm();
-  std::string error;
-  if (!options.Check(&error)) return Status::Error(path + ": DICOM write options: " + error);
-  if (frames.empty()) return Status::Error(path + ": no frames to write");
+namespace {
+
+// The frames' pixels in one buffer (MONOCHROME1: inverted); an error when a value exceeds
+// 2^bits - 1.
+Status PackFrames(const std::string& path, const std::vector<cv::Mat>& frames, int depth_bits, int bits,
+                  bool mono1, std::vector<char>* buffer) {
   const cv::Mat& f0 = frames[0];
-  if ((f0.type() != CV_8UC1 && f0.type() != CV_16UC1) || f0.rows > 65535 || f0.cols > 65535) {
-    return Status::Error(path + ": frames must be CV_8UC1 or CV_16UC1 of at most 65535 px a side");
-  }
-  for (const auto& f : frames) {
-    if (f.type() != f0.type() || f.size() != f0.size()) {
-      return Status::Error(path + ": all frames must have the first frame's size and type");
-    }
-  }
-  const int depth_bits = f0.type() == CV_8UC1 ? 8 : 16;
-  const int bits = options.bits_stored > 0 ? options.bits_stored : depth_bits;
-  if (bits > depth_bits) {
-    return Status::Error(path + ": bits_stored " + std::to_string(bits) + " exceeds the frames' " +
-                         std::to_string(depth_bits) + " bits");
-  }
   const uint32_t max_value = (1u << bits) - 1u;
-  const bool mono1 = options.photometric == "MONOCHROME1";
   const size_t n = static_cast<size_t>(f0.rows) * f0.cols;
-  std::vector<char> buffer(n * frames.size() * (depth_bits / 8));
+  buffer->assign(n * frames.size() * (depth_bits / 8), 0);
   for (size_t k = 0; k < frames.size(); ++k) {
     cv::Mat f = frames[k].isContinuous() ? frames[k] : frames[k].clone();
     double hi = 0;
@@ -359,9 +343,18 @@ Status WriteDicomXray(const std::string& path,
       cv::Mat inverted = cv::Scalar::all(max_value) - f;  // a new buffer: the input is const
       f = inverted;
     }
-    std::memcpy(buffer.data() + k * n * (depth_bits / 8), f.data, n * (depth_bits / 8));
+    std::memcpy(buffer->data() + k * n * (depth_bits / 8), f.data, n * (depth_bits / 8));
   }
 
+  return Status::Ok();
+}
+
+// The pixel data element in the transfer syntax the options ask for (GDCM encodes it); *ts the
+// syntax.
+StatusOr<gdcm::DataElement> EncodePixels(const std::string& path, const std::vector<cv::Mat>& frames,
+                                         const std::vector<char>& buffer, int depth_bits, int bits, bool mono1,
+                                         const DicomXrayWriteOptions& options, gdcm::TransferSyntax* ts_out) {
+  const cv::Mat& f0 = frames[0];
   // Reference counted: a filter's SetInput takes a SmartPointer to it (a stack object would be
   // deleted by the filter).
   gdcm::SmartPointer<gdcm::Image> image_ptr = new gdcm::Image;
@@ -382,7 +375,8 @@ Status WriteDicomXray(const std::string& path,
   pixels.SetByteValue(buffer.data(), static_cast<uint32_t>(buffer.size()));
   image.SetDataElement(pixels);
 
-  gdcm::TransferSyntax ts = gdcm::TransferSyntax::ExplicitVRLittleEndian;
+  gdcm::TransferSyntax& ts = *ts_out;
+  ts = gdcm::TransferSyntax::ExplicitVRLittleEndian;
   gdcm::DataElement encoded = pixels;
   if (options.transfer_syntax != "explicit_le") {
     ts = options.transfer_syntax == "jpeg_lossless" ? gdcm::TransferSyntax::JPEGLosslessProcess14_1
@@ -402,9 +396,14 @@ Status WriteDicomXray(const std::string& path,
     encoded = change.GetOutput().GetDataElement();
   }
 
-  gdcm::Writer writer;
-  gdcm::File& file = writer.GetFile();
-  gdcm::DataSet& ds = file.GetDataSet();
+  return encoded;
+}
+
+// The XA / RF image's tags: SOP class and instance, patient, the C-arm geometry, UIDs, the image
+// pixel module.
+void PutXrayTags(gdcm::DataSet& ds, const std::vector<cv::Mat>& frames, int depth_bits, int bits,
+                 const DicomXrayWriteOptions& options) {
+  const cv::Mat& f0 = frames[0];
   const bool xa = options.sop_class == "xa";
   PutString(&ds, 0x0008, 0x0008, gdcm::VR::CS, "ORIGINAL\\PRIMARY\\SINGLE PLANE");
   PutString(&ds,
@@ -466,9 +465,11 @@ Status WriteDicomXray(const std::string& path,
   PutUS<0x0028, 0x0102>(&ds, static_cast<uint16_t>(bits - 1));
   PutUS<0x0028, 0x0103>(&ds, 0);
   PutString(&ds, 0x0028, 0x1040, gdcm::VR::CS, "LIN");
-  ds.Replace(encoded);
-  file.GetHeader().SetDataSetTransferSyntax(ts);
+}
 
+// Writes through a temporary file renamed into place (removed on failure, SIGINT, SIGTERM).
+Status WriteAtomically(const std::string& path, gdcm::Writer* writer_ptr) {
+  gdcm::Writer& writer = *writer_ptr;
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
   const TempPathRegistration registration(tmp);  // removed on SIGINT / SIGTERM
   writer.SetFileName(tmp.c_str());
@@ -488,6 +489,45 @@ Status WriteDicomXray(const std::string& path,
     return Status::Error(path + ": cannot rename the written file into place");
   }
   return Status::Ok();
+}
+
+}  // namespace
+
+Status WriteDicomXray(const std::string& path,
+                      const std::vector<cv::Mat>& frames,
+                      const DicomXrayWriteOptions& options) {
+  SilenceGdcm();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(path + ": DICOM write options: " + error);
+  if (frames.empty()) return Status::Error(path + ": no frames to write");
+  const cv::Mat& f0 = frames[0];
+  if ((f0.type() != CV_8UC1 && f0.type() != CV_16UC1) || f0.rows > 65535 || f0.cols > 65535) {
+    return Status::Error(path + ": frames must be CV_8UC1 or CV_16UC1 of at most 65535 px a side");
+  }
+  for (const auto& f : frames) {
+    if (f.type() != f0.type() || f.size() != f0.size()) {
+      return Status::Error(path + ": all frames must have the first frame's size and type");
+    }
+  }
+  const int depth_bits = f0.type() == CV_8UC1 ? 8 : 16;
+  const int bits = options.bits_stored > 0 ? options.bits_stored : depth_bits;
+  if (bits > depth_bits) {
+    return Status::Error(path + ": bits_stored " + std::to_string(bits) + " exceeds the frames' " +
+                         std::to_string(depth_bits) + " bits");
+  }
+  const bool mono1 = options.photometric == "MONOCHROME1";
+  std::vector<char> buffer;
+  CARMBA_RETURN_IF_ERROR(PackFrames(path, frames, depth_bits, bits, mono1, &buffer));
+  gdcm::TransferSyntax ts;
+  auto encoded = EncodePixels(path, frames, buffer, depth_bits, bits, mono1, options, &ts);
+  if (!encoded.ok()) return encoded.status();
+  gdcm::Writer writer;
+  gdcm::File& file = writer.GetFile();
+  gdcm::DataSet& ds = file.GetDataSet();
+  PutXrayTags(ds, frames, depth_bits, bits, options);
+  ds.Replace(*encoded);
+  file.GetHeader().SetDataSetTransferSyntax(ts);
+  return WriteAtomically(path, &writer);
 }
 
 }  // namespace carmba

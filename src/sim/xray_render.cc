@@ -277,6 +277,187 @@ void AddVeilingGlare(const cv::Mat& coverage, const RenderOptions& o, cv::Mat* i
 
 }  // namespace
 
+namespace {
+
+// A sphere in the camera frame with the pixel box its image can reach (px).
+CamSphere SphereInCamera(const Camera& camera, const PlacedPhantom& placed, const SpherePrimitive& s,
+                         int box_base) {
+  CamSphere cs;
+  cs.c = placed.cam_from_phantom * s.center_mm;
+  cs.c2 = cs.c.squaredNorm();
+  cs.r2 = s.radius_mm * s.radius_mm;
+  cs.mu = s.mu_per_mm;
+  cs.host = s.host_box >= 0 ? box_base + s.host_box : -1;
+  cs.mu_host = s.host_box >= 0 ? placed.phantom->boxes[s.host_box].mu_per_mm : 0.0;
+  double uv[2];
+  ProjectCamPoint(camera.params.data(), cs.c.data(), uv);
+  const double r_px = SphereImageRadius(camera, cs.c, s.radius_mm, {uv[0], uv[1]}) + 2.0;
+  if (!std::isfinite(r_px)) {
+    cs.u0 = cs.v0 = 0;
+    cs.u1 = camera.width - 1;
+    cs.v1 = camera.height - 1;
+  } else {
+    cs.u0 = static_cast<int>(std::floor(uv[0] - r_px));
+    cs.u1 = static_cast<int>(std::ceil(uv[0] + r_px));
+    cs.v0 = static_cast<int>(std::floor(uv[1] - r_px));
+    cs.v1 = static_cast<int>(std::ceil(uv[1] + r_px));
+  }
+  return cs;
+}
+
+// The phantoms' boxes and spheres in the camera frame; an error for a sphere not wholly in front
+// of the source.
+Status SolidsInCameraFrame(const Camera& camera, const std::vector<PlacedPhantom>& phantoms,
+                           std::vector<CamBox>* boxes, std::vector<CamSphere>* spheres) {
+  for (const auto& placed : phantoms) {
+    if (!placed.phantom) return Status::Error("null phantom");
+    const int box_base = static_cast<int>(boxes->size());
+    for (const auto& b : placed.phantom->boxes) {
+      const Rigid3 box_from_cam = (placed.cam_from_phantom * b.phantom_from_box).Inverse();
+      boxes->push_back({box_from_cam.R, box_from_cam.t, b.half_size_mm, b.mu_per_mm});
+    }
+    for (const auto& s : placed.phantom->spheres) {
+      if (!((placed.cam_from_phantom * s.center_mm).z() > s.radius_mm)) {
+        return Status::Error("sphere " + std::to_string(s.id) + " is not entirely in front of the source");
+      }
+      spheres->push_back(SphereInCamera(camera, placed, s, box_base));
+    }
+  }
+  return Status::Ok();
+}
+
+// The line integral of mu along the unit ray d: every box's chord, the chord of each sphere of
+// the tile, less the part of its host box the sphere displaces. box_t0, box_t1, box_hit are
+// scratch (per box).
+double LineIntegral(const Eigen::Vector3d& d, const std::vector<CamBox>& boxes,
+                    const std::vector<CamSphere>& spheres, const std::vector<int>& tile_spheres,
+                    std::vector<double>* box_t0, std::vector<double>* box_t1, std::vector<char>* box_hit) {
+  double line_integral = 0.0;
+  for (size_t b = 0; b < boxes.size(); ++b) {
+    (*box_hit)[b] = BoxInterval(boxes[b], d, &(*box_t0)[b], &(*box_t1)[b]);
+    if ((*box_hit)[b]) line_integral += boxes[b].mu * ((*box_t1)[b] - (*box_t0)[b]);
+  }
+  for (int k : tile_spheres) {
+    const CamSphere& sp = spheres[k];
+    const double b = d.dot(sp.c);
+    const double disc = sp.r2 - (sp.c2 - b * b);
+    if (disc <= 0) continue;
+    const double h = std::sqrt(disc);
+    line_integral += sp.mu * 2.0 * h;
+    if (sp.host >= 0 && (*box_hit)[sp.host]) {
+      const double overlap = std::min(b + h, (*box_t1)[sp.host]) - std::max(b - h, (*box_t0)[sp.host]);
+      if (overlap > 0) line_integral -= sp.mu_host * overlap;
+    }
+  }
+  return line_integral;
+}
+
+// The gain of a pixel: white level, vignetting, heel effect, the field of view's soft edge, the
+// background.
+struct PixelGainModel {
+  PixelGainModel(const Camera& camera, const RenderOptions& o)
+      : options(o), fov(FovOf(camera, o)), edge_px(fov.circular ? o.fov_edge_px : 0.0),
+        heel_cu(std::cos(o.heel_direction_deg * M_PI / 180.0) / fov.r),
+        heel_cv(std::sin(o.heel_direction_deg * M_PI / 180.0) / fov.r) {}
+
+  // Pixel (u, v) with r2 its squared normalised radius.
+  double operator()(int u, int v, float r2) const {
+    const double fall = options.vignetting_power == 2.0
+                            ? r2
+                            : std::pow(static_cast<double>(r2), 0.5 * options.vignetting_power);
+    double gain = options.white_level * (1.0 - options.vignetting * fall);
+    if (options.heel > 0) {
+      gain *= 1.0 + options.heel * ((u - fov.u) * heel_cu + (v - fov.v) * heel_cv);
+    }
+    if (edge_px > 0) {
+      gain *= std::clamp((fov.r * (1.0 - std::sqrt(r2))) / edge_px, 0.0, 1.0);
+    }
+    if (!options.background_gain.empty()) {
+      gain *= options.background_gain.at<float>(v, u);
+    }
+    return gain;
+  }
+
+  const RenderOptions& options;
+  const Fov fov;
+  const double edge_px, heel_cu, heel_cv;
+};
+
+// The expected grey levels: every sub-pixel ray of the grid through the solids, tile by tile
+// (each tile tests only the spheres whose image reaches it); coverage (when not empty) the
+// fraction of each pixel inside the field of view.
+void RenderExpected(const Camera& camera, const RenderOptions& options, const RayGrid& grid,
+                    const std::vector<CamBox>& boxes, const std::vector<CamSphere>& spheres,
+                    cv::Mat* expected, cv::Mat* coverage) {
+  const int W = camera.width, H = camera.height, SS = options.supersampling * options.supersampling;
+  const PixelGainModel pixel_gain(camera, options);
+  std::vector<double> box_t0(boxes.size()), box_t1(boxes.size());
+  std::vector<char> box_hit(boxes.size());
+  std::vector<int> tile_spheres;
+  for (int tv = 0; tv < H; tv += kTile) {
+    for (int tu = 0; tu < W; tu += kTile) {
+      const int tu1 = std::min(W, tu + kTile) - 1, tv1 = std::min(H, tv + kTile) - 1;
+      tile_spheres.clear();
+      for (int k = 0; k < static_cast<int>(spheres.size()); ++k) {
+        const CamSphere& s = spheres[k];
+        if (s.u1 >= tu && s.u0 <= tu1 && s.v1 >= tv && s.v0 <= tv1) tile_spheres.push_back(k);
+      }
+      for (int v = tv; v <= tv1; ++v) {
+        float* row = expected->ptr<float>(v);
+        for (int u = tu; u <= tu1; ++u) {
+          double sum = 0.0;
+          int n_inside = 0;
+          for (int s = 0; s < SS; ++s) {
+            if (!grid.inside(u, v, s)) continue;
+            ++n_inside;
+            const float* xy = grid.xy(u, v, s);
+            Eigen::Vector3d d(xy[0], xy[1], 1.0);
+            d.normalize();
+            sum += std::exp(-LineIntegral(d, boxes, spheres, tile_spheres, &box_t0, &box_t1, &box_hit));
+          }
+          double value = options.outside_fov_gray * (SS - n_inside) / SS;
+          if (n_inside > 0) value += pixel_gain(u, v, grid.radius2(u, v)) * sum / SS;
+          row[u] = static_cast<float>(value);
+          if (!coverage->empty()) coverage->at<float>(v, u) = static_cast<float>(n_inside) / SS;
+        }
+      }
+    }
+  }
+}
+
+// The detector on the expected image: quantum (Poisson) noise, veiling glare, blur, read noise.
+void AddDetectorEffects(const RenderOptions& options, const cv::Mat& coverage, cv::Mat* image_ptr) {
+  cv::Mat& image = *image_ptr;
+  const int W = image.cols, H = image.rows;
+  std::mt19937_64 rng(options.seed);
+  if (options.photons_per_pixel > 0) {
+    const double quanta_per_gray = options.photons_per_pixel / options.white_level;
+    for (int v = 0; v < H; ++v) {
+      float* row = image.ptr<float>(v);
+      for (int u = 0; u < W; ++u) {
+        const double mean = std::max(0.0, static_cast<double>(row[u])) * quanta_per_gray;
+        if (mean <= 0) continue;
+        std::poisson_distribution<long> poisson(mean);
+        row[u] = static_cast<float>(poisson(rng) / quanta_per_gray);
+      }
+    }
+  }
+  if (options.glare_fraction > 0) AddVeilingGlare(coverage, options, &image);
+  if (options.blur_sigma_px > 0) {
+    cv::GaussianBlur(image, image, cv::Size(0, 0), options.blur_sigma_px, options.blur_sigma_px,
+                     cv::BORDER_REFLECT);
+  }
+  if (options.read_noise_gray > 0) {
+    std::normal_distribution<double> normal(0.0, options.read_noise_gray);
+    for (int v = 0; v < H; ++v) {
+      float* row = image.ptr<float>(v);
+      for (int u = 0; u < W; ++u) row[u] += static_cast<float>(normal(rng));
+    }
+  }
+}
+
+}  // namespace
+
 StatusOr<cv::Mat> RenderXray(const Camera& camera,
                              const std::vector<PlacedPhantom>& phantoms,
                              const RenderOptions& options,
@@ -295,151 +476,15 @@ StatusOr<cv::Mat> RenderXray(const Camera& camera,
     own = *built;
     grid = own.get();
   }
-
-  // Solids in the camera frame.
   std::vector<CamBox> boxes;
   std::vector<CamSphere> spheres;
-  for (const auto& placed : phantoms) {
-    if (!placed.phantom) return Status::Error("null phantom");
-    const int box_base = static_cast<int>(boxes.size());
-    for (const auto& b : placed.phantom->boxes) {
-      const Rigid3 box_from_cam = (placed.cam_from_phantom * b.phantom_from_box).Inverse();
-      boxes.push_back({box_from_cam.R, box_from_cam.t, b.half_size_mm, b.mu_per_mm});
-    }
-    for (const auto& s : placed.phantom->spheres) {
-      CamSphere cs;
-      cs.c = placed.cam_from_phantom * s.center_mm;
-      if (!(cs.c.z() > s.radius_mm)) {
-        return Status::Error("sphere " + std::to_string(s.id) +
-                             " is not entirely in front of the source");
-      }
-      cs.c2 = cs.c.squaredNorm();
-      cs.r2 = s.radius_mm * s.radius_mm;
-      cs.mu = s.mu_per_mm;
-      cs.host = s.host_box >= 0 ? box_base + s.host_box : -1;
-      cs.mu_host = s.host_box >= 0 ? placed.phantom->boxes[s.host_box].mu_per_mm : 0.0;
-      double uv[2];
-      ProjectCamPoint(camera.params.data(), cs.c.data(), uv);
-      const double r_px = SphereImageRadius(camera, cs.c, s.radius_mm, {uv[0], uv[1]}) + 2.0;
-      if (!std::isfinite(r_px)) {
-        cs.u0 = cs.v0 = 0;
-        cs.u1 = camera.width - 1;
-        cs.v1 = camera.height - 1;
-      } else {
-        cs.u0 = static_cast<int>(std::floor(uv[0] - r_px));
-        cs.u1 = static_cast<int>(std::ceil(uv[0] + r_px));
-        cs.v0 = static_cast<int>(std::floor(uv[1] - r_px));
-        cs.v1 = static_cast<int>(std::ceil(uv[1] + r_px));
-      }
-      spheres.push_back(cs);
-    }
-  }
-
-  const int W = camera.width, H = camera.height, S = options.supersampling, SS = S * S;
-  const Fov fov = FovOf(camera, options);
-  const double edge_px = fov.circular ? options.fov_edge_px : 0.0;
-  cv::Mat expected(H, W, CV_32F);
+  CARMBA_RETURN_IF_ERROR(SolidsInCameraFrame(camera, phantoms, &boxes, &spheres));
+  cv::Mat expected(camera.height, camera.width, CV_32F);
   cv::Mat coverage;  // fraction of the pixel inside the FOV (for the glare)
-  if (options.glare_fraction > 0) coverage.create(H, W, CV_32F);
-  const double heel_cu = std::cos(options.heel_direction_deg * M_PI / 180.0) / fov.r;
-  const double heel_cv = std::sin(options.heel_direction_deg * M_PI / 180.0) / fov.r;
-  std::vector<double> box_t0(boxes.size()), box_t1(boxes.size());
-  std::vector<char> box_hit(boxes.size());
-  std::vector<int> tile_spheres;
-  for (int tv = 0; tv < H; tv += kTile) {
-    for (int tu = 0; tu < W; tu += kTile) {
-      const int tu1 = std::min(W, tu + kTile) - 1, tv1 = std::min(H, tv + kTile) - 1;
-      tile_spheres.clear();
-      for (int k = 0; k < static_cast<int>(spheres.size()); ++k) {
-        const CamSphere& s = spheres[k];
-        if (s.u1 >= tu && s.u0 <= tu1 && s.v1 >= tv && s.v0 <= tv1) tile_spheres.push_back(k);
-      }
-      for (int v = tv; v <= tv1; ++v) {
-        float* row = expected.ptr<float>(v);
-        for (int u = tu; u <= tu1; ++u) {
-          double sum = 0.0;
-          int n_inside = 0;
-          for (int s = 0; s < SS; ++s) {
-            if (!grid->inside(u, v, s)) continue;
-            ++n_inside;
-            const float* xy = grid->xy(u, v, s);
-            Eigen::Vector3d d(xy[0], xy[1], 1.0);
-            d.normalize();
-            double line_integral = 0.0;
-            for (size_t b = 0; b < boxes.size(); ++b) {
-              box_hit[b] = BoxInterval(boxes[b], d, &box_t0[b], &box_t1[b]);
-              if (box_hit[b]) line_integral += boxes[b].mu * (box_t1[b] - box_t0[b]);
-            }
-            for (int k : tile_spheres) {
-              const CamSphere& sp = spheres[k];
-              const double b = d.dot(sp.c);
-              const double disc = sp.r2 - (sp.c2 - b * b);
-              if (disc <= 0) continue;
-              const double h = std::sqrt(disc);
-              line_integral += sp.mu * 2.0 * h;
-              if (sp.host >= 0 && box_hit[sp.host]) {
-                const double overlap =
-                    std::min(b + h, box_t1[sp.host]) - std::max(b - h, box_t0[sp.host]);
-                if (overlap > 0) line_integral -= sp.mu_host * overlap;
-              }
-            }
-            sum += std::exp(-line_integral);
-          }
-          double value = options.outside_fov_gray * (SS - n_inside) / SS;
-          if (n_inside > 0) {
-            const float r2 = grid->radius2(u, v);
-            const double fall = options.vignetting_power == 2.0
-                                    ? r2
-                                    : std::pow(static_cast<double>(r2), 0.5 * options.vignetting_power);
-            double gain = options.white_level * (1.0 - options.vignetting * fall);
-            if (options.heel > 0) {
-              gain *= 1.0 + options.heel * ((u - fov.u) * heel_cu + (v - fov.v) * heel_cv);
-            }
-            if (edge_px > 0) {
-              gain *= std::clamp((fov.r * (1.0 - std::sqrt(r2))) / edge_px, 0.0, 1.0);
-            }
-            if (!options.background_gain.empty()) {
-              gain *= options.background_gain.at<float>(v, u);
-            }
-            value += gain * sum / SS;
-          }
-          row[u] = static_cast<float>(value);
-          if (!coverage.empty()) coverage.at<float>(v, u) = static_cast<float>(n_inside) / SS;
-        }
-      }
-    }
-  }
-
+  if (options.glare_fraction > 0) coverage.create(camera.height, camera.width, CV_32F);
+  RenderExpected(camera, options, *grid, boxes, spheres, &expected, &coverage);
   cv::Mat image = expected;
-  std::mt19937_64 rng(options.seed);
-  if (options.photons_per_pixel > 0) {
-    const double quanta_per_gray = options.photons_per_pixel / options.white_level;
-    for (int v = 0; v < H; ++v) {
-      float* row = image.ptr<float>(v);
-      for (int u = 0; u < W; ++u) {
-        const double mean = std::max(0.0, static_cast<double>(row[u])) * quanta_per_gray;
-        if (mean <= 0) continue;
-        std::poisson_distribution<long> poisson(mean);
-        row[u] = static_cast<float>(poisson(rng) / quanta_per_gray);
-      }
-    }
-  }
-  if (options.glare_fraction > 0) AddVeilingGlare(coverage, options, &image);
-  if (options.blur_sigma_px > 0) {
-    cv::GaussianBlur(image,
-                     image,
-                     cv::Size(0, 0),
-                     options.blur_sigma_px,
-                     options.blur_sigma_px,
-                     cv::BORDER_REFLECT);
-  }
-  if (options.read_noise_gray > 0) {
-    std::normal_distribution<double> normal(0.0, options.read_noise_gray);
-    for (int v = 0; v < H; ++v) {
-      float* row = image.ptr<float>(v);
-      for (int u = 0; u < W; ++u) row[u] += static_cast<float>(normal(rng));
-    }
-  }
+  AddDetectorEffects(options, coverage, &image);
   return image;
 }
 
