@@ -10,6 +10,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
+#include "io/image_files.h"
 #include "export/undistort.h"
 #include "util/file_util.h"
 

@@ -129,24 +129,6 @@ cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const G
 // Detects `grid` in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
 GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& options);
 
-// Reads an image unchanged (8/16 bit); error naming the file if unreadable or empty. DICOM files
-// (io/dicom_xray.h IsDicomFileName: .dcm, .dicom, a DICM preamble, or `file#frameN` for frame N
-// of a multi-frame file) are read through GDCM; a multi-frame file without `#frameN` is an error
-// (ReadImageViews reads all its frames).
-StatusOr<cv::Mat> ReadImageFile(const std::string& path);
-
-// One view of an image file: its name (the file, or `file#frameN` for a frame of a multi-frame
-// DICOM file) and its pixels.
-struct NamedImage {
-  std::string name;
-  cv::Mat image;
-  // A DICOM frame's C-arm tags (io/dicom_xray.h); std::nullopt for other image files.
-  std::optional<XrayFrameGeometry> geometry;
-};
-// The views of a file: one for an ordinary image or a single-frame DICOM file, one per frame for a
-// multi-frame DICOM file (io/dicom_xray.h; `file#frameN` reads frame N only).
-StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path);
-
 // Detects the grid in every view of every file (ReadImageViews: a multi-frame DICOM file gives
 // one view per frame, named `file#frameN`). Views where it is found go into the set; the others
 // are listed as "view: reason" in `skipped`. Errors: unreadable image, images of different sizes.

@@ -1,4 +1,5 @@
 #include "detect/marker_views.h"
+#include "io/image_files.h"
 
 #include "report/format.h"
 
@@ -13,7 +14,7 @@
 #include "camera/camera_model.h"
 #include "detect/detect_steps.h"
 #include "geometry/rotation.h"
-#include "sim/dicom_view.h"
+#include "io/dicom_view.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
 
@@ -101,15 +102,15 @@ std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double f
 
 namespace {
 
-Pose6 PoseFromRigid(const sim::Rigid3& r) {
+Pose6 PoseFromRigid(const Rigid3& r) {
   Pose6 p;
   p.head<3>() = RvecFromRotation(r.R);
   p.tail<3>() = r.t;
   return p;
 }
 
-sim::Rigid3 RigidFromPose(const Pose6& p) {
-  sim::Rigid3 r;
+Rigid3 RigidFromPose(const Pose6& p) {
+  Rigid3 r;
   r.R = RotationFromRvec(p.head<3>());
   r.t = p.tail<3>();
   return r;
@@ -183,7 +184,7 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       }
       std::optional<double> sod;
       if (ni.geometry) {
-        auto nominal = sim::NominalViewFromDicom(*ni.geometry, v.image.cols, v.image.rows, v.name);
+        auto nominal = NominalViewFromDicom(*ni.geometry, v.image.cols, v.image.rows, v.name);
         if (!nominal.ok()) return nominal.status();
         if (o.use_nominal_geometry) v.nominal_cam_from_patient = nominal->cam_from_patient;
         if (ni.geometry->sod_mm) {
@@ -213,7 +214,7 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       std::optional<Pose6> predicted;
       if (ref >= 0 && v.nominal_cam_from_patient) {
         const ObjectView& r = views[ref];
-        const sim::Rigid3 patient_from_object =
+        const Rigid3 patient_from_object =
             r.nominal_cam_from_patient->Inverse() * RigidFromPose(r.labelling.cam_from_object);
         predicted = PoseFromRigid(*v.nominal_cam_from_patient * patient_from_object);
       }

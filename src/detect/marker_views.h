@@ -7,7 +7,7 @@
 //      Estimated Radiographic Magnification Factor), else fx / source_to_object_mm; none of these
 //      is an error naming the view.
 //   2. Labels. When this view and an already labelled view both have a nominal cam_from_patient
-//      (DICOM positioner angles and distances, sim/dicom_view.h), the object's pose is predicted
+//      (DICOM positioner angles and distances, io/dicom_view.h), the object's pose is predicted
 //      from it: cam_from_object_v = cam_from_patient_v * patient_from_cam_r * cam_from_object_r
 //      (the nominal geometry's relative C-arm motion applied to the labelled view r; the
 //      isocentre offset cancels). Else, or when the prediction is not accepted, the full
@@ -42,7 +42,7 @@
 #include "detect/marker_blobs.h"
 #include "pose/marker_correspondence.h"
 #include "problem/pose_problem.h"
-#include "sim/carm_geometry.h"
+#include "geometry/carm_geometry.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -70,7 +70,7 @@ struct ObjectView {
   std::string skipped;  // why not labelled
   MarkerLabelling labelling;
   std::vector<int> marker_id_of_blob;  // CT marker id per blob, -1 = none
-  std::optional<sim::Rigid3> nominal_cam_from_patient;
+  std::optional<Rigid3> nominal_cam_from_patient;
   double px_per_mm = 0;  // the magnification used
 };
 

@@ -30,7 +30,7 @@
 //     C.8.7.5.1.3). An increment without its base angle leaves that angle absent.
 //   * Distance Source to Detector (0018,1110) = SID, Distance Source to Patient (0018,1111) = SOD
 //     (source to isocentre on C-arms), mm; Estimated Radiographic Magnification Factor (0018,1114)
-//     = SID / SOD (sim/dicom_view.h uses it when SOD is absent).
+//     = SID / SOD (io/dicom_view.h uses it when SOD is absent).
 //   * Imager Pixel Spacing (0018,1164) = "row spacing\column spacing" in mm, at the detector's
 //     front plane: row spacing is the distance between adjacent ROWS (vertical, image y), column
 //     spacing the distance between adjacent COLUMNS (horizontal, image x). (Pixel Spacing
@@ -39,7 +39,7 @@
 //     empty. A present value that is not a number, a wrong number of values, a non-positive
 //     distance or spacing, or an increment count that is neither 1 nor the number of frames is an
 //     error naming the file and the tag.
-//   From these, sim/dicom_view.h builds the nominal camera and cam_from_patient of a view.
+//   From these, io/dicom_view.h builds the nominal camera and cam_from_patient of a view.
 //
 // ERRORS (one line, starting with the file name): unreadable file; not DICOM; corrupt DICOM
 // (truncated, or unparsable: GDCM's own diagnostics are silenced); no Pixel Data (7fe0,0010);
@@ -76,7 +76,7 @@ struct DicomXrayImage {
   std::string transfer_syntax_uid;  // (0002,0010) as stored
   std::string photometric;          // (0028,0004) as stored: MONOCHROME1 or MONOCHROME2
   // Patient Orientation (0020,0020) as stored, e.g. "R\F": the patient directions of the image's
-  // rows (+x) and columns (+y); empty when absent. sim/dicom_view.h checks it against the pose.
+  // rows (+x) and columns (+y); empty when absent. io/dicom_view.h checks it against the pose.
   std::string patient_orientation;
   int bits_allocated = 0;
   int bits_stored = 0;

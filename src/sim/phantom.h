@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/carm_geometry.h"
+#include "geometry/carm_geometry.h"
 #include "util/status.h"
 
 namespace carmba::sim {

@@ -42,7 +42,7 @@
 #include <vector>
 
 #include "camera/camera.h"
-#include "sim/carm_geometry.h"
+#include "geometry/carm_geometry.h"
 #include "sim/phantom.h"
 #include "util/status.h"
 

@@ -575,7 +575,7 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
 namespace {
 
 // The XA geometry tags of a view (xray_scene.h, output dcm): angles, SID, SOD, and the pixel
-// spacing SID / fy \ SID / fx that gives back fx, fy through sim/dicom_view.h.
+// spacing SID / fy \ SID / fx that gives back fx, fy through io/dicom_view.h.
 DicomXrayWriteOptions DicomOptionsOfView(const XrayScene& scene, int view) {
   const CarmGeometry& carm = scene.views[view].carm;
   const Camera camera = scene.ViewCamera(view);  // the view's own (flexing C-arm)

@@ -114,7 +114,7 @@ StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob);
 // preamble ("DICM" at byte 128: Siemens .IMA, UID-like names, no extension), but not a DICOMDIR,
 // so that e.g. the simulator's truth.json beside its images is not taken for one; a glob is taken
 // as given. `file.dcm#frameN` (one frame of a
-// multi-frame DICOM file, detect/grid_detector.h ReadImageViews) is taken as given when the file
+// multi-frame DICOM file, io/image_files.h ReadImageViews) is taken as given when the file
 // exists. Error if no image is left.
 StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob);
 

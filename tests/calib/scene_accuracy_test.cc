@@ -115,8 +115,8 @@ double WorstSigmasMrcalDefinition(const ObservationSet& obs, const CalibrationRe
     Eigen::Vector3d p_true = Eigen::Vector3d::Zero();
     for (size_t i = 0; i < obs.views.size(); ++i) {
       const auto& pose = r.cam_from_plate[i];
-      const sim::Rigid3 cam_from_plate_est =
-          sim::Rigid3::FromRvec({pose[0], pose[1], pose[2]}, {pose[3], pose[4], pose[5]});
+      const Rigid3 cam_from_plate_est =
+          Rigid3::FromRvec({pose[0], pose[1], pose[2]}, {pose[3], pose[4], pose[5]});
       p_true += scene.CamFromObject(static_cast<int>(i)) * (cam_from_plate_est.Inverse() * p_cam);
     }
     p_true /= static_cast<double>(obs.views.size());

@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "detect/grid_detector.h"
+#include "io/image_files.h"
 #include "io/dicom_xray.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"

@@ -52,7 +52,7 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
     const ObjectView& ov = views[v];
     // The clutter's wires (thin boxes) projected, as polylines of 200 points.
     std::vector<Eigen::Vector2d> wire_px;
-    const sim::Rigid3 cam_from_object = scene.CamFromObject(static_cast<int>(v));
+    const Rigid3 cam_from_object = scene.CamFromObject(static_cast<int>(v));
     const Camera view_camera = scene.ViewCamera(static_cast<int>(v));
     for (const auto& box : scene.clutter.boxes) {
       int axis = 0;

@@ -134,7 +134,7 @@ class RecallScenes {
            Eigen::AngleAxisd(uni(0, 1) < 0.5 ? 0.0 : M_PI, Eigen::Vector3d::UnitX()))
               .toRotationMatrix();
       const Eigen::Vector3d t(uni(-25, 25) * z / fx, uni(-25, 25) * z / fx, z);
-      sim::PlacedPhantom placed{&*phantom, sim::Rigid3{R, t - R * centroid}};
+      sim::PlacedPhantom placed{&*phantom, Rigid3{R, t - R * centroid}};
       bool inside = true;
       SceneTruth st;
       for (const auto& s : phantom->spheres) {

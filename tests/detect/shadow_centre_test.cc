@@ -53,7 +53,7 @@ CentreErrors Measure(double diameter_mm, uint64_t seed, int spheres) {
     ro.supersampling = 6;
     ro.circular_fov = false;
     ro.white_level = 200;
-    auto image = sim::RenderXray(cam, {{&ph, sim::Rigid3()}}, ro);
+    auto image = sim::RenderXray(cam, {{&ph, Rigid3()}}, ro);
     EXPECT_TRUE(image.ok()) << image.status().message();
     if (!image.ok()) continue;
     MarkerBlobOptions mo;

@@ -2,6 +2,7 @@
 // PGM, TIFF, JPEG, BMP; OpenCV picks the decoder from the content) and, for inputs with the DICOM
 // preamble ("DICM" at byte 128), the DICOM reader (io/dicom_image.h, GDCM).
 #include "detect/grid_detector.h"
+#include "io/image_files.h"
 #include "fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {

@@ -1,6 +1,6 @@
-// Sign conventions of the C-arm geometry (sim/carm_geometry.h): DICOM positioner angles in the
+// Sign conventions of the C-arm geometry (geometry/carm_geometry.h): DICOM positioner angles in the
 // LPS patient frame -> cam_from_world.
-#include "sim/carm_geometry.h"
+#include "geometry/carm_geometry.h"
 
 #include <gtest/gtest.h>
 

@@ -1,8 +1,8 @@
-// The nominal view of a DICOM X-ray frame (sim/dicom_view.h): one DICOM file per sign of each
+// The nominal view of a DICOM X-ray frame (io/dicom_view.h): one DICOM file per sign of each
 // positioner angle, written and read back through io/dicom_xray.h, checked against the physical
 // meaning of the sign (PS3.3 C.8.7.5.1.2: +primary = LAO, +secondary = cranial), and the nominal
 // focal lengths from SID and Imager Pixel Spacing (row\column).
-#include "sim/dicom_view.h"
+#include "io/dicom_view.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,8 +1,8 @@
-#include "sim/dicom_view.h"
+#include "io/dicom_view.h"
 
 #include <cmath>
 
-namespace carmba::sim {
+namespace carmba {
 
 namespace {
 
@@ -87,4 +87,4 @@ StatusOr<NominalDicomView> NominalViewFromDicom(const XrayFrameGeometry& g,
   return out;
 }
 
-}  // namespace carmba::sim
+}  // namespace carmba

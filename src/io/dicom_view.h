@@ -1,5 +1,5 @@
 // The nominal camera and pose of a DICOM X-ray frame, from its geometry tags (io/dicom_xray.h),
-// through the simulator's one C-arm conversion (sim/carm_geometry.h CamFromWorld,
+// through carmba's one C-arm conversion (geometry/carm_geometry.h CamFromWorld,
 // CameraFromDetector). A starting point: calibration and pose estimation replace it.
 //
 // SIGNS. DICOM's positioner angles (PS3.3 C.8.7.5.1.2) and CarmGeometry use the same convention,
@@ -33,10 +33,10 @@
 
 #include "camera/camera.h"
 #include "io/dicom_xray.h"
-#include "sim/carm_geometry.h"
+#include "geometry/carm_geometry.h"
 #include "util/status.h"
 
-namespace carmba::sim {
+namespace carmba {
 
 struct NominalDicomView {
   // Needs both positioner angles and the source-to-patient distance: SOD (0018,1111), or else
@@ -59,4 +59,4 @@ StatusOr<NominalDicomView> NominalViewFromDicom(const XrayFrameGeometry& geometr
                                                 const std::string& name,
                                                 const std::string& patient_orientation = "");
 
-}  // namespace carmba::sim
+}  // namespace carmba

@@ -1,11 +1,11 @@
-#include "sim/carm_geometry.h"
+#include "geometry/carm_geometry.h"
 #include "geometry/rotation.h"
 
 #include <cmath>
 
 #include "util/plausible.h"
 
-namespace carmba::sim {
+namespace carmba {
 
 namespace {
 }  // namespace
@@ -119,4 +119,4 @@ Camera CameraFromDetector(const DetectorSpec& d, double sid_mm) {
   return c;
 }
 
-}  // namespace carmba::sim
+}  // namespace carmba

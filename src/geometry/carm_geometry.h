@@ -1,5 +1,6 @@
-// C-arm geometry for the simulator: from the quantities users and DICOM use (SID, source-to-
-// isocentre distance, detector pitch, positioner angles) to a carmba camera and `cam_from_world`.
+// C-arm geometry, for the simulator and the nominal views of DICOM XA frames (io/dicom_view.h):
+// from the quantities users and DICOM use (SID, source-to-isocentre distance, detector pitch,
+// positioner angles) to a carmba camera and `cam_from_world`.
 //
 // FRAMES
 //   * World = the DICOM patient frame LPS: x towards the patient's Left, y towards Posterior,
@@ -50,7 +51,7 @@
 #include "camera/camera.h"
 #include "util/status.h"
 
-namespace carmba::sim {
+namespace carmba {
 
 // A rigid transform target_from_source: p_in_target = R * p_in_source + t (t in mm).
 struct Rigid3 {
@@ -99,4 +100,4 @@ struct DetectorSpec {
 // Camera (no distortion) of a detector at distance `sid_mm` from the source.
 Camera CameraFromDetector(const DetectorSpec& detector, double sid_mm);
 
-}  // namespace carmba::sim
+}  // namespace carmba
