@@ -126,6 +126,9 @@ struct BaResult {
   double time_s = 0;
 
   const double* block(int b) const { return state.data() + layout->block(b).offset; }
+  // View v's pose (rvec rad, t mm) as solved: cam_from_plate, cam_from_object, or for a rig view
+  // its rig's pose (the view's pose is cam_from_rig times it).
+  Pose6 ViewPose(int v) const { return Eigen::Map<const Pose6>(block(layout->view_block(v))); }
   // Covariance of blocks (ambient parameters): the residuals' part scaled by covariance_scale,
   // plus the considered calibration's part (ba/covariance.h; zero without one).
   Eigen::MatrixXd Covariance(const std::vector<int>& blocks) const {

@@ -36,10 +36,12 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
   const StateLayout& L = *result.layout;
   std::vector<Quantity> qs;
   std::vector<std::vector<std::pair<int, std::vector<double>>>> grads;  // per quantity: (block, g)
-  auto add = [&](std::string name, std::string unit, double value, int b, std::vector<double> g) {
-    qs.push_back({std::move(name), std::move(unit), value});
+  auto add = [&](std::string name, std::string unit, double value, const QuantityKey& key, int b,
+                 std::vector<double> g) {
+    qs.push_back({std::move(name), std::move(unit), value, key});
     grads.push_back({{b, std::move(g)}});
   };
+
   // Distance for the centre projection: the mean object (else plate) distance.
   double d_sum = 0;
   int d_n = 0;
@@ -68,7 +70,8 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
           if (!problem.groups[g].free[i]) continue;
           std::vector<double> grad(A.cols());
           for (Eigen::Index c = 0; c < A.cols(); ++c) grad[c] = A(i, c);
-          add("view " + problem.views[v].id + " " + kIntrinsicNames[i], "px", xv[i], b, grad);
+          add("view " + problem.views[v].id + " " + kIntrinsicNames[i], "px", xv[i],
+              {QuantityKind::kIntrinsic, static_cast<int>(g), static_cast<int>(v), -1, i}, b, grad);
         }
       }
       for (int i = kK1; i < kNumIntrinsics; ++i) {
@@ -76,14 +79,16 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
         const int k = bi.size - kNumIntrinsics + i;  // distortion sits last in the block
         std::vector<double> grad(bi.size, 0.0);
         grad[k] = 1.0;
-        add(L.ParameterName(b, k), "", x[k], b, grad);
+        add(L.ParameterName(b, k), "", x[k], {QuantityKind::kIntrinsic, static_cast<int>(g), -1, -1, i}, b,
+            grad);
       }
       continue;
     }
     for (int i : bi.Moving()) {
       std::vector<double> grad(kNumIntrinsics, 0.0);
       grad[i] = 1.0;
-      add(L.ParameterName(b, i), i < 4 ? "px" : "", x[i], b, grad);
+      add(L.ParameterName(b, i), i < 4 ? "px" : "", x[i],
+          {QuantityKind::kIntrinsic, static_cast<int>(g), -1, -1, i}, b, grad);
     }
     // Centre projection.
     const IntrinsicsGroup& grp = problem.groups[g];
@@ -95,8 +100,11 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
       double uv[2], J[2 * kNumIntrinsics];
       ProjectCamPointWithJac(x, p, uv, J, nullptr);
       const std::string prefix = bi.label.empty() ? "" : bi.label + " ";
-      add(prefix + "centre projection u", "px", uv[0], b, std::vector<double>(J, J + 9));
-      add(prefix + "centre projection v", "px", uv[1], b, std::vector<double>(J + 9, J + 18));
+      add(prefix + "centre projection u", "px", uv[0],
+          {QuantityKind::kCentreProjection, static_cast<int>(g), -1, -1, 0}, b, std::vector<double>(J, J + 9));
+      add(prefix + "centre projection v", "px", uv[1],
+          {QuantityKind::kCentreProjection, static_cast<int>(g), -1, -1, 1}, b,
+          std::vector<double>(J + 9, J + 18));
     }
   }
   for (size_t v = 0; v < problem.views.size(); ++v) {
@@ -110,27 +118,29 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
     for (int a = 0; a < 3; ++a) {
       std::vector<double> grad(6, 0.0);
       for (int c = 0; c < 3; ++c) grad[c] = Jl(a, c) * kRadToDeg;
-      add("view " + problem.views[v].id + " rot " + kAxis[a], "deg", 0.0, b, grad);
+      add("view " + problem.views[v].id + " rot " + kAxis[a], "deg", 0.0,
+          QuantityKey::ViewRotation(static_cast<int>(v), a), b, grad);
     }
     for (int a = 0; a < 3; ++a) {
       std::vector<double> grad(6, 0.0);
       grad[3 + a] = 1.0;
-      add("view " + problem.views[v].id + " t" + kAxis[a], "mm", pose[3 + a], b, grad);
+      add("view " + problem.views[v].id + " t" + kAxis[a], "mm", pose[3 + a],
+          QuantityKey::ViewTranslation(static_cast<int>(v), a), b, grad);
     }
   }
   for (const auto& [ia, ib] : pairs) {
     const int ba = L.view_block(ia), bb = L.view_block(ib);
     const std::string name = "pair " + problem.views[ia].id + "/" + problem.views[ib].id;
     double g[12];
-    auto add_pair = [&](const std::string& what, double value_rad) {
+    auto add_pair = [&](const std::string& what, const QuantityKey& key, double value_rad) {
       for (double& x : g) x *= kRadToDeg;
-      qs.push_back({name + " " + what, "deg", value_rad * kRadToDeg});
+      qs.push_back({name + " " + what, "deg", value_rad * kRadToDeg, key});
       grads.push_back({{ba, std::vector<double>(g, g + 6)}, {bb, std::vector<double>(g + 6, g + 12)}});
     };
-    add_pair("relative rotation",
+    add_pair("relative rotation", QuantityKey::PairRelativeRotation(ia, ib),
              PairMetricWithGradient(result.block(ba), result.block(bb),
                                     [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g));
-    add_pair("view directions",
+    add_pair("view directions", QuantityKey::PairViewDirections(ia, ib),
              PairMetricWithGradient(result.block(ba), result.block(bb),
                                     [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, g));
   }
@@ -171,6 +181,13 @@ std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
     rows.push_back(r);
   }
   return rows;
+}
+
+const BudgetRow* FindBudgetRow(const std::vector<BudgetRow>& budget, const QuantityKey& key) {
+  for (const BudgetRow& row : budget) {
+    if (row.quantity.key == key) return &row;
+  }
+  return nullptr;
 }
 
 std::vector<Source> ActiveSources(const std::vector<BudgetRow>& budget) {

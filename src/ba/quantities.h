@@ -24,10 +24,36 @@
 namespace carmba {
 namespace ba {
 
+// What a derived quantity is, for look-ups by kind rather than by name (mrcal's state-index
+// functions are the model): the view, group and component indices are the problem's.
+enum class QuantityKind {
+  kIntrinsic,             // group, component = intrinsic index (view >= 0: a smooth group's view)
+  kCentreProjection,      // group, component 0 = u, 1 = v
+  kViewRotation,          // view, component = axis 0..2 (a small rotation about the camera axis)
+  kViewTranslation,       // view, component = axis 0..2
+  kPairRelativeRotation,  // view, other_view
+  kPairViewDirections,    // view, other_view
+};
+
+struct QuantityKey {
+  QuantityKind kind = QuantityKind::kIntrinsic;
+  int group = -1, view = -1, other_view = -1, component = -1;
+
+  static QuantityKey ViewRotation(int view, int axis) { return {QuantityKind::kViewRotation, -1, view, -1, axis}; }
+  static QuantityKey ViewTranslation(int view, int axis) { return {QuantityKind::kViewTranslation, -1, view, -1, axis}; }
+  static QuantityKey PairRelativeRotation(int a, int b) { return {QuantityKind::kPairRelativeRotation, -1, a, b, -1}; }
+  static QuantityKey PairViewDirections(int a, int b) { return {QuantityKind::kPairViewDirections, -1, a, b, -1}; }
+  bool operator==(const QuantityKey& o) const {
+    return kind == o.kind && group == o.group && view == o.view && other_view == o.other_view &&
+           component == o.component;
+  }
+};
+
 struct Quantity {
   std::string name;   // e.g. "fx", "view +030 rot x", "pair +000/+030 relative rotation"
   std::string unit;   // "px", "deg", "mm", ""
   double value = 0;
+  QuantityKey key;
 };
 
 struct QuantitySet {
@@ -65,6 +91,8 @@ struct BudgetRow {
 std::vector<BudgetRow> ComputeErrorBudget(const BaProblem& problem,
                                           const BaResult& result,
                                           const std::vector<std::pair<int, int>>& pairs);
+// The row of `budget` with `key`; null when there is none.
+const BudgetRow* FindBudgetRow(const std::vector<BudgetRow>& budget, const QuantityKey& key);
 // The sources that contribute to some row of `budget` (in Source order): the columns a report
 // shows (a pose problem has no plate pixels, a joint problem no considered calibration).
 std::vector<Source> ActiveSources(const std::vector<BudgetRow>& budget);

@@ -43,13 +43,6 @@ nlohmann::json GroupJson(const JointSolution& s, int g) {
   return j;
 }
 
-const ba::BudgetRow* FindRow(const JointSolution& s, const std::string& name) {
-  for (const auto& r : s.budget) {
-    if (r.quantity.name == name) return &r;
-  }
-  return nullptr;
-}
-
 }  // namespace
 
 GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& s) {
@@ -98,11 +91,10 @@ nlohmann::json ViewsJson(const JointProblem& problem, const JointSolution& s) {
     if (bv.kind == ba::ViewKind::kObject) {
       vj["covariance_6x6"] = JsonRows(r.Covariance({b}));
       vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
-      static const char* const kAxis[3] = {"x", "y", "z"};
       nlohmann::json sr = nlohmann::json::array(), st = nlohmann::json::array();
       for (int a = 0; a < 3; ++a) {
-        sr.push_back(JsonNumber(FindRow(s, "view " + bv.id + " rot " + kAxis[a])->sigma));
-        st.push_back(JsonNumber(FindRow(s, "view " + bv.id + " t" + kAxis[a])->sigma));
+        sr.push_back(JsonNumber(ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a))->sigma));
+        st.push_back(JsonNumber(ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a))->sigma));
       }
       vj["sigma_rotation_deg"] = sr;
       vj["sigma_translation_mm"] = st;
@@ -125,9 +117,9 @@ nlohmann::json ValidationJson(const JointProblem& problem, const JointSolution& 
   nlohmann::json val = nlohmann::json::array();
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
-    const std::string name = "pair " + vp.a + "/" + vp.b;
-    const ba::BudgetRow* rr = FindRow(s, name + " relative rotation");
-    const ba::BudgetRow* vd = FindRow(s, name + " view directions");
+    const auto [ia, ib] = s.pairs[k];
+    const ba::BudgetRow* rr = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairRelativeRotation(ia, ib));
+    const ba::BudgetRow* vd = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairViewDirections(ia, ib));
     nlohmann::json pj = {{"a", vp.a},
                          {"b", vp.b},
                          {"relative_rotation_deg", JsonNumber(rr->quantity.value)},
@@ -401,16 +393,17 @@ void JointValidationDoc(const JointProblem& problem, const JointSolution& s, con
   d.Paragraph(sigma_note);
   const bool truth_poses = !problem.truth.object_poses.empty();
   std::vector<std::string> header = {"a", "b", "expected (deg)", "relative rotation (deg)", "sigma",
-            "view directions (deg)", "sigma"};
+                                     "view directions (deg)", "sigma"};
   if (truth_poses) {
     header.push_back("true relative rotation");
     header.push_back("error / sigma");
   }
   std::vector<std::vector<std::string>> rows;
-  for (const auto& vp : problem.validation) {
-    const std::string name = "pair " + vp.a + "/" + vp.b;
-    const ba::BudgetRow* rr = FindRow(s, name + " relative rotation");
-    const ba::BudgetRow* vd = FindRow(s, name + " view directions");
+  for (size_t k = 0; k < problem.validation.size(); ++k) {
+    const auto& vp = problem.validation[k];
+    const auto [ia, ib] = s.pairs[k];
+    const ba::BudgetRow* rr = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairRelativeRotation(ia, ib));
+    const ba::BudgetRow* vd = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairViewDirections(ia, ib));
     std::vector<std::string> row = {vp.a,
                                     vp.b,
                                     vp.expected_deg ? Fmt("%g", *vp.expected_deg) : "",

@@ -38,25 +38,19 @@ PoseSigmas SigmasOf(const std::string& method,
   PoseSigmas s;
   s.method = method;
   const auto rows = ba::ComputeErrorBudget(bp, r, pairs);
-  std::map<std::string, const ba::BudgetRow*> by_name;
-  for (const auto& row : rows) by_name[row.quantity.name] = &row;
-  static const char* const kAxis[3] = {"x", "y", "z"};
-  for (const auto& v : bp.views) {
-    if (v.kind != ba::ViewKind::kObject) continue;
+  for (size_t v = 0; v < bp.views.size(); ++v) {
+    if (bp.views[v].kind != ba::ViewKind::kObject) continue;
     Eigen::Vector3d rot, t;
     for (int a = 0; a < 3; ++a) {
-      rot[a] = by_name.at("view " + v.id + " rot " + kAxis[a])->sigma;
-      t[a] = by_name.at("view " + v.id + " t" + kAxis[a])->sigma;
+      rot[a] = ba::FindBudgetRow(rows, ba::QuantityKey::ViewRotation(static_cast<int>(v), a))->sigma;
+      t[a] = ba::FindBudgetRow(rows, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a))->sigma;
     }
     s.sigma_rotation_deg.push_back(rot);
     s.sigma_translation_mm.push_back(t);
-    Pose6 pose;
-    const double* x = r.block(r.layout->view_block(static_cast<int>(&v - bp.views.data())));
-    for (int i = 0; i < 6; ++i) pose[i] = x[i];
-    s.cam_from_object.push_back(pose);
+    s.cam_from_object.push_back(r.ViewPose(static_cast<int>(v)));
   }
   for (const auto& [a, b] : pairs) {
-    const auto* row = by_name.at("pair " + bp.views[a].id + "/" + bp.views[b].id + " relative rotation");
+    const auto* row = ba::FindBudgetRow(rows, ba::QuantityKey::PairRelativeRotation(a, b));
     s.sigma_relative_rotation_deg.push_back(row->sigma);
     s.relative_rotation_deg.push_back(row->quantity.value);
   }

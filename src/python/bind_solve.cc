@@ -152,13 +152,6 @@ std::vector<View> PoseViews(const Solved& s) {
   return out;
 }
 
-const ba::BudgetRow* FindRow(const std::vector<ba::BudgetRow>& budget, const std::string& name) {
-  for (const auto& r : budget) {
-    if (r.quantity.name == name) return &r;
-  }
-  return nullptr;
-}
-
 std::vector<View> JointViews(const Solved& s) {
   const ba::BaProblem& bp = *s.bp;
   const ba::BaResult& r = *s.br;
@@ -172,10 +165,9 @@ std::vector<View> JointViews(const Solved& s) {
     w.group = bp.groups[bv.group].name;
     w.pose = Eigen::Map<const Pose6>(r.block(b));
     if (r.covariance) w.covariance = r.Covariance({b});
-    static const char* const kAxis[3] = {"x", "y", "z"};
     for (int a = 0; a < 3; ++a) {
-      const auto* rot = FindRow(s.joint->budget, "view " + bv.id + " rot " + kAxis[a]);
-      const auto* t = FindRow(s.joint->budget, "view " + bv.id + " t" + kAxis[a]);
+      const auto* rot = ba::FindBudgetRow(s.joint->budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a));
+      const auto* t = ba::FindBudgetRow(s.joint->budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a));
       if (rot) w.sigma_rotation_deg[a] = rot->sigma;
       if (t) w.sigma_translation_mm[a] = t->sigma;
     }

@@ -550,16 +550,14 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   auto r = ba::SolveBundleAdjustment(sj.problem, options);
   if (!r.ok()) return r.status();
   const auto budget = ba::ComputeErrorBudget(sj.problem, *r, sj.pairs);
-  std::map<std::string, const ba::BudgetRow*> row;
-  for (const auto& b : budget) row[b.quantity.name] = &b;
   const ba::StateLayout& L = *r->layout;
   nlohmann::json errors, signed_errors, sigmas, values, budget_json = nlohmann::json::object();
   const double* x = r->block(L.group_block(0));
   static const char* const kIntr[4] = {"fx_px", "fy_px", "cx_px", "cy_px"};
   for (int i = 0; i < 4; ++i) {
     signed_errors[kIntr[i]] = x[i] - sj.true_intrinsics[i];
-    auto it = row.find(kIntrinsicNames[i]);
-    if (it != row.end()) sigmas[kIntr[i]] = it->second->sigma;
+    const ba::BudgetRow* row = ba::FindBudgetRow(budget, {ba::QuantityKind::kIntrinsic, 0, -1, -1, i});
+    if (row) sigmas[kIntr[i]] = row->sigma;
   }
   errors["focal_px"] = Rms({x[kFx] - sj.true_intrinsics[kFx], x[kFy] - sj.true_intrinsics[kFy]});
   errors["principal_point_px"] =
@@ -578,16 +576,14 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
     trans.push_back(dt.norm());
     if (!first) continue;
     first = false;
-    const std::string id = sj.problem.views[v].id;
-    static const char* const kAxis[3] = {"x", "y", "z"};
     const char* const kRot[] = {"v0_rx_deg", "v0_ry_deg", "v0_rz_deg"};
     const char* const kTrans[] = {"v0_tx_mm", "v0_ty_mm", "v0_tz_mm"};
     std::array<double, ba::kNumSources> rot_var{}, trans_var{};
     for (int a = 0; a < 3; ++a) {
       signed_errors[kRot[a]] = d[a];
       signed_errors[kTrans[a]] = dt[a];
-      const ba::BudgetRow* br = row.at("view " + id + " rot " + kAxis[a]);
-      const ba::BudgetRow* bt = row.at("view " + id + " t" + kAxis[a]);
+      const ba::BudgetRow* br = ba::FindBudgetRow(budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a));
+      const ba::BudgetRow* bt = ba::FindBudgetRow(budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a));
       sigmas[kRot[a]] = br->sigma;
       sigmas[kTrans[a]] = bt->sigma;
       for (int s = 0; s < ba::kNumSources; ++s) {
@@ -612,12 +608,11 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
         RelativeRotationAngle(sj.true_poses[a].data(), sj.true_poses[b].data()) * kRadToDeg;
     const std::string name = "pair_" + sj.problem.views[a].id + "_" + sj.problem.views[b].id + "_deg";
     signed_errors[name] = est - truth;
-    sigmas[name] = row.at("pair " + sj.problem.views[a].id + "/" + sj.problem.views[b].id +
-                          " relative rotation")->sigma;
+    sigmas[name] = ba::FindBudgetRow(budget, ba::QuantityKey::PairRelativeRotation(a, b))->sigma;
     validation.push_back(est - truth);
   }
   errors["validation_deg"] = Rms(validation);
-  const ba::BudgetRow* fx = row.count("fx") ? row.at("fx") : nullptr;
+  const ba::BudgetRow* fx = ba::FindBudgetRow(budget, {ba::QuantityKind::kIntrinsic, 0, -1, -1, kFx});
   if (fx) {
     for (int s = 0; s < ba::kNumSources; ++s) {
       if (fx->source_sigma[s] > 0) budget_json["fx_px." + BudgetKey(static_cast<ba::Source>(s))] = fx->source_sigma[s];
@@ -716,18 +711,15 @@ nlohmann::json PredictedBudget(const PoseSolution& sol, const SolverConfig& conf
     return budget;
   }
   const auto rows = ba::ComputeErrorBudget(*sol.ba_problem, *sol.ba_result, {});
-  const std::string view = "view " + sol.views[0].id + " ";
   for (const auto& [name, source] :
        {std::pair<std::string, ba::Source>{"pixel_noise", ba::Source::kObjectPixels},
         {"ct_noise", ba::Source::kCt}}) {
     double rot = 0, trans = 0;
     for (const auto& row : rows) {
       const double s = row.source_sigma[static_cast<int>(source)];
-      if (row.quantity.name.rfind(view + "rot ", 0) == 0) rot += s * s;
-      if (row.quantity.name.rfind(view + "t", 0) == 0 &&
-          row.quantity.name.size() == view.size() + 2) {
-        trans += s * s;
-      }
+      if (row.quantity.key.view != 0) continue;
+      if (row.quantity.key.kind == ba::QuantityKind::kViewRotation) rot += s * s;
+      if (row.quantity.key.kind == ba::QuantityKind::kViewTranslation) trans += s * s;
     }
     budget["v0_rotation_deg." + name] = std::sqrt(rot / 3);
     budget["v0_translation_mm." + name] = std::sqrt(trans / 3);
