@@ -9,17 +9,18 @@
 
 #include "ba/flex_models.h"
 #include "ba/quantities.h"
-#include "ba/synthetic.h"
-#include "ba/synthetic_flex.h"
+#include "synthetic/synthetic_joint.h"
+#include "synthetic/synthetic_flex.h"
 #include "ba/view_intrinsics.h"
 #include "calib/calibrate.h"
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
 #include "problem/pose_problem.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
+#include "synthetic/synthetic_pose.h"
 
 namespace carmba {
 namespace {
@@ -366,7 +367,7 @@ bool IsFlex(const StudyProblem& p) {
   return p.synthetic.is_object() && p.synthetic.contains("kind") && p.synthetic["kind"] == "flex";
 }
 
-// A synthetic FLEXING C-arm (ba/synthetic_flex.h) solved with one intrinsics model
+// A synthetic FLEXING C-arm (synthetic/synthetic_flex.h) solved with one intrinsics model
 // (synthetic.model: shared | per_group | smooth); the flex scaled by the sweep `flex_scale`
 // (0: rigid, 1: CarmFlex::Typical()). Per-view intrinsics and object poses against the truth:
 // signed errors with sigmas of the first calibrated and the first in-between object view, the
@@ -497,7 +498,7 @@ std::string BudgetKey(ba::Source s) {
   return "?";
 }
 
-// A synthetic joint problem (ba/synthetic.h): calibration and pose in one bundle adjustment with
+// A synthetic joint problem (synthetic/synthetic_joint.h): calibration and pose in one bundle adjustment with
 // the config's held intrinsics; accuracy of intrinsics and object poses against the truth and
 // the error budget.
 StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {

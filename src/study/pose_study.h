@@ -65,7 +65,7 @@
 //       num_views: 16
 //       noise_px: 0.3                           # default when pixel_noise_px is not swept
 //       min_tilt_deg: 5, max_tilt_deg: 30, distance_min_mm: 650, distance_max_mm: 850,
-//       max_offset_fraction: 0.6                # optional (calib/synthetic_views.h)
+//       max_offset_fraction: 0.6                # optional (synthetic/synthetic_views.h)
 // Swept variables: pixel_noise_px, num_views, k1 (true radial distortion).
 // Result: errors focal_px (RMS of the fx and fy errors), principal_point_px; signed_errors and
 // sigmas per free intrinsic (fx_px, fy_px, cx_px, cy_px, k1, ...); values rms_px, iterations,

@@ -15,7 +15,7 @@
 #include "ba/priors.h"
 #include "ba/quantities.h"
 #include "ba/reprojection_error.h"
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 
 namespace carmba {
 namespace ba {

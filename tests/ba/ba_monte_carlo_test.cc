@@ -15,7 +15,7 @@
 
 #include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "geometry/rotation.h"
 
 namespace carmba {

@@ -5,8 +5,8 @@
 
 #include "ba/calibrated_range.h"
 #include "ba/flex_models.h"
-#include "ba/synthetic.h"
-#include "ba/synthetic_flex.h"
+#include "synthetic/synthetic_joint.h"
+#include "synthetic/synthetic_flex.h"
 
 namespace carmba {
 namespace ba {

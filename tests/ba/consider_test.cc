@@ -26,7 +26,7 @@
 #include "ba/quantities.h"
 #include "ba/relative_pose.h"
 #include "ba/reprojection_error.h"
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "ba/tre.h"
 #include "ba/triangulation.h"
 #include "synthetic_pixels.h"

@@ -15,7 +15,7 @@
 #include "ba/flex_models.h"
 #include "ba/quantities.h"
 #include "ba/smooth_intrinsics.h"
-#include "ba/synthetic_flex.h"
+#include "synthetic/synthetic_flex.h"
 #include "ba/view_intrinsics.h"
 #include "camera/camera.h"
 

@@ -9,7 +9,7 @@
 #include <cstdio>
 
 #include "ba/lens_models.h"
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "camera/camera.h"
 #include "test_env.h"
 

@@ -5,7 +5,7 @@
 #include <random>
 #include <vector>
 
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "ba/triangulation.h"
 
 namespace carmba {

@@ -19,7 +19,7 @@
 
 #include "ba/bundle_adjuster.h"
 #include "ba/relative_pose.h"
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "ba/tre.h"
 #include "ba/triangulation.h"
 #include "synthetic_pixels.h"

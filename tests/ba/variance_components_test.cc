@@ -15,7 +15,7 @@
 #include <cstdio>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "geometry/rotation.h"
 #include "test_env.h"
 

@@ -16,7 +16,7 @@
 
 #include "ba/bundle_adjuster.h"
 #include "calib/calibrate.h"
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 
 extern "C" {
 #include <mrcal/mrcal.h>

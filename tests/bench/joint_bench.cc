@@ -11,7 +11,7 @@
 #include "ba/bundle_adjuster.h"
 #include "ba/lens_models.h"
 #include "ba/quantities.h"
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "problem/pose_problem.h"
 
 namespace {

@@ -4,6 +4,7 @@
 
 #include <memory>
 
+#include "synthetic/synthetic_pose.h"
 #include "ba/reprojection_error.h"
 #include "problem/pose_problem.h"
 

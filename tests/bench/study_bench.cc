@@ -8,6 +8,7 @@
 //   build/tests/carmba_bench --benchmark_filter=StudyBareSolve
 #include <benchmark/benchmark.h>
 
+#include "synthetic/synthetic_pose.h"
 #include "problem/pose_problem.h"
 
 namespace carmba {

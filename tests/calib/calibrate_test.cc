@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 
 namespace carmba {
 namespace {

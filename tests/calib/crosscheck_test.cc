@@ -8,7 +8,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "util/file_util.h"
 #include "scratch.h"
 

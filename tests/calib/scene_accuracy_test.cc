@@ -20,7 +20,7 @@
 
 #include "calib/calibrate.h"
 #include "calib/projection_uncertainty.h"
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "camera/camera_model.h"
 #include "detect/grid_detector.h"
 #include "scene_test_util.h"

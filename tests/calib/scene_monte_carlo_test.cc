@@ -9,7 +9,7 @@
 
 #include "calib/calibrate.h"
 #include "calib/conditioning.h"
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "scene_test_util.h"
 
 namespace carmba {

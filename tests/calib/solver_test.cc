@@ -15,7 +15,7 @@
 
 #include "calib/calibrate.h"
 #include "calib/projection_uncertainty.h"
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 
 namespace carmba {
 namespace {

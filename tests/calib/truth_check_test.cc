@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 
 namespace carmba {
 namespace {

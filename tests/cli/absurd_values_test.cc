@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "cli_test_util.h"
 #include "detect/observations.h"
 

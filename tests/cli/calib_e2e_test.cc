@@ -16,7 +16,7 @@
 #include <string>
 
 #include "calib/calibrate.h"
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "report_browser.h"

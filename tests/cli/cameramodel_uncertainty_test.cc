@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "cli_test_util.h"
 #include "detect/observations.h"
 #include "util/file_util.h"

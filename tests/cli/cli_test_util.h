@@ -13,7 +13,7 @@
 #include <sstream>
 #include <string>
 
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "detect/observations.h"
 #include "scratch.h"
 
@@ -91,7 +91,7 @@ inline std::string SimulatePlateAndCt(const ScratchDir& dir) {
 }
 
 // Synthetic observations of the default 5 x 5 plate by a thesis-like camera (408 x 408 px), as
-// observations.csv at `path` (calib/synthetic_views.h defaults): input for a quick calibrate.
+// observations.csv at `path` (synthetic/synthetic_views.h defaults): input for a quick calibrate.
 inline bool WriteSyntheticGridObservations(const std::string& path) {
   SyntheticViewsOptions so;
   GridSpec g;

@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "cli_test_util.h"
 #include "report_browser.h"
 

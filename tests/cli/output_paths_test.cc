@@ -15,7 +15,7 @@
 #include <fstream>
 #include <string>
 
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 #include "cli_test_util.h"
 #include "detect/observations.h"
 

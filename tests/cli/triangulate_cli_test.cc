@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "synthetic/synthetic_pose.h"
 #include "cli_test_util.h"
 
 namespace carmba::test {

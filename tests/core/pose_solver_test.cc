@@ -3,6 +3,7 @@
 #include <cmath>
 #include <random>
 
+#include "synthetic/synthetic_pose.h"
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
 #include "report/pose_report.h"

@@ -12,7 +12,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "joint/joint_problem.h"
 
 namespace carmba {

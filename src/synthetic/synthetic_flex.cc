@@ -1,4 +1,4 @@
-#include "ba/synthetic_flex.h"
+#include "synthetic/synthetic_flex.h"
 
 #include <cmath>
 #include <cstdio>

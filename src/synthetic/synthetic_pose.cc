@@ -1,8 +1,8 @@
-// Synthetic pose problems with ground truth (pose_problem.h).
+// Synthetic pose problems with ground truth (synthetic/synthetic_pose.h).
 #include <random>
 
 #include "geometry/rotation.h"
-#include "problem/pose_problem.h"
+#include "synthetic/synthetic_pose.h"
 
 namespace carmba {
 

@@ -1,4 +1,4 @@
-#include "calib/synthetic_views.h"
+#include "synthetic/synthetic_views.h"
 
 #include <ceres/rotation.h>
 

@@ -1,4 +1,4 @@
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 
 #include <cstdio>
 #include <random>

@@ -1,5 +1,5 @@
 // A synthetic joint problem on a FLEXING C-arm (issue 14), for the engine's tests, Monte Carlo
-// checks and the flex study: the geometry of ba/synthetic.h (5x5 plate at ~700 mm with tilts up
+// checks and the flex study: the geometry of synthetic/synthetic_joint.h (5x5 plate at ~700 mm with tilts up
 // to 30 deg, the thesis's 9-marker object), but every view has C-arm angles and its own true
 // intrinsics from a CarmFlex (camera/carm_flex.h). Plate views are taken at a few calibrated
 // orientations, `plate_views_per_orientation` each; object views at and between them. The problem
@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "ba/synthetic.h"
+#include "synthetic/synthetic_joint.h"
 #include "camera/carm_flex.h"
 
 namespace carmba {
