@@ -17,6 +17,7 @@
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
+#include "report/format.h"
 #include "problem/pose_problem.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -280,8 +281,6 @@ double Rms(const std::vector<double>& v) {
   return v.empty() ? std::nan("") : std::sqrt(s / static_cast<double>(v.size()));
 }
 
-nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
-
 // A synthetic calibration problem: a grid seen by a known camera from seeded random poses.
 struct CalibrationEntry {
   Camera camera;  // the truth
@@ -466,7 +465,7 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
   values["pose_nees_at"] = nees_pose_at / std::max(1, n_at);
   values["pose_nees_between"] = nees_pose_between / std::max(1, n_between);
   values["intrinsics_within_3_sigma"] = within / std::max(1, n_comp);
-  values["sigma0"] = Num(r->sigma0);
+  values["sigma0"] = JsonNumber(r->sigma0);
   errors["between_cx_px"] = std::abs(signed_errors.value("between_cx_px", 0.0));
   errors["between_translation_mm"] =
       std::hypot(signed_errors.value("between_pose_tx_mm", 0.0), signed_errors.value("between_pose_ty_mm", 0.0),
@@ -480,7 +479,7 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
       values[std::string("recommended_") + ba::IntrinsicsModelName(mm)] = sel->recommended == mm ? 1 : 0;
     }
     for (const auto& sc : sel->scores) {
-      values[std::string("held_out_d2_") + ba::IntrinsicsModelName(sc.model)] = Num(sc.held_out_d2_mean);
+      values[std::string("held_out_d2_") + ba::IntrinsicsModelName(sc.model)] = JsonNumber(sc.held_out_d2_mean);
     }
   }
   return RunRecordJson(r->converged, r->termination, errors, signed_errors, sigmas, values);
@@ -619,11 +618,11 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
       if (fx->source_sigma[s] > 0) budget_json["fx_px." + BudgetKey(static_cast<ba::Source>(s))] = fx->source_sigma[s];
     }
   }
-  values["rms_plate_px"] = Num(r->rms_plate_px);
-  values["rms_object_px"] = Num(r->rms_object_px);
+  values["rms_plate_px"] = JsonNumber(r->rms_plate_px);
+  values["rms_object_px"] = JsonNumber(r->rms_object_px);
   values["iterations"] = r->iterations;
-  values["sigma0"] = Num(r->sigma0);
-  values["chi2_p_value"] = Num(r->chi2_p_value);
+  values["sigma0"] = JsonNumber(r->sigma0);
+  values["chi2_p_value"] = JsonNumber(r->chi2_p_value);
   values["first_view"] = first_view;
   nlohmann::json out;
   out["converged"] = r->converged;
@@ -692,12 +691,12 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
     signed_errors[name] = est[i] - truth[i];
     if (std::isfinite(result->sigma[i]) && result->sigma[i] > 0) sigmas[name] = result->sigma[i];
   }
-  values["rms_px"] = Num(result->rms_px);
+  values["rms_px"] = JsonNumber(result->rms_px);
   values["iterations"] = result->iterations;
-  values["sigma_px"] = Num(result->sigma_px);
+  values["sigma_px"] = JsonNumber(result->sigma_px);
   double worst = 0;
   for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
-  values["projection_sigma_worst_px"] = Num(worst);
+  values["projection_sigma_worst_px"] = JsonNumber(worst);
   return RunRecordJson(result->converged, result->termination, errors, signed_errors, sigmas, values);
 }
 
@@ -763,8 +762,8 @@ nlohmann::json MakeResult(const PoseProblem& problem,
         signed_errors[kRot[i]] = d[i];
         signed_errors[kTrans[i]] = dt[i];
         if (sol.has_covariance) {
-          sigmas[kRot[i]] = Num(vs.sigma_rotation_deg[i]);
-          sigmas[kTrans[i]] = Num(vs.sigma_translation_mm[i]);
+          sigmas[kRot[i]] = JsonNumber(vs.sigma_rotation_deg[i]);
+          sigmas[kTrans[i]] = JsonNumber(vs.sigma_translation_mm[i]);
         }
       }
     }
@@ -781,17 +780,17 @@ nlohmann::json MakeResult(const PoseProblem& problem,
       const double truth = RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
       const std::string name = "pair_" + ps.a + "_" + ps.b + "_deg";
       signed_errors[name] = ps.relative_rotation_deg - truth;
-      if (sol.has_covariance) sigmas[name] = Num(ps.sigma_relative_rotation_deg);
+      if (sol.has_covariance) sigmas[name] = JsonNumber(ps.sigma_relative_rotation_deg);
       validation.push_back(ps.relative_rotation_deg - truth);
     } else if (ps.expected_deg) {
       validation.push_back(ps.relative_rotation_deg - *ps.expected_deg);
     }
   }
   if (!validation.empty()) errors["validation_deg"] = Rms(validation);
-  values["rms_px"] = Num(sol.rms_px);
+  values["rms_px"] = JsonNumber(sol.rms_px);
   values["iterations"] = sol.iterations;
-  values["sigma0"] = Num(sol.sigma0);
-  values["chi2_p_value"] = Num(sol.chi2_p_value);
+  values["sigma0"] = JsonNumber(sol.sigma0);
+  values["chi2_p_value"] = JsonNumber(sol.chi2_p_value);
   // Reprojection residuals of the final state, px.
   nlohmann::json residuals = nlohmann::json::array();
   for (size_t v = 0; v < problem.views.size() && v < sol.views.size(); ++v) {
