@@ -3,6 +3,7 @@
 #include "calib/truth_check.h"
 
 #include "calib/conditioning.h"
+#include "detect/overlays.h"
 #include "io/image_files.h"
 #include "calib/projection_uncertainty.h"
 #include "util/yaml_reader.h"

@@ -66,8 +66,5 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
                     cv::Point2d* c, double* r_half_px, CentroidNoise* noise = nullptr,
                     double* shift_px = nullptr);
 
-// An 8-bit BGR copy of an image (any depth, grey or colour) stretched to its 1..99 % range, for
-// overlays.
-cv::Mat StretchedColourImage(const cv::Mat& image);
 
 }  // namespace carmba

@@ -121,10 +121,6 @@ struct GridDetection {
   std::vector<double> background_shift_px;
 };
 
-// An 8-bit colour picture of a detection for checking by eye: the image stretched to its 1..99 %
-// range, found points as green circles with their ids, rejected blobs as red crosses with the
-// reason, and a first line saying found (points of the grid) or the reason it was not.
-cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const GridDetection& d);
 
 // Detects `grid` in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
 GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& options);

@@ -1,4 +1,5 @@
 #include "detect/marker_views.h"
+#include "detect/overlays.h"
 #include "io/image_files.h"
 
 #include "report/format.h"

@@ -2,6 +2,7 @@
 // bright circular field with a dark surround, noise, vignetting), 8 and 16 bit, inverted polarity,
 // asymmetric grid, chessboard; not-found reasons; observations CSV round trip; speed.
 #include "detect/grid_detector.h"
+#include "detect/overlays.h"
 
 #include <gtest/gtest.h>
 
