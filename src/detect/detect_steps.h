@@ -67,4 +67,7 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
                     double* shift_px = nullptr);
 
 
+// The image as one grey channel: BGR and BGRA converted, grey images as they are (no copy).
+cv::Mat GreyImage(const cv::Mat& image);
+
 }  // namespace carmba

@@ -632,10 +632,7 @@ class MaskedBlobDetector : public cv::Feature2D {
 
 }  // namespace
 
-// Step 1a: the (cropped) image as float grey levels; `offset` is the crop's corner.
-bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv::Point* offset,
-                 std::string* reason) {
-  if (image.empty()) return *reason = "empty image", false;
+cv::Mat GreyImage(const cv::Mat& image) {
   cv::Mat grey;
   if (image.channels() == 3) {
     cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
@@ -644,7 +641,14 @@ bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv
   } else {
     grey = image;
   }
-  grey.convertTo(*f, CV_32F);
+  return grey;
+}
+
+// Step 1a: the (cropped) image as float grey levels; `offset` is the crop's corner.
+bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv::Point* offset,
+                 std::string* reason) {
+  if (image.empty()) return *reason = "empty image", false;
+  GreyImage(image).convertTo(*f, CV_32F);
   *offset = cv::Point(0, 0);
   if (!o.roi_px.empty()) {
     cv::Rect roi(o.roi_px[0], o.roi_px[1], o.roi_px[2], o.roi_px[3]);

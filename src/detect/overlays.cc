@@ -1,4 +1,5 @@
 #include "detect/overlays.h"
+#include "detect/detect_steps.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -9,15 +10,8 @@
 namespace carmba {
 
 cv::Mat StretchedColourImage(const cv::Mat& image) {
-  cv::Mat grey, f, shown, out;
-  if (image.channels() == 3) {
-    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
-  } else if (image.channels() == 4) {
-    cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
-  } else {
-    grey = image;
-  }
-  grey.convertTo(f, CV_32F);
+  cv::Mat f, shown, out;
+  GreyImage(image).convertTo(f, CV_32F);
   std::vector<float> vals(f.begin<float>(), f.end<float>());
   double lo = 0, hi = 1;
   if (!vals.empty()) {
