@@ -20,8 +20,9 @@
 //   mrcal/               the mrcal cross-check's script, input and output, and
 //                        camera_with_optimization_inputs.cameramodel: carmba's solution with
 //                        mrcal's optimization_inputs, for mrcal's uncertainty tools
-// All are written into a temporary directory first and moved into place only when every file has
-// been written, so an error leaves no partial output.
+// The writer is report/calibration_report.h's WriteCalibrationOutputs. All are written into a
+// temporary directory first and moved into place only when every file has been written, so an
+// error leaves no partial output.
 #pragma once
 
 #include <optional>
@@ -33,8 +34,6 @@
 #include "calib/calibrate.h"
 #include "calib/crosscheck.h"
 #include "detect/grid_detector.h"
-#include "report/plots.h"
-#include "report/report_doc.h"
 
 namespace carmba {
 
@@ -62,24 +61,4 @@ Status LoadCalibrationConfig(const std::string& path,
                              const std::vector<std::string>& other_keys = {});
 std::string MrcalCameraModelText(const CalibrationResult& result);
 std::string OpenCvCalibrationYaml(const CalibrationRun& run);
-// The report (report.md and report.html; report/report_doc.h) and its plot data (report/plots.h:
-// residuals, distortion, mrcal's projection uncertainty over the image, source positions).
-ReportDoc CalibrationReportDoc(const CalibrationRun& run);
-nlohmann::json CalibrationPlotData(const CalibrationRun& run);
-std::string CalibrationReportMarkdown(const CalibrationRun& run);
-
-// Acceptance thresholds of the mrcal cross-check, stated in the report.
-constexpr double kMrcalRmsRelTol = 0.01;         // RMS equal within 1 %
-constexpr double kMrcalProjectionDiffPx = 0.05;  // projection difference RMS over the image
-constexpr double kMrcalSigmaRelTol = 0.10;       // sigmas of fx fy cx cy within 10 %
-
-// Writes all files to `out_dir` (see above). `mrcal_work_dir`, if not empty, is copied as
-// out_dir/mrcal/ (script, input and output of the cross-check). `plots`: report.html's plots
-// drawn beforehand from CalibrationPlotData(run) (PlotProcess); null: drawn here.
-Status WriteCalibrationOutputs(const CalibrationRun& run,
-                               const std::string& out_dir,
-                               const std::string& mrcal_work_dir = "",
-                               std::string* report_warning = nullptr,
-                               const PlotSet* plots = nullptr);
-
 }  // namespace carmba

@@ -140,19 +140,19 @@ class StagedCalibration {
     return any_distortion ? Solve(core, true).status() : Status::Ok();
   }
 
-  // distortion: auto -- the distortion terms chosen by the data (ba/lens_models.h), seeded by the
+  // distortion: auto -- the distortion terms chosen by the data (analysis/lens_models.h), seeded by the
   // pinhole stage; with an unknown pixel sigma the comparison estimates it from the full model.
   // Sets the distortion part of `free`; the terms left out are held at 0.
-  StatusOr<ba::DistortionSelection> SelectDistortion(std::array<bool, kNumIntrinsics>* free) {
+  StatusOr<analysis::DistortionSelection> SelectDistortion(std::array<bool, kNumIntrinsics>* free) {
     std::array<bool, kNumIntrinsics> all = *free;
     for (int i = kK1; i < kNumIntrinsics; ++i) all[i] = true;
     ba::BaProblem p = CalibrationProblem(obs_, x_, all, fy_over_fx_, sigma_solve_, poses_);
     ba::BaOptions so = options_;
     so.function_tolerance = 1e-10, so.gradient_tolerance = 1e-14, so.parameter_tolerance = 1e-10;
     so.compute_covariance = so.evaluate_solution = true;
-    auto sel = ba::SelectDistortionModel(p, so, ba::kDistortionFolds, opt_.pixel_sigma_px == 0);
+    auto sel = analysis::SelectDistortionModel(p, so, analysis::kDistortionFolds, opt_.pixel_sigma_px == 0);
     if (!sel.ok()) return Status::Error("distortion: auto: " + sel.status().message());
-    ba::ApplyDistortionModel(sel->recommended, &p);
+    analysis::ApplyDistortionModel(sel->recommended, &p);
     for (int i = kK1; i < kNumIntrinsics; ++i) {
       (*free)[i] = p.groups[0].free[i];
       if (!(*free)[i]) x_[i] = 0;

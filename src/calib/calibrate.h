@@ -28,7 +28,7 @@
 #include <vector>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/lens_models.h"
+#include "analysis/lens_models.h"
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "util/status.h"
@@ -49,7 +49,7 @@ struct CalibrationOptions {
   std::vector<double> principal_point_px;
   // k3 = 0, held.
   bool fix_k3 = false;
-  // The distortion terms chosen by the data (k1 k2 | + p1 p2 | + k3 | all; ba/lens_models.h), the
+  // The distortion terms chosen by the data (k1 k2 | + p1 p2 | + k3 | all; analysis/lens_models.h), the
   // others held at 0; excludes zero_tangential, fix_k3 and distortion names in `fix`. Config key
   // `distortion: auto | given` (given: the flags above decide).
   bool distortion_auto = false;
@@ -124,7 +124,7 @@ struct CalibrationResult {
   std::vector<bool> free;                      // per intrinsic: estimated (not held)
   int num_free_intrinsics = 0;
   // With distortion_auto: the models compared and the one applied.
-  std::optional<ba::DistortionSelection> distortion;
+  std::optional<analysis::DistortionSelection> distortion;
   Eigen::MatrixXd intrinsics_from_free;        // A (9 x k): intrinsics = x0 + A delta
   std::string robust_loss = "none";            // as solved (the covariance weights by it)
   double robust_loss_scale_px = 1.0;

@@ -31,6 +31,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
+#include "report/calibration_report.h"
 #include "report/plots.h"
 #include "util/file_util.h"
 #include "util/plausible.h"

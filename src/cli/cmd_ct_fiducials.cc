@@ -12,6 +12,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "ct/ct_fiducials.h"
+#include "report/ct_fiducials_report.h"
 #include "report/plots.h"
 #include "util/file_util.h"
 

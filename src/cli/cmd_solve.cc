@@ -12,6 +12,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "joint/joint_problem.h"
+#include "report/joint_report.h"
 #include "problem/pose_problem.h"
 #include "report/plots.h"
 #include "report/pose_report.h"

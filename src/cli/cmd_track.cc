@@ -9,7 +9,7 @@
 // translation; x_cam = R x_lab + t), or CAMERA_JSON+POSE_JSON: carmba's camera.json (with its
 // distortion) and {"cam_from_lab": {"rvec": [rad], "t_mm": [mm]}}. Frames are paired by the number in the file names.
 // Writes into --out: points.csv, observations.csv, rigid_bodies.json, report.md, report.html,
-// overlays/; all or nothing (track/track_output.h).
+// overlays/; all or nothing (report/track_report.h).
 #include <gflags/gflags.h>
 
 #include <iostream>
@@ -18,7 +18,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "track/track.h"
-#include "track/track_output.h"
+#include "report/track_report.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
 

@@ -1,5 +1,5 @@
 // `carmba triangulate`: points seen in two or more object views (an instrument tip, an unmatched
-// blob) -> their 3-D positions in the CT (object) frame with 3x3 covariances (ba/triangulation.h).
+// blob) -> their 3-D positions in the CT (object) frame with 3x3 covariances (analysis/triangulation.h).
 // The problem is solved again with its config (the same solve as `carmba solve`, deterministic),
 // so the joint covariance of the views' poses and the intrinsics is at hand.
 //
@@ -22,7 +22,7 @@
 #include <memory>
 #include <sstream>
 
-#include "ba/triangulation.h"
+#include "analysis/triangulation.h"
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "joint/joint_problem.h"
@@ -30,7 +30,7 @@
 #include "util/csv.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
-#include "report/format.h"
+#include "util/format.h"
 
 DEFINE_string(points, "",
               "CSV of the points' pixels: view,u_px,v_px[,point][,cov_uu,cov_uv,cov_vv | "
@@ -187,7 +187,7 @@ int RunTriangulate() {
   if (FLAGS_sigma_px != 0 && !CheckRange("--sigma_px", FLAGS_sigma_px, plausible::kPixelSigmaPx, &err)) {
     return cli::FailUsage(cmd, err);
   }
-  ba::TriangulationOptions topt;
+  analysis::TriangulationOptions topt;
   topt.min_ray_angle_deg = FLAGS_min_angle_deg;
   if (!topt.Check(&err)) return cli::FailUsage(cmd, "--min-angle-deg: " + err);
   {
@@ -224,7 +224,7 @@ int RunTriangulate() {
       << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
   std::vector<std::string> warnings;
   for (const PointInput& p : *points) {
-    std::vector<ba::PixelObservation> obs;
+    std::vector<analysis::PixelObservation> obs;
     for (const auto& px : p.pixels) {
       auto it = object_view.find(px.view);
       if (it == object_view.end()) {
@@ -232,14 +232,14 @@ int RunTriangulate() {
                                   "' is not an object view of the problem (object views: " +
                                   object_ids + ")");
       }
-      ba::PixelObservation o;
+      analysis::PixelObservation o;
       o.view = it->second;
       o.uv_px = px.uv;
       const double s = FLAGS_sigma_px > 0 ? FLAGS_sigma_px : bp.views[o.view].sigma_px;
       o.covariance_px2 = px.cov && FLAGS_sigma_px == 0 ? *px.cov : Eigen::Matrix2d::Identity() * s * s;
       obs.push_back(o);
     }
-    auto t = ba::TriangulatePoint(bp, br, obs, topt);
+    auto t = analysis::TriangulatePoint(bp, br, obs, topt);
     if (!t.ok()) {
       const std::string src = FLAGS_points.empty() ? "--pixels" : FLAGS_points;
       return cli::Fail(cmd, src + ": point '" + p.name + "': " + t.status().message());

@@ -1,7 +1,7 @@
 // CT fiducials: marker centres with covariance from a DICOM CT series (`carmba ct-fiducials`).
 //
 // Pipeline: ReadCtSeries (ct_volume.h) -> DetectMarkers (marker_detection.h) -> ids -> optional
-// object frame -> CSV + markdown report.
+// object frame -> CSV + report (the report and the writer: report/ct_fiducials_report.h).
 //
 // Ids. With a model CSV (marker_labelling.h), marker k is the model's point k (the labelling is
 // by pairwise distances, so it is the same physical marker in every scan). With more
@@ -38,12 +38,9 @@
 #include "ct/ct_volume.h"
 #include "ct/marker_detection.h"
 #include "ct/marker_labelling.h"
-#include "report/report_doc.h"
 #include "util/status.h"
 
 namespace carmba {
-
-struct PlotSet;  // report/plots.h
 
 struct CtFiducialsOptions {
   CtReadOptions read;
@@ -82,22 +79,8 @@ struct CtFiducialsResult {
 StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
                                                const CtFiducialsOptions& options);
 
-// The CSV text and the markdown report (which names the CSV file `csv_name`).
+// The CSV text (written with the report by report/ct_fiducials_report.h WriteCtFiducials).
 std::string FormatFiducialsCsv(const CtFiducialsResult& result);
-// The report as a document (report/report_doc.h: <stem>.md and <stem>.html) and the data of its
-// plot (the markers with their covariance ellipsoids, report/plots.h).
-ReportDoc FiducialsReportDoc(const CtFiducialsResult& result, const std::string& csv_name);
-nlohmann::json FiducialsPlotData(const CtFiducialsResult& result);
-std::string FormatFiducialsReport(const CtFiducialsResult& result, const std::string& csv_name);
-
-// Writes the CSV to `out_csv`, the report to <stem>.md and, with an object frame,
-// <stem>.object_from_ct.json; each atomically, all only after everything is computed.
-// `report_warning` (if given): why <stem>.html has no plot, if it has none. `plots`: the plot
-// drawn beforehand from FiducialsPlotData (report/plots.h PlotProcess); null: drawn here.
-Status WriteCtFiducials(const CtFiducialsResult& result,
-                        const std::string& out_csv,
-                        std::string* report_warning = nullptr,
-                        const PlotSet* plots = nullptr);
 
 struct CtFiducialRow {
   int id = 0;

@@ -9,7 +9,7 @@
 #include <unordered_map>
 
 #include "util/plausible.h"
-#include "util/number_format.h"
+#include "util/format.h"
 
 namespace carmba {
 

@@ -11,7 +11,7 @@
 
 #include "io/dicom_xray.h"
 #include "io/image_files.h"
-#include "report/format.h"
+#include "util/format.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
 

@@ -2,7 +2,7 @@
 #include "detect/overlays.h"
 #include "io/image_files.h"
 
-#include "report/format.h"
+#include "util/format.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -315,32 +315,6 @@ nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
     out.push_back(j);
   }
   return out;
-}
-
-void AppendObjectViews(ReportDoc* d, const std::vector<ObjectView>& views) {
-  d->Heading(2, "Marker detection and labelling");
-  std::vector<std::vector<std::string>> rows;
-  for (const ObjectView& v : views) {
-    std::map<std::string, int> reasons;
-    for (const RejectedBlob& b : v.detection.rejected) ++reasons[b.why];
-    std::string rej;
-    for (const auto& [why, k] : reasons) rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
-    if (!v.labelled) {
-      rows.push_back({v.name, std::to_string(v.detection.blobs.size()), "skipped: " + v.skipped, "",
-                      "", "", rej});
-      continue;
-    }
-    int unlabelled = 0;
-    for (int id : v.marker_id_of_blob) unlabelled += id < 0;
-    rows.push_back({v.name, std::to_string(v.detection.blobs.size()),
-                    std::to_string(v.labelling.num_labelled), std::to_string(unlabelled),
-                    v.labelling.method, Fmt("%.3g", v.labelling.rms_px), rej});
-  }
-  d->Table({"view", "blobs", "labelled", "not markers", "method", "RMS px", "rejected"}, rows);
-  d->Paragraph("Pixel sigma per observation in the bundle adjustment: sqrt of the larger eigenvalue "
-               "of the blob's 2x2 covariance (the engine whitens each observation isotropically). "
-               "The overlays (`overlay_<view>.png`) show the blobs, labels, reprojected markers and "
-               "rejected blobs with their reason.");
 }
 
 std::string OverlayFileName(const std::string& name) {

@@ -29,7 +29,6 @@
 // robust loss's scale and the reports.
 #pragma once
 
-#include "report/report_doc.h"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -98,7 +97,6 @@ std::string MarkerObservationsCsv(const std::vector<ObjectView>& views);
 // Per view: blobs found, markers labelled (method, RMS, hypotheses), unlabelled blobs, rejected
 // candidates by reason, or why it was skipped.
 nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views);
-void AppendObjectViews(ReportDoc* doc, const std::vector<ObjectView>& views);
 // A file name for a view's overlay: overlay_<stem>[_frameN].png.
 std::string OverlayFileName(const std::string& view_name);
 

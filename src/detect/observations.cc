@@ -8,7 +8,7 @@
 #include "util/csv.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
-#include "util/number_format.h"
+#include "util/format.h"
 
 namespace carmba {
 

@@ -9,7 +9,7 @@
 
 #include "geometry/rotation.h"
 #include "util/file_util.h"
-#include "util/number_format.h"
+#include "util/format.h"
 #include "util/plausible.h"
 
 namespace carmba {

@@ -1,7 +1,7 @@
 // The joint problem: calibration and pose as ONE bundle adjustment over all plate views, object
 // views and the CT fiducials (the engine: ba/bundle_adjuster.h), with an error budget and the
 // two-step comparison. A front end: it reads the problem, finds initial values, fills a
-// ba::BaProblem and reports.
+// ba::BaProblem (result.json and the report: report/joint_report.h).
 //
 // PROBLEM FILE (problems/*.yaml; paths relative to the file). The same vocabulary as the pose and
 // calibration problems; a calibration-only or pose-only problem is this file with one kind of
@@ -37,7 +37,7 @@
 //                                     # (ba/smooth_intrinsics.h), distortion shared.
 //                                     # select: true|false (default true when every view has
 //                                     # angles): compare the models by held-out orientation
-//                                     # groups and AIC/BIC (ba/flex_models.h) in the report
+//                                     # groups and AIC/BIC (analysis/flex_models.h) in the report
 //   angles: views.csv                 # optional: C-arm angles per view (columns view, primary_deg,
 //                                     # secondary_deg; view = image stem, plate view number or
 //                                     # object view id); plate views read from DICOM images take
@@ -56,15 +56,14 @@
 #include <nlohmann/json.hpp>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/flex_models.h"
-#include "ba/lens_models.h"
+#include "analysis/flex_models.h"
+#include "analysis/lens_models.h"
 #include "ba/quantities.h"
-#include "ba/relative_pose.h"
-#include "ba/tre.h"
+#include "analysis/relative_pose.h"
+#include "analysis/tre.h"
 #include "camera/camera.h"
 #include "detect/observations.h"
 #include "problem/pose_problem.h"
-#include "report/report_doc.h"
 
 namespace carmba {
 
@@ -149,46 +148,25 @@ struct JointSolution {
   std::vector<PoseSigmas> comparison;            // joint, two-step, two-step with prior
   std::string comparison_error;                  // why the comparison is missing (if it is)
   std::string initial_intrinsics_from;           // "camera.json", "Zhang + calibration" ...
-  std::optional<ba::ModelSelection> selection;   // intrinsics models compared (flex)
+  std::optional<analysis::ModelSelection> selection;   // intrinsics models compared (flex)
   std::string selection_error;                   // why not (if asked and it failed)
   // The smooth model as solved: the problem's, with secondary_degree 0 when the plate views
   // cover one secondary angle and the file did not set it (model_note says so).
   ba::SmoothBasis smooth_basis;
   std::string model_note;
-  // The distortion models compared on the plate views (ba/lens_models.h; one shared group), and
+  // The distortion models compared on the plate views (analysis/lens_models.h; one shared group), and
   // the warning when the solved model's principal point strays from the recommended one's.
-  std::optional<ba::DistortionSelection> distortion;
+  std::optional<analysis::DistortionSelection> distortion;
   std::string distortion_error;
   std::string distortion_warning;
-  // Relative poses of object views with 6x6 covariances (ba/relative_pose.h: every pair when
+  // Relative poses of object views with 6x6 covariances (analysis/relative_pose.h: every pair when
   // there are at most 10 object views, else the validation pairs); the leave-one-marker-out TRE
-  // when the config has tre: true (ba/tre.h).
-  std::vector<ba::RelativePoseEstimate> relative_poses;
-  std::optional<ba::TreResult> tre;
+  // when the config has tre: true (analysis/tre.h).
+  std::vector<analysis::RelativePoseEstimate> relative_poses;
+  std::optional<analysis::TreResult> tre;
 };
 
 StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config);
-
-nlohmann::json JointSolutionToJson(const JointProblem& problem,
-                                   const SolverConfig& config,
-                                   const JointSolution& solution);
-// geometry.json's content (export/view_geometry.h): the object views, each with the
-// intrinsics of its group (the full model) and its cam_from_object (the object frame is the CT
-// frame of the fiducials); the reference point the fiducials' centroid.
-GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& solution);
-
-// The report (report.md and report.html; report/report_doc.h) and its plot data (report/plots.h).
-ReportDoc JointReportDoc(const JointProblem& problem,
-                         const SolverConfig& config,
-                         const JointSolution& solution);
-nlohmann::json JointPlotData(const JointSolution& solution);
-std::string JointReportMarkdown(const JointProblem& problem,
-                                const SolverConfig& config,
-                                const JointSolution& solution);
-// Warnings about the solution, one sentence each (in the report, in result.json "warnings" and on
-// stderr): intrinsics of a group that correlate beyond kIntrinsicsCorrelationWarn
-// (calib/conditioning.h).
-std::vector<std::string> JointWarnings(const JointSolution& solution);
 
 // Cross-check with mrcal 2.2 (scripts/mrcal_crosscheck.py, joint mode, through /usr/bin/python3):
 // the joint problem with the markers held at their CT positions and all nine intrinsics free,
@@ -207,23 +185,5 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
 nlohmann::json JointMrcalCrossCheckJson(const JointProblem& problem,
                                         const JointSolution& solution,
                                         const MrcalCrossCheckOptions& options);
-
-// The report's section on the cross-check (its JSON as JointMrcalCrossCheck returns it, or
-// {"error": ...}).
-ReportDoc JointMrcalDoc(const nlohmann::json& crosscheck);
-std::string JointMrcalMarkdown(const nlohmann::json& crosscheck);
-
-// C-arm flex (joint_flex_report.cc): every view's intrinsics (at its angles, with covariance, as
-// camera.json writes them) into result.json's views, the smooth model's coefficients and
-// covariance ("intrinsics_model"), the model selection ("model_selection") and the intrinsics
-// along the primary angle with their sigma ("intrinsics_curve", for the plot).
-void AddFlexJson(const JointProblem& problem, const JointSolution& solution, nlohmann::json* j);
-nlohmann::json FlexModelJson(const JointSolution& solution);
-// The report's sections on the intrinsics per view (against the truth when it has them) and on
-// the model selection, with the place of the plot "intrinsics-vs-angle" (report.html).
-ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& solution);
-// The plot's data from result.json (AddFlexJson's keys) into the report's plot data
-// ("intrinsics_vs_angle", drawn by scripts/report_plots.py); nothing without angles.
-void AddFlexPlotData(const nlohmann::json& result, nlohmann::json* plot_data);
 
 }  // namespace carmba

@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <set>
 
-#include "ba/flex_models.h"
+#include "analysis/flex_models.h"
 #include "detect/grid_detector.h"
 #include "io/dicom_xray.h"
 #include "joint/joint_problem.h"
@@ -394,7 +394,7 @@ void GroupsByOrientation(JointProblem* p) {
         best = k;
       }
     }
-    return ba::OrientationName(orientations[best].first, orientations[best].second);
+    return analysis::OrientationName(orientations[best].first, orientations[best].second);
   };
   for (const auto& id : p->plate_view_ids) p->group_of_view[id] = nearest(p->angles.at(id));
   for (const auto& v : p->object_views) p->group_of_view[v.id] = nearest(p->angles.at(v.id));

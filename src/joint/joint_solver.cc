@@ -5,9 +5,9 @@
 #include <set>
 
 #include "calib/calibrate.h"
-#include "ba/lens_models.h"
+#include "analysis/lens_models.h"
 #include "joint/joint_problem.h"
-#include "report/format.h"
+#include "util/format.h"
 
 namespace carmba {
 namespace {
@@ -107,7 +107,7 @@ StatusOr<ba::SmoothBasis> SmoothBasisForPlateAngles(const JointProblem& problem,
   return basis;
 }
 
-// The distortion models compared on the plate views (ba/lens_models.h), for one shared group;
+// The distortion models compared on the plate views (analysis/lens_models.h), for one shared group;
 // with distortion: auto the recommended one is applied to `bp`.
 void SelectDistortion(const JointProblem& problem, const SolverConfig& config,
                       const ba::BaOptions& options, ba::BaProblem* bp, JointSolution* sol) {
@@ -119,13 +119,13 @@ void SelectDistortion(const JointProblem& problem, const SolverConfig& config,
     }
     return;
   }
-  auto sel = ba::SelectDistortionModel(*bp, options);
+  auto sel = analysis::SelectDistortionModel(*bp, options);
   if (!sel.ok()) {
     sol->distortion_error = sel.status().message();
     return;
   }
   sol->distortion = *sel;
-  if (config.distortion_auto) ba::ApplyDistortionModel(sel->recommended, bp);
+  if (config.distortion_auto) analysis::ApplyDistortionModel(sel->recommended, bp);
 }
 
 Status CheckJointConfig(const SolverConfig& config) {
@@ -337,9 +337,9 @@ Status ApplyModels(const JointProblem& problem,
     sol->smooth_basis = *basis;
   }
   if (problem.select_model && !problem.plate.views.empty()) {
-    auto sel = ba::SelectIntrinsicsModel(
+    auto sel = analysis::SelectIntrinsicsModel(
         bp, sol->smooth_basis, options,
-        {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth});
+        {analysis::IntrinsicsModel::kShared, analysis::IntrinsicsModel::kPerGroup, analysis::IntrinsicsModel::kSmooth});
     if (sel.ok()) {
       sol->selection = *sel;
     } else {
@@ -347,7 +347,7 @@ Status ApplyModels(const JointProblem& problem,
     }
   }
   if (problem.smooth) {
-    const Status s = ba::ApplyIntrinsicsModel(ba::IntrinsicsModel::kSmooth, sol->smooth_basis, &bp);
+    const Status s = analysis::ApplyIntrinsicsModel(analysis::IntrinsicsModel::kSmooth, sol->smooth_basis, &bp);
     if (!s.ok()) return Status::Error(problem.path + ": " + s.message());
   }
   return Status::Ok();
@@ -435,16 +435,16 @@ StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const Sol
   auto r = ba::SolveBundleAdjustment(bp, options);
   if (!r.ok()) return Status::Error(problem.path + ": " + r.status().message());
   sol.result = std::move(*r);
-  ba::DistortionModel solved;
+  analysis::DistortionModel solved;
   if (sol.distortion && !config.distortion_auto &&
-      ba::DistortionModelOf(bp.groups[0].free, &solved)) {
+      analysis::DistortionModelOf(bp.groups[0].free, &solved)) {
     const double* K = sol.result.block(sol.result.layout->group_block(0));
-    sol.distortion_warning = ba::DistortionWarning(*sol.distortion, solved, Eigen::Vector2d(K[kCx], K[kCy]));
+    sol.distortion_warning = analysis::DistortionWarning(*sol.distortion, solved, Eigen::Vector2d(K[kCx], K[kCy]));
   }
   sol.budget = ba::ComputeErrorBudget(bp, sol.result, sol.pairs);
-  sol.relative_poses = ba::EstimateRelativePoses(sol.result, ba::RelativePosePairs(bp, sol.pairs));
+  sol.relative_poses = analysis::EstimateRelativePoses(sol.result, analysis::RelativePosePairs(bp, sol.pairs));
   if (config.tre) {
-    auto tre = ba::LeaveOneMarkerOut(bp, sol.result, options);
+    auto tre = analysis::LeaveOneMarkerOut(bp, sol.result, options);
     if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
     sol.tre = *tre;
   }

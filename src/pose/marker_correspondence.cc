@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "camera/camera_model.h"
-#include "util/number_format.h"
+#include "util/format.h"
 
 namespace carmba {
 

@@ -67,7 +67,7 @@
 //   outliers: {list_sigma: 4, reject_sigma: 0}   # list above 4 sigma; reject_sigma > 0 drops
 //                                 # the worst above it and solves again, until none is left
 //   tre: false                    # true: leave-one-marker-out target registration error
-//                                 # (ba/tre.h; one more solve per marker) in result.json/report
+//                                 # (analysis/tre.h; one more solve per marker) in result.json/report
 //   consider_calibration: true    # pose problems: camera.json's covariance enters the
 //                                 # covariances (intrinsics held, their uncertainty considered)
 // A calibration config given here (it has keys such as robust_loss, detection, crosscheck) is an
@@ -83,8 +83,8 @@
 #include <vector>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/relative_pose.h"
-#include "ba/tre.h"
+#include "analysis/relative_pose.h"
+#include "analysis/tre.h"
 #include "camera/camera.h"
 #include "export/view_geometry.h"
 #include "geometry/pose.h"
@@ -182,7 +182,7 @@ struct SolverConfig {
   // (fx fy cx cy k1 k2 p1 p2 k3); pose problems hold all of them.
   std::vector<std::string> fix;
   // Joint problems with plate views: auto selects the distortion terms (k1 k2 | + p1 p2 | + k3 |
-  // all) by AIC with held-out plate views (ba/lens_models.h); `fix` then names none of them.
+  // all) by AIC with held-out plate views (analysis/lens_models.h); `fix` then names none of them.
   // given: the terms `fix` leaves free (the selection is still run and warns when the given
   // model's principal point is more than 2 sigma from the recommended one's).
   bool distortion_auto = false;
@@ -193,7 +193,7 @@ struct SolverConfig {
   // The engine's minimiser: ceres, or carmba_lm for calibration-structured problems
   // (ba/bundle_adjuster.h).
   std::string backend = "ceres";
-  // Leave-one-marker-out target registration error (ba/tre.h): one more solve per marker.
+  // Leave-one-marker-out target registration error (analysis/tre.h): one more solve per marker.
   bool tre = false;
   // Pose problems: when camera.json has a covariance, the intrinsics (held at its values) are
   // CONSIDERED: the poses' covariance (and everything derived from it) includes the
@@ -273,11 +273,11 @@ struct PoseSolution {
   std::string termination;
   double initial_cost = 0, final_cost = 0;
   double time_s = 0;                  // wall time of initialisation + solve + covariance
-  // Relative poses cam_b_from_cam_a with 6x6 covariances (ba/relative_pose.h): every pair of
+  // Relative poses cam_b_from_cam_a with 6x6 covariances (analysis/relative_pose.h): every pair of
   // views when there are at most 10, else the validation pairs; empty without the engine's
   // covariance. Leave-one-marker-out TRE when the config asks (tre: true).
-  std::vector<ba::RelativePoseEstimate> relative_poses;
-  std::optional<ba::TreResult> tre;
+  std::vector<analysis::RelativePoseEstimate> relative_poses;
+  std::optional<analysis::TreResult> tre;
   // The engine's problem and result (ba/), for error budgets and further analysis.
   std::shared_ptr<const ba::BaProblem> ba_problem;
   std::shared_ptr<const ba::BaResult> ba_result;

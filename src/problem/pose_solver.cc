@@ -411,7 +411,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
   const ba::BaResult& r = *sol.ba_result;
   const bool engine_covariance = config.refine && config.covariance_algorithm == "schur" && r.covariance;
   if (engine_covariance) {
-    sol.relative_poses = ba::EstimateRelativePoses(r, ba::RelativePosePairs(*sol.ba_problem, validation_pairs));
+    sol.relative_poses = analysis::EstimateRelativePoses(r, analysis::RelativePosePairs(*sol.ba_problem, validation_pairs));
   }
   sol.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (config.tre) {
@@ -419,7 +419,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
       return Status::Error(config.path + ": tre: true needs the refined solve with the engine's "
                                          "covariance (refine: true, covariance: {algorithm: schur})");
     }
-    auto tre = ba::LeaveOneMarkerOut(*sol.ba_problem, r, options);
+    auto tre = analysis::LeaveOneMarkerOut(*sol.ba_problem, r, options);
     if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());
     sol.tre = *tre;
   }

@@ -10,11 +10,12 @@
 #include <optional>
 
 #include "ba/quantities.h"
-#include "ba/triangulation.h"
+#include "analysis/triangulation.h"
 #include "calib/crosscheck.h"
 #include "export/geometry_export.h"
 #include "export/view_geometry.h"
 #include "joint/joint_problem.h"
+#include "report/joint_report.h"
 #include "problem/pose_problem.h"
 #include "python/bindings.h"
 #include "report/pose_report.h"
@@ -382,11 +383,11 @@ py::dict Triangulate(const Solved& s,
   }
   const ba::BaProblem& bp = s.problem();
   const ba::BaResult& br = s.result_with_covariance();
-  ba::TriangulationOptions topt;
+  analysis::TriangulationOptions topt;
   topt.min_ray_angle_deg = min_angle_deg;
   std::string err;
   if (!topt.Check(&err)) throw Error("min_angle_deg: " + err);
-  std::vector<ba::PixelObservation> obs;
+  std::vector<analysis::PixelObservation> obs;
   std::string object_ids;
   std::map<std::string, int> object_view;
   for (size_t v = 0; v < bp.views.size(); ++v) {
@@ -403,7 +404,7 @@ py::dict Triangulate(const Solved& s,
     }
     const auto uv = item.second.cast<std::vector<double>>();
     if (uv.size() != 2) throw Error("pixels['" + id + "']: expected (u, v)");
-    ba::PixelObservation o;
+    analysis::PixelObservation o;
     o.view = it->second;
     o.uv_px = Eigen::Vector2d(uv[0], uv[1]);
     const double sg = sigma_px > 0 ? sigma_px : bp.views[o.view].sigma_px;
@@ -417,10 +418,10 @@ py::dict Triangulate(const Solved& s,
     }
     obs.push_back(o);
   }
-  ba::TriangulatedPoint t;
+  analysis::TriangulatedPoint t;
   {
     py::gil_scoped_release release;
-    t = ValueOrThrow(ba::TriangulatePoint(bp, br, obs, topt));
+    t = ValueOrThrow(analysis::TriangulatePoint(bp, br, obs, topt));
   }
   // The solve's object frame -> the CT frame (a mirrored pose problem negates y), as the CLI.
   const Eigen::Matrix3d F = Eigen::Vector3d(1, s.mirrored ? -1 : 1, 1).asDiagonal();
@@ -453,10 +454,10 @@ py::object Tre(const Solved& s) {
   const auto& tre = s.kind == "joint" ? s.joint->tre : s.pose->tre;
   if (tre) return ToPython(TreJson(*tre));
   const ba::BaResult& r = s.result_with_covariance();
-  ba::TreResult t;
+  analysis::TreResult t;
   {
     py::gil_scoped_release release;
-    t = ValueOrThrow(ba::LeaveOneMarkerOut(s.problem(), r, s.config.ToBaOptions()));
+    t = ValueOrThrow(analysis::LeaveOneMarkerOut(s.problem(), r, s.config.ToBaOptions()));
   }
   return ToPython(TreJson(t));
 }
@@ -590,7 +591,7 @@ void BindSolve(py::module_& m) {
         "Triangulates one point from pixels {object view id: (u, v)} of a solved result, as "
         "`carmba triangulate --pixels`: position and 3 x 3 covariance in the CT frame (mm).");
   m.def("tre", &Tre, py::arg("result"),
-        "The leave-one-marker-out target registration error (ba/tre.h): the solve's own when its "
+        "The leave-one-marker-out target registration error (analysis/tre.h): the solve's own when its "
         "config had tre: true, else computed now with the same options.");
   m.def("export_geometry", &ExportGeometry, py::arg("source"), py::arg("out") = py::none(),
         py::arg("format") = "all", py::arg("sdd_mm") = 0.0, py::arg("force") = false,

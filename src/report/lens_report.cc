@@ -2,17 +2,17 @@
 
 #include <cmath>
 
-#include "report/format.h"
+#include "util/format.h"
 
 namespace carmba {
 
-nlohmann::json DistortionSelectionJson(const ba::DistortionSelection* selection,
+nlohmann::json DistortionSelectionJson(const analysis::DistortionSelection* selection,
                                        const std::string& error, bool applied) {
   if (!selection) return {{"error", error}};
-  const ba::DistortionSelection& d = *selection;
+  const analysis::DistortionSelection& d = *selection;
   nlohmann::json scores = nlohmann::json::array();
   for (const auto& sc : d.scores) {
-    nlohmann::json o = {{"model", ba::DistortionModelName(sc.model)}, {"ok", sc.ok}};
+    nlohmann::json o = {{"model", analysis::DistortionModelName(sc.model)}, {"ok", sc.ok}};
     if (!sc.ok) {
       o["error"] = sc.error;
     } else {
@@ -30,14 +30,14 @@ nlohmann::json DistortionSelectionJson(const ba::DistortionSelection* selection,
     }
     scores.push_back(o);
   }
-  return {{"recommended", ba::DistortionModelName(d.recommended)},
+  return {{"recommended", analysis::DistortionModelName(d.recommended)},
           {"why", d.why},
           {"folds", d.folds},
           {"applied", applied},
           {"scores", scores}};
 }
 
-ReportDoc DistortionSelectionDoc(const ba::DistortionSelection* selection, const std::string& error,
+ReportDoc DistortionSelectionDoc(const analysis::DistortionSelection* selection, const std::string& error,
                                  bool applied, const std::string& warning) {
   ReportDoc d;
   if (!selection && error.empty()) return d;
@@ -46,7 +46,7 @@ ReportDoc DistortionSelectionDoc(const ba::DistortionSelection* selection, const
     d.Paragraph("Not compared: " + error + ".");
     return d;
   }
-  const ba::DistortionSelection& sel = *selection;
+  const analysis::DistortionSelection& sel = *selection;
   const std::string sigma =
       sel.sigma_estimated
           ? "; chi-squares at the pixel sigma the full model's residuals give, " +
@@ -55,17 +55,17 @@ ReportDoc DistortionSelectionDoc(const ba::DistortionSelection* selection, const
   d.Paragraph("Each candidate fitted to the plate views alone (AIC = chi-square + 2 x free "
               "parameters" + sigma + "), and by " + std::to_string(sel.folds) +
               "-fold held-out plate views (the intrinsics without them, one Gauss-Newton step "
-              "from the full fit; their poses refitted with those intrinsics held). Recommended: **" + ba::DistortionModelName(sel.recommended) +
+              "from the full fit; their poses refitted with those intrinsics held). Recommended: **" + analysis::DistortionModelName(sel.recommended) +
               "**: " + sel.why + ". " +
               (applied ? "Applied (`distortion: auto`)."
                        : "Not applied: the config gives the terms (`distortion: given`)."));
   std::vector<std::vector<std::string>> rows;
   for (const auto& sc : sel.scores) {
     if (!sc.ok) {
-      rows.push_back({ba::DistortionModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
+      rows.push_back({analysis::DistortionModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
       continue;
     }
-    rows.push_back({ba::DistortionModelName(sc.model), Fmt("%.1f", sc.chi2),
+    rows.push_back({analysis::DistortionModelName(sc.model), Fmt("%.1f", sc.chi2),
                     std::to_string(sc.num_free), Fmt("%.1f", sc.aic), Fmt("%.1f", sc.bic),
                     Fmt("%.4f", sc.held_out_chi2_per_residual) + " (" +
                         Fmt("%.4f", sc.held_out_rms_px) + " px)",

@@ -15,7 +15,7 @@
 #include "ba/view_intrinsics.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
-#include "report/format.h"
+#include "util/format.h"
 #include "util/file_util.h"
 #include "util/python_worker.h"
 #include "util/temp_paths.h"

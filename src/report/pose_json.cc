@@ -3,7 +3,7 @@
 
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
-#include "report/format.h"
+#include "util/format.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
 #include "report/variance_report.h"

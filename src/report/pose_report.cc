@@ -2,11 +2,12 @@
 
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <sstream>
 
 #include "geometry/rotation.h"
 #include "pose/posit.h"
-#include "report/format.h"
+#include "util/format.h"
 #include "report/plots.h"
 #include "report/relative_tre_report.h"
 #include "report/variance_report.h"
@@ -286,13 +287,6 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
   return d;
 }
 
-std::string PoseReportMarkdown(const PoseProblem& problem,
-                               const SolverConfig& config,
-                               const PoseSolution& solution,
-                               const PoseComparison& comparison) {
-  return PoseReportDoc(problem, config, solution, comparison).Markdown();
-}
-
 nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& s) {
   if (!s.ba_problem || !s.ba_result) return {{"kind", "pose"}};
   std::vector<std::pair<int, int>> pairs;
@@ -314,6 +308,32 @@ nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& s) {
     d["image_size"] = {problem.camera.width, problem.camera.height};
   }
   return d;
+}
+
+void AppendObjectViews(ReportDoc* d, const std::vector<ObjectView>& views) {
+  d->Heading(2, "Marker detection and labelling");
+  std::vector<std::vector<std::string>> rows;
+  for (const ObjectView& v : views) {
+    std::map<std::string, int> reasons;
+    for (const RejectedBlob& b : v.detection.rejected) ++reasons[b.why];
+    std::string rej;
+    for (const auto& [why, k] : reasons) rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
+    if (!v.labelled) {
+      rows.push_back({v.name, std::to_string(v.detection.blobs.size()), "skipped: " + v.skipped, "",
+                      "", "", rej});
+      continue;
+    }
+    int unlabelled = 0;
+    for (int id : v.marker_id_of_blob) unlabelled += id < 0;
+    rows.push_back({v.name, std::to_string(v.detection.blobs.size()),
+                    std::to_string(v.labelling.num_labelled), std::to_string(unlabelled),
+                    v.labelling.method, Fmt("%.3g", v.labelling.rms_px), rej});
+  }
+  d->Table({"view", "blobs", "labelled", "not markers", "method", "RMS px", "rejected"}, rows);
+  d->Paragraph("Each observation is weighted in the bundle adjustment by its blob's 2x2 covariance "
+               "plus the sigma floor squared (the engine whitens it with that covariance). "
+               "The overlays (`overlay_<view>.png`) show the blobs, labels, reprojected markers and "
+               "rejected blobs with their reason.");
 }
 
 }  // namespace carmba

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "detect/marker_views.h"
 #include "problem/pose_problem.h"
 #include "report/report_doc.h"
 
@@ -65,9 +66,8 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
                         const PoseComparison& comparison);
 nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& solution);
 
-std::string PoseReportMarkdown(const PoseProblem& problem,
-                               const SolverConfig& config,
-                               const PoseSolution& solution,
-                               const PoseComparison& comparison);
+// The report's section on the marker detection and labelling of views read from images
+// (`carmba pose --images`): per view the blobs, the markers labelled, the rejected candidates.
+void AppendObjectViews(ReportDoc* doc, const std::vector<ObjectView>& views);
 
 }  // namespace carmba

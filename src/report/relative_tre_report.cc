@@ -3,7 +3,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "report/format.h"
+#include "util/format.h"
 
 namespace carmba {
 namespace {
@@ -16,7 +16,7 @@ const Pose6* Find(const std::map<std::string, Pose6>& truth, const std::string& 
 }  // namespace
 
 nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
-                                 const std::vector<ba::RelativePoseEstimate>& poses,
+                                 const std::vector<analysis::RelativePoseEstimate>& poses,
                                  const std::map<std::string, Pose6>& truth) {
   nlohmann::json a = nlohmann::json::array();
   for (const auto& e : poses) {
@@ -39,9 +39,9 @@ nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
     const Pose6* ta = Find(truth, ia);
     const Pose6* tb = Find(truth, ib);
     if (ta && tb) {
-      const ba::RelativePoseError err = ba::CompareRelativePose(e, *ta, *tb);
+      const analysis::RelativePoseError err = analysis::CompareRelativePose(e, *ta, *tb);
       Pose6 t;
-      ba::RelativePose(ta->data(), tb->data(), t.data());
+      analysis::RelativePose(ta->data(), tb->data(), t.data());
       j["truth"] = {{"rvec", JsonVector(t.head<3>())}, {"t_mm", JsonVector(t.tail<3>())}};
       j["rotation_error_deg"] = JsonNumber(err.rotation_error_deg);
       j["rotation_error_sigma"] = JsonNumber(err.rotation_mahalanobis);
@@ -55,7 +55,7 @@ nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
 
 void AppendRelativePoses(ReportDoc* d,
                          const ba::BaProblem& problem,
-                         const std::vector<ba::RelativePoseEstimate>& poses,
+                         const std::vector<analysis::RelativePoseEstimate>& poses,
                          const std::map<std::string, Pose6>& truth) {
   d->Heading(2, "Relative C-arm poses");
   if (poses.empty()) {
@@ -95,7 +95,7 @@ void AppendRelativePoses(ReportDoc* d,
       const Pose6* ta = Find(truth, ia);
       const Pose6* tb = Find(truth, ib);
       if (ta && tb) {
-        const ba::RelativePoseError err = ba::CompareRelativePose(e, *ta, *tb);
+        const analysis::RelativePoseError err = analysis::CompareRelativePose(e, *ta, *tb);
         row.push_back(Fmt("%.4f", err.rotation_error_deg));
         row.push_back(Fmt("%.2f", err.rotation_mahalanobis));
         row.push_back(Fmt("%.2f", err.nees));
@@ -108,7 +108,7 @@ void AppendRelativePoses(ReportDoc* d,
   d->Table(header, rows);
 }
 
-nlohmann::json TreJson(const ba::TreResult& t) {
+nlohmann::json TreJson(const analysis::TreResult& t) {
   nlohmann::json markers = nlohmann::json::array();
   for (const auto& m : t.markers) {
     nlohmann::json j = {{"id", m.marker_id}, {"p_ct_mm", JsonVector(m.p_ct)}};
@@ -131,7 +131,7 @@ nlohmann::json TreJson(const ba::TreResult& t) {
   }
   return {{"what",
            "leave-one-marker-out: marker k dropped from the solve, triangulated from its pixels, "
-           "compared with its CT position (ba/tre.h)"},
+           "compared with its CT position (analysis/tre.h)"},
           {"evaluated", t.num_evaluated},
           {"rms_error_mm", JsonNumber(t.rms_error_mm)},
           {"rms_predicted_mm", JsonNumber(t.rms_predicted_mm)},
@@ -144,7 +144,7 @@ nlohmann::json TreJson(const ba::TreResult& t) {
           {"markers", markers}};
 }
 
-void AppendTre(ReportDoc* d, const ba::TreResult& t) {
+void AppendTre(ReportDoc* d, const analysis::TreResult& t) {
   d->Heading(2, "Target registration error (leave one marker out)");
   d->Paragraph(
       "Each marker in turn is dropped from the solve (its CT prior and its pixels), triangulated "

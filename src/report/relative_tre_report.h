@@ -1,5 +1,5 @@
-// result.json blocks and report sections (report.md and report.html) for the relative C-arm poses (ba/relative_pose.h)
-// and the leave-one-marker-out TRE (ba/tre.h), shared by the pose and the joint front ends.
+// result.json blocks and report sections (report.md and report.html) for the relative C-arm poses (analysis/relative_pose.h)
+// and the leave-one-marker-out TRE (analysis/tre.h), shared by the pose and the joint front ends.
 #pragma once
 
 #include <map>
@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "ba/relative_pose.h"
-#include "ba/tre.h"
+#include "analysis/relative_pose.h"
+#include "analysis/tre.h"
 #include "report/report_doc.h"
 
 namespace carmba {
@@ -17,15 +17,15 @@ namespace carmba {
 // angle and its sigma, sigmas about view b's axes, baseline; with `truth` (cam_from_object by
 // view id; may be empty) the errors: rotation error (deg), its 3-dof Mahalanobis distance, NEES.
 nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
-                                 const std::vector<ba::RelativePoseEstimate>& poses,
+                                 const std::vector<analysis::RelativePoseEstimate>& poses,
                                  const std::map<std::string, Pose6>& truth);
 void AppendRelativePoses(ReportDoc* doc,
                          const ba::BaProblem& problem,
-                         const std::vector<ba::RelativePoseEstimate>& poses,
+                         const std::vector<analysis::RelativePoseEstimate>& poses,
                          const std::map<std::string, Pose6>& truth);
 
 // "tre": FLE, RMS measured / predicted / Fitzpatrick, and per marker.
-nlohmann::json TreJson(const ba::TreResult& tre);
-void AppendTre(ReportDoc* doc, const ba::TreResult& tre);
+nlohmann::json TreJson(const analysis::TreResult& tre);
+void AppendTre(ReportDoc* doc, const analysis::TreResult& tre);
 
 }  // namespace carmba

@@ -4,7 +4,7 @@
 #include <set>
 #include <sstream>
 
-#include "report/format.h"
+#include "util/format.h"
 
 namespace carmba {
 

@@ -1,6 +1,6 @@
 #include "report/variance_report.h"
 
-#include "report/format.h"
+#include "util/format.h"
 
 namespace carmba {
 

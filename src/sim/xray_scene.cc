@@ -9,7 +9,7 @@
 #include "io/dicom_xray.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
-#include "util/number_format.h"
+#include "util/format.h"
 
 namespace carmba::sim {
 

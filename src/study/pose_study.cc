@@ -7,7 +7,7 @@
 #include <random>
 #include <set>
 
-#include "ba/flex_models.h"
+#include "analysis/flex_models.h"
 #include "ba/quantities.h"
 #include "synthetic/synthetic_joint.h"
 #include "synthetic/synthetic_flex.h"
@@ -17,7 +17,7 @@
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
 #include "joint/joint_problem.h"
-#include "report/format.h"
+#include "util/format.h"
 #include "problem/pose_problem.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
@@ -392,13 +392,13 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
   m.Number("sigma_plate_px", &spec.sigma_plate_px, &plausible::kPixelSigmaPx);
   m.Number("sigma_object_px", &spec.sigma_object_px, &plausible::kPixelSigmaPx);
   CARMBA_RETURN_IF_ERROR(m.Finish());
-  ba::IntrinsicsModel im;
+  analysis::IntrinsicsModel im;
   if (model == "shared") {
-    im = ba::IntrinsicsModel::kShared;
+    im = analysis::IntrinsicsModel::kShared;
   } else if (model == "per_group") {
-    im = ba::IntrinsicsModel::kPerGroup;
+    im = analysis::IntrinsicsModel::kPerGroup;
   } else if (model == "smooth") {
-    im = ba::IntrinsicsModel::kSmooth;
+    im = analysis::IntrinsicsModel::kSmooth;
   } else {
     return Status::Error("problem '" + sp.name + "': synthetic.model '" + model +
                          "' is unknown (shared, per_group, smooth)");
@@ -415,7 +415,7 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
   options.num_threads = 1;
   const ba::SyntheticFlex sf = ba::MakeSyntheticFlex(spec, run.seed);
   ba::BaProblem p = sf.problem;
-  CARMBA_RETURN_IF_ERROR(ba::ApplyIntrinsicsModel(im, ba::SmoothBasis(), &p));
+  CARMBA_RETURN_IF_ERROR(analysis::ApplyIntrinsicsModel(im, ba::SmoothBasis(), &p));
   auto r = ba::SolveBundleAdjustment(p, options);
   if (!r.ok()) return r.status();
   nlohmann::json signed_errors, sigmas, values, errors;
@@ -471,15 +471,15 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
       std::hypot(signed_errors.value("between_pose_tx_mm", 0.0), signed_errors.value("between_pose_ty_mm", 0.0),
                  signed_errors.value("between_pose_tz_mm", 0.0));
   if (select > 0) {
-    auto sel = ba::SelectIntrinsicsModel(
+    auto sel = analysis::SelectIntrinsicsModel(
         sf.problem, ba::SmoothBasis(), options,
-        {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth});
+        {analysis::IntrinsicsModel::kShared, analysis::IntrinsicsModel::kPerGroup, analysis::IntrinsicsModel::kSmooth});
     if (!sel.ok()) return sel.status();
-    for (auto mm : {ba::IntrinsicsModel::kShared, ba::IntrinsicsModel::kPerGroup, ba::IntrinsicsModel::kSmooth}) {
-      values[std::string("recommended_") + ba::IntrinsicsModelName(mm)] = sel->recommended == mm ? 1 : 0;
+    for (auto mm : {analysis::IntrinsicsModel::kShared, analysis::IntrinsicsModel::kPerGroup, analysis::IntrinsicsModel::kSmooth}) {
+      values[std::string("recommended_") + analysis::IntrinsicsModelName(mm)] = sel->recommended == mm ? 1 : 0;
     }
     for (const auto& sc : sel->scores) {
-      values[std::string("held_out_d2_") + ba::IntrinsicsModelName(sc.model)] = JsonNumber(sc.held_out_d2_mean);
+      values[std::string("held_out_d2_") + analysis::IntrinsicsModelName(sc.model)] = JsonNumber(sc.held_out_d2_mean);
     }
   }
   return RunRecordJson(r->converged, r->termination, errors, signed_errors, sigmas, values);

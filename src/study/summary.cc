@@ -7,7 +7,7 @@
 #include <map>
 #include <sstream>
 
-#include "report/format.h"
+#include "util/format.h"
 #include "report/plots.h"
 
 namespace carmba {

@@ -28,7 +28,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "report/format.h"
+#include "util/format.h"
 #include "report/report_doc.h"
 #include "study/run_store.h"
 

@@ -4,7 +4,7 @@
 // intrinsics from a CarmFlex (camera/carm_flex.h). Plate views are taken at a few calibrated
 // orientations, `plate_views_per_orientation` each; object views at and between them. The problem
 // comes with ONE shared group whose initial intrinsics are the truth at (0, 0); apply an
-// intrinsics model (ba/flex_models.h) before solving. Deterministic for (geometry_seed, seed).
+// intrinsics model (analysis/flex_models.h) before solving. Deterministic for (geometry_seed, seed).
 #pragma once
 
 #include <array>

@@ -24,11 +24,11 @@
 
 #include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
-#include "ba/relative_pose.h"
+#include "analysis/relative_pose.h"
 #include "ba/reprojection_error.h"
 #include "synthetic/synthetic_joint.h"
-#include "ba/tre.h"
-#include "ba/triangulation.h"
+#include "analysis/tre.h"
+#include "analysis/triangulation.h"
 #include "synthetic_pixels.h"
 
 namespace carmba {
@@ -248,17 +248,17 @@ TEST(Consider, MonteCarloNeesWithAndWithoutTheConsiderTerm) {
       ++n_pose;
     }
     // The relative pose of views +000 and +090.
-    const auto rel = EstimateRelativePoses(*r, {{views[0], views[4]}});
+    const auto rel = analysis::EstimateRelativePoses(*r, {{views[0], views[4]}});
     ASSERT_EQ(rel.size(), 1u);
-    const RelativePoseError err =
-        CompareRelativePose(rel[0], sj.true_poses[views[0]], sj.true_poses[views[4]]);
+    const analysis::RelativePoseError err =
+        analysis::CompareRelativePose(rel[0], sj.true_poses[views[0]], sj.true_poses[views[4]]);
     rel_on += err.nees / 6.0;
     Matrix6 C_off = rel[0].covariance - rel[0].covariance_calibration;
     rel_off += Nees(err.error, C_off);
     // Two tips seen in all object views: amid the markers, and 120 mm beyond them.
     for (int k = 0; k < 2; ++k) {
       const Eigen::Vector3d tip = k == 0 ? kTipInside : kTipOutside;
-      auto tp = TriangulatePoint(sj.problem, *r, TruePointPixels(sj, tip, views, kTipSigmaPx, &rng));
+      auto tp = analysis::TriangulatePoint(sj.problem, *r, TruePointPixels(sj, tip, views, kTipSigmaPx, &rng));
       ASSERT_TRUE(tp.ok()) << tp.status().message();
       const Eigen::Vector3d et = tp->p_in_object - tip;
       tip_on[k] += Nees(et, tp->covariance);
@@ -303,9 +303,9 @@ TEST(Consider, LeaveOneMarkerOutTreWithTheCalibrationConsidered) {
     const SyntheticJoint sj = MakeSyntheticJoint(spec, NoiseSwitches(), 60000 + t);
     auto r = SolveBundleAdjustment(sj.problem, BaOptions());
     ASSERT_TRUE(r.ok()) << r.status().message();
-    auto tre = LeaveOneMarkerOut(sj.problem, *r, BaOptions());
+    auto tre = analysis::LeaveOneMarkerOut(sj.problem, *r, BaOptions());
     ASSERT_TRUE(tre.ok()) << tre.status().message();
-    for (const MarkerTre& m : tre->markers) {
+    for (const analysis::MarkerTre& m : tre->markers) {
       ASSERT_TRUE(m.skipped.empty()) << m.skipped;
       m2 += m.mahalanobis2 / 3.0;
       cal_share += m.covariance_calibration.trace() / m.covariance.trace();

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "synthetic/synthetic_joint.h"
-#include "ba/triangulation.h"
+#include "analysis/triangulation.h"
 
 namespace carmba {
 namespace ba {
@@ -19,15 +19,15 @@ inline std::vector<int> ObjectViews(const BaProblem& p) {
   return v;
 }
 
-inline std::vector<PixelObservation> TruePointPixels(const SyntheticJoint& sj,
+inline std::vector<analysis::PixelObservation> TruePointPixels(const SyntheticJoint& sj,
                                                      const Eigen::Vector3d& point,
                                                      const std::vector<int>& views,
                                                      double sigma_px,
                                                      std::mt19937_64* rng) {
   std::normal_distribution<double> g(0.0, 1.0);
-  std::vector<PixelObservation> obs;
+  std::vector<analysis::PixelObservation> obs;
   for (int v : views) {
-    PixelObservation o;
+    analysis::PixelObservation o;
     o.view = v;
     ProjectPoint(sj.true_intrinsics.data(), sj.true_poses[v].data(), point.data(), o.uv_px.data());
     o.uv_px += sigma_px * Eigen::Vector2d(g(*rng), g(*rng));

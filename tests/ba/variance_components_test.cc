@@ -116,12 +116,12 @@ TEST(VarianceComponents, AGroupWithTwiceTheStatedSigmaIsFlaggedAndScaled) {
 }
 
 // NEES per dof of (fx, fy, cx, cy) and of the object poses over trials.
-struct Nees {
+struct NeesPerDof {
   double intrinsics = 0, poses = 0;
 };
 
-Nees MeasureNees(NoiseGroup understated, CovarianceScale scale, uint64_t seed0, int trials) {
-  Nees out;
+NeesPerDof MeasureNees(NoiseGroup understated, CovarianceScale scale, uint64_t seed0, int trials) {
+  NeesPerDof out;
   int pose_terms = 0;
   for (int t = 0; t < trials; ++t) {
     const SyntheticJoint sj = Understated(understated, seed0 + static_cast<uint64_t>(t));
@@ -157,8 +157,8 @@ TEST_P(VarianceComponentsMonteCarlo, PerGroupScalingRestoresNees) {
   const int trials = testing::EnvOr<int>("CARMBA_VC_TRIALS", 400);
   const auto seed = testing::EnvOr<uint64_t>("CARMBA_VC_SEED", 9100) +
                     (g == NoiseGroup::kPlatePixels ? 0 : 100000);
-  const Nees apriori = MeasureNees(g, CovarianceScale::kApriori, seed, trials);
-  const Nees per_group = MeasureNees(g, CovarianceScale::kPerGroup, seed, trials);
+  const NeesPerDof apriori = MeasureNees(g, CovarianceScale::kApriori, seed, trials);
+  const NeesPerDof per_group = MeasureNees(g, CovarianceScale::kPerGroup, seed, trials);
   std::printf("%s at 2x the stated sigma, %d trials from seed %llu: NEES per dof apriori "
               "intrinsics %.3f poses %.3f; per_group intrinsics %.3f poses %.3f\n",
               NoiseGroupName(g), trials, static_cast<unsigned long long>(seed), apriori.intrinsics,

@@ -9,7 +9,7 @@
 #include <random>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/lens_models.h"
+#include "analysis/lens_models.h"
 #include "ba/quantities.h"
 #include "synthetic/synthetic_joint.h"
 #include "problem/pose_problem.h"
@@ -54,7 +54,7 @@ void BM_JointSolveCovarianceBudget(benchmark::State& state) {
 
 // The self-checks of issue 21 against that solve, in one run: 0 the a-priori solve (as before),
 // 1 with covariance.scale per_group (variance components, iterated), 2 per_group and the
-// distortion models compared (4 models, 5 held-out folds: ba/lens_models.h), as
+// distortion models compared (4 models, 5 held-out folds: analysis/lens_models.h), as
 // `carmba solve --config configs/joint.yaml` runs them.
 //   build/tests/carmba_bench --benchmark_filter='JointSelfChecks' --benchmark_repetitions=5
 void BM_JointSelfChecks(benchmark::State& state) {
@@ -66,12 +66,12 @@ void BM_JointSelfChecks(benchmark::State& state) {
   for (auto _ : state) {
     ba::BaProblem p = sj.problem;
     if (state.range(0) == 2) {
-      auto sel = ba::SelectDistortionModel(p, o);
+      auto sel = analysis::SelectDistortionModel(p, o);
       if (!sel.ok()) {
         state.SkipWithError(sel.status().message().c_str());
         return;
       }
-      ba::ApplyDistortionModel(sel->recommended, &p);
+      analysis::ApplyDistortionModel(sel->recommended, &p);
     }
     auto r = ba::SolveBundleAdjustment(p, o);
     if (!r.ok()) {

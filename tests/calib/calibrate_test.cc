@@ -299,10 +299,10 @@ TEST(CalibrateTest, DistortionAutoChoosesTheTermsAndRefusesConflictingFlags) {
   EXPECT_NEAR(r->distortion->sigma_px, 0.1, 0.02);
   // The free terms are the recommended model's (here k1 k2: at these pixel sigmas the principal
   // point's sigma, 6.4 px, covers what p1 p2 would move it by).
-  ba::DistortionModel solved;
+  analysis::DistortionModel solved;
   std::array<bool, kNumIntrinsics> free{};
   for (int i = 0; i < kNumIntrinsics; ++i) free[i] = r->free[i];
-  ASSERT_TRUE(ba::DistortionModelOf(free, &solved));
+  ASSERT_TRUE(analysis::DistortionModelOf(free, &solved));
   EXPECT_EQ(solved, r->distortion->recommended) << r->distortion->why;
   for (int i = 0; i < kNumIntrinsics; ++i) {
     if (!r->free[i]) {

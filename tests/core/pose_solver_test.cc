@@ -135,7 +135,7 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
     }
     ASSERT_EQ(s->relative_poses.size(), 10u);  // every pair of the 5 views
     for (const auto& rp : s->relative_poses) {
-      const auto err = ba::CompareRelativePose(rp, p.truth_poses.at(p.views[rp.view_a].id),
+      const auto err = analysis::CompareRelativePose(rp, p.truth_poses.at(p.views[rp.view_a].id),
                                                p.truth_poses.at(p.views[rp.view_b].id));
       rel_nees += err.nees / 6.0;
       ++rel_n;

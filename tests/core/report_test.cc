@@ -7,7 +7,7 @@
 #include <string>
 
 #include "camera/camera.h"
-#include "report/format.h"
+#include "util/format.h"
 #include "report/plots.h"
 #include "report/report_doc.h"
 #include "util/file_util.h"
@@ -70,7 +70,7 @@ TEST(ReportFormatTest, NumbersAndJson) {
   EXPECT_EQ(Fmt("%.2f", 1.234), "1.23");
   EXPECT_EQ(Fmt("%.2f", std::nan("")), "n/a");
   EXPECT_EQ(Fixed(2.0, 1), "2.0");
-  EXPECT_EQ(FullPrecision(0.1), "0.10000000000000001");
+  EXPECT_EQ(FmtRoundTrip(0.1), "0.10000000000000001");
   EXPECT_EQ(FormatNumber(-0.0), "0");
   EXPECT_EQ(FormatNumber(std::nan("")), "nan");
   EXPECT_TRUE(JsonNumber(INFINITY).is_null());

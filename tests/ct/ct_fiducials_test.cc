@@ -1,4 +1,5 @@
 #include "ct/ct_fiducials.h"
+#include "report/ct_fiducials_report.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "ba/relative_pose.h"
+#include "analysis/relative_pose.h"
 
 #include <cmath>
 #include <map>
@@ -7,7 +7,7 @@
 #include "geometry/rotation.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 Pose6 RelativePoseWithJacobian(const Pose6& pose_a,
                                const Pose6& pose_b,
@@ -27,8 +27,8 @@ Pose6 RelativePoseWithJacobian(const Pose6& pose_a,
   return out;
 }
 
-RelativePoseEstimate EstimateRelativePose(const BaResult& result, int view_a, int view_b) {
-  const StateLayout& L = *result.layout;
+RelativePoseEstimate EstimateRelativePose(const ba::BaResult& result, int view_a, int view_b) {
+  const ba::StateLayout& L = *result.layout;
   const int ba = L.view_block(view_a), bb = L.view_block(view_b);
   RelativePoseEstimate e = EstimateRelativePose(Eigen::Map<const Pose6>(result.block(ba)),
                                                 Eigen::Map<const Pose6>(result.block(bb)),
@@ -79,7 +79,7 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
   return e;
 }
 
-std::vector<RelativePoseEstimate> EstimateRelativePoses(const BaResult& result,
+std::vector<RelativePoseEstimate> EstimateRelativePoses(const ba::BaResult& result,
                                                         const std::vector<std::pair<int, int>>& pairs) {
   std::map<int, int> slot;  // view -> position in the joint covariance
   std::vector<int> blocks;
@@ -114,12 +114,12 @@ std::vector<RelativePoseEstimate> EstimateRelativePoses(const BaResult& result,
   return out;
 }
 
-std::vector<std::pair<int, int>> RelativePosePairs(const BaProblem& problem,
+std::vector<std::pair<int, int>> RelativePosePairs(const ba::BaProblem& problem,
                                                    const std::vector<std::pair<int, int>>& validation,
                                                    int max_all) {
   std::vector<int> object;
   for (size_t v = 0; v < problem.views.size(); ++v) {
-    if (problem.views[v].kind == ViewKind::kObject) object.push_back(static_cast<int>(v));
+    if (problem.views[v].kind == ba::ViewKind::kObject) object.push_back(static_cast<int>(v));
   }
   if (static_cast<int>(object.size()) > max_all) return validation;
   std::vector<std::pair<int, int>> pairs;
@@ -150,5 +150,5 @@ RelativePoseError CompareRelativePose(const RelativePoseEstimate& est,
   return out;
 }
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -1,12 +1,12 @@
-// C-arm flex in result.json and the report (joint_problem.h): per-view intrinsics, the smooth
+// C-arm flex in result.json and the report (report/joint_report.h): per-view intrinsics, the smooth
 // model's coefficients, the model selection, the plot's data.
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include "ba/view_intrinsics.h"
-#include "joint/joint_problem.h"
-#include "report/format.h"
+#include "report/joint_report.h"
+#include "util/format.h"
 
 namespace carmba {
 namespace {
@@ -100,7 +100,7 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
                         {"chi2_per_residual", JsonNumber(h.chi2_per_residual)},
                         {"mahalanobis_d2", JsonNumber(h.d2)}});
       }
-      nlohmann::json sj = {{"model", ba::IntrinsicsModelName(sc.model)}, {"ok", sc.ok}};
+      nlohmann::json sj = {{"model", analysis::IntrinsicsModelName(sc.model)}, {"ok", sc.ok}};
       if (!sc.ok) sj["error"] = sc.error;
       sj["num_parameters"] = sc.num_free;
       sj["num_residuals"] = sc.num_residuals;
@@ -112,7 +112,7 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
       sj["held_out"] = held;
       scores.push_back(sj);
     }
-    (*j)["model_selection"] = {{"recommended", ba::IntrinsicsModelName(s.selection->recommended)},
+    (*j)["model_selection"] = {{"recommended", analysis::IntrinsicsModelName(s.selection->recommended)},
                                {"why", s.selection->why},
                                {"used", IntrinsicsModelName(problem)},
                                {"scores", scores}};
@@ -223,10 +223,10 @@ ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& s) {
   rows.clear();
   for (const auto& sc : s.selection->scores) {
     if (!sc.ok) {
-      rows.push_back({ba::IntrinsicsModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
+      rows.push_back({analysis::IntrinsicsModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
       continue;
     }
-    rows.push_back({ba::IntrinsicsModelName(sc.model), std::to_string(sc.num_free),
+    rows.push_back({analysis::IntrinsicsModelName(sc.model), std::to_string(sc.num_free),
                     Fmt("%.1f", sc.chi2), Fmt("%.1f", sc.aic), Fmt("%.1f", sc.bic),
                     Fmt("%.4f", sc.held_out_rms_px), Fmt("%.2f", sc.held_out_d2_mean)});
   }
@@ -239,16 +239,16 @@ ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& s) {
   rows.clear();
   for (const auto& sc : s.selection->scores) {
     if (!sc.ok) continue;
-    std::vector<std::string> row = {ba::IntrinsicsModelName(sc.model)};
+    std::vector<std::string> row = {analysis::IntrinsicsModelName(sc.model)};
     for (const auto& h : sc.held_out) row.push_back(Fmt("%.2f", h.d2));
     row.resize(header.size());
     rows.push_back(row);
   }
   d.Table(header, rows);
   std::string rec = std::string("**Recommended: `") +
-                    ba::IntrinsicsModelName(s.selection->recommended) + "`** -- " +
+                    analysis::IntrinsicsModelName(s.selection->recommended) + "`** -- " +
                     s.selection->why + ".";
-  if (std::string(ba::IntrinsicsModelName(s.selection->recommended)) != IntrinsicsModelName(problem)) {
+  if (std::string(analysis::IntrinsicsModelName(s.selection->recommended)) != IntrinsicsModelName(problem)) {
     rec += std::string(" This solve used `") + IntrinsicsModelName(problem) +
            "` (intrinsics.model in the problem).";
   }

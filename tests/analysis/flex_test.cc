@@ -12,7 +12,7 @@
 #include <random>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/flex_models.h"
+#include "analysis/flex_models.h"
 #include "ba/quantities.h"
 #include "ba/smooth_intrinsics.h"
 #include "synthetic/synthetic_flex.h"
@@ -20,7 +20,7 @@
 #include "camera/camera.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 namespace {
 
 // Analytic and autodiff derivatives of the same expression agree to rounding.
@@ -36,7 +36,7 @@ const std::vector<IntrinsicsModel> kAllModels = {IntrinsicsModel::kShared, Intri
                                                  IntrinsicsModel::kSmooth};
 
 TEST(SmoothIntrinsics, BasisNamesAndMap) {
-  SmoothBasis b;
+  ba::SmoothBasis b;
   b.primary_order = 2;
   b.secondary_degree = 2;
   EXPECT_EQ(b.NumTerms(), 7);
@@ -49,7 +49,7 @@ TEST(SmoothIntrinsics, BasisNamesAndMap) {
   EXPECT_EQ(b.IntrinsicOf(7 * 3 + 5), kCy);
   const std::array<double, kNumIntrinsics> x{2000, 2010, 205, 200, 0.08, 0.01, 0.001, -0.002, 0.003};
   const auto c = b.ConstantCoefficients(x);
-  const auto back = SmoothIntrinsicsAt(b.Map(0.7, -0.3), c.data());
+  const auto back = ba::SmoothIntrinsicsAt(b.Map(0.7, -0.3), c.data());
   for (int i = 0; i < kNumIntrinsics; ++i) EXPECT_DOUBLE_EQ(back[i], x[i]) << i;
   const Eigen::VectorXd phi = b.Evaluate(0.7, -0.3);
   EXPECT_NEAR(phi[3], std::cos(1.4), 1e-15);
@@ -57,7 +57,7 @@ TEST(SmoothIntrinsics, BasisNamesAndMap) {
 }
 
 TEST(SmoothIntrinsics, AnalyticJacobianEqualsAutodiffAndFiniteDifferences) {
-  SmoothBasis b;
+  ba::SmoothBasis b;
   b.primary_order = 2;
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
@@ -71,8 +71,8 @@ TEST(SmoothIntrinsics, AnalyticJacobianEqualsAutodiffAndFiniteDifferences) {
     std::vector<double> pose = {0.2 * u(rng), 0.2 * u(rng), 0.3 * u(rng), 20 * u(rng), 20 * u(rng), 250};
     std::vector<double> p = {60 * u(rng), 60 * u(rng), 10 * u(rng)};
     const double* params[3] = {pose.data(), p.data(), c.data()};
-    SmoothReprojectionError analytic(150, 210, 0.3, A);
-    std::unique_ptr<ceres::CostFunction> twin(SmoothReprojectionErrorAutoDiff::Create(150, 210, 0.3, A));
+    ba::SmoothReprojectionError analytic(150, 210, 0.3, A);
+    std::unique_ptr<ceres::CostFunction> twin(ba::SmoothReprojectionErrorAutoDiff::Create(150, 210, 0.3, A));
     double ra[2], rt[2];
     std::vector<double> Ja[3] = {std::vector<double>(12), std::vector<double>(6),
                                  std::vector<double>(2 * c.size())};
@@ -97,23 +97,23 @@ TEST(SmoothIntrinsics, AnalyticJacobianEqualsAutodiffAndFiniteDifferences) {
 }
 
 TEST(SmoothIntrinsics, SchurCovarianceEqualsCeresAndAnalyticEqualsAutodiff) {
-  SyntheticFlexSpec spec;
+  ba::SyntheticFlexSpec spec;
   spec.plate_views_per_orientation = 2;
-  const SyntheticFlex sf = MakeSyntheticFlex(spec, 2);
-  BaProblem p = sf.problem;
-  ASSERT_TRUE(ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, SmoothBasis(), &p).ok());
-  BaOptions o;
-  auto r = SolveBundleAdjustment(p, o);
+  const ba::SyntheticFlex sf = ba::MakeSyntheticFlex(spec, 2);
+  ba::BaProblem p = sf.problem;
+  ASSERT_TRUE(ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, ba::SmoothBasis(), &p).ok());
+  ba::BaOptions o;
+  auto r = ba::SolveBundleAdjustment(p, o);
   ASSERT_TRUE(r.ok()) << r.status().message();
-  BaOptions oa = o;
+  ba::BaOptions oa = o;
   oa.analytic_jacobians = false;
-  auto ra = SolveBundleAdjustment(p, oa);
+  auto ra = ba::SolveBundleAdjustment(p, oa);
   ASSERT_TRUE(ra.ok()) << ra.status().message();
   EXPECT_NEAR(r->chi2, ra->chi2, 1e-6 * r->chi2);
   const int gb = r->layout->group_block(0);
   const int vb = r->layout->view_block(static_cast<int>(p.views.size()) - 1);
   const Eigen::MatrixXd S = r->Covariance({gb, vb});
-  auto C = CeresBlockCovariance(p, o, *r, {gb, vb}, "dense_svd");
+  auto C = ba::CeresBlockCovariance(p, o, *r, {gb, vb}, "dense_svd");
   ASSERT_TRUE(C.ok()) << C.status().message();
   for (Eigen::Index i = 0; i < S.rows(); ++i) {
     for (Eigen::Index j = 0; j < S.cols(); ++j) {
@@ -125,13 +125,13 @@ TEST(SmoothIntrinsics, SchurCovarianceEqualsCeresAndAnalyticEqualsAutodiff) {
 }
 
 // NEES e^T C^-1 e of a view's fx fy cx cy and of an object view's pose.
-double IntrinsicsNees(const BaProblem& p, const BaResult& r, int v, const std::array<double, 9>& truth) {
-  const ViewIntrinsics vi = IntrinsicsOfView(p, r, v);
+double IntrinsicsNees(const ba::BaProblem& p, const ba::BaResult& r, int v, const std::array<double, 9>& truth) {
+  const ba::ViewIntrinsics vi = ba::IntrinsicsOfView(p, r, v);
   Eigen::Vector4d e;
   for (int i = 0; i < 4; ++i) e[i] = vi.value[i] - truth[i];
   return e.dot(vi.covariance.topLeftCorner<4, 4>().ldlt().solve(e));
 }
-double PoseNees(const BaResult& r, int v, const Pose6& truth) {
+double PoseNees(const ba::BaResult& r, int v, const Pose6& truth) {
   const int b = r.layout->view_block(v);
   Eigen::Matrix<double, 6, 1> e;
   for (int i = 0; i < 6; ++i) e[i] = r.block(b)[i] - truth[i];
@@ -146,24 +146,24 @@ struct FlexMc {
 
 FlexMc RunFlexMonteCarlo(IntrinsicsModel m, const CarmFlex& flex, int trials) {
   FlexMc mc;
-  SyntheticFlexSpec spec;
+  ba::SyntheticFlexSpec spec;
   spec.flex = flex;
   for (int t = 0; t < trials; ++t) {
-    const SyntheticFlex sf = MakeSyntheticFlex(spec, 100 + t);
-    BaProblem p = sf.problem;
-    EXPECT_TRUE(ApplyIntrinsicsModel(m, SmoothBasis(), &p).ok());
-    auto r = SolveBundleAdjustment(p, BaOptions());
+    const ba::SyntheticFlex sf = ba::MakeSyntheticFlex(spec, 100 + t);
+    ba::BaProblem p = sf.problem;
+    EXPECT_TRUE(ApplyIntrinsicsModel(m, ba::SmoothBasis(), &p).ok());
+    auto r = ba::SolveBundleAdjustment(p, ba::BaOptions());
     EXPECT_TRUE(r.ok()) << r.status().message();
     if (!r.ok()) continue;
     for (size_t v = 0; v < p.views.size(); ++v) {
       const int vi = static_cast<int>(v);
       const double n = IntrinsicsNees(p, *r, vi, sf.true_intrinsics[v]);
-      const ViewIntrinsics x = IntrinsicsOfView(p, *r, vi);
+      const ba::ViewIntrinsics x = ba::IntrinsicsOfView(p, *r, vi);
       for (int i = 0; i < 4; ++i) {
         mc.intr_within3 += std::abs(x.value[i] - sf.true_intrinsics[v][i]) < 3 * std::sqrt(x.covariance(i, i));
         ++mc.n_comp;
       }
-      if (p.views[v].kind == ViewKind::kPlate) {
+      if (p.views[v].kind == ba::ViewKind::kPlate) {
         mc.intr_nees_calibrated += n, ++mc.n_cal;
       } else if (sf.between[v]) {
         mc.intr_nees_between += n;
@@ -209,14 +209,14 @@ TEST(FlexMonteCarlo, SmoothIsConsistentSharedIsNot) {
 }
 
 TEST(FlexSelection, FlexingPicksAModelOfTheFlexRigidPicksShared) {
-  BaOptions o;
+  ba::BaOptions o;
   for (uint64_t seed : {3, 4}) {
-    SyntheticFlexSpec spec;
-    auto flexing = SelectIntrinsicsModel(MakeSyntheticFlex(spec, seed).problem, SmoothBasis(), o, kAllModels);
+    ba::SyntheticFlexSpec spec;
+    auto flexing = SelectIntrinsicsModel(ba::MakeSyntheticFlex(spec, seed).problem, ba::SmoothBasis(), o, kAllModels);
     ASSERT_TRUE(flexing.ok()) << flexing.status().message();
     EXPECT_EQ(flexing->recommended, IntrinsicsModel::kSmooth) << flexing->why;
     spec.flex = CarmFlex();
-    auto rigid = SelectIntrinsicsModel(MakeSyntheticFlex(spec, seed).problem, SmoothBasis(), o, kAllModels);
+    auto rigid = SelectIntrinsicsModel(ba::MakeSyntheticFlex(spec, seed).problem, ba::SmoothBasis(), o, kAllModels);
     ASSERT_TRUE(rigid.ok()) << rigid.status().message();
     EXPECT_EQ(rigid->recommended, IntrinsicsModel::kShared) << rigid->why;
     ASSERT_EQ(rigid->scores.size(), 3u);
@@ -230,32 +230,32 @@ TEST(FlexSelection, FlexingPicksAModelOfTheFlexRigidPicksShared) {
 }
 
 TEST(FlexBadInput, TooFewOrientationsAndViewsWithoutAngles) {
-  SyntheticFlexSpec spec;
+  ba::SyntheticFlexSpec spec;
   spec.plate_orientations_deg = {{-45, 0}, {0, 0}, {45, 0}};
-  BaProblem p = MakeSyntheticFlex(spec, 1).problem;
-  Status s = ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, SmoothBasis(), &p);
+  ba::BaProblem p = ba::MakeSyntheticFlex(spec, 1).problem;
+  Status s = ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, ba::SmoothBasis(), &p);
   EXPECT_EQ(s.message(),
             "intrinsics group 'smooth': model smooth has 4 coefficients per intrinsic (Fourier "
             "order 1 in the primary angle, degree 1 in the secondary) but the plate views cover 3 "
             "orientation group(s); it needs at least 4");
   spec.plate_orientations_deg = {{-45, 0}, {0, 0}, {45, 0}, {90, 0}};
-  p = MakeSyntheticFlex(spec, 1).problem;
-  s = ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, SmoothBasis(), &p);
+  p = ba::MakeSyntheticFlex(spec, 1).problem;
+  s = ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, ba::SmoothBasis(), &p);
   EXPECT_NE(s.message().find("distinct secondary angles (have 1)"), std::string::npos) << s.message();
 
-  BaProblem q = MakeSyntheticFlex(SyntheticFlexSpec(), 1).problem;
+  ba::BaProblem q = ba::MakeSyntheticFlex(ba::SyntheticFlexSpec(), 1).problem;
   q.views[3].has_angles = false;
   for (IntrinsicsModel m : {IntrinsicsModel::kPerGroup, IntrinsicsModel::kSmooth}) {
-    BaProblem r = q;
-    s = ApplyIntrinsicsModel(m, SmoothBasis(), &r);
+    ba::BaProblem r = q;
+    s = ApplyIntrinsicsModel(m, ba::SmoothBasis(), &r);
     EXPECT_EQ(s.message(), "view '" + q.views[3].id + "' has no C-arm angles; intrinsics model " +
                                IntrinsicsModelName(m) +
                                " needs them (DICOM positioner angles, or angles: views.csv)");
   }
-  BaProblem r = q;
-  EXPECT_TRUE(ApplyIntrinsicsModel(IntrinsicsModel::kShared, SmoothBasis(), &r).ok());
+  ba::BaProblem r = q;
+  EXPECT_TRUE(ApplyIntrinsicsModel(IntrinsicsModel::kShared, ba::SmoothBasis(), &r).ok());
   // The engine's own check, for a problem built by hand.
-  BaProblem h = MakeSyntheticFlex(SyntheticFlexSpec(), 1).problem;
+  ba::BaProblem h = ba::MakeSyntheticFlex(ba::SyntheticFlexSpec(), 1).problem;
   h.groups[0].smooth = true;
   h.views[0].has_angles = false;
   EXPECT_NE(h.Check().message().find("has no C-arm angles, but its intrinsics group 'shared' is smooth"),
@@ -264,5 +264,5 @@ TEST(FlexBadInput, TooFewOrientationsAndViewsWithoutAngles) {
 }
 
 }  // namespace
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -1,4 +1,4 @@
-#include "track/track_output.h"
+#include "report/track_report.h"
 
 #include <ceres/rotation.h>
 
@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "geometry/rotation.h"
-#include "report/format.h"
+#include "util/format.h"
 #include "util/base64.h"
 #include "util/file_util.h"
 

@@ -29,7 +29,7 @@
 #include "geometry/pose.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 // rel = cam_b_from_cam_a of pose_a = cam_a_from_object and pose_b = cam_b_from_object (6 each).
 template <typename T>
@@ -71,7 +71,7 @@ struct RelativePoseEstimate {
 
 // The relative pose of object views `view_a`, `view_b` (problem indices) of a solved result with
 // a covariance (scaled by its covariance_scale).
-RelativePoseEstimate EstimateRelativePose(const BaResult& result, int view_a, int view_b);
+RelativePoseEstimate EstimateRelativePose(const ba::BaResult& result, int view_a, int view_b);
 // The same from the two poses and their joint 12x12 covariance (a's block first), e.g. blocks of
 // a joint covariance of all poses computed once.
 RelativePoseEstimate EstimateRelativePose(const Pose6& pose_a,
@@ -85,12 +85,12 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pose_a,
 
 // The relative poses of `pairs` (problem view indices), with the covariance of all the views
 // involved computed once.
-std::vector<RelativePoseEstimate> EstimateRelativePoses(const BaResult& result,
+std::vector<RelativePoseEstimate> EstimateRelativePoses(const ba::BaResult& result,
                                                         const std::vector<std::pair<int, int>>& pairs);
 
 // The pairs a report shows: every pair of object views when there are at most `max_all` of them,
 // else `validation` (view index pairs) alone.
-std::vector<std::pair<int, int>> RelativePosePairs(const BaProblem& problem,
+std::vector<std::pair<int, int>> RelativePosePairs(const ba::BaProblem& problem,
                                                    const std::vector<std::pair<int, int>>& validation,
                                                    int max_all = 10);
 
@@ -109,5 +109,5 @@ RelativePoseError CompareRelativePose(const RelativePoseEstimate& estimate,
                                       const Pose6& true_cam_a_from_object,
                                       const Pose6& true_cam_b_from_object);
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -36,13 +36,13 @@
 #include "util/status.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 enum class IntrinsicsModel { kShared, kPerGroup, kSmooth };
 const char* IntrinsicsModelName(IntrinsicsModel m);
 
 // The plate views' orientation groups: distinct angle pairs (deg), in order of first appearance.
-std::vector<std::pair<double, double>> PlateOrientations(const BaProblem& problem);
+std::vector<std::pair<double, double>> PlateOrientations(const ba::BaProblem& problem);
 // "p+045 s-025"
 std::string OrientationName(double primary_deg, double secondary_deg);
 
@@ -50,7 +50,7 @@ std::string OrientationName(double primary_deg, double secondary_deg);
 // free mask, image size) and sets every view's group. Errors: a view without angles under
 // per_group or smooth (naming it), a smooth model with fewer orientation groups than
 // coefficients (naming the counts; ba/problem.h Check).
-Status ApplyIntrinsicsModel(IntrinsicsModel model, const SmoothBasis& basis, BaProblem* problem);
+Status ApplyIntrinsicsModel(IntrinsicsModel model, const ba::SmoothBasis& basis, ba::BaProblem* problem);
 
 struct HeldOutGroup {
   std::string orientation;
@@ -77,10 +77,10 @@ struct ModelSelection {
 };
 
 // `problem`: views with angles (object views are ignored: the selection uses the plate views).
-StatusOr<ModelSelection> SelectIntrinsicsModel(const BaProblem& problem,
-                                               const SmoothBasis& basis,
-                                               const BaOptions& options,
+StatusOr<ModelSelection> SelectIntrinsicsModel(const ba::BaProblem& problem,
+                                               const ba::SmoothBasis& basis,
+                                               const ba::BaOptions& options,
                                                const std::vector<IntrinsicsModel>& models);
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -1,14 +1,14 @@
-#include "ba/tre.h"
+#include "analysis/tre.h"
 
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
 
-#include "ba/triangulation.h"
+#include "analysis/triangulation.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 double FitzpatrickTre2(const std::vector<Eigen::Vector3d>& fid,
                        const Eigen::Vector3d& target,
@@ -40,31 +40,31 @@ double FitzpatrickTre2(const std::vector<Eigen::Vector3d>& fid,
 namespace {
 
 // The problem with the full solve's rejections removed and its solution as initial values.
-BaProblem AtTheSolution(const BaProblem& problem, const BaResult& full) {
-  const StateLayout& L = *full.layout;
-  BaProblem base = problem;
+ba::BaProblem AtTheSolution(const ba::BaProblem& problem, const ba::BaResult& full) {
+  const ba::StateLayout& L = *full.layout;
+  ba::BaProblem base = problem;
   for (size_t g = 0; g < base.groups.size(); ++g) {
     const double* x = full.block(L.group_block(static_cast<int>(g)));
     std::copy(x, x + kNumIntrinsics, base.groups[g].initial.begin());
   }
   for (size_t v = 0; v < base.views.size(); ++v) {
-    BaView& view = base.views[v];
+    ba::BaView& view = base.views[v];
     view.initial = Eigen::Map<const Pose6>(full.block(L.view_block(static_cast<int>(v))));
     if (v < full.dropped.size() && !full.dropped[v].empty()) {
       std::vector<char> keep(view.point_ids.size());
       for (size_t i = 0; i < keep.size(); ++i) keep[i] = !full.dropped[v][i];
-      view = KeepObservations(view, keep);
+      view = ba::KeepObservations(view, keep);
     }
   }
   return base;
 }
 
 // Marker m's pixels in the object views, with their covariances.
-std::vector<PixelObservation> MarkerPixels(const BaProblem& base, size_t m) {
+std::vector<PixelObservation> MarkerPixels(const ba::BaProblem& base, size_t m) {
   std::vector<PixelObservation> obs;
   for (size_t v = 0; v < base.views.size(); ++v) {
-    const BaView& view = base.views[v];
-    if (view.kind != ViewKind::kObject) continue;
+    const ba::BaView& view = base.views[v];
+    if (view.kind != ba::ViewKind::kObject) continue;
     for (size_t i = 0; i < view.point_ids.size(); ++i) {
       if (view.point_ids[i] != base.markers[m].id) continue;
       PixelObservation o;
@@ -79,8 +79,8 @@ std::vector<PixelObservation> MarkerPixels(const BaProblem& base, size_t m) {
 
 // The fiducial localisation errors: the CT's (mean trace of the markers' covariances) and the
 // X-ray's (mean trace of each marker's pixel-only triangulation with the full solve), squared.
-void FiducialLocalisationErrors(const BaProblem& base,
-                                const BaResult& full,
+void FiducialLocalisationErrors(const ba::BaProblem& base,
+                                const ba::BaResult& full,
                                 const std::vector<std::vector<PixelObservation>>& obs_of,
                                 double* fle_ct2,
                                 double* fle_xray2) {
@@ -103,18 +103,18 @@ void FiducialLocalisationErrors(const BaProblem& base,
 
 // The problem without marker m: the marker gone, object views left with fewer than 4 other
 // markers left out (counted in row->num_views_left_out); `obs` mapped to the reduced views.
-BaProblem WithoutMarker(const BaProblem& base, size_t m, std::vector<PixelObservation>* obs, MarkerTre* row) {
+ba::BaProblem WithoutMarker(const ba::BaProblem& base, size_t m, std::vector<PixelObservation>* obs, MarkerTre* row) {
   const int id = base.markers[m].id;
-  BaProblem reduced = base;
+  ba::BaProblem reduced = base;
   reduced.markers.erase(reduced.markers.begin() + static_cast<long>(m));
   reduced.views.clear();
   std::map<int, int> reduced_index;  // base view index -> reduced
   for (size_t v = 0; v < base.views.size(); ++v) {
-    BaView view = base.views[v];
-    if (view.kind == ViewKind::kObject) {
+    ba::BaView view = base.views[v];
+    if (view.kind == ba::ViewKind::kObject) {
       std::vector<char> keep(view.point_ids.size());
       for (size_t i = 0; i < keep.size(); ++i) keep[i] = view.point_ids[i] != id;
-      const BaView kept = KeepObservations(view, keep);
+      const ba::BaView kept = ba::KeepObservations(view, keep);
       if (kept.point_ids.size() < 4) {
         ++row->num_views_left_out;
         continue;
@@ -144,14 +144,14 @@ struct TreSums {
 // Marker m left out: the solve without it, its triangulation from that solve against its CT
 // position, the predicted errors and Fitzpatrick's, added to `sums`. row.skipped says why when it
 // cannot be.
-MarkerTre LeaveOut(const BaProblem& base, size_t m, std::vector<PixelObservation> obs,
-                   const BaOptions& options, double fle2, TreSums* sums) {
+MarkerTre LeaveOut(const ba::BaProblem& base, size_t m, std::vector<PixelObservation> obs,
+                   const ba::BaOptions& options, double fle2, TreSums* sums) {
   MarkerTre row;
-  const BaMarker& marker = base.markers[m];
+  const ba::BaMarker& marker = base.markers[m];
   row.marker_id = marker.id;
   row.p_ct = marker.p_ct;
   row.ct_covariance = marker.covariance;
-  const BaProblem reduced = WithoutMarker(base, m, &obs, &row);
+  const ba::BaProblem reduced = WithoutMarker(base, m, &obs, &row);
   row.num_views = static_cast<int>(obs.size());
   if (obs.size() < 2) {
     row.skipped = "seen in " + std::to_string(obs.size()) + " view(s) of the solve without it" +
@@ -166,7 +166,7 @@ MarkerTre LeaveOut(const BaProblem& base, size_t m, std::vector<PixelObservation
     row.skipped = "the solve without it is not possible: " + check.message();
     return row;
   }
-  auto r = SolveBundleAdjustment(reduced, options);
+  auto r = ba::SolveBundleAdjustment(reduced, options);
   if (!r.ok()) {
     row.skipped = "the solve without it failed: " + r.status().message();
     return row;
@@ -190,7 +190,7 @@ MarkerTre LeaveOut(const BaProblem& base, size_t m, std::vector<PixelObservation
   row.predicted_tre_mm = std::sqrt(row.covariance.trace());
   row.mahalanobis2 = e.dot(C.ldlt().solve(e));
   std::vector<Eigen::Vector3d> fid;
-  for (const BaMarker& o : reduced.markers) fid.push_back(o.p_ct);
+  for (const ba::BaMarker& o : reduced.markers) fid.push_back(o.p_ct);
   const double tre_f2 = FitzpatrickTre2(fid, row.p_ct, fle2);
   row.fitzpatrick_tre_mm = std::sqrt(tre_f2);
   row.fitzpatrick_rms_mm = std::sqrt(tre_f2 + row.covariance_pixels.trace() + row.ct_covariance.trace());
@@ -220,22 +220,22 @@ void TreSummary(const TreSums& sums, TreResult* out) {
 
 }  // namespace
 
-StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
-                                      const BaResult& full,
-                                      const BaOptions& options_in) {
+StatusOr<TreResult> LeaveOneMarkerOut(const ba::BaProblem& problem,
+                                      const ba::BaResult& full,
+                                      const ba::BaOptions& options_in) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!full.covariance) return Status::Error("leave-one-marker-out: the solve has no covariance");
   if (!problem.rigs.empty()) return Status::Error("leave-one-marker-out: a problem with rigs is not supported");
-  for (const IntrinsicsGroup& g : problem.groups) {
+  for (const ba::IntrinsicsGroup& g : problem.groups) {
     if (g.smooth) {
       return Status::Error("leave-one-marker-out: group '" + g.name +
                            "' has angle-dependent (smooth) intrinsics, which the TRE does not support");
     }
   }
-  BaOptions options = options_in;
+  ba::BaOptions options = options_in;
   options.reject_sigma = 0;
   options.compute_covariance = true;
-  const BaProblem base = AtTheSolution(problem, full);
+  const ba::BaProblem base = AtTheSolution(problem, full);
   std::vector<std::vector<PixelObservation>> obs_of;
   for (size_t m = 0; m < base.markers.size(); ++m) obs_of.push_back(MarkerPixels(base, m));
   TreResult out;
@@ -253,5 +253,5 @@ StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
   return out;
 }
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

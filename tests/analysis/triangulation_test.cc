@@ -18,21 +18,21 @@
 #include <random>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/relative_pose.h"
+#include "analysis/relative_pose.h"
 #include "synthetic/synthetic_joint.h"
-#include "ba/tre.h"
-#include "ba/triangulation.h"
-#include "synthetic_pixels.h"
+#include "analysis/tre.h"
+#include "analysis/triangulation.h"
+#include "ba/synthetic_pixels.h"
 #include "geometry/rotation.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 namespace {
 
 constexpr double kTriNeesLow = 0.8, kTriNeesHigh = 1.25;  // the band
 
-SyntheticJointSpec TriangulationSpec() {
-  SyntheticJointSpec s;
+ba::SyntheticJointSpec TriangulationSpec() {
+  ba::SyntheticJointSpec s;
   s.num_plate_views = 10;
   s.intrinsics_prior = true;
   return s;
@@ -74,15 +74,15 @@ TEST(RelativePose, JacobianMatchesCentralDifferences) {
 
 TEST(RelativePose, MonteCarloNeesAndThreeSigma) {
   constexpr int kTrials = 200;
-  const SyntheticJoint ref = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 0);
+  const ba::SyntheticJoint ref = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 0);
   const auto pairs = RelativePosePairs(ref.problem, ref.pairs);
   ASSERT_EQ(pairs.size(), 21u);  // 7 object views: all pairs
   std::vector<double> nees(pairs.size(), 0.0);
   int within3 = 0, total = 0;
   double worst_sigma = 0, us = 0, us_batch = 0;
   for (int t = 0; t < kTrials; ++t) {
-    const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 7000 + t);
-    auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+    const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 7000 + t);
+    auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
     ASSERT_TRUE(r.ok()) << r.status().message();
     const auto tb = std::chrono::steady_clock::now();
     const auto batch = EstimateRelativePoses(*r, pairs);
@@ -128,7 +128,7 @@ TEST(RelativePose, MonteCarloNeesAndThreeSigma) {
 // A point away from the markers (an instrument tip), projected through the TRUE camera.
 const Eigen::Vector3d kTip(-30.0, 10.0, 80.0);
 
-std::vector<PixelObservation> TipPixels(const SyntheticJoint& sj,
+std::vector<PixelObservation> TipPixels(const ba::SyntheticJoint& sj,
                                         const std::vector<int>& views,
                                         double sigma_px,
                                         std::mt19937_64* rng) {
@@ -140,15 +140,15 @@ TEST(Triangulation, MonteCarloNees) {
   constexpr double kTipSigmaPx = 0.3;
   for (const bool two_views : {true, false}) {
     double nees = 0;
-    std::array<double, kNumSources> share{};
+    std::array<double, ba::kNumSources> share{};
     double share_pixels = 0;
     std::mt19937_64 rng(42);
     double us = 0;
     int flagged = 0;
     double chi2_per_dof = 0;
     for (int t = 0; t < kTrials; ++t) {
-      const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 9000 + t);
-      auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+      const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 9000 + t);
+      auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
       ASSERT_TRUE(r.ok()) << r.status().message();
       std::vector<int> views = ObjectViews(sj.problem);
       if (two_views) views = {views[0], views[4]};  // 0 and 90 degrees
@@ -164,7 +164,7 @@ TEST(Triangulation, MonteCarloNees) {
       const Eigen::Vector3d e = tp->p_in_object - kTip;
       nees += e.dot(tp->covariance.ldlt().solve(e)) / 3.0;
       const double tr = tp->covariance.trace();
-      for (int s = 0; s < kNumSources; ++s) share[s] += tp->solve_trace_by_source[s] / tr / kTrials;
+      for (int s = 0; s < ba::kNumSources; ++s) share[s] += tp->solve_trace_by_source[s] / tr / kTrials;
       share_pixels += tp->covariance_pixels.trace() / tr / kTrials;
     }
     nees /= kTrials;
@@ -186,8 +186,8 @@ TEST(Triangulation, MonteCarloNees) {
 // its covariance of the truth; with two rays it cannot be told which is wrong, and the point is
 // flagged instead of reported silently.
 TEST(Triangulation, AMisclickedRayIsRejectedOrFlagged) {
-  const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 31337);
-  auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+  const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 31337);
+  auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
   ASSERT_TRUE(r.ok()) << r.status().message();
   std::mt19937_64 rng(5);
   const std::vector<int> views = ObjectViews(sj.problem);
@@ -225,14 +225,14 @@ TEST(Triangulation, EachSourceAloneMatchesItsShare) {
   // share (plate pixels, intrinsics prior) is small here -- the per-view poses absorb most of an
   // intrinsics error (shared/notes/joint-ba.md) -- and is checked like the others.
   constexpr int kTrials = 150;
-  const Source sources[] = {Source::kPlatePixels, Source::kObjectPixels, Source::kCt,
-                            Source::kIntrinsicsPrior};
-  for (Source src : sources) {
+  const ba::Source sources[] = {ba::Source::kPlatePixels, ba::Source::kObjectPixels, ba::Source::kCt,
+                            ba::Source::kIntrinsicsPrior};
+  for (ba::Source src : sources) {
     double e2 = 0, predicted = 0;
     std::mt19937_64 rng(7);
     for (int t = 0; t < kTrials; ++t) {
-      const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches::Only(src), 20000 + t);
-      auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+      const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches::Only(src), 20000 + t);
+      auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
       ASSERT_TRUE(r.ok()) << r.status().message();
       const std::vector<int> views = ObjectViews(sj.problem);
       auto tp = TriangulatePoint(sj.problem, *r, TipPixels(sj, {views[0], views[4]}, 0.0, &rng));
@@ -242,9 +242,9 @@ TEST(Triangulation, EachSourceAloneMatchesItsShare) {
     }
     const double ratio = e2 / predicted;
     std::printf("tip error from %s alone: mean squared error / predicted share = %.3f (RMS %.4f mm)\n",
-                SourceName(src), ratio, std::sqrt(e2 / kTrials));
-    EXPECT_GE(ratio, kTriNeesLow) << SourceName(src);
-    EXPECT_LE(ratio, kTriNeesHigh) << SourceName(src);
+                ba::SourceName(src), ratio, std::sqrt(e2 / kTrials));
+    EXPECT_GE(ratio, kTriNeesLow) << ba::SourceName(src);
+    EXPECT_LE(ratio, kTriNeesHigh) << ba::SourceName(src);
   }
 }
 
@@ -255,8 +255,8 @@ TEST(Triangulation, CovarianceIgnoringTheSolveIsTooSmall) {
   double nees_pixels = 0;
   std::mt19937_64 rng(43);
   for (int t = 0; t < kTrials; ++t) {
-    const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 11000 + t);
-    auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+    const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 11000 + t);
+    auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
     ASSERT_TRUE(r.ok());
     const std::vector<int> views = ObjectViews(sj.problem);
     auto tp = TriangulatePoint(sj.problem, *r, TipPixels(sj, {views[0], views[4]}, 0.05, &rng));
@@ -269,8 +269,8 @@ TEST(Triangulation, CovarianceIgnoringTheSolveIsTooSmall) {
 }
 
 TEST(Triangulation, BadInput) {
-  const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 1);
-  auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+  const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 1);
+  auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
   ASSERT_TRUE(r.ok());
   const std::vector<int> views = ObjectViews(sj.problem);
   std::mt19937_64 rng(1);
@@ -322,8 +322,8 @@ TEST(Triangulation, BadInput) {
   }
   {
     // Two views with the same pose: parallel rays, an error.
-    BaProblem p = sj.problem;
-    BaResult same = *r;
+    ba::BaProblem p = sj.problem;
+    ba::BaResult same = *r;
     const int b0 = same.layout->view_block(views[0]), b1 = same.layout->view_block(views[1]);
     std::copy(same.block(b0), same.block(b0) + 6, same.state.data() + same.layout->block(b1).offset);
     auto par = obs;
@@ -355,10 +355,10 @@ TEST(LeaveOneMarkerOut, MonteCarloMeanSquaredErrorOverPredicted) {
   int n = 0;
   double time_s = 0;
   for (int t = 0; t < kTrials; ++t) {
-    const SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 13000 + t);
-    auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+    const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 13000 + t);
+    auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
     ASSERT_TRUE(r.ok());
-    auto tre = LeaveOneMarkerOut(sj.problem, *r, BaOptions());
+    auto tre = LeaveOneMarkerOut(sj.problem, *r, ba::BaOptions());
     ASSERT_TRUE(tre.ok()) << tre.status().message();
     ASSERT_EQ(tre->num_evaluated, 9);
     time_s += tre->time_s;
@@ -388,15 +388,15 @@ TEST(LeaveOneMarkerOut, MonteCarloMeanSquaredErrorOverPredicted) {
 
 TEST(LeaveOneMarkerOut, FourMarkersPerViewAreSkippedWithTheReason) {
   // Views with four markers: leaving one out leaves three, so every view drops out of the solve.
-  SyntheticJoint sj = MakeSyntheticJoint(TriangulationSpec(), NoiseSwitches(), 3);
+  ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 3);
   for (auto& v : sj.problem.views) {
-    if (v.kind != ViewKind::kObject) continue;
+    if (v.kind != ba::ViewKind::kObject) continue;
     v.point_ids.resize(4);
     v.uv_px.resize(4);
   }
-  auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+  auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
   ASSERT_TRUE(r.ok()) << r.status().message();
-  auto tre = LeaveOneMarkerOut(sj.problem, *r, BaOptions());
+  auto tre = LeaveOneMarkerOut(sj.problem, *r, ba::BaOptions());
   ASSERT_TRUE(tre.ok());
   EXPECT_EQ(tre->num_evaluated, 0);
   EXPECT_EQ(tre->markers[0].skipped,
@@ -406,5 +406,5 @@ TEST(LeaveOneMarkerOut, FourMarkersPerViewAreSkippedWithTheReason) {
 }
 
 }  // namespace
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

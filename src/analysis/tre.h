@@ -3,7 +3,7 @@
 // For each marker k of a solved problem: solve the problem again without marker k (its CT prior
 // and all its observations gone; an object view left with fewer than 4 markers is left out of
 // that solve; observations the full solve rejected stay out), triangulate marker k from its
-// pixels in the remaining object views (ba/triangulation.h: the reduced solve's poses and
+// pixels in the remaining object views (analysis/triangulation.h: the reduced solve's poses and
 // intrinsics, with their covariance), and compare with its CT position:
 //   e_k = p_triangulated - p_ct.
 // What the covariance predicts, independently of the reduced solve (marker k is in neither its
@@ -19,7 +19,7 @@
 // from pixel noise alone (the full solve's poses held). To compare with |e_k| the target's own
 // localisation is added: fitzpatrick_rms_mm = sqrt(TRE_F^2 + tr(C_pixels,k) + tr(C_ct,k)).
 // With a considered calibration (held intrinsics with a covariance) C_tri includes its part
-// (ba/triangulation.h), also given on its own (covariance_calibration).
+// (analysis/triangulation.h), also given on its own (covariance_calibration).
 #pragma once
 
 #include <Eigen/Dense>
@@ -30,7 +30,7 @@
 #include "util/status.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 // Fitzpatrick's <TRE^2> (mm^2) at `target` for `fiducials` (>= 3, not collinear) and <FLE^2>
 // (mm^2, 3-D). Returns NaN for fewer than 3 fiducials or a collinear layout.
@@ -72,9 +72,9 @@ struct TreResult {
 // `options` as for the full solve (its reject_sigma is not used: the full solve's rejections are
 // kept). Errors: the full result has no covariance. A marker that cannot be evaluated (seen in
 // fewer than two views, a reduced problem the engine refuses) is listed with the reason.
-StatusOr<TreResult> LeaveOneMarkerOut(const BaProblem& problem,
-                                      const BaResult& full,
-                                      const BaOptions& options);
+StatusOr<TreResult> LeaveOneMarkerOut(const ba::BaProblem& problem,
+                                      const ba::BaResult& full,
+                                      const ba::BaOptions& options);
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -43,7 +43,7 @@
 #include "util/status.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 struct PixelObservation {
   int view = 0;                       // problem view index (an object view)
@@ -66,7 +66,7 @@ struct TriangulatedPoint {
   Eigen::Matrix3d covariance_calibration = Eigen::Matrix3d::Zero();  // considered calibration
   // Variance (trace, mm^2) of the solve's and the calibration's parts by noise source
   // (ba/problem.h Source order; kCalibration is covariance_calibration's trace).
-  std::array<double, kNumSources> solve_trace_by_source{};
+  std::array<double, ba::kNumSources> solve_trace_by_source{};
   double max_ray_angle_deg = 0;     // widest angle between two of the rays
   // q_i(X) - z_i, per observation as given (rejected ones too, against the final point).
   std::vector<Eigen::Vector2d> residual_px;
@@ -83,10 +83,10 @@ struct TriangulatedPoint {
 // "far outside the markers" (a warning).
 constexpr double kOutsideMarkersFactor = 2.0;
 
-StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
-                                             const BaResult& result,
+StatusOr<TriangulatedPoint> TriangulatePoint(const ba::BaProblem& problem,
+                                             const ba::BaResult& result,
                                              const std::vector<PixelObservation>& observations,
                                              const TriangulationOptions& options = {});
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -1,4 +1,4 @@
-#include "ba/triangulation.h"
+#include "analysis/triangulation.h"
 
 #include <cmath>
 #include <cstdio>
@@ -7,11 +7,11 @@
 #include "ba/quantities.h"
 #include "camera/camera_model.h"
 #include "geometry/rotation.h"
-#include "util/number_format.h"
+#include "util/format.h"
 #include "util/stats.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 bool TriangulationOptions::Check(std::string* error) const {
   if (!(min_ray_angle_deg >= 0 && min_ray_angle_deg < 90)) {
@@ -29,19 +29,19 @@ namespace {
 
 // Each observation's ray in the object frame: origin = the source -R^T t, direction
 // R^T (x, y, 1) normalised. Errors name the view that cannot give one.
-Status ObjectRays(const BaProblem& problem,
-                  const BaResult& result,
+Status ObjectRays(const ba::BaProblem& problem,
+                  const ba::BaResult& result,
                   const std::vector<PixelObservation>& obs,
                   std::vector<Eigen::Vector3d>* origin,
                   std::vector<Eigen::Vector3d>* dir) {
-  const StateLayout& L = *result.layout;
+  const ba::StateLayout& L = *result.layout;
   std::set<int> seen;
   for (const auto& o : obs) {
     if (o.view < 0 || o.view >= static_cast<int>(problem.views.size())) {
       return Status::Error("view index " + std::to_string(o.view) + " is not in the problem");
     }
-    const BaView& v = problem.views[o.view];
-    if (v.kind != ViewKind::kObject) {
+    const ba::BaView& v = problem.views[o.view];
+    if (v.kind != ba::ViewKind::kObject) {
       return Status::Error("view '" + v.id + "' is a plate view: points are triangulated in object views");
     }
     if (!seen.insert(o.view).second) return Status::Error("view '" + v.id + "' is given twice");
@@ -101,19 +101,19 @@ Eigen::Vector3d RayMidpoint(const std::vector<Eigen::Vector3d>& origin, const st
 
 // The normal equations of the point's pixel residuals at p (whitened by each pixel covariance):
 // N = sum J^T W J, g = sum J^T W r and the cost r^T W r.
-Status PointNormalEquations(const BaProblem& problem,
-                            const BaResult& result,
+Status PointNormalEquations(const ba::BaProblem& problem,
+                            const ba::BaResult& result,
                             const std::vector<PixelObservation>& obs,
                             const Eigen::Vector3d& p,
                             Eigen::Matrix3d* N,
                             Eigen::Vector3d* g,
                             double* cost) {
-  const StateLayout& L = *result.layout;
+  const ba::StateLayout& L = *result.layout;
   N->setZero();
   g->setZero();
   *cost = 0;
   for (const auto& o : obs) {
-    const BaView& v = problem.views[o.view];
+    const ba::BaView& v = problem.views[o.view];
     double uv[2], Jp[6];
     if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
                              p.data(), uv, nullptr, nullptr, Jp)) {
@@ -131,8 +131,8 @@ Status PointNormalEquations(const BaProblem& problem,
 
 // Gauss-Newton in pixels from X, halving a step while it does not lower the cost (far from the
 // optimum only); N: the normal matrix at the result.
-Status RefineInPixels(const BaProblem& problem,
-                      const BaResult& result,
+Status RefineInPixels(const ba::BaProblem& problem,
+                      const ba::BaResult& result,
                       const std::vector<PixelObservation>& obs,
                       int max_iterations,
                       Eigen::Vector3d* X,
@@ -167,12 +167,12 @@ struct StackedPointJacobians {
   Eigen::VectorXd rs;
 };
 
-StackedPointJacobians StackPointJacobians(const BaProblem& problem,
-                                          const BaResult& result,
+StackedPointJacobians StackPointJacobians(const ba::BaProblem& problem,
+                                          const ba::BaResult& result,
                                           const std::vector<PixelObservation>& obs,
                                           const Eigen::Vector3d& X,
                                           TriangulatedPoint* out) {
-  const StateLayout& L = *result.layout;
+  const ba::StateLayout& L = *result.layout;
   StackedPointJacobians s;
   s.K = Eigen::MatrixXd::Zero(3, L.num_free());
   s.Kc = Eigen::MatrixXd::Zero(3, L.num_consider());
@@ -185,7 +185,7 @@ StackedPointJacobians StackPointJacobians(const BaProblem& problem,
   int oi = 0;
   double ss = 0;
   for (const auto& o : obs) {
-    const BaView& v = problem.views[o.view];
+    const ba::BaView& v = problem.views[o.view];
     const int gb = L.group_block(v.group), vb = L.view_block(o.view);
     double uv[2], Ji[2 * kNumIntrinsics], Jpose[12], Jp[6];
     ProjectPointWithJac(result.block(gb), result.block(vb), X.data(), uv, Ji, Jpose, Jp);
@@ -197,17 +197,17 @@ StackedPointJacobians StackPointJacobians(const BaProblem& problem,
     const Eigen::Matrix<double, 3, kNumIntrinsics, Eigen::RowMajor> Ki = JW * Bi;
     const Eigen::Matrix<double, 3, 6, Eigen::RowMajor> Kp = JW * Bp;
     for (int row = 0; row < 3; ++row) {
-      AddGradientRow(L, gb, Ki.row(row).data(), row, &s.K);
-      AddGradientRow(L, vb, Kp.row(row).data(), row, &s.K);
-      AddConsiderGradientRow(L, gb, Ki.row(row).data(), row, &s.Kc);
+      ba::AddGradientRow(L, gb, Ki.row(row).data(), row, &s.K);
+      ba::AddGradientRow(L, vb, Kp.row(row).data(), row, &s.K);
+      ba::AddConsiderGradientRow(L, gb, Ki.row(row).data(), row, &s.Kc);
     }
     const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
     out->residual_px.push_back(r);
     ss += r.squaredNorm();
     for (int row = 0; row < 2; ++row) {
-      AddGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &s.Bs);
-      AddGradientRow(L, vb, Jpose + row * 6, 2 * oi + row, &s.Bs);
-      AddConsiderGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &s.Bcs);
+      ba::AddGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &s.Bs);
+      ba::AddGradientRow(L, vb, Jpose + row * 6, 2 * oi + row, &s.Bs);
+      ba::AddConsiderGradientRow(L, gb, Ji + row * kNumIntrinsics, 2 * oi + row, &s.Bcs);
     }
     s.Js.middleRows<2>(2 * oi) = J;
     s.rs.segment<2>(2 * oi) = r;
@@ -220,7 +220,7 @@ StackedPointJacobians StackPointJacobians(const BaProblem& problem,
 
 // The solve's and the considered calibration's shares of the point's covariance, with G = -N^-1 K
 // (and the budget's traces by source), into out; out->covariance the total.
-void PointSolveShares(const BaResult& result, const StackedPointJacobians& s, TriangulatedPoint* out) {
+void PointSolveShares(const ba::BaResult& result, const StackedPointJacobians& s, TriangulatedPoint* out) {
   const Eigen::MatrixXd G = -out->covariance_pixels * s.K;
   const Eigen::MatrixXd Gc = -out->covariance_pixels * s.Kc;
   out->covariance_solve = G * result.covariance->Solve(G.transpose()) * result.covariance_scale;
@@ -232,9 +232,9 @@ void PointSolveShares(const BaResult& result, const StackedPointJacobians& s, Tr
         0.5 * (out->covariance_calibration + out->covariance_calibration.transpose()).eval();
   }
   if (result.linearization) {
-    const ErrorBudget eb =
+    const ba::ErrorBudget eb =
         result.covariance->Budget(G, *result.linearization, result.covariance_scale, Gc);
-    for (int k = 0; k < kNumSources; ++k) out->solve_trace_by_source[k] = eb.by_source.col(k).sum();
+    for (int k = 0; k < ba::kNumSources; ++k) out->solve_trace_by_source[k] = eb.by_source.col(k).sum();
   }
   out->covariance = out->covariance_pixels + out->covariance_solve + out->covariance_calibration;
 }
@@ -242,7 +242,7 @@ void PointSolveShares(const BaResult& result, const StackedPointJacobians& s, Tr
 // Self-check: the residuals against their covariance M = the pixels' + the solve's projected
 // (B C B^T, correlated between views through the shared intrinsics and markers), with the
 // point's 3 directions taken out: chi2 = min_dX (r + J dX)^T M^-1 (r + J dX).
-void TriangulationSelfCheck(const BaResult& result, const StackedPointJacobians& s, int num_obs, TriangulatedPoint* out) {
+void TriangulationSelfCheck(const ba::BaResult& result, const StackedPointJacobians& s, int num_obs, TriangulatedPoint* out) {
   Eigen::MatrixXd M = s.Sigma + s.Bs * result.covariance->Solve(s.Bs.transpose()) * result.covariance_scale;
   if (result.covariance->num_consider() > 0) {
     const Eigen::MatrixXd T = result.covariance->ConsiderGradient(s.Bs, s.Bcs);
@@ -258,8 +258,8 @@ void TriangulationSelfCheck(const BaResult& result, const StackedPointJacobians&
 }
 
 // The point from all of `obs`, with its covariance and residuals.
-StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
-                                           const BaResult& result,
+StatusOr<TriangulatedPoint> TriangulateAll(const ba::BaProblem& problem,
+                                           const ba::BaResult& result,
                                            const std::vector<PixelObservation>& obs,
                                            const TriangulationOptions& options) {
   if (obs.size() < 2) {
@@ -303,12 +303,12 @@ StatusOr<TriangulatedPoint> TriangulateAll(const BaProblem& problem,
 }
 
 // The pixel of `o` against the projection of X: residual (px) and its whitened norm.
-std::pair<Eigen::Vector2d, double> PixelResidual(const BaProblem& problem,
-                                                  const BaResult& result,
+std::pair<Eigen::Vector2d, double> PixelResidual(const ba::BaProblem& problem,
+                                                  const ba::BaResult& result,
                                                   const PixelObservation& o,
                                                   const Eigen::Vector3d& X) {
-  const StateLayout& L = *result.layout;
-  const BaView& v = problem.views[o.view];
+  const ba::StateLayout& L = *result.layout;
+  const ba::BaView& v = problem.views[o.view];
   double uv[2];
   if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
                            X.data(), uv, nullptr, nullptr, nullptr)) {
@@ -320,8 +320,8 @@ std::pair<Eigen::Vector2d, double> PixelResidual(const BaProblem& problem,
 
 }  // namespace
 
-StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
-                                             const BaResult& result,
+StatusOr<TriangulatedPoint> TriangulatePoint(const ba::BaProblem& problem,
+                                             const ba::BaResult& result,
                                              const std::vector<PixelObservation>& obs,
                                              const TriangulationOptions& options) {
   std::string err;
@@ -399,5 +399,5 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const BaProblem& problem,
   return out;
 }
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

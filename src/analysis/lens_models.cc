@@ -1,11 +1,11 @@
-#include "ba/lens_models.h"
+#include "analysis/lens_models.h"
 
 #include <cmath>
 #include <cstdio>
 #include <map>
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 namespace {
 
 // Which of k1 k2 p1 p2 k3 the model frees.
@@ -24,19 +24,19 @@ std::array<bool, 5> DistortionFree(DistortionModel m) {
 }
 
 // The plate views of `p` alone (no object views, no markers): a calibration.
-BaProblem PlateViews(const BaProblem& p) {
-  BaProblem out = p;
+ba::BaProblem PlateViews(const ba::BaProblem& p) {
+  ba::BaProblem out = p;
   out.views.clear();
   out.markers.clear();
   for (const auto& v : p.views) {
-    if (v.kind == ViewKind::kPlate) out.views.push_back(v);
+    if (v.kind == ba::ViewKind::kPlate) out.views.push_back(v);
   }
   return out;
 }
 
 // The full fit's scores and principal point.
-StatusOr<BaResult> FitFull(const BaProblem& plates, const BaOptions& o, DistortionScore* sc) {
-  auto r = SolveBundleAdjustment(plates, o);
+StatusOr<ba::BaResult> FitFull(const ba::BaProblem& plates, const ba::BaOptions& o, DistortionScore* sc) {
+  auto r = ba::SolveBundleAdjustment(plates, o);
   if (!r.ok()) return r.status();
   sc->num_free = r->num_free;
   sc->num_residuals = r->num_residuals;
@@ -59,13 +59,13 @@ struct ViewRows {
   Eigen::MatrixXd P;
 };
 
-std::vector<ViewRows> RowsByView(const BaProblem& plates, const BaResult& r) {
-  const StateLayout& L = *r.layout;
+std::vector<ViewRows> RowsByView(const ba::BaProblem& plates, const ba::BaResult& r) {
+  const ba::StateLayout& L = *r.layout;
   const int gb = L.group_block(0);
   std::vector<ViewRows> out(plates.views.size());
   std::map<int, int> view_of_block;
   for (size_t v = 0; v < plates.views.size(); ++v) view_of_block[L.view_block(static_cast<int>(v))] = static_cast<int>(v);
-  for (const LinearizedBlock& row : r.linearization->rows) {
+  for (const ba::LinearizedBlock& row : r.linearization->rows) {
     int v = -1;
     Eigen::MatrixXd Jp, Ji;
     for (size_t k = 0; k < row.blocks.size(); ++k) {
@@ -124,7 +124,7 @@ void HeldOutScores(const std::vector<ViewRows>& rows, double sigma_px, int folds
   sc->held_out_rms_px = std::sqrt(chi2 / static_cast<double>(n)) * sigma_px;
 }
 
-Status ScoreModel(const BaProblem& plates, const BaOptions& o, int folds, DistortionScore* sc) {
+Status ScoreModel(const ba::BaProblem& plates, const ba::BaOptions& o, int folds, DistortionScore* sc) {
   auto r = FitFull(plates, o, sc);
   if (!r.ok()) return r.status();
   HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
@@ -197,9 +197,9 @@ bool DistortionModelOf(const std::array<bool, kNumIntrinsics>& free, DistortionM
   return false;
 }
 
-void ApplyDistortionModel(DistortionModel m, BaProblem* problem) {
+void ApplyDistortionModel(DistortionModel m, ba::BaProblem* problem) {
   const auto d = DistortionFree(m);
-  for (IntrinsicsGroup& g : problem->groups) {
+  for (ba::IntrinsicsGroup& g : problem->groups) {
     for (int i = 0; i < 5; ++i) {
       g.free[kK1 + i] = d[i];
       if (!d[i]) g.initial[kK1 + i] = 0;
@@ -214,8 +214,8 @@ const DistortionScore* DistortionSelection::Score(DistortionModel m) const {
   return nullptr;
 }
 
-StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
-                                                    const BaOptions& options,
+StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem,
+                                                    const ba::BaOptions& options,
                                                     int folds,
                                                     bool estimate_sigma) {
   if (problem.groups.size() != 1 || problem.groups[0].smooth) {
@@ -223,14 +223,14 @@ StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
                          std::to_string(problem.groups.size()) +
                          (problem.groups.size() == 1 ? ", smooth" : "") + ")");
   }
-  const BaProblem plates = PlateViews(problem);
+  const ba::BaProblem plates = PlateViews(problem);
   const int num_plates = static_cast<int>(plates.views.size());
   if (num_plates < 2) {
     return Status::Error("the distortion model is selected on plate views: " +
                          std::to_string(num_plates) + " (at least 2 needed)");
   }
-  BaOptions o = options;
-  o.covariance_scale = CovarianceScale::kApriori;  // the chi-squares at the stated sigmas
+  ba::BaOptions o = options;
+  o.covariance_scale = ba::CovarianceScale::kApriori;  // the chi-squares at the stated sigmas
   o.reject_sigma = 0;
   // carmba's own LM serves these plate-only calibrations when they have its structure (several
   // times faster than Ceres there, the same optimum; ba/bundle_adjuster.h).
@@ -245,7 +245,7 @@ StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
   for (DistortionModel m : kDistortionModels) {
     DistortionScore sc;
     sc.model = m;
-    BaProblem p = plates;
+    ba::BaProblem p = plates;
     ApplyDistortionModel(m, &p);
     const Status s = ScoreModel(p, o, sel.folds, &sc);
     sc.ok = s.ok();
@@ -326,5 +326,5 @@ std::string DistortionWarning(const DistortionSelection& selection,
   return buf;
 }
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

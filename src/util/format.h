@@ -1,4 +1,5 @@
-// Number and text formatting shared by every report and result file (markdown, HTML, JSON).
+// Number and text formatting: for the engine's warnings and errors, and for every report and
+// result file (markdown, HTML, JSON).
 //
 // Reports print numbers with an explicit printf format chosen per column (the number of digits
 // says how precise the number is); a number that is not finite prints as "n/a" in a report. JSON
@@ -10,13 +11,20 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
-#include "util/number_format.h"  // Fmt
-
 namespace carmba {
+
+// printf(`format`, v) for one double; "n/a" when v is not finite.
+std::string Fmt(const char* format, double v);
+
+// "%.17g": the shortest printf form that reads back to the same double (geometry and result
+// files).
+std::string FmtRoundTrip(double v);
+
+// "(x, y, z)" with each number printed by Fmt(`format`, .).
+std::string FmtTriple(const char* format, double x, double y, double z);
+
 // Fixed point with `digits` decimals ("%.*f"); "n/a" when not finite.
 std::string Fixed(double v, int digits = 4);
-// All 17 significant digits ("%.17g"): round-trips a double.
-std::string FullPrecision(double v);
 // %.6g with "nan" / "inf" / "-inf" spelled out and "-0" as "0" (study tables and CSV, where the
 // text must be the same for the same number).
 std::string FormatNumber(double v);

@@ -1,15 +1,15 @@
-// Answers that leave the calibrated range say so (ba/calibrated_range.h): object views at C-arm
+// Answers that leave the calibrated range say so (analysis/calibrated_range.h): object views at C-arm
 // angles the smooth model's plate views did not cover, and object views far nearer than the
 // plate views; views inside the range say nothing.
 #include <gtest/gtest.h>
 
-#include "ba/calibrated_range.h"
-#include "ba/flex_models.h"
+#include "analysis/calibrated_range.h"
+#include "analysis/flex_models.h"
 #include "synthetic/synthetic_joint.h"
 #include "synthetic/synthetic_flex.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 namespace {
 
 bool Names(const std::vector<std::string>& warnings, const std::string& view) {
@@ -22,20 +22,20 @@ bool Names(const std::vector<std::string>& warnings, const std::string& view) {
 TEST(CalibratedRange, ObjectViewsOutsideTheSmoothModelsAnglesAreNamed) {
   // A C-arm calibrated along its orbit only (every plate view at secondary 0), object views at
   // secondary 0 and +-15 deg.
-  SyntheticFlexSpec spec;
+  ba::SyntheticFlexSpec spec;
   spec.plate_orientations_deg = {{-90, 0}, {-45, 0}, {0, 0}, {45, 0}, {90, 0}};
   spec.plate_views_per_orientation = 4;
   spec.object_orientations_deg = {{0, 0}, {45, 0}, {20, 15}, {0, -15}, {120, 0}};
-  SyntheticFlex sf = MakeSyntheticFlex(spec, 3);
-  SmoothBasis basis;
+  ba::SyntheticFlex sf = ba::MakeSyntheticFlex(spec, 3);
+  ba::SmoothBasis basis;
   basis.secondary_degree = 0;
   ASSERT_TRUE(ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, basis, &sf.problem).ok());
-  auto r = SolveBundleAdjustment(sf.problem, BaOptions());
+  auto r = ba::SolveBundleAdjustment(sf.problem, ba::BaOptions());
   ASSERT_TRUE(r.ok()) << r.status().message();
   const auto w = CalibratedRangeWarnings(sf.problem, *r);
   int outside = 0;
   for (const auto& v : sf.problem.views) {
-    if (v.kind != ViewKind::kObject) continue;
+    if (v.kind != ba::ViewKind::kObject) continue;
     const bool expect = v.secondary_deg != 0 || v.primary_deg > 90;
     EXPECT_EQ(Names(w, v.id), expect) << v.id;
     outside += expect;
@@ -50,14 +50,14 @@ TEST(CalibratedRange, ObjectViewsOutsideTheSmoothModelsAnglesAreNamed) {
 
 TEST(CalibratedRange, ObjectViewsFarNearerThanThePlateAreNamed) {
   for (const double distance : {700.0, 420.0}) {
-    SyntheticJointSpec spec;
+    ba::SyntheticJointSpec spec;
     spec.object_distance_mm = distance;
-    const SyntheticJoint sj = MakeSyntheticJoint(spec, NoiseSwitches(), 11);
-    auto r = SolveBundleAdjustment(sj.problem, BaOptions());
+    const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(spec, ba::NoiseSwitches(), 11);
+    auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
     ASSERT_TRUE(r.ok()) << r.status().message();
     const auto w = CalibratedRangeWarnings(sj.problem, *r);
     int named = 0;
-    for (const auto& v : sj.problem.views) named += v.kind == ViewKind::kObject && Names(w, v.id);
+    for (const auto& v : sj.problem.views) named += v.kind == ba::ViewKind::kObject && Names(w, v.id);
     if (distance == 700.0) {
       EXPECT_TRUE(w.empty()) << w.front();
     } else {
@@ -70,5 +70,5 @@ TEST(CalibratedRange, ObjectViewsFarNearerThanThePlateAreNamed) {
 }
 
 }  // namespace
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -10,7 +10,7 @@
 #include "ba/bundle_adjuster.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 // An object view nearer than kDepthRangeLow x the plate views' nearest depth, or farther than
 // kDepthRangeHigh x their farthest, is outside; an angle more than kAngleToleranceDeg outside the
@@ -19,7 +19,7 @@ constexpr double kDepthRangeLow = 0.8;
 constexpr double kDepthRangeHigh = 1.25;
 constexpr double kAngleToleranceDeg = 1.0;
 
-std::vector<std::string> CalibratedRangeWarnings(const BaProblem& problem, const BaResult& result);
+std::vector<std::string> CalibratedRangeWarnings(const ba::BaProblem& problem, const ba::BaResult& result);
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

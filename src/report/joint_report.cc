@@ -1,14 +1,14 @@
-// result.json and report.md of a joint solve (joint_problem.h).
+// result.json and report.md of a joint solve (report/joint_report.h).
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
-#include "ba/calibrated_range.h"
+#include "analysis/calibrated_range.h"
 #include "ba/view_intrinsics.h"
 #include "calib/conditioning.h"
 #include "geometry/rotation.h"
-#include "joint/joint_problem.h"
-#include "report/format.h"
+#include "report/joint_report.h"
+#include "util/format.h"
 #include "report/plots.h"
 #include "report/relative_tre_report.h"
 #include "report/lens_report.h"
@@ -295,7 +295,7 @@ std::vector<std::string> JointWarnings(const JointSolution& s) {
     out.insert(out.end(), w.begin(), w.end());
   }
   for (auto& w : ba::SolveWarnings(s.result)) out.push_back(std::move(w));
-  for (auto& w : ba::CalibratedRangeWarnings(bp, s.result)) out.push_back(std::move(w));
+  for (auto& w : analysis::CalibratedRangeWarnings(bp, s.result)) out.push_back(std::move(w));
   if (!s.model_note.empty()) out.push_back(s.model_note);
   if (!s.distortion_warning.empty()) out.push_back(s.distortion_warning);
   return out;
@@ -542,12 +542,6 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   return d;
 }
 
-std::string JointReportMarkdown(const JointProblem& problem,
-                                const SolverConfig& config,
-                                const JointSolution& s) {
-  return JointReportDoc(problem, config, s).Markdown();
-}
-
 nlohmann::json JointPlotData(const JointSolution& s) {
   nlohmann::json d = BaPlotData(s.ba_problem, s.result, &s.budget);
   d["kind"] = "joint";
@@ -613,7 +607,5 @@ ReportDoc JointMrcalDoc(const nlohmann::json& c) {
   }
   return d;
 }
-
-std::string JointMrcalMarkdown(const nlohmann::json& c) { return JointMrcalDoc(c).Markdown(); }
 
 }  // namespace carmba

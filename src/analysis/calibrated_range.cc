@@ -1,4 +1,4 @@
-#include "ba/calibrated_range.h"
+#include "analysis/calibrated_range.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -7,7 +7,7 @@
 #include "geometry/rotation.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 namespace {
 
 struct Range {
@@ -18,7 +18,7 @@ struct Range {
 };
 
 // Depth (mm) of point p (the view's object or plate frame) in view v's camera.
-double Depth(const BaResult& r, int v, const Eigen::Vector3d& p) {
+double Depth(const ba::BaResult& r, int v, const Eigen::Vector3d& p) {
   const double* pose = r.block(r.layout->view_block(v));
   const Eigen::Matrix3d R = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
   return (R * p)[2] + pose[5];
@@ -30,7 +30,7 @@ Eigen::Vector3d Centroid(const std::vector<Eigen::Vector3d>& pts) {
   return pts.empty() ? c : Eigen::Vector3d(c / static_cast<double>(pts.size()));
 }
 
-void DepthWarnings(const BaProblem& p, const BaResult& r, std::vector<std::string>* out) {
+void DepthWarnings(const ba::BaProblem& p, const ba::BaResult& r, std::vector<std::string>* out) {
   if (p.plate.points.empty() || p.markers.empty()) return;
   const Eigen::Vector3d plate_c = Centroid(p.plate.points);
   std::vector<Eigen::Vector3d> m;
@@ -38,11 +38,11 @@ void DepthWarnings(const BaProblem& p, const BaResult& r, std::vector<std::strin
   const Eigen::Vector3d object_c = Centroid(m);
   Range plate;
   for (size_t v = 0; v < p.views.size(); ++v) {
-    if (p.views[v].kind == ViewKind::kPlate) plate.Add(Depth(r, static_cast<int>(v), plate_c));
+    if (p.views[v].kind == ba::ViewKind::kPlate) plate.Add(Depth(r, static_cast<int>(v), plate_c));
   }
   if (plate.Empty()) return;
   for (size_t v = 0; v < p.views.size(); ++v) {
-    if (p.views[v].kind != ViewKind::kObject) continue;
+    if (p.views[v].kind != ba::ViewKind::kObject) continue;
     const double d = Depth(r, static_cast<int>(v), object_c);
     if (d >= kDepthRangeLow * plate.lo && d <= kDepthRangeHigh * plate.hi) continue;
     char buf[400];
@@ -55,18 +55,18 @@ void DepthWarnings(const BaProblem& p, const BaResult& r, std::vector<std::strin
   }
 }
 
-void AngleWarnings(const BaProblem& p, std::vector<std::string>* out) {
+void AngleWarnings(const ba::BaProblem& p, std::vector<std::string>* out) {
   for (size_t g = 0; g < p.groups.size(); ++g) {
     if (!p.groups[g].smooth) continue;
     Range primary, secondary;
     for (const auto& v : p.views) {
-      if (v.group != static_cast<int>(g) || v.kind != ViewKind::kPlate || !v.has_angles) continue;
+      if (v.group != static_cast<int>(g) || v.kind != ba::ViewKind::kPlate || !v.has_angles) continue;
       primary.Add(v.primary_deg);
       secondary.Add(v.secondary_deg);
     }
     if (primary.Empty()) continue;
     for (const auto& v : p.views) {
-      if (v.group != static_cast<int>(g) || v.kind != ViewKind::kObject || !v.has_angles) continue;
+      if (v.group != static_cast<int>(g) || v.kind != ba::ViewKind::kObject || !v.has_angles) continue;
       const bool in = v.primary_deg >= primary.lo - kAngleToleranceDeg &&
                       v.primary_deg <= primary.hi + kAngleToleranceDeg &&
                       v.secondary_deg >= secondary.lo - kAngleToleranceDeg &&
@@ -86,12 +86,12 @@ void AngleWarnings(const BaProblem& p, std::vector<std::string>* out) {
 
 }  // namespace
 
-std::vector<std::string> CalibratedRangeWarnings(const BaProblem& problem, const BaResult& result) {
+std::vector<std::string> CalibratedRangeWarnings(const ba::BaProblem& problem, const ba::BaResult& result) {
   std::vector<std::string> out;
   DepthWarnings(problem, result, &out);
   AngleWarnings(problem, &out);
   return out;
 }
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

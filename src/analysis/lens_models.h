@@ -37,7 +37,7 @@
 #include "util/status.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 
 enum class DistortionModel { kRadial2, kRadial2Tangential, kRadial3, kFull };
 constexpr std::array<DistortionModel, 4> kDistortionModels{
@@ -48,7 +48,7 @@ const char* DistortionModelName(DistortionModel m);
 // The candidate whose free distortion terms are `free`'s (k1 k2 p1 p2 k3); false if none is.
 bool DistortionModelOf(const std::array<bool, kNumIntrinsics>& free, DistortionModel* out);
 // Frees the model's distortion terms in every group and holds the others at zero.
-void ApplyDistortionModel(DistortionModel m, BaProblem* problem);
+void ApplyDistortionModel(DistortionModel m, ba::BaProblem* problem);
 
 constexpr double kPrincipalPointWarnSigma = 2.0;
 constexpr int kDistortionFolds = 5;
@@ -80,8 +80,8 @@ struct DistortionSelection {
 
 // Errors: no plate views, more than one intrinsics group or a smooth one, fewer than 2 plate
 // views for the folds, every candidate failing.
-StatusOr<DistortionSelection> SelectDistortionModel(const BaProblem& problem,
-                                                    const BaOptions& options,
+StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem,
+                                                    const ba::BaOptions& options,
                                                     int folds = kDistortionFolds,
                                                     bool estimate_sigma = false);
 
@@ -91,5 +91,5 @@ std::string DistortionWarning(const DistortionSelection& selection,
                               DistortionModel solved,
                               const Eigen::Vector2d& solved_principal_point);
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -1,4 +1,4 @@
-#include "ba/flex_models.h"
+#include "analysis/flex_models.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include "ba/view_intrinsics.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 namespace {
 
 bool SameAngles(double a1, double b1, double a2, double b2) {
@@ -27,19 +27,19 @@ int NearestOrientation(const std::vector<std::pair<double, double>>& o, double a
 }
 
 // The plate views of `p` whose orientation is (or is not) `o`.
-BaProblem PlateSubset(const BaProblem& p, const std::pair<double, double>& o, bool keep_o) {
-  BaProblem out = p;
+ba::BaProblem PlateSubset(const ba::BaProblem& p, const std::pair<double, double>& o, bool keep_o) {
+  ba::BaProblem out = p;
   out.views.clear();
   out.markers.clear();
   for (const auto& v : p.views) {
-    if (v.kind != ViewKind::kPlate) continue;
+    if (v.kind != ba::ViewKind::kPlate) continue;
     if (SameAngles(v.primary_deg, v.secondary_deg, o.first, o.second) == keep_o) out.views.push_back(v);
   }
   return out;
 }
 
 // fx, fy, cx, cy of `vi` and their covariance.
-void Head4(const ViewIntrinsics& vi, Eigen::Vector4d* x, Eigen::Matrix4d* C) {
+void Head4(const ba::ViewIntrinsics& vi, Eigen::Vector4d* x, Eigen::Matrix4d* C) {
   for (int i = 0; i < 4; ++i) (*x)[i] = vi.value[i];
   *C = vi.covariance.topLeftCorner<4, 4>();
 }
@@ -61,10 +61,10 @@ std::string OrientationName(double a, double b) {
   return s;
 }
 
-std::vector<std::pair<double, double>> PlateOrientations(const BaProblem& problem) {
+std::vector<std::pair<double, double>> PlateOrientations(const ba::BaProblem& problem) {
   std::vector<std::pair<double, double>> out;
   for (const auto& v : problem.views) {
-    if (v.kind != ViewKind::kPlate || !v.has_angles) continue;
+    if (v.kind != ba::ViewKind::kPlate || !v.has_angles) continue;
     bool seen = false;
     for (const auto& o : out) seen |= SameAngles(o.first, o.second, v.primary_deg, v.secondary_deg);
     if (!seen) out.emplace_back(v.primary_deg, v.secondary_deg);
@@ -72,9 +72,9 @@ std::vector<std::pair<double, double>> PlateOrientations(const BaProblem& proble
   return out;
 }
 
-Status ApplyIntrinsicsModel(IntrinsicsModel model, const SmoothBasis& basis, BaProblem* p) {
+Status ApplyIntrinsicsModel(IntrinsicsModel model, const ba::SmoothBasis& basis, ba::BaProblem* p) {
   if (p->groups.empty()) return Status::Error("no intrinsics group to start from");
-  IntrinsicsGroup tmpl = p->groups[0];
+  ba::IntrinsicsGroup tmpl = p->groups[0];
   tmpl.smooth = false;
   tmpl.initial_coefficients.clear();
   if (model != IntrinsicsModel::kShared) {
@@ -101,7 +101,7 @@ Status ApplyIntrinsicsModel(IntrinsicsModel model, const SmoothBasis& basis, BaP
     const auto orientations = PlateOrientations(*p);
     if (orientations.empty()) return Status::Error("per_group: no plate views with angles");
     for (const auto& o : orientations) {
-      IntrinsicsGroup g = tmpl;
+      ba::IntrinsicsGroup g = tmpl;
       g.name = OrientationName(o.first, o.second);
       p->groups.push_back(g);
     }
@@ -110,37 +110,37 @@ Status ApplyIntrinsicsModel(IntrinsicsModel model, const SmoothBasis& basis, BaP
   return p->Check();
 }
 
-StatusOr<ModelSelection> SelectIntrinsicsModel(const BaProblem& problem,
-                                               const SmoothBasis& basis,
-                                               const BaOptions& options,
+StatusOr<ModelSelection> SelectIntrinsicsModel(const ba::BaProblem& problem,
+                                               const ba::SmoothBasis& basis,
+                                               const ba::BaOptions& options,
                                                const std::vector<IntrinsicsModel>& models) {
   const auto orientations = PlateOrientations(problem);
   if (orientations.size() < 2) {
     return Status::Error("model selection needs plate views at >= 2 orientations (have " +
                          std::to_string(orientations.size()) + ")");
   }
-  BaOptions o = options;
+  ba::BaOptions o = options;
   o.reject_sigma = 0;
   // Each orientation group's own calibration (its plate views alone, shared model).
   std::vector<Eigen::Vector4d> own_x(orientations.size());
   std::vector<Eigen::Matrix4d> own_C(orientations.size());
   for (size_t k = 0; k < orientations.size(); ++k) {
-    BaProblem sub = PlateSubset(problem, orientations[k], true);
+    ba::BaProblem sub = PlateSubset(problem, orientations[k], true);
     CARMBA_RETURN_IF_ERROR(ApplyIntrinsicsModel(IntrinsicsModel::kShared, basis, &sub));
-    auto r = SolveBundleAdjustment(sub, o);
+    auto r = ba::SolveBundleAdjustment(sub, o);
     if (!r.ok()) {
       return Status::Error("orientation " + OrientationName(orientations[k].first, orientations[k].second) +
                            " alone: " + r.status().message());
     }
-    Head4(IntrinsicsOfView(sub, *r, 0), &own_x[k], &own_C[k]);
+    Head4(ba::IntrinsicsOfView(sub, *r, 0), &own_x[k], &own_C[k]);
   }
   ModelSelection sel;
   for (IntrinsicsModel m : models) {
     ModelScore sc;
     sc.model = m;
-    BaProblem full = PlateSubset(problem, {1e9, 1e9}, false);  // all plate views
+    ba::BaProblem full = PlateSubset(problem, {1e9, 1e9}, false);  // all plate views
     Status s = ApplyIntrinsicsModel(m, basis, &full);
-    StatusOr<BaResult> r = s.ok() ? SolveBundleAdjustment(full, o) : StatusOr<BaResult>(s);
+    StatusOr<ba::BaResult> r = s.ok() ? ba::SolveBundleAdjustment(full, o) : StatusOr<ba::BaResult>(s);
     if (!r.ok()) {
       sc.error = r.status().message();
       sel.scores.push_back(sc);
@@ -158,9 +158,9 @@ StatusOr<ModelSelection> SelectIntrinsicsModel(const BaProblem& problem,
       const auto& ok_ = orientations[k];
       HeldOutGroup h;
       h.orientation = OrientationName(ok_.first, ok_.second);
-      BaProblem train = PlateSubset(problem, ok_, false);
+      ba::BaProblem train = PlateSubset(problem, ok_, false);
       Status st = ApplyIntrinsicsModel(m, basis, &train);
-      StatusOr<BaResult> rt = st.ok() ? SolveBundleAdjustment(train, o) : StatusOr<BaResult>(st);
+      StatusOr<ba::BaResult> rt = st.ok() ? ba::SolveBundleAdjustment(train, o) : StatusOr<ba::BaResult>(st);
       if (!rt.ok()) {
         sc.ok = false;
         sc.error = "without " + h.orientation + ": " + rt.status().message();
@@ -171,20 +171,20 @@ StatusOr<ModelSelection> SelectIntrinsicsModel(const BaProblem& problem,
       if (m == IntrinsicsModel::kPerGroup) {
         g = NearestOrientation(PlateOrientations(train), ok_.first, ok_.second);
       }
-      const ViewIntrinsics pred = GroupIntrinsicsAt(train, *rt, g, ok_.first, ok_.second);
+      const ba::ViewIntrinsics pred = ba::GroupIntrinsicsAt(train, *rt, g, ok_.first, ok_.second);
       Eigen::Vector4d xp;
       Eigen::Matrix4d Cp;
       Head4(pred, &xp, &Cp);
       const Eigen::Vector4d dx = xp - own_x[k];
       h.d2 = dx.dot((Cp + own_C[k]).ldlt().solve(dx));
       // The held-out views with the predicted intrinsics held, poses free.
-      BaProblem test = PlateSubset(problem, ok_, true);
+      ba::BaProblem test = PlateSubset(problem, ok_, true);
       CARMBA_RETURN_IF_ERROR(ApplyIntrinsicsModel(IntrinsicsModel::kShared, basis, &test));
       test.groups[0].initial = pred.value;
       test.groups[0].free.fill(false);
-      BaOptions ot = o;
+      ba::BaOptions ot = o;
       ot.compute_covariance = false;
-      auto rp = SolveBundleAdjustment(test, ot);
+      auto rp = ba::SolveBundleAdjustment(test, ot);
       if (!rp.ok()) {
         sc.ok = false;
         sc.error = "predicting " + h.orientation + ": " + rp.status().message();
@@ -252,5 +252,5 @@ StatusOr<ModelSelection> SelectIntrinsicsModel(const BaProblem& problem,
   return sel;
 }
 
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba

@@ -1,4 +1,4 @@
-// The distortion model chosen by the data (ba/lens_models.h), on the synthetic joint problem:
+// The distortion model chosen by the data (analysis/lens_models.h), on the synthetic joint problem:
 // a C-arm with tangential distortion (p1 = 4e-4, p2 = -3e-4, the case that moved the principal
 // point 4.7 sigma under a radial-only config) gets a model with p1 p2, the radial-only solve is
 // warned about, and the recommended model's joint solve has every intrinsic within 3 sigma of
@@ -8,22 +8,22 @@
 #include <cmath>
 #include <cstdio>
 
-#include "ba/lens_models.h"
+#include "analysis/lens_models.h"
 #include "synthetic/synthetic_joint.h"
 #include "camera/camera.h"
 #include "test_env.h"
 
 namespace carmba {
-namespace ba {
+namespace analysis {
 namespace {
 
-SyntheticJoint Scene(bool tangential, uint64_t seed) {
-  SyntheticJointSpec spec;
+ba::SyntheticJoint Scene(bool tangential, uint64_t seed) {
+  ba::SyntheticJointSpec spec;
   if (tangential) {
     spec.intrinsics[kP1] = 4e-4;
     spec.intrinsics[kP2] = -3e-4;
   }
-  SyntheticJoint sj = MakeSyntheticJoint(spec, NoiseSwitches(), seed);
+  ba::SyntheticJoint sj = ba::MakeSyntheticJoint(spec, ba::NoiseSwitches(), seed);
   // The solve starts from a radial model, as a user's first guess would.
   sj.problem.groups[0].initial[kP1] = sj.problem.groups[0].initial[kP2] = 0;
   return sj;
@@ -35,8 +35,8 @@ bool HasTangential(DistortionModel m) {
 
 TEST(LensModels, TangentialCarmGetsTangentialTermsAndTheRadialSolveIsWarned) {
   const uint64_t seed = testing::EnvOr<uint64_t>("CARMBA_LENS_SEED", 5100);
-  const SyntheticJoint sj = Scene(true, seed);
-  auto sel = SelectDistortionModel(sj.problem, BaOptions());
+  const ba::SyntheticJoint sj = Scene(true, seed);
+  auto sel = SelectDistortionModel(sj.problem, ba::BaOptions());
   ASSERT_TRUE(sel.ok()) << sel.status().message();
   for (const auto& sc : sel->scores) {
     std::printf("%-16s chi2 %8.1f free %3d AIC %8.1f BIC %8.1f held-out %.4f/res cx %.2f +- %.2f cy %.2f +- %.2f\n",
@@ -48,9 +48,9 @@ TEST(LensModels, TangentialCarmGetsTangentialTermsAndTheRadialSolveIsWarned) {
   std::printf("recommended %s: %s\n", DistortionModelName(sel->recommended), sel->why.c_str());
   EXPECT_TRUE(HasTangential(sel->recommended)) << sel->why;
   // The radial-only joint solve strays and is warned about.
-  BaProblem radial = sj.problem;
+  ba::BaProblem radial = sj.problem;
   ApplyDistortionModel(DistortionModel::kRadial2, &radial);
-  auto rr = SolveBundleAdjustment(radial, BaOptions());
+  auto rr = ba::SolveBundleAdjustment(radial, ba::BaOptions());
   ASSERT_TRUE(rr.ok());
   const double* Kr = rr->block(rr->layout->group_block(0));
   const std::string w = DistortionWarning(*sel, DistortionModel::kRadial2, Eigen::Vector2d(Kr[kCx], Kr[kCy]));
@@ -58,9 +58,9 @@ TEST(LensModels, TangentialCarmGetsTangentialTermsAndTheRadialSolveIsWarned) {
               sj.true_intrinsics[kCx], sj.true_intrinsics[kCy], w.c_str());
   EXPECT_NE(w.find("distortion model k1 k2: its principal point"), std::string::npos) << w;
   // The recommended model's joint solve: every free intrinsic within 3 sigma of the truth.
-  BaProblem rec = sj.problem;
+  ba::BaProblem rec = sj.problem;
   ApplyDistortionModel(sel->recommended, &rec);
-  auto r = SolveBundleAdjustment(rec, BaOptions());
+  auto r = ba::SolveBundleAdjustment(rec, ba::BaOptions());
   ASSERT_TRUE(r.ok());
   const int gb = r->layout->group_block(0);
   const Eigen::MatrixXd C = r->Covariance({gb});
@@ -79,14 +79,14 @@ TEST(LensModels, RecommendedModelIsWithinThreeSigmaOverSeeds) {
   for (const bool tangential : {false, true}) {
     int beyond = 0, beyond_radial = 0, params = 0, with_tangential = 0;
     for (int s = 0; s < kSeeds; ++s) {
-      const SyntheticJoint sj = Scene(tangential, seed0 + s);
-      auto sel = SelectDistortionModel(sj.problem, BaOptions());
+      const ba::SyntheticJoint sj = Scene(tangential, seed0 + s);
+      auto sel = SelectDistortionModel(sj.problem, ba::BaOptions());
       ASSERT_TRUE(sel.ok()) << sel.status().message();
       with_tangential += HasTangential(sel->recommended);
       for (const bool radial_only : {false, true}) {
-        BaProblem p = sj.problem;
+        ba::BaProblem p = sj.problem;
         ApplyDistortionModel(radial_only ? DistortionModel::kRadial2 : sel->recommended, &p);
-        auto r = SolveBundleAdjustment(p, BaOptions());
+        auto r = ba::SolveBundleAdjustment(p, ba::BaOptions());
         ASSERT_TRUE(r.ok()) << r.status().message();
         const int gb = r->layout->group_block(0);
         const Eigen::MatrixXd C = r->Covariance({gb});
@@ -107,5 +107,5 @@ TEST(LensModels, RecommendedModelIsWithinThreeSigmaOverSeeds) {
 }
 
 }  // namespace
-}  // namespace ba
+}  // namespace analysis
 }  // namespace carmba
