@@ -478,7 +478,7 @@ Status SolveWithCarmbaLm(const BaProblem& p,
                          BaResult* res) {
   std::vector<std::vector<Eigen::Vector3d>> plate(p.views.size());
   std::vector<std::vector<Eigen::Vector2d>> uv(p.views.size());
-  std::vector<std::array<double, 6>> poses(p.views.size());
+  std::vector<Pose6> poses(p.views.size());
   for (size_t v = 0; v < p.views.size(); ++v) {
     for (int id : p.views[v].point_ids) plate[v].push_back(p.plate.points[id]);
     uv[v] = p.views[v].uv_px;

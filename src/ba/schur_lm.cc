@@ -165,7 +165,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
                                int max_iterations,
                                double function_tolerance,
                                std::array<double, kNumIntrinsics>* x,
-                               std::vector<std::array<double, 6>>* poses,
+                               std::vector<Pose6>* poses,
                                LmReport* report) {
   const int nv = static_cast<int>(plate.size());
   const int k = static_cast<int>(A.cols());
@@ -173,11 +173,11 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
   std::vector<ViewSystem> sys(nv);
   std::vector<Mat69> Y(nv);  // (Hpp_i + lambda D_i)^-1 Hpc_i
   std::vector<Vec6> y(nv);   // (Hpp_i + lambda D_i)^-1 gp_i
-  std::vector<std::array<double, 6>> p_new(nv);
+  std::vector<Pose6> p_new(nv);
   Eigen::MatrixXd Hcc(k, k), S(k, k);
   Eigen::VectorXd gc(k), b(k), dc = Eigen::VectorXd::Zero(k);
   auto total_cost = [&](const std::array<double, kNumIntrinsics>& xi,
-                        const std::vector<std::array<double, 6>>& pi,
+                        const std::vector<Pose6>& pi,
                         double* c) {
     *c = 0;
     for (int v = 0; v < nv; ++v) {

@@ -16,6 +16,7 @@
 // all views.
 #pragma once
 
+#include "geometry/pose.h"
 #include "geometry/rotation.h"
 
 #include <Eigen/Core>
@@ -94,7 +95,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
                                int max_iterations,
                                double function_tolerance,
                                std::array<double, kNumIntrinsics>* x,
-                               std::vector<std::array<double, 6>>* poses,
+                               std::vector<Pose6>* poses,
                                LmReport* report);
 
 }  // namespace ba

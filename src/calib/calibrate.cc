@@ -40,7 +40,7 @@ ba::BaProblem CalibrationProblem(const ObservationSet& obs,
                                  const std::array<bool, kNumIntrinsics>& free,
                                  double fy_over_fx,
                                  double sigma_px,
-                                 const std::vector<std::array<double, 6>>& poses) {
+                                 const std::vector<Pose6>& poses) {
   ba::BaProblem p;
   p.name = "calibration";
   ba::IntrinsicsGroup g;
@@ -130,7 +130,7 @@ class StagedCalibration {
 
   bool own_lm() const { return opt_.solver == "lm" && opt_.robust_loss == "none"; }
   const std::array<double, kNumIntrinsics>& intrinsics() const { return x_; }
-  const std::vector<std::array<double, 6>>& poses() const { return poses_; }
+  const std::vector<Pose6>& poses() const { return poses_; }
 
   // The pinhole core alone, when any distortion term is free: only a seed, loose tolerances.
   Status SolveCore(const std::array<bool, kNumIntrinsics>& free) {
@@ -200,7 +200,7 @@ class StagedCalibration {
   const double sigma_solve_;
   ba::BaOptions options_;
   std::array<double, kNumIntrinsics> x_;
-  std::vector<std::array<double, 6>> poses_;
+  std::vector<Pose6> poses_;
 };
 
 // Every point's residual at the solution (r->camera.params, r->cam_from_plate) into the view and
@@ -219,7 +219,7 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
   const double* x = r->camera.params.data();
   for (size_t v = 0; v < obs.views.size(); ++v) {
     const auto& view = obs.views[v];
-    const std::array<double, 6>& pose = r->cam_from_plate[v];
+    const Pose6& pose = r->cam_from_plate[v];
     ViewStats vs;
     vs.image = view.image;
     vs.num_points = static_cast<int>(view.uv_px.size());

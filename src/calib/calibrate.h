@@ -30,6 +30,7 @@
 #include "ba/bundle_adjuster.h"
 #include "analysis/lens_models.h"
 #include "camera/camera.h"
+#include "geometry/pose.h"
 #include "detect/observations.h"
 #include "util/status.h"
 
@@ -117,8 +118,8 @@ struct ProjectionSigma {
 struct CalibrationResult {
   Camera camera;  // estimate with covariance (names = all 9; fixed ones have zero rows)
   std::array<double, kNumIntrinsics> initial_intrinsics{};
-  std::vector<std::array<double, 6>> cam_from_plate;  // rvec (rad), t (mm) per view
-  std::vector<std::array<double, 6>> initial_cam_from_plate;  // closed-form poses
+  std::vector<Pose6> cam_from_plate;  // rvec (rad), t (mm) per view
+  std::vector<Pose6> initial_cam_from_plate;  // closed-form poses
   Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics> covariance;  // marginal over poses
   std::array<double, kNumIntrinsics> sigma{};  // sqrt(diag(covariance))
   std::vector<bool> free;                      // per intrinsic: estimated (not held)

@@ -50,7 +50,7 @@ bool FitHomography(const std::vector<Eigen::Vector2d>& src,
 }
 
 // Pose from a homography and K: K^-1 H = lambda [r1 r2 t].
-void PoseFromHomography(const Eigen::Matrix3d& H, const double* intr, std::array<double, 6>* pose) {
+void PoseFromHomography(const Eigen::Matrix3d& H, const double* intr, Pose6* pose) {
   Eigen::Matrix3d K;
   K << intr[kFx], 0, intr[kCx], 0, intr[kFy], intr[kCy], 0, 0, 1;
   const Eigen::Matrix3d M = K.inverse() * H;

@@ -20,7 +20,7 @@ struct CalibrationStart {
   // fy = fy_over_fx * fx when the aspect ratio is held (the given ratio or the initial
   // estimate's), 0 otherwise: IntrinsicsGroup::fy_over_fx.
   double fy_over_fx = 0;
-  std::vector<std::array<double, 6>> cam_from_plate;  // rvec (rad), t (mm) per view
+  std::vector<Pose6> cam_from_plate;  // rvec (rad), t (mm) per view
 };
 
 // The start for `obs` under `options` (their initial_intrinsics replace Zhang's; the held

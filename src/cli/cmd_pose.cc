@@ -141,8 +141,8 @@ int RunPose() {
   for (const ObjectView& v : *views) {
     if (!s.ok()) break;
     std::optional<Pose6> pose;
-    if (solved.count(v.name)) pose = solved.at(v.name);
-    const std::string first = OverlayFileName(v.name);
+    if (solved.count(v.id)) pose = solved.at(v.id);
+    const std::string first = OverlayFileName(v.id);
     std::string name = first;
     for (int k = 2; !names.insert(name).second; ++k) {
       name = first.substr(0, first.size() - 4) + "_" + std::to_string(k) + ".png";

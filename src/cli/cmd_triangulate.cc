@@ -26,8 +26,9 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "joint/joint_problem.h"
+#include "problem/pixel_csv.h"
 #include "problem/pose_problem.h"
-#include "util/csv.h"
+#include "util/csv.h"  // ParseFiniteDouble
 #include "util/file_util.h"
 #include "util/plausible.h"
 #include "util/format.h"
@@ -55,59 +56,27 @@ struct PointInput {
 };
 
 StatusOr<std::vector<PointInput>> ReadPointsCsv(const std::string& path) {
-  auto t = ReadCsv(path);
-  if (!t.ok()) return t.status();
-  for (const char* c : {"view", "u_px", "v_px"}) {
-    auto col = t->Column(c);
-    if (!col.ok()) return col.status();
-  }
-  const bool has_point = t->Column("point").ok(), has_sigma = t->Column("sigma_px").ok();
-  const bool has_cov = t->Column("cov_uu").ok();
-  if (has_cov) {
-    for (const char* c : {"cov_uv", "cov_vv"}) {
-      auto col = t->Column(c);
-      if (!col.ok()) return col.status();
-    }
-  }
-  if (t->rows.empty()) return Status::Error(path + ": no rows");
+  PixelCsvColumns columns;
+  columns.key = "point";
+  columns.key_required = false;
+  columns.absent_key = "1";
+  columns.integer_key = false;
+  columns.sigma_column = true;
+  auto rows = ReadPixelCsv(path, columns);
+  if (!rows.ok()) return rows.status();
+  if (rows->empty()) return Status::Error(path + ": no rows");
   std::vector<PointInput> points;
   std::map<std::string, size_t> index;
-  const int vc = *t->Column("view");
-  const int pc = has_point ? *t->Column("point") : -1;
-  for (size_t r = 0; r < t->rows.size(); ++r) {
-    const int row = static_cast<int>(r);
-    const std::string where = path + ":" + std::to_string(t->line_numbers[r]);
+  for (const PixelCsvRow& row : *rows) {
     PointInput::Pixel px;
-    px.where = where;
-    px.view = t->rows[r][vc];
-    auto u = t->NumberIn(row, "u_px", plausible::kPixelCoordinatePx);
-    if (!u.ok()) return u.status();
-    auto v = t->NumberIn(row, "v_px", plausible::kPixelCoordinatePx);
-    if (!v.ok()) return v.status();
-    px.uv = Eigen::Vector2d(*u, *v);
-    if (has_cov) {
-      auto uu = t->Number(row, "cov_uu"), uv = t->Number(row, "cov_uv"), vv = t->Number(row, "cov_vv");
-      if (!uu.ok()) return uu.status();
-      if (!uv.ok()) return uv.status();
-      if (!vv.ok()) return vv.status();
-      Eigen::Matrix2d C;
-      C << *uu, *uv, *uv, *vv;
-      if (!(*uu > 0 && *vv > 0 && C.determinant() > 0)) {
-        return Status::Error(where + ": cov_uu, cov_uv, cov_vv: expected a positive definite pixel "
-                                     "covariance (px^2)");
-      }
-      px.cov = C;
-    } else if (has_sigma) {
-      auto s = t->NumberIn(row, "sigma_px", plausible::kPixelSigmaPx);
-      if (!s.ok()) return s.status();
-      px.cov = Eigen::Matrix2d::Identity() * *s * *s;
-    }
-    const std::string name = has_point ? t->rows[r][pc] : "1";
-    auto it = index.find(name);
+    px.where = row.where;
+    px.view = row.view;
+    px.uv = row.uv_px;
+    if (row.HasCovariance()) px.cov = row.covariance_px2;
+    auto it = index.find(row.key);
     if (it == index.end()) {
-      index[name] = points.size();
-      points.push_back({name, {}});
-      it = index.find(name);
+      it = index.emplace(row.key, points.size()).first;
+      points.push_back({row.key, {}});
     }
     points[it->second].pixels.push_back(px);
   }

@@ -69,7 +69,7 @@ struct CtFiducialsResult {
   std::vector<ModelPoint> model;
   std::string frame = "patient";
   bool has_object_frame = false;
-  RigidTransform object_from_ct;
+  Rigid3 object_from_ct;
   double read_seconds = 0, detect_seconds = 0;
   MarkerDetectionOptions detect_options;
   std::string model_csv;

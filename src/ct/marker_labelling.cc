@@ -61,7 +61,7 @@ StatusOr<std::vector<ModelPoint>> ReadModelCsv(const std::string& path,
 
 bool FitRigid(const std::vector<Eigen::Vector3d>& source,
               const std::vector<Eigen::Vector3d>& target,
-              RigidTransform* target_from_source) {
+              Rigid3* target_from_source) {
   const size_t n = source.size();
   if (n < 3 || target.size() != n) return false;
   Eigen::Vector3d ms = Eigen::Vector3d::Zero(), mt = Eigen::Vector3d::Zero();
@@ -111,7 +111,7 @@ StatusOr<Labelling> SelectAndLabel(const std::vector<Eigen::Vector3d>& found,
   struct Hypothesis {
     double rms;
     std::vector<int> cand;
-    RigidTransform T;
+    Rigid3 T;
   };
   std::vector<Hypothesis> best;  // the two best, by RMS
   std::function<void(int)> search = [&](int j) {
@@ -124,7 +124,7 @@ StatusOr<Labelling> SelectAndLabel(const std::vector<Eigen::Vector3d>& found,
         src.push_back(found[cand[a]]);
         dst.push_back(model[a].p_in_object);
       }
-      RigidTransform T;
+      Rigid3 T;
       if (!FitRigid(src, dst, &T)) return;
       double ss = 0;
       for (int a = 0; a < m; ++a) ss += (T * src[a] - dst[a]).squaredNorm();
@@ -225,7 +225,7 @@ StatusOr<Labelling> LabelMarkers(const std::vector<Eigen::Vector3d>& found,
         src.push_back(found[a]);
         dst.push_back(model[assign[a]].p_in_object);
       }
-      RigidTransform T;
+      Rigid3 T;
       if (!FitRigid(src, dst, &T)) return;
       double ss = 0;
       for (int a = 0; a < n; ++a) ss += (T * src[a] - dst[a]).squaredNorm();

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "geometry/pose.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -30,22 +31,15 @@ struct ModelPoint {
 StatusOr<std::vector<ModelPoint>> ReadModelCsv(const std::string& path,
                                                const std::vector<std::string>& columns = {});
 
-// A rigid transform p_target = R p_source + t (mm).
-struct RigidTransform {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return R * p + t; }
-};
-
 // The least-squares proper rigid transform target_from_source (det R = +1). Needs >= 3 points
 // not all on a line; false otherwise.
 bool FitRigid(const std::vector<Eigen::Vector3d>& source,
               const std::vector<Eigen::Vector3d>& target,
-              RigidTransform* target_from_source);
+              Rigid3* target_from_source);
 
 struct Labelling {
   std::vector<int> model_index;      // per found marker, its index into the model (-1: not used)
-  RigidTransform object_from_ct;     // the rigid fit model <- CT
+  Rigid3 object_from_ct;     // the rigid fit model <- CT
   std::vector<double> residual_mm;   // per found marker, |object_from_ct * c - model|
   double rms_mm = 0;
   double max_mm = 0;

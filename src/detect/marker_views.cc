@@ -91,7 +91,7 @@ std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double f
   for (const ObjectView& v : views) {
     if (!v.labelled) continue;
     PoseView pv;
-    pv.id = v.name;
+    pv.id = v.id;
     for (const MarkerObservation& o : LabelledObservations(v)) {
       pv.observations.push_back({o.marker_id, o.uv_px, IsotropicSigmaPx(o.covariance_px2, floor_px),
                                  o.covariance_px2 + floor_px * floor_px * Eigen::Matrix2d::Identity()});
@@ -100,24 +100,6 @@ std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double f
   }
   return out;
 }
-
-namespace {
-
-Pose6 PoseFromRigid(const Rigid3& r) {
-  Pose6 p;
-  p.head<3>() = RvecFromRotation(r.R);
-  p.tail<3>() = r.t;
-  return p;
-}
-
-Rigid3 RigidFromPose(const Pose6& p) {
-  Rigid3 r;
-  r.R = RotationFromRvec(p.head<3>());
-  r.t = p.tail<3>();
-  return r;
-}
-
-}  // namespace
 
 namespace {
 
@@ -216,8 +198,8 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       if (ref >= 0 && v.nominal_cam_from_patient) {
         const ObjectView& r = views[ref];
         const Rigid3 patient_from_object =
-            r.nominal_cam_from_patient->Inverse() * RigidFromPose(r.labelling.cam_from_object);
-        predicted = PoseFromRigid(*v.nominal_cam_from_patient * patient_from_object);
+            r.nominal_cam_from_patient->Inverse() * Rigid3::FromPose(r.labelling.cam_from_object);
+        predicted = (*v.nominal_cam_from_patient * patient_from_object).ToPose();
       }
       CorrespondenceOptions co = o.correspondence;
       if (co.separation_px == 0 && !v.detection.blobs.empty()) {
@@ -266,6 +248,10 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
   }
   if (views.empty()) return Status::Error("no object views in the images");
   if (labelled == 0) return Status::Error("no view could be labelled (" + why.str() + ")");
+  std::vector<std::string> names;
+  for (const ObjectView& v : views) names.push_back(v.name);
+  const std::vector<std::string> ids = ShortViewIds(names);
+  for (size_t i = 0; i < views.size(); ++i) views[i].id = ids[i];
   return views;
 }
 
@@ -278,7 +264,7 @@ std::string MarkerObservationsCsv(const std::vector<ObjectView>& views) {
         "view,marker,u_px,v_px,cov_uu,cov_uv,cov_vv\n";
   for (const ObjectView& v : views) {
     for (const MarkerObservation& o : LabelledObservations(v)) {
-      os << v.name << "," << o.marker_id << "," << o.uv_px.x() << "," << o.uv_px.y() << ","
+      os << v.id << "," << o.marker_id << "," << o.uv_px.x() << "," << o.uv_px.y() << ","
          << o.covariance_px2(0, 0) << "," << o.covariance_px2(0, 1) << "," << o.covariance_px2(1, 1) << "\n";
     }
   }
@@ -289,7 +275,8 @@ nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
   nlohmann::json out = nlohmann::json::array();
   for (const ObjectView& v : views) {
     nlohmann::json j;
-    j["view"] = v.name;
+    j["view"] = v.id;
+    j["image"] = v.name;
     j["blobs"] = v.detection.blobs.size();
     j["labelled"] = v.labelled;
     if (!v.labelled) j["skipped"] = v.skipped;
@@ -317,17 +304,14 @@ nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
   return out;
 }
 
-std::string OverlayFileName(const std::string& name) {
-  std::string file = name, frame;
-  const size_t hash = name.rfind("#frame");
-  if (hash != std::string::npos) file = name.substr(0, hash), frame = "_frame" + name.substr(hash + 6);
-  std::string stem = file.substr(file.find_last_of('/') == std::string::npos ? 0 : file.find_last_of('/') + 1);
-  const size_t dot = stem.rfind('.');
-  if (dot != std::string::npos && dot > 0) stem = stem.substr(0, dot);
+std::string OverlayFileName(const std::string& view_id) {
+  std::string stem = view_id;
+  const size_t hash = stem.rfind("#frame");
+  if (hash != std::string::npos) stem.replace(hash, 1, "_");
   for (char& c : stem) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-')) c = '_';
   }
-  return "overlay_" + stem + frame + ".png";
+  return "overlay_" + stem + ".png";
 }
 
 cv::Mat DrawMarkerOverlay(const ObjectView& v,

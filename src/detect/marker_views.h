@@ -62,7 +62,8 @@ class YamlMap;
 void ReadObjectViewsOptions(YamlMap& map, ObjectViewsOptions* options);
 
 struct ObjectView {
-  std::string name;   // file, or file#frameN
+  std::string name;   // file, or file#frameN (in error messages, and result.json's "image")
+  std::string id;     // short id (io/image_files.h ShortViewIds): in tables, CSVs, result.json
   cv::Mat image;      // as read (for overlays)
   MarkerBlobDetection detection;
   bool labelled = false;
@@ -97,8 +98,9 @@ std::string MarkerObservationsCsv(const std::vector<ObjectView>& views);
 // Per view: blobs found, markers labelled (method, RMS, hypotheses), unlabelled blobs, rejected
 // candidates by reason, or why it was skipped.
 nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views);
-// A file name for a view's overlay: overlay_<stem>[_frameN].png.
-std::string OverlayFileName(const std::string& view_name);
+// A file name for a view's overlay: overlay_<id>.png (`#frameN` as `_frameN`, characters other
+// than letters, digits, '_' and '-' as '_').
+std::string OverlayFileName(const std::string& view_id);
 
 // An overlay for checking by eye: the image stretched to 1..99 %, labelled blobs (green circle and
 // marker id), unlabelled accepted blobs (yellow, "not a marker"), rejected candidates (red cross

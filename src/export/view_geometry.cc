@@ -90,8 +90,7 @@ ViewGeometry ViewLookingAt(const std::string& id,
   ViewGeometry v;
   v.id = id;
   v.camera = camera;
-  const Eigen::AngleAxisd aa(R);
-  v.cam_from_ct.head<3>() = aa.angle() * aa.axis();
+  v.cam_from_ct.head<3>() = RvecFromRotation(R);
   v.cam_from_ct.tail<3>() = -R * source;
   return v;
 }

@@ -7,27 +7,6 @@
 
 namespace carmba {
 
-namespace {
-}  // namespace
-
-Eigen::Vector3d Rigid3::Rvec() const {
-  const Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
-}
-
-std::array<double, 6> Rigid3::PoseParams() const {
-  const Eigen::Vector3d r = Rvec();
-  return {r.x(), r.y(), r.z(), t.x(), t.y(), t.z()};
-}
-
-Rigid3 Rigid3::FromRvec(const Eigen::Vector3d& rvec_rad, const Eigen::Vector3d& t_mm) {
-  Rigid3 p;
-  const double angle = rvec_rad.norm();
-  if (angle > 0) p.R = Eigen::AngleAxisd(angle, rvec_rad / angle).toRotationMatrix();
-  p.t = t_mm;
-  return p;
-}
-
 nlohmann::json RigidToJson(const Rigid3& pose) {
   nlohmann::json R = nlohmann::json::array();
   for (int i = 0; i < 3; ++i) R.push_back({pose.R(i, 0), pose.R(i, 1), pose.R(i, 2)});

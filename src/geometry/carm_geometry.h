@@ -49,24 +49,10 @@
 #include <string>
 
 #include "camera/camera.h"
+#include "geometry/pose.h"
 #include "util/status.h"
 
 namespace carmba {
-
-// A rigid transform target_from_source: p_in_target = R * p_in_source + t (t in mm).
-struct Rigid3 {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d t = Eigen::Vector3d::Zero();
-
-  Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return R * p + t; }
-  Rigid3 operator*(const Rigid3& b) const { return {R * b.R, R * b.t + t}; }
-  Rigid3 Inverse() const { return {R.transpose(), -(R.transpose() * t)}; }
-  // Rotation vector (radians), as used by camera_model.h poses.
-  Eigen::Vector3d Rvec() const;
-  // The 6-vector pose [rx, ry, rz, tx, ty, tz] of camera_model.h.
-  std::array<double, 6> PoseParams() const;
-  static Rigid3 FromRvec(const Eigen::Vector3d& rvec_rad, const Eigen::Vector3d& t_mm);
-};
 
 // {"R": 3x3 row-major (list of 3 rows), "rvec": [rad x3], "t_mm": [x3]}.
 nlohmann::json RigidToJson(const Rigid3& pose);

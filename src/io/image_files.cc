@@ -2,6 +2,9 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <filesystem>
+#include <set>
+
 #include "util/image_header.h"
 #include "util/quiet_stderr.h"
 
@@ -60,6 +63,49 @@ StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path) {
         {frame >= 0 ? path : DicomFrameName(file, k, n), dicom->frames[k], dicom->geometry[k]});
   }
   return views;
+}
+
+namespace {
+
+// `name` without its `#frameN` (returned in `frame`) and split into path components.
+std::vector<std::string> ViewPathParts(const std::string& name, std::string* frame) {
+  std::string file = name;
+  const size_t hash = name.rfind("#frame");
+  frame->clear();
+  if (hash != std::string::npos) *frame = name.substr(hash), file = name.substr(0, hash);
+  std::vector<std::string> parts;
+  for (const auto& part : std::filesystem::path(file).lexically_normal()) {
+    if (!part.empty() && part != "/") parts.push_back(part.string());
+  }
+  if (!parts.empty()) parts.back() = std::filesystem::path(parts.back()).stem().string();
+  return parts;
+}
+
+}  // namespace
+
+std::vector<std::string> ShortViewIds(const std::vector<std::string>& names) {
+  std::vector<std::vector<std::string>> parts(names.size());
+  std::vector<std::string> frames(names.size()), ids(names.size());
+  for (size_t i = 0; i < names.size(); ++i) {
+    parts[i] = ViewPathParts(names[i], &frames[i]);
+    ids[i] = (parts[i].empty() ? names[i] : parts[i].back()) + frames[i];
+  }
+  if (std::set<std::string>(ids.begin(), ids.end()).size() == ids.size()) return ids;
+  // The directories every name shares, then the rest of each path.
+  size_t common = parts.empty() || parts[0].empty() ? 0 : parts[0].size() - 1;
+  for (const auto& p : parts) {
+    size_t k = 0;
+    while (k < common && k + 1 < p.size() && p[k] == parts[0][k]) ++k;
+    common = k;
+  }
+  for (size_t i = 0; i < names.size(); ++i) {
+    std::string id;
+    for (size_t k = common; k < parts[i].size(); ++k) id += (id.empty() ? "" : "/") + parts[i][k];
+    ids[i] = (id.empty() ? names[i] : id) + frames[i];
+  }
+  // Names that differ only in their extension keep their whole names.
+  if (std::set<std::string>(ids.begin(), ids.end()).size() != ids.size()) return names;
+  return ids;
 }
 
 }  // namespace carmba

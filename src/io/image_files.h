@@ -32,4 +32,12 @@ struct NamedImage {
 // multi-frame DICOM file (io/dicom_xray.h; `file#frameN` reads frame N only).
 StatusOr<std::vector<NamedImage>> ReadImageViews(const std::string& path);
 
+// Short ids for views named as ReadImageViews names them, for tables, CSVs and result.json (the
+// full names are kept beside them): the file's stem, with `#frameN` kept for a frame of a
+// multi-frame file ("/data/run.dcm#frame3" -> "run#frame3"). Where two names would get the same
+// id, every id is the path below the names' common directory, without extensions
+// ("a/v1.png", "b/v1.png" -> "a/v1", "b/v1"); names that differ only in their extension keep
+// their whole names.
+std::vector<std::string> ShortViewIds(const std::vector<std::string>& names);
+
 }  // namespace carmba

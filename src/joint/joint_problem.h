@@ -69,16 +69,6 @@ namespace carmba {
 
 struct MrcalCrossCheckOptions;  // calib/crosscheck.h
 
-struct JointObjectView {
-  std::string id;
-  std::vector<int> marker_ids;
-  std::vector<Eigen::Vector2d> uv_px;
-  std::vector<double> sigma_px;  // per observation (detected blobs); empty = object_sigma_px
-  // Per observation 2x2 pixel covariance (px^2, detected blobs: whitened in full by the
-  // engine); empty = isotropic.
-  std::vector<Eigen::Matrix2d> covariance_px2;
-};
-
 struct JointTruth {
   std::optional<Camera> camera;
   std::map<std::string, Pose6> object_poses;  // cam_from_object by view id
@@ -97,7 +87,7 @@ struct JointProblem {
   double plate_sigma_mm = 0;
   std::vector<std::string> skipped_images;  // plate images without a usable grid ("file: why")
   // Object views.
-  std::vector<JointObjectView> object_views;
+  std::vector<PoseView> object_views;   // problem/pose_problem.h: the one object-view form
   double object_sigma_px = 0;  // from images: the median of the per-observation sigmas
   // From images: the detection's marker diameter (mm), for the engine's cone-beam shadow
   // correction (ba/shadow_correction.h); 0 = unknown.

@@ -8,6 +8,7 @@
 #include "detect/grid_detector.h"
 #include "io/dicom_xray.h"
 #include "joint/joint_problem.h"
+#include "problem/pixel_csv.h"
 
 #include "detect/marker_views.h"
 #include "util/csv.h"
@@ -119,33 +120,28 @@ Status ReadObjectViews(YamlMap& m, const std::string& base, JointProblem* p, Obj
   m.GetInRange("sigma_px", &p->object_sigma_px, plausible::kPixelSigmaPx, true);
   if (!m.status().ok()) return m.status();
   const std::string path = JoinPath(base, observations);
-  auto t = ReadCsv(path);
-  if (!t.ok()) return t.status();
-  auto vc = t->Column("view");
-  if (!vc.ok()) return vc.status();
+  PixelCsvColumns columns;
+  columns.key = marker_column;
+  auto rows = ReadPixelCsv(path, columns);
+  if (!rows.ok()) return rows.status();
   std::map<std::string, size_t> index;
-  for (size_t r = 0; r < t->rows.size(); ++r) {
-    const std::string id = t->rows[r][*vc];
-    const std::string where = path + ":" + std::to_string(t->line_numbers[r]);
-    if (id.empty()) return Status::Error(where + ": column 'view': expected a view id");
-    auto mid = t->Integer(r, marker_column);
-    if (!mid.ok()) return mid.status();
-    auto u = t->NumberIn(r, "u_px", plausible::kPixelCoordinatePx);
-    if (!u.ok()) return u.status();
-    auto v = t->NumberIn(r, "v_px", plausible::kPixelCoordinatePx);
-    if (!v.ok()) return v.status();
-    if (!index.count(id)) {
-      index[id] = p->object_views.size();
-      p->object_views.push_back({id, {}, {}, {}, {}});
+  for (const PixelCsvRow& row : *rows) {
+    if (!index.count(row.view)) {
+      index[row.view] = p->object_views.size();
+      p->object_views.push_back({row.view, {}});
     }
-    JointObjectView& ov = p->object_views[index[id]];
-    for (int m2 : ov.marker_ids) {
-      if (m2 == *mid) {
-        return Status::Error(where + ": marker " + std::to_string(*mid) + " twice in view '" + id + "'");
+    PoseView& ov = p->object_views[index[row.view]];
+    for (const Observation& o : ov.observations) {
+      if (o.marker_id == row.id) {
+        return Status::Error(row.where + ": marker " + std::to_string(row.id) + " twice in view '" +
+                             row.view + "'");
       }
     }
-    ov.marker_ids.push_back(*mid);
-    ov.uv_px.emplace_back(*u, *v);
+    Observation o;
+    o.marker_id = row.id;
+    o.uv_px = row.uv_px;
+    o.covariance_px2 = row.covariance_px2;
+    ov.observations.push_back(o);
   }
   if (p->object_views.empty()) return Status::Error(path + ": no object views");
   return Status::Ok();
@@ -275,17 +271,9 @@ Status DetectObjectViews(const ObjectImages& in, const std::string& base, const 
   if (!views.ok()) return views.status();
   p->marker_diameter_mm = in.options.blobs.diameter_mm;
   std::vector<double> all;
-  for (const PoseView& pv : ToPoseViews(*views, in.options.sigma_floor_px)) {
-    JointObjectView ov;
-    ov.id = pv.id;
-    for (const Observation& o : pv.observations) {
-      ov.marker_ids.push_back(o.marker_id);
-      ov.uv_px.push_back(o.uv_px);
-      ov.sigma_px.push_back(o.sigma_px);
-      ov.covariance_px2.push_back(o.covariance_px2);
-      all.push_back(o.sigma_px);
-    }
-    p->object_views.push_back(ov);
+  for (PoseView& pv : ToPoseViews(*views, in.options.sigma_floor_px)) {
+    for (const Observation& o : pv.observations) all.push_back(o.sigma_px);
+    p->object_views.push_back(std::move(pv));
   }
   for (const ObjectView& v : *views) {
     if (!v.labelled) p->skipped_object_views.push_back(v.name + ": " + v.skipped);
@@ -333,16 +321,16 @@ Status ReadFiducials(const FiducialsKey& key, const std::string& base, const std
   std::set<int> ids;
   for (const auto& m : p->fiducials) ids.insert(m.id);
   for (const auto& v : p->object_views) {
-    for (int id : v.marker_ids) {
-      if (!ids.count(id)) {
+    for (const Observation& o : v.observations) {
+      if (!ids.count(o.marker_id)) {
         return Status::Error(JoinPath(base, observations_key) + ": view '" + v.id +
-                             "' observes marker " + std::to_string(id) +
+                             "' observes marker " + std::to_string(o.marker_id) +
                              ", which is not in the fiducials " + JoinPath(base, key.file));
       }
     }
-    if (v.marker_ids.size() < 4) {
+    if (v.observations.size() < 4) {
       return Status::Error(yaml_path + ": object view '" + v.id + "' has " +
-                           std::to_string(v.marker_ids.size()) + " markers; a pose needs at least 4");
+                           std::to_string(v.observations.size()) + " markers; a pose needs at least 4");
     }
   }
   return Status::Ok();

@@ -191,7 +191,7 @@ StatusOr<ba::IntrinsicsGroup> InitialGroup(const JointProblem& problem,
                                            const SolverConfig& config,
                                            const GroupAssignment& groups,
                                            size_t g,
-                                           std::vector<std::array<double, 6>>* plate_poses) {
+                                           std::vector<Pose6>* plate_poses) {
   ba::IntrinsicsGroup grp;
   grp.name = groups.names[g];
   grp.free.fill(true);
@@ -233,7 +233,7 @@ StatusOr<ba::IntrinsicsGroup> InitialGroup(const JointProblem& problem,
 // The plate views, each initialised by its group's calibration.
 void AddPlateViews(const JointProblem& problem,
                    const GroupAssignment& groups,
-                   const std::vector<std::vector<std::array<double, 6>>>& plate_poses,
+                   const std::vector<std::vector<Pose6>>& plate_poses,
                    ba::BaProblem* bp) {
   std::vector<size_t> next_pose(groups.names.size(), 0);
   for (size_t v = 0; v < problem.plate.views.size(); ++v) {
@@ -265,26 +265,18 @@ Status AddObjectViews(const JointProblem& problem,
   }
   std::map<std::string, int> object_index;
   for (size_t k = 0; k < problem.object_views.size(); ++k) {
-    const JointObjectView& ov = problem.object_views[k];
-    ba::BaView view;
-    view.id = ov.id;
-    view.kind = ba::ViewKind::kObject;
+    ba::BaView view = ToBaObjectView(problem.object_views[k], problem.object_sigma_px);
     view.group = groups.of_object_view[k];
-    view.sigma_px = problem.object_sigma_px;
-    view.obs_sigma_px = ov.sigma_px;
-    view.obs_covariance_px2 = ov.covariance_px2;
-    view.point_ids = ov.marker_ids;
-    view.uv_px = ov.uv_px;
     Camera cam;
     std::copy(bp->groups[view.group].initial.begin(), bp->groups[view.group].initial.end(), cam.params.begin());
     std::vector<Eigen::Vector3d> pts;
-    for (int id : ov.marker_ids) pts.push_back(fiducial.at(id));
-    auto init = InitialObjectPose(cam, config.initializer, pts, ov.uv_px);
+    for (int id : view.point_ids) pts.push_back(fiducial.at(id));
+    auto init = InitialObjectPose(cam, config.initializer, pts, view.uv_px);
     if (!init.ok()) {
-      return Status::Error(problem.path + ": object view '" + ov.id + "': " + init.status().message());
+      return Status::Error(problem.path + ": object view '" + view.id + "': " + init.status().message());
     }
     view.initial = *init;
-    object_index[ov.id] = static_cast<int>(bp->views.size());
+    object_index[view.id] = static_cast<int>(bp->views.size());
     bp->views.push_back(view);
   }
   for (const auto& vp : problem.validation) sol->pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
@@ -303,7 +295,7 @@ Status JointBaProblem(const JointProblem& problem, const SolverConfig& config, J
   }
   bp.plate.free = problem.plate_free;
   bp.plate.sigma_mm = problem.plate_sigma_mm;
-  std::vector<std::vector<std::array<double, 6>>> plate_poses(groups.names.size());
+  std::vector<std::vector<Pose6>> plate_poses(groups.names.size());
   sol->initial_intrinsics_from = problem.camera ? "camera file" : "calibration of the plate views";
   for (size_t g = 0; g < groups.names.size(); ++g) {
     auto grp = InitialGroup(problem, config, groups, g, &plate_poses[g]);

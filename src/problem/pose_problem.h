@@ -115,10 +115,18 @@ struct Observation {
   bool HasCovariance() const { return covariance_px2(0, 0) > 0; }
 };
 
+// An object view: the markers seen in one image. The one form of an object view between the
+// readers (problem/pixel_csv.h, detect/marker_views.h ToPoseViews) and the engine, in pose and
+// joint problems alike.
 struct PoseView {
   std::string id;
   std::vector<Observation> observations;
 };
+
+// The engine's view of an object view (the one translation, for the pose and the joint
+// problems): its marker ids and pixels with their per-observation sigmas or covariances,
+// `sigma_px` where an observation has none; no group and no initial pose yet.
+ba::BaView ToBaObjectView(const PoseView& view, double sigma_px);
 
 struct ValidationPair {
   std::string a, b;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <set>
 
+#include "problem/pixel_csv.h"
 #include "problem/pose_problem.h"
 #include "util/csv.h"
 #include "util/file_util.h"
@@ -51,12 +52,12 @@ Status ReadObservations(YamlMap& m,
   m.Get("marker_column", &id_column);
   if (!m.status().ok()) return m.status();
   const std::string path = JoinPath(base, file);
-  auto t = ReadCsv(path);
-  if (!t.ok()) return t.status();
   std::map<std::string, PoseView> views;
   std::vector<std::string> order;
   if (format == "wide") {
-    // Columns u_<id>, v_<id>.
+    // Columns u_<id>, v_<id> (the thesis's tables); the long format is problem/pixel_csv.h's.
+    auto t = ReadCsv(path);
+    if (!t.ok()) return t.status();
     std::vector<std::string> ids;
     for (const auto& h : t->header) {
       if (h.rfind("u_", 0) == 0) ids.push_back(h.substr(2));
@@ -84,47 +85,20 @@ Status ReadObservations(YamlMap& m,
       order.push_back(id);
     }
   } else {
-    auto vc = t->Column("view");
-    if (!vc.ok()) return vc.status();
-    // Optional per-observation 2x2 pixel covariance (as `carmba pose` writes observations.csv).
-    const bool with_cov = t->Column("cov_uu").ok() || t->Column("cov_uv").ok() || t->Column("cov_vv").ok();
-    for (size_t r = 0; r < t->rows.size(); ++r) {
-      const std::string id = t->rows[r][*vc];
-      if (id.empty()) {
-        return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
-                             ": column 'view': expected a view id, got an empty field");
-      }
+    PixelCsvColumns columns;
+    columns.key = id_column;
+    auto rows = ReadPixelCsv(path, columns);
+    if (!rows.ok()) return rows.status();
+    for (const PixelCsvRow& row : *rows) {
       Observation o;
-      auto mid = t->Integer(r, id_column);
-      if (!mid.ok()) return mid.status();
-      o.marker_id = *mid;
-      auto u = t->NumberIn(r, "u_px", plausible::kPixelCoordinatePx);
-      if (!u.ok()) return u.status();
-      auto vv = t->NumberIn(r, "v_px", plausible::kPixelCoordinatePx);
-      if (!vv.ok()) return vv.status();
-      o.uv_px = Eigen::Vector2d(*u, *vv);
-      if (with_cov) {
-        double c[3];
-        const char* names[3] = {"cov_uu", "cov_uv", "cov_vv"};
-        for (int k = 0; k < 3; ++k) {
-          auto x = t->Number(r, names[k]);
-          if (!x.ok()) return x.status();
-          c[k] = *x;
-        }
-        o.covariance_px2 << c[0], c[1], c[1], c[2];
-        if (!(c[0] > 0) || !(c[2] > 0) || !(c[0] * c[2] - c[1] * c[1] > 0)) {
-          return Status::Error(path + ":" + std::to_string(t->line_numbers[r]) +
-                               ": columns cov_uu, cov_uv, cov_vv: expected a positive definite "
-                               "pixel covariance (px^2), got " + t->rows[r][*t->Column("cov_uu")] +
-                               ", " + t->rows[r][*t->Column("cov_uv")] + ", " +
-                               t->rows[r][*t->Column("cov_vv")]);
-        }
+      o.marker_id = row.id;
+      o.uv_px = row.uv_px;
+      o.covariance_px2 = row.covariance_px2;
+      if (!views.count(row.view)) {
+        order.push_back(row.view);
+        views[row.view].id = row.view;
       }
-      if (!views.count(id)) {
-        order.push_back(id);
-        views[id].id = id;
-      }
-      views[id].observations.push_back(o);
+      views[row.view].observations.push_back(o);
     }
   }
   if (!wanted_views.empty()) order = wanted_views;

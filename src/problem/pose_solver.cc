@@ -42,6 +42,29 @@ StatusOr<std::pair<std::vector<int>, Eigen::MatrixXd>> ConsideredCalibration(con
   return out;
 }
 
+ba::BaView ToBaObjectView(const PoseView& pose_view, double sigma_px) {
+  ba::BaView view;
+  view.id = pose_view.id;
+  view.kind = ba::ViewKind::kObject;
+  view.sigma_px = sigma_px;
+  bool per_observation = false, full = false;
+  for (const auto& o : pose_view.observations) {
+    per_observation |= o.sigma_px > 0;
+    full |= o.HasCovariance();
+  }
+  for (const auto& o : pose_view.observations) {
+    view.point_ids.push_back(o.marker_id);
+    view.uv_px.push_back(o.uv_px);
+    const double sigma = o.sigma_px > 0 ? o.sigma_px : sigma_px;
+    if (per_observation) view.obs_sigma_px.push_back(sigma);
+    if (full) {
+      view.obs_covariance_px2.push_back(
+          o.HasCovariance() ? o.covariance_px2 : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
+    }
+  }
+  return view;
+}
+
 namespace {
 
 Eigen::Matrix3d MarkerCovarianceInProblemFrame(const PoseProblem& problem, const Marker& m) {
@@ -178,31 +201,6 @@ StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const PoseProblem& problem, const S
   return g;
 }
 
-// The engine's view of pose view `v`: its observations with their sigmas or covariances (the
-// problem's sigma where an observation has none), no initial pose yet.
-ba::BaView ObjectView(const PoseProblem& problem, size_t v) {
-  ba::BaView view;
-  view.id = problem.views[v].id;
-  view.kind = ba::ViewKind::kObject;
-  view.sigma_px = problem.sigma_px;
-  bool per_observation = false, full = false;
-  for (const auto& o : problem.views[v].observations) {
-    per_observation |= o.sigma_px > 0;
-    full |= o.HasCovariance();
-  }
-  for (const auto& o : problem.views[v].observations) {
-    view.point_ids.push_back(o.marker_id);
-    view.uv_px.push_back(o.uv_px);
-    const double sigma = o.sigma_px > 0 ? o.sigma_px : problem.sigma_px;
-    if (per_observation) view.obs_sigma_px.push_back(sigma);
-    if (full) {
-      view.obs_covariance_px2.push_back(
-          o.HasCovariance() ? o.covariance_px2 : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
-    }
-  }
-  return view;
-}
-
 // The engine's problem: the held intrinsics, one object view per pose view initialised by the
 // config's initializer, the observed markers tied to their CT measurements. Fills each view's
 // initial pose and RMS into `sol`.
@@ -224,7 +222,7 @@ StatusOr<ba::BaProblem> PoseBaProblem(const PoseProblem& problem,
   }
   sol->views.resize(problem.views.size());
   for (size_t v = 0; v < problem.views.size(); ++v) {
-    ba::BaView view = ObjectView(problem, v);
+    ba::BaView view = ToBaObjectView(problem.views[v], problem.sigma_px);
     std::vector<Eigen::Vector3d> pts;
     for (int id : view.point_ids) pts.push_back(markers.at(id));
     auto init = InitialObjectPose(problem.camera, config.initializer, pts, view.uv_px);

@@ -63,6 +63,20 @@ void CalibrationSummaryDoc(const CalibrationRun& run, ReportDoc* doc) {
               Fixed(r.covariance_seconds * 1e3, 1) + " ms"});
 }
 
+// The images' short ids (io/image_files.h ShortViewIds), in the order given.
+std::vector<std::string> ImageIds(const std::vector<std::string>& paths) { return ShortViewIds(paths); }
+
+// "Images in `DIR/`" when every image lies in one directory ("" otherwise): the tables name the
+// images by their ids, and camera.json `views[].image` keeps each path.
+std::string ImagesDirectoryNote(const std::vector<std::string>& paths) {
+  if (paths.empty()) return "";
+  const std::string dir = std::filesystem::path(paths[0]).parent_path().string();
+  for (const std::string& p : paths) {
+    if (std::filesystem::path(p).parent_path().string() != dir) return "";
+  }
+  return dir.empty() ? "" : "Images in `" + dir + "/`. ";
+}
+
 // Per image: points found, blobs rejected and why; or the images skipped.
 void CalibrationDetectionDoc(const CalibrationRun& run, ReportDoc* doc) {
   ReportDoc& d = *doc;
@@ -70,7 +84,11 @@ void CalibrationDetectionDoc(const CalibrationRun& run, ReportDoc* doc) {
   std::vector<std::vector<std::string>> rows;
   if (!run.detections.empty()) {
     d.Heading(2, "Detection per image");
-    d.Paragraph("Overlays (found points with ids, rejected blobs and why): `overlays/`.");
+    std::vector<std::string> paths;
+    for (const GridDetection& g : run.detections) paths.push_back(g.view.image);
+    const std::vector<std::string> ids = ImageIds(paths);
+    d.Paragraph(ImagesDirectoryNote(paths) +
+                "Overlays (found points with ids, rejected blobs and why): `overlays/`.");
     rows.clear();
     for (size_t i = 0; i < run.detections.size(); ++i) {
       const GridDetection& g = run.detections[i];
@@ -83,7 +101,7 @@ void CalibrationDetectionDoc(const CalibrationRun& run, ReportDoc* doc) {
         rejected += (reason == why.begin()->first ? " (" : "; ") + std::to_string(count) + " " + reason;
       }
       if (!why.empty()) rejected += ")";
-      rows.push_back({std::to_string(i), g.view.image,
+      rows.push_back({std::to_string(i), ids[i],
                       std::to_string(g.view.uv_px.size()) + " / " +
                           std::to_string(obs.grid.NumPoints()),
                       rejected, g.found ? "used" : "skipped: " + g.reason});
@@ -361,10 +379,15 @@ void CalibrationPerViewDoc(const CalibrationRun& run, ReportDoc* doc) {
   const CalibrationOptions& opt = run.options;
   std::vector<std::vector<std::string>> rows;
   d.Heading(2, "Per view");
+  std::vector<std::string> paths;
+  for (const auto& v : r.views) paths.push_back(v.image);
+  const std::vector<std::string> ids = ImageIds(paths);
+  const std::string where = ImagesDirectoryNote(paths);
+  if (!where.empty()) d.Paragraph(where);
   rows.clear();
   for (size_t i = 0; i < r.views.size(); ++i) {
     const auto& v = r.views[i];
-    rows.push_back({std::to_string(i), v.image, std::to_string(v.num_points), Fixed(v.rms_px),
+    rows.push_back({std::to_string(i), ids[i], std::to_string(v.num_points), Fixed(v.rms_px),
                     Fixed(v.max_px), Fixed(v.tilt_deg, 1), Fixed(v.distance_mm, 1)});
   }
   d.Table({"view", "image", "points", "rms px", "max px", "tilt deg", "distance mm"}, rows);
@@ -390,7 +413,7 @@ void CalibrationPerViewDoc(const CalibrationRun& run, ReportDoc* doc) {
   if (r.outliers.empty()) d.Paragraph("None.");
   std::vector<std::string> items;
   for (const auto& w : r.outliers) {
-    items.push_back("view " + std::to_string(w.view) + " (" + r.views[w.view].image + "), point " +
+    items.push_back("view " + std::to_string(w.view) + " (" + ids[w.view] + "), point " +
                     std::to_string(w.point_id) + ": " + Fixed(w.norm_px) + " px");
   }
   d.List(items);

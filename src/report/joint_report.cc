@@ -10,6 +10,7 @@
 #include "report/joint_report.h"
 #include "util/format.h"
 #include "report/plots.h"
+#include "report/pose_report.h"
 #include "report/relative_tre_report.h"
 #include "report/lens_report.h"
 #include "report/variance_report.h"
@@ -84,8 +85,7 @@ nlohmann::json ViewsJson(const JointProblem& problem, const JointSolution& s) {
     vj["id"] = bv.id;
     vj["kind"] = bv.kind == ba::ViewKind::kPlate ? "plate" : "object";
     vj["group"] = s.ba_problem.groups[bv.group].name;
-    vj[bv.kind == ba::ViewKind::kPlate ? "cam_from_plate" : "cam_from_object"] = {
-        {"rvec", JsonVector(pose.head<3>())}, {"t_mm", JsonVector(pose.tail<3>())}};
+    vj[bv.kind == ba::ViewKind::kPlate ? "cam_from_plate" : "cam_from_object"] = PoseToJson(pose);
     vj["rms_px"] = JsonNumber(r.views[v].rms_px);
     vj["num_observations"] = r.views[v].num_observations;
     if (bv.kind == ba::ViewKind::kObject) {
@@ -100,7 +100,7 @@ nlohmann::json ViewsJson(const JointProblem& problem, const JointSolution& s) {
       vj["sigma_translation_mm"] = st;
       auto it = problem.truth.object_poses.find(bv.id);
       if (it != problem.truth.object_poses.end()) {
-        vj["truth"] = {{"rvec", JsonVector(it->second.head<3>())}, {"t_mm", JsonVector(it->second.tail<3>())}};
+        vj["truth"] = PoseToJson(it->second);
         vj["rotation_error_deg"] = AngleBetweenRotations(RotationFromRvec(pose.head<3>()),
                                                          RotationFromRvec(it->second.head<3>())) *
                                    kRadToDeg;
@@ -165,24 +165,6 @@ void MarkersAndOutliersJson(const JointSolution& s, nlohmann::json* out) {
                         {"residual_sigma", JsonNumber(o.residual_sigma)}});
   }
   j["rejected"] = rejected;
-}
-
-nlohmann::json ErrorBudgetJson(const std::vector<ba::BudgetRow>& rows) {
-  nlohmann::json budget = nlohmann::json::array();
-  for (const auto& row : rows) {
-    nlohmann::json src = nlohmann::json::array();
-    for (int k = 0; k < ba::kNumSources; ++k) {
-      src.push_back({{"source", ba::SourceName(static_cast<ba::Source>(k))},
-                     {"sigma", JsonNumber(row.source_sigma[k])},
-                     {"share", JsonNumber(row.share[k])}});
-    }
-    budget.push_back({{"quantity", row.quantity.name},
-                      {"unit", row.quantity.unit},
-                      {"value", JsonNumber(row.quantity.value)},
-                      {"sigma", JsonNumber(row.sigma)},
-                      {"sources", src}});
-  }
-  return budget;
 }
 
 nlohmann::json TwoStepComparisonJson(const JointSolution& s) {
@@ -427,35 +409,6 @@ void JointValidationDoc(const JointProblem& problem, const JointSolution& s, con
   d.Table(header, rows);
 }
 
-// Each quantity's variance by noise source.
-void JointErrorBudgetDoc(const JointSolution& s, const std::string& sigma_note, ReportDoc* doc) {
-  ReportDoc& d = *doc;
-  d.Heading(2, "Error budget");
-  d.Paragraph(
-      "Share of each quantity's variance from each independent noise source "
-      "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %). "
-      "Rotations are small rotations about the camera axes (their value is 0 by definition); "
-      "`centre projection` is where the ray of the image centre, held fixed at the object "
-      "distance, projects with the estimated intrinsics (its value is the image centre, its "
-      "sigma the calibration's own uncertainty there). " + sigma_note);
-  std::vector<std::string> header = {"quantity", "unit", "value", "sigma"};
-  const std::vector<ba::Source> active = ba::ActiveSources(s.budget);
-  for (ba::Source k : active) header.push_back(ba::SourceName(k));
-  std::vector<std::vector<std::string>> rows;
-  for (const auto& row : s.budget) {
-    std::vector<std::string> cells = {row.quantity.name, row.quantity.unit,
-                                      Fmt("%.6g", row.quantity.value), Fmt("%.3g", row.sigma)};
-    for (ba::Source k : active) {
-      const double share = row.share[static_cast<int>(k)];
-      cells.push_back(share > 0 ? Fmt("%.1f %%", 100 * share) : "-");
-    }
-    rows.push_back(cells);
-  }
-  d.Table(header, rows);
-  d.Figures({"error-budget"});
-
-}
-
 // The joint sigmas against the two-step ones.
 void JointTwoStepDoc(const JointProblem& problem, const JointSolution& s, ReportDoc* doc) {
   ReportDoc& d = *doc;
@@ -536,7 +489,7 @@ ReportDoc JointReportDoc(const JointProblem& problem,
   d.Figures({"poses", "markers"});
   AppendRelativePoses(&d, s.ba_problem, s.relative_poses, problem.truth.object_poses);
   if (s.tre) AppendTre(&d, *s.tre);
-  JointErrorBudgetDoc(s, sigma_note, &d);
+  d.Append(ErrorBudgetDoc(s.budget, sigma_note));
   JointTwoStepDoc(problem, s, &d);
   JointOutliersDoc(config, s, &d);
   return d;

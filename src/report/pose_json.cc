@@ -1,4 +1,5 @@
 // result.json for pose problems.
+#include <algorithm>
 #include <cmath>
 
 #include "geometry/rotation.h"
@@ -9,9 +10,7 @@
 #include "report/variance_report.h"
 
 namespace carmba {
-namespace {
-
-nlohmann::json PoseJson(const Pose6& p) {
+nlohmann::json PoseToJson(const Pose6& p) {
   const Eigen::Matrix3d R = RotationFromRvec(p.head<3>());
   nlohmann::json Rj = nlohmann::json::array();
   for (int i = 0; i < 3; ++i) {
@@ -20,7 +19,27 @@ nlohmann::json PoseJson(const Pose6& p) {
   return {{"R", Rj}, {"rvec", JsonVector(p.head<3>())}, {"t_mm", JsonVector(p.tail<3>())}};
 }
 
-}  // namespace
+std::vector<ba::BudgetRow> PoseErrorBudget(const PoseProblem& problem, const PoseSolution& s) {
+  if (!s.ba_problem || !s.ba_result || !s.ba_result->covariance) return {};
+  std::vector<std::pair<int, int>> pairs;
+  auto index = [&](const std::string& id) {
+    for (size_t v = 0; v < s.ba_problem->views.size(); ++v) {
+      if (s.ba_problem->views[v].id == id) return static_cast<int>(v);
+    }
+    return -1;
+  };
+  for (const auto& p : problem.validation) {
+    const int a = index(p.a), b = index(p.b);
+    if (a >= 0 && b >= 0) pairs.emplace_back(a, b);
+  }
+  std::vector<ba::BudgetRow> budget = ba::ComputeErrorBudget(*s.ba_problem, *s.ba_result, pairs);
+  // The held intrinsics' centre projection has no uncertainty unless the calibration's is
+  // considered: rows without a sigma say nothing.
+  budget.erase(std::remove_if(budget.begin(), budget.end(),
+                              [](const ba::BudgetRow& row) { return !(row.sigma > 0); }),
+               budget.end());
+  return budget;
+}
 
 nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& s) {
   nlohmann::json j;
@@ -34,18 +53,21 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
   for (const auto& v : s.views) {
     nlohmann::json vj;
     vj["id"] = v.id;
-    vj["cam_from_object"] = PoseJson(v.cam_from_object);
+    vj["kind"] = "object";
+    vj["group"] = s.ba_problem && !s.ba_problem->groups.empty() ? s.ba_problem->groups[0].name
+                                                                : std::string("shared");
+    vj["cam_from_object"] = PoseToJson(v.cam_from_object);
     vj["covariance_6x6"] = s.has_covariance ? JsonRows(v.covariance) : nlohmann::json();
     vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
     vj["sigma_rotation_deg"] = JsonVector(v.sigma_rotation_deg);
     vj["sigma_translation_mm"] = JsonVector(v.sigma_translation_mm);
     vj["rms_px"] = JsonNumber(v.rms_px);
     vj["num_observations"] = v.num_observations;
-    vj["initial"] = PoseJson(v.initial);
+    vj["initial"] = PoseToJson(v.initial);
     vj["initial_rms_px"] = JsonNumber(v.initial_rms_px);
     if (problem.truth_poses.count(v.id)) {
       const Pose6& t = problem.truth_poses.at(v.id);
-      vj["truth"] = PoseJson(t);
+      vj["truth"] = PoseToJson(t);
       vj["rotation_error_deg"] =
           AngleBetweenRotations(RotationFromRvec(v.cam_from_object.head<3>()),
                                 RotationFromRvec(t.head<3>())) *
@@ -81,6 +103,7 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
                      {"num_residuals", s.num_residuals},
                      {"num_parameters", s.num_parameters}};
   if (s.ba_result) {
+    j["error_budget"] = ErrorBudgetJson(PoseErrorBudget(problem, s));
     j["statistics"]["covariance_scale"] = ba::CovarianceScaleName(s.ba_result->scale_mode);
     j["variance_components"] = VarianceComponentsJson(*s.ba_result);
     j["shadow_correction"] = ShadowCorrectionJson(*s.ba_result);

@@ -151,6 +151,105 @@ nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseCompar
   return j;
 }
 
+namespace {
+
+// The thesis's printed angles and the legacy POSIT comparison are shown where the problem has
+// them (the thesis problems: `reference`), not for data that has neither.
+bool HasThesisAngles(const PoseProblem& problem) { return !problem.reference_angles_deg.empty(); }
+bool HasLegacyReference(const PoseProblem& problem) { return problem.legacy_reference.has_value(); }
+
+// The validation pairs' angles, when the problem has validation pairs.
+void PoseValidationDoc(const PoseProblem& problem, const SolverConfig& config,
+                       const PoseSolution& s, const PoseComparison& c,
+                       const std::string& sigma_used, ReportDoc* doc) {
+  if (s.validation.empty()) return;
+  ReportDoc& d = *doc;
+  d.Heading(2, "Validation: angles between views (deg)");
+  d.Paragraph(
+      std::string("Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) "
+                  "and inv(R_b)(0,0,1)); relative rotation is the angle of R_a^T R_b. ") +
+      (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance, "
+                       "from " + sigma_used + "."
+                     : "This config does not refine (refine: false): the values are the "
+                       "initializer's, without uncertainty."));
+  const bool thesis = HasThesisAngles(problem), legacy = HasLegacyReference(problem);
+  const std::string result_column =
+      config.refine ? "bundle adjustment" : std::string(InitializerName(config.initializer));
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& p : s.validation) {
+    const auto key = std::make_pair(p.a, p.b);
+    std::string within = "n/a";
+    if (p.expected_deg && std::isfinite(p.sigma_view_dirs_deg)) {
+      within = std::fabs(p.angle_view_dirs_deg - *p.expected_deg) <= 2 * p.sigma_view_dirs_deg
+                   ? "yes"
+                   : "no";
+    }
+    std::vector<std::string> row = {p.a + "-" + p.b,
+                                    p.expected_deg ? Fmt("%.1f", *p.expected_deg) : "n/a"};
+    if (thesis) {
+      const auto it = problem.reference_angles_deg.find(key);
+      row.push_back(Fmt("%.4f", it != problem.reference_angles_deg.end() ? it->second : std::nan("")));
+    }
+    if (legacy) {
+      const auto it = c.legacy_view_dirs_deg.find(key);
+      row.push_back(Fmt("%.4f", it != c.legacy_view_dirs_deg.end() ? it->second : std::nan("")));
+    }
+    row.push_back(Fmt("%.3f", p.angle_view_dirs_deg) + " +- " + Fmt("%.3f", p.sigma_view_dirs_deg));
+    row.push_back(within);
+    row.push_back(Fmt("%.3f", p.relative_rotation_deg) + " +- " +
+                  Fmt("%.3f", p.sigma_relative_rotation_deg));
+    rows.push_back(row);
+  }
+  std::vector<std::string> header = {"pair", "expected"};
+  if (thesis) header.push_back("thesis");
+  if (legacy) header.push_back("legacy POSIT");
+  for (const std::string& h : {result_column + " (view dirs)", std::string("within 2 sigma"),
+                               std::string("relative rotation")}) {
+    header.push_back(h);
+  }
+  d.Table(header, rows);
+}
+
+// The reprojection RMS per view: the initializer's and the solution's, legacy POSIT's where the
+// problem has a legacy reference, and the other handedness's.
+void PoseRmsDoc(const PoseProblem& problem, const SolverConfig& config, const PoseSolution& s,
+                const PoseComparison& c, ReportDoc* doc) {
+  ReportDoc& d = *doc;
+  const bool legacy = HasLegacyReference(problem);
+  d.Heading(2, "Reprojection RMS per view (px, per coordinate)");
+  std::vector<std::vector<std::string>> rows;
+  for (size_t v = 0; v < s.views.size(); ++v) {
+    const auto& vs = s.views[v];
+    const double other = c.other_handedness ? c.other_handedness->views[v].rms_px : std::nan("");
+    std::vector<std::string> row = {vs.id, std::to_string(vs.num_observations)};
+    if (legacy) row.push_back(Fmt("%.3f", v < c.legacy.size() ? c.legacy[v].rms_px : std::nan("")));
+    for (const std::string& cell :
+         {Fmt("%.3f", vs.initial_rms_px), Fmt("%.3f", vs.rms_px), Fmt("%.3f", other)}) {
+      row.push_back(cell);
+    }
+    rows.push_back(row);
+  }
+  std::vector<std::string> all = {"all", ""};
+  if (legacy) all.push_back("");
+  all.push_back("");
+  all.push_back(Fmt("%.3f", s.rms_px));
+  all.push_back(c.other_handedness ? Fmt("%.3f", c.other_handedness->rms_px) : "n/a");
+  rows.push_back(all);
+  std::vector<std::string> header = {"view", "markers"};
+  if (legacy) header.push_back("legacy POSIT");
+  header.push_back(std::string("initializer (") + InitializerName(config.initializer) + ")");
+  header.push_back(config.refine ? "bundle adjustment" : "final (not refined)");
+  header.push_back("other handedness BA");
+  d.Table(header, rows);
+  if (legacy) {
+    d.Paragraph("Legacy POSIT: " + c.legacy_settings + "." +
+                (c.legacy_error.empty() ? "" : " Could not run: " + c.legacy_error + "."));
+  }
+  d.Figures({"residuals-per-view", "residual-field"});
+}
+
+}  // namespace
+
 ReportDoc PoseReportDoc(const PoseProblem& problem,
                         const SolverConfig& config,
                         const PoseSolution& s,
@@ -178,62 +277,11 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
   // Which pixel sigma the uncertainties below rest on (said wherever an uncertainty is shown).
   const std::string sigma_used = CovarianceScaleNote(config.covariance_scale) + " (pixel sigma " +
                                  Fmt("%.3g", problem.sigma_px) + " px as stated)";
-  d.Heading(2, "Validation: angles between views (deg)");
-  d.Paragraph(
-      std::string("Viewing-direction angle is the thesis's metric (angle between inv(R_a)(0,0,1) "
-                  "and inv(R_b)(0,0,1)); relative rotation is the angle of R_a^T R_b. ") +
-      (config.refine ? "Bundle-adjustment values +- 1 sigma propagated from the joint covariance, "
-                       "from " + sigma_used + "."
-                     : "This config does not refine (refine: false): the values are the "
-                       "initializer's, without uncertainty."));
-  const std::string result_column =
-      config.refine ? "bundle adjustment" : std::string(InitializerName(config.initializer));
-  std::vector<std::vector<std::string>> rows;
-  for (const auto& p : s.validation) {
-    const auto key = std::make_pair(p.a, p.b);
-    const double thesis = problem.reference_angles_deg.count(key)
-                              ? problem.reference_angles_deg.at(key)
-                              : std::nan("");
-    const double legacy =
-        c.legacy_view_dirs_deg.count(key) ? c.legacy_view_dirs_deg.at(key) : std::nan("");
-    std::string within = "n/a";
-    if (p.expected_deg && std::isfinite(p.sigma_view_dirs_deg)) {
-      within = std::fabs(p.angle_view_dirs_deg - *p.expected_deg) <= 2 * p.sigma_view_dirs_deg
-                   ? "yes"
-                   : "no";
-    }
-    rows.push_back({p.a + "-" + p.b, p.expected_deg ? Fmt("%.1f", *p.expected_deg) : "n/a",
-                    Fmt("%.4f", thesis), Fmt("%.4f", legacy),
-                    Fmt("%.3f", p.angle_view_dirs_deg) + " +- " + Fmt("%.3f", p.sigma_view_dirs_deg),
-                    within,
-                    Fmt("%.3f", p.relative_rotation_deg) + " +- " +
-                        Fmt("%.3f", p.sigma_relative_rotation_deg)});
-  }
-  d.Table({"pair", "expected", "thesis", "legacy POSIT", result_column + " (view dirs)",
-           "within 2 sigma", "relative rotation"},
-          rows);
-
-  d.Heading(2, "Reprojection RMS per view (px, per coordinate)");
-  rows.clear();
-  for (size_t v = 0; v < s.views.size(); ++v) {
-    const auto& vs = s.views[v];
-    const double legacy = v < c.legacy.size() ? c.legacy[v].rms_px : std::nan("");
-    const double other = c.other_handedness ? c.other_handedness->views[v].rms_px : std::nan("");
-    rows.push_back({vs.id, std::to_string(vs.num_observations), Fmt("%.3f", legacy),
-                    Fmt("%.3f", vs.initial_rms_px), Fmt("%.3f", vs.rms_px), Fmt("%.3f", other)});
-  }
-  rows.push_back({"all", "", "", "", Fmt("%.3f", s.rms_px),
-                  c.other_handedness ? Fmt("%.3f", c.other_handedness->rms_px) : "n/a"});
-  d.Table({"view", "markers", "legacy POSIT",
-           std::string("initializer (") + InitializerName(config.initializer) + ")",
-           config.refine ? "bundle adjustment" : "final (not refined)", "other handedness BA"},
-          rows);
-  d.Paragraph("Legacy POSIT: " + c.legacy_settings + "." +
-              (c.legacy_error.empty() ? "" : " Could not run: " + c.legacy_error + "."));
-  d.Figures({"residuals-per-view", "residual-field"});
+  PoseValidationDoc(problem, config, s, c, sigma_used, &d);
+  PoseRmsDoc(problem, config, s, c, &d);
 
   d.Heading(2, "Poses (cam_from_object) with 1-sigma uncertainty");
-  rows.clear();
+  std::vector<std::vector<std::string>> rows;
   d.Paragraph("Sigmas from " + sigma_used + ".");
   for (const auto& vs : s.views) {
     const auto& t = vs.cam_from_object;
@@ -246,7 +294,9 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
                         Fmt("%.3f", vs.sigma_rotation_deg[2])});
   }
   d.Table({"view", "t (mm)", "sigma t (mm)", "sigma rotation about camera x, y, z (deg)"}, rows);
-  d.Figures({"poses", "markers", "error-budget", "distortion"});
+  d.Figures({"poses", "markers", "distortion"});
+  const std::vector<ba::BudgetRow> budget = PoseErrorBudget(problem, s);
+  if (!budget.empty()) d.Append(ErrorBudgetDoc(budget, "Sigmas from " + sigma_used + "."));
   if (!c.legacy.empty() && c.legacy.front().max_diff_to_reference) {
     d.Heading(2, "Legacy POSIT against the printed matrices");
     rows.clear();
@@ -289,19 +339,7 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
 
 nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& s) {
   if (!s.ba_problem || !s.ba_result) return {{"kind", "pose"}};
-  std::vector<std::pair<int, int>> pairs;
-  auto index = [&](const std::string& id) {
-    for (size_t v = 0; v < s.ba_problem->views.size(); ++v) {
-      if (s.ba_problem->views[v].id == id) return static_cast<int>(v);
-    }
-    return -1;
-  };
-  for (const auto& p : problem.validation) {
-    const int a = index(p.a), b = index(p.b);
-    if (a >= 0 && b >= 0) pairs.emplace_back(a, b);
-  }
-  std::vector<ba::BudgetRow> budget;
-  if (s.ba_result->covariance) budget = ba::ComputeErrorBudget(*s.ba_problem, *s.ba_result, pairs);
+  const std::vector<ba::BudgetRow> budget = PoseErrorBudget(problem, s);
   nlohmann::json d = BaPlotData(*s.ba_problem, *s.ba_result, &budget);
   d["kind"] = "pose";
   if (!d.contains("image_size") && problem.camera.width > 0) {
@@ -319,13 +357,13 @@ void AppendObjectViews(ReportDoc* d, const std::vector<ObjectView>& views) {
     std::string rej;
     for (const auto& [why, k] : reasons) rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
     if (!v.labelled) {
-      rows.push_back({v.name, std::to_string(v.detection.blobs.size()), "skipped: " + v.skipped, "",
+      rows.push_back({v.id, std::to_string(v.detection.blobs.size()), "skipped: " + v.skipped, "",
                       "", "", rej});
       continue;
     }
     int unlabelled = 0;
     for (int id : v.marker_id_of_blob) unlabelled += id < 0;
-    rows.push_back({v.name, std::to_string(v.detection.blobs.size()),
+    rows.push_back({v.id, std::to_string(v.detection.blobs.size()),
                     std::to_string(v.labelling.num_labelled), std::to_string(unlabelled),
                     v.labelling.method, Fmt("%.3g", v.labelling.rms_px), rej});
   }

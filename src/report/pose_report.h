@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "ba/quantities.h"
 #include "detect/marker_views.h"
 #include "problem/pose_problem.h"
 #include "report/report_doc.h"
@@ -69,5 +70,14 @@ nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& solu
 // The report's section on the marker detection and labelling of views read from images
 // (`carmba pose --images`): per view the blobs, the markers labelled, the rejected candidates.
 void AppendObjectViews(ReportDoc* doc, const std::vector<ObjectView>& views);
+
+// result.json's encoding of a pose (pose and joint problems alike): {"R": 9 values, row-major,
+// "rvec": rad, "t_mm"}.
+nlohmann::json PoseToJson(const Pose6& pose);
+
+// The error budget of a pose solve (ba/quantities.h): the poses and the validation pairs (rows
+// without a sigma, such as the held intrinsics' centre projection, left out); empty without the
+// engine's covariance.
+std::vector<ba::BudgetRow> PoseErrorBudget(const PoseProblem& problem, const PoseSolution& solution);
 
 }  // namespace carmba

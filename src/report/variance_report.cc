@@ -1,5 +1,7 @@
 #include "report/variance_report.h"
 
+#include <algorithm>
+
 #include "util/format.h"
 
 namespace carmba {
@@ -120,6 +122,58 @@ ReportDoc ShadowCorrectionDoc(const ba::BaResult& result) {
                    "figure of this report is of the corrected centres)."
                  : "below " + Fmt("%g", ba::kShadowCorrectionMinSigma) +
                        " sigma, so not applied."));
+  return d;
+}
+
+nlohmann::json ErrorBudgetJson(const std::vector<ba::BudgetRow>& rows) {
+  nlohmann::json budget = nlohmann::json::array();
+  for (const auto& row : rows) {
+    nlohmann::json src = nlohmann::json::array();
+    for (int k = 0; k < ba::kNumSources; ++k) {
+      src.push_back({{"source", ba::SourceName(static_cast<ba::Source>(k))},
+                     {"sigma", JsonNumber(row.source_sigma[k])},
+                     {"share", JsonNumber(row.share[k])}});
+    }
+    budget.push_back({{"quantity", row.quantity.name},
+                      {"unit", row.quantity.unit},
+                      {"value", JsonNumber(row.quantity.value)},
+                      {"sigma", JsonNumber(row.sigma)},
+                      {"sources", src}});
+  }
+  return budget;
+}
+
+ReportDoc ErrorBudgetDoc(const std::vector<ba::BudgetRow>& budget, const std::string& sigma_note) {
+  ReportDoc d;
+  d.Heading(2, "Error budget");
+  const bool centre = std::any_of(budget.begin(), budget.end(), [](const ba::BudgetRow& row) {
+    return row.quantity.key.kind == ba::QuantityKind::kCentreProjection;
+  });
+  d.Paragraph(
+      "Share of each quantity's variance from each independent noise source "
+      "(first order: Var(f) = sum_s G H^-1 J_s^T J_s H^-1 G^T; the shares add up to 100 %). "
+      "Rotations are small rotations about the camera axes (their value is 0 by definition)" +
+      std::string(centre ? "; `centre projection` is where the ray of the image centre, held fixed "
+                           "at the object distance, projects with the estimated intrinsics (its "
+                           "value is the image centre, its sigma the calibration's own uncertainty "
+                           "there). "
+                         : ". ") +
+      sigma_note);
+  std::vector<std::string> header = {"quantity", "unit", "value", "sigma"};
+  const std::vector<ba::Source> active = ba::ActiveSources(budget);
+  for (ba::Source k : active) header.push_back(ba::SourceName(k));
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& row : budget) {
+    std::vector<std::string> cells = {row.quantity.name, row.quantity.unit,
+                                      Fmt("%.6g", row.quantity.value), Fmt("%.3g", row.sigma)};
+    for (ba::Source k : active) {
+      const double share = row.share[static_cast<int>(k)];
+      cells.push_back(share > 0 ? Fmt("%.1f %%", 100 * share) : "-");
+    }
+    rows.push_back(cells);
+  }
+  d.Table(header, rows);
+  d.Figures({"error-budget"});
   return d;
 }
 

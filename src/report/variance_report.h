@@ -1,10 +1,12 @@
-// The variance components of a solve (ba/variance_components.h) in result.json and in the
-// report: one writer for every problem kind.
+// The noise model of a solve in result.json and in the report, one writer for every problem
+// kind: the variance components (ba/variance_components.h), the error budget (ba/quantities.h)
+// and the cone-beam shadow correction (ba/shadow_correction.h).
 #pragma once
 
 #include <nlohmann/json.hpp>
 
 #include "ba/bundle_adjuster.h"
+#include "ba/quantities.h"
 #include "report/report_doc.h"
 
 namespace carmba {
@@ -26,5 +28,12 @@ ReportDoc VarianceComponentsDoc(const ba::BaResult& result);
 nlohmann::json ShadowCorrectionJson(const ba::BaResult& result);
 // The report's paragraph on it (empty when not evaluated).
 ReportDoc ShadowCorrectionDoc(const ba::BaResult& result);
+
+// result.json's "error_budget": per quantity {quantity, unit, value, sigma, sources: [{source,
+// sigma, share}]}.
+nlohmann::json ErrorBudgetJson(const std::vector<ba::BudgetRow>& rows);
+// The report's section: each quantity's variance by noise source; `sigma_note` says which sigmas
+// the covariance rests on.
+ReportDoc ErrorBudgetDoc(const std::vector<ba::BudgetRow>& rows, const std::string& sigma_note);
 
 }  // namespace carmba

@@ -1,7 +1,5 @@
 #include "synthetic/synthetic_views.h"
 
-#include <ceres/rotation.h>
-
 #include <Eigen/Geometry>
 #include <cmath>
 #include <random>
@@ -13,7 +11,7 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
                                   int height,
                                   const GridSpec& grid,
                                   const SyntheticViewsOptions& o,
-                                  std::vector<std::array<double, 6>>* cam_from_plate) {
+                                  std::vector<Pose6>* cam_from_plate) {
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> U(0.0, 1.0);
   ObservationSet obs;
@@ -39,10 +37,7 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
     const Eigen::Vector3d c_cam((2 * U(rng) - 1) * o.max_offset_fraction * half_fov_x,
                                 (2 * U(rng) - 1) * o.max_offset_fraction * half_fov_y, z);
     const Eigen::Vector3d t = c_cam - R * centre;
-    std::array<double, 6> pose;
-    const Eigen::Matrix<double, 3, 3, Eigen::ColMajor> Rc = R;
-    ceres::RotationMatrixToAngleAxis(Rc.data(), pose.data());
-    pose[3] = t.x(), pose[4] = t.y(), pose[5] = t.z();
+    const Pose6 pose = Rigid3{R, t}.ToPose();
     ViewObservations v;
     v.image = "synthetic_" + std::to_string(obs.views.size());
     bool inside = true;

@@ -9,6 +9,7 @@
 
 #include "camera/camera_model.h"
 #include "detect/observations.h"
+#include "geometry/pose.h"
 
 namespace carmba {
 
@@ -30,7 +31,7 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
                                   int height,
                                   const GridSpec& grid,
                                   const SyntheticViewsOptions& options,
-                                  std::vector<std::array<double, 6>>* cam_from_plate = nullptr);
+                                  std::vector<Pose6>* cam_from_plate = nullptr);
 
 // Re-draws the noise of `clean` (noise-free observations) with a new seed.
 ObservationSet AddNoise(const ObservationSet& clean, double sigma_px, uint64_t seed);

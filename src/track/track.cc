@@ -1,8 +1,6 @@
 #include "geometry/rotation.h"
 #include "track/track.h"
 
-#include <ceres/rotation.h>
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -31,10 +29,7 @@ double Seconds(Clock::time_point t0) {
 }
 
 Pose6 PoseOf(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-  Pose6 p;
-  ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(R.data()), p.data());
-  p.tail<3>() = t;
-  return p;
+  return Rigid3{R, t}.ToPose();
 }
 
 // The point nearest to all optical axes (least squares): where a biplane system's fields meet.

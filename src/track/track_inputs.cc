@@ -1,5 +1,4 @@
 // The inputs of `carmba track`: the cameras' calibration text and the images paired by frame.
-#include <ceres/rotation.h>
 
 #include <Eigen/SVD>
 #include <algorithm>
@@ -123,7 +122,7 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
   }
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Eigen::Matrix3d Rn = svd.matrixU() * svd.matrixV().transpose();
-  ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(Rn.data()), cam.cam_from_lab.data());
+  cam.cam_from_lab.head<3>() = RvecFromRotation(Rn);
   for (int i = 0; i < 3; ++i) cam.cam_from_lab[3 + i] = values["translation"][i][0];
   if (!InRange(cam.CentreInLab().norm(), plausible::kSourceToObjectMm)) {
     return Status::Error(path + ": the source lies " + FormatCompact(cam.CentreInLab().norm()) +

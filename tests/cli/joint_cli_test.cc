@@ -3,6 +3,7 @@
 // result.json's keys), and bad input one corruption at a time.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -359,6 +360,47 @@ TEST_F(JointBadInput, ProblemNamesItsConfig) {
 TEST_F(JointBadInput, UnknownFixName) {
   config_ = "name: c\nfix: [p1, q2]\n";
   ExpectError("'q2' is not an intrinsic");
+}
+
+// The object views' covariance columns count in a joint problem as in a pose problem (one reader,
+// problem/pixel_csv.h): with them, the object observations are the "detected blobs" noise group
+// (whitened by their 2x2), without them the "object pixels" group.
+std::string WithCovarianceColumns(const std::string& csv, const std::string& cov) {
+  std::istringstream in(csv);
+  std::string line, out;
+  bool header = true;
+  while (std::getline(in, line)) {
+    out += line + (header ? ",cov_uu,cov_uv,cov_vv" : "," + cov) + "\n";
+    header = false;
+  }
+  return out;
+}
+
+std::vector<std::string> NoiseGroupKeys(const nlohmann::json& result) {
+  std::vector<std::string> keys;
+  for (const auto& g : result.at("variance_components").at("groups")) keys.push_back(g.at("group"));
+  return keys;
+}
+
+TEST_F(JointBadInput, ObjectCovarianceColumnsMakeDetectedBlobs) {
+  auto without = Solve();
+  ASSERT_EQ(without.exit_code, 0) << without.err;
+  const auto plain = NoiseGroupKeys(ReadJsonFile(dir_.File("out/result.json")));
+  EXPECT_NE(std::find(plain.begin(), plain.end(), "object_pixels"), plain.end());
+  EXPECT_EQ(std::find(plain.begin(), plain.end(), "detected_blobs"), plain.end());
+  std::filesystem::remove_all(dir_.File("out"));
+  object_ = WithCovarianceColumns(object_, "0.04,0.01,0.05");
+  const auto with = Solve();
+  ASSERT_EQ(with.exit_code, 0) << with.err;
+  const auto blobs = NoiseGroupKeys(ReadJsonFile(dir_.File("out/result.json")));
+  EXPECT_NE(std::find(blobs.begin(), blobs.end(), "detected_blobs"), blobs.end());
+  EXPECT_EQ(std::find(blobs.begin(), blobs.end(), "object_pixels"), blobs.end());
+}
+
+TEST_F(JointBadInput, ObjectCovarianceNotPositiveDefinite) {
+  object_ = WithCovarianceColumns(object_, "0.04,0.05,0.05");
+  ExpectError("object.csv:2: columns cov_uu, cov_uv, cov_vv: expected a positive definite pixel "
+              "covariance (px^2), got 0.04, 0.05, 0.05");
 }
 
 }  // namespace

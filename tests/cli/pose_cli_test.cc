@@ -77,11 +77,9 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
     const auto& jv = j["views"][v];
     const std::string id = jv["id"];
     nlohmann::json tv;
+    // Views are named by their file's stem (the file is kept in marker_detection[].image).
     for (const auto& t : truth_["views"]) {
-      if (id.size() >= t["file"].get<std::string>().size() &&
-          id.compare(id.size() - t["file"].get<std::string>().size(), std::string::npos, t["file"].get<std::string>()) == 0) {
-        tv = t["cam_from_object"]["t_mm"];
-      }
+      if (fs::path(t["file"].get<std::string>()).stem().string() == id) tv = t["cam_from_object"]["t_mm"];
     }
     ASSERT_FALSE(tv.is_null()) << id;
     for (int a = 0; a < 3; ++a) {

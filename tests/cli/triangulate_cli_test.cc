@@ -139,8 +139,8 @@ TEST_F(TriangulateCli, PointsAndPixelsTogether) {
 
 TEST_F(TriangulateCli, BadPixelCovariance) {
   dir_.Write("p.csv", "view,u_px,v_px,cov_uu,cov_uv,cov_vv\n0,133,180,1,2,1\n90,153,182,1,0,1\n");
-  ExpectError("--points " + dir_.File("p.csv"), "p.csv:2: cov_uu, cov_uv, cov_vv: expected a "
-                                                "positive definite pixel covariance");
+  ExpectError("--points " + dir_.File("p.csv"), "p.csv:2: columns cov_uu, cov_uv, cov_vv: "
+                                                "expected a positive definite pixel covariance");
 }
 
 TEST(SolveTre, FourMarkerViewsAreSkippedWithTheReason) {

@@ -99,7 +99,7 @@ class CtFiducialsPipeline : public ::testing::Test {
     WriteText(dir_.File("model.csv"), csv);
   }
   ScratchDir dir_{"pipeline"};
-  RigidTransform object_from_ct_;
+  Rigid3 object_from_ct_;
 };
 
 // std::to_string prints 6 decimals; the centres' sampling error is ~0.003 mm.

@@ -15,8 +15,8 @@ std::vector<ModelPoint> ThesisModel() {
   return m.ok() ? *m : std::vector<ModelPoint>{};
 }
 
-RigidTransform SomeMotion() {
-  RigidTransform T;
+Rigid3 SomeMotion() {
+  Rigid3 T;
   T.R = (Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()) *
          Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitZ()))
             .toRotationMatrix();
@@ -42,7 +42,7 @@ TEST(MarkerLabelling, ReadsTheThesisTableAndPicksTheObjectFrameColumns) {
 
 TEST(MarkerLabelling, ShuffledMovedNoisyMarkersGetTheirModelIds) {
   const auto model = ThesisModel();
-  const RigidTransform ct_from_object = SomeMotion();
+  const Rigid3 ct_from_object = SomeMotion();
   std::mt19937_64 rng(5);
   std::normal_distribution<double> noise(0, kNoiseMm);
   for (int trial = 0; trial < 20; ++trial) {
@@ -111,7 +111,7 @@ TEST(MarkerLabelling, SymmetricModelIsAmbiguous) {
 TEST(MarkerLabelling, ExtraCandidatesAreSetAside) {
   auto full = ThesisModel();
   const std::vector<ModelPoint> model(full.begin(), full.begin() + 6);
-  const RigidTransform ct_from_object = SomeMotion();
+  const Rigid3 ct_from_object = SomeMotion();
   std::mt19937_64 rng(11);
   std::normal_distribution<double> noise(0, kNoiseMm);
   std::uniform_real_distribution<double> u(-60, 60);
@@ -176,7 +176,7 @@ TEST(MarkerLabelling, NoFittingSubsetListsTheCandidates) {
 
 TEST(MarkerLabelling, FitRigidRefusesCollinearPoints) {
   std::vector<Eigen::Vector3d> p = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {5, 5, 5}};
-  RigidTransform T;
+  Rigid3 T;
   EXPECT_FALSE(FitRigid(p, p, &T));
   p[3] = Eigen::Vector3d(5, 0, 1);
   EXPECT_TRUE(FitRigid(p, p, &T));

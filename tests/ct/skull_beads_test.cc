@@ -314,7 +314,7 @@ TEST(SkullBeads, ModelSelectsItsMarkersAmongTheCandidates) {
   wo.series_uid = "2.25.78.2";
   wo.frame_of_reference_uid = "2.25.78.3";
   ASSERT_TRUE(WriteCtSeries(vol, dir.File("ct"), wo).ok());
-  RigidTransform object_from_ct;
+  Rigid3 object_from_ct;
   object_from_ct.R =
       Eigen::AngleAxisd(0.9, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
   object_from_ct.t = Eigen::Vector3d(10, 20, -30);

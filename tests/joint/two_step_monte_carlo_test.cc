@@ -43,7 +43,14 @@ JointProblem FromSynthetic(const ba::SyntheticJoint& sj, const ba::SyntheticJoin
       p.plate.views.push_back(vo);
       p.plate_view_ids.push_back(v.id);
     } else {
-      p.object_views.push_back({v.id, v.point_ids, v.uv_px, {}, {}});
+      PoseView ov{v.id, {}};
+      for (size_t i = 0; i < v.point_ids.size(); ++i) {
+        Observation o;
+        o.marker_id = v.point_ids[i];
+        o.uv_px = v.uv_px[i];
+        ov.observations.push_back(o);
+      }
+      p.object_views.push_back(ov);
     }
   }
   for (const auto& m : sj.problem.markers) {
