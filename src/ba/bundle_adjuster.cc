@@ -67,29 +67,12 @@ class ScaledCost final : public ceres::CostFunction {
 };
 
 ceres::LossFunction* MakeLoss(const BaOptions& o, double sigma_px) {
-  const double s = o.loss_scale_px / sigma_px;  // residuals are whitened
-  if (o.loss == "huber") return new ceres::HuberLoss(s);
-  if (o.loss == "cauchy") return new ceres::CauchyLoss(s);
-  if (o.loss == "soft_l1") return new ceres::SoftLOneLoss(s);
-  return nullptr;
+  return MakeLossFunction(o.loss, o.loss_scale_px / sigma_px).release();  // residuals are whitened
 }
 
+// Ceres's own conversion (it upper-cases the name: dense_schur -> DENSE_SCHUR).
 bool LinearSolverType(const std::string& name, ceres::LinearSolverType* t) {
-  if (name == "dense_qr")
-    *t = ceres::DENSE_QR;
-  else if (name == "dense_normal_cholesky")
-    *t = ceres::DENSE_NORMAL_CHOLESKY;
-  else if (name == "dense_schur")
-    *t = ceres::DENSE_SCHUR;
-  else if (name == "sparse_schur")
-    *t = ceres::SPARSE_SCHUR;
-  else if (name == "sparse_normal_cholesky")
-    *t = ceres::SPARSE_NORMAL_CHOLESKY;
-  else if (name == "iterative_schur")
-    *t = ceres::ITERATIVE_SCHUR;
-  else
-    return false;
-  return true;
+  return ceres::StringToLinearSolverType(name, t);
 }
 
 // One residual block as built: its cost, loss, source, the layout blocks of its parameters and,

@@ -11,20 +11,19 @@ namespace carmba {
 namespace ba {
 
 // Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2).
+std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss, double scale_whitened) {
+  if (loss == "huber") return std::make_unique<ceres::HuberLoss>(scale_whitened);
+  if (loss == "cauchy") return std::make_unique<ceres::CauchyLoss>(scale_whitened);
+  if (loss == "soft_l1") return std::make_unique<ceres::SoftLOneLoss>(scale_whitened);
+  return nullptr;
+}
+
 double RobustWeight(const std::string& loss, double scale_whitened, double s) {
-  if (loss == "huber") {
-    ceres::HuberLoss l(scale_whitened);
-    double rho[3];
-    l.Evaluate(s, rho);
-    return rho[1];
-  }
-  if (loss == "cauchy") {
-    ceres::CauchyLoss l(scale_whitened);
-    double rho[3];
-    l.Evaluate(s, rho);
-    return rho[1];
-  }
-  return 1.0;
+  const std::unique_ptr<ceres::LossFunction> l = MakeLossFunction(loss, scale_whitened);
+  if (!l) return 1.0;
+  double rho[3];
+  l->Evaluate(s, rho);
+  return rho[1];
 }
 
 // SO(3) left Jacobian of a rotation vector (camera/camera_model.h).

@@ -21,11 +21,16 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "camera/camera_model.h"
 #include "util/status.h"
+
+namespace ceres {
+class LossFunction;
+}  // namespace ceres
 
 namespace carmba {
 namespace ba {
@@ -35,6 +40,11 @@ using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat9 = Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics>;
 using Vec9 = Eigen::Matrix<double, kNumIntrinsics, 1>;
 using Mat69 = Eigen::Matrix<double, 6, kNumIntrinsics>;
+
+// The robust loss named `loss` (huber, cauchy, soft_l1) at the scale `scale_whitened` of the
+// whitened residual; null for trivial or none. The one conversion of a loss name, for the Ceres
+// problem and carmba's LM alike.
+std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss, double scale_whitened);
 
 // Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2); "none" -> 1.
 double RobustWeight(const std::string& loss, double scale_whitened, double s);

@@ -119,13 +119,7 @@ class StagedCalibration {
                     double sigma_solve)
       : obs_(obs), opt_(opt), fy_over_fx_(start.fy_over_fx), sigma_solve_(sigma_solve),
         x_(start.intrinsics), poses_(start.cam_from_plate) {
-    options_.backend = own_lm() ? "carmba_lm" : "ceres";
-    options_.loss = opt.robust_loss == "none" ? "trivial" : opt.robust_loss;
-    options_.loss_scale_px = opt.robust_loss_scale_px;
-    options_.linear_solver = "dense_schur";
-    options_.max_iterations = opt.max_iterations;
-    options_.num_threads = opt.num_threads;
-    options_.outlier_sigma = opt.outlier_threshold_sigma;
+    options_ = opt.ToSolverConfig().ToBaOptions();
   }
 
   bool own_lm() const { return opt_.solver == "lm" && opt_.robust_loss == "none"; }
@@ -432,6 +426,63 @@ bool CalibrationOptions::Check(std::string* error) const {
   return true;
 }
 
+namespace {
+
+// The loss, the outlier listing and the back end in the solver config's vocabulary
+// (problem/pose_problem.h LoadSolverConfig: loss: {type, scale_px}, outliers: {list_sigma},
+// backend), or in the calibration config's older spelling (robust_loss, robust_loss_scale_px,
+// outlier_threshold_sigma, solver), which keeps working; both spellings of one thing are an
+// error naming the two.
+Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, CalibrationOptions* o) {
+  YamlMap& m = *map;
+  const std::pair<const char*, std::vector<const char*>> spellings[] = {
+      {"loss", {"robust_loss", "robust_loss_scale_px"}},
+      {"outliers", {"outlier_threshold_sigma"}},
+      {"backend", {"solver"}}};
+  for (const auto& [key, old_keys] : spellings) {
+    for (const char* old_key : old_keys) {
+      if (m.Has(key) && m.Has(old_key)) {
+        return Status::Error(path + ": give '" + key + "' or its older spelling '" + old_key +
+                             "', not both");
+      }
+    }
+  }
+  // The older spelling first, then the solver config's (at most one of them is there).
+  m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &o->robust_loss);
+  m.GetInRange("robust_loss_scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
+  m.GetInRange("outlier_threshold_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
+  m.GetEnum("solver", {"lm", "ceres"}, &o->solver);
+  YamlMap& loss = m.Map("loss");
+  std::string type = o->robust_loss == "none" ? "trivial" : o->robust_loss;
+  loss.GetEnum("type", {"trivial", "huber", "cauchy"}, &type);
+  o->robust_loss = type == "trivial" ? "none" : type;
+  loss.GetInRange("scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
+  m.Map("outliers").GetInRange("list_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
+  std::string backend = o->solver == "lm" ? "carmba_lm" : "ceres";
+  m.GetEnum("backend", {"carmba_lm", "ceres"}, &backend);
+  o->solver = backend == "carmba_lm" ? "lm" : "ceres";
+  return Status::Ok();
+}
+
+}  // namespace
+
+SolverConfig CalibrationOptions::ToSolverConfig() const {
+  SolverConfig c;
+  c.name = "calibration";
+  c.backend = solver == "lm" && robust_loss == "none" ? "carmba_lm" : "ceres";
+  c.loss = robust_loss == "none" ? "trivial" : robust_loss;
+  c.loss_scale_px = robust_loss_scale_px;
+  c.linear_solver = "dense_schur";
+  c.max_iterations = max_iterations;
+  c.num_threads = num_threads;
+  c.outlier_sigma = outlier_threshold_sigma;
+  // The calibration estimates its pixel sigma itself (pixel_sigma_px: 0) or takes it as given.
+  c.covariance_scale = ba::CovarianceScale::kApriori;
+  c.fix = fix;
+  c.distortion_auto = distortion_auto;
+  return c;
+}
+
 Status LoadCalibrationOptions(const std::string& path,
                               CalibrationOptions* o,
                               const std::vector<std::string>& other_keys) {
@@ -441,7 +492,7 @@ Status LoadCalibrationOptions(const std::string& path,
     if (m.Has(k)) {
       return Status::Error(path + ": this is a solver config (key '" + k +
                            "'), for `carmba solve`; `carmba calibrate` needs a calibration config "
-                           "(fix, robust_loss, pixel_sigma_px, detection; configs/calib_*.yaml)");
+                           "(fix, loss, pixel_sigma_px, detection; configs/calib_*.yaml)");
     }
   }
   m.Get("fix", &o->fix);
@@ -455,15 +506,12 @@ Status LoadCalibrationOptions(const std::string& path,
   m.GetEnum("distortion", {"given", "auto"}, &distortion);
   o->distortion_auto = distortion == "auto";
   m.Get("initial_intrinsics", &o->initial_intrinsics);
-  m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &o->robust_loss);
-  m.GetInRange("robust_loss_scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
-  m.GetInRange("outlier_threshold_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
+  CARMBA_RETURN_IF_ERROR(ReadCalibrationSolveKeys(path, &m, o));
   m.GetNonNegative("pixel_sigma_px", &o->pixel_sigma_px);
   m.Get("min_views", &o->min_views);
   m.GetInRange("max_iterations", &o->max_iterations, plausible::kMaxIterations);
   m.GetNonNegative("uncertainty_distance_mm", &o->uncertainty_distance_mm);
   m.GetInRange("num_threads", &o->num_threads, plausible::kThreads);
-  m.GetEnum("solver", {"lm", "ceres"}, &o->solver);
   for (const auto& k : other_keys) {
     if (m.Has(k)) m.Raw(k);
   }

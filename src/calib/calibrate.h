@@ -30,6 +30,7 @@
 #include "ba/bundle_adjuster.h"
 #include "analysis/lens_models.h"
 #include "camera/camera.h"
+#include "problem/pose_problem.h"  // SolverConfig
 #include "geometry/pose.h"
 #include "detect/observations.h"
 #include "util/status.h"
@@ -78,10 +79,18 @@ struct CalibrationOptions {
   std::string solver = "lm";
 
   bool Check(std::string* error) const;
+  // The solve as a solver config (problem/pose_problem.h), whose ToBaOptions() is the one mapping
+  // of every problem kind onto the engine's options: backend carmba_lm (solver: lm without a
+  // robust loss) or ceres, the loss, the outlier listing, iterations, threads, the a-priori
+  // covariance scale (the calibration scales by its own pixel sigma).
+  SolverConfig ToSolverConfig() const;
 };
 
 // Reads a calibration config (YAML, top-level keys = the field names above). Unknown keys are
-// errors. `detection` and other top-level maps are left to their readers via `other_keys`.
+// errors. `detection` and other top-level maps are left to their readers via `other_keys`. The
+// loss, the outlier listing and the back end are also read in the solver config's vocabulary:
+// loss: {type: trivial | huber | cauchy, scale_px}, outliers: {list_sigma}, backend:
+// carmba_lm | ceres (robust_loss none = loss trivial, solver lm = backend carmba_lm).
 Status LoadCalibrationOptions(const std::string& path,
                               CalibrationOptions* options,
                               const std::vector<std::string>& other_keys = {});

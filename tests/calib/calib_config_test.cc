@@ -1,0 +1,76 @@
+// A calibration config in the solver config's vocabulary (loss, outliers, backend) and in its
+// older spelling (robust_loss, robust_loss_scale_px, outlier_threshold_sigma, solver) reads to the
+// same options and the same engine options (CalibrationOptions::ToSolverConfig, the one mapping).
+#include <gtest/gtest.h>
+
+#include "calib/calibrate.h"
+#include "scratch.h"
+
+namespace carmba {
+namespace {
+
+class CalibConfigVocabulary : public ::testing::Test {
+ protected:
+  StatusOr<CalibrationOptions> Read(const std::string& text) {
+    dir_.Write("c.yaml", text);
+    CalibrationOptions o;
+    const Status s = LoadCalibrationOptions(dir_.File("c.yaml"), &o);
+    if (!s.ok()) return s;
+    return o;
+  }
+  test::ScratchDir dir_{"calib_config"};
+};
+
+TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
+  auto old_spelling = Read("robust_loss: cauchy\nrobust_loss_scale_px: 2.5\n"
+                           "outlier_threshold_sigma: 3\nsolver: ceres\n");
+  auto new_spelling = Read("loss: {type: cauchy, scale_px: 2.5}\noutliers: {list_sigma: 3}\n"
+                           "backend: ceres\n");
+  ASSERT_TRUE(old_spelling.ok()) << old_spelling.status().message();
+  ASSERT_TRUE(new_spelling.ok()) << new_spelling.status().message();
+  for (const CalibrationOptions* o : {&*old_spelling, &*new_spelling}) {
+    EXPECT_EQ(o->robust_loss, "cauchy");
+    EXPECT_EQ(o->robust_loss_scale_px, 2.5);
+    EXPECT_EQ(o->outlier_threshold_sigma, 3);
+    EXPECT_EQ(o->solver, "ceres");
+  }
+  const ba::BaOptions a = old_spelling->ToSolverConfig().ToBaOptions();
+  const ba::BaOptions b = new_spelling->ToSolverConfig().ToBaOptions();
+  EXPECT_EQ(a.loss, "cauchy");
+  EXPECT_EQ(b.loss, "cauchy");
+  EXPECT_EQ(a.loss_scale_px, b.loss_scale_px);
+  EXPECT_EQ(a.outlier_sigma, 3);
+  EXPECT_EQ(b.backend, "ceres");
+
+  // trivial = none; carmba_lm = lm; the defaults are carmba's LM without a loss.
+  auto plain = Read("loss: {type: trivial}\nbackend: carmba_lm\n");
+  ASSERT_TRUE(plain.ok()) << plain.status().message();
+  EXPECT_EQ(plain->robust_loss, "none");
+  EXPECT_EQ(plain->solver, "lm");
+  const ba::BaOptions p = plain->ToSolverConfig().ToBaOptions();
+  EXPECT_EQ(p.backend, "carmba_lm");
+  EXPECT_EQ(p.loss, "trivial");
+  EXPECT_EQ(p.covariance_scale, ba::CovarianceScale::kApriori);
+  // A robust loss is solved by Ceres whatever the back end says (carmba's LM is plain least
+  // squares).
+  auto robust_lm = Read("loss: {type: huber}\nbackend: carmba_lm\n");
+  ASSERT_TRUE(robust_lm.ok());
+  EXPECT_EQ(robust_lm->ToSolverConfig().backend, "ceres");
+}
+
+TEST_F(CalibConfigVocabulary, BothSpellingsOfOneThingAreAnError) {
+  auto r = Read("loss: {type: huber}\nrobust_loss: huber\n");
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("give 'loss' or its older spelling 'robust_loss', not both"),
+            std::string::npos)
+      << r.status().message();
+  auto b = Read("backend: ceres\nsolver: lm\n");
+  ASSERT_FALSE(b.ok());
+  EXPECT_NE(b.status().message().find("'backend' or its older spelling 'solver'"), std::string::npos);
+  auto t = Read("loss: {type: none}\n");
+  ASSERT_FALSE(t.ok());
+  EXPECT_NE(t.status().message().find("type"), std::string::npos) << t.status().message();
+}
+
+}  // namespace
+}  // namespace carmba
