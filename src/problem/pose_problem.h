@@ -286,6 +286,8 @@ struct PoseSolution {
   // covariance. Leave-one-marker-out TRE when the config asks (tre: true).
   std::vector<analysis::RelativePoseEstimate> relative_poses;
   std::optional<analysis::TreResult> tre;
+  // The validation pairs as view indices (problem.views order = the engine's view order).
+  std::vector<std::pair<int, int>> validation_pairs;
   // The engine's problem and result (ba/), for error budgets and further analysis.
   std::shared_ptr<const ba::BaProblem> ba_problem;
   std::shared_ptr<const ba::BaResult> ba_result;

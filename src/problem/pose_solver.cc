@@ -398,18 +398,17 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
 
   std::map<std::string, size_t> index;
   for (size_t v = 0; v < problem.views.size(); ++v) index[problem.views[v].id] = v;
-  std::vector<std::pair<int, int>> validation_pairs;
   for (const auto& pr : problem.validation) {
     const size_t ia = index.at(pr.a), ib = index.at(pr.b);
     sol.validation.push_back(ValidationPairSolution(pr, ia, ib, poses, sol));
-    validation_pairs.emplace_back(static_cast<int>(ia), static_cast<int>(ib));
+    sol.validation_pairs.emplace_back(static_cast<int>(ia), static_cast<int>(ib));
   }
   // Relative poses (every pair of few views, else the validation pairs) and, when asked, the
   // leave-one-marker-out TRE: both from the engine's covariance.
   const ba::BaResult& r = *sol.ba_result;
   const bool engine_covariance = config.refine && config.covariance_algorithm == "schur" && r.covariance;
   if (engine_covariance) {
-    sol.relative_poses = analysis::EstimateRelativePoses(r, analysis::RelativePosePairs(*sol.ba_problem, validation_pairs));
+    sol.relative_poses = analysis::EstimateRelativePoses(r, analysis::RelativePosePairs(*sol.ba_problem, sol.validation_pairs));
   }
   sol.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (config.tre) {

@@ -63,9 +63,6 @@ void CalibrationSummaryDoc(const CalibrationRun& run, ReportDoc* doc) {
               Fixed(r.covariance_seconds * 1e3, 1) + " ms"});
 }
 
-// The images' short ids (io/image_files.h ShortViewIds), in the order given.
-std::vector<std::string> ImageIds(const std::vector<std::string>& paths) { return ShortViewIds(paths); }
-
 // "Images in `DIR/`" when every image lies in one directory ("" otherwise): the tables name the
 // images by their ids, and camera.json `views[].image` keeps each path.
 std::string ImagesDirectoryNote(const std::vector<std::string>& paths) {
@@ -86,7 +83,7 @@ void CalibrationDetectionDoc(const CalibrationRun& run, ReportDoc* doc) {
     d.Heading(2, "Detection per image");
     std::vector<std::string> paths;
     for (const GridDetection& g : run.detections) paths.push_back(g.view.image);
-    const std::vector<std::string> ids = ImageIds(paths);
+    const std::vector<std::string> ids = ShortViewIds(paths);
     d.Paragraph(ImagesDirectoryNote(paths) +
                 "Overlays (found points with ids, rejected blobs and why): `overlays/`.");
     rows.clear();
@@ -381,7 +378,7 @@ void CalibrationPerViewDoc(const CalibrationRun& run, ReportDoc* doc) {
   d.Heading(2, "Per view");
   std::vector<std::string> paths;
   for (const auto& v : r.views) paths.push_back(v.image);
-  const std::vector<std::string> ids = ImageIds(paths);
+  const std::vector<std::string> ids = ShortViewIds(paths);
   const std::string where = ImagesDirectoryNote(paths);
   if (!where.empty()) d.Paragraph(where);
   rows.clear();

@@ -19,20 +19,9 @@ nlohmann::json PoseToJson(const Pose6& p) {
   return {{"R", Rj}, {"rvec", JsonVector(p.head<3>())}, {"t_mm", JsonVector(p.tail<3>())}};
 }
 
-std::vector<ba::BudgetRow> PoseErrorBudget(const PoseProblem& problem, const PoseSolution& s) {
+std::vector<ba::BudgetRow> PoseErrorBudget(const PoseSolution& s) {
   if (!s.ba_problem || !s.ba_result || !s.ba_result->covariance) return {};
-  std::vector<std::pair<int, int>> pairs;
-  auto index = [&](const std::string& id) {
-    for (size_t v = 0; v < s.ba_problem->views.size(); ++v) {
-      if (s.ba_problem->views[v].id == id) return static_cast<int>(v);
-    }
-    return -1;
-  };
-  for (const auto& p : problem.validation) {
-    const int a = index(p.a), b = index(p.b);
-    if (a >= 0 && b >= 0) pairs.emplace_back(a, b);
-  }
-  std::vector<ba::BudgetRow> budget = ba::ComputeErrorBudget(*s.ba_problem, *s.ba_result, pairs);
+  std::vector<ba::BudgetRow> budget = ba::ComputeErrorBudget(*s.ba_problem, *s.ba_result, s.validation_pairs);
   // The held intrinsics' centre projection has no uncertainty unless the calibration's is
   // considered: rows without a sigma say nothing.
   budget.erase(std::remove_if(budget.begin(), budget.end(),
@@ -103,7 +92,7 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
                      {"num_residuals", s.num_residuals},
                      {"num_parameters", s.num_parameters}};
   if (s.ba_result) {
-    j["error_budget"] = ErrorBudgetJson(PoseErrorBudget(problem, s));
+    j["error_budget"] = ErrorBudgetJson(PoseErrorBudget(s));
     j["statistics"]["covariance_scale"] = ba::CovarianceScaleName(s.ba_result->scale_mode);
     j["variance_components"] = VarianceComponentsJson(*s.ba_result);
     j["shadow_correction"] = ShadowCorrectionJson(*s.ba_result);

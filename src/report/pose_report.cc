@@ -295,7 +295,7 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
   }
   d.Table({"view", "t (mm)", "sigma t (mm)", "sigma rotation about camera x, y, z (deg)"}, rows);
   d.Figures({"poses", "markers", "distortion"});
-  const std::vector<ba::BudgetRow> budget = PoseErrorBudget(problem, s);
+  const std::vector<ba::BudgetRow> budget = PoseErrorBudget(s);
   if (!budget.empty()) d.Append(ErrorBudgetDoc(budget, "Sigmas from " + sigma_used + "."));
   if (!c.legacy.empty() && c.legacy.front().max_diff_to_reference) {
     d.Heading(2, "Legacy POSIT against the printed matrices");
@@ -339,7 +339,7 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
 
 nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& s) {
   if (!s.ba_problem || !s.ba_result) return {{"kind", "pose"}};
-  const std::vector<ba::BudgetRow> budget = PoseErrorBudget(problem, s);
+  const std::vector<ba::BudgetRow> budget = PoseErrorBudget(s);
   nlohmann::json d = BaPlotData(*s.ba_problem, *s.ba_result, &budget);
   d["kind"] = "pose";
   if (!d.contains("image_size") && problem.camera.width > 0) {

@@ -78,6 +78,6 @@ nlohmann::json PoseToJson(const Pose6& pose);
 // The error budget of a pose solve (ba/quantities.h): the poses and the validation pairs (rows
 // without a sigma, such as the held intrinsics' centre projection, left out); empty without the
 // engine's covariance.
-std::vector<ba::BudgetRow> PoseErrorBudget(const PoseProblem& problem, const PoseSolution& solution);
+std::vector<ba::BudgetRow> PoseErrorBudget(const PoseSolution& solution);
 
 }  // namespace carmba
