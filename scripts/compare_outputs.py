@@ -6,11 +6,16 @@ dates (the lines that hold "time_s", "..._seconds", OpenCV's calibration_time, o
 ms) and each directory's own path, which is replaced by <OUT> before comparing.
 Exit 0 when they agree; otherwise 1, with the first differing lines of each file.
     python3 scripts/compare_outputs.py /tmp/golden_before /tmp/golden_after
+With --rel-tol X, a line whose text is the same and whose numbers differ by at most X relative
+(|a - b| <= X max(|a|, |b|)) is counted apart, as agreeing within X, with the largest relative
+difference per file: for a change that re-orders floating-point operations on purpose.
+    python3 scripts/compare_outputs.py --rel-tol 1e-12 /tmp/golden_before /tmp/golden_after
 """
 import os
 import re
 import sys
 
+NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 TIMING = re.compile(r'"time_s"|_seconds"|calibration_time|wall|elapsed|\b\d+(\.\d+)? ?(ms|s)\b(?! ?\u03c3)')
 
 
@@ -31,7 +36,23 @@ def files(root):
     return out
 
 
-def main(a, b):
+def within(x, y, rel_tol):
+    """The largest relative difference of the numbers of two lines that differ only in numbers
+    (None when their text differs or a number differs by more than rel_tol)."""
+    if NUMBER.sub("#", x) != NUMBER.sub("#", y):
+        return None
+    worst = 0.0
+    for u, v in zip(NUMBER.findall(x), NUMBER.findall(y)):
+        u, v = float(u), float(v)
+        scale = max(abs(u), abs(v))
+        rel = abs(u - v) / scale if scale > 0 else 0.0
+        if rel > rel_tol:
+            return None
+        worst = max(worst, rel)
+    return worst
+
+
+def main(a, b, rel_tol=None):
     a, b = os.path.realpath(a), os.path.realpath(b)
     fa, fb = files(a), files(b)
     bad = 0
@@ -39,6 +60,7 @@ def main(a, b):
         print("only in %s: %s" % (a if name in fa else b, name))
         bad += 1
     compared = 0
+    close = 0
     for name in sorted(fa & fb):
         la, lb = text_lines(os.path.join(a, name), a), text_lines(os.path.join(b, name), b)
         if la is None or lb is None:
@@ -46,16 +68,29 @@ def main(a, b):
         compared += 1
         if la == lb:
             continue
-        bad += 1
         diffs = [(i, x, y) for i, (x, y) in enumerate(zip(la, lb)) if x != y]
+        if rel_tol is not None and len(la) == len(lb):
+            rels = [within(x, y, rel_tol) for _, x, y in diffs]
+            if None not in rels:
+                close += 1
+                print("%s: %d lines differ, all within %.3g relative (largest %.3g)"
+                      % (name, len(diffs), rel_tol, max(rels)))
+                continue
+        bad += 1
         print("%s: %d vs %d lines, %d differ" % (name, len(la), len(lb), len(diffs)))
         for i, x, y in diffs[:3]:
             print("  line %d\n    - %s\n    + %s" % (i + 1, x[:200], y[:200]))
-    print("%d text files compared, %d differ or are missing" % (compared, bad))
+    within_text = ", %d agree within %.3g relative" % (close, rel_tol) if rel_tol is not None else ""
+    print("%d text files compared, %d differ or are missing%s" % (compared, bad, within_text))
     return 1 if bad else 0
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    args = sys.argv[1:]
+    tol = None
+    if len(args) == 4 and args[0] == "--rel-tol":
+        tol = float(args[1])
+        args = args[2:]
+    if len(args) != 2:
         sys.exit(__doc__)
-    sys.exit(main(sys.argv[1], sys.argv[2]))
+    sys.exit(main(args[0], args[1], tol))

@@ -632,6 +632,10 @@ Status EvaluateSolution(const BaProblem& problem,
   *groups = GroupResiduals();
   ev->view_ss.assign(problem.views.size(), 0.0);
   ev->view_n.assign(problem.views.size(), 0);
+  res->residuals.assign(problem.views.size(), {});
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    res->residuals[v].resize(problem.views[v].point_ids.size());
+  }
   for (const auto& bb : as.built) {
     Eigen::VectorXd r;
     LinearizedBlock lb;
@@ -656,6 +660,7 @@ Status EvaluateSolution(const BaProblem& problem,
       const Eigen::Vector2d e = w.Unwhiten(r2 * o.group_sigma_scale[static_cast<int>(bb.group)]);
       ev->view_ss[bb.view] += e.squaredNorm();
       ev->view_n[bb.view] += 1;
+      res->residuals[bb.view][obs] = BaObservationResidual{e[0], e[1], n_sigma};
       BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
       if (n_sigma > o.outlier_sigma) res->outliers.push_back(out);
       if (may_reject && o.reject_sigma > 0 && n_sigma > o.reject_sigma && n_sigma > ev->worst_sigma) {

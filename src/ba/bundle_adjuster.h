@@ -23,6 +23,8 @@
 // with fewer than 4 observations is an error).
 #pragma once
 
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -81,6 +83,17 @@ struct BaOutlier {
   double du_px = 0, dv_px = 0;
 };
 
+// One observation's residual at the solution: projection minus observation in px, and its norm
+// whitened by the stated sigmas times its group's scale (BaOptions::group_sigma_scale). An
+// observation the rejection pass dropped keeps NaN.
+struct BaObservationResidual {
+  double du_px = std::numeric_limits<double>::quiet_NaN();
+  double dv_px = std::numeric_limits<double>::quiet_NaN();
+  double sigma_norm = std::numeric_limits<double>::quiet_NaN();
+  bool used() const { return !std::isnan(sigma_norm); }
+  double norm_px() const { return std::hypot(du_px, dv_px); }
+};
+
 struct BaViewStats {
   std::string id;
   int num_observations = 0;
@@ -106,6 +119,9 @@ struct BaResult {
   ShadowCorrectionSummary shadow;
 
   std::vector<BaViewStats> views;  // problem order
+  // Every observation's residual, per view (problem order) and observation (BaView order): the
+  // front ends' own statistics (per point, the worst, the calibration's outliers) come from here.
+  std::vector<std::vector<BaObservationResidual>> residuals;
   double rms_plate_px = 0, rms_object_px = 0;  // per coordinate (NaN when no such view)
   // Sum of squared residuals (priors included, no loss) whitened by the STATED sigmas: the
   // test of the stated noise model, whatever covariance.scale applies.

@@ -197,9 +197,9 @@ class StagedCalibration {
   std::vector<Pose6> poses_;
 };
 
-// Every point's residual at the solution (r->camera.params, r->cam_from_plate) into the view and
-// point statistics; returns them all, with the sums of squares (the weighted one by the robust
-// loss the solve used).
+// Every point's residual at the solution, as the engine evaluated it (BaResult::residuals), into
+// the view and point statistics; returns them all, with the sums of squares (the weighted one by
+// the robust loss the solve used).
 std::vector<PointResidual> Residuals(const ObservationSet& obs,
                                      const CalibrationOptions& opt,
                                      double sigma_solve,
@@ -210,7 +210,7 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
   std::vector<PointResidual> all;
   r->points.resize(obs.grid.NumPoints());
   std::vector<double> point_ssr(obs.grid.NumPoints(), 0.0);
-  const double* x = r->camera.params.data();
+  const auto& residuals = r->engine->residuals;
   for (size_t v = 0; v < obs.views.size(); ++v) {
     const auto& view = obs.views[v];
     const Pose6& pose = r->cam_from_plate[v];
@@ -218,18 +218,13 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
     vs.image = view.image;
     vs.num_points = static_cast<int>(view.uv_px.size());
     double vssr = 0;
-    const Eigen::Matrix3d R = RotationOf(pose.data());
-    const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
     for (size_t j = 0; j < view.uv_px.size(); ++j) {
-      // A point behind the source (not at a solution that passed the solver) reads as NaN.
-      double uv[2] = {std::nan(""), std::nan("")};
-      const Eigen::Vector3d pc = R * obs.grid.PointInPlate(view.point_ids[j]) + t;
-      ProjectCamPoint(x, pc.data(), uv);
+      const ba::BaObservationResidual& res = residuals[v][j];
       PointResidual pr;
       pr.view = static_cast<int>(v);
       pr.point_id = view.point_ids[j];
-      pr.du_px = uv[0] - view.uv_px[j].x();
-      pr.dv_px = uv[1] - view.uv_px[j].y();
+      pr.du_px = res.du_px;
+      pr.dv_px = res.dv_px;
       const double e2 = pr.du_px * pr.du_px + pr.dv_px * pr.dv_px;
       pr.norm_px = std::sqrt(e2);
       vssr += e2;
@@ -245,8 +240,8 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
     }
     *ssr += vssr;
     vs.rms_px = std::sqrt(vssr / (2.0 * vs.num_points));
-    vs.tilt_deg = std::acos(std::min(1.0, std::abs(R(2, 2)))) * 180.0 / M_PI;
-    vs.distance_mm = t.norm();
+    vs.tilt_deg = std::acos(std::min(1.0, std::abs(RotationOf(pose.data())(2, 2)))) * 180.0 / M_PI;
+    vs.distance_mm = Eigen::Vector3d(pose[3], pose[4], pose[5]).norm();
     r->views.push_back(vs);
   }
   for (int id = 0; id < obs.grid.NumPoints(); ++id) {

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <string>
 
+#include "geometry/rotation.h"
+
 namespace carmba {
 
 namespace {
@@ -60,13 +62,7 @@ void PoseFromHomography(const Eigen::Matrix3d& H, const double* intr, Pose6* pos
   R.col(0) = lambda * M.col(0);
   R.col(1) = lambda * M.col(1);
   R.col(2) = R.col(0).cross(R.col(1));
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d Ro = svd.matrixU() * svd.matrixV().transpose();
-  if (Ro.determinant() < 0) {
-    Eigen::Matrix3d U = svd.matrixU();
-    U.col(2) *= -1;
-    Ro = U * svd.matrixV().transpose();
-  }
+  const Eigen::Matrix3d Ro = NearestRotation(R);
   const Eigen::Vector3d t = lambda * M.col(2);
   double Rc[9];
   Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::ColMajor>> Rc_map(Rc);

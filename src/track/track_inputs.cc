@@ -120,9 +120,7 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
   if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-4 || R.determinant() < 0) {
     return Status::Error(path + ": rotation is not a rotation matrix (orthonormal, det +1 within 1e-4)");
   }
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Matrix3d Rn = svd.matrixU() * svd.matrixV().transpose();
-  cam.cam_from_lab.head<3>() = RvecFromRotation(Rn);
+  cam.cam_from_lab.head<3>() = RvecFromRotation(NearestRotation(R));
   for (int i = 0; i < 3; ++i) cam.cam_from_lab[3 + i] = values["translation"][i][0];
   if (!InRange(cam.CentreInLab().norm(), plausible::kSourceToObjectMm)) {
     return Status::Error(path + ": the source lies " + FormatCompact(cam.CentreInLab().norm()) +

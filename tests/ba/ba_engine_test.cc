@@ -15,6 +15,8 @@
 #include "ba/priors.h"
 #include "ba/quantities.h"
 #include "ba/reprojection_error.h"
+#include "camera/camera_model.h"
+#include "geometry/rotation.h"
 #include "synthetic/synthetic_joint.h"
 
 namespace carmba {
@@ -390,6 +392,51 @@ TEST(BaOutliers, ListedAndRejected) {
   EXPECT_EQ(rr->rejected[0].id, 5);
   EXPECT_TRUE(rr->outliers.empty());
   EXPECT_LT(rr->sigma0, 1.5);
+}
+
+// Every observation's residual at the solution is the engine's (BaResult::residuals): projection
+// minus observation, as an independent re-projection of the solved state gives; the view RMS and
+// the outlier listing agree with it; a rejected observation is NaN.
+TEST(BaResiduals, PerObservationResidualsAreTheSolutionsReprojection) {
+  auto sj = MakeSyntheticJoint(SyntheticJointSpec(), NoiseSwitches(), 11);
+  const int last = static_cast<int>(sj.problem.views.size()) - 1;
+  sj.problem.views[last].uv_px[4] += Eigen::Vector2d(8.0, -6.0);
+  BaOptions o;
+  auto r = SolveBundleAdjustment(sj.problem, o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  ASSERT_EQ(r->residuals.size(), sj.problem.views.size());
+  const BaObservationResidual& gross = r->residuals[last][4];
+  EXPECT_DOUBLE_EQ(gross.du_px, r->outliers[0].du_px);
+  EXPECT_DOUBLE_EQ(gross.sigma_norm, r->outliers[0].residual_sigma);
+  const StateLayout& L = *r->layout;
+  int plate_checked = 0;
+  for (size_t v = 0; v < sj.problem.views.size(); ++v) {
+    const BaView& view = sj.problem.views[v];
+    ASSERT_EQ(r->residuals[v].size(), view.uv_px.size());
+    double ss = 0;
+    for (size_t j = 0; j < view.uv_px.size(); ++j) {
+      const BaObservationResidual& e = r->residuals[v][j];
+      ASSERT_TRUE(e.used());
+      ss += e.du_px * e.du_px + e.dv_px * e.dv_px;
+      if (view.kind != ViewKind::kPlate) continue;
+      const Pose6 pose = r->ViewPose(static_cast<int>(v));
+      const double* point = r->block(L.plate_point_block(view.point_ids[j]));
+      const Eigen::Vector3d pc =
+          RotationOf(pose.data()) * Eigen::Map<const Eigen::Vector3d>(point) + pose.tail<3>();
+      double uv[2];
+      ASSERT_TRUE(ProjectCamPoint(r->block(L.group_block(view.group)), pc.data(), uv));
+      EXPECT_NEAR(e.du_px, uv[0] - view.uv_px[j].x(), 1e-9);
+      EXPECT_NEAR(e.dv_px, uv[1] - view.uv_px[j].y(), 1e-9);
+      ++plate_checked;
+    }
+    EXPECT_NEAR(r->views[v].rms_px, std::sqrt(ss / (2.0 * view.uv_px.size())), 1e-12);
+  }
+  EXPECT_GT(plate_checked, 100);
+  o.reject_sigma = 5.0;
+  auto rr = SolveBundleAdjustment(sj.problem, o);
+  ASSERT_TRUE(rr.ok()) << rr.status().message();
+  EXPECT_FALSE(rr->residuals[last][4].used());
+  EXPECT_TRUE(rr->residuals[last][3].used());
 }
 
 }  // namespace
