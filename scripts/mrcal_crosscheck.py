@@ -5,7 +5,8 @@
 #
 # IN.json (written by `carmba calibrate`): image_size, grid {rows, cols, spacing_mm}, views
 # [[ [point_id, u, v], ... ], ...], carmba {intrinsics[9], poses[[rx ry rz tx ty tz]...],
-# sigma_px, distance_mm}, others {name: intrinsics[9]} (e.g. OpenCV, truth).
+# sigma_px, distance_mm, free_basis (optional)}, others {name: intrinsics[9]} (e.g. OpenCV,
+# truth).
 # Solves the same observations with mrcal (LENSMODEL_OPENCV5, no board warp, no regularization,
 # no outlier rejection), seeded by mrcal's own seed_stereographic (falling back to carmba's
 # solution if that fails, reported), and writes OUT.json: mrcal's intrinsics, RMS (per
@@ -16,6 +17,12 @@
 # carmba and mrcal and the others: in the shared camera frame (no transform) and after mrcal's
 # fitted rotation, with that fit's floor. (The comparison with a known truth, against carmba's
 # sigmas, is carmba's own: calib/truth_check.h.)
+# Like with like: mrcal's optimizer frees all 9 intrinsics (it cannot hold single parameters).
+# When carmba held some (or tied fy to fx), IN.json's carmba.free_basis is the 9 x k matrix A of
+# carmba's free intrinsics (intrinsics = x0 + A d, x0 carmba's solution): the same observations
+# are then also solved with the same free parameters -- Gauss-Newton on mrcal's own residuals and
+# Jacobian (mrcal.optimizer_callback), from mrcal's all-free solution projected onto that set --
+# and OUT.json's `held` gives its intrinsics, RMS, covariance and projection difference.
 import json
 import os
 import sys
@@ -86,6 +93,11 @@ def joint(inp):
     ours['intrinsics'] = np.array([c['intrinsics']], dtype=float)
     ours['extrinsics_rt_fromref'] = np.array(c['object_poses'], dtype=float)
     ours['frames_rt_toref'] = np.array(c['plate_poses'], dtype=float)
+    held = None
+    if inp['carmba'].get('free_basis') is not None:
+        held = solve_held(inputs, model_mrcal.intrinsics()[1], inp['carmba']['intrinsics'],
+                          inp['carmba']['free_basis'], sigma)
+        held['projection_diff'] = diff(held['intrinsics'])
     x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
     # mrcal seeded AT carmba's optimum: if carmba's point is mrcal's optimum too, mrcal stays there.
     at_carmba = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in ours.items()}
@@ -104,7 +116,58 @@ def joint(inp):
                                      no_factorization=True)[1][:n_meas] ** 2) / n_meas)),
         'noutliers': int(stats['Noutliers']),
         'mrcal_version': getattr(mrcal, '__version__', '2.2'),
+        'held': held,
     }
+
+
+def solve_held(inputs, start, x0, basis, sigma, max_iterations=50):
+    """The calibration with carmba's free set: intrinsics = x0 + A d (A = basis, 9 x k), every
+    frame free. Gauss-Newton on mrcal's residuals and Jacobian (unpacked state), from `start`
+    (mrcal's all-free intrinsics) projected onto that set; a step that raises the cost is halved.
+    Returns the intrinsics, the RMS (as mrcal's), the 9 x 9 covariance A C_d A^T (sigma^2 (J^T
+    J)^-1, the frames marginalised) and the iterations."""
+    A = np.array(basis, dtype=float).reshape(9, -1)
+    k = A.shape[1]
+    x0 = np.array(x0, dtype=float)
+    cur = dict(inputs)
+    cur['do_optimize_intrinsics_core'] = True
+    cur['do_optimize_intrinsics_distortions'] = True
+    intr = x0 + A @ np.linalg.lstsq(A, np.array(start, dtype=float) - x0, rcond=None)[0]
+    frames = np.array(inputs['frames_rt_toref'], dtype=float)
+
+    def evaluate(intr_, frames_):
+        cur['intrinsics'] = intr_[None, :]
+        cur['frames_rt_toref'] = frames_
+        _, x_, J_, _ = mrcal.optimizer_callback(**cur, no_factorization=True)
+        J_ = J_.toarray()
+        scale = np.ones(J_.shape[1])
+        mrcal.unpack_state(scale, **cur)
+        J_ = J_ / scale[None, :]
+        i0 = mrcal.state_index_intrinsics(0, **cur)
+        f0 = mrcal.state_index_frames(0, **cur)
+        Jr = np.hstack([J_[:, i0:i0 + 9] @ A, J_[:, f0:f0 + frames_.size]])
+        return x_, Jr
+
+    x, Jr = evaluate(intr, frames)
+    iterations = 0
+    for iterations in range(1, max_iterations + 1):
+        step = np.linalg.lstsq(Jr, -x, rcond=None)[0]
+        cost = x @ x
+        for _ in range(30):
+            intr_try = intr + A @ step[:k]
+            frames_try = frames + step[k:].reshape(frames.shape)
+            x_try, J_try = evaluate(intr_try, frames_try)
+            if x_try @ x_try <= cost:
+                break
+            step = step / 2
+        intr, frames, x, Jr = intr_try, frames_try, x_try, J_try
+        if cost - x @ x <= 1e-14 * cost:
+            break
+    Cd = np.linalg.inv(Jr.T @ Jr)[:k, :k] * sigma * sigma
+    cov = A @ Cd @ A.T
+    return {'intrinsics': intr.tolist(), 'rms_px': float(np.sqrt(np.mean(x * x))),
+            'covariance': cov.tolist(), 'sigma': np.sqrt(np.maximum(np.diag(cov), 0)).tolist(),
+            'iterations': iterations}
 
 
 def main():
@@ -235,6 +298,11 @@ def main():
         return {'rms_px': rms, 'max_px': mx, 'fitted_rms_px': frms, 'fitted_max_px': fmx,
                 'fit_floor_rms_px': floor}
 
+    held = None
+    if inp['carmba'].get('free_basis') is not None:
+        held = solve_held(inputs, model_mrcal.intrinsics()[1], inp['carmba']['intrinsics'],
+                          inp['carmba']['free_basis'], sigma)
+        held['projection_diff'] = diff(held['intrinsics'])
     x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
     # mrcal seeded AT carmba's optimum: if carmba's point is mrcal's optimum too, mrcal stays there.
     at_carmba = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in ours.items()}
@@ -256,6 +324,7 @@ def main():
         'projection_uncertainty_carmba_solution': uncertainty(model_ours),
         'projection_diff': diffs,
         'mrcal_version': getattr(mrcal, '__version__', '2.2'),
+        'held': held,
     }
     json.dump(out, open(sys.argv[2], 'w'), indent=1)
 

@@ -109,6 +109,17 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& obs,
   return ref;
 }
 
+nlohmann::json MrcalFreeBasis(const CalibrationResult& result) {
+  if (result.num_free_intrinsics == kNumIntrinsics || result.robust_loss != "none") return nullptr;
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int c = 0; c < result.intrinsics_from_free.cols(); ++c) row.push_back(result.intrinsics_from_free(i, c));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
 StatusOr<nlohmann::json> RunMrcalCrossCheck(
     const ObservationSet& obs,
     const CalibrationResult& result,
@@ -134,7 +145,8 @@ StatusOr<nlohmann::json> RunMrcalCrossCheck(
   in["carmba"] = {{"intrinsics", result.camera.params},
                   {"poses", result.cam_from_plate},
                   {"sigma_px", result.sigma_px},
-                  {"distance_mm", result.uncertainty_distance_mm}};
+                  {"distance_mm", result.uncertainty_distance_mm},
+                  {"free_basis", MrcalFreeBasis(result)}};
   nlohmann::json o = nlohmann::json::object();
   for (const auto& [name, x] : others) o[name] = x;
   in["others"] = o;

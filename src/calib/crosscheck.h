@@ -4,8 +4,10 @@
 //     seeded by mrcal itself. Yields mrcal's intrinsics, RMS, covariance (same pixel sigma),
 //     projection uncertainty and mrcal.projection_diff against carmba's solution.
 //   * OpenCV: cv::calibrateCamera with the flags equivalent to carmba's options.
-// mrcal cannot fix single parameters and OpenCV cannot fix every subset: then the comparison is
-// marked "not equivalent" and its numbers are for information only.
+// mrcal cannot fix single parameters: when carmba held some, the script also solves the same
+// observations with carmba's free set on mrcal's residuals and Jacobian (like with like, OUT.json
+// `held`). OpenCV cannot fix every subset: then its comparison is marked "not equivalent" and its
+// numbers are for information only.
 #pragma once
 
 #include <array>
@@ -50,6 +52,11 @@ struct MrcalCrossCheckOptions {
 
 // A Python interpreter importing numpy and mrcal, for MrcalCrossCheckOptions::warm.
 std::unique_ptr<PythonWorker> StartMrcalPython(const std::string& python);
+
+// The like-with-like input of the mrcal script: carmba's basis of its free intrinsics (9 x k,
+// CalibrationResult::intrinsics_from_free) when it held or tied some and used no robust loss (the
+// script then also solves with that free set: OUT.json `held`); null otherwise.
+nlohmann::json MrcalFreeBasis(const CalibrationResult& result);
 
 // Runs the mrcal script. `others` are extra intrinsics to diff against carmba's (e.g. "opencv",
 // "truth"). Returns the script's JSON (see scripts/mrcal_crosscheck.py for the keys).

@@ -226,75 +226,105 @@ void CalibrationProjectionDoc(const CalibrationResult& r, const nlohmann::json* 
 
 }
 
+// The rows comparing carmba's solution with one mrcal solution (`sol`: rms_px, sigma[9],
+// projection_diff {rms_px, max_px, fitted...}); a threshold missed says `fail`.
+std::vector<std::vector<std::string>> MrcalComparisonRows(const CalibrationResult& r,
+                                                          const nlohmann::json& sol,
+                                                          const nlohmann::json& pdm,
+                                                          const std::string& fail) {
+  std::vector<std::vector<std::string>> rows;
+  const double mrms = sol["rms_px"].get<double>();
+  const double rel = (r.rms_px - mrms) / mrms;
+  const double pd = pdm["rms_px"].get<double>();
+  rows.push_back({"RMS carmba vs mrcal",
+                  Fixed(r.rms_px, 6) + " vs " + Fixed(mrms, 6) + " px (" + Fixed(100 * rel, 3) +
+                      " %)",
+                  "1 %", std::abs(rel) <= kMrcalRmsRelTol ? "pass" : fail});
+  rows.push_back({"projection difference (rms / max over a 40-column grid; same observations, "
+                  "same camera frame: no transform)",
+                  Fixed(pd) + " / " + Fixed(pdm["max_px"].get<double>()) + " px",
+                  Fmt("%g", kMrcalProjectionDiffPx) + " px rms",
+                  pd < kMrcalProjectionDiffPx ? "pass" : fail});
+  if (pdm.contains("fitted_rms_px")) {
+    const double fpd = pdm["fitted_rms_px"].get<double>();
+    rows.push_back({"projection difference after mrcal's fitted rotation "
+                    "(mrcal.projection_diff; the fit's own floor, carmba vs itself: " +
+                        Fixed(pdm["fit_floor_rms_px"].get<double>()) + " px)",
+                    Fixed(fpd) + " / " + Fixed(pdm["fitted_max_px"].get<double>()) + " px",
+                    Fmt("%g", kMrcalProjectionDiffPx) + " px rms",
+                    fpd < kMrcalProjectionDiffPx ? "pass" : fail});
+  }
+  for (int i = 0; i < 4; ++i) {
+    const double ms = sol["sigma"][i].get<double>();
+    if (!r.free[i] || !(ms > 0)) continue;
+    const double q = r.sigma[i] / ms - 1;
+    rows.push_back({"sigma " + std::string(kIntrinsicNames[i]) + " carmba vs mrcal",
+                    Fixed(r.sigma[i]) + " vs " + Fixed(ms) + " (" + Fixed(100 * q, 2) + " %)",
+                    "10 %", std::abs(q) <= kMrcalSigmaRelTol ? "pass" : fail});
+  }
+  return rows;
+}
+
+// The intrinsics carmba held or tied, e.g. "cx cy p1 p2 held, fy = r fx".
+std::string HeldIntrinsics(const CalibrationResult& r, const CalibrationOptions& opt) {
+  std::string held;
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (!r.free[i]) held += (held.empty() ? "" : " ") + std::string(kIntrinsicNames[i]);
+  }
+  const std::string tie = opt.fix_aspect_ratio ? "fy = r fx" : "";
+  if (held.empty()) return tie;
+  return held + " held" + (tie.empty() ? "" : ", " + tie);
+}
+
 // The mrcal cross-check (m: its output, or null when it did not run).
 void MrcalCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, ReportDoc* doc) {
   ReportDoc& d = *doc;
   const CalibrationResult& r = run.result;
   const CalibrationOptions& opt = run.options;
-  std::vector<std::vector<std::string>> rows;
   d.Heading(2, "Cross-check: mrcal");
   if (!m) {
     d.Paragraph("Not run: " + run.mrcal_error);
-  } else {
-    const bool same_model = r.num_free_intrinsics == kNumIntrinsics && opt.robust_loss == "none";
-    d.Paragraph("mrcal " + (*m)["mrcal_version"].get<std::string>() +
-                " (python3-mrcal), LENSMODEL_OPENCV5, no board warp, no regularization, no "
-                "outlier rejection, seeded by " +
-                (*m)["seed"].get<std::string>() + "; solve " +
-                Fixed((*m)["solve_seconds"].get<double>(), 3) + " s.");
-    if ((*m).contains("seed_note") && (*m)["seed_note"].is_string()) {
-      d.Paragraph("**Seeding**: " + (*m)["seed_note"].get<std::string>() + ".");
-    }
-    d.Paragraph("mrcal's RMS divides by all rows x cols points of every view (missing points "
-                "count as zero residuals); carmba's by the observed points.");
-    if (!same_model) {
-      d.Paragraph("**Not the same problem**: carmba held some intrinsics or used a robust loss; "
-                  "mrcal always estimates all 9 (it cannot fix single parameters). The "
-                  "comparison below is for information only: a difference beyond a threshold "
-                  "says \"differs (other model)\", not FAIL.");
-    }
-    // A threshold missed by two different models is no failure of either.
-    const std::string fail = same_model ? "FAIL" : "differs (other model)";
-    const double mrms = (*m)["rms_px"].get<double>();
-    const double rel = (r.rms_px - mrms) / mrms;
-    const double pd = (*m)["projection_diff"]["mrcal"]["rms_px"].get<double>();
-    rows.clear();
-    rows.push_back({"RMS carmba vs mrcal",
-                    Fixed(r.rms_px, 6) + " vs " + Fixed(mrms, 6) + " px (" + Fixed(100 * rel, 3) +
-                        " %)",
-                    "1 %", std::abs(rel) <= kMrcalRmsRelTol ? "pass" : fail});
-    const auto& pdm = (*m)["projection_diff"]["mrcal"];
-    rows.push_back({"projection difference (rms / max over a 40-column grid; same observations, "
-                    "same camera frame: no transform)",
-                    Fixed(pd) + " / " + Fixed(pdm["max_px"].get<double>()) + " px",
-                    Fmt("%g", kMrcalProjectionDiffPx) + " px rms",
-                    pd < kMrcalProjectionDiffPx ? "pass" : fail});
-    if (pdm.contains("fitted_rms_px")) {
-      const double fpd = pdm["fitted_rms_px"].get<double>();
-      rows.push_back({"projection difference after mrcal's fitted rotation "
-                      "(mrcal.projection_diff; the fit's own floor, carmba vs itself: " +
-                          Fixed(pdm["fit_floor_rms_px"].get<double>()) + " px)",
-                      Fixed(fpd) + " / " + Fixed(pdm["fitted_max_px"].get<double>()) + " px",
-                      Fmt("%g", kMrcalProjectionDiffPx) + " px rms",
-                      fpd < kMrcalProjectionDiffPx ? "pass" : fail});
-    }
-    for (int i = 0; i < 4; ++i) {
-      const double ms = (*m)["sigma"][i].get<double>();
-      if (!r.free[i] || !(ms > 0)) continue;
-      const double q = r.sigma[i] / ms - 1;
-      rows.push_back({"sigma " + std::string(kIntrinsicNames[i]) + " carmba vs mrcal",
-                      Fixed(r.sigma[i]) + " vs " + Fixed(ms) + " (" + Fixed(100 * q, 2) + " %)",
-                      "10 %", std::abs(q) <= kMrcalSigmaRelTol ? "pass" : fail});
-    }
-    d.Table({"check", "value", "threshold", "verdict"}, rows);
-    d.Paragraph("mrcal's RMS evaluated at carmba's solution: " +
-                Fixed((*m)["rms_px_of_carmba_solution"].get<double>(), 6) +
-                " px. `camera.cameramodel` is carmba's solution with mrcal's optimization inputs "
-                "(the same observations), written by mrcal: `mrcal-show-projection-uncertainty "
-                "camera.cameramodel` works on it (mrcal estimates the pixel sigma from the "
-                "residuals and frees all 9 intrinsics).");
+    return;
   }
-
+  const bool same_model = r.num_free_intrinsics == kNumIntrinsics && opt.robust_loss == "none";
+  const bool held = m->contains("held") && (*m)["held"].is_object();
+  d.Paragraph("mrcal " + (*m)["mrcal_version"].get<std::string>() +
+              " (python3-mrcal), LENSMODEL_OPENCV5, no board warp, no regularization, no "
+              "outlier rejection, seeded by " +
+              (*m)["seed"].get<std::string>() + "; solve " +
+              Fixed((*m)["solve_seconds"].get<double>(), 3) + " s.");
+  if ((*m).contains("seed_note") && (*m)["seed_note"].is_string()) {
+    d.Paragraph("**Seeding**: " + (*m)["seed_note"].get<std::string>() + ".");
+  }
+  d.Paragraph("mrcal's RMS divides by all rows x cols points of every view (missing points "
+              "count as zero residuals); carmba's by the observed points.");
+  if (held) {
+    const nlohmann::json& h = (*m)["held"];
+    d.Paragraph("**Like with like.** carmba's config: " + HeldIntrinsics(r, opt) +
+                "; mrcal's optimizer always frees all 9 intrinsics. The same observations are "
+                "therefore also solved with carmba's free set on mrcal's own residuals and "
+                "Jacobian (Gauss-Newton, " + std::to_string(h["iterations"].get<int>()) +
+                " iterations from mrcal's all-free solution): these rows pass or FAIL.");
+    d.Table({"check (same free intrinsics)", "value", "threshold", "verdict"},
+            MrcalComparisonRows(r, h, h["projection_diff"], "FAIL"));
+  }
+  if (!same_model) {
+    d.Paragraph(std::string(held ? "mrcal with all 9 intrinsics free, for information" :
+                                   "**Not the same problem**: carmba used a robust loss; mrcal "
+                                   "always estimates all 9 intrinsics without one. The comparison "
+                                   "below is for information only") +
+                ": a difference beyond a threshold says \"differs (other model)\", not FAIL.");
+  }
+  // A threshold missed by two different models is no failure of either.
+  const std::string fail = same_model ? "FAIL" : "differs (other model)";
+  d.Table({"check", "value", "threshold", "verdict"},
+          MrcalComparisonRows(r, *m, (*m)["projection_diff"]["mrcal"], fail));
+  d.Paragraph("mrcal's RMS evaluated at carmba's solution: " +
+              Fixed((*m)["rms_px_of_carmba_solution"].get<double>(), 6) +
+              " px. `camera.cameramodel` is carmba's solution with mrcal's optimization inputs "
+              "(the same observations), written by mrcal: `mrcal-show-projection-uncertainty "
+              "camera.cameramodel` works on it (mrcal estimates the pixel sigma from the "
+              "residuals and frees all 9 intrinsics).");
 }
 
 // The OpenCV cross-check (cvr, or null when it did not run).
