@@ -88,25 +88,31 @@ def joint(inp):
         passes += 1
         if np.max(np.abs(inputs['intrinsics'] - before) / np.maximum(np.abs(before), 1e-300)) < 1e-9:
             break
-    ours = dict(inputs)
     c = inp['carmba']
+    basis = c.get('free_basis')
+    held_iterations = None
+    if basis is not None:
+        # carmba held (or tied) some intrinsics: the same free set on mrcal's residuals and
+        # Jacobian, from mrcal's all-free solution (solve_held).
+        held, inputs = solve_held(inputs, inputs['intrinsics'][0], c['intrinsics'], basis, 1.0)
+        held_iterations = held['iterations']
+    ours = dict(inputs)
     ours['intrinsics'] = np.array([c['intrinsics']], dtype=float)
     ours['extrinsics_rt_fromref'] = np.array(c['object_poses'], dtype=float)
     ours['frames_rt_toref'] = np.array(c['plate_poses'], dtype=float)
-    held = None
-    if inp['carmba'].get('free_basis') is not None:
-        held = solve_held(inputs, model_mrcal.intrinsics()[1], inp['carmba']['intrinsics'],
-                          inp['carmba']['free_basis'], sigma)
-        held['projection_diff'] = diff(held['intrinsics'])
     x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
     # mrcal seeded AT carmba's optimum: if carmba's point is mrcal's optimum too, mrcal stays there.
     at_carmba = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in ours.items()}
-    mrcal.optimize(**at_carmba)
+    if basis is None:
+        mrcal.optimize(**at_carmba)
+    else:
+        at_carmba = solve_held(at_carmba, c['intrinsics'], c['intrinsics'], basis, 1.0)[1]
     n_meas = int(np.count_nonzero(obs[..., 2] > 0) + len(obs_p)) * 2
     return {
         'mode': 'joint',
         'solve_seconds': t_solve,
         'optimize_passes': passes,
+        'held_gauss_newton_iterations': held_iterations,
         'intrinsics_seeded_at_carmba': at_carmba['intrinsics'][0].tolist(),
         'intrinsics': inputs['intrinsics'][0].tolist(),
         'rms_px': float(stats['rms_reproj_error__pixels']),
@@ -116,58 +122,59 @@ def joint(inp):
                                      no_factorization=True)[1][:n_meas] ** 2) / n_meas)),
         'noutliers': int(stats['Noutliers']),
         'mrcal_version': getattr(mrcal, '__version__', '2.2'),
-        'held': held,
     }
 
 
 def solve_held(inputs, start, x0, basis, sigma, max_iterations=50):
-    """The calibration with carmba's free set: intrinsics = x0 + A d (A = basis, 9 x k), every
-    frame free. Gauss-Newton on mrcal's residuals and Jacobian (unpacked state), from `start`
-    (mrcal's all-free intrinsics) projected onto that set; a step that raises the cost is halved.
-    Returns the intrinsics, the RMS (as mrcal's), the 9 x 9 covariance A C_d A^T (sigma^2 (J^T
-    J)^-1, the frames marginalised) and the iterations."""
+    """The problem of `inputs` with carmba's free intrinsics: intrinsics = x0 + A d (A = basis,
+    9 x k); every other state variable mrcal optimizes (frames, extrinsics) free. Gauss-Newton on
+    mrcal's residuals and Jacobian (unpacked state), from `start` (mrcal's all-free intrinsics)
+    projected onto that set; a step that raises the cost is halved. Returns the intrinsics, the
+    RMS over the measurements (as mrcal's rms_reproj_error__pixels), the 9 x 9 covariance
+    A C_d A^T (sigma^2 (J^T J)^-1, the rest marginalised) and the iterations; and a copy of
+    `inputs` holding that solution."""
     A = np.array(basis, dtype=float).reshape(9, -1)
     k = A.shape[1]
     x0 = np.array(x0, dtype=float)
-    cur = dict(inputs)
+    cur = {key: (v.copy() if isinstance(v, np.ndarray) else v) for key, v in inputs.items()}
     cur['do_optimize_intrinsics_core'] = True
     cur['do_optimize_intrinsics_distortions'] = True
-    intr = x0 + A @ np.linalg.lstsq(A, np.array(start, dtype=float) - x0, rcond=None)[0]
-    frames = np.array(inputs['frames_rt_toref'], dtype=float)
+    cur['intrinsics'] = (x0 + A @ np.linalg.lstsq(A, np.array(start, dtype=float) - x0,
+                                                  rcond=None)[0])[None, :]
+    i0 = mrcal.state_index_intrinsics(0, **cur)
+    nmeas = mrcal.num_measurements(**cur)
 
-    def evaluate(intr_, frames_):
-        cur['intrinsics'] = intr_[None, :]
-        cur['frames_rt_toref'] = frames_
-        _, x_, J_, _ = mrcal.optimizer_callback(**cur, no_factorization=True)
-        J_ = J_.toarray()
-        scale = np.ones(J_.shape[1])
-        mrcal.unpack_state(scale, **cur)
-        J_ = J_ / scale[None, :]
-        i0 = mrcal.state_index_intrinsics(0, **cur)
-        f0 = mrcal.state_index_frames(0, **cur)
-        Jr = np.hstack([J_[:, i0:i0 + 9] @ A, J_[:, f0:f0 + frames_.size]])
-        return x_, Jr
+    def evaluate(b_unpacked=None):
+        if b_unpacked is not None:
+            mrcal.ingest_packed_state(b_unpacked / scale, **cur)
+        b, x_, J_, _ = mrcal.optimizer_callback(**cur, no_factorization=True)
+        J_ = J_.toarray() / scale[None, :]
+        Jr = np.hstack([J_[:, i0:i0 + 9] @ A, np.delete(J_, np.s_[i0:i0 + 9], axis=1)])
+        return b * scale, x_[:nmeas], Jr[:nmeas]
 
-    x, Jr = evaluate(intr, frames)
+    scale = np.ones(len(mrcal.optimizer_callback(**cur, no_jacobian=True,
+                                                 no_factorization=True)[0]))
+    mrcal.unpack_state(scale, **cur)
+    b, x, Jr = evaluate()
     iterations = 0
     for iterations in range(1, max_iterations + 1):
         step = np.linalg.lstsq(Jr, -x, rcond=None)[0]
         cost = x @ x
         for _ in range(30):
-            intr_try = intr + A @ step[:k]
-            frames_try = frames + step[k:].reshape(frames.shape)
-            x_try, J_try = evaluate(intr_try, frames_try)
+            db = np.insert(step[k:], i0, A @ step[:k])
+            b_try, x_try, J_try = evaluate(b + db)
             if x_try @ x_try <= cost:
                 break
             step = step / 2
-        intr, frames, x, Jr = intr_try, frames_try, x_try, J_try
+        b, x, Jr = b_try, x_try, J_try
         if cost - x @ x <= 1e-14 * cost:
             break
     Cd = np.linalg.inv(Jr.T @ Jr)[:k, :k] * sigma * sigma
     cov = A @ Cd @ A.T
-    return {'intrinsics': intr.tolist(), 'rms_px': float(np.sqrt(np.mean(x * x))),
-            'covariance': cov.tolist(), 'sigma': np.sqrt(np.maximum(np.diag(cov), 0)).tolist(),
-            'iterations': iterations}
+    mrcal.ingest_packed_state(b / scale, **cur)
+    return ({'intrinsics': b[i0:i0 + 9].tolist(), 'rms_px': float(np.sqrt(np.mean(x * x))),
+             'covariance': cov.tolist(), 'sigma': np.sqrt(np.maximum(np.diag(cov), 0)).tolist(),
+             'iterations': iterations}, cur)
 
 
 def main():
@@ -301,7 +308,7 @@ def main():
     held = None
     if inp['carmba'].get('free_basis') is not None:
         held = solve_held(inputs, model_mrcal.intrinsics()[1], inp['carmba']['intrinsics'],
-                          inp['carmba']['free_basis'], sigma)
+                          inp['carmba']['free_basis'], sigma)[0]
         held['projection_diff'] = diff(held['intrinsics'])
     x = mrcal.optimizer_callback(**ours, no_jacobian=True, no_factorization=True)[1]
     # mrcal seeded AT carmba's optimum: if carmba's point is mrcal's optimum too, mrcal stays there.

@@ -8,6 +8,35 @@
 
 namespace carmba {
 
+namespace {
+
+// The 9 x k basis of the free intrinsics (ba::BlockInfo::basis) as rows; null when it is the
+// identity (all nine free: mrcal's own free set).
+nlohmann::json FreeBasisJson(const Eigen::MatrixXd& basis) {
+  if (basis.rows() == basis.cols() && basis.isIdentity(0)) return nullptr;
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < basis.rows(); ++i) {
+    rows.push_back(std::vector<double>(basis.cols()));
+    for (int c = 0; c < basis.cols(); ++c) rows.back()[c] = basis(i, c);
+  }
+  return rows;
+}
+
+// "all nine intrinsics free", or e.g. "p1 p2 k3 held (mrcal: Gauss-Newton with that free set)".
+std::string FreeIntrinsicsText(const ba::IntrinsicsGroup& g) {
+  std::string held;
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (!g.free[i]) held += (held.empty() ? "" : " ") + std::string(kIntrinsicNames[i]);
+  }
+  std::string text = held.empty() ? "" : held + " held";
+  if (g.fy_over_fx > 0) text += (text.empty() ? "" : ", ") + std::string("fy = r fx");
+  return text.empty() ? "all nine intrinsics free"
+                      : text + " (mrcal: Gauss-Newton on its residuals and Jacobian with that "
+                               "free set)";
+}
+
+}  // namespace
+
 StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
                                               const JointSolution& solution,
                                               const MrcalCrossCheckOptions& mrcal_options) {
@@ -20,11 +49,17 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
     return Status::Error("the mrcal cross-check needs intrinsics that do not depend on the "
                          "C-arm angles (model shared)");
   }
-  // carmba's variant: markers held at their CT centres, all nine intrinsics free, no priors, the
-  // same initial values (joint.* hold the initial values, the solution is in solution.result).
+  // carmba's variant: markers held at their CT centres, the solve's free intrinsics (all nine
+  // when it held every one), no priors, the same initial values (joint.* hold the initial values,
+  // the solution is in solution.result). mrcal's optimizer frees all nine; with some held, the
+  // script solves with carmba's free set on mrcal's residuals and Jacobian (like with like).
   ba::BaProblem variant = joint;
   variant.markers_free = false;
-  variant.groups[0].free.fill(true);
+  const auto& free = variant.groups[0].free;
+  if (std::none_of(free.begin(), free.end(), [](bool f) { return f; })) {
+    variant.groups[0].free.fill(true);
+    variant.groups[0].fy_over_fx = 0;
+  }
   variant.groups[0].has_prior = false;
   variant.plate.free = false;
   ba::BaOptions options;
@@ -81,7 +116,8 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
                    {"object_poses", init_object}};
   in["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},
                   {"plate_poses", sol_plate},
-                  {"object_poses", sol_object}};
+                  {"object_poses", sol_object},
+                  {"free_basis", FreeBasisJson(L.block(L.group_block(0)).basis)}};
   auto out = RunMrcalScript(in, mrcal_options);
   if (!out.ok()) return out.status();
   const Eigen::MatrixXd C = r->Covariance({L.group_block(0)});
@@ -111,8 +147,8 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
   nlohmann::json j;
   j["max_relative_move_of_mrcal_seeded_at_carmba"] = max_rel_at_carmba;
   j["max_move_in_sigmas_of_mrcal_seeded_at_carmba"] = max_sig_at_carmba;
-  j["what"] = "markers held at their CT centres, all nine intrinsics free, one intrinsics, "
-              "seeded from carmba's initial values";
+  j["what"] = "markers held at their CT centres, " + FreeIntrinsicsText(variant.groups[0]) +
+              ", one intrinsics, seeded from carmba's initial values";
   j["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},
                  {"iterations", r->iterations},
                  {"termination", r->termination}};

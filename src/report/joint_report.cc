@@ -511,8 +511,9 @@ ReportDoc JointMrcalDoc(const nlohmann::json& c) {
   d.Paragraph("The same plate and marker observations solved by carmba's engine and by mrcal " +
               c.at("mrcal").value("mrcal_version", std::string("2.2")) + "'s `mrcal.optimize` (" +
               c.at("what").get<std::string>() +
-              "; mrcal cannot hold single distortion terms or tie points to priors, so this "
-              "variant differs from the solve above).");
+              "; mrcal cannot tie points to priors, and its optimizer frees all nine intrinsics, "
+              "so held intrinsics are solved with carmba's free set on mrcal's own residuals and "
+              "Jacobian: the same model on both sides, a variant of the solve above).");
   std::vector<std::vector<std::string>> rows;
   auto row = [&](const std::string& who, const nlohmann::json& x, double rms) {
     std::vector<std::string> cells = {who};
