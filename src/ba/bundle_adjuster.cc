@@ -523,8 +523,36 @@ namespace {
 
 // 0.5 chi2 of the assembled problem at its initial state, evaluated directly; a non-finite
 // residual is an error naming where.
-StatusOr<double> InitialCost(const BaProblem& problem, const StateLayout& layout, const Assembly& as) {
+// Each observation of a reprojection block with its whitened residual r2 and its pixel residual
+// (px; the residual is whitened by the stated sigmas times the group's scale): fn(obs, r2, e_px).
+template <typename Fn>
+void ForEachObservation(const BaProblem& problem, const BaOptions& o, const BuiltBlock& bb,
+                        const Eigen::VectorXd& r, Fn fn) {
+  if (bb.view < 0) return;
+  const BaView& view = problem.views[bb.view];
+  auto one = [&](int obs, const Eigen::Vector2d& r2) {
+    PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(obs));
+    if (!view.obs_covariance_px2.empty() && !problem.groups[view.group].smooth) {
+      PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
+    }
+    fn(obs, r2, w.Unwhiten(r2 * o.group_sigma_scale[static_cast<int>(bb.group)]));
+  };
+  if (bb.obs >= 0) {
+    one(bb.obs, r.head<2>());
+  } else {
+    for (size_t k = 0; k < bb.view_obs.size(); ++k) {
+      one(bb.view_obs[k], r.segment<2>(2 * static_cast<Eigen::Index>(k)));
+    }
+  }
+}
+
+// The cost at the assembly's state (the initial values), and each view's pixel RMS there into
+// `view_rms_px` (problem order; NaN for a view with no observation used).
+StatusOr<double> InitialCost(const BaProblem& problem, const BaOptions& o, const StateLayout& layout,
+                             const Assembly& as, std::vector<double>* view_rms_px) {
   double chi2_0 = 0;
+  std::vector<double> ss(problem.views.size(), 0.0);
+  std::vector<int> n(problem.views.size(), 0);
   for (const auto& bb : as.built) {
     Eigen::VectorXd r;
     if (!EvaluateBlock(bb, layout, as.buffer, &r, nullptr)) {
@@ -538,6 +566,14 @@ StatusOr<double> InitialCost(const BaProblem& problem, const StateLayout& layout
                            ErrorKind::kNonFiniteInitialState);
     }
     chi2_0 += r.squaredNorm();
+    ForEachObservation(problem, o, bb, r, [&](int, const Eigen::Vector2d&, const Eigen::Vector2d& e) {
+      ss[bb.view] += e.squaredNorm();
+      n[bb.view] += 1;
+    });
+  }
+  view_rms_px->assign(problem.views.size(), std::nan(""));
+  for (size_t v = 0; v < problem.views.size(); ++v) {
+    if (n[v] > 0) (*view_rms_px)[v] = std::sqrt(ss[v] / (2.0 * n[v]));
   }
   return 0.5 * chi2_0;
 }
@@ -649,15 +685,8 @@ Status EvaluateSolution(const BaProblem& problem,
     if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
     if (bb.view < 0) continue;
     const BaView& view = problem.views[bb.view];
-    // One observation's whitened residual r2.
-    auto observe = [&](int obs, const Eigen::Vector2d& r2) {
+    ForEachObservation(problem, o, bb, r, [&](int obs, const Eigen::Vector2d& r2, const Eigen::Vector2d& e) {
       const double n_sigma = r2.norm();
-      PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(obs));
-      if (!view.obs_covariance_px2.empty() && !problem.groups[view.group].smooth) {
-        PixelWhitening::FromCovariance(view.obs_covariance_px2[obs], &w);
-      }
-      // px (the residual is whitened by the stated sigmas times the group's scale)
-      const Eigen::Vector2d e = w.Unwhiten(r2 * o.group_sigma_scale[static_cast<int>(bb.group)]);
       ev->view_ss[bb.view] += e.squaredNorm();
       ev->view_n[bb.view] += 1;
       res->residuals[bb.view][obs] = BaObservationResidual{e[0], e[1], n_sigma};
@@ -670,14 +699,7 @@ Status EvaluateSolution(const BaProblem& problem,
         ev->worst_out = out;
         ev->any_rejected = true;
       }
-    };
-    if (bb.obs >= 0) {
-      observe(bb.obs, r.head<2>());
-    } else {
-      for (size_t k = 0; k < bb.view_obs.size(); ++k) {
-        observe(bb.view_obs[k], r.segment<2>(2 * static_cast<Eigen::Index>(k)));
-      }
-    }
+    });
   }
   std::sort(res->outliers.begin(), res->outliers.end(), [](const BaOutlier& a, const BaOutlier& b) {
     return a.residual_sigma > b.residual_sigma;
@@ -756,9 +778,10 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
     as.buffer = state;
     ceres::Problem cp(ProblemOptions(context.get()));
     CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, o, dropped, &as, use_lm ? nullptr : &cp));
-    auto initial_cost = InitialCost(problem, layout, as);
+    std::vector<double> view_rms_px;
+    auto initial_cost = InitialCost(problem, o, layout, as, &view_rms_px);
     if (!initial_cost.ok()) return initial_cost.status();
-    if (pass == 0) res.initial_cost = *initial_cost;
+    if (pass == 0) res.initial_cost = *initial_cost, res.initial_view_rms_px = view_rms_px;
     if (use_lm) {
       CARMBA_RETURN_IF_ERROR(SolveWithCarmbaLm(problem, layout, o, &as.buffer, &res));
     } else {
@@ -846,6 +869,7 @@ StatusOr<BaResult> SolveWithNoiseModel(const BaProblem& problem, const BaOptions
       auto again = SolveOnce(problem, o, layout, res.state, res.dropped, &groups);
       if (!again.ok()) return again.status();
       again->initial_cost = res.initial_cost;
+      again->initial_view_rms_px = res.initial_view_rms_px;
       again->iterations += res.iterations;
       again->rejected.insert(again->rejected.begin(), res.rejected.begin(), res.rejected.end());
       res = std::move(*again);
@@ -884,11 +908,14 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
     res->shadow = shadow;
     return res;
   }
-  const double first_time_s = res->time_s;
-  const int first_iterations = res->iterations;
-  const std::vector<double> solved_state = res->state;
-  res = SolveWithNoiseModel(WithShadowOffsetsRemoved(problem, offsets), options, &solved_state);
+  const BaResult first = std::move(*res);
+  res = SolveWithNoiseModel(WithShadowOffsetsRemoved(problem, offsets), options, &first.state);
   if (!res.ok()) return res;
+  // The initial values are the problem's, before the first solve.
+  res->initial_cost = first.initial_cost;
+  res->initial_view_rms_px = first.initial_view_rms_px;
+  const double first_time_s = first.time_s;
+  const int first_iterations = first.iterations;
   res->shadow = shadow;
   res->time_s += first_time_s;
   res->iterations += first_iterations;

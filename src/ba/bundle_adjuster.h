@@ -138,7 +138,10 @@ struct BaResult {
   int iterations = 0;
   std::string termination;
   bool converged = false;
+  // At the problem's initial values: the cost and each view's per-coordinate pixel RMS (problem
+  // order), at the stated sigmas.
   double initial_cost = 0, final_cost = 0;
+  std::vector<double> initial_view_rms_px;
   double time_s = 0;
 
   const double* block(int b) const { return state.data() + layout->block(b).offset; }

@@ -88,6 +88,8 @@ nlohmann::json ViewsJson(const JointProblem& problem, const JointSolution& s) {
     vj[bv.kind == ba::ViewKind::kPlate ? "cam_from_plate" : "cam_from_object"] = PoseToJson(pose);
     vj["rms_px"] = JsonNumber(r.views[v].rms_px);
     vj["num_observations"] = r.views[v].num_observations;
+    if (bv.rig < 0) vj["initial"] = PoseToJson(bv.initial);  // a rig view's is its rig's
+    vj["initial_rms_px"] = JsonNumber(r.initial_view_rms_px.at(v));
     if (bv.kind == ba::ViewKind::kObject) {
       vj["covariance_6x6"] = JsonRows(r.Covariance({b}));
       vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";

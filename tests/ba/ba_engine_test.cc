@@ -439,6 +439,41 @@ TEST(BaResiduals, PerObservationResidualsAreTheSolutionsReprojection) {
   EXPECT_TRUE(rr->residuals[last][3].used());
 }
 
+// Each view's RMS at the initial values: started from a solution, it is that solution's RMS;
+// started from the synthetic problem's perturbed initial values, it is larger.
+TEST(BaResiduals, InitialViewRmsIsTheRmsAtTheInitialValues) {
+  auto sj = MakeSyntheticJoint(SyntheticJointSpec(), NoiseSwitches(), 12);
+  BaOptions o;
+  o.shadow_correction = false;
+  auto first = SolveBundleAdjustment(sj.problem, o);
+  ASSERT_TRUE(first.ok()) << first.status().message();
+  ASSERT_EQ(first->initial_view_rms_px.size(), sj.problem.views.size());
+  BaProblem at_solution = sj.problem;
+  const StateLayout& L = *first->layout;
+  for (size_t g = 0; g < at_solution.groups.size(); ++g) {
+    std::copy_n(first->block(L.group_block(static_cast<int>(g))), kNumIntrinsics,
+                at_solution.groups[g].initial.begin());
+  }
+  for (size_t v = 0; v < at_solution.views.size(); ++v) {
+    at_solution.views[v].initial = first->ViewPose(static_cast<int>(v));
+  }
+  for (size_t m = 0; m < at_solution.markers.size(); ++m) {
+    at_solution.markers[m].p_ct = Eigen::Map<const Eigen::Vector3d>(first->block(L.marker_block(static_cast<int>(m))));
+  }
+  for (size_t p = 0; p < at_solution.plate.points.size(); ++p) {
+    at_solution.plate.points[p] = Eigen::Map<const Eigen::Vector3d>(first->block(L.plate_point_block(static_cast<int>(p))));
+  }
+  auto second = SolveBundleAdjustment(at_solution, o);
+  ASSERT_TRUE(second.ok()) << second.status().message();
+  int larger = 0;
+  for (size_t v = 0; v < sj.problem.views.size(); ++v) {
+    EXPECT_NEAR(second->initial_view_rms_px[v], first->views[v].rms_px, 1e-6 * first->views[v].rms_px)
+        << sj.problem.views[v].id;
+    larger += first->initial_view_rms_px[v] > 1.01 * first->views[v].rms_px;
+  }
+  EXPECT_GT(larger, static_cast<int>(sj.problem.views.size()) / 2);
+}
+
 }  // namespace
 }  // namespace ba
 }  // namespace carmba

@@ -145,6 +145,11 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
                         "state_layout", "error_budget", "two_step_comparison", "markers"}) {
     EXPECT_TRUE(j.contains(k)) << k;
   }
+  // Per view, the keys a pose problem's views have too: the initial pose and its RMS.
+  for (const auto& v : j.at("views")) {
+    EXPECT_TRUE(v.contains("initial")) << v.at("id");
+    EXPECT_GE(v.at("initial_rms_px").get<double>(), 0.99 * v.at("rms_px").get<double>()) << v.at("id");
+  }
   EXPECT_EQ(j.at("state_layout").at(0), "fx");
   EXPECT_TRUE(j.at("solver").at("converged").get<bool>());
   const auto& row = j.at("error_budget").at(0);
