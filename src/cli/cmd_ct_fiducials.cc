@@ -90,13 +90,13 @@ int RunCtFiducials() {
   return 0;
 }
 
-const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
+const bool kCtFiducialsRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "ct-fiducials",
     "Marker centres with covariance from a DICOM CT series (--out: the fiducials CSV; a report "
     "<stem>.md beside it).",
     __FILE__,
     RunCtFiducials);
-const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force,plots");
+const bool kCtFiducialsFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force,plots");
 const bool kRequired [[maybe_unused]] =
     carmba::cli::RegisterRequiredFlags("ct-fiducials", "dicom,out");
 

@@ -68,7 +68,7 @@ int RunExportGeometry() {
   return 0;
 }
 
-const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
+const bool kExportGeometryRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "export-geometry",
     "The solved geometry for other tools: --format rtk (rtk_geometry.xml, RTK "
     "ThreeDCircularGeometry v3, + rtk_detector.json: projection spacing, origin, rows flipped), "
@@ -76,6 +76,6 @@ const bool kRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "(geometry.json) or all; from --result DIR (a solve's geometry.json).",
     __FILE__,
     RunExportGeometry);
-const bool kFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("export-geometry", "out,force");
+const bool kExportGeometryFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("export-geometry", "out,force");
 
 }  // namespace
