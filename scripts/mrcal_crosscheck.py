@@ -158,8 +158,16 @@ def solve_held(inputs, start, x0, basis, sigma, max_iterations=50):
     b, x, Jr = evaluate()
     iterations = 0
     for iterations in range(1, max_iterations + 1):
-        step = np.linalg.lstsq(Jr, -x, rcond=None)[0]
+        # The columns scaled to unit norm (fx ~ 2000 px beside k3 ~ 1e-3): an accurate step in
+        # the weakly determined directions too.
+        col = np.linalg.norm(Jr, axis=0)
+        col[col == 0] = 1
+        step = np.linalg.lstsq(Jr / col, -x, rcond=None)[0] / col
         cost = x @ x
+        # The Gauss-Newton decrement: the cost the step can still remove; below 1e-16 of the cost
+        # the state is within ~1e-8 sigma per residual of the optimum (the joint converges
+        # linearly there, ~20x per iteration, to a floor near 1e-18).
+        decrement = np.sum((Jr @ step) ** 2)
         for _ in range(30):
             db = np.insert(step[k:], i0, A @ step[:k])
             b_try, x_try, J_try = evaluate(b + db)
@@ -167,7 +175,7 @@ def solve_held(inputs, start, x0, basis, sigma, max_iterations=50):
                 break
             step = step / 2
         b, x, Jr = b_try, x_try, J_try
-        if cost - x @ x <= 1e-14 * cost:
+        if decrement <= 1e-16 * max(cost, 1e-300):
             break
     Cd = np.linalg.inv(Jr.T @ Jr)[:k, :k] * sigma * sigma
     cov = A @ Cd @ A.T
