@@ -245,7 +245,13 @@ void PrintCalibrationSummary(const CalibrationRun& run) {
             << " px (" << (r.sigma_estimated ? "a-posteriori" : "a-priori") << " pixel sigma "
             << r.sigma_px << " px); RMS " << r.rms_px << " px per coordinate (OpenCV figure "
             << r.rms_opencv_px << ")";
-  if (run.mrcal) std::cout << "; mrcal RMS " << (*run.mrcal)["rms_px"].get<double>();
+  if (run.mrcal) {
+    // With held intrinsics, mrcal's figure for the same free set (like with like).
+    const nlohmann::json& m = *run.mrcal;
+    const bool held = m.contains("held") && m["held"].is_object();
+    std::cout << "; mrcal RMS " << (held ? m["held"] : m)["rms_px"].get<double>()
+              << (held ? " (same free intrinsics)" : "");
+  }
   std::cout << "; wrote " << FLAGS_out << "/{camera.json, camera.cameramodel, camera_opencv.yml, "
             << "observations.csv, corners.vnl, report.md, report.html}" << std::endl;
 }
