@@ -91,7 +91,6 @@ struct BaObservationResidual {
   double dv_px = std::numeric_limits<double>::quiet_NaN();
   double sigma_norm = std::numeric_limits<double>::quiet_NaN();
   bool used() const { return !std::isnan(sigma_norm); }
-  double norm_px() const { return std::hypot(du_px, dv_px); }
 };
 
 struct BaViewStats {

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "util/file_util.h"
+#include "util/format.h"
 #include "util/python_worker.h"
 
 namespace carmba {
@@ -111,13 +112,17 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& obs,
 
 nlohmann::json MrcalFreeBasis(const CalibrationResult& result) {
   if (result.num_free_intrinsics == kNumIntrinsics || result.robust_loss != "none") return nullptr;
-  nlohmann::json rows = nlohmann::json::array();
+  return JsonRows(result.intrinsics_from_free);
+}
+
+std::string HeldIntrinsicsText(const std::array<bool, kNumIntrinsics>& free, bool fy_tied) {
+  std::string held;
   for (int i = 0; i < kNumIntrinsics; ++i) {
-    nlohmann::json row = nlohmann::json::array();
-    for (int c = 0; c < result.intrinsics_from_free.cols(); ++c) row.push_back(result.intrinsics_from_free(i, c));
-    rows.push_back(row);
+    if (!free[i]) held += (held.empty() ? "" : " ") + std::string(kIntrinsicNames[i]);
   }
-  return rows;
+  const std::string tie = fy_tied ? "fy = r fx" : "";
+  if (held.empty()) return tie;
+  return held + " held" + (tie.empty() ? "" : ", " + tie);
 }
 
 StatusOr<nlohmann::json> RunMrcalCrossCheck(

@@ -58,6 +58,10 @@ std::unique_ptr<PythonWorker> StartMrcalPython(const std::string& python);
 // script then also solves with that free set: OUT.json `held`); null otherwise.
 nlohmann::json MrcalFreeBasis(const CalibrationResult& result);
 
+// The intrinsics a solve held or tied, e.g. "cx cy p1 p2 held, fy = r fx"; "" when all nine are
+// free. Both cross-checks and the calibration report name carmba's free set with it.
+std::string HeldIntrinsicsText(const std::array<bool, kNumIntrinsics>& free, bool fy_tied);
+
 // Runs the mrcal script. `others` are extra intrinsics to diff against carmba's (e.g. "opencv",
 // "truth"). Returns the script's JSON (see scripts/mrcal_crosscheck.py for the keys).
 StatusOr<nlohmann::json> RunMrcalCrossCheck(

@@ -5,6 +5,7 @@
 
 #include "calib/crosscheck.h"
 #include "joint/joint_problem.h"
+#include "util/format.h"
 
 namespace carmba {
 
@@ -14,22 +15,12 @@ namespace {
 // identity (all nine free: mrcal's own free set).
 nlohmann::json FreeBasisJson(const Eigen::MatrixXd& basis) {
   if (basis.rows() == basis.cols() && basis.isIdentity(0)) return nullptr;
-  nlohmann::json rows = nlohmann::json::array();
-  for (int i = 0; i < basis.rows(); ++i) {
-    rows.push_back(std::vector<double>(basis.cols()));
-    for (int c = 0; c < basis.cols(); ++c) rows.back()[c] = basis(i, c);
-  }
-  return rows;
+  return JsonRows(basis);
 }
 
 // "all nine intrinsics free", or e.g. "p1 p2 k3 held (mrcal: Gauss-Newton with that free set)".
 std::string FreeIntrinsicsText(const ba::IntrinsicsGroup& g) {
-  std::string held;
-  for (int i = 0; i < kNumIntrinsics; ++i) {
-    if (!g.free[i]) held += (held.empty() ? "" : " ") + std::string(kIntrinsicNames[i]);
-  }
-  std::string text = held.empty() ? "" : held + " held";
-  if (g.fy_over_fx > 0) text += (text.empty() ? "" : ", ") + std::string("fy = r fx");
+  const std::string text = HeldIntrinsicsText(g.free, g.fy_over_fx > 0);
   return text.empty() ? "all nine intrinsics free"
                       : text + " (mrcal: Gauss-Newton on its residuals and Jacobian with that "
                                "free set)";

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "calib/conditioning.h"
+#include "calib/crosscheck.h"
 #include "calib/projection_uncertainty.h"
 #include "calib/truth_check.h"
 #include "camera/camera_model.h"
@@ -267,13 +268,9 @@ std::vector<std::vector<std::string>> MrcalComparisonRows(const CalibrationResul
 
 // The intrinsics carmba held or tied, e.g. "cx cy p1 p2 held, fy = r fx".
 std::string HeldIntrinsics(const CalibrationResult& r, const CalibrationOptions& opt) {
-  std::string held;
-  for (int i = 0; i < kNumIntrinsics; ++i) {
-    if (!r.free[i]) held += (held.empty() ? "" : " ") + std::string(kIntrinsicNames[i]);
-  }
-  const std::string tie = opt.fix_aspect_ratio ? "fy = r fx" : "";
-  if (held.empty()) return tie;
-  return held + " held" + (tie.empty() ? "" : ", " + tie);
+  std::array<bool, kNumIntrinsics> free{};
+  std::copy(r.free.begin(), r.free.end(), free.begin());
+  return HeldIntrinsicsText(free, opt.fix_aspect_ratio);
 }
 
 // The mrcal cross-check (m: its output, or null when it did not run).
