@@ -18,6 +18,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "ct/ct_simulate.h"
+#include "geometry/random_vector.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
@@ -115,9 +116,10 @@ carmba::Status SimulateJoint(carmba::YamlMap& scene,
     const auto& px = v.at("centers_px");
     for (size_t k = 0; k < px.size(); ++k) {
       char line[160];
+      const Eigen::Vector2d pick_noise = RandomVector<2>(gauss, rng);
       std::snprintf(line, sizeof line, "%s,%d,%.4f,%.4f\n", v.at("name").get<std::string>().c_str(),
-                    ids.at(k).get<int>(), px.at(k).at(0).get<double>() + gauss(rng),
-                    px.at(k).at(1).get<double>() + gauss(rng));
+                    ids.at(k).get<int>(), px.at(k).at(0).get<double>() + pick_noise[0],
+                    px.at(k).at(1).get<double>() + pick_noise[1]);
       csv << line;
     }
     const auto& cfo = v.at("cam_from_object");

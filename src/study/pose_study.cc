@@ -9,6 +9,7 @@
 
 #include "analysis/flex_models.h"
 #include "ba/quantities.h"
+#include "geometry/random_vector.h"
 #include "synthetic/synthetic_joint.h"
 #include "synthetic/synthetic_flex.h"
 #include "ba/view_intrinsics.h"
@@ -899,17 +900,17 @@ StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
       const double sigma_px = std::isnan(pixel_noise) ? problem.sigma_px : pixel_noise;
       if (!(sigma_px > 0)) return Status::Error("pixel_noise_px: expected > 0");
       std::mt19937_64 rng(run.seed);
+      auto gaussian = [](std::mt19937_64& r) { return Gaussian(&r); };
       for (auto& m : problem.markers) {
         double sigma_ct = ct_noise;
         if (std::isnan(sigma_ct)) sigma_ct = std::sqrt(m.covariance.trace() / 3);
         if (!(sigma_ct > 0)) return Status::Error("ct_noise_mm: expected > 0");
-        m.p_in_object += sigma_ct * Eigen::Vector3d(Gaussian(&rng), Gaussian(&rng),
-                                                    Gaussian(&rng));
+        m.p_in_object += sigma_ct * RandomVector<3>(gaussian, rng);
         m.covariance = Eigen::Matrix3d::Identity() * sigma_ct * sigma_ct;
       }
       for (auto& v : problem.views) {
         for (auto& o : v.observations) {
-          o.uv_px += sigma_px * Eigen::Vector2d(Gaussian(&rng), Gaussian(&rng));
+          o.uv_px += sigma_px * RandomVector<2>(gaussian, rng);
         }
       }
       problem.sigma_px = sigma_px;

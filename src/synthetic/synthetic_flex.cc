@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <random>
 
+#include "geometry/random_vector.h"
+
 namespace carmba {
 namespace ba {
 
@@ -61,7 +63,7 @@ SyntheticFlex MakeSyntheticFlex(const SyntheticFlexSpec& spec, uint64_t seed) {
                                     : j.true_markers[view.point_ids[i] - 1];
       Eigen::Vector2d q;
       ProjectPoint(K.data(), out.true_poses[v].data(), p.data(), q.data());
-      view.uv_px[i] = q + sigma * Eigen::Vector2d(gauss(rng), gauss(rng));
+      view.uv_px[i] = q + sigma * RandomVector<2>(gauss, rng);
     }
     out.true_intrinsics.push_back(K);
     out.between.push_back(between);

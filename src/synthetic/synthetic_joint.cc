@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <random>
 
+#include "geometry/random_vector.h"
 #include "geometry/rotation.h"
 
 namespace carmba {
@@ -34,7 +35,7 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
-  auto g3 = [&] { return Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)); };
+  auto g3 = [&] { return RandomVector<3>(gauss, rng); };
 
   SyntheticJoint out;
   BaProblem& p = out.problem;
@@ -85,7 +86,8 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
     const double d = spec.plate_distance_mm * (1.0 + 0.1 * uni(geo));
     const Eigen::Vector3d centre_in_plate(w / 2, h / 2, 0);
     const double mx = std::max(0.0, half_fov_x * d - 0.75 * w), my = std::max(0.0, half_fov_y * d - 0.75 * h);
-    const Eigen::Vector3d centre_in_cam(0.5 * mx * uni(geo), 0.5 * my * uni(geo), d);
+    const Eigen::Vector2d offset = RandomVector<2>(uni, geo);
+    const Eigen::Vector3d centre_in_cam(0.5 * mx * offset[0], 0.5 * my * offset[1], d);
     Pose6 pose;
     pose.head<3>() = RvecFromRotation(R);
     pose.tail<3>() = centre_in_cam - R * centre_in_plate;
@@ -99,7 +101,7 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
     for (size_t j = 0; j < true_plate.size(); ++j) {
       Eigen::Vector2d q;
       ProjectPoint(K, pose.data(), true_plate[j].data(), q.data());
-      if (noise.plate_px) q += spec.sigma_plate_px * Eigen::Vector2d(gauss(rng), gauss(rng));
+      if (noise.plate_px) q += spec.sigma_plate_px * RandomVector<2>(gauss, rng);
       view.point_ids.push_back(static_cast<int>(j));
       view.uv_px.push_back(q);
     }
@@ -148,9 +150,9 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
             Eigen::Vector2d(spec.object_px_anisotropy, 1.0 / spec.object_px_anisotropy).asDiagonal() *
             R.transpose();
         view.obs_covariance_px2.push_back(0.5 * (C + C.transpose()));
-        if (noise.object_px) q += C.llt().matrixL() * Eigen::Vector2d(gauss(rng), gauss(rng));
+        if (noise.object_px) q += C.llt().matrixL() * RandomVector<2>(gauss, rng);
       } else if (noise.object_px) {
-        q += spec.sigma_object_px * Eigen::Vector2d(gauss(rng), gauss(rng));
+        q += spec.sigma_object_px * RandomVector<2>(gauss, rng);
       }
       view.point_ids.push_back(static_cast<int>(m) + 1);
       view.uv_px.push_back(q);

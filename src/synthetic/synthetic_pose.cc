@@ -1,6 +1,7 @@
 // Synthetic pose problems with ground truth (synthetic/synthetic_pose.h).
 #include <random>
 
+#include "geometry/random_vector.h"
 #include "geometry/rotation.h"
 #include "synthetic/synthetic_pose.h"
 
@@ -31,8 +32,7 @@ PoseProblem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
     Marker m;
     m.id = static_cast<int>(i) + 1;
     p.truth_markers[m.id] = spec.markers[i];
-    m.p_in_object = spec.markers[i] + sigma_ct_mm * Eigen::Vector3d(gauss(rng), gauss(rng),
-                                                                    gauss(rng));
+    m.p_in_object = spec.markers[i] + sigma_ct_mm * RandomVector<3>(gauss, rng);
     m.covariance = Eigen::Matrix3d::Identity() * sigma_ct_mm * sigma_ct_mm;
     p.markers.push_back(m);
   }
@@ -54,7 +54,7 @@ PoseProblem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
       Observation o;
       o.marker_id = static_cast<int>(i) + 1;
       ProjectPoint(spec.camera.params.data(), pose.data(), spec.markers[i].data(), o.uv_px.data());
-      o.uv_px += sigma_px * Eigen::Vector2d(gauss(rng), gauss(rng));
+      o.uv_px += sigma_px * RandomVector<2>(gauss, rng);
       view.observations.push_back(o);
     }
     p.truth_poses[view.id] = pose;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <random>
 
+#include "geometry/random_vector.h"
+
 namespace carmba {
 
 ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr,
@@ -34,8 +36,10 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
             .toRotationMatrix();
     const double z = o.distance_min_mm + (o.distance_max_mm - o.distance_min_mm) * U(rng);
     const double half_fov_x = 0.5 * width / intr[kFx] * z, half_fov_y = 0.5 * height / intr[kFy] * z;
-    const Eigen::Vector3d c_cam((2 * U(rng) - 1) * o.max_offset_fraction * half_fov_x,
-                                (2 * U(rng) - 1) * o.max_offset_fraction * half_fov_y, z);
+    const double offset_y = 2 * U(rng) - 1;  // y before x (geometry/random_vector.h)
+    const double offset_x = 2 * U(rng) - 1;
+    const Eigen::Vector3d c_cam(offset_x * o.max_offset_fraction * half_fov_x,
+                                offset_y * o.max_offset_fraction * half_fov_y, z);
     const Eigen::Vector3d t = c_cam - R * centre;
     const Pose6 pose = Rigid3{R, t}.ToPose();
     ViewObservations v;
@@ -64,7 +68,7 @@ ObservationSet AddNoise(const ObservationSet& clean, double sigma_px, uint64_t s
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> N(0.0, sigma_px);
   for (auto& v : noisy.views) {
-    for (auto& q : v.uv_px) q += Eigen::Vector2d(N(rng), N(rng));
+    for (auto& q : v.uv_px) q += RandomVector<2>(N, rng);
   }
   return noisy;
 }

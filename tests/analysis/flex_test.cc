@@ -15,6 +15,7 @@
 #include "analysis/flex_models.h"
 #include "ba/quantities.h"
 #include "ba/smooth_intrinsics.h"
+#include "geometry/random_vector.h"
 #include "synthetic/synthetic_flex.h"
 #include "ba/view_intrinsics.h"
 #include "camera/camera.h"
@@ -62,7 +63,8 @@ TEST(SmoothIntrinsics, AnalyticJacobianEqualsAutodiffAndFiniteDifferences) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
   for (int trial = 0; trial < 20; ++trial) {
-    const Eigen::MatrixXd A = b.Map(1.5 * u(rng), 0.5 * u(rng));
+    const Eigen::Vector2d angles = RandomVector<2>(u, rng);
+    const Eigen::MatrixXd A = b.Map(1.5 * angles[0], 0.5 * angles[1]);
     std::vector<double> c = b.ConstantCoefficients({2000, 2010, 205, 200, 0.08, 0.01, 0.001, -0.002, 0.003});
     for (int k = 0; k < 4; ++k) {
       for (int t = 1; t < b.NumTerms(); ++t) c[k * b.NumTerms() + t] = 5 * u(rng);

@@ -9,6 +9,7 @@
 
 #include "ba/bundle_adjuster.h"
 #include "ba/reprojection_error.h"
+#include "geometry/random_vector.h"
 
 namespace carmba {
 namespace ba {
@@ -102,7 +103,7 @@ TEST(Rigs, TwoHeldCamerasThreeFramesRecoverTheMotionAndTheBeads) {
         double uv[2];
         ASSERT_TRUE(ProjectCamPoint(p.groups[c].initial.data(), pc.data(), uv));
         v.point_ids.push_back(static_cast<int>(i) + 1);
-        v.uv_px.emplace_back(uv[0] + noise(rng), uv[1] + noise(rng));
+        v.uv_px.push_back(Eigen::Vector2d(uv[0], uv[1]) + RandomVector<2>(noise, rng));
       }
       p.views.push_back(v);
     }

@@ -12,6 +12,7 @@
 #include "ba/bundle_adjuster.h"
 #include "ba/shadow_correction.h"
 #include "camera/camera_model.h"
+#include "geometry/random_vector.h"
 #include "geometry/rotation.h"
 
 namespace carmba {
@@ -58,7 +59,8 @@ TEST(SphereShadowOffset, ClosedFormEqualsTheTracedSilhouette) {
   double largest = 0, worst = 0;
   for (int t = 0; t < 20; ++t) {
     const double depth = 450 + 150 * (U(rng) + 1);
-    const Eigen::Vector3d c(U(rng) * 0.15 * depth, U(rng) * 0.15 * depth, depth);
+    const Eigen::Vector2d xy = RandomVector<2>(U, rng) * 0.15 * depth;
+    const Eigen::Vector3d c(xy[0], xy[1], depth);
     const double r = 1.5 + 2 * (U(rng) + 1);
     Eigen::Vector2d p;
     ASSERT_TRUE(ProjectCamPoint(pinhole, c.data(), p.data()));
@@ -176,7 +178,7 @@ ShadowScene MakeScene(double r, double sigma, uint64_t seed) {
       const Eigen::Vector3d pc = R * pts[i] + pose.tail<3>();
       Eigen::Vector2d uv;
       EXPECT_TRUE(ProjectCamPoint(grp.initial.data(), pc.data(), uv.data()));
-      uv += SphereShadowOffsetPx(grp.initial.data(), pc, r) + sigma * Eigen::Vector2d(g(rng), g(rng));
+      uv += SphereShadowOffsetPx(grp.initial.data(), pc, r) + sigma * RandomVector<2>(g, rng);
       view.point_ids.push_back(i);
       view.uv_px.push_back(uv);
     }

@@ -7,6 +7,7 @@
 
 #include "synthetic/synthetic_joint.h"
 #include "analysis/triangulation.h"
+#include "geometry/random_vector.h"
 
 namespace carmba {
 namespace ba {
@@ -30,7 +31,7 @@ inline std::vector<analysis::PixelObservation> TruePointPixels(const SyntheticJo
     analysis::PixelObservation o;
     o.view = v;
     ProjectPoint(sj.true_intrinsics.data(), sj.true_poses[v].data(), point.data(), o.uv_px.data());
-    o.uv_px += sigma_px * Eigen::Vector2d(g(*rng), g(*rng));
+    o.uv_px += sigma_px * RandomVector<2>(g, *rng);
     // Noise-free picks (sigma 0) still need a weight: equal weights give the same point.
     const double w = sigma_px > 0 ? sigma_px : 0.3;
     o.covariance_px2 = Eigen::Matrix2d::Identity() * w * w;

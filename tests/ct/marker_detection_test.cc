@@ -6,6 +6,7 @@
 
 #include "ct/ct_phantom.h"
 #include "ct/ct_simulate.h"
+#include "geometry/random_vector.h"
 
 namespace carmba {
 namespace {
@@ -83,7 +84,7 @@ TEST(MarkerDetection, CovarianceIsConsistentWithAMonteCarloOverNoiseAndSubVoxelP
       ph.marker_diameter_mm = 2.0;
       CtMarker mk;
       mk.id = 1;
-      mk.centre_mm = Eigen::Vector3d(u(rng), u(rng), u(rng));
+      mk.centre_mm = RandomVector<3>(u, rng);
       ph.markers = {mk};
       ph.block_min_mm = Eigen::Vector3d::Constant(-8);
       ph.block_max_mm = Eigen::Vector3d::Constant(8);

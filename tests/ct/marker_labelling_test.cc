@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <random>
 
+#include "geometry/random_vector.h"
+
 namespace carmba {
 namespace {
 
@@ -54,7 +56,7 @@ TEST(MarkerLabelling, ShuffledMovedNoisyMarkersGetTheirModelIds) {
     std::vector<Eigen::Vector3d> found;
     for (int j : order) {
       found.push_back(ct_from_object * model[j].p_in_object +
-                      Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+                      RandomVector<3>(noise, rng));
     }
     auto lab = LabelMarkers(found, model, kToleranceMm);
     ASSERT_TRUE(lab.ok()) << lab.status().message();
@@ -120,12 +122,12 @@ TEST(MarkerLabelling, ExtraCandidatesAreSetAside) {
     std::vector<int> truth;  // model index per candidate, -1 for the extras
     for (int j = 0; j < 6; ++j) {
       found.push_back(ct_from_object * model[j].p_in_object +
-                      Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+                      RandomVector<3>(noise, rng));
       truth.push_back(j);
     }
     const Eigen::Vector3d centre = ct_from_object * Eigen::Vector3d::Zero();
     for (int x = 0; x < 13; ++x) {
-      found.push_back(centre + Eigen::Vector3d(u(rng), u(rng), u(rng)));
+      found.push_back(centre + RandomVector<3>(u, rng));
       truth.push_back(-1);
     }
     std::vector<int> order(found.size());

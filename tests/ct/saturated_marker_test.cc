@@ -11,6 +11,7 @@
 #include "ct/ct_phantom.h"
 #include "ct/ct_simulate.h"
 #include "ct/marker_detection.h"
+#include "geometry/random_vector.h"
 
 namespace carmba {
 namespace {
@@ -36,7 +37,7 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
       ph.marker_hu = 8000;  // steel, far above the clip
       CtMarker mk;
       mk.id = 1;
-      mk.centre_mm = Eigen::Vector3d(u(rng), u(rng), u(rng));
+      mk.centre_mm = RandomVector<3>(u, rng);
       ph.markers = {mk};
       // The holder: a plastic block whose top face is holder_offset_mm above the sphere's centre
       // (1 mm: the sphere sits in it, touching; 100: the block encloses it).

@@ -10,6 +10,7 @@
 
 #include "detect/blob_pair_fit.h"
 #include "detect/marker_blobs.h"
+#include "geometry/random_vector.h"
 
 namespace carmba {
 namespace {
@@ -52,7 +53,8 @@ TEST(BlobPairFit, TouchingBlobsSeparatedWithinTheirCovariances) {
   double nees = 0;
   int n = 0, refused = 0;
   for (int trial = 0; trial < 60; ++trial) {
-    const cv::Point2d a(28 + u(rng), 32 + u(rng)), b(36 + u(rng), 31 + u(rng));  // 8 px apart
+    const Eigen::Vector2d da = RandomVector<2>(u, rng), db = RandomVector<2>(u, rng);
+    const cv::Point2d a(28 + da[0], 32 + da[1]), b(36 + db[0], 31 + db[1]);  // 8 px apart
     const cv::Mat f = RenderPair({a, b}, 3.0, 0.9, 150, &rng);
     std::string why;
     const auto fit = FitBlobPair(f, 0.5 * (a + b), 6.0, 0.15, 1.0, &why);

@@ -22,6 +22,7 @@
 #include <sstream>
 
 #include "detect/marker_views.h"
+#include "geometry/random_vector.h"
 #include "marker_test_util.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
@@ -39,7 +40,9 @@ std::vector<Eigen::Vector3d> RandomPoints(std::mt19937_64& rng, int n, double mi
   std::uniform_real_distribution<double> ux(-30, 30), uz(-20, 20);
   std::vector<Eigen::Vector3d> out;
   for (int tries = 0; static_cast<int>(out.size()) < n && tries < 10000; ++tries) {
-    const Eigen::Vector3d p(ux(rng), ux(rng), uz(rng));
+    const double z = uz(rng);  // last component first (geometry/random_vector.h)
+    const Eigen::Vector2d xy = RandomVector<2>(ux, rng);
+    const Eigen::Vector3d p(xy[0], xy[1], z);
     bool ok = true;
     for (const auto& q : out) ok &= (p - q).norm() >= min_sep;
     for (const auto& q : avoid) ok &= (p - q).norm() >= min_sep;

@@ -17,6 +17,7 @@
 
 #include "detect/marker_blobs.h"
 #include "detect/marker_views.h"
+#include "geometry/random_vector.h"
 #include "pose/marker_correspondence.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
@@ -194,9 +195,10 @@ Pose6 RandomPose(std::mt19937_64& rng, const std::vector<Eigen::Vector3d>& P) {
   for (const auto& p : P) centroid += p;
   centroid /= P.size();
   Pose6 pose;
-  pose.head<3>() = Eigen::Vector3d(g(rng), g(rng), g(rng)) * 1.2;
+  pose.head<3>() = RandomVector<3>(g, rng) * 1.2;
   const Eigen::Matrix3d R = Eigen::AngleAxisd(pose.head<3>().norm(), pose.head<3>().normalized()).toRotationMatrix();
-  pose.tail<3>() = Eigen::Vector3d(10 * g(rng), 10 * g(rng), 700) - R * centroid;
+  const Eigen::Vector2d xy = 10 * RandomVector<2>(g, rng);
+  pose.tail<3>() = Eigen::Vector3d(xy[0], xy[1], 700) - R * centroid;
   return pose;
 }
 
@@ -231,11 +233,11 @@ TEST(MarkerCorrespondence, TwoSpuriousBlobsAndOneMissingMarkerPerView) {
     std::vector<int> truth;
     for (size_t i = 0; i < uv.size(); ++i) {
       if (static_cast<int>(i) == missing) continue;
-      blobs.push_back(uv[i] + Eigen::Vector2d(noise(rng), noise(rng)));
+      blobs.push_back(uv[i] + RandomVector<2>(noise, rng));
       truth.push_back(static_cast<int>(i));
     }
     for (int s = 0; s < 2; ++s) {
-      blobs.push_back(Eigen::Vector2d(where(rng), where(rng)));
+      blobs.push_back(RandomVector<2>(where, rng));
       truth.push_back(-1);
     }
     // Shuffle the blob order.
@@ -316,7 +318,7 @@ TEST(MarkerCorrespondence, FiducialsOfAnotherObjectAreAnError) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-40, 40);
   std::vector<Eigen::Vector3d> other;
-  for (int i = 0; i < 9; ++i) other.emplace_back(u(rng), u(rng), u(rng) + 20);
+  for (int i = 0; i < 9; ++i) other.push_back(RandomVector<3>(u, rng) + Eigen::Vector3d(0, 0, 20));
   const Pose6 pose = RandomPose(rng, other);
   CorrespondenceOptions co;
   co.px_per_mm = 2000.0 / 700.0;  // the nominal magnification (as `carmba pose` has it)

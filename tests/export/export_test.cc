@@ -17,6 +17,7 @@
 #include "export/rtk_geometry.h"
 #include "export/undistort.h"
 #include "export/view_geometry.h"
+#include "geometry/random_vector.h"
 #include "geometry/rotation.h"
 #include "util/file_util.h"
 #include "scratch.h"
@@ -51,10 +52,12 @@ GeometrySet RandomViews(uint64_t seed, int n, const Camera& cam) {
   GeometrySet set;
   const Eigen::Vector3d iso(20, -110, -590);  // like the thesis CT's marker positions
   for (int k = 0; k < n; ++k) {
-    const Eigen::Vector3d dir = Eigen::Vector3d(U(rng), U(rng), U(rng)).normalized();
-    const Eigen::Vector3d src = iso + dir * (600 + 200 * std::abs(U(rng))) +
-                                Eigen::Vector3d(U(rng), U(rng), U(rng)) * 30;
-    set.views.push_back(ViewLookingAt("v" + std::to_string(k), cam, src, iso + 20 * Eigen::Vector3d(U(rng), U(rng), U(rng)), 3 * U(rng)));
+    const Eigen::Vector3d dir = RandomVector<3>(U, rng).normalized();
+    const double distance = 600 + 200 * std::abs(U(rng));
+    const Eigen::Vector3d src = iso + dir * distance + RandomVector<3>(U, rng) * 30;
+    const Eigen::Vector3d target = iso + 20 * RandomVector<3>(U, rng);
+    const double roll_deg = 3 * U(rng);
+    set.views.push_back(ViewLookingAt("v" + std::to_string(k), cam, src, target, roll_deg));
   }
   set.reference_point_ct_mm = iso;
   return set;

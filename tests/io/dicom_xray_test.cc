@@ -329,7 +329,8 @@ TEST(DicomXray, UndecodableSyntaxIsAnErrorNamingIt) {
   const std::vector<std::pair<gdcm::TransferSyntax::TSType, std::string>> cases = {
       {gdcm::TransferSyntax::MPEG2MainProfile, "1.2.840.10008.1.2.4.100"},
       {gdcm::TransferSyntax::JPEG2000Lossless, "1.2.840.10008.1.2.4.90"}};
-  for (const auto& [ts, uid] : cases) {
+  for (const auto& [syntax, uid] : cases) {
+    const gdcm::TransferSyntax::TSType ts = syntax;  // a lambda cannot capture a binding in C++17
     const std::string path = dir.File("enc.dcm");
     ASSERT_TRUE(WriteDicomXray(path, {RandomImage(16, 16, CV_8UC1, 8, 7)}, WithGeometry()).ok());
     EditDicom(path, [&](gdcm::File* f) {

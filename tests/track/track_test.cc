@@ -12,6 +12,7 @@
 #include <random>
 
 #include "camera/camera.h"
+#include "geometry/random_vector.h"
 #include "scratch.h"
 #include "track/track.h"
 
@@ -138,9 +139,10 @@ Scene MakeScene(const std::vector<TrackCamera>& cams, std::mt19937* rng, double 
   const Eigen::Vector3d centre(0, 0, 0);
   std::vector<Eigen::Vector3d> beads;
   for (int b = 0; b < 2; ++b) {
-    const Eigen::Vector3d body_centre = centre + Eigen::Vector3d(b ? 15 : -15, 5 * u(*rng), 5 * u(*rng));
+    const Eigen::Vector2d yz = 5 * RandomVector<2>(u, *rng);
+    const Eigen::Vector3d body_centre = centre + Eigen::Vector3d(b ? 15 : -15, yz[0], yz[1]);
     for (int i = 0; i < 5 + b; ++i) {
-      beads.push_back(body_centre + Eigen::Vector3d(8 * u(*rng), 8 * u(*rng), 8 * u(*rng)));
+      beads.push_back(body_centre + 8 * RandomVector<3>(u, *rng));
       s.body_of.push_back(b);
     }
   }
@@ -169,14 +171,16 @@ Scene MakeScene(const std::vector<TrackCamera>& cams, std::mt19937* rng, double 
         double uv[2] = {0, 0};
         EXPECT_TRUE(ProjectCamPoint(cams[c].intrinsics.data(), pc.data(), uv));
         MarkerBlob b;
-        b.uv_px = cv::Point2d(uv[0] + sigma_px * n01(*rng), uv[1] + sigma_px * n01(*rng));
+        const Eigen::Vector2d noise = sigma_px * RandomVector<2>(n01, *rng);
+        b.uv_px = cv::Point2d(uv[0] + noise[0], uv[1] + noise[1]);
         b.covariance_px2 = cv::Matx22d(sigma_px * sigma_px, 0, 0, sigma_px * sigma_px);
         b.diameter_px = 6;
         im.detection.blobs.push_back(b);
       }
       for (int k = 0; k < 3; ++k) {
         MarkerBlob b;
-        b.uv_px = cv::Point2d(880 + 300 * u(*rng), 880 + 300 * u(*rng));
+        const Eigen::Vector2d where = RandomVector<2>(u, *rng);
+      b.uv_px = cv::Point2d(880 + 300 * where[0], 880 + 300 * where[1]);
         b.covariance_px2 = cv::Matx22d(sigma_px * sigma_px, 0, 0, sigma_px * sigma_px);
         im.detection.blobs.push_back(b);
       }
