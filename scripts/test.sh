@@ -3,11 +3,23 @@
 # ctest. This is the README's test command and what CI runs (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Each finished step's wall time, printed when the script ends (also when a step fails).
+STEP_TIMES=()
+step() {
+  local start=$SECONDS
+  "$@"
+  STEP_TIMES+=("$(printf '%4d s  %s' $((SECONDS - start)) "$*")")
+}
+report_times() {
+  if ((${#STEP_TIMES[@]})); then printf 'test.sh: %s\n' "${STEP_TIMES[@]}"; fi
+  echo "test.sh: ${SECONDS} s in all"
+}
+trap report_times EXIT
 # Chromium renders the study report in one test; without it that test skips.
-CARMBA_WITH_BROWSER=${CARMBA_WITH_BROWSER:-1} bash scripts/setup.sh
-bash scripts/build.sh
+step env CARMBA_WITH_BROWSER="${CARMBA_WITH_BROWSER:-1}" bash scripts/setup.sh
+step bash scripts/build.sh
 BUILD_DIR=${CARMBA_BUILD_DIR:-build}
-ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}" --timeout 900
+step ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}" --timeout 900
 # The fuzz harnesses (tests/fuzz/README.md): the readers of outside input built with clang,
 # ASan + UBSan and libFuzzer's coverage in their own directory (only the sources the harnesses
 # link; -O0 without debug information, which compiles fastest: reports name functions, not
@@ -17,8 +29,8 @@ if [[ "${CARMBA_FUZZ:-1}" == 1 ]]; then
   FUZZ_DIR=${CARMBA_FUZZ_BUILD_DIR:-build-fuzz}
   CC=clang CXX=clang++ cmake -S . -B "$FUZZ_DIR" -DCARMBA_FUZZ=ON -DCMAKE_BUILD_TYPE=Fuzz \
     -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" -DCMAKE_C_FLAGS_FUZZ="-O0 -DNDEBUG" >/dev/null
-  cmake --build "$FUZZ_DIR" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz
-  ctest --test-dir "$FUZZ_DIR" -L fuzz --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}"
+  step cmake --build "$FUZZ_DIR" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz
+  step ctest --test-dir "$FUZZ_DIR" -L fuzz --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}"
 else
   echo "test.sh: fuzz harnesses not run (CARMBA_FUZZ=0)"
 fi
