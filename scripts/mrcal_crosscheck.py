@@ -108,6 +108,9 @@ def joint(inp):
     else:
         at_carmba = solve_held(at_carmba, c['intrinsics'], c['intrinsics'], basis, 1.0)[1]
     n_meas = int(np.count_nonzero(obs[..., 2] > 0) + len(obs_p)) * 2
+    rms_all_free = float(stats['rms_reproj_error__pixels'])
+    rms_mrcal = float(np.sqrt(np.sum(mrcal.optimizer_callback(
+        **inputs, no_jacobian=True, no_factorization=True)[1][:n_meas] ** 2) / n_meas))
     return {
         'mode': 'joint',
         'solve_seconds': t_solve,
@@ -115,11 +118,12 @@ def joint(inp):
         'held_gauss_newton_iterations': held_iterations,
         'intrinsics_seeded_at_carmba': at_carmba['intrinsics'][0].tolist(),
         'intrinsics': inputs['intrinsics'][0].tolist(),
-        'rms_px': float(stats['rms_reproj_error__pixels']),
+        # `rms_px` belongs to `intrinsics`: the held solve's when carmba held intrinsics, and
+        # `rms_px_all_free` to mrcal's own optimum with all nine free.
+        'rms_px': rms_mrcal if basis is not None else rms_all_free,
+        'rms_px_all_free': rms_all_free,
         'rms_px_of_carmba_solution': float(np.sqrt(np.sum(x[:n_meas] ** 2) / n_meas)),
-        'rms_px_of_mrcal_solution': float(np.sqrt(np.sum(
-            mrcal.optimizer_callback(**inputs, no_jacobian=True,
-                                     no_factorization=True)[1][:n_meas] ** 2) / n_meas)),
+        'rms_px_of_mrcal_solution': rms_mrcal,
         'noutliers': int(stats['Noutliers']),
         'mrcal_version': getattr(mrcal, '__version__', '2.2'),
     }
