@@ -21,6 +21,7 @@
 #include "geometry/random_vector.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
+#include "util/random.h"
 #include "util/yaml_reader.h"
 
 DEFINE_string(scene, "", "Scene YAML file (configs/scenes/*.yaml), kind xray, ct or joint.");
@@ -105,7 +106,7 @@ carmba::Status SimulateJoint(carmba::YamlMap& scene,
   CARMBA_RETURN_IF_ERROR(carmba::SimulateCtScene(ct_scene, tmp_dir, &tc));
   CARMBA_RETURN_IF_ERROR(carmba::WriteFileAtomic(JoinPath(tmp_dir, "ct_truth.json"), tc.dump(2) + "\n"));
   // The picked marker centres of the object views.
-  std::mt19937_64 rng(static_cast<uint64_t>(pick_seed) + (override_seed ? FLAGS_seed * 7919ULL : 0));
+  Rng rng(static_cast<uint64_t>(pick_seed) + (override_seed ? FLAGS_seed * 7919ULL : 0));
   std::normal_distribution<double> gauss(0.0, pick_sigma);
   std::ostringstream csv;
   csv << "# carmba simulate: true marker projections + Gaussian pick noise sigma " << pick_sigma

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <random>
 
+#include "util/random.h"
+
 namespace carmba {
 
 bool CtPhantom::Check(std::string* error) const {
@@ -143,7 +145,7 @@ Status VoxelisePhantom(const CtPhantom& phantom,
     for (const auto& b : bounds) {
       if (k >= b.lo[2] && k <= b.hi[2]) in_slice.push_back(&b);
     }
-    std::mt19937_64 rng(options.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(k));
+    Rng rng(options.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(k));
     std::normal_distribution<float> noise(0.0f, static_cast<float>(options.noise_hu));
     for (int j = 0; j < v.rows; ++j) {
       in_row.clear();
@@ -223,7 +225,7 @@ Status EmbedMarkers(const std::vector<CtMarker>& markers,
       lo[a] = std::max(0, static_cast<int>(std::floor(idx[a] - r)));
       hi[a] = std::min(dims[a] - 1, static_cast<int>(std::ceil(idx[a] + r)));
     }
-    std::mt19937_64 rng(options.seed * 0x9E3779B97F4A7C15ull + 0x51ED2701ull * (mi + 1));
+    Rng rng(options.seed * 0x9E3779B97F4A7C15ull + 0x51ED2701ull * (mi + 1));
     std::normal_distribution<double> noise(0.0, options.noise_hu);
     for (int k = lo[2]; k <= hi[2]; ++k) {
       for (int j = lo[1]; j <= hi[1]; ++j) {
@@ -323,7 +325,7 @@ void AddMetalStreaks(const std::vector<CtMarker>& markers,
   // The streaks' directions (unit vectors in the slice plane) and signs, per marker.
   std::vector<std::array<Eigen::Vector2d, kStreaks>> dirs(markers.size());
   for (size_t m = 0; m < markers.size(); ++m) {
-    std::mt19937_64 rng(options.seed * 0xD1B54A32D192ED03ull + 0x8CB92BA72F3D8DD7ull * (m + 1));
+    Rng rng(options.seed * 0xD1B54A32D192ED03ull + 0x8CB92BA72F3D8DD7ull * (m + 1));
     std::uniform_real_distribution<double> u(0, 2 * M_PI);
     for (int s = 0; s < kStreaks; ++s) {
       const double a = u(rng);

@@ -12,8 +12,8 @@
 namespace carmba {
 
 // N draws of `dist` from `rng`, component N-1 drawn first and component 0 last.
-template <int N, typename Dist, typename Rng>
-Eigen::Matrix<double, N, 1> RandomVector(Dist& dist, Rng& rng) {
+template <int N, typename Dist, typename Engine>
+Eigen::Matrix<double, N, 1> RandomVector(Dist& dist, Engine& rng) {
   Eigen::Matrix<double, N, 1> v;
   for (int i = N - 1; i >= 0; --i) v[i] = dist(rng);
   return v;

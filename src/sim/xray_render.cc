@@ -8,6 +8,7 @@
 
 #include "camera/camera_model.h"
 #include "util/plausible.h"
+#include "util/random.h"
 
 namespace carmba::sim {
 
@@ -429,7 +430,7 @@ void RenderExpected(const Camera& camera, const RenderOptions& options, const Ra
 void AddDetectorEffects(const RenderOptions& options, const cv::Mat& coverage, cv::Mat* image_ptr) {
   cv::Mat& image = *image_ptr;
   const int W = image.cols, H = image.rows;
-  std::mt19937_64 rng(options.seed);
+  Rng rng(options.seed);
   if (options.photons_per_pixel > 0) {
     const double quanta_per_gray = options.photons_per_pixel / options.white_level;
     for (int v = 0; v < H; ++v) {

@@ -32,7 +32,8 @@
 // The result is a CV_32F image of grey levels; ToOutputImage() rounds and saturates to 8 or 16
 // bits. Metal (large mu) appears DARK on a bright background, as in fluoroscopy displays.
 //
-// Deterministic: the noise comes from std::mt19937_64 seeded with `seed`.
+// Deterministic: the noise comes from carmba::Rng (std::mt19937_64, util/random.h) seeded with
+// `seed`.
 #pragma once
 
 #include <cstdint>

@@ -23,13 +23,14 @@
 #include "util/file_util.h"
 #include "util/plausible.h"
 #include "synthetic/synthetic_pose.h"
+#include "util/random.h"
 
 namespace carmba {
 namespace {
 
 // Gaussian draws (Box-Muller on a 64-bit Mersenne twister: the same numbers on every standard
 // library, unlike std::normal_distribution).
-double Gaussian(std::mt19937_64* rng) {
+double Gaussian(Rng* rng) {
   const double u1 = (static_cast<double>((*rng)() >> 11) + 0.5) * 0x1.0p-53;
   const double u2 = (static_cast<double>((*rng)() >> 11) + 0.5) * 0x1.0p-53;
   return std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2);
@@ -899,8 +900,8 @@ StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
       problem = truth->value();
       const double sigma_px = std::isnan(pixel_noise) ? problem.sigma_px : pixel_noise;
       if (!(sigma_px > 0)) return Status::Error("pixel_noise_px: expected > 0");
-      std::mt19937_64 rng(run.seed);
-      auto gaussian = [](std::mt19937_64& r) { return Gaussian(&r); };
+      Rng rng(run.seed);
+      auto gaussian = [](Rng& r) { return Gaussian(&r); };
       for (auto& m : problem.markers) {
         double sigma_ct = ct_noise;
         if (std::isnan(sigma_ct)) sigma_ct = std::sqrt(m.covariance.trace() / 3);

@@ -5,6 +5,7 @@
 #include <random>
 
 #include "geometry/random_vector.h"
+#include "util/random.h"
 
 namespace carmba {
 namespace ba {
@@ -29,7 +30,7 @@ SyntheticFlex MakeSyntheticFlex(const SyntheticFlexSpec& spec, uint64_t seed) {
   out.problem = j.problem;
   out.problem.name = "synthetic_flex";
   out.true_poses = j.true_poses;
-  std::mt19937_64 rng(seed * 2654435761ULL + 17);
+  Rng rng(seed * 2654435761ULL + 17);
   std::normal_distribution<double> gauss(0.0, 1.0);
   int plate_k = 0, object_k = 0;
   for (size_t v = 0; v < out.problem.views.size(); ++v) {

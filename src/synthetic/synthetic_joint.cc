@@ -5,6 +5,7 @@
 
 #include "geometry/random_vector.h"
 #include "geometry/rotation.h"
+#include "util/random.h"
 
 namespace carmba {
 namespace ba {
@@ -31,9 +32,9 @@ std::vector<Eigen::Vector3d> ThesisObjectMarkers() {
 SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
                                   const NoiseSwitches& noise,
                                   uint64_t seed) {
-  std::mt19937_64 geo(spec.geometry_seed);
+  Rng geo(spec.geometry_seed);
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
-  std::mt19937_64 rng(seed);
+  Rng rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   auto g3 = [&] { return RandomVector<3>(gauss, rng); };
 

@@ -4,6 +4,7 @@
 #include "geometry/random_vector.h"
 #include "geometry/rotation.h"
 #include "synthetic/synthetic_pose.h"
+#include "util/random.h"
 
 namespace carmba {
 
@@ -18,7 +19,7 @@ PoseProblem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
                                      double sigma_px,
                                      double sigma_ct_mm,
                                      uint64_t seed) {
-  std::mt19937_64 rng(seed);
+  Rng rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   PoseProblem p;
   p.name = "synthetic";

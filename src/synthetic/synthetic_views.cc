@@ -5,6 +5,7 @@
 #include <random>
 
 #include "geometry/random_vector.h"
+#include "util/random.h"
 
 namespace carmba {
 
@@ -14,7 +15,7 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
                                   const GridSpec& grid,
                                   const SyntheticViewsOptions& o,
                                   std::vector<Pose6>* cam_from_plate) {
-  std::mt19937_64 rng(o.seed);
+  Rng rng(o.seed);
   std::uniform_real_distribution<double> U(0.0, 1.0);
   ObservationSet obs;
   obs.grid = grid;
@@ -65,7 +66,7 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
 ObservationSet AddNoise(const ObservationSet& clean, double sigma_px, uint64_t seed) {
   ObservationSet noisy = clean;
   if (sigma_px <= 0) return noisy;
-  std::mt19937_64 rng(seed);
+  Rng rng(seed);
   std::normal_distribution<double> N(0.0, sigma_px);
   for (auto& v : noisy.views) {
     for (auto& q : v.uv_px) q += RandomVector<2>(N, rng);

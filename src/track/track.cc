@@ -17,6 +17,7 @@
 #include "ba/bundle_adjuster.h"
 #include "detect/blob_pair_fit.h"
 #include "util/plausible.h"
+#include "util/random.h"
 #include "util/stats.h"
 
 namespace carmba {
@@ -658,7 +659,7 @@ namespace {
 // mean plus N(0, sigma_f) noise in each frame it was measured in: seeded Monte Carlo.
 double PredictedMaxSpread(const std::vector<BodyDistance>& distances) {
   constexpr int kSpreadDraws = 2000;
-  std::mt19937_64 rng(20261203);
+  Rng rng(20261203);
   std::normal_distribution<double> normal(0, 1);
   double sum = 0;
   for (int k = 0; k < kSpreadDraws; ++k) {
