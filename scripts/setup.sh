@@ -29,6 +29,8 @@ if [[ "${CARMBA_WITH_SKULL_CT:-1}" == 1 ]]; then
 fi
 # clang with its runtimes (libFuzzer, ASan, UBSan) and lld for the fuzz harnesses (tests/fuzz/),
 # which scripts/test.sh builds and runs (CARMBA_WITH_FUZZ=0 leaves them out, with CARMBA_FUZZ=0).
+# scripts/build.sh also compiles carmba with clang and links it with lld when they are installed
+# (faster than GCC and ld.bfd, the same results; GCC and ld.bfd otherwise).
 if [[ "${CARMBA_WITH_FUZZ:-1}" == 1 ]]; then
   PKGS+=(clang libclang-rt-14-dev lld)
 fi
