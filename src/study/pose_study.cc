@@ -30,9 +30,9 @@ namespace {
 
 // Gaussian draws (Box-Muller on a 64-bit Mersenne twister: the same numbers on every standard
 // library, unlike std::normal_distribution).
-double Gaussian(Rng* rng) {
-  const double u1 = (static_cast<double>((*rng)() >> 11) + 0.5) * 0x1.0p-53;
-  const double u2 = (static_cast<double>((*rng)() >> 11) + 0.5) * 0x1.0p-53;
+double Gaussian(Rng& rng) {
+  const double u1 = (static_cast<double>(rng() >> 11) + 0.5) * 0x1.0p-53;
+  const double u2 = (static_cast<double>(rng() >> 11) + 0.5) * 0x1.0p-53;
   return std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2);
 }
 
@@ -901,17 +901,16 @@ StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
       const double sigma_px = std::isnan(pixel_noise) ? problem.sigma_px : pixel_noise;
       if (!(sigma_px > 0)) return Status::Error("pixel_noise_px: expected > 0");
       Rng rng(run.seed);
-      auto gaussian = [](Rng& r) { return Gaussian(&r); };
       for (auto& m : problem.markers) {
         double sigma_ct = ct_noise;
         if (std::isnan(sigma_ct)) sigma_ct = std::sqrt(m.covariance.trace() / 3);
         if (!(sigma_ct > 0)) return Status::Error("ct_noise_mm: expected > 0");
-        m.p_in_object += sigma_ct * RandomVector<3>(gaussian, rng);
+        m.p_in_object += sigma_ct * RandomVector<3>(Gaussian, rng);
         m.covariance = Eigen::Matrix3d::Identity() * sigma_ct * sigma_ct;
       }
       for (auto& v : problem.views) {
         for (auto& o : v.observations) {
-          o.uv_px += sigma_px * RandomVector<2>(gaussian, rng);
+          o.uv_px += sigma_px * RandomVector<2>(Gaussian, rng);
         }
       }
       problem.sigma_px = sigma_px;
