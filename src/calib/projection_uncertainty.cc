@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "ba/quantities.h"
+#include "ba/schur_lm.h"  // LeftJacobianOf
 
 namespace carmba {
 

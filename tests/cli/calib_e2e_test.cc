@@ -47,14 +47,11 @@ CliRun Carmba(const std::string& args) {
 
 nlohmann::json Json(const fs::path& p) { return nlohmann::json::parse(carmba::test::ReadTextFile(p)); }
 
-// Renders a shipped scene once per test binary run.
+// A shipped scene rendered (cli_test_util.h: once per ctest run or test binary run); read only.
 std::string Simulated(const std::string& scene) {
-  const std::string dir = Tmp("sim_" + scene);
-  if (!fs::exists(dir + "/truth.json")) {
-    CliRun r = Carmba("simulate --scene " + std::string(CARMBA_SOURCE_DIR) + "/configs/scenes/" +
-                   scene + ".yaml --out " + dir);
-    EXPECT_EQ(r.code, 0) << r.err;
-  }
+  std::string error;
+  const std::string dir = carmba::test::SimulatedScene(scene, &error);
+  EXPECT_NE(dir, "") << error;
   return dir;
 }
 

@@ -62,6 +62,40 @@ inline nlohmann::json ReadJsonFile(const std::string& path) {
   return nlohmann::json::parse(ReadTextFile(path), nullptr, /*allow_exceptions=*/false);
 }
 
+// The output of `carmba simulate --scene configs/scenes/<scene>.yaml`, to be read only. Under
+// ctest it is the fixture cli_scenes's (tests/cli/simulate_scenes.sh, run once before the CLI
+// tests; CARMBA_TEST_SCENES names its directory) when that has the scene; otherwise the scene is
+// rendered once per process into a scratch directory. Returns the directory, or "" with the
+// reason in *error.
+inline std::string SimulatedScene(const std::string& scene, std::string* error) {
+  const char* fixture = std::getenv("CARMBA_TEST_SCENES");
+  if (fixture != nullptr) {
+    const std::string dir = std::string(fixture) + "/" + scene;
+    if (std::filesystem::exists(dir + "/truth.json")) return dir;
+  }
+  static const ScratchDir rendered("scenes");
+  const std::string dir = rendered.File(scene);
+  if (std::filesystem::exists(dir + "/truth.json")) return dir;
+  const CommandResult r = RunCarmba("simulate --scene " + kSource + "/configs/scenes/" + scene +
+                                    ".yaml --out " + dir);
+  if (r.exit_code != 0) {
+    *error = "simulate " + scene + ": " + r.err;
+    return "";
+  }
+  return dir;
+}
+
+// SimulatedScene(scene) seen at `path` (a symbolic link), for tests that keep their inputs in
+// their own directory. Returns the failure's reason, or "" on success.
+inline std::string LinkSimulatedScene(const std::string& scene, const std::string& path) {
+  std::string error;
+  const std::string dir = SimulatedScene(scene, &error);
+  if (dir.empty()) return error;
+  std::error_code ec;
+  std::filesystem::create_directory_symlink(dir, path, ec);
+  return ec ? "link " + path + " -> " + dir + ": " + ec.message() : "";
+}
+
 // `carmba simulate` of a shipped joint scene (configs/scenes/NAME) into `scene`, then its CT
 // fiducials (`carmba ct-fiducials`, thesis marker table) into scene/fiducials.csv. Returns the
 // failing command's stderr, or "" on success.
@@ -76,18 +110,12 @@ inline std::string SimulateJointScene(const std::string& scene_yaml, const std::
   return "";
 }
 
-// Simulated plate images (configs/scenes/thesis_calibration.yaml) into dir/plate and a
-// simulated CT series (thesis_ct.yaml) into dir/ct: shared inputs of the CLI fixtures. Returns
-// the failing command's stderr, or "" on success.
+// Simulated plate images (configs/scenes/thesis_calibration.yaml) at dir/plate and a simulated
+// CT series (thesis_ct.yaml) at dir/ct (SimulatedScene, linked): shared inputs of the CLI
+// fixtures, read only. Returns the failure's reason, or "" on success.
 inline std::string SimulatePlateAndCt(const ScratchDir& dir) {
-  const std::string src = CARMBA_SOURCE_DIR;
-  auto r = RunCarmba("simulate --scene " + src + "/configs/scenes/thesis_calibration.yaml --out " +
-                     dir.File("plate"));
-  if (r.exit_code != 0) return "simulate plate: " + r.err;
-  r = RunCarmba("simulate --scene " + src + "/configs/scenes/thesis_ct.yaml --out " +
-                dir.File("ct"));
-  if (r.exit_code != 0) return "simulate ct: " + r.err;
-  return "";
+  const std::string err = LinkSimulatedScene("thesis_calibration", dir.File("plate"));
+  return err.empty() ? LinkSimulatedScene("thesis_ct", dir.File("ct")) : err;
 }
 
 // Synthetic observations of the default 5 x 5 plate by a thesis-like camera (408 x 408 px), as

@@ -21,9 +21,7 @@ class PoseCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new ScratchDir();
-    const auto r = RunCarmba("simulate --scene " + std::string(CARMBA_SOURCE_DIR) +
-                             "/configs/scenes/markers_clutter.yaml --out " + dir_->File("sim"));
-    ASSERT_EQ(r.exit_code, 0) << r.err;
+    ASSERT_EQ(LinkSimulatedScene("markers_clutter", dir_->File("sim")), "");  // read only
     truth_ = nlohmann::json::parse(ReadTextFile(dir_->File("sim/truth.json")));
     // camera.json: the simulator's camera; fiducials.csv: the object's true centres with a
     // 0.1 mm CT sigma (as `carmba ct-fiducials` writes them).
