@@ -8,6 +8,8 @@
 #include "calib/conditioning.h"
 #include "geometry/rotation.h"
 #include "report/joint_report.h"
+
+#include "report/engine_json.h"
 #include "util/format.h"
 #include "report/plots.h"
 #include "report/pose_report.h"
@@ -139,36 +141,6 @@ nlohmann::json ValidationJson(const JointProblem& problem, const JointSolution& 
   return val;
 }
 
-// The markers as solved, the outliers and the rejected observations.
-void MarkersAndOutliersJson(const JointSolution& s, nlohmann::json* out) {
-  nlohmann::json& j = *out;
-  const ba::StateLayout& L = *s.result.layout;
-  const ba::BaResult& r = s.result;
-  nlohmann::json markers = nlohmann::json::array();
-  for (size_t m = 0; m < s.ba_problem.markers.size(); ++m) {
-    const int b = L.marker_block(static_cast<int>(m));
-    markers.push_back({{"id", s.ba_problem.markers[m].id},
-                       {"p_in_object_mm", JsonVector(Eigen::Map<const Eigen::Vector3d>(r.block(b)))},
-                       {"covariance_mm2", JsonRows(r.Covariance({b}))}});
-  }
-  j["markers"] = markers;
-  nlohmann::json outliers = nlohmann::json::array();
-  for (const auto& o : r.outliers) {
-    outliers.push_back({{"view", o.view},
-                        {o.plate ? "point" : "marker", o.id},
-                        {"residual_sigma", JsonNumber(o.residual_sigma)},
-                        {"du_px", JsonNumber(o.du_px)},
-                        {"dv_px", JsonNumber(o.dv_px)}});
-  }
-  j["outliers"] = outliers;
-  nlohmann::json rejected = nlohmann::json::array();
-  for (const auto& o : r.rejected) {
-    rejected.push_back({{"view", o.view}, {o.plate ? "point" : "marker", o.id},
-                        {"residual_sigma", JsonNumber(o.residual_sigma)}});
-  }
-  j["rejected"] = rejected;
-}
-
 nlohmann::json TwoStepComparisonJson(const JointSolution& s) {
   nlohmann::json cmp = nlohmann::json::array();
   for (const auto& c : s.comparison) {
@@ -217,7 +189,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
   j["validation"] = ValidationJson(problem, s);
   j["relative_poses"] = RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
   if (s.tre) j["tre"] = TreJson(*s.tre);
-  MarkersAndOutliersJson(s, &j);
+  MarkersAndOutliersJson(s.ba_problem, s.result, &j);
   nlohmann::json layout = nlohmann::json::array();
   for (int k = 0; k < L.num_free(); ++k) layout.push_back(L.FreeName(k));
   j["state_layout"] = layout;

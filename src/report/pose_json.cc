@@ -5,6 +5,7 @@
 #include "geometry/rotation.h"
 #include "problem/pose_problem.h"
 #include "util/format.h"
+#include "report/engine_json.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
 #include "report/variance_report.h"
@@ -78,11 +79,15 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
                                                    : nlohmann::json()}});
   }
   j["validation"] = val;
-  nlohmann::json markers = nlohmann::json::array();
-  for (const auto& [id, p] : s.markers) {
-    markers.push_back({{"id", id}, {"p_in_object_mm", JsonVector(p)}});
+  if (s.ba_problem && s.ba_result) {
+    MarkersAndOutliersJson(*s.ba_problem, *s.ba_result, &j);  // as every problem kind writes them
+  } else {
+    nlohmann::json markers = nlohmann::json::array();
+    for (const auto& [id, p] : s.markers) {
+      markers.push_back({{"id", id}, {"p_in_object_mm", JsonVector(p)}});
+    }
+    j["markers"] = markers;
   }
-  j["markers"] = markers;
   j["statistics"] = {{"rms_px", JsonNumber(s.rms_px)},
                      {"sigma_aposteriori_px", JsonNumber(s.sigma_aposteriori_px)},
                      {"sigma0", JsonNumber(s.sigma0)},

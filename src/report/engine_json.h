@@ -1,0 +1,18 @@
+// result.json sections written from the engine's problem and result alone (ba/), the same for
+// every problem kind that solves with it (pose and joint problems).
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "ba/bundle_adjuster.h"
+
+namespace carmba {
+
+// "markers": per CT marker {id, p_in_object_mm, covariance_mm2 (with the engine's covariance)};
+// "outliers": observations beyond the outlier threshold {view, marker | point, residual_sigma,
+// du_px, dv_px}; "rejected": observations dropped by reject_sigma {view, marker | point,
+// residual_sigma}. Written into `out`.
+void MarkersAndOutliersJson(const ba::BaProblem& problem, const ba::BaResult& result,
+                            nlohmann::json* out);
+
+}  // namespace carmba
