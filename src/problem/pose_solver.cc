@@ -141,28 +141,6 @@ StatusOr<Pose6> InitialObjectPose(const Camera& cam,
   return Status::Error("unknown initializer");
 }
 
-namespace {
-
-double ViewRms(const PoseProblem& problem,
-               const PoseView& view,
-               const Pose6& pose,
-               const std::map<int, Eigen::Vector3d>& markers) {
-  double ss = 0;
-  int n = 0;
-  for (const auto& o : view.observations) {
-    Eigen::Vector2d q;
-    if (!ProjectPoint(problem.camera.params.data(), pose.data(), markers.at(o.marker_id).data(),
-                      q.data())) {
-      return std::numeric_limits<double>::infinity();
-    }
-    ss += (q - o.uv_px).squaredNorm();
-    n += 2;
-  }
-  return std::sqrt(ss / n);
-}
-
-}  // namespace
-
 std::vector<std::string> PoseWarnings(const PoseSolution& solution) {
   if (!solution.ba_result) return {};
   return ba::SolveWarnings(*solution.ba_result);
@@ -203,7 +181,7 @@ StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const PoseProblem& problem, const S
 
 // The engine's problem: the held intrinsics, one object view per pose view initialised by the
 // config's initializer, the observed markers tied to their CT measurements. Fills each view's
-// initial pose and RMS into `sol`.
+// initial pose into `sol`.
 StatusOr<ba::BaProblem> PoseBaProblem(const PoseProblem& problem,
                                       const SolverConfig& config,
                                       const std::map<int, Eigen::Vector3d>& markers,
@@ -235,7 +213,6 @@ StatusOr<ba::BaProblem> PoseBaProblem(const PoseProblem& problem,
     ViewSolution& vs = sol->views[v];
     vs.id = problem.views[v].id;
     vs.initial = *init;
-    vs.initial_rms_px = ViewRms(problem, problem.views[v], *init, markers);
     vs.num_observations = static_cast<int>(problem.views[v].observations.size());
     if (progress) progress(problem.views[v].id);
   }
@@ -280,16 +257,13 @@ std::vector<Pose6> TakePoseSolution(const PoseProblem& problem,
   }
   sol->chi2 = r.chi2;
   sol->num_residuals = r.num_residuals;
-  double ss = 0;
-  int n = 0;
-  for (size_t v = 0; v < V; ++v) {
+  for (size_t v = 0; v < V; ++v) {  // the engine's reprojection statistics
     ViewSolution& vs = sol->views[v];
     vs.cam_from_object = poses[v];
-    vs.rms_px = ViewRms(problem, problem.views[v], poses[v], markers);
-    ss += vs.rms_px * vs.rms_px * 2 * vs.num_observations;
-    n += 2 * vs.num_observations;
+    vs.rms_px = r.views[v].rms_px;
+    vs.initial_rms_px = r.initial_view_rms_px.at(v);
   }
-  sol->rms_px = std::sqrt(ss / n);
+  sol->rms_px = r.rms_object_px;
   sol->markers = std::move(markers);
   sol->num_parameters = r.num_free;
   sol->dof = r.dof;

@@ -279,35 +279,13 @@ py::list RelativePoses(const Solved& s) {
   return out;
 }
 
+// result.json's statistics (report/engine_json.h, as the command writes them) with the solver's
+// iterations and termination.
 py::dict Statistics(const Solved& s) {
-  py::dict d;
-  if (s.kind == "pose") {
-    const PoseSolution& p = *s.pose;
-    d["rms_px"] = p.rms_px;
-    d["sigma_aposteriori_px"] = p.sigma_aposteriori_px;
-    d["sigma0"] = p.sigma0;
-    d["chi2"] = p.chi2;
-    d["dof"] = p.dof;
-    d["chi2_p_value"] = p.chi2_p_value;
-    d["num_residuals"] = p.num_residuals;
-    d["num_parameters"] = p.num_parameters;
-    if (p.ba_result) d["covariance_scale"] = ba::CovarianceScaleName(p.ba_result->scale_mode);
-    d["iterations"] = p.iterations;
-    d["termination"] = p.termination;
-    return d;
-  }
-  const ba::BaResult& r = *s.br;
-  d["rms_plate_px"] = r.rms_plate_px;
-  d["rms_object_px"] = r.rms_object_px;
-  d["sigma0"] = r.sigma0;
-  d["chi2"] = r.chi2;
-  d["dof"] = r.dof;
-  d["chi2_p_value"] = r.chi2_p_value;
-  d["num_residuals"] = r.num_residuals;
-  d["num_parameters"] = r.num_free;
-  d["covariance_scale"] = ba::CovarianceScaleName(r.scale_mode);
-  d["iterations"] = r.iterations;
-  d["termination"] = r.termination;
+  py::dict d = ToPython(s.json.value("statistics", nlohmann::json::object()));
+  const nlohmann::json solver = s.json.value("solver", nlohmann::json::object());
+  d["iterations"] = ToPython(solver.value("iterations", nlohmann::json()));
+  d["termination"] = ToPython(solver.value("termination", nlohmann::json()));
   return d;
 }
 

@@ -34,4 +34,21 @@ void MarkersAndOutliersJson(const ba::BaProblem& problem, const ba::BaResult& re
   j["rejected"] = rejected;
 }
 
+nlohmann::json StatisticsJson(const ba::BaProblem& problem, const ba::BaResult& result) {
+  bool plate = false, object = false;
+  for (const ba::BaView& v : problem.views) {
+    (v.kind == ba::ViewKind::kPlate ? plate : object) = true;
+  }
+  nlohmann::json j = {{"sigma0", JsonNumber(result.sigma0)},
+                      {"chi2", JsonNumber(result.chi2)},
+                      {"dof", result.dof},
+                      {"chi2_p_value", JsonNumber(result.chi2_p_value)},
+                      {"num_residuals", result.num_residuals},
+                      {"num_parameters", result.num_free},
+                      {"covariance_scale", ba::CovarianceScaleName(result.scale_mode)}};
+  if (plate) j["rms_plate_px"] = JsonNumber(result.rms_plate_px);
+  if (object) j["rms_object_px"] = JsonNumber(result.rms_object_px);
+  return j;
+}
+
 }  // namespace carmba

@@ -15,4 +15,9 @@ namespace carmba {
 void MarkersAndOutliersJson(const ba::BaProblem& problem, const ba::BaResult& result,
                             nlohmann::json* out);
 
+// "statistics" as the engine computes them: chi2 (at the stated sigmas, priors included), dof,
+// chi2_p_value, sigma0, num_residuals, num_parameters, covariance_scale; rms_plate_px and
+// rms_object_px (per coordinate) where the problem has views of that kind.
+nlohmann::json StatisticsJson(const ba::BaProblem& problem, const ba::BaResult& result);
+
 }  // namespace carmba

@@ -196,15 +196,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
   j["error_budget"] = ErrorBudgetJson(s.budget);
   j["two_step_comparison"] = TwoStepComparisonJson(s);
   if (!s.comparison_error.empty()) j["two_step_comparison_error"] = s.comparison_error;
-  j["statistics"] = {{"rms_plate_px", JsonNumber(r.rms_plate_px)},
-                     {"rms_object_px", JsonNumber(r.rms_object_px)},
-                     {"sigma0", JsonNumber(r.sigma0)},
-                     {"chi2", JsonNumber(r.chi2)},
-                     {"dof", r.dof},
-                     {"chi2_p_value", JsonNumber(r.chi2_p_value)},
-                     {"num_residuals", r.num_residuals},
-                     {"num_parameters", r.num_free},
-                     {"covariance_scale", ba::CovarianceScaleName(config.covariance_scale)}};
+  j["statistics"] = StatisticsJson(s.ba_problem, r);
   j["variance_components"] = VarianceComponentsJson(r);
   j["shadow_correction"] = ShadowCorrectionJson(r);
   if (s.distortion || !s.distortion_error.empty()) {

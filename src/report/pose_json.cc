@@ -88,17 +88,20 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
     }
     j["markers"] = markers;
   }
-  j["statistics"] = {{"rms_px", JsonNumber(s.rms_px)},
-                     {"sigma_aposteriori_px", JsonNumber(s.sigma_aposteriori_px)},
-                     {"sigma0", JsonNumber(s.sigma0)},
-                     {"chi2", JsonNumber(s.chi2)},
-                     {"dof", s.dof},
-                     {"chi2_p_value", JsonNumber(s.chi2_p_value)},
-                     {"num_residuals", s.num_residuals},
-                     {"num_parameters", s.num_parameters}};
+  if (s.ba_problem && s.ba_result) {
+    j["statistics"] = StatisticsJson(*s.ba_problem, *s.ba_result);  // as every problem kind
+  } else {
+    j["statistics"] = {{"sigma0", JsonNumber(s.sigma0)},
+                       {"chi2", JsonNumber(s.chi2)},
+                       {"dof", s.dof},
+                       {"chi2_p_value", JsonNumber(s.chi2_p_value)},
+                       {"num_residuals", s.num_residuals},
+                       {"num_parameters", s.num_parameters}};
+  }
+  j["statistics"]["rms_px"] = JsonNumber(s.rms_px);
+  j["statistics"]["sigma_aposteriori_px"] = JsonNumber(s.sigma_aposteriori_px);
   if (s.ba_result) {
     j["error_budget"] = ErrorBudgetJson(PoseErrorBudget(s));
-    j["statistics"]["covariance_scale"] = ba::CovarianceScaleName(s.ba_result->scale_mode);
     j["variance_components"] = VarianceComponentsJson(*s.ba_result);
     j["shadow_correction"] = ShadowCorrectionJson(*s.ba_result);
   }
