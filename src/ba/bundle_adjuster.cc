@@ -770,6 +770,7 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
   const StateLayout& layout = *res.layout;
   const bool use_lm = o.backend == "carmba_lm";
   if (use_lm) CARMBA_RETURN_IF_ERROR(CheckCarmbaLm(problem, o));
+  res.backend = use_lm ? "carmba_lm" : "ceres";
 
   static thread_local std::unique_ptr<ceres::Context> context(ceres::Context::Create());
   constexpr int kMaxRejectionPasses = 100;

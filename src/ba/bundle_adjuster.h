@@ -134,6 +134,7 @@ struct BaResult {
   std::vector<BaOutlier> rejected;   // dropped by the rejection pass
   std::vector<std::vector<char>> dropped;  // per view and observation: rejected (1) or used (0)
 
+  std::string backend;     // the minimiser that ran: ceres or carmba_lm (BaOptions::backend)
   int iterations = 0;
   std::string termination;
   bool converged = false;

@@ -51,4 +51,15 @@ nlohmann::json StatisticsJson(const ba::BaProblem& problem, const ba::BaResult& 
   return j;
 }
 
+nlohmann::json SolverJson(const std::string& config_name, const ba::BaResult& result) {
+  return {{"config", config_name},
+          {"engine", result.backend + " (src/ba)"},
+          {"iterations", result.iterations},
+          {"termination", result.termination},
+          {"converged", result.converged},
+          {"initial_cost", JsonNumber(result.initial_cost)},
+          {"final_cost", JsonNumber(result.final_cost)},
+          {"time_s", JsonNumber(result.time_s)}};
+}
+
 }  // namespace carmba

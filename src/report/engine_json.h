@@ -20,4 +20,8 @@ void MarkersAndOutliersJson(const ba::BaProblem& problem, const ba::BaResult& re
 // rms_object_px (per coordinate) where the problem has views of that kind.
 nlohmann::json StatisticsJson(const ba::BaProblem& problem, const ba::BaResult& result);
 
+// "solver": config (its name), engine (the minimiser that ran, in src/ba), iterations,
+// termination, converged, initial_cost, final_cost, time_s (the engine's).
+nlohmann::json SolverJson(const std::string& config_name, const ba::BaResult& result);
+
 }  // namespace carmba

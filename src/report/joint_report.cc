@@ -204,14 +204,7 @@ nlohmann::json JointSolutionToJson(const JointProblem& problem,
         DistortionSelectionJson(s.distortion ? &*s.distortion : nullptr, s.distortion_error,
                                 config.distortion_auto);
   }
-  j["solver"] = {{"config", config.name},
-                 {"engine", "ceres (src/ba)"},
-                 {"iterations", r.iterations},
-                 {"termination", r.termination},
-                 {"converged", r.converged},
-                 {"initial_cost", JsonNumber(r.initial_cost)},
-                 {"final_cost", JsonNumber(r.final_cost)},
-                 {"time_s", JsonNumber(r.time_s)}};
+  j["solver"] = SolverJson(config.name, r);
   return j;
 }
 

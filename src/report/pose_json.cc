@@ -106,12 +106,15 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
     j["shadow_correction"] = ShadowCorrectionJson(*s.ba_result);
   }
   j["warnings"] = PoseWarnings(s);
-  j["solver"] = {{"config", s.config_name},
-                 {"iterations", s.iterations},
-                 {"termination", s.termination},
-                 {"initial_cost", JsonNumber(s.initial_cost)},
-                 {"final_cost", JsonNumber(s.final_cost)},
-                 {"time_s", s.time_s}};
+  if (s.ba_result) j["solver"] = SolverJson(s.config_name, *s.ba_result);
+  // The pose front end's own: NOT_REFINED for refine: false, and its wall time (initial poses,
+  // solve and covariance).
+  j["solver"]["config"] = s.config_name;
+  j["solver"]["iterations"] = s.iterations;
+  j["solver"]["termination"] = s.termination;
+  j["solver"]["initial_cost"] = JsonNumber(s.initial_cost);
+  j["solver"]["final_cost"] = JsonNumber(s.final_cost);
+  j["solver"]["time_s"] = s.time_s;
   if (s.has_covariance) j["joint_covariance"] = JsonRows(s.joint_covariance);
   if (s.ba_problem) j["relative_poses"] = RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth_poses);
   if (s.tre) j["tre"] = TreJson(*s.tre);
