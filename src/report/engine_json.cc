@@ -11,8 +11,8 @@ void MarkersAndOutliersJson(const ba::BaProblem& problem, const ba::BaResult& re
   nlohmann::json markers = nlohmann::json::array();
   for (size_t m = 0; m < problem.markers.size(); ++m) {
     const int b = L.marker_block(static_cast<int>(m));
-    nlohmann::json mj = {{"id", problem.markers[m].id},
-                         {"p_in_object_mm", JsonVector(Eigen::Map<const Eigen::Vector3d>(result.block(b)))}};
+    const Eigen::Map<const Eigen::Vector3d> p(result.block(b));
+    nlohmann::json mj = {{"id", problem.markers[m].id}, {"p_in_object_mm", JsonVector(p)}};
     if (result.covariance) mj["covariance_mm2"] = JsonRows(result.Covariance({b}));
     markers.push_back(mj);
   }

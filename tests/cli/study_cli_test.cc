@@ -57,6 +57,9 @@ Result Carmba(const std::string& args, const std::string& dir) {
   return Shell("'" + kBin + "' " + args, dir);
 }
 
+// `carmba study` without the plots (the tests below do not look at them; ShippedStudiesRun does).
+const std::string kStudyNoPlots = "study --no-plots --study=";
+
 // The shipped solver config `name`. The equality tests need bitwise-reproducible solves; the pose
 // solver keeps all parameter blocks in one buffer (Ceres orders blocks by address), so the shipped
 // dense-Schur configs are reproducible across threads and processes.
@@ -125,16 +128,16 @@ TEST(StudyCliTest, KilledStudyResumesWithEveryRunOnce) {
   EXPECT_FALSE(FileExists(out + "/summary.md"));
 
   // Without --resume the directory is refused; with it the study completes.
-  Result r = Carmba("study --no-plots --study=" + study + " --out=" + out + " --jobs=2", dir);
+  Result r = Carmba(kStudyNoPlots + study + " --out=" + out + " --jobs=2", dir);
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("pass --resume"), std::string::npos) << r.err;
-  r = Carmba("study --no-plots --study=" + study + " --out=" + out + " --jobs=2 --resume", dir);
+  r = Carmba(kStudyNoPlots + study + " --out=" + out + " --jobs=2 --resume", dir);
   ASSERT_EQ(r.code, 0) << r.err;
   const std::vector<std::string> keys = Keys(out);
   ASSERT_EQ(keys.size(), 600u);
   EXPECT_EQ(std::set<std::string>(keys.begin(), keys.end()).size(), 600u);
 
-  r = Carmba("study --no-plots --study=" + study + " --out=" + dir + "/clean --jobs=2", dir);
+  r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/clean --jobs=2", dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(Summaries(out), Summaries(dir + "/clean"));
   EXPECT_EQ(Keys(out), Keys(dir + "/clean"));
@@ -143,7 +146,7 @@ TEST(StudyCliTest, KilledStudyResumesWithEveryRunOnce) {
 TEST(StudyCliTest, JobsAndMergedShardsGiveIdenticalSummaries) {
   const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteStudy(dir, 15);
-  const std::string s = "study --no-plots --study=" + study + " --out=" + dir;
+  const std::string s = kStudyNoPlots + study + " --out=" + dir;
   for (const std::string& a : {s + "/j1 --jobs=1", s + "/j2 --jobs=2",
                                s + "/shard1 --jobs=2 --shard=1/2", s + "/shard2 --jobs=1 --shard=2/2"}) {
     const Result r = Carmba(a, dir);
@@ -178,7 +181,7 @@ TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
   const std::string study =
       WriteStudy(dir, 3, "  - {name: lost, file: no_such_problem.yaml}\n",
                  "  - {name: typo, file: typo.yaml}\n");
-  Result r = Carmba("study --no-plots --study=" + study + " --out=" + dir + "/out --jobs=2", dir);
+  Result r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/out --jobs=2", dir);
   // A study with failed runs is a failed study (exit 1, data failure), after writing its
   // summaries; the message counts them and gives the reasons, most frequent first.
   ASSERT_EQ(r.code, 1) << r.err;
@@ -196,21 +199,21 @@ TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
   EXPECT_NE(r.err.find("no failed run allowed"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   // An expected failure rate: 24/36 = 0.67 is within 0.7, not within 0.5.
-  r = Carmba("study --no-plots --study=" + study + " --out=" + dir + "/out --resume --allow-failures=0.7",
+  r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/out --resume --allow-failures=0.7",
              dir);
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("warning: 24 of 36 runs failed"), std::string::npos) << r.err;
-  r = Carmba("study --no-plots --study=" + study + " --out=" + dir + "/out --resume --allow-failures=0.5",
+  r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/out --resume --allow-failures=0.5",
              dir);
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("allowed: 0.5 of the runs"), std::string::npos) << r.err;
-  r = Carmba("study --no-plots --study=" + study + " --out=" + dir + "/out --resume --allow-failures=2", dir);
+  r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/out --resume --allow-failures=2", dir);
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("--allow-failures: expected a fraction 0 .. 1, got 2"), std::string::npos)
       << r.err;
   // The same allowance as a key of the study file.
   std::ofstream(dir + "/allowed.yaml") << "allow_failures: 0.7\n" << Read(study);
-  r = Carmba("study --no-plots --study=" + dir + "/allowed.yaml --out=" + dir + "/allowed --jobs=2", dir);
+  r = Carmba(kStudyNoPlots + dir + "/allowed.yaml --out=" + dir + "/allowed --jobs=2", dir);
   EXPECT_EQ(r.code, 0) << r.err;
   const std::string md = Read(dir + "/out/summary.md");
   EXPECT_NE(md.find("no_such_problem.yaml"), std::string::npos) << md;
@@ -223,7 +226,7 @@ TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
 TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
   const std::string dir = test::MakeScratchDir("study_cli");
   std::ofstream(dir + "/bad.yaml") << "trials: 2\nproblems: []\nconfigs:\n  - {name: c, file: c}\n";
-  Result r = Carmba("study --no-plots --study=" + dir + "/bad.yaml --out=" + dir + "/out", dir);
+  Result r = Carmba(kStudyNoPlots + dir + "/bad.yaml --out=" + dir + "/out", dir);
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("bad.yaml: key 'problems': expected at least one problem"),
             std::string::npos)
@@ -231,7 +234,7 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
   EXPECT_FALSE(FileExists(dir + "/out"));
   // Usage errors (a bad flag value, a missing flag) exit 2 (cli/command.h kExitUsage).
-  r = Carmba("study --no-plots --study=" + WriteStudy(dir, 1) + " --out=" + dir + "/out --shard=3/2", dir);
+  r = Carmba(kStudyNoPlots + WriteStudy(dir, 1) + " --out=" + dir + "/out --shard=3/2", dir);
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("expected K/N"), std::string::npos) << r.err;
   r = Carmba("study --out=" + dir + "/out", dir);
@@ -242,7 +245,7 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
       << "trials: 1\nproblems:\n  - name: sim\n    synthetic: {camera: " << kSrc
       << "/data/thesis/camera.json, markers: thesis}\nconfigs:\n  - {name: c, file: " << kSrc
       << "/configs/posit_ba_analytic.yaml}\nsweeps:\n  exposure_ms: [1, 2]\n";
-  r = Carmba("study --no-plots --study=" + dir + "/sweep.yaml --out=" + dir + "/sweep", dir);
+  r = Carmba(kStudyNoPlots + dir + "/sweep.yaml --out=" + dir + "/sweep", dir);
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("2 of 2 runs failed"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("sweep variable 'exposure_ms' is not understood"), std::string::npos)
@@ -253,7 +256,7 @@ TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
   std::string typo = Read(dir + "/sweep.yaml");
   typo.replace(typo.find("sweeps:"), 7, "sweps:");
   std::ofstream(dir + "/sweps.yaml") << typo;
-  r = Carmba("study --no-plots --study=" + dir + "/sweps.yaml --out=" + dir + "/sweps", dir);
+  r = Carmba(kStudyNoPlots + dir + "/sweps.yaml --out=" + dir + "/sweps", dir);
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("unknown key 'sweps'; did you mean 'sweeps'?"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(", sweeps, "), std::string::npos) << r.err;
@@ -277,7 +280,7 @@ std::string WriteEditableStudy(const std::string& dir) {
 TEST(StudyCliTest, ResumeRefusesAStudyWhoseFilesChanged) {
   const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteEditableStudy(dir);
-  const std::string s = "study --no-plots --study=" + study + " --out=" + dir + "/out";
+  const std::string s = kStudyNoPlots + study + " --out=" + dir + "/out";
   Result r = Carmba(s, dir);
   ASSERT_EQ(r.code, 0) << r.err;
   const std::string runs = Read(dir + "/out/runs.jsonl");
@@ -311,7 +314,7 @@ TEST(StudyCliTest, ResumeRefusesAStudyWhoseFilesChanged) {
 TEST(StudyCliTest, MergeRefusesShardsOfDifferentConfigs) {
   const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteEditableStudy(dir);
-  const std::string s = "study --no-plots --study=" + study + " --out=" + dir;
+  const std::string s = kStudyNoPlots + study + " --out=" + dir;
   Result r = Carmba(s + "/shard-1 --shard=1/2", dir);
   ASSERT_EQ(r.code, 0) << r.err;
   std::string config = Read(dir + "/c.yaml");
@@ -335,11 +338,11 @@ TEST(StudyCliTest, MergeRefusesShardsOfDifferentConfigs) {
 TEST(StudyCliTest, ProgressLineOnlyOnATerminal) {
   const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteStudy(dir, 5);
-  Result r = Carmba("study --no-plots --study=" + study + " --out=" + dir + "/plain --jobs=2", dir);
+  Result r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/plain --jobs=2", dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.err.find("runs"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
-  r = Carmba("study --no-plots --study=" + study + " --out=" + dir + "/verbose --jobs=2 --verbose", dir);
+  r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/verbose --jobs=2 --verbose", dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("20/20 runs done"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
