@@ -288,7 +288,8 @@ struct PoseSolution {
   std::optional<analysis::TreResult> tre;
   // The validation pairs as view indices (problem.views order = the engine's view order).
   std::vector<std::pair<int, int>> validation_pairs;
-  // The engine's problem and result (ba/), for error budgets and further analysis.
+  // The engine's problem and result (ba/), for error budgets and further analysis; always set
+  // by SolvePoseProblem.
   std::shared_ptr<const ba::BaProblem> ba_problem;
   std::shared_ptr<const ba::BaResult> ba_result;
 };

@@ -79,25 +79,11 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
                                                    : nlohmann::json()}});
   }
   j["validation"] = val;
-  if (s.ba_problem && s.ba_result) {
-    MarkersAndOutliersJson(*s.ba_problem, *s.ba_result, &j);  // as every problem kind writes them
-  } else {
-    nlohmann::json markers = nlohmann::json::array();
-    for (const auto& [id, p] : s.markers) {
-      markers.push_back({{"id", id}, {"p_in_object_mm", JsonVector(p)}});
-    }
-    j["markers"] = markers;
-  }
-  if (s.ba_problem && s.ba_result) {
-    j["statistics"] = StatisticsJson(*s.ba_problem, *s.ba_result);  // as every problem kind
-  } else {
-    j["statistics"] = {{"sigma0", JsonNumber(s.sigma0)},
-                       {"chi2", JsonNumber(s.chi2)},
-                       {"dof", s.dof},
-                       {"chi2_p_value", JsonNumber(s.chi2_p_value)},
-                       {"num_residuals", s.num_residuals},
-                       {"num_parameters", s.num_parameters}};
-  }
+  // The engine's problem and result: SolvePoseProblem always sets both.
+  const ba::BaProblem& bp = *s.ba_problem;
+  const ba::BaResult& br = *s.ba_result;
+  MarkersAndOutliersJson(bp, br, &j);  // as every problem kind writes them
+  j["statistics"] = StatisticsJson(bp, br);
   j["statistics"]["rms_px"] = JsonNumber(s.rms_px);
   j["statistics"]["sigma_aposteriori_px"] = JsonNumber(s.sigma_aposteriori_px);
   if (s.ba_result) {
@@ -106,13 +92,10 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
     j["shadow_correction"] = ShadowCorrectionJson(*s.ba_result);
   }
   j["warnings"] = PoseWarnings(s);
-  if (s.ba_result) j["solver"] = SolverJson(s.config_name, *s.ba_result);
-  // The pose front end's own: NOT_REFINED for refine: false, and its wall time (initial poses,
-  // solve and covariance).
-  j["solver"]["config"] = s.config_name;
-  j["solver"]["iterations"] = s.iterations;
+  j["solver"] = SolverJson(s.config_name, br);
+  // Where the pose front end differs: NOT_REFINED and the initial cost for refine: false, and its
+  // wall time (initial poses, solve and covariance).
   j["solver"]["termination"] = s.termination;
-  j["solver"]["initial_cost"] = JsonNumber(s.initial_cost);
   j["solver"]["final_cost"] = JsonNumber(s.final_cost);
   j["solver"]["time_s"] = s.time_s;
   if (s.has_covariance) j["joint_covariance"] = JsonRows(s.joint_covariance);
