@@ -50,44 +50,66 @@ StatusOr<ba::BaResult> FitFull(const ba::BaProblem& plates, const ba::BaOptions&
   return r;
 }
 
-// The plate views' linearised rows at a fit, by view: J over the view's pose (Jp), over the
-// free intrinsics (Ji), and the whitened residuals r.
+// The plate views' linearised rows at a fit, by view, with the view's pose taken out: for J over
+// the pose (Jp) and the free intrinsics (Ji) and whitened residuals r, the projector
+// P = I - Jp (Jp^T Jp)^-1 Jp^T applied to Ji and r (P itself, rows x rows, is never formed).
 struct ViewRows {
-  Eigen::MatrixXd Jp, Ji;
-  Eigen::VectorXd r;
-  // The residuals with the pose's directions taken out: P = I - Jp (Jp^T Jp)^-1 Jp^T.
-  Eigen::MatrixXd P;
+  Eigen::MatrixXd PJi;
+  Eigen::VectorXd Pr;
 };
+
+// Whether `row` belongs to a plate view (its index in `view`), and its blocks over the pose and the
+// intrinsics (null when absent).
+struct RowBlocks {
+  int view = -1;
+  const Eigen::MatrixXd* Jp = nullptr;
+  const Eigen::MatrixXd* Ji = nullptr;
+};
+
+RowBlocks BlocksOf(const ba::LinearizedBlock& row, int intrinsics_block, const std::map<int, int>& view_of_block) {
+  RowBlocks out;
+  for (size_t k = 0; k < row.blocks.size(); ++k) {
+    if (row.blocks[k] == intrinsics_block) out.Ji = &row.J[k];
+    auto it = view_of_block.find(row.blocks[k]);
+    if (it != view_of_block.end()) out.view = it->second, out.Jp = &row.J[k];
+  }
+  return out;
+}
 
 std::vector<ViewRows> RowsByView(const ba::BaProblem& plates, const ba::BaResult& r) {
   const ba::StateLayout& L = *r.layout;
   const int gb = L.group_block(0);
-  std::vector<ViewRows> out(plates.views.size());
+  const int nv = static_cast<int>(plates.views.size());
   std::map<int, int> view_of_block;
-  for (size_t v = 0; v < plates.views.size(); ++v) view_of_block[L.view_block(static_cast<int>(v))] = static_cast<int>(v);
+  for (int v = 0; v < nv; ++v) view_of_block[L.view_block(v)] = v;
+  Eigen::Index k = 0;
+  std::vector<Eigen::Index> rows(nv, 0);
   for (const ba::LinearizedBlock& row : r.linearization->rows) {
-    int v = -1;
-    Eigen::MatrixXd Jp, Ji;
-    for (size_t k = 0; k < row.blocks.size(); ++k) {
-      if (row.blocks[k] == gb) Ji = row.J[k];
-      auto it = view_of_block.find(row.blocks[k]);
-      if (it != view_of_block.end()) v = it->second, Jp = row.J[k];
-    }
-    if (v < 0) continue;
-    if (Ji.size() == 0) Ji = Eigen::MatrixXd::Zero(Jp.rows(), 0);
-    ViewRows& vr = out[v];
-    const Eigen::Index n0 = vr.r.size(), nr = row.r.size();
-    vr.Jp.conservativeResize(n0 + nr, Jp.cols());
-    vr.Ji.conservativeResize(n0 + nr, Ji.cols());
-    vr.r.conservativeResize(n0 + nr);
-    vr.Jp.bottomRows(nr) = Jp;
-    vr.Ji.bottomRows(nr) = Ji;
-    vr.r.tail(nr) = row.r;
+    const RowBlocks b = BlocksOf(row, gb, view_of_block);
+    if (b.view < 0) continue;
+    rows[b.view] += row.r.size();
+    if (b.Ji) k = b.Ji->cols();
   }
-  for (ViewRows& vr : out) {
-    const Eigen::Index n = vr.r.size();
-    vr.P = Eigen::MatrixXd::Identity(n, n) -
-           vr.Jp * (vr.Jp.transpose() * vr.Jp).ldlt().solve(vr.Jp.transpose());
+  std::vector<Eigen::MatrixXd> Jp(nv), Ji(nv);
+  std::vector<Eigen::VectorXd> res(nv);
+  for (int v = 0; v < nv; ++v) {
+    Jp[v].setZero(rows[v], 6), Ji[v].setZero(rows[v], k), res[v].setZero(rows[v]);
+    rows[v] = 0;
+  }
+  for (const ba::LinearizedBlock& row : r.linearization->rows) {
+    const RowBlocks b = BlocksOf(row, gb, view_of_block);
+    if (b.view < 0) continue;
+    const Eigen::Index n0 = rows[b.view], nr = row.r.size();
+    Jp[b.view].middleRows(n0, nr) = *b.Jp;
+    if (b.Ji) Ji[b.view].middleRows(n0, nr) = *b.Ji;
+    res[b.view].segment(n0, nr) = row.r;
+    rows[b.view] += nr;
+  }
+  std::vector<ViewRows> out(nv);
+  for (int v = 0; v < nv; ++v) {
+    const auto M = (Jp[v].transpose() * Jp[v]).ldlt();
+    out[v].PJi = Ji[v] - Jp[v] * M.solve(Jp[v].transpose() * Ji[v]);
+    out[v].Pr = res[v] - Jp[v] * M.solve(Jp[v].transpose() * res[v]);
   }
   return out;
 }
@@ -96,16 +118,17 @@ std::vector<ViewRows> RowsByView(const ba::BaProblem& plates, const ba::BaResult
 // for a linear model): without fold F the intrinsics move by
 //   d = S_-F^-1 sum_{v in F} g_v,   S_v = Ji^T P Ji,  g_v = Ji^T P r,  S_-F = sum_{v not in F} S_v
 // (the poses eliminated; at the optimum sum_v g_v = 0), and fold F's views, their poses refitted
-// with the intrinsics held there, leave the residuals P (r + Ji d).
+// with the intrinsics held there, leave the residuals P (r + Ji d) (P is idempotent and symmetric,
+// so S_v = (P Ji)^T (P Ji) and g_v = (P Ji)^T (P r)).
 void HeldOutScores(const std::vector<ViewRows>& rows, double sigma_px, int folds,
                    DistortionScore* sc) {
-  const Eigen::Index k = rows.empty() ? 0 : rows[0].Ji.cols();
+  const Eigen::Index k = rows.empty() ? 0 : rows[0].PJi.cols();
   std::vector<Eigen::MatrixXd> S(rows.size());
   std::vector<Eigen::VectorXd> g(rows.size());
   Eigen::MatrixXd S_all = Eigen::MatrixXd::Zero(k, k);
   for (size_t v = 0; v < rows.size(); ++v) {
-    S[v] = rows[v].Ji.transpose() * rows[v].P * rows[v].Ji;
-    g[v] = rows[v].Ji.transpose() * rows[v].P * rows[v].r;
+    S[v] = rows[v].PJi.transpose() * rows[v].PJi;
+    g[v] = rows[v].PJi.transpose() * rows[v].Pr;
     S_all += S[v];
   }
   double chi2 = 0;
@@ -116,19 +139,19 @@ void HeldOutScores(const std::vector<ViewRows>& rows, double sigma_px, int folds
     for (size_t v = f; v < rows.size(); v += folds) S_f -= S[v], g_f += g[v];
     const Eigen::VectorXd d = S_f.ldlt().solve(g_f);
     for (size_t v = f; v < rows.size(); v += folds) {
-      chi2 += (rows[v].P * (rows[v].r + rows[v].Ji * d)).squaredNorm();
-      n += rows[v].r.size();
+      chi2 += (rows[v].Pr + rows[v].PJi * d).squaredNorm();
+      n += rows[v].Pr.size();
     }
   }
   sc->held_out_chi2_per_residual = chi2 / static_cast<double>(n);
   sc->held_out_rms_px = std::sqrt(chi2 / static_cast<double>(n)) * sigma_px;
 }
 
-Status ScoreModel(const ba::BaProblem& plates, const ba::BaOptions& o, int folds, DistortionScore* sc) {
+StatusOr<ba::BaResult> ScoreModel(const ba::BaProblem& plates, const ba::BaOptions& o, int folds,
+                                  DistortionScore* sc) {
   auto r = FitFull(plates, o, sc);
-  if (!r.ok()) return r.status();
-  HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
-  return Status::Ok();
+  if (r.ok()) HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
+  return r;
 }
 
 // a's free distortion terms are a subset of b's.
@@ -247,9 +270,9 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
     sc.model = m;
     ba::BaProblem p = plates;
     ApplyDistortionModel(m, &p);
-    const Status s = ScoreModel(p, o, sel.folds, &sc);
-    sc.ok = s.ok();
-    if (!s.ok()) sc.error = s.message();
+    auto fit = ScoreModel(p, o, sel.folds, &sc);
+    sc.ok = fit.ok();
+    if (!fit.ok()) sc.error = fit.status().message();
     sel.scores.push_back(sc);
   }
   if (estimate_sigma) RescaleToEstimatedSigma(plates.views[0].sigma_px, &sel);

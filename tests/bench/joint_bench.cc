@@ -62,7 +62,7 @@ void BM_JointSelfChecks(benchmark::State& state) {
   const ba::SyntheticJoint sj = Perturbed(spec, 42);
   ba::BaOptions o;
   if (state.range(0) >= 1) o.covariance_scale = ba::CovarianceScale::kPerGroup;
-  int variance_iterations = 0;
+  int variance_iterations = 0, iterations = 0;
   for (auto _ : state) {
     ba::BaProblem p = sj.problem;
     if (state.range(0) == 2) {
@@ -80,9 +80,11 @@ void BM_JointSelfChecks(benchmark::State& state) {
     }
     const auto budget = ba::ComputeErrorBudget(p, *r, sj.pairs);
     variance_iterations = r->variance_iterations;
+    iterations = r->iterations;
     benchmark::DoNotOptimize(budget.back().sigma);
   }
   state.counters["variance_iterations"] = variance_iterations;
+  state.counters["iterations"] = iterations;
 }
 BENCHMARK(BM_JointSelfChecks)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
