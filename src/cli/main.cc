@@ -26,6 +26,7 @@
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
+#include "util/allocator.h"
 #include "util/file_util.h"
 #include "util/temp_paths.h"
 #include "util/text_match.h"
@@ -355,6 +356,7 @@ Status NormalizeFlags(const Command& cmd,
 
 int main(int argc, char** argv) {
   namespace cli = carmba::cli;
+  carmba::KeepFreedMemoryForReuse();
   auto is_help = [](const std::string& a) { return a == "--help" || a == "-h" || a == "-help"; };
   if (argc < 2) {
     std::cout << cli::UsageText();
