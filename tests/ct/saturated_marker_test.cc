@@ -2,11 +2,14 @@
 // (ct/ct_phantom.h): steel far above a 3071 HU clip, a Gaussian PSF (blooming), metal streaks,
 // a plastic holder touching the sphere, a diameter known only roughly. Monte Carlo over the
 // sphere's sub-voxel position, the noise and the streaks' directions: every sphere found, its
-// centre's normalised squared error e^T C^-1 e consistent with the covariance.
+// centre's normalised squared error e^T C^-1 e consistent with the covariance. Contiguous slices
+// and every other slice (the odd or even half of a real series).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <random>
+#include <vector>
 
 #include "ct/ct_phantom.h"
 #include "ct/ct_simulate.h"
@@ -19,13 +22,31 @@ namespace {
 struct Case {
   const char* name;
   double psf_mm, streak_hu, holder_offset_mm, nominal_diameter_mm;
+  // Between slices of 1.25 mm thickness: 1.25 (contiguous), 2.5 (every other slice, as the odd or
+  // the even half of a series: the half-level edge across slices is interpolated over 2.5 mm).
+  double slice_step_mm = 1.25;
+  double marker_hu = 8000;  // steel, far above the clip
+  // Bounds: the centre error's RMS (mm) and the NEES per dof.
+  double max_rms_mm = 0.15, max_nees = 2.0;
 };
+
+// Contiguous slices: the covariance holds (NEES per dof 0.8-1.7). Every other slice: every sphere
+// found (without the axial radius's allowance for the slice step, 46 of 60 of the dense ones were
+// refused as "not a ball"), the error 0.27 mm RMS, mostly along z, and NEES per dof 1.3 for steel
+// at 8000 HU but 2.8 at 20000 HU: the sampling term does not yet model a sparse series' half-level
+// edge (issue 22), so that bound is loose and says so.
+std::vector<Case> Cases() {
+  return {Case{"clip only", 0.0, 0, 100, 5.5},
+          Case{"clip + blooming", 0.5, 0, 100, 6},
+          Case{"clip + blooming + streaks", 0.5, 300, 100, 6},
+          Case{"all + holder touching", 0.5, 300, 1.0, 7},
+          Case{"all, every other slice", 0.5, 300, 100, 6, 2.5, 8000, 0.35, 2.0},
+          Case{"clip only, 20000 HU, every other slice", 0.0, 0, 100, 5.5, 2.5, 20000, 0.35, 3.5}};
+}
 
 TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndHolder) {
   constexpr double kDiameterMm = 5.5, kClipHu = 3071;
-  for (const Case& c : {Case{"clip only", 0.0, 0, 100, 5.5}, Case{"clip + blooming", 0.5, 0, 100, 6},
-                        Case{"clip + blooming + streaks", 0.5, 300, 100, 6},
-                        Case{"all + holder touching", 0.5, 300, 1.0, 7}}) {
+  for (const Case& c : Cases()) {
     constexpr int kTrials = 60;
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> u(-1, 1);
@@ -34,7 +55,7 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
     for (int t = 0; t < kTrials; ++t) {
       CtPhantom ph;
       ph.marker_diameter_mm = kDiameterMm;
-      ph.marker_hu = 8000;  // steel, far above the clip
+      ph.marker_hu = c.marker_hu;
       CtMarker mk;
       mk.id = 1;
       mk.centre_mm = RandomVector<3>(u, rng);
@@ -43,7 +64,8 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
       // (1 mm: the sphere sits in it, touching; 100: the block encloses it).
       ph.block_min_mm = Eigen::Vector3d(-14, -14, -14);
       ph.block_max_mm = Eigen::Vector3d(14, 14, std::min(14.0, mk.centre_mm.z() + c.holder_offset_mm));
-      CtVolume vol = MakeCtGeometry(40, 40, 22, 0.878906, 1.25, 0, Eigen::Vector3d::UnitX(),
+      const int slices = static_cast<int>(std::lround(27.5 / c.slice_step_mm));
+      CtVolume vol = MakeCtGeometry(40, 40, slices, 0.878906, c.slice_step_mm, 1.25, Eigen::Vector3d::UnitX(),
                                     Eigen::Vector3d::UnitY(), Eigen::Vector3d::Zero());
       CtVoxeliseOptions vo;
       vo.noise_hu = 20;
@@ -78,8 +100,8 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
                 chi2_estimators / 3);
     EXPECT_EQ(found, kTrials) << c.name;
     EXPECT_GT(nees / 3, 0.3) << c.name;
-    EXPECT_LT(nees / 3, 2.0) << c.name;
-    EXPECT_LT(std::sqrt(sq / std::max(found, 1)), 0.15) << c.name;
+    EXPECT_LT(nees / 3, c.max_nees) << c.name;
+    EXPECT_LT(std::sqrt(sq / std::max(found, 1)), c.max_rms_mm) << c.name;
   }
 }
 
