@@ -80,8 +80,14 @@
 //      H^-1 of the centre, s^2 the weighted residual variance, multiplied by n_inliers / n_eff,
 //      plus the sampling term of 5. at the fitted radii (the edge is interpolated between voxels),
 //      n_eff = the inliers' share of the spheroid's area / voxel area^(2/3) (neighbouring rays
-//      see the same voxels). The diameter need only be roughly known: the radii must be within
-//      0.6 .. 1.6 x R. Not a ball (a pin, a wire): radii in a ratio beyond 1.3, less than half
+//      see the same voxels). Slices further apart than they are thick (gaps: the odd or even
+//      half of a series) hide where an edge falls between them: there the sampling term is at
+//      least the surface fit's own error on noise-free clipped balls of the fitted radius in a
+//      volume sampled alike (8 sub-voxel positions, metal 2, 4 and 8 x (clip - b) above b,
+//      the mean). The diameter need only be roughly known: the radii must be within
+//      0.6 .. 1.6 x R. Not a ball (a pin, a wire): radii in a ratio beyond 1.3 (the axial radius
+//      moved toward the in-plane one by up to half the slice step's excess over the pixel: sparse
+//      slices move the edge across them by that much), less than half
 //      the rays ending within 20 % of the spheroid, or less than min_inner_fraction of the voxels
 //      inside the spheroid shrunk by half a voxel reaching L. A clip less than 500 HU above b is
 //      refused;

@@ -26,22 +26,27 @@ struct Case {
   // the even half of a series: the half-level edge across slices is interpolated over 2.5 mm).
   double slice_step_mm = 1.25;
   double marker_hu = 8000;  // steel, far above the clip
-  // Bounds: the centre error's RMS (mm) and the NEES per dof.
-  double max_rms_mm = 0.15, max_nees = 2.0;
+  double max_rms_mm = 0.15;  // bound on the centre error's RMS (mm)
+  double min_nees = 0.3;     // lower bound on the NEES per dof (the upper is 2)
 };
 
-// Contiguous slices: the covariance holds (NEES per dof 0.8-1.7). Every other slice: every sphere
-// found (without the axial radius's allowance for the slice step, 46 of 60 of the dense ones were
-// refused as "not a ball"), the error 0.27 mm RMS, mostly along z, and NEES per dof 1.3 for steel
-// at 8000 HU but 2.8 at 20000 HU: the sampling term does not yet model a sparse series' half-level
-// edge (issue 22), so that bound is loose and says so.
+// Every sphere is found, contiguous or with gaps between the slices (without the axial radius's
+// allowance for the slice step, 46, 42 and 17 of 60 were found every other slice at 20000 HU, at
+// 3 mm and at 3.75 mm steps: the rest refused as "not a ball"). NEES per dof: 0.8-1.7 contiguous.
+// With gaps the simulated sampling term (ct/marker_detection.h 8.) gives 0.91 and 1.03 on the two cases it was
+// developed on (the analytic term alone: 1.34 and 2.80) and 0.31, 0.32 and 0.53 on the last three,
+// added afterwards (analytic: 0.40, 0.80, 0.62): conservative where blur or a larger step smooths
+// what a sharp simulated ball does not, so their lower bound is 0.2.
 std::vector<Case> Cases() {
   return {Case{"clip only", 0.0, 0, 100, 5.5},
           Case{"clip + blooming", 0.5, 0, 100, 6},
           Case{"clip + blooming + streaks", 0.5, 300, 100, 6},
           Case{"all + holder touching", 0.5, 300, 1.0, 7},
-          Case{"all, every other slice", 0.5, 300, 100, 6, 2.5, 8000, 0.35, 2.0},
-          Case{"clip only, 20000 HU, every other slice", 0.0, 0, 100, 5.5, 2.5, 20000, 0.35, 3.5}};
+          Case{"all, every other slice", 0.5, 300, 100, 6, 2.5, 8000, 0.35},
+          Case{"clip only, 20000 HU, every other slice", 0.0, 0, 100, 5.5, 2.5, 20000, 0.35},
+          Case{"blooming + streaks, 12000 HU, 3 mm steps", 0.3, 150, 100, 6, 3.0, 12000, 0.5, 0.2},
+          Case{"more blooming, 5000 HU, 2 mm steps", 0.7, 300, 100, 6, 2.0, 5000, 0.5, 0.2},
+          Case{"clip only, 30000 HU, 3.75 mm steps", 0.0, 0, 100, 5.5, 3.75, 30000, 0.5, 0.2}};
 }
 
 TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndHolder) {
@@ -99,8 +104,8 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
                 c.name, found, kTrials, std::sqrt(sq / std::max(found, 1)), nees / 3,
                 chi2_estimators / 3);
     EXPECT_EQ(found, kTrials) << c.name;
-    EXPECT_GT(nees / 3, 0.3) << c.name;
-    EXPECT_LT(nees / 3, c.max_nees) << c.name;
+    EXPECT_GT(nees / 3, c.min_nees) << c.name;
+    EXPECT_LT(nees / 3, 2.0) << c.name;
     EXPECT_LT(std::sqrt(sq / std::max(found, 1)), c.max_rms_mm) << c.name;
   }
 }
