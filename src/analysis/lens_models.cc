@@ -66,7 +66,8 @@ struct RowBlocks {
   const Eigen::MatrixXd* Ji = nullptr;
 };
 
-RowBlocks BlocksOf(const ba::LinearizedBlock& row, int intrinsics_block, const std::map<int, int>& view_of_block) {
+RowBlocks BlocksOf(const ba::LinearizedBlock& row, int intrinsics_block,
+                   const std::map<int, int>& view_of_block) {
   RowBlocks out;
   for (size_t k = 0; k < row.blocks.size(); ++k) {
     if (row.blocks[k] == intrinsics_block) out.Ji = &row.J[k];

@@ -33,10 +33,10 @@ struct Case {
 // Every sphere is found, contiguous or with gaps between the slices (without the axial radius's
 // allowance for the slice step, 46, 42 and 17 of 60 were found every other slice at 20000 HU, at
 // 3 mm and at 3.75 mm steps: the rest refused as "not a ball"). NEES per dof: 0.8-1.7 contiguous.
-// With gaps the simulated sampling term (ct/marker_detection.h 8.) gives 0.91 and 1.03 on the two cases it was
-// developed on (the analytic term alone: 1.34 and 2.80) and 0.31, 0.32 and 0.53 on the last three,
-// added afterwards (analytic: 0.40, 0.80, 0.62): conservative where blur or a larger step smooths
-// what a sharp simulated ball does not, so their lower bound is 0.2.
+// With gaps the simulated sampling term (ct/marker_detection.h 8.) gives 0.91 and 1.03 on the two
+// cases it was developed on (the analytic term alone: 1.34 and 2.80) and 0.31, 0.32 and 0.53 on
+// the last three, added afterwards (analytic: 0.40, 0.80, 0.62): conservative where blur or a
+// larger step smooths what a sharp simulated ball does not, so their lower bound is 0.2.
 std::vector<Case> Cases() {
   return {Case{"clip only", 0.0, 0, 100, 5.5},
           Case{"clip + blooming", 0.5, 0, 100, 6},
@@ -70,8 +70,9 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
       ph.block_min_mm = Eigen::Vector3d(-14, -14, -14);
       ph.block_max_mm = Eigen::Vector3d(14, 14, std::min(14.0, mk.centre_mm.z() + c.holder_offset_mm));
       const int slices = static_cast<int>(std::lround(27.5 / c.slice_step_mm));
-      CtVolume vol = MakeCtGeometry(40, 40, slices, 0.878906, c.slice_step_mm, 1.25, Eigen::Vector3d::UnitX(),
-                                    Eigen::Vector3d::UnitY(), Eigen::Vector3d::Zero());
+      CtVolume vol = MakeCtGeometry(40, 40, slices, 0.878906, c.slice_step_mm, 1.25,
+                                    Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(),
+                                    Eigen::Vector3d::Zero());
       CtVoxeliseOptions vo;
       vo.noise_hu = 20;
       vo.seed = 500 + t;
