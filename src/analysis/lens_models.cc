@@ -148,11 +148,11 @@ void HeldOutScores(const std::vector<ViewRows>& rows, double sigma_px, int folds
   sc->held_out_rms_px = std::sqrt(chi2 / static_cast<double>(n)) * sigma_px;
 }
 
-StatusOr<ba::BaResult> ScoreModel(const ba::BaProblem& plates, const ba::BaOptions& o, int folds,
-                                  DistortionScore* sc) {
+Status ScoreModel(const ba::BaProblem& plates, const ba::BaOptions& o, int folds, DistortionScore* sc) {
   auto r = FitFull(plates, o, sc);
-  if (r.ok()) HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
-  return r;
+  if (!r.ok()) return r.status();
+  HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
+  return Status::Ok();
 }
 
 // a's free distortion terms are a subset of b's.
@@ -271,9 +271,9 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
     sc.model = m;
     ba::BaProblem p = plates;
     ApplyDistortionModel(m, &p);
-    auto fit = ScoreModel(p, o, sel.folds, &sc);
-    sc.ok = fit.ok();
-    if (!fit.ok()) sc.error = fit.status().message();
+    const Status s = ScoreModel(p, o, sel.folds, &sc);
+    sc.ok = s.ok();
+    if (!s.ok()) sc.error = s.message();
     sel.scores.push_back(sc);
   }
   if (estimate_sigma) RescaleToEstimatedSigma(plates.views[0].sigma_px, &sel);

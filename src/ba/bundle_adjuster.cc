@@ -618,7 +618,7 @@ enum class Start { kCold, kWarm };
 
 // The trust region a warm start begins with (Ceres's default, 1e4, is for a cold one): about
 // pure Gauss-Newton steps. From a cold-sized region the minimiser creeps along weakly
-// determined directions for five more iterations, each lowering the cost by ~1e-8.
+// determined directions for five more iterations, each lowering the cost by ~5e-9.
 constexpr double kWarmTrustRegionRadius = 1e8;
 
 // Minimises the assembled Ceres problem in place (as->buffer); iterations and termination

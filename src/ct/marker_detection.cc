@@ -11,6 +11,7 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "ct/ct_phantom.h"
 #include "util/plausible.h"
 #include "util/format.h"
 
@@ -861,9 +862,10 @@ double SpheroidFill(const CtVolume& vol, const SurfaceFit& s, double level) {
 }
 
 // The sampling term of a saturated marker's surface fit (8.), by the fit itself: the half-level
-// surface of noise-free clipped balls, kSamplingPhases sub-voxel positions (Halton), in a volume
-// sampled as this one is (pixel, slice step, slice thickness), the mean over three metal contrasts
-// (the clip hides the true one; denser metal has a sharper edge across slices). The analytic term
+// surface of noise-free clipped balls (ct/ct_phantom.h's voxeliser), kSamplingPhases sub-voxel
+// positions (Halton), in a volume sampled as this one is (pixel, slice step, slice thickness), the
+// mean over three metal contrasts (the clip hides the true one; denser metal has a sharper edge
+// across slices). The analytic term
 // (SamplingVarianceMm2) is the centroid's of an unclipped ball; a clipped ball's edge across
 // sparse slices moves by up to half a step, which it misses (tests/ct/saturated_marker_test.cc).
 // No blur: where the scanner's blur smooths the edge the simulated term is too large.
@@ -878,60 +880,40 @@ double Halton(int index, int base) {
   return r;
 }
 
-// The share of a voxel of extent `e` centred `x` from a ball's centre that lies inside the ball
-// (radius r), from kOccupancySubsamples^3 points.
-double BallShare(const Eigen::Vector3d& x, double r, const Eigen::Vector3d& e) {
-  constexpr int n = kOccupancySubsamples;
-  int inside = 0;
-  for (int a = 0; a < n * n * n; ++a) {
-    const Eigen::Vector3d u((a % n + 0.5) / n - 0.5, (a / n % n + 0.5) / n - 0.5,
-                            (a / (n * n) + 0.5) / n - 0.5);
-    inside += (x + u.cwiseProduct(e)).squaredNorm() <= r * r;
-  }
-  return static_cast<double>(inside) / (n * n * n);
-}
-
-// Fills `sim` (unit axes, index centre at the origin) with a ball of radius r at `centre_mm`:
-// b + contrast x its share of each voxel's extent, clipped at `clip`.
-void FillClippedBall(const Eigen::Vector3d& centre_mm, double r, double b, double contrast,
-                     double clip, double thickness, CtVolume* sim) {
-  const Eigen::Vector3d e(sim->spacing_mm.x(), sim->spacing_mm.y(), thickness);
-  const double half_diagonal = 0.5 * e.norm();
-  for (int k = 0; k < sim->slices; ++k) {
-    for (int j = 0; j < sim->rows; ++j) {
-      for (int i = 0; i < sim->columns; ++i) {
-        const Eigen::Vector3d x = sim->PatientFromIndex(Eigen::Vector3d(i, j, k)) - centre_mm;
-        const double d = x.norm();
-        double share = d < r - half_diagonal ? 1.0 : 0.0;
-        if (std::abs(d - r) <= half_diagonal) share = BallShare(x, r, e);
-        sim->hu[sim->Index(i, j, k)] = static_cast<float>(std::min(clip, b + contrast * share));
-      }
-    }
-  }
-}
-
+// Background 0, metal `clip` and more above it: the clip's contrast is all that matters.
 Eigen::Vector3d SimulateSurfaceSamplingMm2(const Eigen::Vector3d& spacing, double thickness,
-                                           double r, double b, double clip) {
-  CtVolume sim;
-  sim.spacing_mm = spacing;
-  sim.slice_thickness_mm = thickness;
+                                           double r, double clip) {
   Eigen::Vector3i n;
   for (int a = 0; a < 3; ++a) n[a] = 2 * static_cast<int>(std::ceil(2.5 * r / spacing[a])) + 5;
+  CtVolume sim;
   sim.columns = n.x(), sim.rows = n.y(), sim.slices = n.z();
+  sim.spacing_mm = spacing;
+  sim.slice_thickness_mm = thickness;
   sim.origin_mm = -0.5 * spacing.cwiseProduct((n.array() - 1).matrix().cast<double>());
-  sim.hu.assign(static_cast<size_t>(n.prod()), static_cast<float>(b));
+  CtPhantom ball;
+  ball.marker_diameter_mm = 2 * r;
+  ball.has_block = false;
+  ball.air_hu = 0;
+  ball.markers.resize(1);
+  CtVoxeliseOptions noise_free;
+  noise_free.marker_supersampling = kOccupancySubsamples;
+  noise_free.noise_hu = 0;
+  noise_free.clip_hu = clip;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   int contrasts = 0;
   for (double contrast : kSimulatedContrasts) {
+    ball.marker_hu = contrast * clip;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     int fitted = 0;
     for (int p = 1; p <= kSamplingPhases; ++p) {
       const Eigen::Vector3d phase(Halton(p, 2) - 0.5, Halton(p, 3) - 0.5, Halton(p, 5) - 0.5);
-      const Eigen::Vector3d centre = phase.cwiseProduct(spacing);
-      FillClippedBall(centre, r, b, contrast * (clip - b), clip, thickness, &sim);
+      ball.markers[0].centre_mm = phase.cwiseProduct(spacing);
       SurfaceFit s;
-      if (!FitSaturatedSurface(sim, centre, b, clip, r, &s)) continue;
-      sum += (s.centre_mm - centre).cwiseAbs2();
+      if (!VoxelisePhantom(ball, noise_free, &sim).ok() ||
+          !FitSaturatedSurface(sim, ball.markers[0].centre_mm, 0, clip, r, &s)) {
+        continue;
+      }
+      sum += (s.centre_mm - ball.markers[0].centre_mm).cwiseAbs2();
       ++fitted;
     }
     if (fitted > 0) mean += sum / fitted, ++contrasts;
@@ -964,7 +946,7 @@ Eigen::Vector3d SurfaceSamplingMm2(const CtVolume& vol, double r, double b, doub
     if (it != cache.end()) return it->second;
   }
   const Eigen::Vector3d v =
-      SimulateSurfaceSamplingMm2(h, thickness, key[4] / 10.0, 0.0, static_cast<double>(key[5]));
+      SimulateSurfaceSamplingMm2(h, thickness, key[4] / 10.0, static_cast<double>(key[5]));
   std::lock_guard<std::mutex> lock(mutex);
   cache[key] = v;
   return v;

@@ -9,7 +9,7 @@ namespace carmba {
 // and a page of zeros: about 230 faults per joint solve, a third of its time
 // (tests/bench/joint_bench.cc, JointSelfChecks). With a trim threshold of 256 MB, and blocks up
 // to 32 MB taken from the heap rather than mapped one by one, they are reused.
-// For executables (the carmba command, the benchmarks), not for a library inside another
+// For executables (the carmba command, the tests, the benchmarks), not for a library inside another
 // program's process; a no-op where the C library is not glibc.
 void KeepFreedMemoryForReuse();
 
