@@ -141,6 +141,20 @@ void LeaveOutPredictedOverlaps(const Camera& camera, const std::vector<Eigen::Ve
   }
 }
 
+// What hides a marker in this view (pose/marker_correspondence.h ViewContext): outside the
+// detector's circular field, or on a candidate it rejected as metal (two shadows merged, a bead or
+// a wire across: "merged", "elongated", "too large", "field-of-view border", "refinement
+// failed"; not "low contrast" or "too small", which anatomy and noise make everywhere).
+ViewContext CorrespondenceContext(const MarkerBlobDetection& d) {
+  ViewContext c;
+  c.fov_centre = Eigen::Vector2d(d.fov_centre.x, d.fov_centre.y);
+  c.fov_radius = d.fov_radius;
+  for (const RejectedBlob& r : d.rejected) {
+    if (r.why != "low contrast" && r.why != "too small") c.obstructions.emplace_back(r.uv_px.x, r.uv_px.y);
+  }
+  return c;
+}
+
 }  // namespace
 
 StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<std::string>& files,
@@ -214,7 +228,7 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
         // The nominal magnification: the blob options', else fx / SOD when the file has it.
         co.px_per_mm = bo.diameter_px.empty() ? bo.px_per_mm : sod ? camera.params[kFx] / *sod : 0.0;
       }
-      auto lab = LabelMarkerBlobs(camera, P, uv, co, predicted);
+      auto lab = LabelMarkerBlobs(camera, P, uv, co, predicted, CorrespondenceContext(v.detection));
       if (!lab.ok()) {
         // An ambiguous view (a layout nearly symmetric as this view sees it) is not guessed: it is
         // skipped with the reason like any view that cannot be labelled, and the others go on;

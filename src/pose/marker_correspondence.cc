@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -56,14 +57,19 @@ struct Scored {
   double ScoreRms() const { return counted ? std::sqrt(score / (2.0 * counted)) : 0; }
 };
 
+// The second pass's budget of P3P solves (a view with no accepted labelling after the first pass:
+// 9 markers and 7 blobs are at most 84 x 210 = 17640).
+constexpr int kMaxHypotheses = 50000;
+
 // "60 %" of a fraction.
 std::string Percent(double fraction) { return Fmt("%.0f", 100 * fraction) + " %"; }
 
 class Labeller {
  public:
   Labeller(const Camera& cam, const std::vector<Eigen::Vector3d>& markers,
-           const std::vector<Eigen::Vector2d>& blobs, const CorrespondenceOptions& o)
-      : cam_(cam), P_(markers), q_(blobs), o_(o) {
+           const std::vector<Eigen::Vector2d>& blobs, const CorrespondenceOptions& o,
+           const ViewContext& visibility)
+      : cam_(cam), P_(markers), q_(blobs), o_(o), vis_(visibility) {
     proj_.resize(P_.size());
     ok_.resize(P_.size());
   }
@@ -178,22 +184,53 @@ class Labeller {
     return s;
   }
 
-  // Markers predicted separable at `pose`: in the image, and farther than separation_px from
-  // every other marker's projection.
+  // The pairs `x` and `y` share (same blob, same marker), the pose refined on them from x's.
+  Scored Shared(const Scored& x, const Scored& y) {
+    Scored s;
+    s.pose = x.pose;
+    s.marker_of_blob.assign(q_.size(), -1);
+    s.blob_of_marker.assign(P_.size(), -1);
+    for (size_t i = 0; i < q_.size(); ++i) {
+      const int a = x.marker_of_blob[i];
+      if (a < 0 || y.marker_of_blob[i] != a) continue;
+      s.marker_of_blob[i] = a;
+      s.blob_of_marker[a] = static_cast<int>(i);
+      ++s.num_labelled;
+    }
+    if (s.num_labelled < 3) return s;
+    s.pose = Refine(s);
+    Project(s.pose);
+    for (size_t a = 0; a < P_.size(); ++a) {
+      if (s.blob_of_marker[a] >= 0) s.ss += (q_[s.blob_of_marker[a]] - proj_[a]).squaredNorm();
+    }
+    return s;
+  }
+
+  // Where a marker projected at `uv` could show as a blob of its own: in the image and the field
+  // of view.
+  bool Visible(const Eigen::Vector2d& uv) const {
+    const bool in_image = uv.allFinite() && uv.x() >= -0.5 && uv.y() >= -0.5 &&
+                          uv.x() <= cam_.width - 0.5 && uv.y() <= cam_.height - 0.5;
+    return in_image && (vis_.fov_radius <= 0 || (uv - vis_.fov_centre).norm() <= vis_.fov_radius);
+  }
+  // Markers predicted visible and separable at `pose`: Visible, farther than separation_px from
+  // every other visible marker's projection, and from every obstruction.
   int Separable(const Pose6& pose) const {
     std::vector<Eigen::Vector2d> uv(P_.size());
     std::vector<char> in(P_.size(), 0);
     for (size_t a = 0; a < P_.size(); ++a) {
-      in[a] = ProjectPoint(cam_.params.data(), pose.data(), P_[a].data(), uv[a].data()) && uv[a].allFinite() &&
-              uv[a].x() >= -0.5 && uv[a].y() >= -0.5 && uv[a].x() <= cam_.width - 0.5 &&
-              uv[a].y() <= cam_.height - 0.5;
+      in[a] = ProjectPoint(cam_.params.data(), pose.data(), P_[a].data(), uv[a].data()) && Visible(uv[a]);
     }
+    const double hidden_within = o_.separation_px > 0 ? o_.separation_px : o_.gate_px;
     int n = 0;
     for (size_t a = 0; a < P_.size(); ++a) {
       if (!in[a]) continue;
       bool apart = true;
       for (size_t b = 0; b < P_.size() && apart; ++b) {
         apart = b == a || !in[b] || (uv[a] - uv[b]).norm() >= o_.separation_px;
+      }
+      for (size_t k = 0; k < vis_.obstructions.size() && apart; ++k) {
+        apart = (uv[a] - vis_.obstructions[k]).norm() >= hidden_within;
       }
       n += apart;
     }
@@ -210,7 +247,7 @@ class Labeller {
     if (s.num_labelled < needed) {
       return "needs " + std::to_string(needed) + " markers (at least " + std::to_string(o_.min_markers) +
              ", and " + Percent(o_.min_fraction) + " of the " + std::to_string(Separable(s.pose)) +
-             " its pose predicts separable in the image)";
+             " its pose predicts visible and apart from other markers and rejected blobs)";
     }
     if (!(s.Rms() <= o_.accept_rms_px)) return "needs an RMS within " + Fmt("%.2f", o_.accept_rms_px) + " px";
     if (o_.px_per_mm > 0) {
@@ -243,6 +280,7 @@ class Labeller {
   const std::vector<Eigen::Vector3d>& P_;
   const std::vector<Eigen::Vector2d>& q_;
   const CorrespondenceOptions& o_;
+  const ViewContext& vis_;
   std::vector<Eigen::Vector2d> proj_;
   std::vector<char> ok_;
 };
@@ -261,7 +299,8 @@ bool Contradict(const Scored& x, const Scored& y) {
 
 // Marker triples for the search: disjoint ones first, compact (smallest perimeter) among the
 // well-shaped ones (roundness 4 sqrt(3) area / sum of squared sides >= 0.3; equilateral = 1),
-// so that the magnification bound prunes most blob triples; then further ones, at most 8.
+// so that the magnification bound prunes most blob triples; then every other triple, in the same
+// order.
 std::vector<std::array<int, 3>> MarkerTriples(const std::vector<Eigen::Vector3d>& P, int* num_disjoint) {
   const int m = static_cast<int>(P.size());
   struct T {
@@ -292,8 +331,9 @@ std::vector<std::array<int, 3>> MarkerTriples(const std::vector<Eigen::Vector3d>
   }
   *num_disjoint = static_cast<int>(out.size());
   for (const T& t : all) {
-    if (out.size() >= 8) break;
-    if (std::find(out.begin(), out.end(), t.idx) == out.end()) out.push_back(t.idx);
+    if (std::find(out.begin(), out.begin() + *num_disjoint, t.idx) == out.begin() + *num_disjoint) {
+      out.push_back(t.idx);
+    }
   }
   return out;
 }
@@ -302,6 +342,107 @@ std::vector<std::array<int, 3>> MarkerTriples(const std::vector<Eigen::Vector3d>
 bool Better(const Scored& x, const Scored& y) {
   return x.num_labelled != y.num_labelled ? x.num_labelled > y.num_labelled : x.Rms() < y.Rms();
 }
+
+// The P3P hypotheses of marker triples against every ordered blob triple within the
+// magnification bound, each verified (Labeller::Verify); the distinct accepted labellings and the
+// best labelling seen, accepted or not.
+class TripleSearch {
+ public:
+  TripleSearch(const Camera& camera, const std::vector<Eigen::Vector3d>& markers,
+               const std::vector<Eigen::Vector2d>& blobs, const CorrespondenceOptions& o, Labeller* lab)
+      : markers_(markers), o_(o), lab_(lab), n_(static_cast<int>(blobs.size())), rays_(n_), ray_ok_(n_, 0),
+        D_(n_, n_), s_max_(o.px_per_mm > 0 ? o.px_per_mm * (1 + o.scale_tolerance) : 0) {
+    for (int i = 0; i < n_; ++i) {
+      double xy[2];
+      ray_ok_[i] = UnprojectToNormalized(camera.params.data(), blobs[i].data(), xy);
+      rays_[i] = cv::Point2d(xy[0], xy[1]);
+    }
+    // Blob distances (px) for the magnification bound: a projection never makes a marker pair
+    // longer than magnification x its length.
+    for (int i = 0; i < n_; ++i)
+      for (int j = 0; j < n_; ++j) D_(i, j) = (blobs[i] - blobs[j]).norm();
+  }
+
+  // Every blob triple for the marker triple `tri`.
+  void Try(const std::array<int, 3>& tri) {
+    for (int k = 0; k < 3; ++k) obj_[k] = cv::Point3d(markers_[tri[k]].x(), markers_[tri[k]].y(), markers_[tri[k]].z());
+    const double l01 = Bound(tri[0], tri[1]), l02 = Bound(tri[0], tri[2]), l12 = Bound(tri[1], tri[2]);
+    for (int i = 0; i < n_; ++i) {
+      if (!ray_ok_[i]) continue;
+      for (int j = 0; j < n_; ++j) {
+        if (j == i || !ray_ok_[j] || D_(i, j) > l01) continue;
+        for (int k = 0; k < n_; ++k) {
+          if (k == i || k == j || !ray_ok_[k] || D_(i, k) > l02 || D_(j, k) > l12) continue;
+          img_[0] = rays_[i], img_[1] = rays_[j], img_[2] = rays_[k];
+          TryBlobs();
+        }
+      }
+    }
+  }
+
+  // Markers in the best accepted labelling (0: none yet).
+  int best_accepted_markers() const { return best_markers_; }
+
+  std::vector<Scored> accepted;  // distinct accepted labellings
+  Scored best_any;               // the best seen, accepted or not (for the error)
+  int hypotheses = 0;            // P3P solves
+
+ private:
+  // The longest blob distance a marker pair can project to (infinite without px_per_mm).
+  double Bound(int a, int b) const {
+    return s_max_ > 0 ? s_max_ * (markers_[a] - markers_[b]).norm() : std::numeric_limits<double>::infinity();
+  }
+
+  // The poses of the marker triple obj_ seen along the blob rays img_.
+  void TryBlobs() {
+    int ns = 0;
+    try {
+      ns = cv::solveP3P(obj_, img_, cv::Matx33d::eye(), cv::noArray(), rvecs_, tvecs_, cv::SOLVEPNP_AP3P);
+    } catch (const cv::Exception&) {
+      ns = 0;
+    }
+    ++hypotheses;
+    for (int s = 0; s < ns; ++s) {
+      Pose6 pose;
+      for (int c = 0; c < 3; ++c) pose[c] = rvecs_[s].at<double>(c), pose[3 + c] = tvecs_[s].at<double>(c);
+      if (!pose.allFinite() || !(pose[5] > 0)) continue;
+      lab_->Project(pose);
+      if (lab_->CountNear(o_.gate_px) < o_.min_markers) continue;
+      Consider(lab_->Verify(pose, o_.gate_px));
+    }
+  }
+
+  void Consider(const Scored& sc) {
+    if (sc.num_labelled > best_any.num_labelled ||
+        (sc.num_labelled == best_any.num_labelled && sc.Rms() < best_any.Rms())) {
+      best_any = sc;
+    }
+    if (!lab_->Accepted(sc)) return;
+    bool same = false;
+    for (Scored& a : accepted) {
+      if (!Contradict(a, sc)) {
+        same = true;
+        if (sc.score < a.score) a = sc;
+        break;
+      }
+    }
+    if (!same) accepted.push_back(sc);
+    best_markers_ = std::max(best_markers_, sc.num_labelled);
+  }
+
+  const std::vector<Eigen::Vector3d>& markers_;
+  const CorrespondenceOptions& o_;
+  Labeller* lab_;
+  const int n_;
+  std::vector<cv::Point2d> rays_;
+  std::vector<char> ray_ok_;
+  Eigen::MatrixXd D_;
+  const double s_max_;
+  int best_markers_ = 0;
+  std::vector<cv::Point3d> obj_ = std::vector<cv::Point3d>(3);
+  std::vector<cv::Point2d> img_ = std::vector<cv::Point2d>(3);
+  std::vector<cv::Mat> rvecs_, tvecs_;
+};
 
 std::string Describe(const Scored& s) {
   std::ostringstream os;
@@ -316,7 +457,8 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
                                            const std::vector<Eigen::Vector3d>& markers,
                                            const std::vector<Eigen::Vector2d>& blobs,
                                            const CorrespondenceOptions& o,
-                                           const std::optional<Pose6>& predicted) {
+                                           const std::optional<Pose6>& predicted,
+                                           const ViewContext& context) {
   std::string err;
   if (!o.Check(&err)) return Status::Error("correspondence options: " + err);
   const int n = static_cast<int>(blobs.size()), m = static_cast<int>(markers.size());
@@ -332,7 +474,7 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
     return Status::Error(std::to_string(n) + " marker blobs found, more than max_blobs " +
                          std::to_string(o.max_blobs) + " (clutter taken for markers?)");
   }
-  Labeller lab(camera, markers, blobs, o);
+  Labeller lab(camera, markers, blobs, o, context);
   MarkerLabelling out;
   auto finish = [&](const Scored& s, const std::string& method) {
     out.marker_of_blob = s.marker_of_blob;
@@ -350,109 +492,72 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
       return out;
     }
   }
-
-  // Undistorted rays of the blobs.
-  std::vector<cv::Point2d> rays(n);
-  std::vector<char> ray_ok(n, 0);
-  for (int i = 0; i < n; ++i) {
-    double xy[2];
-    ray_ok[i] = UnprojectToNormalized(camera.params.data(), blobs[i].data(), xy);
-    rays[i] = cv::Point2d(xy[0], xy[1]);
-  }
-  std::vector<Scored> accepted;  // distinct accepted labellings
-  Scored best;
-  best.score = std::numeric_limits<double>::infinity();
-  Scored best_any;  // the best seen, accepted or not (for the error)
-  std::vector<cv::Point3d> obj(3);
-  std::vector<cv::Point2d> img(3);
-  std::vector<cv::Mat> rvecs, tvecs;
+  TripleSearch search(camera, markers, blobs, o, &lab);
   int num_disjoint = 0;
   const auto triples = MarkerTriples(markers, &num_disjoint);
-  // Blob distances (px) for the magnification bound: a projection never makes a marker pair
-  // longer than magnification x its length.
-  const double s_max = o.px_per_mm > 0 ? o.px_per_mm * (1 + o.scale_tolerance) : 0;
-  Eigen::MatrixXd D(n, n);
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) D(i, j) = (blobs[i] - blobs[j]).norm();
+  // The first pass: the disjoint triples and at least 8 in all. A labelling at least as complete
+  // as the best accepted one leaves out at most m - best markers, so once d >= m - best + 1
+  // disjoint triples are searched, one of them was complete in it and found it: the search stops.
+  // When the disjoint triples cannot give that guarantee (many markers hidden or merged, or
+  // nothing accepted), every further triple is tried, within the hypotheses budget: any labelling
+  // of 3 or more markers contains a complete triple.
+  const size_t first_pass = std::min(triples.size(), std::max<size_t>(8, num_disjoint));
   for (size_t t = 0; t < triples.size(); ++t) {
-    const auto& tri = triples[t];
-    for (int k = 0; k < 3; ++k) obj[k] = cv::Point3d(markers[tri[k]].x(), markers[tri[k]].y(), markers[tri[k]].z());
-    const double inf = std::numeric_limits<double>::infinity();
-    const double l01 = s_max > 0 ? s_max * (markers[tri[0]] - markers[tri[1]]).norm() : inf;
-    const double l02 = s_max > 0 ? s_max * (markers[tri[0]] - markers[tri[2]]).norm() : inf;
-    const double l12 = s_max > 0 ? s_max * (markers[tri[1]] - markers[tri[2]]).norm() : inf;
-    for (int i = 0; i < n; ++i) {
-      if (!ray_ok[i]) continue;
-      for (int j = 0; j < n; ++j) {
-        if (j == i || !ray_ok[j] || D(i, j) > l01) continue;
-        for (int k = 0; k < n; ++k) {
-          if (k == i || k == j || !ray_ok[k] || D(i, k) > l02 || D(j, k) > l12) continue;
-          img[0] = rays[i], img[1] = rays[j], img[2] = rays[k];
-          int ns = 0;
-          try {
-            ns = cv::solveP3P(obj, img, cv::Matx33d::eye(), cv::noArray(), rvecs, tvecs, cv::SOLVEPNP_AP3P);
-          } catch (const cv::Exception&) {
-            ns = 0;
-          }
-          ++out.hypotheses;
-          for (int s = 0; s < ns; ++s) {
-            Pose6 pose;
-            for (int c = 0; c < 3; ++c) pose[c] = rvecs[s].at<double>(c), pose[3 + c] = tvecs[s].at<double>(c);
-            if (!pose.allFinite() || !(pose[5] > 0)) continue;
-            lab.Project(pose);
-            if (lab.CountNear(o.gate_px) < o.min_markers) continue;
-            const Scored sc = lab.Verify(pose, o.gate_px);
-            if (sc.num_labelled > best_any.num_labelled ||
-                (sc.num_labelled == best_any.num_labelled && sc.Rms() < best_any.Rms())) {
-              best_any = sc;
-            }
-            if (!lab.Accepted(sc)) continue;
-            bool same = false;
-            for (Scored& a : accepted) {
-              if (!Contradict(a, sc)) {
-                same = true;
-                if (sc.score < a.score) a = sc;
-                break;
-              }
-            }
-            if (!same) accepted.push_back(sc);
-            if (!std::isfinite(best.score) || Better(sc, best)) best = sc;
-          }
-        }
-      }
-    }
-    // Stop when a labelling at least as complete as the best cannot have been missed: it leaves
-    // out at most m - best markers, so of the d disjoint triples searched at least
-    // d - (m - best) were complete in it, and a complete triple finds it.
-    if (std::isfinite(best.score) && static_cast<int>(t) + 1 <= num_disjoint &&
-        static_cast<int>(t) + 1 >= m - best.num_labelled + 1) {
+    const int best = search.best_accepted_markers();
+    if (t >= first_pass && ((best > 0 && m - best + 1 <= num_disjoint) || search.hypotheses >= kMaxHypotheses)) {
       break;
     }
+    search.Try(triples[t]);
+    const int found = search.best_accepted_markers();
+    if (found > 0 && static_cast<int>(t) + 1 <= num_disjoint && static_cast<int>(t) + 1 >= m - found + 1) break;
   }
-  if (accepted.empty()) {
+  out.hypotheses = search.hypotheses;
+  const std::vector<Scored>& accepted = search.accepted;
+  const Scored& best_any = search.best_any;
+  std::sort(search.accepted.begin(), search.accepted.end(), Better);
+  // The labelling of the most markers seen is not accepted, and every accepted one labels fewer
+  // and contradicts it: the accepted ones are not trusted either (a wrong pose can put the markers
+  // it does not pair outside the image, and so pass min_fraction).
+  const bool outvoted = !accepted.empty() && best_any.num_labelled > accepted.front().num_labelled &&
+                        Contradict(best_any, accepted.front());
+  if (accepted.empty() || outvoted) {
     // Why the best labelling found was not taken, stated at its own pose.
     return Status::Error("no labelling of the " + std::to_string(m) + " fiducials explains the " +
                          std::to_string(n) + " blobs (best: " +
                          (best_any.num_labelled ? Describe(best_any) + ", which " + lab.Rejection(best_any)
                                                 : std::string("none; a labelling needs " +
                                                               std::to_string(o.min_markers) + " markers")) +
+                         (outvoted ? "; the accepted labellings of fewer markers contradict it" : "") +
                          "): fiducials of another object, or a wrong camera?");
   }
-  // The best and the best labelling contradicting it.
-  std::sort(accepted.begin(), accepted.end(), Better);
+  // The best and the labellings contradicting it that explain the blobs about as well. When there
+  // are such, only the pairs they all share are kept (the markers they agree on are certain; the
+  // others are contested), if those are still enough for min_markers and min_fraction; else the
+  // view is ambiguous.
   const Scored& b = accepted.front();
   finish(b, "search");
+  Scored agreed = b;
+  const Scored* rival = nullptr;
   for (size_t k = 1; k < accepted.size(); ++k) {
     if (!Contradict(b, accepted[k])) continue;
-    out.second_num_labelled = accepted[k].num_labelled;
-    out.second_rms_px = accepted[k].Rms();
-    if (accepted[k].num_labelled >= b.num_labelled && accepted[k].Rms() - b.Rms() < o.ambiguity_margin_px) {
-      return Status::Error("ambiguous marker labelling: two labellings explain the blobs about equally "
-                           "well (" + Describe(b) + " vs " + Describe(accepted[k]) +
-                           "): the marker layout is (nearly) symmetric in this view; refusing to guess");
+    if (out.second_num_labelled == 0) {
+      out.second_num_labelled = accepted[k].num_labelled;
+      out.second_rms_px = accepted[k].Rms();
     }
-    break;
+    if (accepted[k].num_labelled < b.num_labelled || accepted[k].Rms() - b.Rms() >= o.ambiguity_margin_px) continue;
+    if (!rival) rival = &accepted[k];
+    agreed = lab.Shared(agreed, accepted[k]);
   }
+  if (!rival) return out;
+  if (agreed.num_labelled >= 3 && lab.Accepted(agreed)) {
+    finish(agreed, "search, the " + std::to_string(agreed.num_labelled) + " markers of " +
+                       std::to_string(b.num_labelled) + " that equally good labellings share");
+    return out;
+  }
+  return Status::Error("ambiguous marker labelling: two labellings explain the blobs about equally "
+                       "well (" + Describe(b) + " vs " + Describe(*rival) + ", " +
+                       std::to_string(agreed.num_labelled) + " markers shared" +
+                       "): the marker layout is (nearly) symmetric in this view; refusing to guess");
   return out;
 }
 
