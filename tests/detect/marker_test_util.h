@@ -91,6 +91,12 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
       }
       if (overlapped) {
         t.overlap_labelled += labelled_blob >= 0;
+        if (labelled_blob >= 0) {
+          const cv::Point2d q = ov.detection.blobs[labelled_blob].uv_px;
+          std::cout << "  " << ov.name << ": marker " << id << " labelled although another marker or bead is "
+                    << nearest << " diameters away (" << std::hypot(q.x - c[k].x(), q.y - c[k].y())
+                    << " px from its centre)\n";
+        }
         continue;
       }
       if (outside) {
