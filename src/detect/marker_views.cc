@@ -152,6 +152,10 @@ ViewContext CorrespondenceContext(const MarkerBlobDetection& d) {
   for (const RejectedBlob& r : d.rejected) {
     if (r.why != "low contrast" && r.why != "too small") c.obstructions.emplace_back(r.uv_px.x, r.uv_px.y);
   }
+  for (const MarkerBlob& b : d.blobs) {
+    const cv::Matx22d& C = b.covariance_px2;
+    c.blob_sigma_px.push_back(IsotropicSigmaPx((Eigen::Matrix2d() << C(0, 0), C(0, 1), C(1, 0), C(1, 1)).finished(), 0));
+  }
   return c;
 }
 
@@ -242,6 +246,13 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       v.marker_id_of_blob.assign(uv.size(), -1);
       for (size_t i = 0; i < uv.size(); ++i) {
         if (lab->marker_of_blob[i] >= 0) v.marker_id_of_blob[i] = markers[lab->marker_of_blob[i]].id;
+      }
+      for (const OffPoseBlob& off : lab->off_pose) {
+        const MarkerBlob& b = v.detection.blobs[off.blob];
+        v.detection.rejected.push_back(
+            {b.uv_px, b.diameter_px,
+             "off the pose: " + Fixed(off.distance_px, 2) + " px from where the other markers put marker " +
+                 std::to_string(markers[off.marker].id) + " (two shadows in line, or an edge across it)"});
       }
       LeaveOutPredictedOverlaps(camera, P, o.blobs.merge_distance, &v);
       if (v.labelling.num_labelled < co.min_markers) {

@@ -184,6 +184,91 @@ class Labeller {
     return s;
   }
 
+  // `s` without its off-pose pairs (ViewContext, OffPoseBlob), which go to *off: the worst one
+  // first, then the check again on the rest (one bad pair spoils the others' leave-one-out poses).
+  Scored WithoutOffPose(const Scored& s, std::vector<OffPoseBlob>* off) {
+    off->clear();
+    std::vector<double> sig = vis_.blob_sigma_px;
+    double median_sigma = 0;
+    if (!sig.empty()) {
+      std::nth_element(sig.begin(), sig.begin() + sig.size() / 2, sig.end());
+      median_sigma = sig[sig.size() / 2];
+    }
+    Scored kept = s;
+    while (kept.num_labelled >= 5 && kept.num_labelled > o_.min_markers) {
+      double worst_m2 = kOffPoseChi2;
+      OffPoseBlob worst{-1, -1, 0};
+      for (size_t i = 0; i < q_.size(); ++i) {
+        if (kept.marker_of_blob[i] < 0) continue;
+        double m2 = 0, d = 0;
+        LeftOut(kept, i, median_sigma, &m2, &d);
+        if (d > kOffPoseFloorPx && m2 > worst_m2) worst_m2 = m2, worst = {static_cast<int>(i), kept.marker_of_blob[i], d};
+      }
+      if (worst.blob < 0) break;
+      off->push_back(worst);
+      kept.marker_of_blob[worst.blob] = -1;
+      kept.blob_of_marker[worst.marker] = -1;
+      --kept.num_labelled;
+    }
+    if (off->empty()) return s;
+    kept.pose = Refine(kept);
+    Project(kept.pose);
+    kept.ss = 0;
+    for (size_t a = 0; a < P_.size(); ++a) {
+      if (kept.blob_of_marker[a] >= 0) kept.ss += (q_[kept.blob_of_marker[a]] - proj_[a]).squaredNorm();
+    }
+    return kept;
+  }
+
+  // Pair i of `s` left out: the pose refined on the others, and the blob's distance from its
+  // marker's prediction (*d, px) and its Mahalanobis distance squared (*m2) with the others'
+  // per-coordinate noise (from their residuals, at least the blobs' median sigma) through the refined pose
+  // to the prediction, plus that noise and the blob's own sigma.
+  void LeftOut(const Scored& s, size_t i, double median_sigma, double* m2, double* d) {
+    const int a = s.marker_of_blob[i];
+    Scored t = s;
+    t.marker_of_blob[i] = -1;
+    t.blob_of_marker[a] = -1;
+    --t.num_labelled;
+    const Pose6 pose = Refine(t);
+    Project(pose);
+    if (!ok_[a]) return;
+    double ss = 0;
+    for (size_t b = 0; b < P_.size(); ++b) {
+      if (t.blob_of_marker[b] >= 0) ss += (q_[t.blob_of_marker[b]] - proj_[b]).squaredNorm();
+    }
+    // Per coordinate, over the fit's redundancy (2 n - 6: the pose took 6).
+    const double s2 = std::max(ss / std::max(1, 2 * t.num_labelled - 6), median_sigma * median_sigma);
+    const double sigma = i < vis_.blob_sigma_px.size() ? vis_.blob_sigma_px[i] : 0.0;
+    const Eigen::Matrix2d C =
+        s2 * PredictionCovariance(t, pose, a) + (s2 + sigma * sigma) * Eigen::Matrix2d::Identity();
+    const Eigen::Vector2d e = q_[i] - proj_[a];
+    *d = e.norm();
+    *m2 = e.dot(C.ldlt().solve(e));
+  }
+
+  // J_a H^-1 J_a^T: the 2x2 covariance of marker a's projection at `pose` per unit pixel variance
+  // of the pairs of `t` (H = sum J^T J over them).
+  Eigen::Matrix2d PredictionCovariance(const Scored& t, const Pose6& pose, size_t a) const {
+    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J;
+    Eigen::Vector2d uv;
+    for (size_t b = 0; b < P_.size(); ++b) {
+      if (t.blob_of_marker[b] < 0) continue;
+      if (!ProjectPointWithJac(cam_.params.data(), pose.data(), P_[b].data(), uv.data(), nullptr, J.data(),
+                               nullptr)) {
+        continue;
+      }
+      H += J.transpose() * J;
+    }
+    if (!ProjectPointWithJac(cam_.params.data(), pose.data(), P_[a].data(), uv.data(), nullptr, J.data(), nullptr)) {
+      return Eigen::Matrix2d::Identity() * 1e6;
+    }
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
+    if (ldlt.info() != Eigen::Success) return Eigen::Matrix2d::Identity() * 1e6;
+    return J * ldlt.solve(J.transpose());
+  }
+
   // The pairs `x` and `y` share (same blob, same marker), the pose refined on them from x's.
   Scored Shared(const Scored& x, const Scored& y) {
     Scored s;
@@ -476,7 +561,8 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
   }
   Labeller lab(camera, markers, blobs, o, context);
   MarkerLabelling out;
-  auto finish = [&](const Scored& s, const std::string& method) {
+  auto finish = [&](const Scored& labelled, const std::string& method) {
+    const Scored s = lab.WithoutOffPose(labelled, &out.off_pose);
     out.marker_of_blob = s.marker_of_blob;
     out.cam_from_object = s.pose;
     out.num_labelled = s.num_labelled;

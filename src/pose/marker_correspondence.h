@@ -86,10 +86,28 @@ struct CorrespondenceOptions {
 // (see min_fraction): the detector's circular field of view, and the centres of the candidates it
 // rejected as metal (merged, elongated, too large, at the field's border, refinement failed), on
 // which a marker's own blob cannot be seen. Empty: the whole image, nothing hidden.
+// Also each blob's centre sigma (px, in blob order; empty: unknown) for the check below.
 struct ViewContext {
   Eigen::Vector2d fov_centre = Eigen::Vector2d::Zero();
   double fov_radius = 0;                      // px; 0 = no circular field
   std::vector<Eigen::Vector2d> obstructions;  // px
+  std::vector<double> blob_sigma_px;
+};
+
+// A labelled blob that the other pairs' pose does not predict: its centre is not the marker's
+// (two shadows in line, a bead behind the marker; an edge across it). With 5 or more pairs, each
+// pair is left out in turn and the pose refined on the others; the blob is dropped when it lies
+// more than kOffPoseFloorPx from the marker's prediction and its Mahalanobis distance squared
+// exceeds kOffPoseChi2, with the covariance s^2 (J H^-1 J^T + I) + sigma_blob^2 I (s^2: the
+// others' squared residuals over their redundancy 2 n - 6, at least the blobs' median sigma
+// squared; J H^-1 J^T: the prediction through the refined pose). The worst such blob goes first,
+// then the check runs again on the rest, as long as more than min_markers pairs remain.
+constexpr double kOffPoseFloorPx = 0.5;
+constexpr double kOffPoseChi2 = 25;  // 5 sigma
+struct OffPoseBlob {
+  int blob = 0;
+  int marker = 0;       // index into the markers
+  double distance_px = 0;
 };
 
 struct MarkerLabelling {
@@ -103,6 +121,7 @@ struct MarkerLabelling {
   // The best labelling that contradicts this one (for the report); num_labelled 0 when none.
   int second_num_labelled = 0;
   double second_rms_px = 0;
+  std::vector<OffPoseBlob> off_pose;  // dropped from the labelling (see OffPoseBlob)
 };
 
 // Labels `blobs_uv` (px) with the `markers` (object frame, mm) seen by `camera`. Errors (one line):

@@ -108,12 +108,13 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
       ++t.expected;
       if (labelled_blob < 0) {
         std::string why = "no blob found there";
-        for (const auto& r : ov.detection.rejected) {
-          if (std::hypot(r.uv_px.x - c[k].x(), r.uv_px.y - c[k].y()) < 0.5 * d_px) why = "rejected: " + r.why;
-        }
         for (size_t b = 0; b < ov.detection.blobs.size(); ++b) {
           const cv::Point2d q = ov.detection.blobs[b].uv_px;
           if (std::hypot(q.x - c[k].x(), q.y - c[k].y()) < 0.5 * d_px) why = "a blob, not paired";
+        }
+        // A blob left out after the labelling (off the pose, overlapping) is also a rejection.
+        for (const auto& r : ov.detection.rejected) {
+          if (std::hypot(r.uv_px.x - c[k].x(), r.uv_px.y - c[k].y()) < 0.5 * d_px) why = "rejected: " + r.why;
         }
         std::cout << "  " << ov.name << ": marker " << id << " not labelled ("
                   << (ov.labelled ? why : "view skipped: " + ov.skipped) << ")\n";
