@@ -150,11 +150,14 @@ ViewContext CorrespondenceContext(const MarkerBlobDetection& d) {
   c.fov_centre = Eigen::Vector2d(d.fov_centre.x, d.fov_centre.y);
   c.fov_radius = d.fov_radius;
   for (const RejectedBlob& r : d.rejected) {
-    if (r.why != "low contrast" && r.why != "too small") c.obstructions.emplace_back(r.uv_px.x, r.uv_px.y);
+    if (r.why == "low contrast" || r.why == "too small") continue;
+    c.obstructions.emplace_back(r.uv_px.x, r.uv_px.y);
   }
   for (const MarkerBlob& b : d.blobs) {
     const cv::Matx22d& C = b.covariance_px2;
-    c.blob_sigma_px.push_back(IsotropicSigmaPx((Eigen::Matrix2d() << C(0, 0), C(0, 1), C(1, 0), C(1, 1)).finished(), 0));
+    const Eigen::Matrix2d cov =
+        (Eigen::Matrix2d() << C(0, 0), C(0, 1), C(1, 0), C(1, 1)).finished();
+    c.blob_sigma_px.push_back(IsotropicSigmaPx(cov, 0));
   }
   return c;
 }
@@ -249,10 +252,12 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       }
       for (const OffPoseBlob& off : lab->off_pose) {
         const MarkerBlob& b = v.detection.blobs[off.blob];
-        v.detection.rejected.push_back(
-            {b.uv_px, b.diameter_px,
-             "off the pose: " + Fixed(off.distance_px, 2) + " px from where the other markers put marker " +
-                 std::to_string(markers[off.marker].id) + " (two shadows in line, or an edge across it)"});
+        v.detection.rejected.push_back({b.uv_px,
+                                        b.diameter_px,
+                                        "off the pose: " + Fixed(off.distance_px, 2) +
+                                            " px from where the other markers put marker " +
+                                            std::to_string(markers[off.marker].id) +
+                                            " (two shadows in line, or an edge across it)"});
       }
       LeaveOutPredictedOverlaps(camera, P, o.blobs.merge_distance, &v);
       if (v.labelling.num_labelled < co.min_markers) {

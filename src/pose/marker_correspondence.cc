@@ -1,13 +1,13 @@
 #include "pose/marker_correspondence.h"
 
 #include <ceres/rotation.h>
-#include <opencv2/calib3d.hpp>
 
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <opencv2/calib3d.hpp>
 #include <sstream>
 
 #include "camera/camera_model.h"
@@ -66,8 +66,10 @@ std::string Percent(double fraction) { return Fmt("%.0f", 100 * fraction) + " %"
 
 class Labeller {
  public:
-  Labeller(const Camera& cam, const std::vector<Eigen::Vector3d>& markers,
-           const std::vector<Eigen::Vector2d>& blobs, const CorrespondenceOptions& o,
+  Labeller(const Camera& cam,
+           const std::vector<Eigen::Vector3d>& markers,
+           const std::vector<Eigen::Vector2d>& blobs,
+           const CorrespondenceOptions& o,
            const ViewContext& visibility)
       : cam_(cam), P_(markers), q_(blobs), o_(o), vis_(visibility) {
     proj_.resize(P_.size());
@@ -202,7 +204,10 @@ class Labeller {
         if (kept.marker_of_blob[i] < 0) continue;
         double m2 = 0, d = 0;
         LeftOut(kept, i, median_sigma, &m2, &d);
-        if (d > kOffPoseFloorPx && m2 > worst_m2) worst_m2 = m2, worst = {static_cast<int>(i), kept.marker_of_blob[i], d};
+        if (d > kOffPoseFloorPx && m2 > worst_m2) {
+          worst_m2 = m2;
+          worst = {static_cast<int>(i), kept.marker_of_blob[i], d};
+        }
       }
       if (worst.blob < 0) break;
       off->push_back(worst);
@@ -215,15 +220,16 @@ class Labeller {
     Project(kept.pose);
     kept.ss = 0;
     for (size_t a = 0; a < P_.size(); ++a) {
-      if (kept.blob_of_marker[a] >= 0) kept.ss += (q_[kept.blob_of_marker[a]] - proj_[a]).squaredNorm();
+      const int i = kept.blob_of_marker[a];
+      if (i >= 0) kept.ss += (q_[i] - proj_[a]).squaredNorm();
     }
     return kept;
   }
 
   // Pair i of `s` left out: the pose refined on the others, and the blob's distance from its
   // marker's prediction (*d, px) and its Mahalanobis distance squared (*m2) with the others'
-  // per-coordinate noise (from their residuals, at least the blobs' median sigma) through the refined pose
-  // to the prediction, plus that noise and the blob's own sigma.
+  // per-coordinate noise (from their residuals, at least the blobs' median sigma) through the
+  // refined pose to the prediction, plus that noise and the blob's own sigma.
   void LeftOut(const Scored& s, size_t i, double median_sigma, double* m2, double* d) {
     const int a = s.marker_of_blob[i];
     Scored t = s;
@@ -238,7 +244,8 @@ class Labeller {
       if (t.blob_of_marker[b] >= 0) ss += (q_[t.blob_of_marker[b]] - proj_[b]).squaredNorm();
     }
     // Per coordinate, over the fit's redundancy (2 n - 6: the pose took 6).
-    const double s2 = std::max(ss / std::max(1, 2 * t.num_labelled - 6), median_sigma * median_sigma);
+    const double s2 =
+        std::max(ss / std::max(1, 2 * t.num_labelled - 6), median_sigma * median_sigma);
     const double sigma = i < vis_.blob_sigma_px.size() ? vis_.blob_sigma_px[i] : 0.0;
     const Eigen::Matrix2d C =
         s2 * PredictionCovariance(t, pose, a) + (s2 + sigma * sigma) * Eigen::Matrix2d::Identity();
@@ -255,13 +262,19 @@ class Labeller {
     Eigen::Vector2d uv;
     for (size_t b = 0; b < P_.size(); ++b) {
       if (t.blob_of_marker[b] < 0) continue;
-      if (!ProjectPointWithJac(cam_.params.data(), pose.data(), P_[b].data(), uv.data(), nullptr, J.data(),
+      if (!ProjectPointWithJac(cam_.params.data(),
+                               pose.data(),
+                               P_[b].data(),
+                               uv.data(),
+                               nullptr,
+                               J.data(),
                                nullptr)) {
         continue;
       }
       H += J.transpose() * J;
     }
-    if (!ProjectPointWithJac(cam_.params.data(), pose.data(), P_[a].data(), uv.data(), nullptr, J.data(), nullptr)) {
+    if (!ProjectPointWithJac(
+            cam_.params.data(), pose.data(), P_[a].data(), uv.data(), nullptr, J.data(), nullptr)) {
       return Eigen::Matrix2d::Identity() * 1e6;
     }
     const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
@@ -304,7 +317,8 @@ class Labeller {
     std::vector<Eigen::Vector2d> uv(P_.size());
     std::vector<char> in(P_.size(), 0);
     for (size_t a = 0; a < P_.size(); ++a) {
-      in[a] = ProjectPoint(cam_.params.data(), pose.data(), P_[a].data(), uv[a].data()) && Visible(uv[a]);
+      in[a] = ProjectPoint(cam_.params.data(), pose.data(), P_[a].data(), uv[a].data()) &&
+              Visible(uv[a]);
     }
     const double hidden_within = o_.separation_px > 0 ? o_.separation_px : o_.gate_px;
     int n = 0;
@@ -330,8 +344,9 @@ class Labeller {
   std::string Rejection(const Scored& s) const {
     const int needed = Needed(s.pose);
     if (s.num_labelled < needed) {
-      return "needs " + std::to_string(needed) + " markers (at least " + std::to_string(o_.min_markers) +
-             ", and " + Percent(o_.min_fraction) + " of the " + std::to_string(Separable(s.pose)) +
+      return "needs " + std::to_string(needed) + " markers (at least " +
+             std::to_string(o_.min_markers) + ", and " + Percent(o_.min_fraction) + " of the " +
+             std::to_string(Separable(s.pose)) +
              " its pose predicts visible and apart from other markers and rejected blobs)";
     }
     if (!(s.Rms() <= o_.accept_rms_px)) return "needs an RMS within " + Fmt("%.2f", o_.accept_rms_px) + " px";
@@ -433,10 +448,19 @@ bool Better(const Scored& x, const Scored& y) {
 // best labelling seen, accepted or not.
 class TripleSearch {
  public:
-  TripleSearch(const Camera& camera, const std::vector<Eigen::Vector3d>& markers,
-               const std::vector<Eigen::Vector2d>& blobs, const CorrespondenceOptions& o, Labeller* lab)
-      : markers_(markers), o_(o), lab_(lab), n_(static_cast<int>(blobs.size())), rays_(n_), ray_ok_(n_, 0),
-        D_(n_, n_), s_max_(o.px_per_mm > 0 ? o.px_per_mm * (1 + o.scale_tolerance) : 0) {
+  TripleSearch(const Camera& camera,
+               const std::vector<Eigen::Vector3d>& markers,
+               const std::vector<Eigen::Vector2d>& blobs,
+               const CorrespondenceOptions& o,
+               Labeller* lab)
+      : markers_(markers),
+        o_(o),
+        lab_(lab),
+        n_(static_cast<int>(blobs.size())),
+        rays_(n_),
+        ray_ok_(n_, 0),
+        D_(n_, n_),
+        s_max_(o.px_per_mm > 0 ? o.px_per_mm * (1 + o.scale_tolerance) : 0) {
     for (int i = 0; i < n_; ++i) {
       double xy[2];
       ray_ok_[i] = UnprojectToNormalized(camera.params.data(), blobs[i].data(), xy);
@@ -450,8 +474,10 @@ class TripleSearch {
 
   // Every blob triple for the marker triple `tri`.
   void Try(const std::array<int, 3>& tri) {
-    for (int k = 0; k < 3; ++k) obj_[k] = cv::Point3d(markers_[tri[k]].x(), markers_[tri[k]].y(), markers_[tri[k]].z());
-    const double l01 = Bound(tri[0], tri[1]), l02 = Bound(tri[0], tri[2]), l12 = Bound(tri[1], tri[2]);
+    for (int k = 0; k < 3; ++k)
+      obj_[k] = cv::Point3d(markers_[tri[k]].x(), markers_[tri[k]].y(), markers_[tri[k]].z());
+    const double l01 = Bound(tri[0], tri[1]), l02 = Bound(tri[0], tri[2]),
+                 l12 = Bound(tri[1], tri[2]);
     for (int i = 0; i < n_; ++i) {
       if (!ray_ok_[i]) continue;
       for (int j = 0; j < n_; ++j) {
@@ -475,21 +501,24 @@ class TripleSearch {
  private:
   // The longest blob distance a marker pair can project to (infinite without px_per_mm).
   double Bound(int a, int b) const {
-    return s_max_ > 0 ? s_max_ * (markers_[a] - markers_[b]).norm() : std::numeric_limits<double>::infinity();
+    return s_max_ > 0 ? s_max_ * (markers_[a] - markers_[b]).norm()
+                      : std::numeric_limits<double>::infinity();
   }
 
   // The poses of the marker triple obj_ seen along the blob rays img_.
   void TryBlobs() {
     int ns = 0;
     try {
-      ns = cv::solveP3P(obj_, img_, cv::Matx33d::eye(), cv::noArray(), rvecs_, tvecs_, cv::SOLVEPNP_AP3P);
+      ns = cv::solveP3P(
+          obj_, img_, cv::Matx33d::eye(), cv::noArray(), rvecs_, tvecs_, cv::SOLVEPNP_AP3P);
     } catch (const cv::Exception&) {
       ns = 0;
     }
     ++hypotheses;
     for (int s = 0; s < ns; ++s) {
       Pose6 pose;
-      for (int c = 0; c < 3; ++c) pose[c] = rvecs_[s].at<double>(c), pose[3 + c] = tvecs_[s].at<double>(c);
+      for (int c = 0; c < 3; ++c)
+        pose[c] = rvecs_[s].at<double>(c), pose[3 + c] = tvecs_[s].at<double>(c);
       if (!pose.allFinite() || !(pose[5] > 0)) continue;
       lab_->Project(pose);
       if (lab_->CountNear(o_.gate_px) < o_.min_markers) continue;
@@ -590,12 +619,15 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
   const size_t first_pass = std::min(triples.size(), std::max<size_t>(8, num_disjoint));
   for (size_t t = 0; t < triples.size(); ++t) {
     const int best = search.best_accepted_markers();
-    if (t >= first_pass && ((best > 0 && m - best + 1 <= num_disjoint) || search.hypotheses >= kMaxHypotheses)) {
+    if (t >= first_pass &&
+        ((best > 0 && m - best + 1 <= num_disjoint) || search.hypotheses >= kMaxHypotheses)) {
       break;
     }
     search.Try(triples[t]);
     const int found = search.best_accepted_markers();
-    if (found > 0 && static_cast<int>(t) + 1 <= num_disjoint && static_cast<int>(t) + 1 >= m - found + 1) break;
+    if (found > 0 && static_cast<int>(t) + 1 <= num_disjoint &&
+        static_cast<int>(t) + 1 >= m - found + 1)
+      break;
   }
   out.hypotheses = search.hypotheses;
   const std::vector<Scored>& accepted = search.accepted;
@@ -604,17 +636,19 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
   // The labelling of the most markers seen is not accepted, and every accepted one labels fewer
   // and contradicts it: the accepted ones are not trusted either (a wrong pose can put the markers
   // it does not pair outside the image, and so pass min_fraction).
-  const bool outvoted = !accepted.empty() && best_any.num_labelled > accepted.front().num_labelled &&
+  const bool outvoted = !accepted.empty() &&
+                        best_any.num_labelled > accepted.front().num_labelled &&
                         Contradict(best_any, accepted.front());
   if (accepted.empty() || outvoted) {
     // Why the best labelling found was not taken, stated at its own pose.
-    return Status::Error("no labelling of the " + std::to_string(m) + " fiducials explains the " +
-                         std::to_string(n) + " blobs (best: " +
-                         (best_any.num_labelled ? Describe(best_any) + ", which " + lab.Rejection(best_any)
-                                                : std::string("none; a labelling needs " +
-                                                              std::to_string(o.min_markers) + " markers")) +
-                         (outvoted ? "; the accepted labellings of fewer markers contradict it" : "") +
-                         "): fiducials of another object, or a wrong camera?");
+    return Status::Error(
+        "no labelling of the " + std::to_string(m) + " fiducials explains the " +
+        std::to_string(n) + " blobs (best: " +
+        (best_any.num_labelled ? Describe(best_any) + ", which " + lab.Rejection(best_any)
+                               : std::string("none; a labelling needs " +
+                                             std::to_string(o.min_markers) + " markers")) +
+        (outvoted ? "; the accepted labellings of fewer markers contradict it" : "") +
+        "): fiducials of another object, or a wrong camera?");
   }
   // The best and the labellings contradicting it that explain the blobs about as well. When there
   // are such, only the pairs they all share are kept (the markers they agree on are certain; the
@@ -630,20 +664,25 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
       out.second_num_labelled = accepted[k].num_labelled;
       out.second_rms_px = accepted[k].Rms();
     }
-    if (accepted[k].num_labelled < b.num_labelled || accepted[k].Rms() - b.Rms() >= o.ambiguity_margin_px) continue;
+    if (accepted[k].num_labelled < b.num_labelled ||
+        accepted[k].Rms() - b.Rms() >= o.ambiguity_margin_px)
+      continue;
     if (!rival) rival = &accepted[k];
     agreed = lab.Shared(agreed, accepted[k]);
   }
   if (!rival) return out;
   if (agreed.num_labelled >= 3 && lab.Accepted(agreed)) {
-    finish(agreed, "search, the " + std::to_string(agreed.num_labelled) + " markers of " +
-                       std::to_string(b.num_labelled) + " that equally good labellings share");
+    finish(agreed,
+           "search, the " + std::to_string(agreed.num_labelled) + " markers of " +
+               std::to_string(b.num_labelled) + " that equally good labellings share");
     return out;
   }
-  return Status::Error("ambiguous marker labelling: two labellings explain the blobs about equally "
-                       "well (" + Describe(b) + " vs " + Describe(*rival) + ", " +
-                       std::to_string(agreed.num_labelled) + " markers shared" +
-                       "): the marker layout is (nearly) symmetric in this view; refusing to guess");
+  return Status::Error(
+      "ambiguous marker labelling: two labellings explain the blobs about equally "
+      "well (" +
+      Describe(b) + " vs " + Describe(*rival) + ", " + std::to_string(agreed.num_labelled) +
+      " markers shared" +
+      "): the marker layout is (nearly) symmetric in this view; refusing to guess");
   return out;
 }
 

@@ -106,7 +106,7 @@ constexpr double kOffPoseFloorPx = 0.5;
 constexpr double kOffPoseChi2 = 25;  // 5 sigma
 struct OffPoseBlob {
   int blob = 0;
-  int marker = 0;       // index into the markers
+  int marker = 0;  // index into the markers
   double distance_px = 0;
 };
 

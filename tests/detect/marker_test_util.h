@@ -93,8 +93,9 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
         t.overlap_labelled += labelled_blob >= 0;
         if (labelled_blob >= 0) {
           const cv::Point2d q = ov.detection.blobs[labelled_blob].uv_px;
-          std::cout << "  " << ov.name << ": marker " << id << " labelled although another marker or bead is "
-                    << nearest << " diameters away (" << std::hypot(q.x - c[k].x(), q.y - c[k].y())
+          std::cout << "  " << ov.name << ": marker " << id
+                    << " labelled although another marker or bead is " << nearest
+                    << " diameters away (" << std::hypot(q.x - c[k].x(), q.y - c[k].y())
                     << " px from its centre)\n";
         }
         continue;
@@ -114,7 +115,8 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
         }
         // A blob left out after the labelling (off the pose, overlapping) is also a rejection.
         for (const auto& r : ov.detection.rejected) {
-          if (std::hypot(r.uv_px.x - c[k].x(), r.uv_px.y - c[k].y()) < 0.5 * d_px) why = "rejected: " + r.why;
+          if (std::hypot(r.uv_px.x - c[k].x(), r.uv_px.y - c[k].y()) < 0.5 * d_px)
+            why = "rejected: " + r.why;
         }
         std::cout << "  " << ov.name << ": marker " << id << " not labelled ("
                   << (ov.labelled ? why : "view skipped: " + ov.skipped) << ")\n";

@@ -294,7 +294,8 @@ TEST(MarkerCorrespondence, MinFractionCountsOnlySeparableMarkers) {
   ASSERT_FALSE(refused.ok());
   const std::string msg = refused.status().message();
   EXPECT_NE(msg.find("best: 5 markers"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("which needs 9 markers (at least 4, and 100 % of the 9 its pose predicts visible and apart"),
+  EXPECT_NE(msg.find("which needs 9 markers (at least 4, and 100 % of the 9 its pose predicts "
+                     "visible and apart"),
             std::string::npos)
       << msg;
 }
