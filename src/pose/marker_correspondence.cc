@@ -683,7 +683,6 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
       Describe(b) + " vs " + Describe(*rival) + ", " + std::to_string(agreed.num_labelled) +
       " markers shared" +
       "): the marker layout is (nearly) symmetric in this view; refusing to guess");
-  return out;
 }
 
 }  // namespace carmba

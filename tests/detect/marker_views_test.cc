@@ -300,6 +300,77 @@ TEST(MarkerCorrespondence, MinFractionCountsOnlySeparableMarkers) {
       << msg;
 }
 
+// Markers hidden by metal the detector rejected (a bead or a wire across them) do not count for
+// min_fraction: 5 of the 9 markers' blobs, the other 4 under rejected candidates, is refused
+// without the obstructions (5 < 60 % of 9) and labelled with them (5 >= 60 % of 5); markers
+// outside the circular field of view do not count either.
+TEST(MarkerCorrespondence, MarkersUnderRejectedMetalOrOutsideTheFieldDoNotCount) {
+  const Camera cam = TestCamera();
+  const auto P = ThesisLayout();
+  std::mt19937_64 rng(21);
+  const Pose6 pose = RandomPose(rng, P);
+  const auto all = Project(cam, pose, P);
+  // The 5 markers nearest the leftmost one's projection are seen; the other 4 are hidden.
+  size_t left = 0;
+  for (size_t i = 1; i < all.size(); ++i) left = all[i].x() < all[left].x() ? i : left;
+  std::vector<size_t> order(all.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return (all[a] - all[left]).norm() < (all[b] - all[left]).norm();
+  });
+  std::vector<Eigen::Vector2d> uv;
+  for (size_t k = 0; k < 5; ++k) uv.push_back(all[order[k]]);
+  CorrespondenceOptions co;
+  co.separation_px = 8;
+  const auto refused = LabelMarkerBlobs(cam, P, uv, co);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("needs 6 markers"), std::string::npos)
+      << refused.status().message();
+  ViewContext hidden;
+  for (size_t k = 5; k < all.size(); ++k) {
+    hidden.obstructions.push_back(all[order[k]] + Eigen::Vector2d(2, -1));
+  }
+  const auto lab = LabelMarkerBlobs(cam, P, uv, co, std::nullopt, hidden);
+  ASSERT_TRUE(lab.ok()) << lab.status().message();
+  EXPECT_EQ(lab->num_labelled, 5);
+  for (size_t k = 0; k < uv.size(); ++k) EXPECT_EQ(lab->marker_of_blob[k], static_cast<int>(order[k]));
+  // The same 4 markers outside a circular field about the leftmost one that holds the other 5.
+  ViewContext field;
+  field.fov_centre = all[left];
+  field.fov_radius = 0.5 * ((all[order[4]] - all[left]).norm() + (all[order[5]] - all[left]).norm());
+  const auto in_field = LabelMarkerBlobs(cam, P, uv, co, std::nullopt, field);
+  ASSERT_TRUE(in_field.ok()) << in_field.status().message();
+  EXPECT_EQ(in_field->num_labelled, 5);
+}
+
+// A blob that the other markers' pose does not predict is dropped from the labelling: one of 9
+// blobs moved by 1 px (two shadows in line) with 0.05 px noise on the others; the rest labelled.
+TEST(MarkerCorrespondence, BlobOffThePoseIsDropped) {
+  const Camera cam = TestCamera();
+  const auto P = ThesisLayout();
+  std::mt19937_64 rng(31);
+  std::normal_distribution<double> noise(0, 0.05);
+  const Pose6 pose = RandomPose(rng, P);
+  auto uv = Project(cam, pose, P);
+  for (auto& q : uv) q += RandomVector<2>(noise, rng);
+  uv[3] += Eigen::Vector2d(0.8, -0.6);
+  ViewContext context;
+  context.blob_sigma_px.assign(uv.size(), 0.05);
+  const auto lab = LabelMarkerBlobs(cam, P, uv, CorrespondenceOptions(), std::nullopt, context);
+  ASSERT_TRUE(lab.ok()) << lab.status().message();
+  EXPECT_EQ(lab->num_labelled, 8);
+  EXPECT_EQ(lab->marker_of_blob[3], -1);
+  ASSERT_EQ(lab->off_pose.size(), 1u);
+  EXPECT_EQ(lab->off_pose[0].marker, 3);
+  EXPECT_NEAR(lab->off_pose[0].distance_px, 1.0, 0.2);
+  // Unmoved, nothing is dropped.
+  uv[3] -= Eigen::Vector2d(0.8, -0.6);
+  const auto all = LabelMarkerBlobs(cam, P, uv, CorrespondenceOptions(), std::nullopt, context);
+  ASSERT_TRUE(all.ok());
+  EXPECT_EQ(all->num_labelled, 9);
+  EXPECT_TRUE(all->off_pose.empty());
+}
+
 TEST(MarkerCorrespondence, SymmetricLayoutIsAnAmbiguityError) {
   const Camera cam = TestCamera();
   // A rectangle and its centre raised: invariant under a half turn about z.
