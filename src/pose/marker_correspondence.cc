@@ -70,8 +70,8 @@ class Labeller {
            const std::vector<Eigen::Vector3d>& markers,
            const std::vector<Eigen::Vector2d>& blobs,
            const CorrespondenceOptions& o,
-           const ViewContext& visibility)
-      : cam_(cam), P_(markers), q_(blobs), o_(o), vis_(visibility) {
+           const ViewContext& context)
+      : cam_(cam), P_(markers), q_(blobs), o_(o), context_(context) {
     proj_.resize(P_.size());
     ok_.resize(P_.size());
   }
@@ -190,7 +190,7 @@ class Labeller {
   // first, then the check again on the rest (one bad pair spoils the others' leave-one-out poses).
   Scored WithoutOffPose(const Scored& s, std::vector<OffPoseBlob>* off) {
     off->clear();
-    std::vector<double> sig = vis_.blob_sigma_px;
+    std::vector<double> sig = context_.blob_sigma_px;
     double median_sigma = 0;
     if (!sig.empty()) {
       std::nth_element(sig.begin(), sig.begin() + sig.size() / 2, sig.end());
@@ -246,7 +246,7 @@ class Labeller {
     // Per coordinate, over the fit's redundancy (2 n - 6: the pose took 6).
     const double s2 =
         std::max(ss / std::max(1, 2 * t.num_labelled - 6), median_sigma * median_sigma);
-    const double sigma = i < vis_.blob_sigma_px.size() ? vis_.blob_sigma_px[i] : 0.0;
+    const double sigma = i < context_.blob_sigma_px.size() ? context_.blob_sigma_px[i] : 0.0;
     const Eigen::Matrix2d C =
         s2 * PredictionCovariance(t, pose, a) + (s2 + sigma * sigma) * Eigen::Matrix2d::Identity();
     const Eigen::Vector2d e = q_[i] - proj_[a];
@@ -309,7 +309,8 @@ class Labeller {
   bool Visible(const Eigen::Vector2d& uv) const {
     const bool in_image = uv.allFinite() && uv.x() >= -0.5 && uv.y() >= -0.5 &&
                           uv.x() <= cam_.width - 0.5 && uv.y() <= cam_.height - 0.5;
-    return in_image && (vis_.fov_radius <= 0 || (uv - vis_.fov_centre).norm() <= vis_.fov_radius);
+    return in_image &&
+           (context_.fov_radius <= 0 || (uv - context_.fov_centre).norm() <= context_.fov_radius);
   }
   // Markers predicted visible and separable at `pose`: Visible, farther than separation_px from
   // every other visible marker's projection, and from every obstruction.
@@ -328,8 +329,8 @@ class Labeller {
       for (size_t b = 0; b < P_.size() && apart; ++b) {
         apart = b == a || !in[b] || (uv[a] - uv[b]).norm() >= o_.separation_px;
       }
-      for (size_t k = 0; k < vis_.obstructions.size() && apart; ++k) {
-        apart = (uv[a] - vis_.obstructions[k]).norm() >= hidden_within;
+      for (size_t k = 0; k < context_.obstructions.size() && apart; ++k) {
+        apart = (uv[a] - context_.obstructions[k]).norm() >= hidden_within;
       }
       n += apart;
     }
@@ -380,7 +381,7 @@ class Labeller {
   const std::vector<Eigen::Vector3d>& P_;
   const std::vector<Eigen::Vector2d>& q_;
   const CorrespondenceOptions& o_;
-  const ViewContext& vis_;
+  const ViewContext& context_;
   std::vector<Eigen::Vector2d> proj_;
   std::vector<char> ok_;
 };
