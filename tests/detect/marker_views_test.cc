@@ -333,11 +333,14 @@ TEST(MarkerCorrespondence, MarkersUnderRejectedMetalOrOutsideTheFieldDoNotCount)
   const auto lab = LabelMarkerBlobs(cam, P, uv, co, std::nullopt, hidden);
   ASSERT_TRUE(lab.ok()) << lab.status().message();
   EXPECT_EQ(lab->num_labelled, 5);
-  for (size_t k = 0; k < uv.size(); ++k) EXPECT_EQ(lab->marker_of_blob[k], static_cast<int>(order[k]));
+  for (size_t k = 0; k < uv.size(); ++k) {
+    EXPECT_EQ(lab->marker_of_blob[k], static_cast<int>(order[k]));
+  }
   // The same 4 markers outside a circular field about the leftmost one that holds the other 5.
   ViewContext field;
   field.fov_centre = all[left];
-  field.fov_radius = 0.5 * ((all[order[4]] - all[left]).norm() + (all[order[5]] - all[left]).norm());
+  const double r4 = (all[order[4]] - all[left]).norm(), r5 = (all[order[5]] - all[left]).norm();
+  field.fov_radius = 0.5 * (r4 + r5);
   const auto in_field = LabelMarkerBlobs(cam, P, uv, co, std::nullopt, field);
   ASSERT_TRUE(in_field.ok()) << in_field.status().message();
   EXPECT_EQ(in_field->num_labelled, 5);
