@@ -57,8 +57,8 @@ struct Scored {
   double ScoreRms() const { return counted ? std::sqrt(score / (2.0 * counted)) : 0; }
 };
 
-// The second pass's budget of P3P solves (a view with no accepted labelling after the first pass:
-// 9 markers and 7 blobs are at most 84 x 210 = 17640).
+// The search's budget of P3P solves beyond its first pass (LabelMarkerBlobs; 9 markers and 7
+// blobs are at most 84 x 210 = 17640).
 constexpr int kMaxHypotheses = 50000;
 
 // "60 %" of a fraction.
@@ -216,14 +216,24 @@ class Labeller {
       --kept.num_labelled;
     }
     if (off->empty()) return s;
-    kept.pose = Refine(kept);
-    Project(kept.pose);
-    kept.ss = 0;
-    for (size_t a = 0; a < P_.size(); ++a) {
-      const int i = kept.blob_of_marker[a];
-      if (i >= 0) kept.ss += (q_[i] - proj_[a]).squaredNorm();
-    }
+    Rescore(&kept);
     return kept;
+  }
+
+  // The pose of `s` refined on its pairs, and their sum of squares there.
+  void Rescore(Scored* s) {
+    s->pose = Refine(*s);
+    Project(s->pose);
+    s->ss = PairSquares(*s);
+  }
+
+  // The sum of squared distances of the pairs of `s` (after Project).
+  double PairSquares(const Scored& s) const {
+    double ss = 0;
+    for (size_t a = 0; a < P_.size(); ++a) {
+      if (s.blob_of_marker[a] >= 0) ss += (q_[s.blob_of_marker[a]] - proj_[a]).squaredNorm();
+    }
+    return ss;
   }
 
   // Pair i of `s` left out: the pose refined on the others, and the blob's distance from its
@@ -239,10 +249,7 @@ class Labeller {
     const Pose6 pose = Refine(t);
     Project(pose);
     if (!ok_[a]) return;
-    double ss = 0;
-    for (size_t b = 0; b < P_.size(); ++b) {
-      if (t.blob_of_marker[b] >= 0) ss += (q_[t.blob_of_marker[b]] - proj_[b]).squaredNorm();
-    }
+    const double ss = PairSquares(t);
     // Per coordinate, over the fit's redundancy (2 n - 6: the pose took 6).
     const double s2 =
         std::max(ss / std::max(1, 2 * t.num_labelled - 6), median_sigma * median_sigma);
@@ -295,12 +302,7 @@ class Labeller {
       s.blob_of_marker[a] = static_cast<int>(i);
       ++s.num_labelled;
     }
-    if (s.num_labelled < 3) return s;
-    s.pose = Refine(s);
-    Project(s.pose);
-    for (size_t a = 0; a < P_.size(); ++a) {
-      if (s.blob_of_marker[a] >= 0) s.ss += (q_[s.blob_of_marker[a]] - proj_[a]).squaredNorm();
-    }
+    if (s.num_labelled >= 3) Rescore(&s);
     return s;
   }
 
@@ -374,7 +376,10 @@ class Labeller {
     return z > 0 ? cam_.params[kFx] / z : 0;
   }
 
+  const Camera& camera() const { return cam_; }
   const std::vector<Eigen::Vector3d>& markers() const { return P_; }
+  const std::vector<Eigen::Vector2d>& blobs() const { return q_; }
+  const CorrespondenceOptions& options() const { return o_; }
 
  private:
   const Camera& cam_;
@@ -449,22 +454,20 @@ bool Better(const Scored& x, const Scored& y) {
 // best labelling seen, accepted or not.
 class TripleSearch {
  public:
-  TripleSearch(const Camera& camera,
-               const std::vector<Eigen::Vector3d>& markers,
-               const std::vector<Eigen::Vector2d>& blobs,
-               const CorrespondenceOptions& o,
-               Labeller* lab)
-      : markers_(markers),
-        o_(o),
+  // Over the labeller's camera, markers, blobs and options.
+  explicit TripleSearch(Labeller* lab)
+      : markers_(lab->markers()),
+        o_(lab->options()),
         lab_(lab),
-        n_(static_cast<int>(blobs.size())),
+        n_(static_cast<int>(lab->blobs().size())),
         rays_(n_),
         ray_ok_(n_, 0),
         D_(n_, n_),
-        s_max_(o.px_per_mm > 0 ? o.px_per_mm * (1 + o.scale_tolerance) : 0) {
+        s_max_(o_.px_per_mm > 0 ? o_.px_per_mm * (1 + o_.scale_tolerance) : 0) {
+    const std::vector<Eigen::Vector2d>& blobs = lab->blobs();
     for (int i = 0; i < n_; ++i) {
       double xy[2];
-      ray_ok_[i] = UnprojectToNormalized(camera.params.data(), blobs[i].data(), xy);
+      ray_ok_[i] = UnprojectToNormalized(lab->camera().params.data(), blobs[i].data(), xy);
       rays_[i] = cv::Point2d(xy[0], xy[1]);
     }
     // Blob distances (px) for the magnification bound: a projection never makes a marker pair
@@ -608,7 +611,7 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
       return out;
     }
   }
-  TripleSearch search(camera, markers, blobs, o, &lab);
+  TripleSearch search(&lab);
   int num_disjoint = 0;
   const auto triples = MarkerTriples(markers, &num_disjoint);
   // The first pass: the disjoint triples and at least 8 in all. A labelling at least as complete
@@ -631,9 +634,9 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
       break;
   }
   out.hypotheses = search.hypotheses;
-  const std::vector<Scored>& accepted = search.accepted;
+  std::vector<Scored>& accepted = search.accepted;
   const Scored& best_any = search.best_any;
-  std::sort(search.accepted.begin(), search.accepted.end(), Better);
+  std::sort(accepted.begin(), accepted.end(), Better);
   // The labelling of the most markers seen is not accepted, and every accepted one labels fewer
   // and contradicts it: the accepted ones are not trusted either (a wrong pose can put the markers
   // it does not pair outside the image, and so pass min_fraction).
