@@ -21,6 +21,9 @@
 
 #include <Eigen/Core>
 #include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -56,6 +59,34 @@ struct CtVolume {
     return std::abs(PatientFromIndexLinear().determinant());
   }
 };
+
+// HU at continuous voxel indices `ijk` (integer = voxel centre), trilinear between the eight
+// voxels around it; indices outside the volume are clamped to it.
+inline double TrilinearHu(const CtVolume& vol, const Eigen::Vector3d& ijk) {
+  const int dims[3] = {vol.columns, vol.rows, vol.slices};
+  const std::ptrdiff_t stride[3] = {
+      1, vol.columns, static_cast<std::ptrdiff_t>(vol.columns) * vol.rows};
+  std::ptrdiff_t base = 0, next[3];
+  double f[3];
+  for (int a = 0; a < 3; ++a) {
+    const double xa = std::clamp(ijk[a], 0.0, dims[a] - 1.0);
+    const int i0 = std::min(static_cast<int>(std::floor(xa)), std::max(0, dims[a] - 2));
+    f[a] = xa - i0;
+    base += i0 * stride[a];
+    next[a] = i0 + 1 < dims[a] ? stride[a] : 0;  // a single voxel thick: its own neighbour
+  }
+  const float* p = vol.hu.data() + base;
+  double v = 0;
+  for (int dk = 0; dk < 2; ++dk) {
+    for (int dj = 0; dj < 2; ++dj) {
+      for (int di = 0; di < 2; ++di) {
+        v += (di ? f[0] : 1 - f[0]) * (dj ? f[1] : 1 - f[1]) * (dk ? f[2] : 1 - f[2]) *
+             p[di * next[0] + dj * next[1] + dk * next[2]];
+      }
+    }
+  }
+  return v;
+}
 
 struct CtReadOptions {
   // Read only the series with this SeriesInstanceUID (0020,000E). Empty: the directory must hold

@@ -629,30 +629,6 @@ bool Refine(const CtVolume& vol,
 
 // ---- 8. Saturated metal -------------------------------------------------------------------
 
-// Trilinear HU at continuous voxel indices (clamped to the volume).
-double Trilinear(const CtVolume& vol, const Eigen::Vector3d& x) {
-  const int dims[3] = {vol.columns, vol.rows, vol.slices};
-  int i0[3];
-  double f[3];
-  for (int a = 0; a < 3; ++a) {
-    const double xa = std::clamp(x[a], 0.0, dims[a] - 1.0);
-    i0[a] = std::min(static_cast<int>(std::floor(xa)), std::max(0, dims[a] - 2));
-    f[a] = xa - i0[a];
-  }
-  double v = 0;
-  for (int dk = 0; dk < 2; ++dk) {
-    for (int dj = 0; dj < 2; ++dj) {
-      for (int di = 0; di < 2; ++di) {
-        const int i = std::min(i0[0] + di, dims[0] - 1), j = std::min(i0[1] + dj, dims[1] - 1),
-                  k = std::min(i0[2] + dk, dims[2] - 1);
-        v += (di ? f[0] : 1 - f[0]) * (dj ? f[1] : 1 - f[1]) * (dk ? f[2] : 1 - f[2]) *
-             vol.At(i, j, k);
-      }
-    }
-  }
-  return v;
-}
-
 // The voxels (index, patient mm offset from `centre_mm`) within `radius_mm` of centre_mm.
 template <typename F>
 void ForVoxelsWithin(const CtVolume& vol, const Eigen::Vector3d& centre_mm, double radius_mm,
@@ -707,7 +683,7 @@ std::vector<Eigen::Vector3d> EdgePoints(const CtVolume& vol, const Eigen::Vector
     const double z = 1 - 2 * (n + 0.5) / kRays, rho = std::sqrt(1 - z * z);
     const double phi = M_PI * (1 + std::sqrt(5.0)) * (n + 0.5);
     const Eigen::Vector3d u(rho * std::cos(phi), rho * std::sin(phi), z);
-    auto value = [&](double t) { return Trilinear(vol, A_inv * (c + t * u - vol.origin_mm)); };
+    auto value = [&](double t) { return TrilinearHu(vol, A_inv * (c + t * u - vol.origin_mm)); };
     // The first fall below `l` from the inside; < 0: none within the reach.
     auto crossing = [&](double l) {
       double prev = value(0);
