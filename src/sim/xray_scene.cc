@@ -232,6 +232,47 @@ void ParseSceneImaging(YamlMap& scene, XrayScene* s, SceneBackground* bg) {
 
 }
 
+// The anatomy key as read (sim/ct_anatomy.h); the CT is read after the keys are checked.
+struct SceneAnatomy {
+  bool given = false;
+  CtAnatomy anatomy;
+  Eigen::Vector3d center_mm = Eigen::Vector3d::Zero(), rotation_deg = Eigen::Vector3d::Zero();
+};
+
+void ParseSceneAnatomy(YamlMap& scene, SceneAnatomy* out) {
+  out->given = scene.Has("anatomy");
+  YamlMap& m = scene.Map("anatomy");
+  CtAnatomy& a = out->anatomy;
+  m.Get("ct", &a.file, out->given);
+  GetVec(m, "center_mm", 3, out->center_mm.data());
+  GetVec(m, "rotation_deg", 3, out->rotation_deg.data());
+  m.GetPositive("mu_water_per_mm", &a.mu_water_per_mm);
+  m.Get("subsample", &a.subsample);
+  if (m.status().ok() && a.mu_water_per_mm > 1) {
+    m.Fail("mu_water_per_mm", "expected a value in (0, 1] per mm (water is about 0.02)");
+  }
+  if (m.status().ok() && (a.subsample < 1 || a.subsample > 8)) {
+    m.Fail("subsample", "expected an integer in 1..8");
+  }
+}
+
+// The anatomy's CT read and placed in the object frame: object_from_ct = T(center) R(rotation)
+// T(-the volume's centre).
+Status LoadSceneAnatomy(const YamlMap& scene,
+                        const std::string& dir,
+                        SceneAnatomy* in,
+                        XrayScene* s) {
+  if (!in->given) return Status::Ok();
+  auto ct = ReadAnatomyCt(JoinPath(dir, in->anatomy.file));
+  if (!ct.ok()) return ct.status().WithContext(scene.file() + ": key 'anatomy.ct'");
+  auto volume = std::make_shared<const CtVolume>(std::move(*ct));
+  in->anatomy.object_from_ct =
+      ObjectPlacement(CtVolumeCentre(*volume), in->rotation_deg, in->center_mm);
+  in->anatomy.volume = std::move(volume);
+  s->anatomy = in->anatomy;
+  return Status::Ok();
+}
+
 // The attenuation of each material: the defaults and the scene's own.
 std::map<std::string, double> ParseSceneMaterials(YamlMap& scene) {
   std::map<std::string, double> materials = DefaultMaterials();
@@ -424,8 +465,13 @@ void ParseSceneViews(YamlMap& scene, const CarmGeometry& carm, XrayScene* s) {
 
 // After the keys: the background loaded, the camera, imaging and each view's C-arm checked, and
 // every view inside the field of view.
-Status CheckParsedScene(YamlMap& scene, const std::string& dir, const SceneBackground& bg, XrayScene* s) {
+Status CheckParsedScene(YamlMap& scene,
+                        const std::string& dir,
+                        const SceneBackground& bg,
+                        SceneAnatomy* anatomy,
+                        XrayScene* s) {
   CARMBA_RETURN_IF_ERROR(scene.Finish());
+  CARMBA_RETURN_IF_ERROR(LoadSceneAnatomy(scene, dir, anatomy, s));
   if (!bg.file.empty()) {
     auto gain = LoadBackgroundGain(
         JoinPath(dir, bg.file), s->camera.width, s->camera.height, bg.strength, bg.crop);
@@ -469,7 +515,9 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   ParseSceneObject(scene, dir, materials, &s);
   ParseSceneClutter(scene, materials, &s);
   ParseSceneViews(scene, carm, &s);
-  CARMBA_RETURN_IF_ERROR(CheckParsedScene(scene, dir, bg, &s));
+  SceneAnatomy anatomy;
+  ParseSceneAnatomy(scene, &anatomy);
+  CARMBA_RETURN_IF_ERROR(CheckParsedScene(scene, dir, bg, &anatomy, &s));
   *out = std::move(s);
   return Status::Ok();
 }
@@ -535,6 +583,11 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   std::vector<PlacedPhantom> phantoms = {placed};
   const bool clutter = !scene.clutter.spheres.empty() || !scene.clutter.boxes.empty();
   if (clutter) phantoms.push_back({&scene.clutter, out.cam_from_object});
+  if (scene.anatomy) {
+    const cv::Mat gain = CtAnatomyGain(*scene.anatomy, camera, out.cam_from_object);
+    options.background_gain =
+        options.background_gain.empty() ? gain : cv::Mat(options.background_gain.mul(gain));
+  }
   auto gray = RenderXray(camera, phantoms, options, grid);
   if (!gray.ok()) return gray.status().WithContext("view '" + v.name + "'");
   out.gray = *gray;
@@ -626,6 +679,11 @@ Status SimulateXrayScene(const XrayScene& scene,
     obj["sphere_diameter_mm"] = scene.markers.sphere_diameter_mm;
   }
   t["object"] = obj;
+  if (scene.anatomy) {
+    t["anatomy"] = {{"ct", scene.anatomy->file},
+                    {"object_from_ct", RigidToJson(scene.anatomy->object_from_ct)},
+                    {"mu_water_per_mm", scene.anatomy->mu_water_per_mm}};
+  }
   t["views"] = nlohmann::json::array();
   std::vector<cv::Mat> frames;
   const int num_views = static_cast<int>(scene.views.size());

@@ -39,6 +39,14 @@
 //     fov: {circular: true, radius_px: 204, center_px: [203.5, 203.5], edge_px: 6}
 //     background: {file: /usr/share/doc/libgdcm3.0/examples/00191113.dcm, strength: 0.3,
 //                  crop: 0.6}
+//   anatomy:                         # a real CT fixed to the object (sim/ct_anatomy.h): each
+//                                    # view's image attenuated by its DRR, which moves with it
+//     ct: /usr/share/doc/invesalius-examples/examples/Cranium.inv3   # required: .inv3, or a
+//                                    # directory holding one DICOM CT series
+//     center_mm: [0, 0, 0]           # the CT volume's centre in the object frame
+//     rotation_deg: [0, 0, 0]        # rotation vector of the CT's axes in the object frame
+//     mu_water_per_mm: 0.02          # mu = mu_water (1 + HU / 1000), 0 at and below -1000 HU
+//     subsample: 2                   # line integrals every N px (1..8), bilinear in between
 //   materials: {steel: 0.94, ...}    # mu (1/mm): overrides / additions to DefaultMaterials()
 //   plate:                           # the calibration plate (sim/phantom.h PlateSpec), or
 //     rows: 5, cols: 5, pitch_mm: 20, sphere_diameter_mm: 3.06, thickness_mm: 5, margin_mm: 10,
@@ -79,6 +87,7 @@
 //    "object": {"kind": "plate"|"markers", "frame": "plate"|"object", "sphere_ids": [..],
 //               "centers_mm": [[x,y,z]..] (phantom frame), "sphere_diameter_mm",
 //               plate: "rows", "cols", "pitch_mm", "thickness_mm"},
+//    "anatomy" (with `anatomy`): {"ct", "object_from_ct" {"R", "rvec", "t_mm"}, "mu_water_per_mm"},
 //    "views": [{"name", "file", "primary_deg", "secondary_deg", "detector_rotation_deg", "seed",
 //               "cam_from_world", "world_from_object", "cam_from_plate"|"cam_from_object"
 //                  (each {"R": 3x3 row-major, "rvec": [rad], "t_mm": [..]}),
@@ -90,12 +99,14 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "camera/camera.h"
 #include "camera/carm_flex.h"
 #include "geometry/carm_geometry.h"
+#include "sim/ct_anatomy.h"
 #include "sim/phantom.h"
 #include "sim/xray_render.h"
 #include "util/status.h"
@@ -124,6 +135,7 @@ struct XrayScene {
   MarkerSpec markers;       // if markers
   Phantom phantom;
   Phantom clutter;          // metal that is not a marker (object frame); may be empty
+  std::optional<CtAnatomy> anatomy;  // a real CT fixed to the object, when given
   bool multiframe = false;  // dcm: one multi-frame file
   std::vector<XrayView> views;
   CarmFlex flex;            // rigid unless carm.flex is given
