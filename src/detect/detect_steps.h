@@ -56,6 +56,10 @@ struct CentroidNoise {
   double sigma_gray = 0;
   double peak_contrast = 0;
   double background = 0;
+  // Out: how many separate arcs of the ring hold pixels of the blob's own polarity more than 2.5
+  // ring sigmas beyond the background plane (at least 3 pixels each, arcs apart by more than
+  // 30 deg): a line across the ring (a wire) makes two, an edge or a neighbour's tail one.
+  int ring_arcs = 0;
 };
 
 // Sub-pixel centre of a blob around `c` on the float image `f` (grid_detector.cc documents the

@@ -325,6 +325,46 @@ bool DiscCentroids(std::vector<CentroidPixel>* disc, const cv::Vec3d& plane, boo
   return true;
 }
 
+// CentroidNoise::ring_arcs for the ring about the centre `c` (ring offsets from (cx, cy)).
+int RingArcs(const std::vector<CentroidPixel>& ring,
+             const cv::Vec3d& plane,
+             double ring_sigma,
+             bool dark,
+             cv::Point2d c,
+             int cx,
+             int cy) {
+  constexpr double kOutlierSigmas = 2.5, kArcGapRad = M_PI / 6;
+  constexpr int kMinArcPixels = 3;
+  std::vector<double> angles;
+  for (const CentroidPixel& q : ring) {
+    const double r = q.value - PlaneAt(plane, q);
+    if ((dark ? -r : r) > kOutlierSigmas * ring_sigma) {
+      angles.push_back(std::atan2(q.ey + cy - c.y, q.ex + cx - c.x));
+    }
+  }
+  if (angles.size() < kMinArcPixels) return 0;
+  std::sort(angles.begin(), angles.end());
+  // Start after the largest gap (the circle's wrap-around included), so no arc is cut in two.
+  const size_t n = angles.size();
+  size_t start = 0;
+  double widest = angles[0] + 2 * M_PI - angles[n - 1];
+  for (size_t i = 1; i < n; ++i) {
+    if (angles[i] - angles[i - 1] > widest) widest = angles[i] - angles[i - 1], start = i;
+  }
+  int arcs = 0, in_arc = 1;
+  for (size_t k = 1; k <= n; ++k) {
+    const double prev = angles[(start + k - 1) % n], cur = angles[(start + k) % n];
+    const double gap = std::remainder(cur - prev, 2 * M_PI);
+    if (k == n || std::fabs(gap) > kArcGapRad) {
+      arcs += in_arc >= kMinArcPixels;
+      in_arc = 1;
+    } else {
+      ++in_arc;
+    }
+  }
+  return arcs;
+}
+
 }  // namespace
 
 bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
@@ -353,7 +393,10 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
     CentroidEstimate e;
     if (!DiscCentroids(&disc, plane, dark, cx, cy, &e)) return false;
     if (shift_px) *shift_px = e.shift;
-    if (noise) CentroidCovariance(disc, e, plane, ring_sigma, ring_AtA, dark, cx, cy, rw, noise);
+    if (noise) {
+      CentroidCovariance(disc, e, plane, ring_sigma, ring_AtA, dark, cx, cy, rw, noise);
+      noise->ring_arcs = RingArcs(ring, plane, noise->sigma_gray, dark, *c, cx, cy);
+    }
     const double move = std::hypot(e.centre.x - c->x, e.centre.y - c->y);
     *c = e.centre;
     if (move < 1e-3) break;

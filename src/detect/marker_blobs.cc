@@ -16,6 +16,9 @@ namespace {
 // A blob centre with a core-to-whole shift above unreliable_shift_px gets (this x shift)^2 added
 // to its covariance per axis.
 constexpr double kShiftToErrorFactor = 3.0;
+// A blob whose ring two separate dark arcs cross (CentroidNoise::ring_arcs: a line across it)
+// gets (this x its half-contrast radius)^2 added to each coordinate's variance.
+constexpr double kLineAcrossErrorFraction = 0.3;
 }  // namespace
 
 bool MarkerBlobOptions::Check(std::string* error) const {
@@ -308,6 +311,15 @@ void RefineCandidate(const cv::Mat& f, const cv::Mat& valid, const std::vector<B
     // The centre's error next to an edge or a wire is a few times the core-to-whole shift
     // (randomised scenes, tests/detect/marker_recall_test.cc: 2.2-3.1 x): widened by it.
     const double w = kShiftToErrorFactor * shift;
+    b.covariance_px2(0, 0) += w * w;
+    b.covariance_px2(1, 1) += w * w;
+  }
+  if (noise.ring_arcs >= 2) {
+    // A line across the ring (a wire beside or over the marker) crosses the disc too and pulls
+    // the centroid by up to a third of the blob's radius (0.5-0.7 px on 1.6-1.9 mm markers,
+    // tests/detect/marker_recall_test.cc), which neither the pixel noise nor the core-to-whole
+    // shift shows: widened by it.
+    const double w = kLineAcrossErrorFraction * r_half;
     b.covariance_px2(0, 0) += w * w;
     b.covariance_px2(1, 1) += w * w;
   }

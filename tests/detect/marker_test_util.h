@@ -93,10 +93,12 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
         t.overlap_labelled += labelled_blob >= 0;
         if (labelled_blob >= 0) {
           const cv::Point2d q = ov.detection.blobs[labelled_blob].uv_px;
+          const cv::Matx22d& C = ov.detection.blobs[labelled_blob].covariance_px2;
           std::cout << "  " << ov.name << ": marker " << id
                     << " labelled although another marker or bead is " << nearest
                     << " diameters away (" << std::hypot(q.x - c[k].x(), q.y - c[k].y())
-                    << " px from its centre)\n";
+                    << " px from its centre; sigma " << std::sqrt(0.5 * (C(0, 0) + C(1, 1)))
+                    << " px)\n";
         }
         continue;
       }
