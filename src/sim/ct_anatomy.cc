@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <map>
+#include <mutex>
 #include <vector>
 
 #include "camera/camera_model.h"
@@ -10,15 +13,52 @@
 
 namespace carmba::sim {
 
-StatusOr<CtVolume> ReadAnatomyCt(const std::string& path) {
+namespace {
+
+// The .inv3 volumes read in this process, by path, with the file's size and time when read.
+struct CachedVolume {
+  std::uintmax_t size = 0;
+  std::filesystem::file_time_type time;
+  std::shared_ptr<const CtVolume> volume;
+};
+
+StatusOr<std::shared_ptr<const CtVolume>> ReadInvesaliusCached(const std::string& path) {
+  static std::mutex mutex;
+  static std::map<std::string, CachedVolume> cache;
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  const auto time =
+      ec ? std::filesystem::file_time_type() : std::filesystem::last_write_time(path, ec);
+  if (!ec) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const auto it = cache.find(path);
+    if (it != cache.end() && it->second.size == size && it->second.time == time) {
+      return it->second.volume;
+    }
+  }
+  auto volume = ReadInvesaliusVolume(path);
+  if (!volume.ok()) return volume.status();
+  auto shared = std::make_shared<const CtVolume>(std::move(*volume));
+  if (!ec) {
+    std::lock_guard<std::mutex> lock(mutex);
+    cache[path] = {size, time, shared};
+  }
+  return shared;
+}
+
+}  // namespace
+
+StatusOr<std::shared_ptr<const CtVolume>> ReadAnatomyCt(const std::string& path) {
   const std::string ext = path.size() >= 5 ? path.substr(path.size() - 5) : "";
-  if (ext == ".inv3") return ReadInvesaliusVolume(path);
+  if (ext == ".inv3") return ReadInvesaliusCached(path);
   if (!IsDirectory(path)) {
     return Status::Error(path +
                          ": expected an InVesalius project (.inv3) or a directory holding "
                          "one DICOM CT series");
   }
-  return ReadCtSeries(path);
+  auto series = ReadCtSeries(path);
+  if (!series.ok()) return series.status();
+  return std::make_shared<const CtVolume>(std::move(*series));
 }
 
 Eigen::Vector3d CtVolumeCentre(const CtVolume& volume) {
@@ -71,7 +111,10 @@ double LineIntegral(const CtAnatomy& a,
 
 }  // namespace
 
-cv::Mat CtAnatomyGain(const CtAnatomy& a, const Camera& camera, const Rigid3& cam_from_object) {
+cv::Mat CtAnatomyGain(const CtAnatomy& a,
+                      const Camera& camera,
+                      const Rigid3& cam_from_object,
+                      const FovCircle* fov) {
   const CtVolume& vol = *a.volume;
   const Rigid3 ct_from_cam = (cam_from_object * a.object_from_ct).Inverse();
   const Eigen::Matrix3d index_from_patient = vol.PatientFromIndexLinear().inverse();
@@ -86,6 +129,7 @@ cv::Mat CtAnatomyGain(const CtAnatomy& a, const Camera& camera, const Rigid3& ca
   for (int j = 0; j < nv; ++j) {
     for (int i = 0; i < nu; ++i) {
       const double uv[2] = {static_cast<double>(s * i), static_cast<double>(s * j)};
+      if (fov && std::hypot(uv[0] - fov->u, uv[1] - fov->v) > fov->r + 2 * s) continue;
       double xy[2];
       if (!UnprojectToNormalized(camera.params.data(), uv, xy)) continue;
       grid[static_cast<size_t>(j) * nu + i] =

@@ -21,6 +21,7 @@
 #include "camera/camera.h"
 #include "ct/ct_volume.h"
 #include "geometry/pose.h"
+#include "sim/xray_render.h"
 #include "util/status.h"
 
 namespace carmba::sim {
@@ -35,16 +36,20 @@ struct CtAnatomy {
 };
 
 // The CT of `path`: an InVesalius 3 project (.inv3, ct/ct_invesalius.h) or a directory holding one
-// DICOM CT series (ct/ct_volume.h ReadCtSeries). Errors name the file.
-StatusOr<CtVolume> ReadAnatomyCt(const std::string& path);
+// DICOM CT series (ct/ct_volume.h ReadCtSeries). Errors name the file. An .inv3 read before in
+// this process, unchanged since (size and modification time), is not read again: scenes rendered
+// one after the other share it.
+StatusOr<std::shared_ptr<const CtVolume>> ReadAnatomyCt(const std::string& path);
 
 // The centre of the volume's voxel box, in its patient frame (mm).
 Eigen::Vector3d CtVolumeCentre(const CtVolume& volume);
 
 // The per-pixel gain (CV_32F, the camera's size, values in (0, 1]) of `anatomy` seen by `camera`
-// with the object at `cam_from_object`.
+// with the object at `cam_from_object`. With `fov`, pixels further than two grid steps outside its
+// circle (which the renderer leaves dark) get 1 without a ray.
 cv::Mat CtAnatomyGain(const CtAnatomy& anatomy,
                       const Camera& camera,
-                      const Rigid3& cam_from_object);
+                      const Rigid3& cam_from_object,
+                      const FovCircle* fov = nullptr);
 
 }  // namespace carmba::sim

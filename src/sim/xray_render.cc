@@ -64,23 +64,14 @@ bool RenderOptions::Check(std::string* error) const {
   return true;
 }
 
-namespace {
-
-struct Fov {
-  bool circular;
-  double u, v, r;
-};
-
-Fov FovOf(const Camera& camera, const RenderOptions& o) {
-  Fov f;
+FovCircle FovOf(const Camera& camera, const RenderOptions& o) {
+  FovCircle f;
   f.circular = o.circular_fov;
   f.u = o.fov_center_u_px >= 0 ? o.fov_center_u_px : 0.5 * (camera.width - 1);
   f.v = o.fov_center_v_px >= 0 ? o.fov_center_v_px : 0.5 * (camera.height - 1);
   f.r = o.fov_radius_px > 0 ? o.fov_radius_px : 0.5 * std::min(camera.width, camera.height);
   return f;
 }
-
-}  // namespace
 
 namespace {
 
@@ -99,7 +90,7 @@ StatusOr<std::shared_ptr<const RayGrid>> RayGrid::Build(const Camera& camera,
   std::string error;
   if (!options.Check(&error)) return Status::Error(error);
   auto grid = std::make_shared<RayGrid>();
-  const Fov fov = FovOf(camera, options);
+  const FovCircle fov = FovOf(camera, options);
   const int S = options.supersampling;
   grid->width_ = camera.width;
   grid->height_ = camera.height;
@@ -156,7 +147,7 @@ StatusOr<std::shared_ptr<const RayGrid>> RayGrid::Build(const Camera& camera,
 }
 
 bool RayGrid::Matches(const Camera& camera, const RenderOptions& options) const {
-  const Fov fov = FovOf(camera, options);
+  const FovCircle fov = FovOf(camera, options);
   return width_ == camera.width && height_ == camera.height && ss_ == options.supersampling &&
          params_ == camera.params && circular_ == fov.circular && fov_r_ == fov.r &&
          fov_u_ == fov.u && fov_v_ == fov.v;
@@ -380,7 +371,7 @@ struct PixelGainModel {
   }
 
   const RenderOptions& options;
-  const Fov fov;
+  const FovCircle fov;
   const double edge_px, heel_cu, heel_cv;
 };
 

@@ -138,6 +138,15 @@ double SphereImageRadius(const Camera& camera,
                          double radius_mm,
                          const Eigen::Vector2d& uv_center);
 
+// The image intensifier's field of view as `o` gives it for `camera` (px): its centre (u, v), by
+// default the image centre, and radius r, by default half the smaller side; circular false: the
+// whole detector is exposed.
+struct FovCircle {
+  bool circular = true;
+  double u = 0, v = 0, r = 0;
+};
+FovCircle FovOf(const Camera& camera, const RenderOptions& o);
+
 // A multiplicative background from a real X-ray frame: a DICOM file (io/dicom_xray.h: the first
 // frame, or frame N of `file.dcm#frameN`; MONOCHROME2 convention, stored values) or any image
 // OpenCV reads. The central `crop_fraction` (0 < f <= 1) of the frame's shorter side is

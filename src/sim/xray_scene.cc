@@ -265,10 +265,9 @@ Status LoadSceneAnatomy(const YamlMap& scene,
   if (!in->given) return Status::Ok();
   auto ct = ReadAnatomyCt(JoinPath(dir, in->anatomy.file));
   if (!ct.ok()) return ct.status().WithContext(scene.file() + ": key 'anatomy.ct'");
-  auto volume = std::make_shared<const CtVolume>(std::move(*ct));
+  in->anatomy.volume = *ct;
   in->anatomy.object_from_ct =
-      ObjectPlacement(CtVolumeCentre(*volume), in->rotation_deg, in->center_mm);
-  in->anatomy.volume = std::move(volume);
+      ObjectPlacement(CtVolumeCentre(*in->anatomy.volume), in->rotation_deg, in->center_mm);
   s->anatomy = in->anatomy;
   return Status::Ok();
 }
@@ -532,9 +531,8 @@ StatusOr<XrayScene> LoadXrayScene(const std::string& path) {
 
 Status CheckViewsInsideFov(const XrayScene& s) {
   const double W = s.camera.width, H = s.camera.height;
-  const double fu = s.render.fov_center_u_px >= 0 ? s.render.fov_center_u_px : 0.5 * (W - 1);
-  const double fv = s.render.fov_center_v_px >= 0 ? s.render.fov_center_v_px : 0.5 * (H - 1);
-  const double fr = s.render.fov_radius_px > 0 ? s.render.fov_radius_px : 0.5 * std::min(W, H);
+  const FovCircle fov = FovOf(s.camera, s.render);
+  const double fu = fov.u, fv = fov.v, fr = fov.r;
   for (int i = 0; i < static_cast<int>(s.views.size()); ++i) {
     const Rigid3 cam_from_object = s.CamFromObject(i);
     const Camera camera = s.ViewCamera(i);
@@ -584,7 +582,9 @@ StatusOr<RenderedView> RenderXrayView(const XrayScene& scene, int index, const R
   const bool clutter = !scene.clutter.spheres.empty() || !scene.clutter.boxes.empty();
   if (clutter) phantoms.push_back({&scene.clutter, out.cam_from_object});
   if (scene.anatomy) {
-    const cv::Mat gain = CtAnatomyGain(*scene.anatomy, camera, out.cam_from_object);
+    const FovCircle fov = FovOf(camera, options);
+    const cv::Mat gain =
+        CtAnatomyGain(*scene.anatomy, camera, out.cam_from_object, fov.circular ? &fov : nullptr);
     options.background_gain =
         options.background_gain.empty() ? gain : cv::Mat(options.background_gain.mul(gain));
   }

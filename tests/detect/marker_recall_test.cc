@@ -193,6 +193,16 @@ void RunRecall(Anatomy anatomy, int scenes, uint64_t base, Tally* tally) {
   ASSERT_EQ(used, scenes) << "too few random draws fit the field of view";
 }
 
+// At least `min_fraction` of the visible separated markers labelled at their centres, no wrong
+// label, no bead labelled, no overlapped marker labelled.
+void ExpectRecall(const Tally& total, int scenes, double min_fraction) {
+  EXPECT_GT(total.expected, 30 * scenes);
+  EXPECT_GE(total.correct, min_fraction * total.expected);
+  EXPECT_EQ(total.wrong, 0);
+  EXPECT_EQ(total.spurious_labelled, 0);
+  EXPECT_EQ(total.overlap_labelled, 0);
+}
+
 int Scenes() { return testing::EnvOr("CARMBA_MARKER_RECALL_SCENES", 8); }
 uint64_t SeedSet() { return testing::EnvOr<uint64_t>("CARMBA_MARKER_RECALL_SEED", 1); }
 
@@ -202,16 +212,12 @@ uint64_t SeedSet() { return testing::EnvOr<uint64_t>("CARMBA_MARKER_RECALL_SEED"
 TEST(MarkerRecall, XaFrameAnatomyEveryVisibleSeparatedMarkerLabelled) {
   Tally total;
   ASSERT_NO_FATAL_FAILURE(RunRecall(Anatomy::kXaFrame, Scenes(), SeedSet(), &total));
-  EXPECT_GT(total.expected, 30 * Scenes());
-  EXPECT_GE(total.correct, 0.995 * total.expected);
-  EXPECT_EQ(total.wrong, 0);
-  EXPECT_EQ(total.spurious_labelled, 0);
-  EXPECT_EQ(total.overlap_labelled, 0);
+  ExpectRecall(total, Scenes(), 0.995);
 }
 
 // The same scenes with a real head CT's DRR as anatomy, read from DICOM XA files. Bone edges,
 // sinuses and teeth lose markers that the XA frame does not: the 99 % is not met (set 1:
-// 312 of 316, 98.7 %; the other sets 96.0-98.9 %, src/docs/results.md). Held here: at least
+// 312 of 316, 98.7 %; the other sets 96.0-99.5 %, src/docs/results.md). Held here: at least
 // 98 % on set 1, and still no wrong label, no bead, no overlapped marker.
 TEST(MarkerRecall, RealCtAnatomyFromDicomXaNoWrongLabel) {
   if (!std::filesystem::exists(kInvesaliusCraniumPath)) {
@@ -220,11 +226,7 @@ TEST(MarkerRecall, RealCtAnatomyFromDicomXaNoWrongLabel) {
   }
   Tally total;
   ASSERT_NO_FATAL_FAILURE(RunRecall(Anatomy::kRealCt, Scenes(), SeedSet(), &total));
-  EXPECT_GT(total.expected, 30 * Scenes());
-  EXPECT_GE(total.correct, 0.98 * total.expected);
-  EXPECT_EQ(total.wrong, 0);
-  EXPECT_EQ(total.spurious_labelled, 0);
-  EXPECT_EQ(total.overlap_labelled, 0);
+  ExpectRecall(total, Scenes(), 0.98);
 }
 
 }  // namespace

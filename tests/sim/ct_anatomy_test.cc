@@ -82,6 +82,19 @@ TEST(CtAnatomy, MovesWithTheObject) {
   EXPECT_EQ(g.at<float>(32, 32), 1.0f);
 }
 
+TEST(CtAnatomy, NoRaysOutsideTheFieldOfView) {
+  const CtAnatomy a = AnatomyOf(Cube(0));
+  const cv::Mat all = CtAnatomyGain(a, Pinhole(), kCamFromObject);
+  FovCircle fov;
+  fov.u = fov.v = 32;
+  fov.r = 3;  // rays out to 3 + 2 grid steps = 7 px from the centre
+  const cv::Mat inside = CtAnatomyGain(a, Pinhole(), kCamFromObject, &fov);
+  EXPECT_EQ(inside.at<float>(32, 32), all.at<float>(32, 32));
+  EXPECT_EQ(inside.at<float>(32, 34), all.at<float>(32, 34));
+  EXPECT_LT(all.at<float>(32, 42), 1.0f);  // in the cube's shadow, 10 px out
+  EXPECT_EQ(inside.at<float>(32, 42), 1.0f);
+}
+
 TEST(CtAnatomy, ReadingNamesWhatIsWrong) {
   const test::ScratchDir dir("ct_anatomy");
   auto absent = ReadAnatomyCt(dir.File("absent.inv3"));
