@@ -325,24 +325,35 @@ bool DiscCentroids(std::vector<CentroidPixel>* disc, const cv::Vec3d& plane, boo
   return true;
 }
 
-// CentroidNoise::ring_arcs for the ring about the centre `c` (ring offsets from (cx, cy)).
-int RingArcs(const std::vector<CentroidPixel>& ring,
-             const cv::Vec3d& plane,
-             double ring_sigma,
-             bool dark,
-             cv::Point2d c,
-             int cx,
-             int cy) {
+// CentroidNoise::ring_arcs and ring_arc_contrast for the ring about the centre `c` (ring offsets
+// from (cx, cy)), and the pixels in the arcs.
+struct RingArcs {
+  int arcs = 0;
+  int pixels = 0;  // in the arcs counted
+  double contrast = 0;
+};
+
+RingArcs FindRingArcs(const std::vector<CentroidPixel>& ring,
+                      const cv::Vec3d& plane,
+                      double ring_sigma,
+                      bool dark,
+                      cv::Point2d c,
+                      int cx,
+                      int cy) {
   constexpr double kOutlierSigmas = 2.5, kArcGapRad = M_PI / 6;
   constexpr int kMinArcPixels = 3;
+  RingArcs out;
   std::vector<double> angles;
+  double contrast = 0;
   for (const CentroidPixel& q : ring) {
-    const double r = q.value - PlaneAt(plane, q);
+    const double bg = PlaneAt(plane, q), r = q.value - bg;
     if ((dark ? -r : r) > kOutlierSigmas * ring_sigma) {
       angles.push_back(std::atan2(q.ey + cy - c.y, q.ex + cx - c.x));
+      contrast += dark ? -r / bg : r;  // as the disc's contrast (DiscCentroids)
     }
   }
-  if (angles.size() < kMinArcPixels) return 0;
+  if (angles.size() < kMinArcPixels) return out;
+  out.contrast = contrast / angles.size();
   std::sort(angles.begin(), angles.end());
   // Start after the largest gap (the circle's wrap-around included), so no arc is cut in two.
   const size_t n = angles.size();
@@ -351,18 +362,18 @@ int RingArcs(const std::vector<CentroidPixel>& ring,
   for (size_t i = 1; i < n; ++i) {
     if (angles[i] - angles[i - 1] > widest) widest = angles[i] - angles[i - 1], start = i;
   }
-  int arcs = 0, in_arc = 1;
+  int in_arc = 1;
   for (size_t k = 1; k <= n; ++k) {
     const double prev = angles[(start + k - 1) % n], cur = angles[(start + k) % n];
     const double gap = std::remainder(cur - prev, 2 * M_PI);
     if (k == n || std::fabs(gap) > kArcGapRad) {
-      arcs += in_arc >= kMinArcPixels;
+      if (in_arc >= kMinArcPixels) ++out.arcs, out.pixels += in_arc;
       in_arc = 1;
     } else {
       ++in_arc;
     }
   }
-  return arcs;
+  return out;
 }
 
 }  // namespace
@@ -395,7 +406,10 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
     if (shift_px) *shift_px = e.shift;
     if (noise) {
       CentroidCovariance(disc, e, plane, ring_sigma, ring_AtA, dark, cx, cy, rw, noise);
-      noise->ring_arcs = RingArcs(ring, plane, noise->sigma_gray, dark, *c, cx, cy);
+      const RingArcs arcs = FindRingArcs(ring, plane, noise->sigma_gray, dark, *c, cx, cy);
+      noise->ring_arcs = arcs.arcs;
+      noise->ring_arc_contrast = arcs.contrast;
+      noise->ring_arc_width_px = arcs.arcs > 0 ? arcs.pixels / (arcs.arcs * win.ring_width) : 0.0;
     }
     const double move = std::hypot(e.centre.x - c->x, e.centre.y - c->y);
     *c = e.centre;

@@ -16,9 +16,6 @@ namespace {
 // A blob centre with a core-to-whole shift above unreliable_shift_px gets (this x shift)^2 added
 // to its covariance per axis.
 constexpr double kShiftToErrorFactor = 3.0;
-// A blob whose ring two separate dark arcs cross (CentroidNoise::ring_arcs: a line across it)
-// gets (this x its half-contrast radius)^2 added to each coordinate's variance.
-constexpr double kLineAcrossErrorFraction = 0.3;
 }  // namespace
 
 bool MarkerBlobOptions::Check(std::string* error) const {
@@ -314,12 +311,15 @@ void RefineCandidate(const cv::Mat& f, const cv::Mat& valid, const std::vector<B
     b.covariance_px2(0, 0) += w * w;
     b.covariance_px2(1, 1) += w * w;
   }
-  if (noise.ring_arcs >= 2) {
-    // A line across the ring (a wire beside or over the marker) crosses the disc too and pulls
-    // the centroid by up to a third of the blob's radius (0.5-0.7 px on 1.6-1.9 mm markers,
-    // tests/detect/marker_recall_test.cc), which neither the pixel noise nor the core-to-whole
-    // shift shows: widened by it.
-    const double w = kLineAcrossErrorFraction * r_half;
+  if (noise.ring_arcs >= 2 && noise.peak_contrast > 0) {
+    // A line across the ring (a wire beside or over the marker) crosses the disc too: a line of
+    // width W and contrast c_l over a disc of peak contrast c_p moves the centroid by up to about
+    // (4 / pi) W c_l / c_p, whatever the disc's size (its share of the disc's weight, 2 r W c_l
+    // against pi r^2 c_p / 2, at an offset of up to r). Neither the pixel noise nor the
+    // core-to-whole shift shows it (0.71-0.73 px off, 0.05-0.09 px shift, beside a wire in
+    // tests/detect/marker_recall_test.cc's real-CT scenes): widened by it, at most by r_half.
+    const double ratio = std::min(1.0, noise.ring_arc_contrast / noise.peak_contrast);
+    const double w = std::min(r_half, 4.0 / M_PI * noise.ring_arc_width_px * ratio);
     b.covariance_px2(0, 0) += w * w;
     b.covariance_px2(1, 1) += w * w;
   }
