@@ -260,15 +260,15 @@ void ParseSceneAnatomy(YamlMap& scene, SceneAnatomy* out) {
 // T(-the volume's centre).
 Status LoadSceneAnatomy(const YamlMap& scene,
                         const std::string& dir,
-                        SceneAnatomy* in,
+                        const SceneAnatomy& in,
                         XrayScene* s) {
-  if (!in->given) return Status::Ok();
-  auto ct = ReadAnatomyCt(JoinPath(dir, in->anatomy.file));
+  if (!in.given) return Status::Ok();
+  auto ct = ReadAnatomyCt(JoinPath(dir, in.anatomy.file));
   if (!ct.ok()) return ct.status().WithContext(scene.file() + ": key 'anatomy.ct'");
-  in->anatomy.volume = *ct;
-  in->anatomy.object_from_ct =
-      ObjectPlacement(CtVolumeCentre(*in->anatomy.volume), in->rotation_deg, in->center_mm);
-  s->anatomy = in->anatomy;
+  CtAnatomy a = in.anatomy;
+  a.volume = *ct;
+  a.object_from_ct = ObjectPlacement(CtVolumeCentre(*a.volume), in.rotation_deg, in.center_mm);
+  s->anatomy = a;
   return Status::Ok();
 }
 
@@ -462,12 +462,12 @@ void ParseSceneViews(YamlMap& scene, const CarmGeometry& carm, XrayScene* s) {
 
 }
 
-// After the keys: the background loaded, the camera, imaging and each view's C-arm checked, and
-// every view inside the field of view.
+// After the keys: the anatomy's CT and the background loaded, the camera, imaging and each
+// view's C-arm checked, and every view inside the field of view.
 Status CheckParsedScene(YamlMap& scene,
                         const std::string& dir,
                         const SceneBackground& bg,
-                        SceneAnatomy* anatomy,
+                        const SceneAnatomy& anatomy,
                         XrayScene* s) {
   CARMBA_RETURN_IF_ERROR(scene.Finish());
   CARMBA_RETURN_IF_ERROR(LoadSceneAnatomy(scene, dir, anatomy, s));
@@ -516,7 +516,7 @@ Status ParseXrayScene(YamlMap& scene, XrayScene* out) {
   ParseSceneViews(scene, carm, &s);
   SceneAnatomy anatomy;
   ParseSceneAnatomy(scene, &anatomy);
-  CARMBA_RETURN_IF_ERROR(CheckParsedScene(scene, dir, bg, &anatomy, &s));
+  CARMBA_RETURN_IF_ERROR(CheckParsedScene(scene, dir, bg, anatomy, &s));
   *out = std::move(s);
   return Status::Ok();
 }
