@@ -60,8 +60,9 @@ struct CentroidNoise {
   // ring sigmas beyond the background plane (at least 3 pixels each, arcs apart by more than
   // 30 deg): a line across the ring (a wire) makes two, an edge or a neighbour's tail one.
   int ring_arcs = 0;
-  // Out: the mean contrast of those pixels, in peak_contrast's units, and the width of a line
-  // that would leave them: the arcs' pixels over (arcs x the ring's radial width), px.
+  // Out: the mean contrast of the ring's pixels beyond 2.5 sigmas (in peak_contrast's units), and
+  // the width of a line that would leave the arcs: their pixels over (arcs x the ring's radial
+  // width), px.
   double ring_arc_contrast = 0;
   double ring_arc_width_px = 0;
 };

@@ -49,8 +49,7 @@ StatusOr<std::shared_ptr<const CtVolume>> ReadInvesaliusCached(const std::string
 }  // namespace
 
 StatusOr<std::shared_ptr<const CtVolume>> ReadAnatomyCt(const std::string& path) {
-  const std::string ext = path.size() >= 5 ? path.substr(path.size() - 5) : "";
-  if (ext == ".inv3") return ReadInvesaliusCached(path);
+  if (std::filesystem::path(path).extension() == ".inv3") return ReadInvesaliusCached(path);
   if (!IsDirectory(path)) {
     return Status::Error(path +
                          ": expected an InVesalius project (.inv3) or a directory holding "
@@ -68,27 +67,6 @@ Eigen::Vector3d CtVolumeCentre(const CtVolume& volume) {
 
 namespace {
 
-// The ray x(t) = b + t a (t in mm along a unit direction, x in voxel indices) inside the box of
-// voxel centres [0, n-1]: [t0, t1], empty when t1 <= t0.
-void ClipToBox(const Eigen::Vector3d& b,
-               const Eigen::Vector3d& a,
-               const Eigen::Vector3d& hi,
-               double* t0,
-               double* t1) {
-  *t0 = 0;
-  *t1 = 1e30;
-  for (int k = 0; k < 3; ++k) {
-    if (std::abs(a[k]) < 1e-15) {
-      if (b[k] < 0 || b[k] > hi[k]) *t1 = -1;
-      continue;
-    }
-    double lo = (0 - b[k]) / a[k], up = (hi[k] - b[k]) / a[k];
-    if (lo > up) std::swap(lo, up);
-    *t0 = std::max(*t0, lo);
-    *t1 = std::min(*t1, up);
-  }
-}
-
 // sum mu * step along the ray through normalised image point `xy`.
 double LineIntegral(const CtAnatomy& a,
                     const Eigen::Matrix3d& index_from_cam,
@@ -98,9 +76,10 @@ double LineIntegral(const CtAnatomy& a,
   const CtVolume& vol = *a.volume;
   const Eigen::Vector3d dir = Eigen::Vector3d(xy.x(), xy.y(), 1.0).normalized();
   const Eigen::Vector3d along = index_from_cam * dir;
+  // Inside the box of voxel centres, [0, n - 1] along each index (t in mm: `dir` is a unit vector).
   const Eigen::Vector3d hi(vol.columns - 1, vol.rows - 1, vol.slices - 1);
   double t0, t1;
-  ClipToBox(index_of_source, along, hi, &t0, &t1);
+  if (!RayBoxInterval(index_of_source, along, Eigen::Vector3d::Zero(), hi, &t0, &t1)) return 0;
   double sum = 0;
   for (double t = t0 + 0.5 * step; t < t1; t += step) {
     const double hu = TrilinearHu(vol, index_of_source + t * along);

@@ -208,26 +208,9 @@ struct CamBox {
   double mu;
 };
 
-// Interval [t0, t1] of the ray t*d (|d| = 1) inside the box (slab method); false if it misses.
+// Interval [t0, t1] of the ray t*d (|d| = 1) inside the box; false if it misses.
 inline bool BoxInterval(const CamBox& b, const Eigen::Vector3d& d, double* t0, double* t1) {
-  const Eigen::Vector3d db = b.box_from_cam_R * d;
-  double lo = 0.0, hi = std::numeric_limits<double>::infinity();
-  for (int i = 0; i < 3; ++i) {
-    const double o = b.source_in_box[i];
-    if (std::fabs(db[i]) < 1e-15) {
-      if (o < -b.h[i] || o > b.h[i]) return false;
-      continue;
-    }
-    const double inv = 1.0 / db[i];
-    double ta = (-b.h[i] - o) * inv, tb = (b.h[i] - o) * inv;
-    if (ta > tb) std::swap(ta, tb);
-    lo = std::max(lo, ta);
-    hi = std::min(hi, tb);
-    if (lo >= hi) return false;
-  }
-  *t0 = lo;
-  *t1 = hi;
-  return true;
+  return RayBoxInterval(b.source_in_box, b.box_from_cam_R * d, -b.h, b.h, t0, t1);
 }
 
 constexpr int kTile = 16;

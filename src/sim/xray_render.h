@@ -36,7 +36,10 @@
 // `seed`.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
@@ -137,6 +140,34 @@ double SphereImageRadius(const Camera& camera,
                          const Eigen::Vector3d& center_in_cam_mm,
                          double radius_mm,
                          const Eigen::Vector2d& uv_center);
+
+// The interval [t0, t1] of the ray origin + t dir (t >= 0) inside the axis-aligned box [lo, hi],
+// by the slab method; false when it misses. The renderer's boxes and the anatomy's CT
+// (sim/ct_anatomy.h) share it.
+inline bool RayBoxInterval(const Eigen::Vector3d& origin,
+                           const Eigen::Vector3d& dir,
+                           const Eigen::Vector3d& lo,
+                           const Eigen::Vector3d& hi,
+                           double* t0,
+                           double* t1) {
+  double a = 0.0, b = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 3; ++i) {
+    const double o = origin[i];
+    if (std::fabs(dir[i]) < 1e-15) {
+      if (o < lo[i] || o > hi[i]) return false;
+      continue;
+    }
+    const double inv = 1.0 / dir[i];
+    double ta = (lo[i] - o) * inv, tb = (hi[i] - o) * inv;
+    if (ta > tb) std::swap(ta, tb);
+    a = std::max(a, ta);
+    b = std::min(b, tb);
+    if (a >= b) return false;
+  }
+  *t0 = a;
+  *t1 = b;
+  return true;
+}
 
 // The image intensifier's field of view as `o` gives it for `camera` (px): its centre (u, v), by
 // default the image centre, and radius r, by default half the smaller side; circular false: the
