@@ -424,7 +424,7 @@ bool CalibrationOptions::Check(std::string* error) const {
 namespace {
 
 // The loss, the outlier listing and the back end in the solver config's vocabulary
-// (problem/pose_problem.h LoadSolverConfig: loss: {type, scale_px}, outliers: {list_sigma},
+// (problem/solver_config.h LoadSolverConfig: loss: {type, scale_px}, outliers: {list_sigma},
 // backend), or in the calibration config's older spelling (robust_loss, robust_loss_scale_px,
 // outlier_threshold_sigma, solver), which keeps working; both spellings of one thing are an
 // error naming the two.

@@ -27,12 +27,12 @@
 #include <string>
 #include <vector>
 
-#include "ba/bundle_adjuster.h"
 #include "analysis/lens_models.h"
+#include "ba/bundle_adjuster.h"
 #include "camera/camera.h"
-#include "problem/pose_problem.h"  // SolverConfig
-#include "geometry/pose.h"
 #include "detect/observations.h"
+#include "geometry/pose.h"
+#include "problem/solver_config.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -79,7 +79,7 @@ struct CalibrationOptions {
   std::string solver = "lm";
 
   bool Check(std::string* error) const;
-  // The solve as a solver config (problem/pose_problem.h), whose ToBaOptions() is the one mapping
+  // The solve as a solver config (problem/solver_config.h), whose ToBaOptions() is the one mapping
   // of every problem kind onto the engine's options: backend carmba_lm (solver: lm without a
   // robust loss) or ceres, the loss, the outlier listing, iterations, threads, the a-priori
   // covariance scale (the calibration scales by its own pixel sigma).

@@ -1,21 +1,20 @@
 // `carmba pose`: object poses from X-ray images. Marker blobs are detected in every view
 // (detect/marker_blobs.h), labelled with the CT fiducials through the calibrated camera
 // (pose/marker_correspondence.h, detect/marker_views.h), and the labelled views are solved as one
-// pose bundle adjustment (problem/pose_problem.h, the engine in ba/) with each blob's pixel sigma.
+// pose bundle adjustment (problem/pose_solver.h, the engine in ba/) with each blob's pixel sigma.
 // Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md, report.html; all or
 // nothing. Views with fewer than 4 markers found (or no labelling) are skipped with the reason.
 #include <gflags/gflags.h>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <iostream>
+#include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <sstream>
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "detect/marker_views.h"
-#include "problem/pose_problem.h"
+#include "problem/pose_solver.h"
 #include "report/plots.h"
 #include "report/pose_report.h"
 #include "util/file_util.h"
@@ -107,19 +106,19 @@ int RunPose() {
   auto views = DetectAndLabelObjectViews(*files, *camera, *markers, options);
   if (!views.ok()) return cli::Fail(kCmd, views.status());
 
-  PoseProblem problem;
+  Problem problem;
   problem.name = "pose";
   problem.path = FLAGS_images;
   problem.camera = *camera;
-  problem.sigma_px = 1.0;  // every observation carries its own sigma
-  problem.markers = *markers;
+  problem.object_sigma_px = 1.0;  // every observation carries its own sigma
+  problem.fiducials = *markers;
   problem.marker_diameter_mm = options.blobs.diameter_mm;
-  problem.views = ToPoseViews(*views, options.sigma_floor_px);
+  problem.object_views = ToPoseViews(*views, options.sigma_floor_px);
   {
     const Status s = problem.Check();
     if (!s.ok()) return cli::Fail(kCmd, s);
   }
-  cli::Step(kCmd, "solving " + std::to_string(problem.views.size()) + " views");
+  cli::Step(kCmd, "solving " + std::to_string(problem.object_views.size()) + " views");
   auto solution = SolvePoseProblem(problem, config);
   if (!solution.ok()) return cli::Fail(kCmd, solution.status());
   plots.Draw(PosePlotData(problem, *solution));
@@ -171,9 +170,10 @@ int RunPose() {
   for (const auto& w : PoseWarnings(*solution)) {
     std::cerr << "carmba pose: warning: " << w << std::endl;
   }
-  std::cout << "pose: " << problem.views.size() << " of " << views->size() << " views labelled, RMS "
-            << solution->rms_px << " px; wrote " << FLAGS_out
-            << "/{observations.csv,result.json,report.md,report.html} and the overlays" << std::endl;
+  std::cout << "pose: " << problem.object_views.size() << " of " << views->size()
+            << " views labelled, RMS " << solution->rms_px << " px; wrote " << FLAGS_out
+            << "/{observations.csv,result.json,report.md,report.html} and the overlays"
+            << std::endl;
   return 0;
 }
 

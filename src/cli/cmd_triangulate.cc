@@ -25,13 +25,13 @@
 #include "analysis/triangulation.h"
 #include "cli/command.h"
 #include "cli/common_flags.h"
-#include "joint/joint_problem.h"
-#include "problem/pixel_csv.h"
-#include "problem/pose_problem.h"
+#include "io/pixel_csv.h"
+#include "joint/joint_solver.h"
+#include "problem/pose_solver.h"
 #include "util/csv.h"  // ParseFiniteDouble
 #include "util/file_util.h"
-#include "util/plausible.h"
 #include "util/format.h"
+#include "util/plausible.h"
 
 DEFINE_string(points, "",
               "CSV of the points' pixels: view,u_px,v_px[,point][,cov_uu,cov_uv,cov_vv | "
@@ -118,9 +118,9 @@ StatusOr<Solved> Solve() {
   Solved s;
   auto config = LoadSolverConfig(FLAGS_config);
   if (!config.ok()) return config.status();
-  if (IsJointProblemFile(FLAGS_problem)) {
-    auto problem = LoadJointProblem(FLAGS_problem);
-    if (!problem.ok()) return problem.status();
+  auto problem = LoadProblem(FLAGS_problem);
+  if (!problem.ok()) return problem.status();
+  if (!problem->IsPoseProblem()) {
     auto sol = SolveJointProblem(*problem, *config);
     if (!sol.ok()) return sol.status();
     s.problem = std::make_shared<const ba::BaProblem>(std::move(sol->ba_problem));
@@ -128,8 +128,6 @@ StatusOr<Solved> Solve() {
     s.kind = "joint";
     return s;
   }
-  auto problem = LoadPoseProblem(FLAGS_problem);
-  if (!problem.ok()) return problem.status();
   auto sol = SolvePoseProblem(*problem, *config);
   if (!sol.ok()) return sol.status();
   if (!config->refine || config->covariance_algorithm != "schur") {

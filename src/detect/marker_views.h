@@ -29,19 +29,17 @@
 // robust loss's scale and the reports.
 #pragma once
 
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
-
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "camera/camera.h"
 #include "detect/marker_blobs.h"
-#include "pose/marker_correspondence.h"
-#include "problem/pose_problem.h"
 #include "geometry/carm_geometry.h"
+#include "io/object_views.h"
+#include "pose/marker_correspondence.h"
 #include "util/status.h"
 
 namespace carmba {

@@ -1,10 +1,10 @@
-// The joint problem's mrcal cross-check (joint_problem.h).
+// The joint problem's mrcal cross-check (joint_solver.h).
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 
 #include "calib/crosscheck.h"
-#include "joint/joint_problem.h"
+#include "joint/joint_solver.h"
 #include "util/format.h"
 
 namespace carmba {
@@ -28,7 +28,7 @@ std::string FreeIntrinsicsText(const ba::IntrinsicsGroup& g) {
 
 }  // namespace
 
-StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
+StatusOr<nlohmann::json> JointMrcalCrossCheck(const Problem& problem,
                                               const JointSolution& solution,
                                               const MrcalCrossCheckOptions& mrcal_options) {
   const ba::BaProblem& joint = solution.ba_problem;
@@ -152,7 +152,7 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const JointProblem& problem,
   return j;
 }
 
-nlohmann::json JointMrcalCrossCheckJson(const JointProblem& problem,
+nlohmann::json JointMrcalCrossCheckJson(const Problem& problem,
                                         const JointSolution& solution,
                                         const MrcalCrossCheckOptions& options) {
   auto mrcal = JointMrcalCrossCheck(problem, solution, options);

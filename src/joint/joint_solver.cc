@@ -1,12 +1,13 @@
 // The joint problem's front end: initial values, the engine's problem, error budget and the
-// two-step comparison (joint_problem.h).
+// two-step comparison (joint_solver.h).
+#include "joint/joint_solver.h"
+
 #include <algorithm>
 #include <cmath>
 #include <set>
 
-#include "calib/calibrate.h"
 #include "analysis/lens_models.h"
-#include "joint/joint_problem.h"
+#include "calib/calibrate.h"
 #include "util/format.h"
 
 namespace carmba {
@@ -19,14 +20,14 @@ int IntrinsicIndexByName(const std::string& n) {
   return -1;
 }
 
-std::string GroupOfPlateView(const JointProblem& p, size_t v) {
+std::string GroupOfPlateView(const Problem& p, size_t v) {
   if (!p.per_group) return "shared";
   auto it = p.group_of_view.find(p.plate_view_ids[v]);
   if (it == p.group_of_view.end()) it = p.group_of_view.find(std::to_string(v));
   return it->second;
 }
 
-std::string GroupOfObjectView(const JointProblem& p, const std::string& id) {
+std::string GroupOfObjectView(const Problem& p, const std::string& id) {
   return p.per_group ? p.group_of_view.at(id) : "shared";
 }
 
@@ -83,7 +84,7 @@ namespace {
 // C-arm calibrated along its orbit only) cannot determine a dependence on it, so the model takes
 // secondary_degree 0 and says so in `note`; when the file asked for more, an error that says what
 // to do.
-StatusOr<ba::SmoothBasis> SmoothBasisForPlateAngles(const JointProblem& problem,
+StatusOr<ba::SmoothBasis> SmoothBasisForPlateAngles(const Problem& problem,
                                                     const ba::BaProblem& bp,
                                                     std::string* note) {
   ba::SmoothBasis basis = problem.smooth_basis;
@@ -109,8 +110,11 @@ StatusOr<ba::SmoothBasis> SmoothBasisForPlateAngles(const JointProblem& problem,
 
 // The distortion models compared on the plate views (analysis/lens_models.h), for one shared group;
 // with distortion: auto the recommended one is applied to `bp`.
-void SelectDistortion(const JointProblem& problem, const SolverConfig& config,
-                      const ba::BaOptions& options, ba::BaProblem* bp, JointSolution* sol) {
+void SelectDistortion(const Problem& problem,
+                      const SolverConfig& config,
+                      const ba::BaOptions& options,
+                      ba::BaProblem* bp,
+                      JointSolution* sol) {
   if (problem.plate.views.empty()) return;
   if (problem.smooth || problem.per_group || bp->groups.size() != 1) {
     if (config.distortion_auto) {
@@ -148,7 +152,7 @@ struct GroupAssignment {
   std::vector<int> of_plate_view, of_object_view;
   std::vector<std::vector<int>> plate_views;  // per group
 
-  explicit GroupAssignment(const JointProblem& problem) {
+  explicit GroupAssignment(const Problem& problem) {
     for (size_t v = 0; v < problem.plate.views.size(); ++v) {
       of_plate_view.push_back(Index(GroupOfPlateView(problem, v)));
     }
@@ -187,7 +191,7 @@ void SetCameraPrior(const Camera& c, ba::IntrinsicsGroup* grp) {
 
 // Group g's initial intrinsics and plate poses: carmba's calibration of the group's plate views
 // (Zhang, then its bundle adjustment), from camera.json's intrinsics when given.
-StatusOr<ba::IntrinsicsGroup> InitialGroup(const JointProblem& problem,
+StatusOr<ba::IntrinsicsGroup> InitialGroup(const Problem& problem,
                                            const SolverConfig& config,
                                            const GroupAssignment& groups,
                                            size_t g,
@@ -231,7 +235,7 @@ StatusOr<ba::IntrinsicsGroup> InitialGroup(const JointProblem& problem,
 }
 
 // The plate views, each initialised by its group's calibration.
-void AddPlateViews(const JointProblem& problem,
+void AddPlateViews(const Problem& problem,
                    const GroupAssignment& groups,
                    const std::vector<std::vector<Pose6>>& plate_poses,
                    ba::BaProblem* bp) {
@@ -253,7 +257,7 @@ void AddPlateViews(const JointProblem& problem,
 
 // The fiducials and the object views, each initialised by the config's initializer with its
 // group's initial intrinsics; the validation pairs as view indices into sol->pairs.
-Status AddObjectViews(const JointProblem& problem,
+Status AddObjectViews(const Problem& problem,
                       const SolverConfig& config,
                       const GroupAssignment& groups,
                       ba::BaProblem* bp,
@@ -285,7 +289,7 @@ Status AddObjectViews(const JointProblem& problem,
 
 // The engine's problem with initial values: groups, plate points, plate views, fiducials and
 // object views, the C-arm angles of the views that have them.
-Status JointBaProblem(const JointProblem& problem, const SolverConfig& config, JointSolution* sol) {
+Status JointBaProblem(const Problem& problem, const SolverConfig& config, JointSolution* sol) {
   ba::BaProblem& bp = sol->ba_problem;
   bp.name = problem.name;
   bp.marker_radius_mm = problem.marker_diameter_mm / 2;
@@ -316,7 +320,7 @@ Status JointBaProblem(const JointProblem& problem, const SolverConfig& config, J
 
 // The intrinsics and distortion models: the distortion selection, the smooth model's basis,
 // the comparison of the intrinsics models when asked, and the smooth model applied.
-Status ApplyModels(const JointProblem& problem,
+Status ApplyModels(const Problem& problem,
                    const SolverConfig& config,
                    const ba::BaOptions& options,
                    JointSolution* sol) {
@@ -381,7 +385,7 @@ void TwoStepProblems(const ba::BaProblem& bp,
 
 // The joint solve against the two-step one (calibration alone, then the object views with its
 // intrinsics held, or with its covariance as prior): sol->comparison, or why it is missing.
-void CompareWithTwoStep(const JointProblem& problem, const ba::BaOptions& options, JointSolution* sol) {
+void CompareWithTwoStep(const Problem& problem, const ba::BaOptions& options, JointSolution* sol) {
   if (problem.object_views.empty() || problem.plate.views.empty()) {
     sol->comparison_error = "needs both plate and object views";
     return;
@@ -417,7 +421,7 @@ void CompareWithTwoStep(const JointProblem& problem, const ba::BaOptions& option
 
 }  // namespace
 
-StatusOr<JointSolution> SolveJointProblem(const JointProblem& problem, const SolverConfig& config) {
+StatusOr<JointSolution> SolveJointProblem(const Problem& problem, const SolverConfig& config) {
   CARMBA_RETURN_IF_ERROR(CheckJointConfig(config));
   JointSolution sol;
   CARMBA_RETURN_IF_ERROR(JointBaProblem(problem, config, &sol));

@@ -1,28 +1,23 @@
-// The pose bundle adjustment (pose_problem.h).
+// The pose bundle adjustment (pose_solver.h).
+#include "problem/pose_solver.h"
+
 #include <ceres/ceres.h>
 #include <ceres/jet.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <opencv2/calib3d.hpp>
 #include <limits>
 #include <memory>
+#include <opencv2/calib3d.hpp>
 #include <set>
 
 #include "ba/bundle_adjuster.h"
 #include "geometry/rotation.h"
 #include "pose/posit.h"
-#include "problem/pose_problem.h"
 #include "util/stats.h"
 
 namespace carmba {
-
-Eigen::Vector3d MarkerInProblemFrame(const PoseProblem& problem, const Marker& m) {
-  Eigen::Vector3d p = m.p_in_object;
-  if (problem.handedness == Handedness::kMirrored) p.y() = -p.y();
-  return p;
-}
 
 StatusOr<std::pair<std::vector<int>, Eigen::MatrixXd>> ConsideredCalibration(const Camera& camera) {
   std::pair<std::vector<int>, Eigen::MatrixXd> out;
@@ -67,7 +62,7 @@ ba::BaView ToBaObjectView(const PoseView& pose_view, double sigma_px) {
 
 namespace {
 
-Eigen::Matrix3d MarkerCovarianceInProblemFrame(const PoseProblem& problem, const Marker& m) {
+Eigen::Matrix3d MarkerCovarianceInProblemFrame(const Problem& problem, const Marker& m) {
   if (problem.handedness == Handedness::kAsGiven) return m.covariance;
   const Eigen::Matrix3d F = Eigen::Vector3d(1, -1, 1).asDiagonal();
   return F * m.covariance * F;
@@ -150,13 +145,13 @@ namespace {
 
 // The markers some view observes, in the problem frame (an unobserved marker would add nothing
 // but its own prior).
-std::map<int, Eigen::Vector3d> ObservedMarkers(const PoseProblem& problem) {
+std::map<int, Eigen::Vector3d> ObservedMarkers(const Problem& problem) {
   std::set<int> observed;
-  for (const auto& v : problem.views) {
+  for (const auto& v : problem.object_views) {
     for (const auto& o : v.observations) observed.insert(o.marker_id);
   }
   std::map<int, Eigen::Vector3d> markers;
-  for (const auto& m : problem.markers) {
+  for (const auto& m : problem.fiducials) {
     if (observed.count(m.id)) markers[m.id] = MarkerInProblemFrame(problem, m);
   }
   return markers;
@@ -164,14 +159,14 @@ std::map<int, Eigen::Vector3d> ObservedMarkers(const PoseProblem& problem) {
 
 // One intrinsics group held at the camera's values, with camera.json's covariance considered
 // when the config asks.
-StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const PoseProblem& problem, const SolverConfig& config) {
+StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const Problem& problem, const SolverConfig& config) {
   ba::IntrinsicsGroup g;
-  std::copy(problem.camera.params.begin(), problem.camera.params.end(), g.initial.begin());
+  std::copy(problem.camera->params.begin(), problem.camera->params.end(), g.initial.begin());
   g.free.fill(false);
-  g.width = problem.camera.width;
-  g.height = problem.camera.height;
+  g.width = problem.camera->width;
+  g.height = problem.camera->height;
   if (config.consider_calibration) {
-    auto considered = ConsideredCalibration(problem.camera);
+    auto considered = ConsideredCalibration(*problem.camera);
     if (!considered.ok()) return Status::Error(problem.path + ": camera: " + considered.status().message());
     g.consider_indices = considered->first;
     g.consider_covariance = considered->second;
@@ -182,7 +177,7 @@ StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const PoseProblem& problem, const S
 // The engine's problem: the held intrinsics, one object view per pose view initialised by the
 // config's initializer, the observed markers tied to their CT measurements. Fills each view's
 // initial pose into `sol`.
-StatusOr<ba::BaProblem> PoseBaProblem(const PoseProblem& problem,
+StatusOr<ba::BaProblem> PoseBaProblem(const Problem& problem,
                                       const SolverConfig& config,
                                       const std::map<int, Eigen::Vector3d>& markers,
                                       const ProgressFn& progress,
@@ -194,33 +189,33 @@ StatusOr<ba::BaProblem> PoseBaProblem(const PoseProblem& problem,
   if (!group.ok()) return group.status();
   bp.groups.push_back(*group);
   std::map<int, const Marker*> marker_by_id;
-  for (const auto& m : problem.markers) marker_by_id[m.id] = &m;
+  for (const auto& m : problem.fiducials) marker_by_id[m.id] = &m;
   for (const auto& [id, p] : markers) {
     bp.markers.push_back({id, p, MarkerCovarianceInProblemFrame(problem, *marker_by_id.at(id))});
   }
-  sol->views.resize(problem.views.size());
-  for (size_t v = 0; v < problem.views.size(); ++v) {
-    ba::BaView view = ToBaObjectView(problem.views[v], problem.sigma_px);
+  sol->views.resize(problem.object_views.size());
+  for (size_t v = 0; v < problem.object_views.size(); ++v) {
+    ba::BaView view = ToBaObjectView(problem.object_views[v], problem.object_sigma_px);
     std::vector<Eigen::Vector3d> pts;
     for (int id : view.point_ids) pts.push_back(markers.at(id));
-    auto init = InitialObjectPose(problem.camera, config.initializer, pts, view.uv_px);
+    auto init = InitialObjectPose(*problem.camera, config.initializer, pts, view.uv_px);
     if (!init.ok()) {
-      return Status::Error(problem.path + ": view '" + problem.views[v].id + "': " +
-                           init.status().message());
+      return Status::Error(problem.path + ": view '" + problem.object_views[v].id +
+                           "': " + init.status().message());
     }
     view.initial = *init;
     bp.views.push_back(view);
     ViewSolution& vs = sol->views[v];
-    vs.id = problem.views[v].id;
+    vs.id = problem.object_views[v].id;
     vs.initial = *init;
-    vs.num_observations = static_cast<int>(problem.views[v].observations.size());
-    if (progress) progress(problem.views[v].id);
+    vs.num_observations = static_cast<int>(problem.object_views[v].observations.size());
+    if (progress) progress(problem.object_views[v].id);
   }
   return bp;
 }
 
 // The engine's failures with the pose problem's advice.
-Status PoseSolveError(const PoseProblem& problem, const Status& s) {
+Status PoseSolveError(const Problem& problem, const Status& s) {
   switch (s.kind()) {
     case ErrorKind::kNotDetermined:
       return Status::Error(problem.path + ": " + s.message() +
@@ -235,7 +230,7 @@ Status PoseSolveError(const PoseProblem& problem, const Status& s) {
 }
 
 // The solution's poses, markers and statistics from the engine's result.
-std::vector<Pose6> TakePoseSolution(const PoseProblem& problem,
+std::vector<Pose6> TakePoseSolution(const Problem& problem,
                                     const SolverConfig& config,
                                     std::map<int, Eigen::Vector3d> markers,
                                     PoseSolution* sol) {
@@ -245,7 +240,7 @@ std::vector<Pose6> TakePoseSolution(const PoseProblem& problem,
   sol->initial_cost = r.initial_cost;
   sol->termination = config.refine ? r.termination : "NOT_REFINED";
   sol->final_cost = config.refine ? r.final_cost : sol->initial_cost;
-  const size_t V = problem.views.size();
+  const size_t V = problem.object_views.size();
   std::vector<Pose6> poses(V);
   for (size_t v = 0; v < V; ++v) {
     for (int i = 0; i < 6; ++i) poses[v][i] = r.block(L.view_block(static_cast<int>(v)))[i];
@@ -268,14 +263,14 @@ std::vector<Pose6> TakePoseSolution(const PoseProblem& problem,
   sol->num_parameters = r.num_free;
   sol->dof = r.dof;
   sol->sigma0 = r.sigma0;
-  sol->sigma_aposteriori_px = sol->sigma0 * problem.sigma_px;
+  sol->sigma_aposteriori_px = sol->sigma0 * problem.object_sigma_px;
   sol->chi2_p_value = r.chi2_p_value;
   return poses;
 }
 
 // The joint covariance of all poses -- the engine's Schur covariance, or ceres::Covariance over
 // the same problem (the configs' reference algorithms) -- and each view's sigmas (NaN unrefined).
-Status PoseCovariance(const PoseProblem& problem,
+Status PoseCovariance(const Problem& problem,
                       const SolverConfig& config,
                       const ba::BaOptions& options,
                       const std::vector<Pose6>& poses,
@@ -350,12 +345,17 @@ PairSolution ValidationPairSolution(const ValidationPair& pair,
 
 }  // namespace
 
-StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
+StatusOr<PoseSolution> SolvePoseProblem(const Problem& problem,
                                         const SolverConfig& config,
                                         const ProgressFn& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   std::string err;
   if (!config.Check(&err)) return Status::Error(config.path + ": " + err);
+  if (!problem.IsPoseProblem() || !problem.camera) {
+    return Status::Error(problem.path +
+                         ": not a pose problem (it needs object views only and the "
+                         "camera, without an intrinsics prior): solve it as a joint problem");
+  }
   CARMBA_RETURN_IF_ERROR(problem.Check());
   PoseSolution sol;
   sol.config_name = config.name;
@@ -371,7 +371,7 @@ StatusOr<PoseSolution> SolvePoseProblem(const PoseProblem& problem,
   CARMBA_RETURN_IF_ERROR(PoseCovariance(problem, config, options, poses, &sol));
 
   std::map<std::string, size_t> index;
-  for (size_t v = 0; v < problem.views.size(); ++v) index[problem.views[v].id] = v;
+  for (size_t v = 0; v < problem.object_views.size(); ++v) index[problem.object_views[v].id] = v;
   for (const auto& pr : problem.validation) {
     const size_t ia = index.at(pr.a), ib = index.at(pr.b);
     sol.validation.push_back(ValidationPairSolution(pr, ia, ib, poses, sol));

@@ -9,15 +9,15 @@
 #include <map>
 #include <optional>
 
-#include "ba/quantities.h"
 #include "analysis/triangulation.h"
+#include "ba/quantities.h"
 #include "calib/crosscheck.h"
 #include "export/geometry_export.h"
 #include "export/view_geometry.h"
-#include "joint/joint_problem.h"
-#include "report/joint_report.h"
-#include "problem/pose_problem.h"
+#include "joint/joint_solver.h"
+#include "problem/pose_solver.h"
 #include "python/bindings.h"
+#include "report/joint_report.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
 #include "util/file_util.h"
@@ -29,10 +29,9 @@ namespace {
 struct Solved {
   std::string kind;  // "pose" | "joint"
   SolverConfig config;
-  std::shared_ptr<const PoseProblem> pose_problem;
-  std::shared_ptr<const PoseSolution> pose;
-  std::shared_ptr<const JointProblem> joint_problem;
-  std::shared_ptr<const JointSolution> joint;
+  std::shared_ptr<const Problem> input;        // the problem as read (problem/problem.h)
+  std::shared_ptr<const PoseSolution> pose;    // kind pose
+  std::shared_ptr<const JointSolution> joint;  // kind joint
   std::shared_ptr<const ba::BaProblem> bp;  // the engine's problem and result (both kinds)
   std::shared_ptr<const ba::BaResult> br;
   nlohmann::json json;  // result.json
@@ -181,7 +180,7 @@ std::vector<View> JointViews(const Solved& s) {
 
 // ---- intrinsics
 std::vector<Intrinsics> PoseIntrinsics(const Solved& s) {
-  const Camera& c = s.pose_problem->camera;
+  const Camera& c = *s.input->camera;
   Intrinsics in;
   in.group = "shared";
   in.names.assign(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics);
@@ -228,7 +227,7 @@ std::vector<std::pair<int, int>> PosePairs(const Solved& s) {
   std::map<std::string, int> index;
   for (size_t v = 0; v < s.bp->views.size(); ++v) index[s.bp->views[v].id] = static_cast<int>(v);
   std::vector<std::pair<int, int>> pairs;
-  for (const auto& p : s.pose_problem->validation) pairs.emplace_back(index.at(p.a), index.at(p.b));
+  for (const auto& p : s.input->validation) pairs.emplace_back(index.at(p.a), index.at(p.b));
   return pairs;
 }
 
@@ -290,29 +289,28 @@ py::dict Statistics(const Solved& s) {
 }
 
 // ---- solve
-std::shared_ptr<Solved> SolvePose(const std::string& problem_path, const SolverConfig& config) {
+std::shared_ptr<Solved> SolvePose(std::shared_ptr<const Problem> problem,
+                                  const SolverConfig& config) {
   auto s = std::make_shared<Solved>();
   s->kind = "pose";
   s->config = config;
-  auto problem = std::make_shared<PoseProblem>(ValueOrThrow(LoadPoseProblem(problem_path)));
   auto solution = std::make_shared<PoseSolution>(ValueOrThrow(SolvePoseProblem(*problem, config)));
   const PoseComparison comparison = ComparePoseMethods(*problem, config, *solution);
   s->json = PoseResultJson(*problem, *solution, comparison);
   s->mirrored = problem->handedness == Handedness::kMirrored;
   s->bp = solution->ba_problem;
   s->br = solution->ba_result;
-  s->pose_problem = problem;
+  s->input = problem;
   s->pose = solution;
   return s;
 }
 
-std::shared_ptr<Solved> SolveJoint(const std::string& problem_path,
+std::shared_ptr<Solved> SolveJoint(std::shared_ptr<const Problem> problem,
                                    const SolverConfig& config,
                                    bool mrcal_crosscheck) {
   auto s = std::make_shared<Solved>();
   s->kind = "joint";
   s->config = config;
-  auto problem = std::make_shared<JointProblem>(ValueOrThrow(LoadJointProblem(problem_path)));
   auto solution = std::make_shared<JointSolution>(ValueOrThrow(SolveJointProblem(*problem, config)));
   s->json = JointSolutionToJson(*problem, config, *solution);
   if (mrcal_crosscheck) {
@@ -330,7 +328,7 @@ std::shared_ptr<Solved> SolveJoint(const std::string& problem_path,
   }
   s->bp = std::shared_ptr<const ba::BaProblem>(solution, &solution->ba_problem);
   s->br = std::shared_ptr<const ba::BaResult>(solution, &solution->result);
-  s->joint_problem = problem;
+  s->input = problem;
   s->joint = solution;
   return s;
 }
@@ -340,13 +338,14 @@ std::shared_ptr<Solved> Solve(const std::string& problem_path,
                               bool mrcal_crosscheck) {
   py::gil_scoped_release release;
   const SolverConfig config = ValueOrThrow(LoadSolverConfig(config_path));
-  if (IsJointProblemFile(problem_path)) return SolveJoint(problem_path, config, mrcal_crosscheck);
-  return SolvePose(problem_path, config);
+  auto problem = std::make_shared<const Problem>(ValueOrThrow(LoadProblem(problem_path)));
+  if (!problem->IsPoseProblem()) return SolveJoint(problem, config, mrcal_crosscheck);
+  return SolvePose(problem, config);
 }
 
 GeometrySet Geometry(const Solved& s) {
-  return s.kind == "joint" ? JointSolutionGeometry(*s.joint_problem, *s.joint)
-                           : PoseSolutionGeometry(*s.pose_problem, *s.pose);
+  return s.kind == "joint" ? JointSolutionGeometry(*s.input, *s.joint)
+                           : PoseSolutionGeometry(*s.input, *s.pose);
 }
 
 // ---- triangulate (cmd_triangulate.cc): pixels {view id: (u, v)} of object views.

@@ -65,7 +65,7 @@ nlohmann::json FlexModelJson(const JointSolution& s) {
           {"image_size", {g.width, g.height}}};
 }
 
-void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::json* j) {
+void AddFlexJson(const Problem& problem, const JointSolution& s, nlohmann::json* j) {
   const ba::BaProblem& bp = s.ba_problem;
   for (size_t v = 0; v < bp.views.size(); ++v) {
     nlohmann::json& vj = (*j)["views"][v];
@@ -152,7 +152,7 @@ void AddFlexJson(const JointProblem& problem, const JointSolution& s, nlohmann::
   }
 }
 
-ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& s) {
+ReportDoc FlexReportDoc(const Problem& problem, const JointSolution& s) {
   ReportDoc d;
   if (!AnyAngles(s) && !problem.smooth) return d;
   const ba::BaProblem& bp = s.ba_problem;

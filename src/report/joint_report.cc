@@ -48,7 +48,7 @@ nlohmann::json GroupJson(const JointSolution& s, int g) {
 
 }  // namespace
 
-GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& s) {
+GeometrySet JointSolutionGeometry(const Problem& problem, const JointSolution& s) {
   const ba::StateLayout& L = *s.result.layout;
   GeometrySet g;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
@@ -74,7 +74,7 @@ GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSoluti
 namespace {
 
 // Every view: its pose, RMS and, for object views, the covariance, sigmas and the truth.
-nlohmann::json ViewsJson(const JointProblem& problem, const JointSolution& s) {
+nlohmann::json ViewsJson(const Problem& problem, const JointSolution& s) {
   const ba::StateLayout& L = *s.result.layout;
   const ba::BaResult& r = s.result;
   nlohmann::json views = nlohmann::json::array();
@@ -117,7 +117,7 @@ nlohmann::json ViewsJson(const JointProblem& problem, const JointSolution& s) {
 }
 
 // The validation pairs' relative rotations and view-direction angles with their sigmas.
-nlohmann::json ValidationJson(const JointProblem& problem, const JointSolution& s) {
+nlohmann::json ValidationJson(const Problem& problem, const JointSolution& s) {
   nlohmann::json val = nlohmann::json::array();
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
@@ -161,7 +161,7 @@ nlohmann::json TwoStepComparisonJson(const JointSolution& s) {
 
 }  // namespace
 
-nlohmann::json JointSolutionToJson(const JointProblem& problem,
+nlohmann::json JointSolutionToJson(const Problem& problem,
                                    const SolverConfig& config,
                                    const JointSolution& s) {
   const ba::StateLayout& L = *s.result.layout;
@@ -245,7 +245,7 @@ std::vector<std::string> JointWarnings(const JointSolution& s) {
 namespace {
 
 // The title and what was solved how.
-void JointIntroDoc(const JointProblem& problem, const SolverConfig& config, ReportDoc* doc) {
+void JointIntroDoc(const Problem& problem, const SolverConfig& config, ReportDoc* doc) {
   ReportDoc& d = *doc;
   d.Heading(1, "Joint bundle adjustment: " + problem.name);
   if (!problem.description.empty()) d.Paragraph(problem.description);
@@ -284,7 +284,7 @@ void JointStatisticsDoc(const JointSolution& s, ReportDoc* doc) {
 }
 
 // The intrinsics of each group (not smooth: FlexReportDoc) against the truth when known.
-void JointIntrinsicsDoc(const JointProblem& problem, const JointSolution& s, ReportDoc* doc) {
+void JointIntrinsicsDoc(const Problem& problem, const JointSolution& s, ReportDoc* doc) {
   ReportDoc& d = *doc;
   const ba::BaResult& r = s.result;
   d.Heading(2, "Intrinsics");
@@ -328,7 +328,10 @@ void JointSigmaWarningsDoc(const SolverConfig& config, const JointSolution& s, R
 }
 
 // The validation pairs against their expected angles and the truth.
-void JointValidationDoc(const JointProblem& problem, const JointSolution& s, const std::string& sigma_note, ReportDoc* doc) {
+void JointValidationDoc(const Problem& problem,
+                        const JointSolution& s,
+                        const std::string& sigma_note,
+                        ReportDoc* doc) {
   ReportDoc& d = *doc;
   d.Heading(2, "Validation pairs (object views)");
   d.Paragraph(sigma_note);
@@ -369,7 +372,7 @@ void JointValidationDoc(const JointProblem& problem, const JointSolution& s, con
 }
 
 // The joint sigmas against the two-step ones.
-void JointTwoStepDoc(const JointProblem& problem, const JointSolution& s, ReportDoc* doc) {
+void JointTwoStepDoc(const Problem& problem, const JointSolution& s, ReportDoc* doc) {
   ReportDoc& d = *doc;
   d.Heading(2, "Joint against two-step");
   if (!s.comparison_error.empty()) {
@@ -431,7 +434,7 @@ void JointOutliersDoc(const SolverConfig& config, const JointSolution& s, Report
 
 }  // namespace
 
-ReportDoc JointReportDoc(const JointProblem& problem,
+ReportDoc JointReportDoc(const Problem& problem,
                          const SolverConfig& config,
                          const JointSolution& s) {
   ReportDoc d;

@@ -1,29 +1,28 @@
-// The outputs of a joint solve (joint/joint_problem.h) above the engine: result.json,
+// The outputs of a joint solve (joint/joint_solver.h) above the engine: result.json,
 // geometry.json's content, report.md / report.html and the report's plot data, the C-arm flex
 // sections (flex_report.cc) and the mrcal cross-check's section.
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "export/view_geometry.h"
-#include "joint/joint_problem.h"
+#include "joint/joint_solver.h"
 #include "report/report_doc.h"
 
 namespace carmba {
 
-nlohmann::json JointSolutionToJson(const JointProblem& problem,
+nlohmann::json JointSolutionToJson(const Problem& problem,
                                    const SolverConfig& config,
                                    const JointSolution& solution);
 // geometry.json's content (export/view_geometry.h): the object views, each with the
 // intrinsics of its group (the full model) and its cam_from_object (the object frame is the CT
 // frame of the fiducials); the reference point the fiducials' centroid.
-GeometrySet JointSolutionGeometry(const JointProblem& problem, const JointSolution& solution);
+GeometrySet JointSolutionGeometry(const Problem& problem, const JointSolution& solution);
 
 // The report (report.md and report.html; report/report_doc.h) and its plot data (report/plots.h).
-ReportDoc JointReportDoc(const JointProblem& problem,
+ReportDoc JointReportDoc(const Problem& problem,
                          const SolverConfig& config,
                          const JointSolution& solution);
 nlohmann::json JointPlotData(const JointSolution& solution);
@@ -40,11 +39,11 @@ ReportDoc JointMrcalDoc(const nlohmann::json& crosscheck);
 // camera.json writes them) into result.json's views, the smooth model's coefficients and
 // covariance ("intrinsics_model"), the model selection ("model_selection") and the intrinsics
 // along the primary angle with their sigma ("intrinsics_curve", for the plot).
-void AddFlexJson(const JointProblem& problem, const JointSolution& solution, nlohmann::json* j);
+void AddFlexJson(const Problem& problem, const JointSolution& solution, nlohmann::json* j);
 nlohmann::json FlexModelJson(const JointSolution& solution);
 // The report's sections on the intrinsics per view (against the truth when it has them) and on
 // the model selection, with the place of the plot "intrinsics-vs-angle" (report.html).
-ReportDoc FlexReportDoc(const JointProblem& problem, const JointSolution& solution);
+ReportDoc FlexReportDoc(const Problem& problem, const JointSolution& solution);
 // The plot's data from result.json (AddFlexJson's keys) into the report's plot data
 // ("intrinsics_vs_angle", drawn by scripts/report_plots.py); nothing without angles.
 void AddFlexPlotData(const nlohmann::json& result, nlohmann::json* plot_data);

@@ -3,12 +3,12 @@
 #include <cmath>
 
 #include "geometry/rotation.h"
-#include "problem/pose_problem.h"
-#include "util/format.h"
+#include "problem/pose_solver.h"
 #include "report/engine_json.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
 #include "report/variance_report.h"
+#include "util/format.h"
 
 namespace carmba {
 nlohmann::json PoseToJson(const Pose6& p) {
@@ -31,14 +31,14 @@ std::vector<ba::BudgetRow> PoseErrorBudget(const PoseSolution& s) {
   return budget;
 }
 
-nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& s) {
+nlohmann::json PoseSolutionToJson(const Problem& problem, const PoseSolution& s) {
   nlohmann::json j;
-  j["problem"] = {{"name", problem.name},
-                  {"file", problem.path},
-                  {"sigma_px", problem.sigma_px},
-                  {"handedness",
-                   problem.handedness == Handedness::kMirrored ? "mirrored" : "as_given"},
-                  {"camera", CameraToJson(problem.camera)}};
+  j["problem"] = {
+      {"name", problem.name},
+      {"file", problem.path},
+      {"sigma_px", problem.object_sigma_px},
+      {"handedness", problem.handedness == Handedness::kMirrored ? "mirrored" : "as_given"},
+      {"camera", CameraToJson(*problem.camera)}};
   nlohmann::json views = nlohmann::json::array();
   for (const auto& v : s.views) {
     nlohmann::json vj;
@@ -55,8 +55,8 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
     vj["num_observations"] = v.num_observations;
     vj["initial"] = PoseToJson(v.initial);
     vj["initial_rms_px"] = JsonNumber(v.initial_rms_px);
-    if (problem.truth_poses.count(v.id)) {
-      const Pose6& t = problem.truth_poses.at(v.id);
+    if (problem.truth.object_poses.count(v.id)) {
+      const Pose6& t = problem.truth.object_poses.at(v.id);
       vj["truth"] = PoseToJson(t);
       vj["rotation_error_deg"] =
           AngleBetweenRotations(RotationFromRvec(v.cam_from_object.head<3>()),
@@ -99,20 +99,22 @@ nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution
   j["solver"]["final_cost"] = JsonNumber(s.final_cost);
   j["solver"]["time_s"] = s.time_s;
   if (s.has_covariance) j["joint_covariance"] = JsonRows(s.joint_covariance);
-  if (s.ba_problem) j["relative_poses"] = RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth_poses);
+  if (s.ba_problem)
+    j["relative_poses"] =
+        RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth.object_poses);
   if (s.tre) j["tre"] = TreJson(*s.tre);
   return j;
 }
 
-GeometrySet PoseSolutionGeometry(const PoseProblem& problem, const PoseSolution& s) {
+GeometrySet PoseSolutionGeometry(const Problem& problem, const PoseSolution& s) {
   GeometrySet g;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (const auto& m : problem.markers) centroid += m.p_in_object;
-  if (!problem.markers.empty()) g.reference_point_ct_mm = centroid / problem.markers.size();
+  for (const auto& m : problem.fiducials) centroid += m.p_in_object;
+  if (!problem.fiducials.empty()) g.reference_point_ct_mm = centroid / problem.fiducials.size();
   for (const auto& v : s.views) {
     ViewGeometry vg;
     vg.id = v.id;
-    vg.camera = problem.camera;  // one camera for all views in a pose problem
+    vg.camera = *problem.camera;  // one camera for all views in a pose problem
     vg.cam_from_ct = v.cam_from_object;
     vg.ct_mirrored = problem.handedness == Handedness::kMirrored;
     g.views.push_back(vg);

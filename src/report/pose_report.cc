@@ -19,7 +19,7 @@ const char* HandName(Handedness h) { return h == Handedness::kMirrored ? "mirror
 
 }  // namespace
 
-PoseComparison ComparePoseMethods(const PoseProblem& problem,
+PoseComparison ComparePoseMethods(const Problem& problem,
                                   const SolverConfig& config,
                                   const PoseSolution& solution) {
   PoseComparison c;
@@ -27,9 +27,9 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
   if (problem.legacy_reference) {
     ref = *problem.legacy_reference;
   } else {
-    ref.focal_px = 0.5 * (problem.camera.params[kFx] + problem.camera.params[kFy]);
-    ref.cx_px = problem.camera.params[kCx];
-    ref.cy_px = problem.camera.params[kCy];
+    ref.focal_px = 0.5 * (problem.camera->params[kFx] + problem.camera->params[kFy]);
+    ref.cx_px = problem.camera->params[kCx];
+    ref.cy_px = problem.camera->params[kCy];
     ref.y_up = false;
   }
   c.legacy_settings = "cvPOSIT (float32, non-orthonormal), focal " + Fmt("%.4f", ref.focal_px) +
@@ -37,9 +37,9 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
                       ") px, image y axis " + (ref.y_up ? "up (thesis)" : "down") +
                       ", object frame as given, no distortion";
   std::map<int, Eigen::Vector3d> as_given;
-  for (const auto& m : problem.markers) as_given[m.id] = m.p_in_object;
+  for (const auto& m : problem.fiducials) as_given[m.id] = m.p_in_object;
   std::map<std::string, Eigen::Matrix3d> legacy_R;
-  for (const auto& v : problem.views) {
+  for (const auto& v : problem.object_views) {
     std::vector<Eigen::Vector3d> pts;
     std::vector<Eigen::Vector2d> img;
     for (const auto& o : v.observations) {
@@ -81,7 +81,7 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
     }
   }
   // The other handedness.
-  PoseProblem other = problem;
+  Problem other = problem;
   other.handedness =
       problem.handedness == Handedness::kMirrored ? Handedness::kAsGiven : Handedness::kMirrored;
   // Both handednesses are compared after the bundle adjustment, also when this config does not
@@ -110,7 +110,7 @@ PoseComparison ComparePoseMethods(const PoseProblem& problem,
   return c;
 }
 
-nlohmann::json PoseResultJson(const PoseProblem& problem,
+nlohmann::json PoseResultJson(const Problem& problem,
                               const PoseSolution& solution,
                               const PoseComparison& comparison) {
   nlohmann::json j = PoseSolutionToJson(problem, solution);
@@ -118,7 +118,7 @@ nlohmann::json PoseResultJson(const PoseProblem& problem,
   return j;
 }
 
-nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseComparison& c) {
+nlohmann::json PoseComparisonToJson(const Problem& problem, const PoseComparison& c) {
   nlohmann::json j;
   nlohmann::json lv = nlohmann::json::array();
   for (const auto& v : c.legacy) {
@@ -155,13 +155,16 @@ namespace {
 
 // The thesis's printed angles and the legacy POSIT comparison are shown where the problem has
 // them (the thesis problems: `reference`), not for data that has neither.
-bool HasThesisAngles(const PoseProblem& problem) { return !problem.reference_angles_deg.empty(); }
-bool HasLegacyReference(const PoseProblem& problem) { return problem.legacy_reference.has_value(); }
+bool HasThesisAngles(const Problem& problem) { return !problem.reference_angles_deg.empty(); }
+bool HasLegacyReference(const Problem& problem) { return problem.legacy_reference.has_value(); }
 
 // The validation pairs' angles, when the problem has validation pairs.
-void PoseValidationDoc(const PoseProblem& problem, const SolverConfig& config,
-                       const PoseSolution& s, const PoseComparison& c,
-                       const std::string& sigma_used, ReportDoc* doc) {
+void PoseValidationDoc(const Problem& problem,
+                       const SolverConfig& config,
+                       const PoseSolution& s,
+                       const PoseComparison& c,
+                       const std::string& sigma_used,
+                       ReportDoc* doc) {
   if (s.validation.empty()) return;
   ReportDoc& d = *doc;
   d.Heading(2, "Validation: angles between views (deg)");
@@ -212,8 +215,11 @@ void PoseValidationDoc(const PoseProblem& problem, const SolverConfig& config,
 
 // The reprojection RMS per view: the initializer's and the solution's, legacy POSIT's where the
 // problem has a legacy reference, and the other handedness's.
-void PoseRmsDoc(const PoseProblem& problem, const SolverConfig& config, const PoseSolution& s,
-                const PoseComparison& c, ReportDoc* doc) {
+void PoseRmsDoc(const Problem& problem,
+                const SolverConfig& config,
+                const PoseSolution& s,
+                const PoseComparison& c,
+                ReportDoc* doc) {
   ReportDoc& d = *doc;
   const bool legacy = HasLegacyReference(problem);
   d.Heading(2, "Reprojection RMS per view (px, per coordinate)");
@@ -250,7 +256,7 @@ void PoseRmsDoc(const PoseProblem& problem, const SolverConfig& config, const Po
 
 }  // namespace
 
-ReportDoc PoseReportDoc(const PoseProblem& problem,
+ReportDoc PoseReportDoc(const Problem& problem,
                         const SolverConfig& config,
                         const PoseSolution& s,
                         const PoseComparison& c) {
@@ -260,14 +266,15 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
               InitializerName(config.initializer) + ", " +
               (config.analytic_jacobians ? "analytic" : "autodiff") + " Jacobians, loss " +
               config.loss + ", " + config.linear_solver + ")",
-          "Camera: fx " + Fmt("%.3f", problem.camera.params[kFx]) + ", fy " +
-              Fmt("%.3f", problem.camera.params[kFy]) + ", cx " +
-              Fmt("%.3f", problem.camera.params[kCx]) + ", cy " +
-              Fmt("%.3f", problem.camera.params[kCy]) + " px (held fixed); pixel sigma " +
-              Fmt("%.3g", problem.sigma_px) + " px; object frame " + HandName(problem.handedness),
-          "Solver: " + s.termination + " after " + std::to_string(s.iterations) +
-              " iterations, " + Fmt("%.2f", s.time_s * 1e3) + " ms; cost " +
-              Fmt("%.4g", s.initial_cost) + " -> " + Fmt("%.4g", s.final_cost)});
+          "Camera: fx " + Fmt("%.3f", problem.camera->params[kFx]) + ", fy " +
+              Fmt("%.3f", problem.camera->params[kFy]) + ", cx " +
+              Fmt("%.3f", problem.camera->params[kCx]) + ", cy " +
+              Fmt("%.3f", problem.camera->params[kCy]) + " px (held fixed); pixel sigma " +
+              Fmt("%.3g", problem.object_sigma_px) + " px; object frame " +
+              HandName(problem.handedness),
+          "Solver: " + s.termination + " after " + std::to_string(s.iterations) + " iterations, " +
+              Fmt("%.2f", s.time_s * 1e3) + " ms; cost " + Fmt("%.4g", s.initial_cost) + " -> " +
+              Fmt("%.4g", s.final_cost)});
   if (!c.handedness_warning.empty()) d.Warning(c.handedness_warning + ".");
   if (config.refine && s.termination != "CONVERGENCE") {
     d.Warning("the bundle adjustment did not converge (" + s.termination +
@@ -276,7 +283,7 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
 
   // Which pixel sigma the uncertainties below rest on (said wherever an uncertainty is shown).
   const std::string sigma_used = CovarianceScaleNote(config.covariance_scale) + " (pixel sigma " +
-                                 Fmt("%.3g", problem.sigma_px) + " px as stated)";
+                                 Fmt("%.3g", problem.object_sigma_px) + " px as stated)";
   PoseValidationDoc(problem, config, s, c, sigma_used, &d);
   PoseRmsDoc(problem, config, s, c, &d);
 
@@ -308,16 +315,18 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
   }
   d.Heading(2, "Statistics");
   d.List({"Residuals: " + std::to_string(s.num_residuals) +
-              " (reprojection and CT prior), free parameters " +
-              std::to_string(s.num_parameters) + ", degrees of freedom " + std::to_string(s.dof),
+              " (reprojection and CT prior), free parameters " + std::to_string(s.num_parameters) +
+              ", degrees of freedom " + std::to_string(s.dof),
           "Reprojection RMS " + Fmt("%.3f", s.rms_px) + " px per coordinate; a-posteriori sigma " +
               Fmt("%.3f", s.sigma_aposteriori_px) + " px (a-priori " +
-              Fmt("%.3f", problem.sigma_px) + " px, factor s0 = " + Fmt("%.3f", s.sigma0) + ")",
+              Fmt("%.3f", problem.object_sigma_px) + " px, factor s0 = " + Fmt("%.3f", s.sigma0) +
+              ")",
           "Chi-square " + Fmt("%.2f", s.chi2) + " on " + std::to_string(s.dof) +
               " dof, P(X > chi2) = " + Fmt("%.3f", s.chi2_p_value) +
-              (s.chi2_p_value < 0.01   ? " (residuals larger than the stated sigmas explain)"
-               : s.chi2_p_value > 0.99 ? " (residuals smaller than the stated sigmas: sigmas too large?)"
-                                       : " (consistent with the stated sigmas)"),
+              (s.chi2_p_value < 0.01 ? " (residuals larger than the stated sigmas explain)"
+               : s.chi2_p_value > 0.99
+                   ? " (residuals smaller than the stated sigmas: sigmas too large?)"
+                   : " (consistent with the stated sigmas)"),
           "Covariance: " + config.covariance_algorithm + ", " +
               CovarianceScaleNote(config.covariance_scale)});
   if (s.ba_result) {
@@ -330,20 +339,20 @@ ReportDoc PoseReportDoc(const PoseProblem& problem,
     for (const auto& w : warnings) d.Warning(w);
   }
   if (s.ba_problem) {
-    AppendRelativePoses(&d, *s.ba_problem, s.relative_poses, problem.truth_poses);
+    AppendRelativePoses(&d, *s.ba_problem, s.relative_poses, problem.truth.object_poses);
     d.Paragraph(ba::CalibrationUncertaintyNote(ba::CalibrationUncertaintyOf(*s.ba_problem)));
   }
   if (s.tre) AppendTre(&d, *s.tre);
   return d;
 }
 
-nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& s) {
+nlohmann::json PosePlotData(const Problem& problem, const PoseSolution& s) {
   if (!s.ba_problem || !s.ba_result) return {{"kind", "pose"}};
   const std::vector<ba::BudgetRow> budget = PoseErrorBudget(s);
   nlohmann::json d = BaPlotData(*s.ba_problem, *s.ba_result, &budget);
   d["kind"] = "pose";
-  if (!d.contains("image_size") && problem.camera.width > 0) {
-    d["image_size"] = {problem.camera.width, problem.camera.height};
+  if (!d.contains("image_size") && problem.camera->width > 0) {
+    d["image_size"] = {problem.camera->width, problem.camera->height};
   }
   return d;
 }

@@ -14,7 +14,7 @@
 
 #include "ba/quantities.h"
 #include "detect/marker_views.h"
-#include "problem/pose_problem.h"
+#include "problem/pose_solver.h"
 #include "report/report_doc.h"
 
 namespace carmba {
@@ -43,29 +43,29 @@ struct PoseComparison {
 // Ratio of RMS above which the other handedness is said to fit markedly better.
 constexpr double kHandednessWarnRatio = 1.5;
 
-PoseComparison ComparePoseMethods(const PoseProblem& problem,
+PoseComparison ComparePoseMethods(const Problem& problem,
                                   const SolverConfig& config,
                                   const PoseSolution& solution);
 
-nlohmann::json PoseComparisonToJson(const PoseProblem& problem, const PoseComparison& c);
+nlohmann::json PoseComparisonToJson(const Problem& problem, const PoseComparison& c);
 
 // result.json (the schema in the foundation issue: views[], validation[], statistics, solver);
 // report/pose_json.cc (an output beside report.md, so it sits with the reports).
-nlohmann::json PoseSolutionToJson(const PoseProblem& problem, const PoseSolution& solution);
+nlohmann::json PoseSolutionToJson(const Problem& problem, const PoseSolution& solution);
 
 // result.json as `carmba solve` writes it for a pose problem: PoseSolutionToJson with the
 // comparison (legacy POSIT, the other handedness) under "comparison". The CLI and the Python
 // module (src/python/) both write it through this.
-nlohmann::json PoseResultJson(const PoseProblem& problem,
+nlohmann::json PoseResultJson(const Problem& problem,
                               const PoseSolution& solution,
                               const PoseComparison& comparison);
 
 // The report (report.md and report.html) and its plot data (report/plots.h).
-ReportDoc PoseReportDoc(const PoseProblem& problem,
+ReportDoc PoseReportDoc(const Problem& problem,
                         const SolverConfig& config,
                         const PoseSolution& solution,
                         const PoseComparison& comparison);
-nlohmann::json PosePlotData(const PoseProblem& problem, const PoseSolution& solution);
+nlohmann::json PosePlotData(const Problem& problem, const PoseSolution& solution);
 
 // The report's section on the marker detection and labelling of views read from images
 // (`carmba pose --images`): per view the blobs, the markers labelled, the rejected candidates.

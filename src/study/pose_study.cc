@@ -9,20 +9,20 @@
 
 #include "analysis/flex_models.h"
 #include "ba/quantities.h"
-#include "geometry/random_vector.h"
-#include "synthetic/synthetic_joint.h"
-#include "synthetic/synthetic_flex.h"
 #include "ba/view_intrinsics.h"
 #include "calib/calibrate.h"
-#include "synthetic/synthetic_views.h"
 #include "camera/camera_model.h"
+#include "geometry/random_vector.h"
 #include "geometry/rotation.h"
-#include "joint/joint_problem.h"
-#include "util/format.h"
-#include "problem/pose_problem.h"
-#include "util/file_util.h"
-#include "util/plausible.h"
+#include "joint/joint_solver.h"
+#include "problem/pose_solver.h"
+#include "synthetic/synthetic_flex.h"
+#include "synthetic/synthetic_joint.h"
 #include "synthetic/synthetic_pose.h"
+#include "synthetic/synthetic_views.h"
+#include "util/file_util.h"
+#include "util/format.h"
+#include "util/plausible.h"
 #include "util/random.h"
 
 namespace carmba {
@@ -214,26 +214,26 @@ SolverConfig ReferenceConfig() {
 
 // The truth of a resimulated problem: the reference solution of the measured data, markers in
 // the problem frame (handedness as given), exact projections as observations.
-StatusOr<PoseProblem> MakeResimulationTruth(const PoseProblem& measured) {
+StatusOr<Problem> MakeResimulationTruth(const Problem& measured) {
   StatusOr<PoseSolution> ref = SolvePoseProblem(measured, ReferenceConfig());
   if (!ref.ok()) return ref.status().WithContext("reference solve for resimulation");
-  PoseProblem p = measured;
+  Problem p = measured;
   p.handedness = Handedness::kAsGiven;
-  p.truth_markers.clear();
-  p.truth_poses.clear();
-  for (auto& m : p.markers) {
+  p.truth.markers.clear();
+  p.truth.object_poses.clear();
+  for (auto& m : p.fiducials) {
     m.p_in_object = MarkerInProblemFrame(measured, m);
-    p.truth_markers[m.id] = m.p_in_object;
+    p.truth.markers[m.id] = m.p_in_object;
   }
-  for (size_t v = 0; v < p.views.size(); ++v) {
+  for (size_t v = 0; v < p.object_views.size(); ++v) {
     const Pose6& pose = ref->views[v].cam_from_object;
-    p.truth_poses[p.views[v].id] = pose;
-    for (auto& o : p.views[v].observations) {
-      const Eigen::Vector3d& x = p.truth_markers.at(o.marker_id);
-      if (!ProjectPoint(p.camera.params.data(), pose.data(), x.data(), o.uv_px.data())) {
+    p.truth.object_poses[p.object_views[v].id] = pose;
+    for (auto& o : p.object_views[v].observations) {
+      const Eigen::Vector3d& x = p.truth.markers.at(o.marker_id);
+      if (!ProjectPoint(p.camera->params.data(), pose.data(), x.data(), o.uv_px.data())) {
         return Status::Error(measured.path + ": marker " + std::to_string(o.marker_id) +
                              " projects behind the source in the reference solution of view '" +
-                             p.views[v].id + "'");
+                             p.object_views[v].id + "'");
       }
     }
   }
@@ -241,16 +241,16 @@ StatusOr<PoseProblem> MakeResimulationTruth(const PoseProblem& measured) {
 }
 
 // Keeps the first `n` views and the validation pairs among them.
-Status KeepViews(int n, PoseProblem* p) {
+Status KeepViews(int n, Problem* p) {
   if (n < 1) return Status::Error("sweep num_views: expected an integer >= 1, got " +
                                   std::to_string(n));
-  if (n > static_cast<int>(p->views.size())) {
+  if (n > static_cast<int>(p->object_views.size())) {
     return Status::Error("sweep num_views = " + std::to_string(n) + ": the problem has only " +
-                         std::to_string(p->views.size()) + " views");
+                         std::to_string(p->object_views.size()) + " views");
   }
-  p->views.resize(static_cast<size_t>(n));
+  p->object_views.resize(static_cast<size_t>(n));
   std::set<std::string> ids;
-  for (const auto& v : p->views) ids.insert(v.id);
+  for (const auto& v : p->object_views) ids.insert(v.id);
   std::vector<ValidationPair> kept;
   for (const auto& vp : p->validation) {
     if (ids.count(vp.a) && ids.count(vp.b)) kept.push_back(vp);
@@ -332,8 +332,8 @@ StatusOr<CalibrationEntry> ParseCalibrationSynthetic(const StudyProblem& p) {
 }
 
 struct PoseStudyState {
-  OnceCache<PoseProblem> problems;        // measured problems, by file
-  OnceCache<PoseProblem> truths;          // resimulation truths, by file
+  OnceCache<Problem> problems;            // measured problems, by file
+  OnceCache<Problem> truths;              // resimulation truths, by file
   OnceCache<SolverConfig> configs;        // by file
   OnceCache<SyntheticEntry> synthetic;    // by base_dir|name
   OnceCache<CalibrationEntry> calibrations;      // by base_dir|name
@@ -729,7 +729,7 @@ nlohmann::json PredictedBudget(const PoseSolution& sol, const SolverConfig& conf
   return budget;
 }
 
-nlohmann::json MakeResult(const PoseProblem& problem,
+nlohmann::json MakeResult(const Problem& problem,
                           const PoseSolution& sol,
                           const SolverConfig& config) {
   nlohmann::json errors = nlohmann::json::object(), signed_errors = nlohmann::json::object(),
@@ -740,17 +740,17 @@ nlohmann::json MakeResult(const PoseProblem& problem,
   std::vector<double> rot, trans, tre;
   for (size_t v = 0; v < sol.views.size(); ++v) {
     const ViewSolution& vs = sol.views[v];
-    auto t = problem.truth_poses.find(vs.id);
-    if (t == problem.truth_poses.end()) continue;
+    auto t = problem.truth.object_poses.find(vs.id);
+    if (t == problem.truth.object_poses.end()) continue;
     const Eigen::Matrix3d R_est = RotationFromRvec(vs.cam_from_object.head<3>());
     const Eigen::Matrix3d R_true = RotationFromRvec(t->second.head<3>());
     const Eigen::Vector3d t_est = vs.cam_from_object.tail<3>(), t_true = t->second.tail<3>();
     rot.push_back(AngleBetweenRotations(R_est, R_true) * kRadToDeg);
     trans.push_back((t_est - t_true).norm());
-    for (const auto& m : problem.markers) {
-      const auto tm = problem.truth_markers.find(m.id);
+    for (const auto& m : problem.fiducials) {
+      const auto tm = problem.truth.markers.find(m.id);
       const Eigen::Vector3d x =
-          tm != problem.truth_markers.end() ? tm->second : MarkerInProblemFrame(problem, m);
+          tm != problem.truth.markers.end() ? tm->second : MarkerInProblemFrame(problem, m);
       tre.push_back(((R_est * x + t_est) - (R_true * x + t_true)).norm());
     }
     if (v == 0) {
@@ -777,8 +777,9 @@ nlohmann::json MakeResult(const PoseProblem& problem,
   }
   std::vector<double> validation;
   for (const auto& ps : sol.validation) {
-    const auto ta = problem.truth_poses.find(ps.a), tb = problem.truth_poses.find(ps.b);
-    if (ta != problem.truth_poses.end() && tb != problem.truth_poses.end()) {
+    const auto ta = problem.truth.object_poses.find(ps.a),
+               tb = problem.truth.object_poses.find(ps.b);
+    if (ta != problem.truth.object_poses.end() && tb != problem.truth.object_poses.end()) {
       const double truth = RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
       const std::string name = "pair_" + ps.a + "_" + ps.b + "_deg";
       signed_errors[name] = ps.relative_rotation_deg - truth;
@@ -795,13 +796,15 @@ nlohmann::json MakeResult(const PoseProblem& problem,
   values["chi2_p_value"] = JsonNumber(sol.chi2_p_value);
   // Reprojection residuals of the final state, px.
   nlohmann::json residuals = nlohmann::json::array();
-  for (size_t v = 0; v < problem.views.size() && v < sol.views.size(); ++v) {
-    for (const auto& o : problem.views[v].observations) {
+  for (size_t v = 0; v < problem.object_views.size() && v < sol.views.size(); ++v) {
+    for (const auto& o : problem.object_views[v].observations) {
       const auto m = sol.markers.find(o.marker_id);
       if (m == sol.markers.end()) continue;
       double uv[2];
-      if (!ProjectPoint(problem.camera.params.data(), sol.views[v].cam_from_object.data(),
-                        m->second.data(), uv)) {
+      if (!ProjectPoint(problem.camera->params.data(),
+                        sol.views[v].cam_from_object.data(),
+                        m->second.data(),
+                        uv)) {
         continue;
       }
       residuals.push_back(uv[0] - o.uv_px.x());
@@ -850,7 +853,7 @@ StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
   if (!std::isnan(num_views) && num_views != std::floor(num_views)) {
     return Status::Error("sweep num_views: expected integers");
   }
-  PoseProblem problem;
+  Problem problem;
   if (!sp.synthetic.is_null()) {
     if (!sp.options.is_null()) {
       return Status::Error("problem '" + sp.name + "': key 'options' applies to problem files");
@@ -886,7 +889,7 @@ StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
     StatusOr<MonteCarlo> mc = ParseProblemOptions(sp);
     if (!mc.ok()) return mc.status();
     if (!std::isnan(k1)) return Status::Error("sweep k1 applies to synthetic problems only");
-    auto measured = state->problems.Get(sp.file, [&] { return LoadPoseProblem(sp.file); });
+    auto measured = state->problems.Get(sp.file, [&] { return LoadProblem(sp.file); });
     if (!measured->ok()) return measured->status();
     if (*mc == MonteCarlo::kNone) {
       if (!std::isnan(pixel_noise) || !std::isnan(ct_noise)) {
@@ -898,22 +901,22 @@ StatusOr<nlohmann::json> RunPose(PoseStudyState* state, const RunSpec& run) {
       auto truth = state->truths.Get(sp.file, [&] { return MakeResimulationTruth(**measured); });
       if (!truth->ok()) return truth->status().WithContext(sp.file);
       problem = truth->value();
-      const double sigma_px = std::isnan(pixel_noise) ? problem.sigma_px : pixel_noise;
+      const double sigma_px = std::isnan(pixel_noise) ? problem.object_sigma_px : pixel_noise;
       if (!(sigma_px > 0)) return Status::Error("pixel_noise_px: expected > 0");
       Rng rng(run.seed);
-      for (auto& m : problem.markers) {
+      for (auto& m : problem.fiducials) {
         double sigma_ct = ct_noise;
         if (std::isnan(sigma_ct)) sigma_ct = std::sqrt(m.covariance.trace() / 3);
         if (!(sigma_ct > 0)) return Status::Error("ct_noise_mm: expected > 0");
         m.p_in_object += sigma_ct * RandomVector<3>(Gaussian, rng);
         m.covariance = Eigen::Matrix3d::Identity() * sigma_ct * sigma_ct;
       }
-      for (auto& v : problem.views) {
+      for (auto& v : problem.object_views) {
         for (auto& o : v.observations) {
           o.uv_px += sigma_px * RandomVector<2>(Gaussian, rng);
         }
       }
-      problem.sigma_px = sigma_px;
+      problem.object_sigma_px = sigma_px;
     }
     if (!std::isnan(num_views)) CARMBA_RETURN_IF_ERROR(KeepViews(static_cast<int>(num_views),
                                                                  &problem));

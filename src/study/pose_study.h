@@ -1,4 +1,4 @@
-// The production run function of `carmba study`: pose problems (problem/pose_problem.h) solved
+// The production run function of `carmba study`: pose problems (problem/problem.h, problem/pose_solver.h) solved
 // with solver configurations, with Monte Carlo noise and accuracy against the truth; and
 // synthetic intrinsic calibrations (calib/calibrate.h), see the end of this comment.
 //

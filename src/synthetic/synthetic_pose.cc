@@ -15,27 +15,27 @@ std::vector<Eigen::Vector3d> ThesisMarkers() {
           {-15.01, -21.50, 40.00}, {-42.20, 18.75, 44.00}, {-1.40, 5.00, 49.00}};
 }
 
-PoseProblem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
-                                     double sigma_px,
-                                     double sigma_ct_mm,
-                                     uint64_t seed) {
+Problem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
+                                 double sigma_px,
+                                 double sigma_ct_mm,
+                                 uint64_t seed) {
   Rng rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
-  PoseProblem p;
+  Problem p;
   p.name = "synthetic";
   p.path = "<synthetic seed " + std::to_string(seed) + ">";
   p.camera = spec.camera;
-  p.sigma_px = sigma_px;
+  p.object_sigma_px = sigma_px;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const auto& m : spec.markers) centroid += m;
   centroid /= static_cast<double>(spec.markers.size());
   for (size_t i = 0; i < spec.markers.size(); ++i) {
     Marker m;
     m.id = static_cast<int>(i) + 1;
-    p.truth_markers[m.id] = spec.markers[i];
+    p.truth.markers[m.id] = spec.markers[i];
     m.p_in_object = spec.markers[i] + sigma_ct_mm * RandomVector<3>(gauss, rng);
     m.covariance = Eigen::Matrix3d::Identity() * sigma_ct_mm * sigma_ct_mm;
-    p.markers.push_back(m);
+    p.fiducials.push_back(m);
   }
   // Views: the C-arm rotates about `rotation_axis` (through the object centre) by the angle.
   const Eigen::Matrix3d R0 = RotationFromRvec(spec.base_rvec);
@@ -58,13 +58,13 @@ PoseProblem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
       o.uv_px += sigma_px * RandomVector<2>(gauss, rng);
       view.observations.push_back(o);
     }
-    p.truth_poses[view.id] = pose;
-    p.views.push_back(view);
+    p.truth.object_poses[view.id] = pose;
+    p.object_views.push_back(view);
   }
   for (const auto& [a, b] : spec.pairs) {
     ValidationPair vp;
-    vp.a = p.views[a].id;
-    vp.b = p.views[b].id;
+    vp.a = p.object_views[a].id;
+    vp.b = p.object_views[b].id;
     vp.expected_deg = std::fabs(spec.view_angles_deg[b] - spec.view_angles_deg[a]);
     p.validation.push_back(vp);
   }

@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-#include "problem/pose_problem.h"
+#include "problem/pose_solver.h"
 
 namespace carmba {
 
@@ -24,10 +24,10 @@ struct SyntheticPoseSpec {
   Eigen::Vector3d base_rvec = Eigen::Vector3d(0.3, -0.4, 0.2);
   std::vector<std::pair<int, int>> pairs = {{0, 1}, {0, 4}, {2, 3}};  // view indices
 };
-PoseProblem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
-                                     double sigma_px,
-                                     double sigma_ct_mm,
-                                     uint64_t seed);
+Problem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
+                                 double sigma_px,
+                                 double sigma_ct_mm,
+                                 uint64_t seed);
 
 // The 9 markers of the thesis's object (Table 5.1, object frame), for synthetic problems.
 std::vector<Eigen::Vector3d> ThesisMarkers();

@@ -8,11 +8,11 @@
 
 #include <random>
 
-#include "ba/bundle_adjuster.h"
 #include "analysis/lens_models.h"
+#include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
+#include "problem/pose_solver.h"
 #include "synthetic/synthetic_joint.h"
-#include "problem/pose_problem.h"
 
 namespace {
 

@@ -4,14 +4,14 @@
 
 #include <memory>
 
-#include "synthetic/synthetic_pose.h"
 #include "ba/reprojection_error.h"
-#include "problem/pose_problem.h"
+#include "problem/pose_solver.h"
+#include "synthetic/synthetic_pose.h"
 
 namespace carmba {
 namespace {
 
-PoseProblem OneViewProblem(int num_markers) {
+Problem OneViewProblem(int num_markers) {
   SyntheticPoseSpec spec;
   spec.camera.width = spec.camera.height = 408;
   spec.camera.params = {2061.389, 2254.646, 203.655, 205.117, -0.2, 0.05, 1e-3, -1e-3, 0};
@@ -24,7 +24,7 @@ PoseProblem OneViewProblem(int num_markers) {
 }
 
 void BM_PoseOneView(benchmark::State& state) {
-  const PoseProblem p = OneViewProblem(static_cast<int>(state.range(0)));
+  const Problem p = OneViewProblem(static_cast<int>(state.range(0)));
   SolverConfig c;
   c.analytic_jacobians = state.range(1) == 1;
   const char* algos[4] = {"dense_svd", "sparse_qr", "eigen_sparse_qr", "schur"};
@@ -84,7 +84,7 @@ void BM_PoseFiveViews(benchmark::State& state) {
   spec.camera.width = spec.camera.height = 408;
   spec.camera.params = {2061.389, 2254.646, 203.655, 205.117, -0.2, 0.05, 1e-3, -1e-3, 0};
   spec.markers = ThesisMarkers();
-  const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 7);
+  const Problem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 7);
   SolverConfig c;
   c.analytic_jacobians = state.range(0) == 1;
   for (auto _ : state) {

@@ -8,8 +8,8 @@
 //   build/tests/carmba_bench --benchmark_filter=StudyBareSolve
 #include <benchmark/benchmark.h>
 
+#include "problem/pose_solver.h"
 #include "synthetic/synthetic_pose.h"
-#include "problem/pose_problem.h"
 
 namespace carmba {
 namespace {
@@ -29,7 +29,7 @@ void BM_StudyBareSolve(benchmark::State& state) {
   config.num_threads = 1;
   uint64_t seed = 0;
   for (auto _ : state) {
-    const PoseProblem problem = MakeSyntheticPoseProblem(spec, 0.5, 0.1, ++seed);
+    const Problem problem = MakeSyntheticPoseProblem(spec, 0.5, 0.1, ++seed);
     StatusOr<PoseSolution> solution = SolvePoseProblem(problem, config);
     if (!solution.ok()) {
       state.SkipWithError(solution.status().message().c_str());

@@ -5,9 +5,6 @@
 // The readers of the CLI (calibration problem and config, joint scene) run in the built command,
 // which writes what it recorded to $CARMBA_ACCEPTED_KEYS.
 #include <gtest/gtest.h>
-
-#include "detect/marker_views.h"
-
 #include <stdlib.h>
 
 #include <filesystem>
@@ -16,8 +13,9 @@
 #include "cli/cli_test_util.h"
 #include "cli/markdown_doc.h"
 #include "ct/ct_simulate.h"
-#include "joint/joint_problem.h"
-#include "problem/pose_problem.h"
+#include "detect/marker_views.h"
+#include "joint/joint_solver.h"
+#include "problem/pose_solver.h"
 #include "sim/xray_scene.h"
 #include "study/study_spec.h"
 #include "util/accepted_keys.h"
@@ -40,10 +38,8 @@ const std::set<std::string> kOutputTables = {"json-camera", "json-result-pose", 
 // Reads an example with the reader of its kind, in this process. Returns false for kinds read by
 // the command (or by another example, as the CSVs and camera.json).
 bool ReadInProcess(const std::string& kind, const std::string& path, Status* status) {
-  if (kind == "pose-problem") {
-    *status = LoadPoseProblem(path).status();
-  } else if (kind == "joint-problem") {
-    *status = LoadJointProblem(path).status();
+  if (kind == "problem" || kind == "problem-older-pose") {
+    *status = LoadProblem(path).status();
   } else if (kind == "solver-config") {
     *status = LoadSolverConfig(path).status();
   } else if (kind == "xray-scene") {
@@ -193,7 +189,7 @@ TEST_F(DocsFormats, ShippedFilesUseOnlyDocumentedKeys) {
       const std::string path = e.path().string(), dir = std::string(sub);
       const std::string text = test::ReadTextFile(path);
       if (dir == "problems") {
-        try_read(IsJointProblemFile(path) ? "joint-problem" : "pose-problem", path);
+        try_read("problem", path);
       } else if (dir == "configs") {
         try_read("solver-config", path);  // calibration configs are refused: the CLI reads them
       } else if (dir == "configs/scenes") {

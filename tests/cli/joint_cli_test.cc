@@ -318,7 +318,7 @@ TEST_F(JointBadInput, PerGroupIntrinsics) {
 
 TEST_F(JointBadInput, MarkerNotInFiducials) {
   object_ += "+090,42,200.0,200.0\n";
-  ExpectError("observes marker 42, which is not in the fiducials");
+  ExpectError("observes marker 42, which is not among the fiducials");
 }
 
 TEST_F(JointBadInput, FiducialsWithoutCovarianceAndNoSigma) {
@@ -329,7 +329,7 @@ TEST_F(JointBadInput, FiducialsWithoutCovarianceAndNoSigma) {
 
 TEST_F(JointBadInput, ObjectViewWithFewerThanFourMarkers) {
   object_ += "+045,1,200.0,200.0\n+045,2,210.0,200.0\n+045,3,200.0,210.0\n";
-  ExpectError("object view '+045' has 3 markers; a pose needs at least 4");
+  ExpectError("object view '+045' has 3 observed markers; a pose needs at least 4");
 }
 
 TEST_F(JointBadInput, ViewInTwoGroups) {

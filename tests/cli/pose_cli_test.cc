@@ -92,8 +92,8 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
   ExpectReportRenders(out + "/report.html", 2);
 }
 
-// A joint problem file naming object_views: {images, detection} instead of observations (a
-// pose-only problem: the intrinsics held at camera.json by the config).
+// A problem naming object_views: {images, detection} instead of observations: object views only,
+// so a pose problem (the intrinsics held at camera.json), solved by the pose front end.
 TEST_F(PoseCli, JointProblemWithObjectViewImages) {
   dir_->Write("problem.yaml",
               "name: pose_from_images\ncamera: camera.json\nfiducials: fiducials.csv\n"
@@ -103,7 +103,8 @@ TEST_F(PoseCli, JointProblemWithObjectViewImages) {
   const auto r = RunCarmba("solve --problem " + dir_->File("problem.yaml") + " --config " + dir_->File("fixed.yaml") +
                            " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("0 plate views, 7 object views"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("solved pose_from_images with fixed_intrinsics: 7 views"), std::string::npos)
+      << r.out;
   // Images and observations together are an error naming the key.
   dir_->Write("both.yaml",
               "name: both\ncamera: camera.json\nfiducials: fiducials.csv\nobject_views:\n  images: sim/*.png\n"

@@ -242,7 +242,7 @@ TEST_F(BadInput, UnknownProblemKey) {
 
 TEST_F(BadInput, MarkerNotInList) {
   obs_ += "b,9,10,10\n";
-  ExpectError("view 'b' observes marker 9 which is not among the markers");
+  ExpectError("view 'b' observes marker 9, which is not among the fiducials");
 }
 
 TEST_F(BadInput, RepeatedKey) {

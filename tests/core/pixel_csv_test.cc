@@ -1,6 +1,6 @@
 // The one reader of pixel-observation CSVs (problem/pixel_csv.h): columns, keys, covariance,
 // and one-line errors naming file, line and column.
-#include "problem/pixel_csv.h"
+#include "io/pixel_csv.h"
 
 #include <gtest/gtest.h>
 

@@ -1,12 +1,13 @@
+#include "problem/pose_solver.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-#include "synthetic/synthetic_pose.h"
 #include "geometry/rotation.h"
-#include "problem/pose_problem.h"
 #include "report/pose_report.h"
+#include "synthetic/synthetic_pose.h"
 #include "test_util.h"
 #include "util/stats.h"
 
@@ -27,7 +28,7 @@ Camera ThesisCamera() {
 }
 
 TEST(PoseSolver, ThesisProblemBeatsLegacyPositAndMatchesExpectedAngles) {
-  auto problem = LoadPoseProblem(test::SourcePath("problems/thesis_pose.yaml"));
+  auto problem = LoadProblem(test::SourcePath("problems/thesis_pose.yaml"));
   ASSERT_TRUE(problem.ok()) << problem.status().message();
   auto config = LoadSolverConfig(test::SourcePath("configs/posit_ba_analytic.yaml"));
   ASSERT_TRUE(config.ok()) << config.status().message();
@@ -35,8 +36,8 @@ TEST(PoseSolver, ThesisProblemBeatsLegacyPositAndMatchesExpectedAngles) {
   ASSERT_TRUE(sol.ok()) << sol.status().message();
   ASSERT_TRUE(sol->has_covariance);
   // Separate fx, fy and the calibrated principal point are used.
-  EXPECT_NE(problem->camera.params[kFx], problem->camera.params[kFy]);
-  EXPECT_DOUBLE_EQ(problem->camera.params[kCx], 203.655);
+  EXPECT_NE(problem->camera->params[kFx], problem->camera->params[kFy]);
+  EXPECT_DOUBLE_EQ(problem->camera->params[kCx], 203.655);
 
   const PoseComparison cmp = ComparePoseMethods(*problem, *config, *sol);
   ASSERT_TRUE(cmp.legacy_error.empty()) << cmp.legacy_error;
@@ -67,7 +68,7 @@ TEST(PoseSolver, InitializersAndJacobiansAgree) {
   spec.camera = ThesisCamera();
   spec.camera.params[kK1] = -0.2;
   spec.markers = ThesisMarkers();
-  const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.3, 0.1, 11);
+  const Problem p = MakeSyntheticPoseProblem(spec, 0.3, 0.1, 11);
   SolverConfig ref = DefaultConfig();
   auto base = SolvePoseProblem(p, ref);
   ASSERT_TRUE(base.ok()) << base.status().message();
@@ -93,7 +94,7 @@ TEST(PoseSolver, UnrefinedReportsInitializerWithoutCovariance) {
   SyntheticPoseSpec spec;
   spec.camera = ThesisCamera();
   spec.markers = ThesisMarkers();
-  const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.3, 0.1, 3);
+  const Problem p = MakeSyntheticPoseProblem(spec, 0.3, 0.1, 3);
   SolverConfig c = DefaultConfig();
   c.initializer = Initializer::kLegacyPosit;
   c.refine = false;
@@ -124,19 +125,21 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
   std::vector<std::vector<double>> rr_err(spec.pairs.size());
   std::vector<double> rr_sigma_sum(spec.pairs.size(), 0);
   for (int trial = 0; trial < kTrials; ++trial) {
-    const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 1000 + trial);
+    const Problem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 1000 + trial);
     auto s = SolvePoseProblem(p, config);
     ASSERT_TRUE(s.ok()) << s.status().message();
     for (const auto& v : s->views) {
-      const Pose6& truth = p.truth_poses.at(v.id);
+      const Pose6& truth = p.truth.object_poses.at(v.id);
       const Pose6 e = v.cam_from_object - truth;  // covariance is of (rvec, t)
       nees_sum += e.dot(v.covariance.ldlt().solve(e)) / 6.0;
       ++nees_n;
     }
     ASSERT_EQ(s->relative_poses.size(), 10u);  // every pair of the 5 views
     for (const auto& rp : s->relative_poses) {
-      const auto err = analysis::CompareRelativePose(rp, p.truth_poses.at(p.views[rp.view_a].id),
-                                               p.truth_poses.at(p.views[rp.view_b].id));
+      const auto err =
+          analysis::CompareRelativePose(rp,
+                                        p.truth.object_poses.at(p.object_views[rp.view_a].id),
+                                        p.truth.object_poses.at(p.object_views[rp.view_b].id));
       rel_nees += err.nees / 6.0;
       ++rel_n;
     }
@@ -149,8 +152,8 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
     }
     for (size_t k = 0; k < s->validation.size(); ++k) {
       const auto& pr = s->validation[k];
-      const double truth = RelativeRotationAngle(p.truth_poses.at(pr.a).data(),
-                                                 p.truth_poses.at(pr.b).data()) *
+      const double truth = RelativeRotationAngle(p.truth.object_poses.at(pr.a).data(),
+                                                 p.truth.object_poses.at(pr.b).data()) *
                            kRadToDeg;
       rr_err[k].push_back(pr.relative_rotation_deg - truth);
       rr_sigma_sum[k] += pr.sigma_relative_rotation_deg;
@@ -186,7 +189,7 @@ TEST(PoseSolver, DegenerateViewIsAnError) {
   SyntheticPoseSpec spec;
   spec.camera = ThesisCamera();
   spec.markers = {{0, 0, 0}, {30, 0, 0}, {0, 30, 0}, {30, 30, 0}, {15, 10, 0}};  // coplanar
-  const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.3, 0.0, 5);  // exact plane
+  const Problem p = MakeSyntheticPoseProblem(spec, 0.3, 0.0, 5);                 // exact plane
   auto s = SolvePoseProblem(p, DefaultConfig());
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("coplanar"), std::string::npos) << s.status().message();
@@ -217,7 +220,7 @@ TEST(PoseSolver, CovarianceAlgorithmsAgree) {
     spec.camera = ThesisCamera();
     spec.markers = ThesisMarkers();
     if (views == 1) spec.view_angles_deg = {30}, spec.pairs.clear();
-    const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
+    const Problem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
     for (const char* loss : {"trivial", "huber", "cauchy"}) {
       for (bool analytic : {true, false}) {
         SolverConfig c = DefaultConfig();
@@ -247,7 +250,7 @@ TEST(PoseSolver, RobustLossEntersTheSchurCovariance) {
   SyntheticPoseSpec spec;
   spec.camera = ThesisCamera();
   spec.markers = ThesisMarkers();
-  const PoseProblem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
+  const Problem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
   SolverConfig c = DefaultConfig();
   auto plain = SolvePoseProblem(p, c);
   c.loss = "cauchy";

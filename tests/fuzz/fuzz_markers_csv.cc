@@ -1,10 +1,10 @@
-// libFuzzer harness: the marker tables. carmba::ReadMarkersCsv (problem/pose_problem.h): fiducials.csv
+// libFuzzer harness: the marker tables. carmba::ReadMarkersCsv (io/object_views.h): fiducials.csv
 // as carmba ct-fiducials writes it (covariance columns) and the thesis marker tables (isotropic
 // sigma); carmba::ReadModelCsv (ct/marker_labelling.h): the marker model of ct-fiducials --model
 // (coordinate columns found from the header, or named).
 #include "ct/marker_labelling.h"
 #include "fuzz_util.h"
-#include "problem/pose_problem.h"
+#include "io/object_views.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = carmba::fuzz::WriteInput("markers.csv", data, size);

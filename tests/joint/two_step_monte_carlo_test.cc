@@ -1,4 +1,4 @@
-// Joint against two-step (joint/joint_problem.h), by seeded Monte Carlo through the front end
+// Joint against two-step (joint/joint_solver.h), by seeded Monte Carlo through the front end
 // (carmba's calibration for the initial values, POSIT, the engine): on the synthetic joint
 // problem, with the calibration's uncertainty a large part of the object poses' translation error,
 //   * the joint sigmas are no larger than the two-step ones with the calibration as a prior: to
@@ -12,8 +12,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "joint/joint_solver.h"
 #include "synthetic/synthetic_joint.h"
-#include "joint/joint_problem.h"
 
 namespace carmba {
 namespace {
@@ -23,8 +23,8 @@ constexpr int kTrials = 200;
 constexpr double kLinearisationTol = 0.01;
 
 // The synthetic joint problem as a front-end problem (observations in memory).
-JointProblem FromSynthetic(const ba::SyntheticJoint& sj, const ba::SyntheticJointSpec& spec) {
-  JointProblem p;
+Problem FromSynthetic(const ba::SyntheticJoint& sj, const ba::SyntheticJointSpec& spec) {
+  Problem p;
   p.name = "synthetic";
   p.path = "<synthetic>";
   p.plate.grid.rows = spec.plate_rows;

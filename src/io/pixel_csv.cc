@@ -1,4 +1,4 @@
-#include "problem/pixel_csv.h"
+#include "io/pixel_csv.h"
 
 #include "util/csv.h"
 #include "util/plausible.h"
@@ -57,7 +57,9 @@ Status ReadRowCovariance(const CsvTable& t, int r, const PixelCsvLayout& l, Pixe
   return Status::Ok();
 }
 
-StatusOr<PixelCsvRow> ReadPixelRow(const CsvTable& t, int r, const PixelCsvColumns& c,
+StatusOr<PixelCsvRow> ReadPixelRow(const CsvTable& t,
+                                   int r,
+                                   const PixelCsvColumns& c,
                                    const PixelCsvLayout& l) {
   PixelCsvRow row;
   row.where = t.path + ":" + std::to_string(t.line_numbers[r]);

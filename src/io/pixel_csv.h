@@ -8,10 +8,9 @@
 // where the caller allows it. Errors name the file, the line and the column.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "util/status.h"
 
@@ -19,13 +18,13 @@ namespace carmba {
 
 struct PixelCsvRow {
   std::string view;
-  std::string key;     // the key column's text (PixelCsvColumns::absent_key without the column)
-  int id = 0;          // the key as an integer, when PixelCsvColumns::integer_key
+  std::string key;  // the key column's text (PixelCsvColumns::absent_key without the column)
+  int id = 0;       // the key as an integer, when PixelCsvColumns::integer_key
   Eigen::Vector2d uv_px = Eigen::Vector2d::Zero();
   // The row's 2x2 pixel covariance (px^2): from cov_uu, cov_uv, cov_vv, or sigma_px^2 I; zero
   // when the file has neither (the problem's sigma applies).
   Eigen::Matrix2d covariance_px2 = Eigen::Matrix2d::Zero();
-  std::string where;   // "file:line"
+  std::string where;  // "file:line"
   bool HasCovariance() const { return covariance_px2(0, 0) > 0; }
 };
 
@@ -33,8 +32,8 @@ struct PixelCsvColumns {
   std::string key = "marker";  // the key column's name
   bool key_required = true;    // false: a file without it has one key, absent_key
   std::string absent_key;
-  bool integer_key = true;     // the key must be an integer (a marker id)
-  bool sigma_column = false;   // read an isotropic `sigma_px` column when there is no covariance
+  bool integer_key = true;    // the key must be an integer (a marker id)
+  bool sigma_column = false;  // read an isotropic `sigma_px` column when there is no covariance
 };
 
 // The rows in file order. A file with no rows is not an error here (the callers say what was

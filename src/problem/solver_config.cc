@@ -1,0 +1,150 @@
+// Reading solver configuration files (format in solver_config.h).
+#include "problem/solver_config.h"
+
+#include <algorithm>
+
+#include "camera/camera.h"
+#include "util/plausible.h"
+#include "util/yaml_reader.h"
+
+namespace carmba {
+
+const char* InitializerName(Initializer i) {
+  switch (i) {
+    case Initializer::kLegacyPosit:
+      return "legacy_posit";
+    case Initializer::kPosit:
+      return "posit";
+    case Initializer::kEpnp:
+      return "epnp";
+    case Initializer::kSqpnp:
+      return "sqpnp";
+  }
+  return "?";
+}
+
+ba::BaOptions SolverConfig::ToBaOptions() const {
+  ba::BaOptions o;
+  o.backend = backend;
+  o.analytic_jacobians = analytic_jacobians;
+  o.loss = loss;
+  o.loss_scale_px = loss_scale_px;
+  o.linear_solver = linear_solver;
+  o.max_iterations = refine ? max_iterations : 0;
+  o.function_tolerance = function_tolerance;
+  o.gradient_tolerance = gradient_tolerance;
+  o.parameter_tolerance = parameter_tolerance;
+  o.num_threads = num_threads;
+  o.covariance_scale = covariance_scale;
+  // The engine's covariance, for every covariance algorithm: the variance components
+  // (covariance.scale) and a considered calibration's term rest on it.
+  o.compute_covariance = refine;
+  o.outlier_sigma = outlier_sigma;
+  o.reject_sigma = refine ? reject_sigma : 0;
+  return o;
+}
+
+bool SolverConfig::Check(std::string* error) const {
+  namespace pl = plausible;
+  if (!CheckRange("max_iterations", max_iterations, pl::kMaxIterations, error) ||
+      !CheckRange("function_tolerance", function_tolerance, pl::kSolverTolerance, error) ||
+      !CheckRange("gradient_tolerance", gradient_tolerance, pl::kSolverTolerance, error) ||
+      !CheckRange("parameter_tolerance", parameter_tolerance, pl::kSolverTolerance, error) ||
+      !CheckRange("loss.scale_px", loss_scale_px, pl::kLossScalePx, error) ||
+      !CheckRange("num_threads", num_threads, pl::kThreads, error)) {
+    return false;
+  }
+  if (distortion_auto) {
+    for (const auto& n : fix) {
+      if (n == "k1" || n == "k2" || n == "p1" || n == "p2" || n == "k3") {
+        return *error = "fix: '" + n + "' with distortion: auto (the selection decides the " +
+                        "distortion terms: remove it from fix, or set distortion: given)",
+               false;
+      }
+    }
+  }
+  if (covariance_algorithm != "schur" && covariance_algorithm != "dense_svd" &&
+      covariance_algorithm != "sparse_qr" && covariance_algorithm != "eigen_sparse_qr") {
+    return *error = "covariance.algorithm '" + covariance_algorithm +
+                    "' is not one of schur, dense_svd, sparse_qr, eigen_sparse_qr",
+           false;
+  }
+  return true;
+}
+
+StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
+  YamlMap root = YamlMap::Load(yaml_path);
+  if (!root.status().ok()) return root.status();
+  SolverConfig c;
+  c.path = yaml_path;
+  for (const char* k : {"robust_loss",
+                        "pixel_sigma_px",
+                        "detection",
+                        "crosscheck",
+                        "min_views",
+                        "fix_aspect_ratio",
+                        "zero_tangential",
+                        "fix_principal_point",
+                        "fix_k3"}) {
+    if (root.Has(k)) {
+      return Status::Error(yaml_path + ": this is a calibration config (key '" + k +
+                           "'), for `carmba calibrate`; `carmba solve` needs a solver config "
+                           "(initializer, loss, linear_solver, covariance; configs/posit_*.yaml)");
+    }
+  }
+  std::string init = "posit", jac = "analytic", description;
+  root.Get("name", &c.name, true);
+  root.Get("description", &description);
+  root.GetEnum("initializer", {"legacy_posit", "posit", "epnp", "sqpnp"}, &init);
+  root.Get("refine", &c.refine);
+  root.GetEnum("jacobians", {"analytic", "autodiff"}, &jac);
+  YamlMap& loss = root.Map("loss");
+  loss.GetEnum("type", {"trivial", "huber", "cauchy", "soft_l1"}, &c.loss);
+  loss.GetInRange("scale_px", &c.loss_scale_px, plausible::kLossScalePx);
+  root.GetEnum("linear_solver",
+               {"dense_qr",
+                "dense_normal_cholesky",
+                "dense_schur",
+                "sparse_schur",
+                "sparse_normal_cholesky",
+                "iterative_schur"},
+               &c.linear_solver);
+  root.GetInRange("max_iterations", &c.max_iterations, plausible::kMaxIterations);
+  root.GetInRange("function_tolerance", &c.function_tolerance, plausible::kSolverTolerance);
+  root.GetInRange("gradient_tolerance", &c.gradient_tolerance, plausible::kSolverTolerance);
+  root.GetInRange("parameter_tolerance", &c.parameter_tolerance, plausible::kSolverTolerance);
+  YamlMap& cov = root.Map("covariance");
+  std::string scale = "per_group";
+  cov.GetEnum(
+      "algorithm", {"schur", "dense_svd", "sparse_qr", "eigen_sparse_qr"}, &c.covariance_algorithm);
+  cov.GetEnum("scale", {"per_group", "apriori", "global", "aposteriori"}, &scale);
+  root.GetInRange("num_threads", &c.num_threads, plausible::kThreads);
+  root.Get("fix", &c.fix);
+  std::string distortion = "given";
+  root.GetEnum("distortion", {"given", "auto"}, &distortion);
+  c.distortion_auto = distortion == "auto";
+  for (const auto& n : c.fix) {
+    if (std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, n) ==
+        kIntrinsicNames + kNumIntrinsics) {
+      root.Fail("fix", "'" + n + "' is not an intrinsic (fx fy cx cy k1 k2 p1 p2 k3)");
+    }
+  }
+  root.GetEnum("backend", {"ceres", "carmba_lm"}, &c.backend);
+  root.Get("tre", &c.tre);
+  root.Get("consider_calibration", &c.consider_calibration);
+  YamlMap& outliers = root.Map("outliers");
+  outliers.GetPositive("list_sigma", &c.outlier_sigma);
+  outliers.GetNonNegative("reject_sigma", &c.reject_sigma);
+  CARMBA_RETURN_IF_ERROR(root.Finish());
+  ba::ParseCovarianceScale(scale, &c.covariance_scale);
+  c.analytic_jacobians = jac == "analytic";
+  c.initializer = init == "legacy_posit" ? Initializer::kLegacyPosit
+                  : init == "epnp"       ? Initializer::kEpnp
+                  : init == "sqpnp"      ? Initializer::kSqpnp
+                                         : Initializer::kPosit;
+  std::string err;
+  if (!c.Check(&err)) return Status::Error(yaml_path + ": " + err);
+  return c;
+}
+
+}  // namespace carmba
