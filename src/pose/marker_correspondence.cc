@@ -315,7 +315,8 @@ class Labeller {
            (context_.fov_radius <= 0 || (uv - context_.fov_centre).norm() <= context_.fov_radius);
   }
   // Markers predicted visible and separable at `pose`: Visible, farther than separation_px from
-  // every other visible marker's projection, and from every obstruction.
+  // every other visible marker's projection and from every obstruction, and farther than gate_px
+  // from every faint blob.
   int Separable(const Pose6& pose) const {
     std::vector<Eigen::Vector2d> uv(P_.size());
     std::vector<char> in(P_.size(), 0);
@@ -333,6 +334,9 @@ class Labeller {
       }
       for (size_t k = 0; k < context_.obstructions.size() && apart; ++k) {
         apart = (uv[a] - context_.obstructions[k]).norm() >= hidden_within;
+      }
+      for (size_t k = 0; k < context_.faint_blobs.size() && apart; ++k) {
+        apart = (uv[a] - context_.faint_blobs[k]).norm() >= o_.gate_px;
       }
       n += apart;
     }

@@ -17,8 +17,9 @@
 //   * A labelling is accepted when it pairs >= min_markers markers, and >= min_fraction of the
 //     markers its pose predicts visible and separable (in the image and the view's field of view,
 //     farther than separation_px from every other marker and from every candidate the detector
-//     rejected as metal: a bead or a wire on a marker hides it; ViewContext), with RMS (per
-//     coordinate) <= accept_rms_px, and (when
+//     rejected as metal: a bead or a wire on a marker hides it; and farther than gate_px from
+//     every blob-sized shadow it found too faint to measure: a marker behind dense anatomy;
+//     ViewContext), with RMS (per coordinate) <= accept_rms_px, and (when
 //     px_per_mm is known) its pose puts the markers' centroid at a magnification fx / z within
 //     the scale tolerance of px_per_mm: among thousands of hypotheses, a 4-marker labelling of a
 //     foreign layout fits to a few tenths of a px by chance, but at a wrong depth. The best
@@ -91,6 +92,11 @@ struct ViewContext {
   Eigen::Vector2d fov_centre = Eigen::Vector2d::Zero();
   double fov_radius = 0;                      // px; 0 = no circular field
   std::vector<Eigen::Vector2d> obstructions;  // px
+  // Blob-sized shadows the detector found too faint to measure (px): a marker predicted within
+  // gate_px of one is seen, not missing (a marker behind dense anatomy), and is not counted
+  // among the markers a labelling must pair. The tight gate keeps the many faint blobs of
+  // anatomy from excusing a foreign layout's missing markers.
+  std::vector<Eigen::Vector2d> faint_blobs;
   std::vector<double> blob_sigma_px;
 };
 

@@ -410,6 +410,35 @@ TEST(MarkerCorrespondence, MarkersUnderRejectedMetalOrOutsideTheFieldDoNotCount)
   EXPECT_EQ(in_field->num_labelled, 5);
 }
 
+// Markers behind dense anatomy: the detector finds their shadows too faint to measure ("low
+// contrast") and lists them. Such a faint blob within gate_px of a predicted marker makes it seen,
+// not missing: 5 of 9 markers' blobs with the other 4 on faint blobs 0.3 px off is labelled. A
+// faint blob farther than gate_px (here 4 px) does not excuse a marker: the view is refused as
+// before, so the many faint blobs of anatomy cannot excuse a foreign layout's missing markers.
+TEST(MarkerCorrespondence, MarkersOnFaintBlobsAreSeenNotMissing) {
+  const Camera cam = TestCamera();
+  const auto P = ThesisLayout();
+  std::mt19937_64 rng(23);
+  const Pose6 pose = RandomPose(rng, P);
+  const auto all = Project(cam, pose, P);
+  const std::vector<Eigen::Vector2d> uv(all.begin(), all.begin() + 5);
+  CorrespondenceOptions co;
+  co.separation_px = 8;
+  ViewContext faint, far;
+  for (size_t k = 5; k < all.size(); ++k) {
+    faint.faint_blobs.push_back(all[k] + Eigen::Vector2d(0.3, 0));
+    far.faint_blobs.push_back(all[k] + Eigen::Vector2d(0, co.gate_px + 1));
+  }
+  const auto lab = LabelMarkerBlobs(cam, P, uv, co, std::nullopt, faint);
+  ASSERT_TRUE(lab.ok()) << lab.status().message();
+  EXPECT_EQ(lab->num_labelled, 5);
+  for (size_t k = 0; k < uv.size(); ++k) EXPECT_EQ(lab->marker_of_blob[k], static_cast<int>(k));
+  const auto refused = LabelMarkerBlobs(cam, P, uv, co, std::nullopt, far);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("needs 6 markers"), std::string::npos)
+      << refused.status().message();
+}
+
 // A blob that the other markers' pose does not predict is dropped from the labelling: one of 9
 // blobs moved by 1 px (two shadows in line) with 0.05 px noise on the others; the rest labelled.
 TEST(MarkerCorrespondence, BlobOffThePoseIsDropped) {
