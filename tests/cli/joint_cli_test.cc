@@ -327,6 +327,15 @@ TEST_F(JointBadInput, FiducialsWithoutCovarianceAndNoSigma) {
   ExpectError("fiducials.sigma_mm: missing: give the CT sigma or covariance columns");
 }
 
+// A value out of range in the fiducials' mapping is named before the CSV is read (it used to
+// give "fiducials.sigma_mm: missing", as if the key were not there).
+TEST_F(JointBadInput, FiducialsSigmaOutOfRange) {
+  const std::string from = "fiducials: fiducials.csv\n";
+  problem_.replace(problem_.find(from), from.size(),
+                   "fiducials: {file: fiducials.csv, sigma_mm: 2e-9}\n");
+  ExpectError("problem.yaml:4: key 'fiducials.sigma_mm': expected 1e-06 .. 1000 mm, got 2e-09");
+}
+
 TEST_F(JointBadInput, ObjectViewWithFewerThanFourMarkers) {
   object_ += "+045,1,200.0,200.0\n+045,2,210.0,200.0\n+045,3,200.0,210.0\n";
   ExpectError("object view '+045' has 3 observed markers; a pose needs at least 4");
