@@ -1,6 +1,7 @@
-// The production run function of `carmba study`: pose problems (problem/problem.h, problem/pose_solver.h) solved
-// with solver configurations, with Monte Carlo noise and accuracy against the truth; and
-// synthetic intrinsic calibrations (calib/calibrate.h), see the end of this comment.
+// The production run function of `carmba study`: pose problems (problem/problem.h,
+// problem/pose_solver.h) solved with solver configurations, with Monte Carlo noise and accuracy
+// against the truth; and synthetic intrinsic calibrations (calib/calibrate.h), see the end of
+// this comment.
 //
 // Problem entries of a study file:
 //   - name: thesis_tables
