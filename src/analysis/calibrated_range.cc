@@ -60,13 +60,15 @@ void AngleWarnings(const ba::BaProblem& p, std::vector<std::string>* out) {
     if (!p.groups[g].smooth) continue;
     Range primary, secondary;
     for (const auto& v : p.views) {
-      if (v.group != static_cast<int>(g) || v.kind != ba::ViewKind::kPlate || !v.has_angles) continue;
+      if (v.group != static_cast<int>(g) || v.kind != ba::ViewKind::kPlate || !v.has_angles)
+        continue;
       primary.Add(v.primary_deg);
       secondary.Add(v.secondary_deg);
     }
     if (primary.Empty()) continue;
     for (const auto& v : p.views) {
-      if (v.group != static_cast<int>(g) || v.kind != ba::ViewKind::kObject || !v.has_angles) continue;
+      if (v.group != static_cast<int>(g) || v.kind != ba::ViewKind::kObject || !v.has_angles)
+        continue;
       const bool in = v.primary_deg >= primary.lo - kAngleToleranceDeg &&
                       v.primary_deg <= primary.hi + kAngleToleranceDeg &&
                       v.secondary_deg >= secondary.lo - kAngleToleranceDeg &&
@@ -86,7 +88,8 @@ void AngleWarnings(const ba::BaProblem& p, std::vector<std::string>* out) {
 
 }  // namespace
 
-std::vector<std::string> CalibratedRangeWarnings(const ba::BaProblem& problem, const ba::BaResult& result) {
+std::vector<std::string> CalibratedRangeWarnings(const ba::BaProblem& problem,
+                                                 const ba::BaResult& result) {
   std::vector<std::string> out;
   DepthWarnings(problem, result, &out);
   AngleWarnings(problem, &out);

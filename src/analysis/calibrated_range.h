@@ -19,7 +19,8 @@ constexpr double kDepthRangeLow = 0.8;
 constexpr double kDepthRangeHigh = 1.25;
 constexpr double kAngleToleranceDeg = 1.0;
 
-std::vector<std::string> CalibratedRangeWarnings(const ba::BaProblem& problem, const ba::BaResult& result);
+std::vector<std::string> CalibratedRangeWarnings(const ba::BaProblem& problem,
+                                                 const ba::BaResult& result);
 
 }  // namespace analysis
 }  // namespace carmba

@@ -13,7 +13,8 @@ namespace analysis {
 namespace {
 
 bool SameAngles(double a1, double b1, double a2, double b2) {
-  return std::lround(a1 * 100) == std::lround(a2 * 100) && std::lround(b1 * 100) == std::lround(b2 * 100);
+  return std::lround(a1 * 100) == std::lround(a2 * 100) &&
+         std::lround(b1 * 100) == std::lround(b2 * 100);
 }
 
 int NearestOrientation(const std::vector<std::pair<double, double>>& o, double a, double b) {
@@ -33,7 +34,8 @@ ba::BaProblem PlateSubset(const ba::BaProblem& p, const std::pair<double, double
   out.markers.clear();
   for (const auto& v : p.views) {
     if (v.kind != ba::ViewKind::kPlate) continue;
-    if (SameAngles(v.primary_deg, v.secondary_deg, o.first, o.second) == keep_o) out.views.push_back(v);
+    if (SameAngles(v.primary_deg, v.secondary_deg, o.first, o.second) == keep_o)
+      out.views.push_back(v);
   }
   return out;
 }
@@ -105,7 +107,8 @@ Status ApplyIntrinsicsModel(IntrinsicsModel model, const ba::SmoothBasis& basis,
       g.name = OrientationName(o.first, o.second);
       p->groups.push_back(g);
     }
-    for (auto& v : p->views) v.group = NearestOrientation(orientations, v.primary_deg, v.secondary_deg);
+    for (auto& v : p->views)
+      v.group = NearestOrientation(orientations, v.primary_deg, v.secondary_deg);
   }
   return p->Check();
 }
@@ -129,7 +132,8 @@ StatusOr<ModelSelection> SelectIntrinsicsModel(const ba::BaProblem& problem,
     CARMBA_RETURN_IF_ERROR(ApplyIntrinsicsModel(IntrinsicsModel::kShared, basis, &sub));
     auto r = ba::SolveBundleAdjustment(sub, o);
     if (!r.ok()) {
-      return Status::Error("orientation " + OrientationName(orientations[k].first, orientations[k].second) +
+      return Status::Error("orientation " +
+                           OrientationName(orientations[k].first, orientations[k].second) +
                            " alone: " + r.status().message());
     }
     Head4(ba::IntrinsicsOfView(sub, *r, 0), &own_x[k], &own_C[k]);
@@ -140,7 +144,8 @@ StatusOr<ModelSelection> SelectIntrinsicsModel(const ba::BaProblem& problem,
     sc.model = m;
     ba::BaProblem full = PlateSubset(problem, {1e9, 1e9}, false);  // all plate views
     Status s = ApplyIntrinsicsModel(m, basis, &full);
-    StatusOr<ba::BaResult> r = s.ok() ? ba::SolveBundleAdjustment(full, o) : StatusOr<ba::BaResult>(s);
+    StatusOr<ba::BaResult> r =
+        s.ok() ? ba::SolveBundleAdjustment(full, o) : StatusOr<ba::BaResult>(s);
     if (!r.ok()) {
       sc.error = r.status().message();
       sel.scores.push_back(sc);
@@ -160,7 +165,8 @@ StatusOr<ModelSelection> SelectIntrinsicsModel(const ba::BaProblem& problem,
       h.orientation = OrientationName(ok_.first, ok_.second);
       ba::BaProblem train = PlateSubset(problem, ok_, false);
       Status st = ApplyIntrinsicsModel(m, basis, &train);
-      StatusOr<ba::BaResult> rt = st.ok() ? ba::SolveBundleAdjustment(train, o) : StatusOr<ba::BaResult>(st);
+      StatusOr<ba::BaResult> rt =
+          st.ok() ? ba::SolveBundleAdjustment(train, o) : StatusOr<ba::BaResult>(st);
       if (!rt.ok()) {
         sc.ok = false;
         sc.error = "without " + h.orientation + ": " + rt.status().message();

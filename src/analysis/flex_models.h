@@ -50,7 +50,9 @@ std::string OrientationName(double primary_deg, double secondary_deg);
 // free mask, image size) and sets every view's group. Errors: a view without angles under
 // per_group or smooth (naming it), a smooth model with fewer orientation groups than
 // coefficients (naming the counts; ba/problem.h Check).
-Status ApplyIntrinsicsModel(IntrinsicsModel model, const ba::SmoothBasis& basis, ba::BaProblem* problem);
+Status ApplyIntrinsicsModel(IntrinsicsModel model,
+                            const ba::SmoothBasis& basis,
+                            ba::BaProblem* problem);
 
 struct HeldOutGroup {
   std::string orientation;

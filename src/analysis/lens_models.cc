@@ -35,7 +35,9 @@ ba::BaProblem PlateViews(const ba::BaProblem& p) {
 }
 
 // The full fit's scores and principal point.
-StatusOr<ba::BaResult> FitFull(const ba::BaProblem& plates, const ba::BaOptions& o, DistortionScore* sc) {
+StatusOr<ba::BaResult> FitFull(const ba::BaProblem& plates,
+                               const ba::BaOptions& o,
+                               DistortionScore* sc) {
   auto r = ba::SolveBundleAdjustment(plates, o);
   if (!r.ok()) return r.status();
   sc->num_free = r->num_free;
@@ -148,7 +150,10 @@ void HeldOutScores(const std::vector<ViewRows>& rows, double sigma_px, int folds
   sc->held_out_rms_px = std::sqrt(chi2 / static_cast<double>(n)) * sigma_px;
 }
 
-Status ScoreModel(const ba::BaProblem& plates, const ba::BaOptions& o, int folds, DistortionScore* sc) {
+Status ScoreModel(const ba::BaProblem& plates,
+                  const ba::BaOptions& o,
+                  int folds,
+                  DistortionScore* sc) {
   auto r = FitFull(plates, o, sc);
   if (!r.ok()) return r.status();
   HeldOutScores(RowsByView(plates, *r), plates.views[0].sigma_px, folds, sc);
@@ -260,7 +265,8 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
   // times faster than Ceres there, the same optimum; ba/bundle_adjuster.h).
   bool lm = o.loss == "trivial" && !plates.plate.free && !plates.groups[0].has_prior;
   for (const auto& v : plates.views) {
-    lm &= v.sigma_px == plates.views[0].sigma_px && v.obs_sigma_px.empty() && v.obs_covariance_px2.empty();
+    lm &= v.sigma_px == plates.views[0].sigma_px && v.obs_sigma_px.empty() &&
+          v.obs_covariance_px2.empty();
   }
   if (lm) o.backend = "carmba_lm";
   DistortionSelection sel;
@@ -281,7 +287,8 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
   for (const auto& sc : sel.scores) {
     if (!sc.ok) continue;
     if (!best || sc.aic < best->aic) best = &sc;
-    if (!best_held_out || sc.held_out_chi2_per_residual < best_held_out->held_out_chi2_per_residual) {
+    if (!best_held_out ||
+        sc.held_out_chi2_per_residual < best_held_out->held_out_chi2_per_residual) {
       best_held_out = &sc;
     }
   }
@@ -313,18 +320,24 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
   }
   sel.recommended = best->model;
   char buf[1000];
-  std::snprintf(buf, sizeof buf,
-                "%s%s (AIC %.1f; chi-square %.1f with %d free parameters); the held-out views (%d "
-                "folds) %s",
-                moved.empty() ? "" : "the recommendation is ", DistortionModelName(best->model),
-                best->aic, best->chi2, best->num_free, sel.folds,
-                best_held_out == best
-                    ? "are predicted best by it too"
-                    : (std::string("are predicted best by ") + DistortionModelName(best_held_out->model) +
-                       " (held-out chi-square per residual " +
-                       std::to_string(best_held_out->held_out_chi2_per_residual) + " against " +
-                       std::to_string(best->held_out_chi2_per_residual) + ")")
-                          .c_str());
+  std::snprintf(
+      buf,
+      sizeof buf,
+      "%s%s (AIC %.1f; chi-square %.1f with %d free parameters); the held-out views (%d "
+      "folds) %s",
+      moved.empty() ? "" : "the recommendation is ",
+      DistortionModelName(best->model),
+      best->aic,
+      best->chi2,
+      best->num_free,
+      sel.folds,
+      best_held_out == best
+          ? "are predicted best by it too"
+          : (std::string("are predicted best by ") + DistortionModelName(best_held_out->model) +
+             " (held-out chi-square per residual " +
+             std::to_string(best_held_out->held_out_chi2_per_residual) + " against " +
+             std::to_string(best->held_out_chi2_per_residual) + ")")
+                .c_str());
   sel.why = moved.empty() ? std::string(buf) + ": the lowest AIC" : moved + buf;
   return sel;
 }

@@ -58,7 +58,8 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
   Jl.transposeInPlace();  // row-major into column-major storage
   const Eigen::Matrix3d local = Jl * e.covariance.topLeftCorner<3, 3>() * Jl.transpose();
   e.sigma_rotation_deg = local.diagonal().cwiseMax(0.0).cwiseSqrt() * kRadToDeg;
-  e.sigma_translation_mm = e.covariance.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();
+  e.sigma_translation_mm =
+      e.covariance.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();
   e.baseline_mm = e.cam_b_from_cam_a.tail<3>().norm();
   return e;
 }
@@ -71,7 +72,8 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
   Eigen::Matrix<double, 6, 12> J;
   RelativePoseWithJacobian(pa, pb, &J);
   e.covariance_calibration = J * C_cal * J.transpose();
-  e.covariance_calibration = 0.5 * (e.covariance_calibration + e.covariance_calibration.transpose()).eval();
+  e.covariance_calibration =
+      0.5 * (e.covariance_calibration + e.covariance_calibration.transpose()).eval();
   Eigen::Matrix<double, 12, 1> g;
   PairMetricWithGradient(pa.data(), pb.data(),
                          [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g.data());
@@ -79,8 +81,8 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
   return e;
 }
 
-std::vector<RelativePoseEstimate> EstimateRelativePoses(const ba::BaResult& result,
-                                                        const std::vector<std::pair<int, int>>& pairs) {
+std::vector<RelativePoseEstimate> EstimateRelativePoses(
+    const ba::BaResult& result, const std::vector<std::pair<int, int>>& pairs) {
   std::map<int, int> slot;  // view -> position in the joint covariance
   std::vector<int> blocks;
   for (const auto& [a, b] : pairs) {
@@ -114,9 +116,8 @@ std::vector<RelativePoseEstimate> EstimateRelativePoses(const ba::BaResult& resu
   return out;
 }
 
-std::vector<std::pair<int, int>> RelativePosePairs(const ba::BaProblem& problem,
-                                                   const std::vector<std::pair<int, int>>& validation,
-                                                   int max_all) {
+std::vector<std::pair<int, int>> RelativePosePairs(
+    const ba::BaProblem& problem, const std::vector<std::pair<int, int>>& validation, int max_all) {
   std::vector<int> object;
   for (size_t v = 0; v < problem.views.size(); ++v) {
     if (problem.views[v].kind == ba::ViewKind::kObject) object.push_back(static_cast<int>(v));

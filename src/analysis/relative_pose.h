@@ -85,14 +85,15 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pose_a,
 
 // The relative poses of `pairs` (problem view indices), with the covariance of all the views
 // involved computed once.
-std::vector<RelativePoseEstimate> EstimateRelativePoses(const ba::BaResult& result,
-                                                        const std::vector<std::pair<int, int>>& pairs);
+std::vector<RelativePoseEstimate> EstimateRelativePoses(
+    const ba::BaResult& result, const std::vector<std::pair<int, int>>& pairs);
 
 // The pairs a report shows: every pair of object views when there are at most `max_all` of them,
 // else `validation` (view index pairs) alone.
-std::vector<std::pair<int, int>> RelativePosePairs(const ba::BaProblem& problem,
-                                                   const std::vector<std::pair<int, int>>& validation,
-                                                   int max_all = 10);
+std::vector<std::pair<int, int>> RelativePosePairs(
+    const ba::BaProblem& problem,
+    const std::vector<std::pair<int, int>>& validation,
+    int max_all = 10);
 
 // Errors of an estimate against true poses cam_a_from_object, cam_b_from_object:
 //   e = estimate - truth (rvec difference, mm), NEES = e^T C^-1 e (6 dof), the rotation error

@@ -103,7 +103,10 @@ void FiducialLocalisationErrors(const ba::BaProblem& base,
 
 // The problem without marker m: the marker gone, object views left with fewer than 4 other
 // markers left out (counted in row->num_views_left_out); `obs` mapped to the reduced views.
-ba::BaProblem WithoutMarker(const ba::BaProblem& base, size_t m, std::vector<PixelObservation>* obs, MarkerTre* row) {
+ba::BaProblem WithoutMarker(const ba::BaProblem& base,
+                            size_t m,
+                            std::vector<PixelObservation>* obs,
+                            MarkerTre* row) {
   const int id = base.markers[m].id;
   ba::BaProblem reduced = base;
   reduced.markers.erase(reduced.markers.begin() + static_cast<long>(m));
@@ -193,7 +196,8 @@ MarkerTre LeaveOut(const ba::BaProblem& base, size_t m, std::vector<PixelObserva
   for (const ba::BaMarker& o : reduced.markers) fid.push_back(o.p_ct);
   const double tre_f2 = FitzpatrickTre2(fid, row.p_ct, fle2);
   row.fitzpatrick_tre_mm = std::sqrt(tre_f2);
-  row.fitzpatrick_rms_mm = std::sqrt(tre_f2 + row.covariance_pixels.trace() + row.ct_covariance.trace());
+  row.fitzpatrick_rms_mm =
+      std::sqrt(tre_f2 + row.covariance_pixels.trace() + row.ct_covariance.trace());
   sums->e2 += e.squaredNorm();
   sums->predicted2 += C.trace();
   sums->fitzpatrick2 += row.fitzpatrick_rms_mm * row.fitzpatrick_rms_mm;
@@ -225,11 +229,13 @@ StatusOr<TreResult> LeaveOneMarkerOut(const ba::BaProblem& problem,
                                       const ba::BaOptions& options_in) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!full.covariance) return Status::Error("leave-one-marker-out: the solve has no covariance");
-  if (!problem.rigs.empty()) return Status::Error("leave-one-marker-out: a problem with rigs is not supported");
+  if (!problem.rigs.empty())
+    return Status::Error("leave-one-marker-out: a problem with rigs is not supported");
   for (const ba::IntrinsicsGroup& g : problem.groups) {
     if (g.smooth) {
-      return Status::Error("leave-one-marker-out: group '" + g.name +
-                           "' has angle-dependent (smooth) intrinsics, which the TRE does not support");
+      return Status::Error(
+          "leave-one-marker-out: group '" + g.name +
+          "' has angle-dependent (smooth) intrinsics, which the TRE does not support");
     }
   }
   ba::BaOptions options = options_in;

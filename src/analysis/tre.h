@@ -47,7 +47,8 @@ struct MarkerTre {
   Eigen::Vector3d p_triangulated = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();     // of p_triangulated (solve + pixels)
   Eigen::Matrix3d covariance_pixels = Eigen::Matrix3d::Zero();
-  Eigen::Matrix3d covariance_calibration = Eigen::Matrix3d::Zero();  // considered calibration's part
+  Eigen::Matrix3d covariance_calibration =
+      Eigen::Matrix3d::Zero();  // considered calibration's part
   Eigen::Matrix3d ct_covariance = Eigen::Matrix3d::Zero();
   double error_mm = 0;              // |p_triangulated - p_ct|
   double predicted_rms_mm = 0;      // sqrt(tr(C_tri) + tr(C_ct))

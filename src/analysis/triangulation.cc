@@ -42,7 +42,8 @@ Status ObjectRays(const ba::BaProblem& problem,
     }
     const ba::BaView& v = problem.views[o.view];
     if (v.kind != ba::ViewKind::kObject) {
-      return Status::Error("view '" + v.id + "' is a plate view: points are triangulated in object views");
+      return Status::Error("view '" + v.id +
+                           "' is a plate view: points are triangulated in object views");
     }
     if (!seen.insert(o.view).second) return Status::Error("view '" + v.id + "' is given twice");
     if (!o.uv_px.allFinite() || !o.covariance_px2.allFinite()) {
@@ -61,7 +62,8 @@ Status ObjectRays(const ba::BaProblem& problem,
     double xy[2];
     if (!UnprojectToNormalized(K, o.uv_px.data(), xy)) {
       return Status::Error("view '" + v.id + "': pixel (" + Fmt("%g", o.uv_px[0]) + ", " +
-                           Fmt("%g", o.uv_px[1]) + ") cannot be undistorted with the calibrated model");
+                           Fmt("%g", o.uv_px[1]) +
+                           ") cannot be undistorted with the calibrated model");
     }
     const Eigen::Matrix3d R = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
     const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
@@ -88,7 +90,8 @@ double WidestRayPair(const std::vector<Eigen::Vector3d>& dir, int* wa, int* wb) 
 }
 
 // The least-squares midpoint of the rays.
-Eigen::Vector3d RayMidpoint(const std::vector<Eigen::Vector3d>& origin, const std::vector<Eigen::Vector3d>& dir) {
+Eigen::Vector3d RayMidpoint(const std::vector<Eigen::Vector3d>& origin,
+                            const std::vector<Eigen::Vector3d>& dir) {
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < dir.size(); ++i) {
@@ -115,11 +118,17 @@ Status PointNormalEquations(const ba::BaProblem& problem,
   for (const auto& o : obs) {
     const ba::BaView& v = problem.views[o.view];
     double uv[2], Jp[6];
-    if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
-                             p.data(), uv, nullptr, nullptr, Jp)) {
+    if (!ProjectPointWithJac(result.block(L.group_block(v.group)),
+                             result.block(L.view_block(o.view)),
+                             p.data(),
+                             uv,
+                             nullptr,
+                             nullptr,
+                             Jp)) {
       return Status::Error("the rays meet behind the source of view '" + v.id + "'");
     }
-    const Eigen::Matrix<double, 2, 3> J = Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
+    const Eigen::Matrix<double, 2, 3> J =
+        Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
     const Eigen::Matrix2d W = o.covariance_px2.inverse();
     const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
     *N += J.transpose() * W * J;
@@ -189,9 +198,11 @@ StackedPointJacobians StackPointJacobians(const ba::BaProblem& problem,
     const int gb = L.group_block(v.group), vb = L.view_block(o.view);
     double uv[2], Ji[2 * kNumIntrinsics], Jpose[12], Jp[6];
     ProjectPointWithJac(result.block(gb), result.block(vb), X.data(), uv, Ji, Jpose, Jp);
-    const Eigen::Matrix<double, 2, 3> J = Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
+    const Eigen::Matrix<double, 2, 3> J =
+        Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
     const Eigen::Matrix<double, 3, 2> JW = J.transpose() * o.covariance_px2.inverse();
-    const Eigen::MatrixXd Bi = Eigen::Map<Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>>(Ji);
+    const Eigen::MatrixXd Bi =
+        Eigen::Map<Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor>>(Ji);
     const Eigen::MatrixXd Bp = Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>>(Jpose);
     // Rows of J_i^T W_i B_i over the free state (tied parameters through the block's basis).
     const Eigen::Matrix<double, 3, kNumIntrinsics, Eigen::RowMajor> Ki = JW * Bi;
@@ -220,7 +231,9 @@ StackedPointJacobians StackPointJacobians(const ba::BaProblem& problem,
 
 // The solve's and the considered calibration's shares of the point's covariance, with G = -N^-1 K
 // (and the budget's traces by source), into out; out->covariance the total.
-void PointSolveShares(const ba::BaResult& result, const StackedPointJacobians& s, TriangulatedPoint* out) {
+void PointSolveShares(const ba::BaResult& result,
+                      const StackedPointJacobians& s,
+                      TriangulatedPoint* out) {
   const Eigen::MatrixXd G = -out->covariance_pixels * s.K;
   const Eigen::MatrixXd Gc = -out->covariance_pixels * s.Kc;
   out->covariance_solve = G * result.covariance->Solve(G.transpose()) * result.covariance_scale;
@@ -234,7 +247,8 @@ void PointSolveShares(const ba::BaResult& result, const StackedPointJacobians& s
   if (result.linearization) {
     const ba::ErrorBudget eb =
         result.covariance->Budget(G, *result.linearization, result.covariance_scale, Gc);
-    for (int k = 0; k < ba::kNumSources; ++k) out->solve_trace_by_source[k] = eb.by_source.col(k).sum();
+    for (int k = 0; k < ba::kNumSources; ++k)
+      out->solve_trace_by_source[k] = eb.by_source.col(k).sum();
   }
   out->covariance = out->covariance_pixels + out->covariance_solve + out->covariance_calibration;
 }
@@ -242,8 +256,12 @@ void PointSolveShares(const ba::BaResult& result, const StackedPointJacobians& s
 // Self-check: the residuals against their covariance M = the pixels' + the solve's projected
 // (B C B^T, correlated between views through the shared intrinsics and markers), with the
 // point's 3 directions taken out: chi2 = min_dX (r + J dX)^T M^-1 (r + J dX).
-void TriangulationSelfCheck(const ba::BaResult& result, const StackedPointJacobians& s, int num_obs, TriangulatedPoint* out) {
-  Eigen::MatrixXd M = s.Sigma + s.Bs * result.covariance->Solve(s.Bs.transpose()) * result.covariance_scale;
+void TriangulationSelfCheck(const ba::BaResult& result,
+                            const StackedPointJacobians& s,
+                            int num_obs,
+                            TriangulatedPoint* out) {
+  Eigen::MatrixXd M =
+      s.Sigma + s.Bs * result.covariance->Solve(s.Bs.transpose()) * result.covariance_scale;
   if (result.covariance->num_consider() > 0) {
     const Eigen::MatrixXd T = result.covariance->ConsiderGradient(s.Bs, s.Bcs);
     M += T * result.covariance->consider_covariance() * T.transpose();
@@ -328,8 +346,9 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const ba::BaProblem& problem,
   if (!options.Check(&err)) return Status::Error(err);
   if (!result.covariance) return Status::Error("the solve has no covariance");
   if (!problem.rigs.empty()) {
-    return Status::Error("triangulation through a solve with rigs is not supported (its views' poses are "
-                         "composed; carmba track triangulates its own beads)");
+    return Status::Error(
+        "triangulation through a solve with rigs is not supported (its views' poses are "
+        "composed; carmba track triangulates its own beads)");
   }
   auto point = TriangulateAll(problem, result, obs, options);
   if (!point.ok()) return point;
@@ -346,17 +365,19 @@ StatusOr<TriangulatedPoint> TriangulatePoint(const ba::BaProblem& problem,
         if (m != k) rest.push_back(obs[used[m]]);
       }
       auto t = TriangulateAll(problem, result, rest, options);
-      if (t.ok() && (best < 0 || t->chi2 < best_point->chi2)) best = static_cast<int>(k), best_point = t;
+      if (t.ok() && (best < 0 || t->chi2 < best_point->chi2))
+        best = static_cast<int>(k), best_point = t;
     }
     if (best < 0) break;
     const PixelObservation& out_obs = obs[used[best]];
     const auto [r, n_sigma] = PixelResidual(problem, result, out_obs, best_point->p_in_object);
     rejections.push_back("the ray of view '" + problem.views[out_obs.view].id +
-                         "' was rejected as an outlier: its pixel (" + Fmt("%.2f", out_obs.uv_px[0]) +
-                         ", " + Fmt("%.2f", out_obs.uv_px[1]) + ") lies " + Fmt("%.3g", r.norm()) +
-                         " px (" + Fmt("%.3g", n_sigma) + " sigma) from the point the other " +
-                         std::to_string(used.size() - 1) + " rays give (chi-square of all rays " +
-                         Fmt("%.3g", point->chi2) + " on " + std::to_string(point->dof) +
+                         "' was rejected as an outlier: its pixel (" +
+                         Fmt("%.2f", out_obs.uv_px[0]) + ", " + Fmt("%.2f", out_obs.uv_px[1]) +
+                         ") lies " + Fmt("%.3g", r.norm()) + " px (" + Fmt("%.3g", n_sigma) +
+                         " sigma) from the point the other " + std::to_string(used.size() - 1) +
+                         " rays give (chi-square of all rays " + Fmt("%.3g", point->chi2) + " on " +
+                         std::to_string(point->dof) +
                          " dof, P = " + Fmt("%.2g", point->chi2_p_value) + ")");
     used.erase(used.begin() + best);
     point = best_point;

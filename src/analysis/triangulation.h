@@ -10,7 +10,8 @@
 // Gauss-Newton in pixels.
 //
 // Covariance, first order (implicit function theorem at the optimum): with J_i = dq_i/dX (2x3),
-// B_i = dq_i/dtheta over the free state theta (intrinsics and pose of view i), N = sum J_i^T W_i J_i,
+// B_i = dq_i/dtheta over the free state theta (intrinsics and pose of view i), N = sum J_i^T W_i
+// J_i,
 //   dX = -N^-1 sum_i J_i^T W_i (B_i dtheta - dz_i),
 //   C_X = N^-1  (the point's pixels)  +  G C_theta G^T,  G = -N^-1 sum_i J_i^T W_i B_i,
 // the two independent (the point's pixels are not in the solve). C_theta is the engine's
@@ -23,10 +24,11 @@
 //
 // Self-check: the stacked pixel residuals r against their covariance M = Sigma (the pixels) +
 // B C_theta B^T (the solve's, correlated between the views), the point's directions taken out:
-// chi2 = min_dX (r + J dX)^T M^-1 (r + J dX) on 2n - 3 degrees of freedom. Outside its band (P < 0.5 %) with three or more rays, the ray whose removal leaves the
-// smallest chi-square is rejected (its pixel is reported against the point the others give) and
-// the point triangulated again, while at least three rays remain and the chi-square is out of
-// band; a point whose rays still do not meet within their covariances is a warning.
+// chi2 = min_dX (r + J dX)^T M^-1 (r + J dX) on 2n - 3 degrees of freedom. Outside its band (P <
+// 0.5 %) with three or more rays, the ray whose removal leaves the smallest chi-square is rejected
+// (its pixel is reported against the point the others give) and the point triangulated again, while
+// at least three rays remain and the chi-square is out of band; a point whose rays still do not
+// meet within their covariances is a warning.
 //
 // Warnings and errors: fewer than two views is an error ("seen in one view only"), as are a
 // plate view, a view given twice, non-finite pixels, a pixel that cannot be undistorted, rays

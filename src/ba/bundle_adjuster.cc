@@ -153,7 +153,8 @@ class Assembler {
   Assembler(const BaProblem& problem, const StateLayout& layout, const BaOptions& o,
             const std::vector<std::vector<char>>& dropped, Assembly* as, ceres::Problem* cp)
       : problem_(problem), layout_(layout), o_(o), dropped_(dropped), as_(as), cp_(cp) {
-    for (size_t m = 0; m < problem.markers.size(); ++m) marker_index_[problem.markers[m].id] = static_cast<int>(m);
+    for (size_t m = 0; m < problem.markers.size(); ++m)
+      marker_index_[problem.markers[m].id] = static_cast<int>(m);
   }
 
   Status AddView(int v) {
@@ -181,7 +182,8 @@ class Assembler {
         return Status::Error("marker " + std::to_string(problem_.markers[m].id) +
                              ": CT covariance is not symmetric positive definite");
       }
-      AddPointPrior(layout_.marker_block(static_cast<int>(m)), problem_.markers[m].p_ct, S, Source::kCt);
+      AddPointPrior(
+          layout_.marker_block(static_cast<int>(m)), problem_.markers[m].p_ct, S, Source::kCt);
     }
     return Status::Ok();
   }
@@ -280,15 +282,18 @@ class Assembler {
   Status AddObservation(int v, int i, const Eigen::MatrixXd& A) {
     const BaView& view = problem_.views[v];
     const int pose_b = layout_.view_block(v), intr_b = layout_.group_block(view.group);
-    const int point_b = view.kind == ViewKind::kPlate ? layout_.plate_point_block(view.point_ids[i])
-                                                      : layout_.marker_block(marker_index_.at(view.point_ids[i]));
+    const int point_b = view.kind == ViewKind::kPlate
+                            ? layout_.plate_point_block(view.point_ids[i])
+                            : layout_.marker_block(marker_index_.at(view.point_ids[i]));
     const Eigen::Vector2d& q = view.uv_px[i];
     PixelWhitening w = PixelWhitening::Isotropic(view.SigmaPx(i));
-    if (!view.obs_covariance_px2.empty() && !PixelWhitening::FromCovariance(view.obs_covariance_px2[i], &w)) {
+    if (!view.obs_covariance_px2.empty() &&
+        !PixelWhitening::FromCovariance(view.obs_covariance_px2[i], &w)) {
       return Status::Error("view '" + view.id + "' point " + std::to_string(view.point_ids[i]) +
                            ": the pixel covariance is not symmetric positive definite");
     }
-    const Source source = view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels;
+    const Source source =
+        view.kind == ViewKind::kPlate ? Source::kPlatePixels : Source::kObjectPixels;
     const NoiseGroup group = GroupOf(source, &view);
     const double sigma_scale = o_.group_sigma_scale[static_cast<int>(group)];
     const bool analytic = o_.analytic_jacobians;
@@ -297,12 +302,12 @@ class Assembler {
             ? (analytic ? static_cast<ceres::CostFunction*>(
                               new SmoothReprojectionError(q.x(), q.y(), view.SigmaPx(i), A))
                         : SmoothReprojectionErrorAutoDiff::Create(q.x(), q.y(), view.SigmaPx(i), A))
-        : view.rig >= 0
-            ? (analytic ? static_cast<ceres::CostFunction*>(
-                              new RigReprojectionError(q.x(), q.y(), w, view.cam_from_rig.data()))
-                        : RigReprojectionErrorAutoDiff::Create(q.x(), q.y(), w, view.cam_from_rig.data()))
-        : analytic ? ReprojectionError::Create(q.x(), q.y(), w)
-                   : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
+        : view.rig >= 0 ? (analytic ? static_cast<ceres::CostFunction*>(new RigReprojectionError(
+                                          q.x(), q.y(), w, view.cam_from_rig.data()))
+                                    : RigReprojectionErrorAutoDiff::Create(
+                                          q.x(), q.y(), w, view.cam_from_rig.data()))
+        : analytic      ? ReprojectionError::Create(q.x(), q.y(), w)
+                        : ReprojectionErrorAutoDiff::Create(q.x(), q.y(), w);
     ceres::LossFunction* loss = MakeLoss(o_, view.SigmaPx(i) * sigma_scale);
     Own(inner, loss);
     ceres::CostFunction* cost = Scaled(inner, group);
@@ -411,7 +416,8 @@ bool EvaluateBlock(const BuiltBlock& bb,
       const Eigen::Map<const RowMajor> Ji(jac[i], nr, sizes[i]);
       lin->consider_block = bb.blocks[i];
       lin->J_consider.resize(nr, static_cast<Eigen::Index>(bi.consider.size()));
-      for (size_t c = 0; c < bi.consider.size(); ++c) lin->J_consider.col(c) = Ji.col(bi.consider[c]);
+      for (size_t c = 0; c < bi.consider.size(); ++c)
+        lin->J_consider.col(c) = Ji.col(bi.consider[c]);
       if (bb.loss) CorrectForLoss(*bb.loss, *r, &lin->J_consider);
     }
     if (bi.constant) continue;
@@ -440,8 +446,9 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   need(p.groups.empty() || !p.groups[0].smooth, "intrinsics that do not depend on the angles");
   for (const auto& v : p.views) need(v.kind == ViewKind::kPlate, "plate views only");
   for (const auto& v : p.views) {
-    need(v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty() && v.obs_covariance_px2.empty(),
-         "one pixel sigma for all views");
+    need(
+        v.sigma_px == p.views[0].sigma_px && v.obs_sigma_px.empty() && v.obs_covariance_px2.empty(),
+        "one pixel sigma for all views");
   }
   need(!p.plate.free, "plate points held");
   need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
@@ -548,8 +555,11 @@ void ForEachObservation(const BaProblem& problem, const BaOptions& o, const Buil
 
 // The cost at the assembly's state (the initial values), and each view's pixel RMS there into
 // `view_rms_px` (problem order; NaN for a view with no observation used).
-StatusOr<double> InitialCost(const BaProblem& problem, const BaOptions& o, const StateLayout& layout,
-                             const Assembly& as, std::vector<double>* view_rms_px) {
+StatusOr<double> InitialCost(const BaProblem& problem,
+                             const BaOptions& o,
+                             const StateLayout& layout,
+                             const Assembly& as,
+                             std::vector<double>* view_rms_px) {
   double chi2_0 = 0;
   std::vector<double> ss(problem.views.size(), 0.0);
   std::vector<int> n(problem.views.size(), 0);
@@ -566,10 +576,11 @@ StatusOr<double> InitialCost(const BaProblem& problem, const BaOptions& o, const
                            ErrorKind::kNonFiniteInitialState);
     }
     chi2_0 += r.squaredNorm();
-    ForEachObservation(problem, o, bb, r, [&](int, const Eigen::Vector2d&, const Eigen::Vector2d& e) {
-      ss[bb.view] += e.squaredNorm();
-      n[bb.view] += 1;
-    });
+    ForEachObservation(
+        problem, o, bb, r, [&](int, const Eigen::Vector2d&, const Eigen::Vector2d& e) {
+          ss[bb.view] += e.squaredNorm();
+          n[bb.view] += 1;
+        });
   }
   view_rms_px->assign(problem.views.size(), std::nan(""));
   for (size_t v = 0; v < problem.views.size(); ++v) {
@@ -696,21 +707,24 @@ Status EvaluateSolution(const BaProblem& problem,
     if (!lb.blocks.empty()) lin->rows.push_back(std::move(lb));
     if (bb.view < 0) continue;
     const BaView& view = problem.views[bb.view];
-    ForEachObservation(problem, o, bb, r, [&](int obs, const Eigen::Vector2d& r2, const Eigen::Vector2d& e) {
-      const double n_sigma = r2.norm();
-      ev->view_ss[bb.view] += e.squaredNorm();
-      ev->view_n[bb.view] += 1;
-      res->residuals[bb.view][obs] = BaObservationResidual{e[0], e[1], n_sigma};
-      BaOutlier out{view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
-      if (n_sigma > o.outlier_sigma) res->outliers.push_back(out);
-      if (may_reject && o.reject_sigma > 0 && n_sigma > o.reject_sigma && n_sigma > ev->worst_sigma) {
-        ev->worst_sigma = n_sigma;
-        ev->worst_view = bb.view;
-        ev->worst_obs = obs;
-        ev->worst_out = out;
-        ev->any_rejected = true;
-      }
-    });
+    ForEachObservation(
+        problem, o, bb, r, [&](int obs, const Eigen::Vector2d& r2, const Eigen::Vector2d& e) {
+          const double n_sigma = r2.norm();
+          ev->view_ss[bb.view] += e.squaredNorm();
+          ev->view_n[bb.view] += 1;
+          res->residuals[bb.view][obs] = BaObservationResidual{e[0], e[1], n_sigma};
+          BaOutlier out{
+              view.id, view.kind == ViewKind::kPlate, view.point_ids[obs], n_sigma, e[0], e[1]};
+          if (n_sigma > o.outlier_sigma) res->outliers.push_back(out);
+          if (may_reject && o.reject_sigma > 0 && n_sigma > o.reject_sigma &&
+              n_sigma > ev->worst_sigma) {
+            ev->worst_sigma = n_sigma;
+            ev->worst_view = bb.view;
+            ev->worst_obs = obs;
+            ev->worst_out = out;
+            ev->any_rejected = true;
+          }
+        });
   }
   std::sort(res->outliers.begin(), res->outliers.end(), [](const BaOutlier& a, const BaOutlier& b) {
     return a.residual_sigma > b.residual_sigma;
@@ -803,8 +817,8 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
     state = as.buffer;
     if (!o.evaluate_solution) break;
     SolutionEvaluation ev;
-    CARMBA_RETURN_IF_ERROR(
-        EvaluateSolution(problem, o, layout, as, state, pass < kMaxRejectionPasses, &res, groups, &ev));
+    CARMBA_RETURN_IF_ERROR(EvaluateSolution(
+        problem, o, layout, as, state, pass < kMaxRejectionPasses, &res, groups, &ev));
     if (ev.any_rejected) {
       CARMBA_RETURN_IF_ERROR(RejectWorst(problem, o, ev, &dropped, &res));
       continue;  // solve again without it
@@ -846,7 +860,8 @@ bool UpdateGroupScales(const GroupResiduals& groups,
     if (groups.rows[k] == 0 || redundancy[k] < kMinVarianceComponentRedundancy) continue;
     const double f = groups.chi2[k] / redundancy[k];
     next[k] = std::clamp((*scale)[k] * std::sqrt(f), 1.0 / kMaxSigmaScale, kMaxSigmaScale);
-    changed |= !next_applied[k] || std::abs(next[k] * next[k] / ((*scale)[k] * (*scale)[k]) - 1) > kFactorTolerance;
+    changed |= !next_applied[k] ||
+               std::abs(next[k] * next[k] / ((*scale)[k] * (*scale)[k]) - 1) > kFactorTolerance;
     next_applied[k] = true;
   }
   if (changed) *scale = next, *applied = next_applied;
@@ -877,8 +892,10 @@ StatusOr<BaResult> SolveWithNoiseModel(const BaProblem& problem, const BaOptions
   if (res.covariance) {
     std::array<bool, kNumNoiseGroups> applied{};
     for (int it = 0;; ++it) {
-      const auto redundancy = GroupRedundancies(*layout, *res.linearization, *res.covariance, groups);
-      res.variance_components = VarianceComponents(groups, redundancy, o.group_sigma_scale, applied);
+      const auto redundancy =
+          GroupRedundancies(*layout, *res.linearization, *res.covariance, groups);
+      res.variance_components =
+          VarianceComponents(groups, redundancy, o.group_sigma_scale, applied);
       if (options.covariance_scale != CovarianceScale::kPerGroup || it == kMaxVarianceIterations ||
           !UpdateGroupScales(groups, redundancy, &o.group_sigma_scale, &applied)) {
         break;
@@ -904,9 +921,10 @@ StatusOr<BaResult> SolveWithNoiseModel(const BaProblem& problem, const BaOptions
   }
   res.group_sigma_scale = o.group_sigma_scale;
   res.scale_mode = options.covariance_scale;
-  res.covariance_scale = options.covariance_scale == CovarianceScale::kGlobal && std::isfinite(res.sigma0)
-                             ? res.sigma0 * res.sigma0
-                             : 1.0;
+  res.covariance_scale =
+      options.covariance_scale == CovarianceScale::kGlobal && std::isfinite(res.sigma0)
+          ? res.sigma0 * res.sigma0
+          : 1.0;
   res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

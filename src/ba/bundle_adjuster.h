@@ -13,9 +13,9 @@
 // held; their Jacobian columns are linearised too, for the consider term of the covariance.
 // Reprojections are whitened by each observation's 2x2 pixel covariance (BaView::
 // obs_covariance_px2) or isotropic sigma. A robust loss acts on the reprojection blocks only,
-// with its scale in px (whitened by the observation's isotropic sigma, BaView::SigmaPx). Held intrinsics are a ceres::SubsetManifold; constant blocks are set constant.
-// Ordering for the Schur solvers: points first, then poses, then intrinsics (poses first when no
-// point is free).
+// with its scale in px (whitened by the observation's isotropic sigma, BaView::SigmaPx). Held
+// intrinsics are a ceres::SubsetManifold; constant blocks are set constant. Ordering for the Schur
+// solvers: points first, then poses, then intrinsics (poses first when no point is free).
 //
 // Outliers: after the solve every observation whose whitened residual norm |r| exceeds
 // `outlier_sigma` is listed; with `reject_sigma` > 0, the worst observation above it is dropped

@@ -51,13 +51,17 @@ using BlockRows = std::vector<std::map<int, Eigen::MatrixXd>>;
 
 // H = J^T J in blocks over the linearisation's rows, and its diagonal over the free state. Every
 // free block must be in some residual.
-Status NormalBlocks(const StateLayout& layout, const Linearization& lin, BlockRows* H, Eigen::VectorXd* diag) {
+Status NormalBlocks(const StateLayout& layout,
+                    const Linearization& lin,
+                    BlockRows* H,
+                    Eigen::VectorXd* diag) {
   const int nb = static_cast<int>(layout.blocks().size());
   H->assign(nb, {});
   *diag = Eigen::VectorXd::Zero(layout.num_free());
   for (const LinearizedBlock& r : lin.rows) {
     for (size_t i = 0; i < r.blocks.size(); ++i) {
-      if (!r.J[i].allFinite()) return Status::Error("covariance: non-finite Jacobian at the solution");
+      if (!r.J[i].allFinite())
+        return Status::Error("covariance: non-finite Jacobian at the solution");
       for (size_t j = 0; j < r.blocks.size(); ++j) {
         auto& row = (*H)[r.blocks[i]];
         auto it = row.find(r.blocks[j]);
@@ -88,7 +92,8 @@ std::vector<int> PointBlocks(const StateLayout& layout) {
   std::vector<int> level;
   for (int b = 0; b < static_cast<int>(layout.blocks().size()); ++b) {
     const BlockInfo& bi = layout.block(b);
-    if (!bi.constant && (bi.kind == BlockKind::kMarker || bi.kind == BlockKind::kPlatePoint)) level.push_back(b);
+    if (!bi.constant && (bi.kind == BlockKind::kMarker || bi.kind == BlockKind::kPlatePoint))
+      level.push_back(b);
   }
   return level;
 }
@@ -109,7 +114,9 @@ std::vector<int> UncoupledPlatePoses(const StateLayout& layout, const BlockRows&
 
 }  // namespace
 
-Status SchurCovariance::EliminateLevel(const std::vector<int>& level, double min_rcond, BlockRows* H_ptr) {
+Status SchurCovariance::EliminateLevel(const std::vector<int>& level,
+                                       double min_rcond,
+                                       BlockRows* H_ptr) {
   BlockRows& H = *H_ptr;
   const StateLayout& layout = *layout_;
   std::vector<Eliminated> done;
@@ -194,7 +201,9 @@ Status SchurCovariance::NullDirectionError(const Eigen::MatrixXd& S, const Eigen
       ErrorKind::kNotDetermined);
 }
 
-Status SchurCovariance::InvertKept(const BlockRows& H, const Eigen::VectorXd& diag, double min_rcond) {
+Status SchurCovariance::InvertKept(const BlockRows& H,
+                                   const Eigen::VectorXd& diag,
+                                   double min_rcond) {
   const StateLayout& layout = *layout_;
   const int nb = static_cast<int>(layout.blocks().size());
   std::set<int> eliminated;
@@ -211,7 +220,8 @@ Status SchurCovariance::InvertKept(const BlockRows& H, const Eigen::VectorXd& di
   const Eigen::Index K = kept_dim_;
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(K, K);
   std::map<int, int> kept_index;
-  for (size_t i = 0; i < kept_blocks_.size(); ++i) kept_index[kept_blocks_[i]] = static_cast<int>(i);
+  for (size_t i = 0; i < kept_blocks_.size(); ++i)
+    kept_index[kept_blocks_[i]] = static_cast<int>(i);
   for (size_t i = 0; i < kept_blocks_.size(); ++i) {
     for (auto& [c, m] : H[kept_blocks_[i]]) {
       const int j = kept_index.at(c);
@@ -248,12 +258,13 @@ Status SchurCovariance::AddConsideredCalibration(const Linearization& lin) {
   Eigen::MatrixXd H_fc = Eigen::MatrixXd::Zero(n_, nc);
   for (const LinearizedBlock& r : lin.rows) {
     if (r.consider_block < 0) continue;
-    if (!r.J_consider.allFinite()) return Status::Error("covariance: non-finite Jacobian at the solution");
+    if (!r.J_consider.allFinite())
+      return Status::Error("covariance: non-finite Jacobian at the solution");
     const BlockInfo& bc = layout.block(r.consider_block);
     for (size_t i = 0; i < r.blocks.size(); ++i) {
       const BlockInfo& bi = layout.block(r.blocks[i]);
-      H_fc.block(bi.free_offset, bc.consider_offset, bi.free.size(), bc.consider.size()).noalias() +=
-          r.J[i].transpose() * r.J_consider;
+      H_fc.block(bi.free_offset, bc.consider_offset, bi.free.size(), bc.consider.size())
+          .noalias() += r.J[i].transpose() * r.J_consider;
     }
   }
   D_ = -Solve(H_fc);
@@ -356,7 +367,8 @@ Eigen::MatrixXd SchurCovariance::BlockConsiderCovariance(const std::vector<int>&
   int a = 0;
   for (int b : blocks) {
     const BlockInfo& bi = L.block(b);
-    if (!bi.free.empty()) T.middleRows(a, bi.size) = bi.basis * D_.middleRows(bi.free_offset, bi.free.size());
+    if (!bi.free.empty())
+      T.middleRows(a, bi.size) = bi.basis * D_.middleRows(bi.free_offset, bi.free.size());
     a += bi.size;
   }
   const Eigen::MatrixXd C = T * consider_covariance_ * T.transpose();

@@ -78,9 +78,8 @@ struct ErrorBudget {
 class SchurCovariance {
  public:
   // Errors: rank deficiency (naming the null direction), non-finite Jacobians.
-  static StatusOr<std::shared_ptr<SchurCovariance>> Compute(const StateLayout& layout,
-                                                            const Linearization& lin,
-                                                            double min_reciprocal_condition = 1e-14);
+  static StatusOr<std::shared_ptr<SchurCovariance>> Compute(
+      const StateLayout& layout, const Linearization& lin, double min_reciprocal_condition = 1e-14);
 
   int num_free() const { return n_; }
   // H^-1 B, B num_free x k.

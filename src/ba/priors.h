@@ -84,7 +84,8 @@ struct PointPriorRowsAutoDiff {
     }
     return true;
   }
-  static ceres::CostFunction* Create(const Eigen::Vector3d& p, const Eigen::Matrix<double, 2, 3>& a) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& p,
+                                     const Eigen::Matrix<double, 2, 3>& a) {
     return new ceres::AutoDiffCostFunction<PointPriorRowsAutoDiff, 2, 3>(
         new PointPriorRowsAutoDiff(p, a));
   }

@@ -42,7 +42,8 @@ Status CheckIntrinsicsGroup(const IntrinsicsGroup& g) {
   }
   if (g.smooth && !g.initial_coefficients.empty() &&
       static_cast<int>(g.initial_coefficients.size()) != g.basis.BlockSize()) {
-    return Status::Error("group '" + g.name + "': " + std::to_string(g.initial_coefficients.size()) +
+    return Status::Error("group '" + g.name +
+                         "': " + std::to_string(g.initial_coefficients.size()) +
                          " initial coefficients, expected " + std::to_string(g.basis.BlockSize()));
   }
   if (g.smooth && g.fy_over_fx != 0) {
@@ -158,8 +159,10 @@ Status CheckBaView(const BaProblem& p,
     return Status::Error("view '" + v.id + "': unknown rig " + std::to_string(v.rig));
   }
   if (v.rig >= 0) {
-    if (v.kind != ViewKind::kObject) return Status::Error("view '" + v.id + "': only object views can be in a rig");
-    if (!v.cam_from_rig.allFinite()) return Status::Error("view '" + v.id + "': non-finite cam_from_rig");
+    if (v.kind != ViewKind::kObject)
+      return Status::Error("view '" + v.id + "': only object views can be in a rig");
+    if (!v.cam_from_rig.allFinite())
+      return Status::Error("view '" + v.id + "': non-finite cam_from_rig");
     if (groups[v.group].smooth) {
       return Status::Error("view '" + v.id + "': a rig view's intrinsics group cannot be smooth");
     }
@@ -259,7 +262,8 @@ Status BaProblem::Check() const {
       return Status::Error("marker " + std::to_string(m.id) + " is given twice");
     }
     if (!m.p_ct.allFinite() || !m.covariance.allFinite()) {
-      return Status::Error("marker " + std::to_string(m.id) + ": non-finite position or covariance");
+      return Status::Error("marker " + std::to_string(m.id) +
+                           ": non-finite position or covariance");
     }
   }
   std::set<std::string> rig_ids;
@@ -276,7 +280,8 @@ Status BaProblem::Check() const {
     if (v.kind == ViewKind::kPlate) ++plate_views_of[v.group];
   }
   for (size_t g = 0; g < groups.size(); ++g) {
-    if (groups[g].smooth) CARMBA_RETURN_IF_ERROR(CheckSmoothCoverage(groups[g], static_cast<int>(g), views));
+    if (groups[g].smooth)
+      CARMBA_RETURN_IF_ERROR(CheckSmoothCoverage(groups[g], static_cast<int>(g), views));
   }
   for (size_t r = 0; r < rigs.size(); ++r) {
     if (rig_observations[r] < 4) {
@@ -301,7 +306,8 @@ Status BaProblem::Check() const {
   }
   for (double r : {marker_radius_mm, plate.sphere_radius_mm}) {
     if (!(r >= 0 && r <= 100)) {
-      return Status::Error("a sphere radius must be in 0 .. 100 mm (0: unknown), not " + std::to_string(r));
+      return Status::Error("a sphere radius must be in 0 .. 100 mm (0: unknown), not " +
+                           std::to_string(r));
     }
   }
   return Status::Ok();
@@ -355,7 +361,8 @@ StateLayout::StateLayout(const BaProblem& problem) {
     group_block_.push_back(b);
     BlockInfo& bi = blocks_[b];
     if (grp.smooth) {
-      for (int i = 0; i < grp.BlockSize(); ++i) bi.parameter_names.push_back(grp.basis.ParameterName(i));
+      for (int i = 0; i < grp.BlockSize(); ++i)
+        bi.parameter_names.push_back(grp.basis.ParameterName(i));
     }
     const auto fx = std::find(bi.free.begin(), bi.free.end(), kFx);
     if (tied && fx != bi.free.end()) {
@@ -375,10 +382,13 @@ StateLayout::StateLayout(const BaProblem& problem) {
   for (ViewKind kind : {ViewKind::kPlate, ViewKind::kObject}) {
     for (size_t v = 0; v < problem.views.size(); ++v) {
       if (problem.views[v].kind != kind || problem.views[v].rig >= 0) continue;
-      view_block_[v] = add(kind == ViewKind::kPlate ? BlockKind::kPlatePose : BlockKind::kObjectPose,
-                           static_cast<int>(v), 6,
-                           (kind == ViewKind::kPlate ? "plate " : "view ") + problem.views[v].id,
-                           false, all(6));
+      view_block_[v] =
+          add(kind == ViewKind::kPlate ? BlockKind::kPlatePose : BlockKind::kObjectPose,
+              static_cast<int>(v),
+              6,
+              (kind == ViewKind::kPlate ? "plate " : "view ") + problem.views[v].id,
+              false,
+              all(6));
     }
   }
   for (size_t r = 0; r < problem.rigs.size(); ++r) {
@@ -488,7 +498,8 @@ BaView KeepObservations(const BaView& view, const std::vector<char>& keep) {
     out.point_ids.push_back(view.point_ids[i]);
     out.uv_px.push_back(view.uv_px[i]);
     if (!view.obs_sigma_px.empty()) out.obs_sigma_px.push_back(view.obs_sigma_px[i]);
-    if (!view.obs_covariance_px2.empty()) out.obs_covariance_px2.push_back(view.obs_covariance_px2[i]);
+    if (!view.obs_covariance_px2.empty())
+      out.obs_covariance_px2.push_back(view.obs_covariance_px2[i]);
   }
   return out;
 }

@@ -80,8 +80,8 @@ constexpr int kNumNoiseGroups = 6;
 // "plate pixels", "object pixels", "detected blobs", "CT fiducials", "plate manufacturing",
 // "intrinsics prior".
 const char* NoiseGroupName(NoiseGroup g);
-// result.json's key: "plate_pixels", "object_pixels", "detected_blobs", "ct", "plate_manufacturing",
-// "intrinsics_prior".
+// result.json's key: "plate_pixels", "object_pixels", "detected_blobs", "ct",
+// "plate_manufacturing", "intrinsics_prior".
 const char* NoiseGroupKey(NoiseGroup g);
 // The group of a residual block of `source`; `view` for a reprojection (null for a prior).
 struct BaView;

@@ -79,7 +79,11 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
         const int k = bi.size - kNumIntrinsics + i;  // distortion sits last in the block
         std::vector<double> grad(bi.size, 0.0);
         grad[k] = 1.0;
-        add(L.ParameterName(b, k), "", x[k], {QuantityKind::kIntrinsic, static_cast<int>(g), -1, -1, i}, b,
+        add(L.ParameterName(b, k),
+            "",
+            x[k],
+            {QuantityKind::kIntrinsic, static_cast<int>(g), -1, -1, i},
+            b,
             grad);
       }
       continue;
@@ -100,8 +104,12 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
       double uv[2], J[2 * kNumIntrinsics];
       ProjectCamPointWithJac(x, p, uv, J, nullptr);
       const std::string prefix = bi.label.empty() ? "" : bi.label + " ";
-      add(prefix + "centre projection u", "px", uv[0],
-          {QuantityKind::kCentreProjection, static_cast<int>(g), -1, -1, 0}, b, std::vector<double>(J, J + 9));
+      add(prefix + "centre projection u",
+          "px",
+          uv[0],
+          {QuantityKind::kCentreProjection, static_cast<int>(g), -1, -1, 0},
+          b,
+          std::vector<double>(J, J + 9));
       add(prefix + "centre projection v", "px", uv[1],
           {QuantityKind::kCentreProjection, static_cast<int>(g), -1, -1, 1}, b,
           std::vector<double>(J + 9, J + 18));
@@ -135,11 +143,16 @@ QuantitySet DerivedQuantities(const BaProblem& problem,
     auto add_pair = [&](const std::string& what, const QuantityKey& key, double value_rad) {
       for (double& x : g) x *= kRadToDeg;
       qs.push_back({name + " " + what, "deg", value_rad * kRadToDeg, key});
-      grads.push_back({{ba, std::vector<double>(g, g + 6)}, {bb, std::vector<double>(g + 6, g + 12)}});
+      grads.push_back(
+          {{ba, std::vector<double>(g, g + 6)}, {bb, std::vector<double>(g + 6, g + 12)}});
     };
-    add_pair("relative rotation", QuantityKey::PairRelativeRotation(ia, ib),
-             PairMetricWithGradient(result.block(ba), result.block(bb),
-                                    [](auto* a, auto* b) { return RelativeRotationAngle(a, b); }, g));
+    add_pair("relative rotation",
+             QuantityKey::PairRelativeRotation(ia, ib),
+             PairMetricWithGradient(
+                 result.block(ba),
+                 result.block(bb),
+                 [](auto* a, auto* b) { return RelativeRotationAngle(a, b); },
+                 g));
     add_pair("view directions", QuantityKey::PairViewDirections(ia, ib),
              PairMetricWithGradient(result.block(ba), result.block(bb),
                                     [](auto* a, auto* b) { return ViewDirectionAngle(a, b); }, g));

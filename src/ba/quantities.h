@@ -5,9 +5,10 @@
 // Quantities (value, unit, gradient over the free state):
 //   * every free intrinsic of every group (`fx`, `lao30 cx`, ...), px or unitless;
 //   * the projection of the image centre's ray: the point p = d * unproject(image centre) (at the
-//     solution; the principal point when the image size is unknown) held fixed in the camera frame (d = the mean object distance, or the plate distance without object views),
-//     projected with the estimated intrinsics; u and v in px (intrinsics only: how well the
-//     camera maps a known ray, the calibration's own uncertainty);
+//     solution; the principal point when the image size is unknown) held fixed in the camera frame
+//     (d = the mean object distance, or the plate distance without object views), projected with
+//     the estimated intrinsics; u and v in px (intrinsics only: how well the camera maps a known
+//     ray, the calibration's own uncertainty);
 //   * every object view's pose: small rotations about the camera axes (deg; the rvec covariance
 //     mapped by the SO(3) left Jacobian, as the pose report does) and the translation (mm);
 //   * every validation pair of object views: the relative-rotation angle and the angle between the
@@ -39,10 +40,18 @@ struct QuantityKey {
   QuantityKind kind = QuantityKind::kIntrinsic;
   int group = -1, view = -1, other_view = -1, component = -1;
 
-  static QuantityKey ViewRotation(int view, int axis) { return {QuantityKind::kViewRotation, -1, view, -1, axis}; }
-  static QuantityKey ViewTranslation(int view, int axis) { return {QuantityKind::kViewTranslation, -1, view, -1, axis}; }
-  static QuantityKey PairRelativeRotation(int a, int b) { return {QuantityKind::kPairRelativeRotation, -1, a, b, -1}; }
-  static QuantityKey PairViewDirections(int a, int b) { return {QuantityKind::kPairViewDirections, -1, a, b, -1}; }
+  static QuantityKey ViewRotation(int view, int axis) {
+    return {QuantityKind::kViewRotation, -1, view, -1, axis};
+  }
+  static QuantityKey ViewTranslation(int view, int axis) {
+    return {QuantityKind::kViewTranslation, -1, view, -1, axis};
+  }
+  static QuantityKey PairRelativeRotation(int a, int b) {
+    return {QuantityKind::kPairRelativeRotation, -1, a, b, -1};
+  }
+  static QuantityKey PairViewDirections(int a, int b) {
+    return {QuantityKind::kPairViewDirections, -1, a, b, -1};
+  }
   bool operator==(const QuantityKey& o) const {
     return kind == o.kind && group == o.group && view == o.view && other_view == o.other_view &&
            component == o.component;

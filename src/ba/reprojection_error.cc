@@ -52,7 +52,8 @@ bool RigReprojectionError::Evaluate(double const* const* parameters,
   Eigen::Vector3d Rp;
   Eigen::Matrix<double, 3, 3, Eigen::RowMajor> J_Rp_r;
   RotatePointWithJac(rig_pose, point, Rp.data(), J_pose ? J_Rp_r.data() : nullptr);
-  const Eigen::Vector3d p_cam = Rc_ * (Rp + Eigen::Vector3d(rig_pose[3], rig_pose[4], rig_pose[5])) + tc_;
+  const Eigen::Vector3d p_cam =
+      Rc_ * (Rp + Eigen::Vector3d(rig_pose[3], rig_pose[4], rig_pose[5])) + tc_;
   double uv[2];
   Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_cam;
   if (!ProjectCamPointWithJac(parameters[2], p_cam.data(), uv, J_intr,
@@ -85,7 +86,8 @@ bool RigReprojectionError::Evaluate(double const* const* parameters,
 }
 
 bool PixelWhitening::FromCovariance(const Eigen::Matrix2d& C, PixelWhitening* w) {
-  if (!C.allFinite() || std::abs(C(0, 1) - C(1, 0)) > 1e-12 * (std::abs(C(0, 0)) + std::abs(C(1, 1))) ||
+  if (!C.allFinite() ||
+      std::abs(C(0, 1) - C(1, 0)) > 1e-12 * (std::abs(C(0, 0)) + std::abs(C(1, 1))) ||
       !(C(0, 0) > 0)) {
     return false;
   }

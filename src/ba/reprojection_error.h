@@ -8,12 +8,14 @@
 // with Sigma the observation's 2x2 pixel covariance (px^2; a detected blob's, detect/
 // marker_blobs.h) and L its lower Cholesky factor; isotropic sigma_px is the special case
 // L = sigma_px I. Then |r|^2 = e^T Sigma^-1 e. Whitening makes ceres::Covariance come out in
-// physical units (ceres/covariance.h leaves that to the user). Evaluate() returns false for non-finite input or a point behind the
-// source, so Ceres rejects the step instead of using a meaningless residual.
+// physical units (ceres/covariance.h leaves that to the user). Evaluate() returns false for
+// non-finite input or a point behind the source, so Ceres rejects the step instead of using a
+// meaningless residual.
 //
 // The Jacobians are the analytic ones of camera/camera_model.h (ProjectPointWithJac),
-// premultiplied by L^-1 (dr/dx = L^-1 dq/dx: the whitening is constant). ReprojectionErrorAutoDiff is the autodiff twin, used by the `autodiff` configuration
-// and by the tests to check the analytic derivatives.
+// premultiplied by L^-1 (dr/dx = L^-1 dq/dx: the whitening is constant). ReprojectionErrorAutoDiff
+// is the autodiff twin, used by the `autodiff` configuration and by the tests to check the analytic
+// derivatives.
 //
 // CT prior: a 3-D point tied to a measured position (a CT fiducial) with covariance C:
 //   residual (3): S (p - p_measured),  with S^T S = C^-1  (S = L^T, the square-root information)
@@ -51,7 +53,8 @@ class ReprojectionError final : public ceres::SizedCostFunction<2, 6, 3, 9> {
  public:
   ReprojectionError(double u_px, double v_px, double sigma_px)
       : u_(u_px), v_(v_px), w_(PixelWhitening::Isotropic(sigma_px)) {}
-  ReprojectionError(double u_px, double v_px, const PixelWhitening& w) : u_(u_px), v_(v_px), w_(w) {}
+  ReprojectionError(double u_px, double v_px, const PixelWhitening& w)
+      : u_(u_px), v_(v_px), w_(w) {}
 
   bool Evaluate(double const* const* parameters,
                 double* residuals,
@@ -102,7 +105,10 @@ struct ReprojectionErrorAutoDiff {
 // (camera/camera_model.h); RigReprojectionErrorAutoDiff is its autodiff twin.
 class RigReprojectionError final : public ceres::SizedCostFunction<2, 6, 3, 9> {
  public:
-  RigReprojectionError(double u_px, double v_px, const PixelWhitening& w, const double* cam_from_rig);
+  RigReprojectionError(double u_px,
+                       double v_px,
+                       const PixelWhitening& w,
+                       const double* cam_from_rig);
 
   bool Evaluate(double const* const* parameters,
                 double* residuals,

@@ -11,7 +11,8 @@ namespace carmba {
 namespace ba {
 
 // Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2).
-std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss, double scale_whitened) {
+std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss,
+                                                      double scale_whitened) {
   if (loss == "huber") return std::make_unique<ceres::HuberLoss>(scale_whitened);
   if (loss == "cauchy") return std::make_unique<ceres::CauchyLoss>(scale_whitened);
   if (loss == "soft_l1") return std::make_unique<ceres::SoftLOneLoss>(scale_whitened);

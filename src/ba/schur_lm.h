@@ -44,7 +44,8 @@ using Mat69 = Eigen::Matrix<double, 6, kNumIntrinsics>;
 // The robust loss named `loss` (huber, cauchy, soft_l1) at the scale `scale_whitened` of the
 // whitened residual; null for trivial or none. The one conversion of a loss name, for the Ceres
 // problem and carmba's LM alike.
-std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss, double scale_whitened);
+std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss,
+                                                      double scale_whitened);
 
 // Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2); "none" -> 1.
 double RobustWeight(const std::string& loss, double scale_whitened, double s);
@@ -62,7 +63,9 @@ struct RobustWeighting {
   std::string loss;
   double scale_whitened = 1;
   double inv_sigma2 = 1;
-  double operator()(double e2_px) const { return RobustWeight(loss, scale_whitened, e2_px * inv_sigma2); }
+  double operator()(double e2_px) const {
+    return RobustWeight(loss, scale_whitened, e2_px * inv_sigma2);
+  }
 };
 
 // The Gauss-Newton blocks of one view at (intrinsics, pose), in pixels (unwhitened), with

@@ -19,7 +19,10 @@ bool Lens(const double* intrinsics, const Eigen::Vector2d& x, Eigen::Vector2d* u
 }
 
 // Central-difference Jacobian of D at x (step h, normalised units).
-bool LensJacobian(const double* intrinsics, const Eigen::Vector2d& x, double h, Eigen::Matrix2d* J) {
+bool LensJacobian(const double* intrinsics,
+                  const Eigen::Vector2d& x,
+                  double h,
+                  Eigen::Matrix2d* J) {
   for (int k = 0; k < 2; ++k) {
     Eigen::Vector2d a, b;
     if (!Lens(intrinsics, x + h * Eigen::Vector2d::Unit(k), &a) ||
@@ -48,7 +51,8 @@ Eigen::Vector2d SphereShadowOffsetPx(const double* intrinsics, const Eigen::Vect
   const double a = 0.5 * (std::tan(theta + alpha) - std::tan(theta - alpha));
   const double ecc = std::sin(theta) / std::cos(alpha);
   const double b = a * std::sqrt(std::max(0.0, 1 - ecc * ecc));
-  const Eigen::Vector2d u = tan_theta > 0 ? Eigen::Vector2d(p / tan_theta) : Eigen::Vector2d::UnitX();
+  const Eigen::Vector2d u =
+      tan_theta > 0 ? Eigen::Vector2d(p / tan_theta) : Eigen::Vector2d::UnitX();
   const Eigen::Vector2d w(-u.y(), u.x());
   // Second moments of the (uniform) ellipse about its centre.
   const Eigen::Matrix2d M = 0.25 * (a * a * u * u.transpose() + b * b * w * w.transpose());
@@ -64,13 +68,15 @@ Eigen::Vector2d SphereShadowOffsetPx(const double* intrinsics, const Eigen::Vect
   for (int k = 0; k < 2; ++k) {
     const Eigen::Vector2d step = h * Eigen::Vector2d::Unit(k);
     Eigen::Matrix2d Jp, Jm;
-    if (!LensJacobian(intrinsics, e + step, h, &Jp) || !LensJacobian(intrinsics, e - step, h, &Jm)) {
+    if (!LensJacobian(intrinsics, e + step, h, &Jp) ||
+        !LensJacobian(intrinsics, e - step, h, &Jm)) {
       return Eigen::Vector2d::Zero();
     }
     // Column k of the Hessians: d J / d x_k, and d ln|det J| / d x_k.
     const Eigen::Matrix2d dJ = (Jp - Jm) / (2 * h);
     for (int l = 0; l < 2; ++l) curvature += 0.5 * dJ.col(l) * M(l, k);
-    grad_log_det[k] = (std::log(std::abs(Jp.determinant())) - std::log(std::abs(Jm.determinant()))) / (2 * h);
+    grad_log_det[k] =
+        (std::log(std::abs(Jp.determinant())) - std::log(std::abs(Jm.determinant()))) / (2 * h);
   }
   return uv_e + curvature + J * M * grad_log_det - uv_p;
 }
@@ -101,7 +107,8 @@ bool PointOf(const BaProblem& problem, const BaResult& result, const BaView& vie
   }
   for (size_t m = 0; m < problem.markers.size(); ++m) {
     if (problem.markers[m].id != id) continue;
-    *p = Eigen::Map<const Eigen::Vector3d>(result.block(result.layout->marker_block(static_cast<int>(m))));
+    *p = Eigen::Map<const Eigen::Vector3d>(
+        result.block(result.layout->marker_block(static_cast<int>(m))));
     return true;
   }
   return false;

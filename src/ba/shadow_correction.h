@@ -11,8 +11,9 @@
 // (r / d)^2 (1 + tan^2 theta). Every level set of the shadow (chord length above some value) is
 // such an ellipse of a smaller cone with an area and an offset both proportional to its tan^2,
 // so an intensity centroid lies between 0.8 (a faint sphere, contrast proportional to the chord)
-// and 1 (an opaque one) of the outline's offset (integrating the level sets); carmba's marker and grid detectors follow the
-// outline's centre for steel spheres (measured: tests/ba/shadow_correction_test.cc).
+// and 1 (an opaque one) of the outline's offset (integrating the level sets); carmba's marker and
+// grid detectors follow the outline's centre for steel spheres (measured:
+// tests/ba/shadow_correction_test.cc).
 //
 // The engine corrects for it (SolveBundleAdjustment, BaOptions::shadow_correction): after a
 // solve, each observation of a sphere of known radius (BaProblem::marker_radius_mm,

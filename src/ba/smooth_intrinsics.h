@@ -52,7 +52,8 @@ struct SmoothBasis {
   // A(a, b): 9 x BlockSize().
   Eigen::MatrixXd Map(double primary_rad, double secondary_rad) const;
   // The block whose intrinsics are `intrinsics` at every angle (constant terms, distortion).
-  std::vector<double> ConstantCoefficients(const std::array<double, kNumIntrinsics>& intrinsics) const;
+  std::vector<double> ConstantCoefficients(
+      const std::array<double, kNumIntrinsics>& intrinsics) const;
 };
 
 // The view's intrinsics A c.
@@ -74,7 +75,10 @@ class SmoothReprojectionError final : public ceres::CostFunction {
 
 // The autodiff twin: intrinsics = A c on Jets, then ProjectPoint.
 struct SmoothReprojectionErrorAutoDiff {
-  SmoothReprojectionErrorAutoDiff(double u_px, double v_px, double sigma_px, const Eigen::MatrixXd& a)
+  SmoothReprojectionErrorAutoDiff(double u_px,
+                                  double v_px,
+                                  double sigma_px,
+                                  const Eigen::MatrixXd& a)
       : u(u_px), v(v_px), inv_sigma(1.0 / sigma_px), A(a) {}
 
   template <typename T>
@@ -93,7 +97,10 @@ struct SmoothReprojectionErrorAutoDiff {
     return true;
   }
 
-  static ceres::CostFunction* Create(double u_px, double v_px, double sigma_px, const Eigen::MatrixXd& A) {
+  static ceres::CostFunction* Create(double u_px,
+                                     double v_px,
+                                     double sigma_px,
+                                     const Eigen::MatrixXd& A) {
     auto* f = new ceres::DynamicAutoDiffCostFunction<SmoothReprojectionErrorAutoDiff, 8>(
         new SmoothReprojectionErrorAutoDiff(u_px, v_px, sigma_px, A));
     f->AddParameterBlock(6);

@@ -70,7 +70,8 @@ std::array<double, kNumNoiseGroups> GroupRedundancies(const StateLayout& layout,
     idx.clear();
     for (int b : row.blocks) {
       const BlockInfo& bi = layout.block(b);
-      for (size_t c = 0; c < bi.free.size(); ++c) idx.push_back(column_of[bi.free_offset + static_cast<int>(c)]);
+      for (size_t c = 0; c < bi.free.size(); ++c)
+        idx.push_back(column_of[bi.free_offset + static_cast<int>(c)]);
     }
     if (idx.empty()) continue;
     const Eigen::Index nr = row.J.front().rows();
@@ -130,11 +131,12 @@ std::vector<std::string> VarianceComponentWarnings(const std::vector<VarianceCom
     if (!c.outside_band) continue;
     char buf[400];
     const char* what = c.factor > 1 ? "larger" : "smaller";
-    const char* action =
-        c.applied                               ? "the covariances are scaled by it (covariance.scale: per_group)"
-        : scale == CovarianceScale::kGlobal     ? "one global factor scales the covariances (covariance.scale: global)"
-                                                : "the covariances use the stated sigmas (covariance.scale: apriori); "
-                                                  "per_group would scale them";
+    const char* action = c.applied
+                             ? "the covariances are scaled by it (covariance.scale: per_group)"
+                         : scale == CovarianceScale::kGlobal
+                             ? "one global factor scales the covariances (covariance.scale: global)"
+                             : "the covariances use the stated sigmas (covariance.scale: apriori); "
+                               "per_group would scale them";
     std::snprintf(buf, sizeof buf,
                   "%s: the residuals say the noise variance is %.3g +- %.2g times the stated one "
                   "(%s than stated; chi-square %.1f on redundancy %.1f, P = %.2g); %s",

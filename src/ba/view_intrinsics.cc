@@ -3,7 +3,9 @@
 namespace carmba {
 namespace ba {
 
-Eigen::MatrixXd GroupIntrinsicsMapAt(const IntrinsicsGroup& g, double primary_deg, double secondary_deg) {
+Eigen::MatrixXd GroupIntrinsicsMapAt(const IntrinsicsGroup& g,
+                                     double primary_deg,
+                                     double secondary_deg) {
   if (!g.smooth) return Eigen::MatrixXd::Identity(kNumIntrinsics, kNumIntrinsics);
   return g.basis.Map(primary_deg * kDegToRadFlex, secondary_deg * kDegToRadFlex);
 }

@@ -19,7 +19,9 @@ constexpr double kDegToRadFlex = 0.017453292519943295;
 // M_v: 9 x group block size.
 Eigen::MatrixXd ViewIntrinsicsMap(const BaProblem& problem, int view);
 // M_v at arbitrary angles for group g (identity for a non-smooth group).
-Eigen::MatrixXd GroupIntrinsicsMapAt(const IntrinsicsGroup& group, double primary_deg, double secondary_deg);
+Eigen::MatrixXd GroupIntrinsicsMapAt(const IntrinsicsGroup& group,
+                                     double primary_deg,
+                                     double secondary_deg);
 
 struct ViewIntrinsics {
   std::array<double, kNumIntrinsics> value{};

@@ -106,7 +106,8 @@ std::string OpenCvCalibrationYaml(const CalibrationRun& run) {
   if (run.options.fix_principal_point) flags |= 4;    // CALIB_FIX_PRINCIPAL_POINT
   if (run.options.fix_k3) flags |= 128;               // CALIB_FIX_K3
   fs << "flags" << flags;
-  if (run.options.fix_aspect_ratio) fs << "fix_aspect_ratio" << r.camera.params[kFx] / r.camera.params[kFy];
+  if (run.options.fix_aspect_ratio)
+    fs << "fix_aspect_ratio" << r.camera.params[kFx] / r.camera.params[kFy];
   const auto& p = r.camera.params;
   cv::Mat K = (cv::Mat_<double>(3, 3) << p[kFx], 0, p[kCx], 0, p[kFy], p[kCy], 0, 0, 1);
   cv::Mat d = (cv::Mat_<double>(5, 1) << p[kK1], p[kK2], p[kP1], p[kP2], p[kK3]);

@@ -50,7 +50,8 @@ ba::BaProblem CalibrationProblem(const ObservationSet& obs,
   g.free = free;
   g.fy_over_fx = fy_over_fx;
   p.groups.push_back(g);
-  for (int id = 0; id < obs.grid.NumPoints(); ++id) p.plate.points.push_back(obs.grid.PointInPlate(id));
+  for (int id = 0; id < obs.grid.NumPoints(); ++id)
+    p.plate.points.push_back(obs.grid.PointInPlate(id));
   std::set<std::string> names;
   for (const auto& v : obs.views) names.insert(v.image);
   const bool by_image = names.size() == obs.views.size() && !names.count("");
@@ -134,8 +135,8 @@ class StagedCalibration {
     return any_distortion ? Solve(core, true).status() : Status::Ok();
   }
 
-  // distortion: auto -- the distortion terms chosen by the data (analysis/lens_models.h), seeded by the
-  // pinhole stage; with an unknown pixel sigma the comparison estimates it from the full model.
+  // distortion: auto -- the distortion terms chosen by the data (analysis/lens_models.h), seeded by
+  // the pinhole stage; with an unknown pixel sigma the comparison estimates it from the full model.
   // Sets the distortion part of `free`; the terms left out are held at 0.
   StatusOr<analysis::DistortionSelection> SelectDistortion(std::array<bool, kNumIntrinsics>* free) {
     std::array<bool, kNumIntrinsics> all = *free;
@@ -144,7 +145,8 @@ class StagedCalibration {
     ba::BaOptions so = options_;
     so.function_tolerance = 1e-10, so.gradient_tolerance = 1e-14, so.parameter_tolerance = 1e-10;
     so.compute_covariance = so.evaluate_solution = true;
-    auto sel = analysis::SelectDistortionModel(p, so, analysis::kDistortionFolds, opt_.pixel_sigma_px == 0);
+    auto sel = analysis::SelectDistortionModel(
+        p, so, analysis::kDistortionFolds, opt_.pixel_sigma_px == 0);
     if (!sel.ok()) return Status::Error("distortion: auto: " + sel.status().message());
     analysis::ApplyDistortionModel(sel->recommended, &p);
     for (int i = kK1; i < kNumIntrinsics; ++i) {
@@ -300,7 +302,8 @@ Status IntrinsicsCovariance(double sigma_solve, CalibrationResult* r) {
   const ba::BaResult& engine = *r->engine;
   r->covariance_scale = (r->sigma_px / sigma_solve) * (r->sigma_px / sigma_solve);
   r->covariance = engine.Covariance({engine.layout->group_block(0)}) * r->covariance_scale;
-  for (int i = 0; i < kNumIntrinsics; ++i) r->sigma[i] = std::sqrt(std::max(0.0, r->covariance(i, i)));
+  for (int i = 0; i < kNumIntrinsics; ++i)
+    r->sigma[i] = std::sqrt(std::max(0.0, r->covariance(i, i)));
   constexpr double kMaxRelativeFocalSigma = 0.1;
   for (int i : {kFx, kFy}) {
     if (r->free[i] && !(r->sigma[i] < kMaxRelativeFocalSigma * r->camera.params[i])) {
@@ -379,7 +382,9 @@ bool CalibrationOptions::Check(std::string* error) const {
     return false;
   }
   for (size_t i = 0; i < initial_intrinsics.size(); ++i) {
-    const PlausibleRange& r = i < 2 ? pl::kFocalPx : i < 4 ? pl::kPixelCoordinatePx : pl::kDistortion;
+    const PlausibleRange& r = i < 2   ? pl::kFocalPx
+                              : i < 4 ? pl::kPixelCoordinatePx
+                                      : pl::kDistortion;
     if (!CheckRange(std::string("initial_intrinsics: ") + kIntrinsicNames[i],
                     initial_intrinsics[i], r, error)) {
       return false;
@@ -452,7 +457,8 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
   loss.GetEnum("type", {"trivial", "huber", "cauchy"}, &type);
   o->robust_loss = type == "trivial" ? "none" : type;
   loss.GetInRange("scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
-  m.Map("outliers").GetInRange("list_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
+  m.Map("outliers")
+      .GetInRange("list_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
   std::string backend = o->solver == "lm" ? "carmba_lm" : "ceres";
   m.GetEnum("backend", {"carmba_lm", "ceres"}, &backend);
   o->solver = backend == "carmba_lm" ? "lm" : "ceres";
@@ -541,7 +547,8 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   }
   auto solved = solve.Solve(free, false);
   if (!solved.ok()) return solved.status();
-  TakeSolution(solve, std::make_shared<ba::BaResult>(std::move(*solved)), obs.width, obs.height, &r);
+  TakeSolution(
+      solve, std::make_shared<ba::BaResult>(std::move(*solved)), obs.width, obs.height, &r);
   const auto t1 = std::chrono::steady_clock::now();
   r.solve_seconds = Seconds(t0, t1);
 
@@ -563,12 +570,12 @@ Status CheckPlateDistance(const CalibrationResult& result,
   std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
   const double median = d[d.size() / 2];
   if (InRange(median, plausible::kPlateDistanceMm)) return Status::Ok();
-  return Status::Error("the plate sits " + FormatCompact(median) + " mm from the source (median of " +
-                       std::to_string(result.views.size()) + " views), expected " +
-                       FormatRange(plausible::kPlateDistanceMm) + ": check the grid pitch, " +
-                       pitch_source + " " + FormatCompact(spacing_mm) +
-                       (median < plausible::kPlateDistanceMm.lo ? " (a unit slip? cm for mm)"
-                                                                 : " (a unit slip?)"));
+  return Status::Error(
+      "the plate sits " + FormatCompact(median) + " mm from the source (median of " +
+      std::to_string(result.views.size()) + " views), expected " +
+      FormatRange(plausible::kPlateDistanceMm) + ": check the grid pitch, " + pitch_source + " " +
+      FormatCompact(spacing_mm) +
+      (median < plausible::kPlateDistanceMm.lo ? " (a unit slip? cm for mm)" : " (a unit slip?)"));
 }
 
 }  // namespace carmba

@@ -17,7 +17,8 @@
 // Covariance: Cov(theta) = sigma^2 (J^T J)^-1 with J the unwhitened Jacobian at the solution and
 // sigma the pixel noise (given, or estimated as sqrt(SSR / (2N - n_free))). The intrinsics block
 // is marginal over the plate poses (the engine's Schur complement eliminates them).
-// Projection uncertainty at a pixel and a distance: mrcal's definition, calib/projection_uncertainty.h.
+// Projection uncertainty at a pixel and a distance: mrcal's definition,
+// calib/projection_uncertainty.h.
 #pragma once
 
 #include <Eigen/Core>
@@ -51,9 +52,9 @@ struct CalibrationOptions {
   std::vector<double> principal_point_px;
   // k3 = 0, held.
   bool fix_k3 = false;
-  // The distortion terms chosen by the data (k1 k2 | + p1 p2 | + k3 | all; analysis/lens_models.h), the
-  // others held at 0; excludes zero_tangential, fix_k3 and distortion names in `fix`. Config key
-  // `distortion: auto | given` (given: the flags above decide).
+  // The distortion terms chosen by the data (k1 k2 | + p1 p2 | + k3 | all; analysis/lens_models.h),
+  // the others held at 0; excludes zero_tangential, fix_k3 and distortion names in `fix`. Config
+  // key `distortion: auto | given` (given: the flags above decide).
   bool distortion_auto = false;
   // Optional full initial intrinsics (9 values), replacing the closed-form initialisation of the
   // intrinsics (poses are still initialised from homographies).

@@ -87,8 +87,8 @@ StatusOr<TruthCheck> CompareWithTruth(const CalibrationResult& result,
       if (!diff.allFinite()) continue;
       image.Add(q[0], q[1], diff, sigma);
       if (hull.size() >= 3 &&
-          cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(q[0]), static_cast<float>(q[1])),
-                               false) >= 0) {
+          cv::pointPolygonTest(
+              hull, cv::Point2f(static_cast<float>(q[0]), static_cast<float>(q[1])), false) >= 0) {
         observed.Add(q[0], q[1], diff, sigma);
       }
     }

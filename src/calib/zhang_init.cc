@@ -89,7 +89,9 @@ StatusOr<std::vector<Eigen::Matrix3d>> ViewHomographies(const ObservationSet& ob
 
 // (b11, b22, b33) of B from the homographies normalised by N (pixels in units of s around the
 // principal point); with a held aspect ratio r, b22 = b11 / r^2.
-Eigen::Vector3d SolveForB(const std::vector<Eigen::Matrix3d>& H, const Eigen::Matrix3d& N, double ratio) {
+Eigen::Vector3d SolveForB(const std::vector<Eigen::Matrix3d>& H,
+                          const Eigen::Matrix3d& N,
+                          double ratio) {
   const int num_views = static_cast<int>(H.size());
   Eigen::MatrixXd V(2 * num_views, 3);
   for (int v = 0; v < num_views; ++v) {

@@ -145,7 +145,8 @@ StatusOr<Camera> CameraFromJson(const nlohmann::json& j, const std::string& wher
     const auto& cov = j["covariance"];
     keys.insert(keys.end(), {"covariance.names", "covariance.matrix"});
     const auto& names = cov.is_object() && cov.contains("names") ? cov["names"] : nlohmann::json();
-    const auto& matrix = cov.is_object() && cov.contains("matrix") ? cov["matrix"] : nlohmann::json();
+    const auto& matrix =
+        cov.is_object() && cov.contains("matrix") ? cov["matrix"] : nlohmann::json();
     bool ok = names.is_array() && matrix.is_array();
     for (const auto& nm : names) ok = ok && nm.is_string();
     for (const auto& row : matrix) {

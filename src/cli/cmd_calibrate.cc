@@ -129,7 +129,8 @@ Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
   double per_image = 0;
   StatusOr<ObservationSet> obs = Status::Error("not detected");
   {
-    auto progress = cli::MakeProgress("calibrate: detecting", static_cast<int>(files->size()), "images");
+    auto progress =
+        cli::MakeProgress("calibrate: detecting", static_cast<int>(files->size()), "images");
     obs = DetectGridInFiles(*files, grid, detect, &run->skipped, &per_image, &run->detections,
                             progress->Callback());
   }
@@ -166,7 +167,9 @@ Status ReadCalibrationTruth(const std::string& truth, CalibrationRun* run,
 }
 
 // The OpenCV cross-check (when enabled and the views are few enough for it), into run.
-void OpenCvCrossCheck(const CrossCheckConfig& cross, const CalibrationOptions& options, CalibrationRun* run,
+void OpenCvCrossCheck(const CrossCheckConfig& cross,
+                      const CalibrationOptions& options,
+                      CalibrationRun* run,
                       std::map<std::string, std::array<double, kNumIntrinsics>>* others) {
   if (!cross.opencv) {
     run->opencv_error = "disabled";
@@ -264,7 +267,8 @@ int RunCalibrate() {
     if (!cli::CheckGridFlags(&err)) return cli::FailUsage(kCmd, err);
   }
   if (!FLAGS_problem.empty()) {
-    if (const Status s = ReadCalibrationProblemFile(FLAGS_problem, &in); !s.ok()) return cli::Fail(kCmd, s);
+    if (const Status s = ReadCalibrationProblemFile(FLAGS_problem, &in); !s.ok())
+      return cli::Fail(kCmd, s);
     const std::string key = "--problem key ";
     const Status s = cli::CheckOutIsNoInput({{key + "'images'", in.images},
                                              {key + "'observations'", in.observations},
@@ -281,7 +285,8 @@ int RunCalibrate() {
   DetectionOptions detect;
   CrossCheckConfig cross;
   if (!in.config.empty()) {
-    if (const Status s = LoadConfig(in.config, &options, &detect, &cross); !s.ok()) return cli::Fail(kCmd, s);
+    if (const Status s = LoadConfig(in.config, &options, &detect, &cross); !s.ok())
+      return cli::Fail(kCmd, s);
   }
   if (!FLAGS_mrcal) cross.mrcal = false;
   if (!FLAGS_opencv) cross.opencv = false;
@@ -297,8 +302,10 @@ int RunCalibrate() {
   run.options = options;
   auto pat = ParseGridPattern(in.pattern);
   if (!pat.ok()) return cli::FailUsage(kCmd, pat.status().WithContext("--pattern"));
-  if (const Status s = CalibrationObservations(in, *pat, detect, options, &run); !s.ok()) return cli::Fail(kCmd, s);
-  cli::Step(kCmd, "bundle adjustment over " + std::to_string(run.observations.views.size()) + " views");
+  if (const Status s = CalibrationObservations(in, *pat, detect, options, &run); !s.ok())
+    return cli::Fail(kCmd, s);
+  cli::Step(kCmd,
+            "bundle adjustment over " + std::to_string(run.observations.views.size()) + " views");
   auto result = Calibrate(run.observations, options);
   if (!result.ok()) return cli::Fail(kCmd, result.status());
   run.result = *result;
@@ -307,14 +314,17 @@ int RunCalibrate() {
                                    : in.spacing > 0           ? "--problem key 'spacing_mm'"
                                    : !in.observations.empty() ? in.observations + " spacing_mm"
                                                               : "--spacing-mm (default)";
-  if (const Status s = CheckPlateDistance(run.result, run.observations.grid.spacing_mm, pitch_source); !s.ok()) {
+  if (const Status s =
+          CheckPlateDistance(run.result, run.observations.grid.spacing_mm, pitch_source);
+      !s.ok()) {
     return cli::Fail(kCmd, s);
   }
   plots.Draw(CalibrationPlotData(run));
 
   std::map<std::string, std::array<double, kNumIntrinsics>> others;
   if (!in.truth.empty()) {
-    if (const Status s = ReadCalibrationTruth(in.truth, &run, &others); !s.ok()) return cli::Fail(kCmd, s);
+    if (const Status s = ReadCalibrationTruth(in.truth, &run, &others); !s.ok())
+      return cli::Fail(kCmd, s);
   }
   OpenCvCrossCheck(cross, options, &run, &others);
   const ScopedTempPath work_dir(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));
@@ -325,7 +335,8 @@ int RunCalibrate() {
   cli::Step(kCmd, "waiting for the plots");
   const PlotSet plot_set = plots.Result();
   cli::Step(kCmd, "writing the outputs");
-  Status s = WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning, &plot_set);
+  Status s =
+      WriteCalibrationOutputs(run, FLAGS_out, cross.mrcal ? work : "", &report_warning, &plot_set);
   if (!s.ok()) return cli::Fail(kCmd, s);
   if (!report_warning.empty()) {
     std::cerr << "carmba " << kCmd << ": warning: " << report_warning << std::endl;

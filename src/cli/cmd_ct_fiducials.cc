@@ -78,7 +78,8 @@ int RunCtFiducials() {
   carmba::Status s = carmba::MakeParentDirs(FLAGS_out);
   if (s.ok()) s = carmba::WriteCtFiducials(*result, FLAGS_out, &report_warning, &plot_set);
   if (!s.ok()) return carmba::cli::Fail(cmd, s);
-  if (!report_warning.empty()) std::cerr << "carmba " << cmd << ": warning: " << report_warning << std::endl;
+  if (!report_warning.empty())
+    std::cerr << "carmba " << cmd << ": warning: " << report_warning << std::endl;
   std::cout << "ct-fiducials: " << result->detection.markers.size() << " markers -> "
             << FLAGS_out;
   if (result->labelled) {
@@ -96,7 +97,8 @@ const bool kCtFiducialsRegistered [[maybe_unused]] = carmba::cli::RegisterComman
     "<stem>.md beside it).",
     __FILE__,
     RunCtFiducials);
-const bool kCtFiducialsFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force,plots");
+const bool kCtFiducialsFlags [[maybe_unused]] =
+    carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force,plots");
 const bool kRequired [[maybe_unused]] =
     carmba::cli::RegisterRequiredFlags("ct-fiducials", "dicom,out");
 

@@ -27,7 +27,8 @@ using namespace carmba;
 
 int RunExportGeometry() {
   const char* kCmd = "export-geometry";
-  if (FLAGS_result.empty()) return cli::FailUsage(kCmd, "--result (solve output directory) is required");
+  if (FLAGS_result.empty())
+    return cli::FailUsage(kCmd, "--result (solve output directory) is required");
   if (FLAGS_out.empty()) return cli::FailUsage(kCmd, "--out (directory) is required");
   const bool rtk = FLAGS_format == "rtk" || FLAGS_format == "all";
   const bool plm = FLAGS_format == "plastimatch" || FLAGS_format == "all";
@@ -76,6 +77,7 @@ const bool kExportGeometryRegistered [[maybe_unused]] = carmba::cli::RegisterCom
     "(geometry.json) or all; from --result DIR (a solve's geometry.json).",
     __FILE__,
     RunExportGeometry);
-const bool kExportGeometryFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("export-geometry", "out,force");
+const bool kExportGeometryFlags [[maybe_unused]] =
+    carmba::cli::RegisterCommandFlags("export-geometry", "out,force");
 
 }  // namespace

@@ -2,8 +2,9 @@
 // (detect/marker_blobs.h), labelled with the CT fiducials through the calibrated camera
 // (pose/marker_correspondence.h, detect/marker_views.h), and the labelled views are solved as one
 // pose bundle adjustment (problem/pose_solver.h, the engine in ba/) with each blob's pixel sigma.
-// Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md, report.html; all or
-// nothing. Views with fewer than 4 markers found (or no labelling) are skipped with the reason.
+// Writes into --out: observations.csv, overlay_<view>.png per view, result.json, report.md,
+// report.html; all or nothing. Views with fewer than 4 markers found (or no labelling) are skipped
+// with the reason.
 #include <gflags/gflags.h>
 
 #include <iostream>
@@ -75,7 +76,8 @@ int RunPose() {
     char comma = 0;
     std::istringstream is(FLAGS_diameter_px);
     if (!(is >> lo >> comma >> hi) || comma != ',' || !is.eof()) {
-      return cli::FailUsage(kCmd, "--diameter-px: expected 'min,max' in px, got '" + FLAGS_diameter_px + "'");
+      return cli::FailUsage(
+          kCmd, "--diameter-px: expected 'min,max' in px, got '" + FLAGS_diameter_px + "'");
     }
     options.blobs.diameter_px = {lo, hi};
   }
@@ -135,7 +137,8 @@ int RunPose() {
   for (const ViewSolution& v : solution->views) solved[v.id] = v.cam_from_object;
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "observations.csv"), MarkerObservationsCsv(*views));
+  if (s.ok())
+    s = WriteFileAtomic(JoinPath(staged.path(), "observations.csv"), MarkerObservationsCsv(*views));
   std::set<std::string> names;
   for (const ObjectView& v : *views) {
     if (!s.ok()) break;
@@ -152,7 +155,8 @@ int RunPose() {
     }
   }
   cli::Step(kCmd, "waiting for the plots");
-  const ReportFiles report = RenderReport(doc, "carmba pose report: " + problem.name, plots.Result());
+  const ReportFiles report =
+      RenderReport(doc, "carmba pose report: " + problem.name, plots.Result());
   cli::Step(kCmd, "writing the outputs");
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.md"), report.markdown);
   if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "report.html"), report.html);
@@ -164,8 +168,8 @@ int RunPose() {
     if (!v.labelled) std::cerr << "carmba pose: skipped " << v.name << ": " << v.skipped << "\n";
   }
   if (config.refine && solution->termination != "CONVERGENCE") {
-    std::cerr << "carmba pose: warning: the bundle adjustment did not converge (" << solution->termination
-              << ")" << std::endl;
+    std::cerr << "carmba pose: warning: the bundle adjustment did not converge ("
+              << solution->termination << ")" << std::endl;
   }
   for (const auto& w : PoseWarnings(*solution)) {
     std::cerr << "carmba pose: warning: " << w << std::endl;
@@ -180,7 +184,8 @@ int RunPose() {
 }  // namespace
 
 CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force,plots,marker_diameter_mm");
-CARMBA_REGISTER_COMMAND(pose,
-                        "Object poses from X-ray images: marker blobs, automatic labelling with the "
-                        "CT fiducials, bundle adjustment.",
-                        RunPose);
+CARMBA_REGISTER_COMMAND(
+    pose,
+    "Object poses from X-ray images: marker blobs, automatic labelling with the "
+    "CT fiducials, bundle adjustment.",
+    RunPose);

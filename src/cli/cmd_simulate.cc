@@ -78,10 +78,12 @@ carmba::Status SimulateJoint(carmba::YamlMap& scene,
   }
   const auto& pf = plate->flex;
   const auto& of = object->flex;
-  const bool same_flex = pf.cx_primary_px == of.cx_primary_px && pf.cx_secondary_px == of.cx_secondary_px &&
-                         pf.cy_primary_px == of.cy_primary_px && pf.cy_secondary_px == of.cy_secondary_px &&
-                         pf.f_primary == of.f_primary && pf.f_secondary == of.f_secondary;
-  if (plate->camera.params != object->camera.params || plate->camera.width != object->camera.width ||
+  const bool same_flex =
+      pf.cx_primary_px == of.cx_primary_px && pf.cx_secondary_px == of.cx_secondary_px &&
+      pf.cy_primary_px == of.cy_primary_px && pf.cy_secondary_px == of.cy_secondary_px &&
+      pf.f_primary == of.f_primary && pf.f_secondary == of.f_secondary;
+  if (plate->camera.params != object->camera.params ||
+      plate->camera.width != object->camera.width ||
       plate->camera.height != object->camera.height || !same_flex) {
     return Status::Error(scene_path + ": the plate and object scenes must share one camera (" +
                          plate_file + " and " + object_file + " differ in camera: or carm.flex)");
@@ -91,20 +93,24 @@ carmba::Status SimulateJoint(carmba::YamlMap& scene,
     carmba::sim::ReseedXrayScene(FLAGS_seed + 1, &object.value());
   }
   nlohmann::json tp, to, tc;
-  const std::string plate_dir = JoinPath(tmp_dir, "plate"), object_dir = JoinPath(tmp_dir, "object");
+  const std::string plate_dir = JoinPath(tmp_dir, "plate"),
+                    object_dir = JoinPath(tmp_dir, "object");
   CARMBA_RETURN_IF_ERROR(carmba::MakeDirs(plate_dir));
   CARMBA_RETURN_IF_ERROR(carmba::MakeDirs(object_dir));
   CARMBA_RETURN_IF_ERROR(carmba::sim::SimulateXrayScene(*plate, plate_dir, &tp));
   CARMBA_RETURN_IF_ERROR(carmba::sim::SimulateXrayScene(*object, object_dir, &to));
-  CARMBA_RETURN_IF_ERROR(carmba::WriteFileAtomic(JoinPath(plate_dir, "truth.json"), tp.dump(2) + "\n"));
-  CARMBA_RETURN_IF_ERROR(carmba::WriteFileAtomic(JoinPath(object_dir, "truth.json"), to.dump(2) + "\n"));
+  CARMBA_RETURN_IF_ERROR(
+      carmba::WriteFileAtomic(JoinPath(plate_dir, "truth.json"), tp.dump(2) + "\n"));
+  CARMBA_RETURN_IF_ERROR(
+      carmba::WriteFileAtomic(JoinPath(object_dir, "truth.json"), to.dump(2) + "\n"));
   carmba::YamlMap ct_scene = carmba::YamlMap::Load(JoinPath(base, ct_file));
   CARMBA_RETURN_IF_ERROR(ct_scene.status());
   std::string ct_kind;
   ct_scene.GetEnum("kind", {"ct"}, &ct_kind, true);
   CARMBA_RETURN_IF_ERROR(ct_scene.status());
   CARMBA_RETURN_IF_ERROR(carmba::SimulateCtScene(ct_scene, tmp_dir, &tc));
-  CARMBA_RETURN_IF_ERROR(carmba::WriteFileAtomic(JoinPath(tmp_dir, "ct_truth.json"), tc.dump(2) + "\n"));
+  CARMBA_RETURN_IF_ERROR(
+      carmba::WriteFileAtomic(JoinPath(tmp_dir, "ct_truth.json"), tc.dump(2) + "\n"));
   // The picked marker centres of the object views.
   Rng rng(static_cast<uint64_t>(pick_seed) + (override_seed ? FLAGS_seed * 7919ULL : 0));
   std::normal_distribution<double> gauss(0.0, pick_sigma);
@@ -126,7 +132,8 @@ carmba::Status SimulateJoint(carmba::YamlMap& scene,
     const auto& cfo = v.at("cam_from_object");
     views.push_back({{"id", v.at("name")}, {"rvec", cfo.at("rvec")}, {"t_mm", cfo.at("t_mm")}});
   }
-  CARMBA_RETURN_IF_ERROR(carmba::WriteFileAtomic(JoinPath(object_dir, "observations.csv"), csv.str()));
+  CARMBA_RETURN_IF_ERROR(
+      carmba::WriteFileAtomic(JoinPath(object_dir, "observations.csv"), csv.str()));
   // Every view's C-arm angles (for problems with angle-dependent intrinsics: `angles: views.csv`)
   // and its true intrinsics (with carm.flex they differ from view to view).
   std::ostringstream angles;

@@ -94,7 +94,8 @@ int RunJoint(const carmba::Problem& problem,
   if (s.ok()) s = WriteGeometry(staged.path(), JointSolutionGeometry(problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
-  if (!report.warning.empty()) std::cerr << "carmba solve: warning: " << report.warning << std::endl;
+  if (!report.warning.empty())
+    std::cerr << "carmba solve: warning: " << report.warning << std::endl;
   for (const auto& w : JointWarnings(*solution)) {
     std::cerr << "carmba solve: warning: " << w << std::endl;
   }
@@ -149,7 +150,8 @@ int RunPose(const carmba::Problem& problem,
               << solution->termination << "; max_iterations " << config.max_iterations
               << "): the results are not at a minimum" << std::endl;
   }
-  if (!report.warning.empty()) std::cerr << "carmba solve: warning: " << report.warning << std::endl;
+  if (!report.warning.empty())
+    std::cerr << "carmba solve: warning: " << report.warning << std::endl;
   if (!comparison.handedness_warning.empty()) {
     std::cerr << "carmba solve: warning: " << comparison.handedness_warning << std::endl;
   }

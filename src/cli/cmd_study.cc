@@ -69,11 +69,19 @@ int RunStudyCommand() {
   cli::Step("study", "running the study (runs, then the summaries and report.html)");
   s = RunStudy(*spec, PoseStudyRunFunction(), options, &stats);
   if (!s.ok()) return cli::Fail("study", s);
-  std::printf("study %s (shard %d/%d): %d runs, %d already done, %d run now with %d jobs in %.3g s, "
-              "%d failed now, %d failed in total\n",
-              spec->name.c_str(), options.shard_k, options.shard_n, stats.runs_in_shard,
-              stats.skipped, stats.executed, stats.jobs, stats.wall_s, stats.failed,
-              stats.failed_total);
+  std::printf(
+      "study %s (shard %d/%d): %d runs, %d already done, %d run now with %d jobs in %.3g s, "
+      "%d failed now, %d failed in total\n",
+      spec->name.c_str(),
+      options.shard_k,
+      options.shard_n,
+      stats.runs_in_shard,
+      stats.skipped,
+      stats.executed,
+      stats.jobs,
+      stats.wall_s,
+      stats.failed,
+      stats.failed_total);
   if (stats.executed > 0) {
     std::printf("runner overhead: %.2f%% (runs' own time %.4g s over wall %.4g s x %d jobs)\n",
                 100 * stats.Overhead(), stats.runs_time_s, stats.wall_s, stats.jobs);
@@ -99,7 +107,8 @@ int RunStudyCommand() {
 
 }  // namespace
 
-CARMBA_REGISTER_COMMAND(study, "Run an accuracy study: problems x configs x sweeps x seeded trials.",
+CARMBA_REGISTER_COMMAND(study,
+                        "Run an accuracy study: problems x configs x sweeps x seeded trials.",
                         RunStudyCommand);
 CARMBA_COMMAND_FLAGS(study, "out,jobs,force,plots");
 CARMBA_REQUIRED_FLAGS(study, "study,out");

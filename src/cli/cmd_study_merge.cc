@@ -77,7 +77,8 @@ int RunStudyMerge() {
 const bool kStudyMergeRegistered [[maybe_unused]] = carmba::cli::RegisterCommand(
     "study-merge", "Combine the shard directories of 'carmba study --shard K/N'.", __FILE__,
     RunStudyMerge);
-const bool kStudyMergeFlags [[maybe_unused]] = carmba::cli::RegisterCommandFlags("study-merge", "out,force,plots");
+const bool kStudyMergeFlags [[maybe_unused]] =
+    carmba::cli::RegisterCommandFlags("study-merge", "out,force,plots");
 const bool kRequired [[maybe_unused]] = carmba::cli::RegisterRequiredFlags("study-merge",
                                                                            "shards,out");
 

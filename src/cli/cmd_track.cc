@@ -7,9 +7,9 @@
 //
 // FILE: the XMALab / Autoscoper calibration text (image size, camera matrix, rotation,
 // translation; x_cam = R x_lab + t), or CAMERA_JSON+POSE_JSON: carmba's camera.json (with its
-// distortion) and {"cam_from_lab": {"rvec": [rad], "t_mm": [mm]}}. Frames are paired by the number in the file names.
-// Writes into --out: points.csv, observations.csv, rigid_bodies.json, report.md, report.html,
-// overlays/; all or nothing (report/track_report.h).
+// distortion) and {"cam_from_lab": {"rvec": [rad], "t_mm": [mm]}}. Frames are paired by the number
+// in the file names. Writes into --out: points.csv, observations.csv, rigid_bodies.json, report.md,
+// report.html, overlays/; all or nothing (report/track_report.h).
 #include <gflags/gflags.h>
 
 #include <iostream>
@@ -22,10 +22,12 @@
 #include "util/file_util.h"
 #include "util/plausible.h"
 
-DEFINE_string(cameras, "",
-              "The calibrated cameras, 'NAME=FILE;NAME=FILE': XMALab / Autoscoper calibration texts "
-              "(image size, camera matrix, rotation, translation; x_cam = R x_lab + t), or "
-              "NAME=camera.json+pose.json (carmba's camera and {\"cam_from_lab\": {\"rvec\", \"t_mm\"}}).");
+DEFINE_string(
+    cameras,
+    "",
+    "The calibrated cameras, 'NAME=FILE;NAME=FILE': XMALab / Autoscoper calibration texts "
+    "(image size, camera matrix, rotation, translation; x_cam = R x_lab + t), or "
+    "NAME=camera.json+pose.json (carmba's camera and {\"cam_from_lab\": {\"rvec\", \"t_mm\"}}).");
 DEFINE_double(epipolar_px, 2.0, "Rays of one bead meet within this many px in every image.");
 DEFINE_double(rigid_tolerance_mm, 0.3,
               "Distances within a rigid body agree between frames within this (mm).");
@@ -54,17 +56,21 @@ StatusOr<std::vector<std::pair<std::string, std::string>>> NamedList(const std::
     }
     out.emplace_back(name, item.substr(eq + 1));
   }
-  if (out.size() < 2) return Status::Error(flag + ": expected at least two cameras, 'NAME=PATH;NAME=PATH'");
+  if (out.size() < 2)
+    return Status::Error(flag + ": expected at least two cameras, 'NAME=PATH;NAME=PATH'");
   return out;
 }
 
 int RunTrack() {
   const char* kCmd = "track";
   if (!InRange(FLAGS_marker_diameter_mm, plausible::kMarkerDiameterMm)) {
-    return cli::FailUsage(kCmd, "--marker-diameter-mm: expected " + FormatRange(plausible::kMarkerDiameterMm) +
-                                    ", got " + FormatCompact(FLAGS_marker_diameter_mm) +
-                                    (FLAGS_marker_diameter_mm > 0 && FLAGS_marker_diameter_mm < 0.1
-                                         ? " (a diameter in metres?)" : ""));
+    return cli::FailUsage(kCmd,
+                          "--marker-diameter-mm: expected " +
+                              FormatRange(plausible::kMarkerDiameterMm) + ", got " +
+                              FormatCompact(FLAGS_marker_diameter_mm) +
+                              (FLAGS_marker_diameter_mm > 0 && FLAGS_marker_diameter_mm < 0.1
+                                   ? " (a diameter in metres?)"
+                                   : ""));
   }
   TrackOptions options;
   options.marker_diameter_mm = FLAGS_marker_diameter_mm;
@@ -105,15 +111,19 @@ int RunTrack() {
     images_of.erase(name);
   }
   if (!images_of.empty()) {
-    return cli::FailUsage(kCmd, "--images: camera '" + images_of.begin()->first + "' is not in --cameras");
+    return cli::FailUsage(
+        kCmd, "--images: camera '" + images_of.begin()->first + "' is not in --cameras");
   }
   std::vector<std::string> unpaired;
   auto frames = PairFrames(images, &unpaired);
   if (!frames.ok()) return cli::Fail(kCmd, frames.status());
-  cli::Step(kCmd, "detecting, matching, identifying and solving " + std::to_string(frames->size()) + " frames");
+  cli::Step(
+      kCmd,
+      "detecting, matching, identifying and solving " + std::to_string(frames->size()) + " frames");
   auto result = Track(cameras, *frames, options);
   if (!result.ok()) return cli::Fail(kCmd, result.status());
-  for (const std::string& p : unpaired) result->warnings.push_back(p + ": no other camera imaged this frame (left out)");
+  for (const std::string& p : unpaired)
+    result->warnings.push_back(p + ": no other camera imaged this frame (left out)");
   cli::Step(kCmd, "writing the outputs and overlays");
   StagedOutputDir staged(FLAGS_out);
   Status s = staged.Begin();
@@ -122,10 +132,17 @@ int RunTrack() {
   if (!s.ok()) return cli::Fail(kCmd, s);
   for (const std::string& w : result->warnings) std::cerr << "carmba track: warning: " << w << "\n";
   const TrackChecks& c = result->checks;
-  std::printf("track: %zu frames, %zu beads in %zu bodies (>= %d per frame from 2+ cameras), RMS %.3f px, "
-              "distances within bodies: spread <= %.3f mm, change <= %.2f sigma; wrote %s\n",
-              result->frames.size(), result->beads.size(), result->bodies.size(), c.min_beads_per_frame,
-              c.rms_px, c.max_spread_mm, c.max_change_sigmas, FLAGS_out.c_str());
+  std::printf(
+      "track: %zu frames, %zu beads in %zu bodies (>= %d per frame from 2+ cameras), RMS %.3f px, "
+      "distances within bodies: spread <= %.3f mm, change <= %.2f sigma; wrote %s\n",
+      result->frames.size(),
+      result->beads.size(),
+      result->bodies.size(),
+      c.min_beads_per_frame,
+      c.rms_px,
+      c.max_spread_mm,
+      c.max_change_sigmas,
+      FLAGS_out.c_str());
   return 0;
 }
 

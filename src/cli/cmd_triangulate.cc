@@ -1,7 +1,8 @@
 // `carmba triangulate`: points seen in two or more object views (an instrument tip, an unmatched
-// blob) -> their 3-D positions in the CT (object) frame with 3x3 covariances (analysis/triangulation.h).
-// The problem is solved again with its config (the same solve as `carmba solve`, deterministic),
-// so the joint covariance of the views' poses and the intrinsics is at hand.
+// blob) -> their 3-D positions in the CT (object) frame with 3x3 covariances
+// (analysis/triangulation.h). The problem is solved again with its config (the same solve as
+// `carmba solve`, deterministic), so the joint covariance of the views' poses and the intrinsics is
+// at hand.
 //
 //   carmba triangulate --problem P --config C --points points.csv --out DIR
 //   carmba triangulate --problem P --config C --pixels 'VIEW=U,V;VIEW=U,V' --out DIR
@@ -151,7 +152,8 @@ int RunTriangulate() {
     return cli::FailUsage(cmd, "give either --points CSV or --pixels 'VIEW=U,V;VIEW=U,V'");
   }
   std::string err;
-  if (FLAGS_sigma_px != 0 && !CheckRange("--sigma_px", FLAGS_sigma_px, plausible::kPixelSigmaPx, &err)) {
+  if (FLAGS_sigma_px != 0 &&
+      !CheckRange("--sigma_px", FLAGS_sigma_px, plausible::kPixelSigmaPx, &err)) {
     return cli::FailUsage(cmd, err);
   }
   analysis::TriangulationOptions topt;
@@ -184,9 +186,10 @@ int RunTriangulate() {
   std::ostringstream csv;
   csv << "# carmba triangulate --problem " << FLAGS_problem << " --config " << FLAGS_config
       << "\n# positions in the CT frame (mm), covariance mm^2 (the solve's "
-      << (calibration == ba::CalibrationUncertainty::kEstimated    ? "poses and intrinsics"
-          : calibration == ba::CalibrationUncertainty::kConsidered ? "poses, with the held intrinsics' calibration covariance"
-                                                                   : "poses (intrinsics held, calibration uncertainty left out)")
+      << (calibration == ba::CalibrationUncertainty::kEstimated ? "poses and intrinsics"
+          : calibration == ba::CalibrationUncertainty::kConsidered
+              ? "poses, with the held intrinsics' calibration covariance"
+              : "poses (intrinsics held, calibration uncertainty left out)")
       << " and the points' pixels)\n"
       << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
   std::vector<std::string> warnings;
@@ -203,7 +206,8 @@ int RunTriangulate() {
       o.view = it->second;
       o.uv_px = px.uv;
       const double s = FLAGS_sigma_px > 0 ? FLAGS_sigma_px : bp.views[o.view].sigma_px;
-      o.covariance_px2 = px.cov && FLAGS_sigma_px == 0 ? *px.cov : Eigen::Matrix2d::Identity() * s * s;
+      o.covariance_px2 =
+          px.cov && FLAGS_sigma_px == 0 ? *px.cov : Eigen::Matrix2d::Identity() * s * s;
       obs.push_back(o);
     }
     auto t = analysis::TriangulatePoint(bp, br, obs, topt);
@@ -216,21 +220,26 @@ int RunTriangulate() {
     for (const auto& w : t->warnings) warnings.push_back("point '" + p.name + "': " + w);
     nlohmann::json views = nlohmann::json::array();
     for (size_t i = 0; i < obs.size(); ++i) {
-      views.push_back({{"view", bp.views[obs[i].view].id},
-                       {"u_px", obs[i].uv_px[0]},
-                       {"v_px", obs[i].uv_px[1]},
-                       {"residual_px", {JsonNumber(t->residual_px[i][0]), JsonNumber(t->residual_px[i][1])}},
-                       {"rejected", t->rejected[i] != 0}});
+      views.push_back(
+          {{"view", bp.views[obs[i].view].id},
+           {"u_px", obs[i].uv_px[0]},
+           {"v_px", obs[i].uv_px[1]},
+           {"residual_px", {JsonNumber(t->residual_px[i][0]), JsonNumber(t->residual_px[i][1])}},
+           {"rejected", t->rejected[i] != 0}});
     }
     nlohmann::json by_source;
     for (int s = 0; s < ba::kNumSources; ++s) {
-      by_source[ba::SourceName(static_cast<ba::Source>(s))] = JsonNumber(t->solve_trace_by_source[s]);
+      by_source[ba::SourceName(static_cast<ba::Source>(s))] =
+          JsonNumber(t->solve_trace_by_source[s]);
     }
     by_source["the point's pixels"] = JsonNumber(t->covariance_pixels.trace());
     jpoints.push_back({{"id", p.name},
                        {"p_in_ct_mm", {X[0], X[1], X[2]}},
                        {"covariance_mm2", JsonRows(C)},
-                       {"sigma_mm", {JsonNumber(std::sqrt(C(0, 0))), JsonNumber(std::sqrt(C(1, 1))), JsonNumber(std::sqrt(C(2, 2)))}},
+                       {"sigma_mm",
+                        {JsonNumber(std::sqrt(C(0, 0))),
+                         JsonNumber(std::sqrt(C(1, 1))),
+                         JsonNumber(std::sqrt(C(2, 2)))}},
                        {"rms_3d_mm", JsonNumber(std::sqrt(C.trace()))},
                        {"covariance_pixels_mm2", JsonRows(F * t->covariance_pixels * F)},
                        {"covariance_solve_mm2", JsonRows(F * t->covariance_solve * F)},

@@ -10,9 +10,9 @@
 
 namespace {
 int RunVersion() {
-  std::cout << "carmba " << carmba::kCarmbaVersion << " (Ceres " << CERES_VERSION_STRING << ", Eigen " << EIGEN_WORLD_VERSION
-            << "." << EIGEN_MAJOR_VERSION << "." << EIGEN_MINOR_VERSION << ", OpenCV "
-            << CV_VERSION << ")\n";
+  std::cout << "carmba " << carmba::kCarmbaVersion << " (Ceres " << CERES_VERSION_STRING
+            << ", Eigen " << EIGEN_WORLD_VERSION << "." << EIGEN_MAJOR_VERSION << "."
+            << EIGEN_MINOR_VERSION << ", OpenCV " << CV_VERSION << ")\n";
   return 0;
 }
 }  // namespace

@@ -44,10 +44,12 @@ DEFINE_bool(verbose, false,
 DEFINE_bool(plots, true,
             "Draw report.html's plots (matplotlib, in one Python process overlapping the work); "
             "--no-plots writes the report without them and runs no Python for it.");
-DEFINE_double(marker_diameter_mm, 0,
-              "Marker (bead) diameter (mm), converted to px with the nominal magnification (pose: "
-              "fx / SOD of the DICOM frame, or --source-to-object-mm; track: fx / the distance from "
-              "each source to the cameras' common field).");
+DEFINE_double(
+    marker_diameter_mm,
+    0,
+    "Marker (bead) diameter (mm), converted to px with the nominal magnification (pose: "
+    "fx / SOD of the DICOM frame, or --source-to-object-mm; track: fx / the distance from "
+    "each source to the cameras' common field).");
 DEFINE_bool(mrcal, true, "Cross-check with mrcal (python3-mrcal); --no-mrcal skips it.");
 
 namespace carmba::cli {

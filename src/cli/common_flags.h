@@ -71,7 +71,9 @@ Status CheckOutIsNoInput(const std::vector<InputPath>& inputs);
 
 // Progress of `total` items of `unit` for the command `label`: a bar when stderr is a terminal,
 // else one line per item with --verbose, else nothing (util/progress.h).
-std::unique_ptr<Progress> MakeProgress(const std::string& label, int total, const std::string& unit);
+std::unique_ptr<Progress> MakeProgress(const std::string& label,
+                                       int total,
+                                       const std::string& unit);
 // With --verbose, the command's steps and their wall times on stderr: "carmba <command>: <what>"
 // when a step starts, and "carmba <command>: <what>: 0.123 s" when the next one starts or the
 // command ends (EndSteps).

@@ -410,7 +410,8 @@ int main(int argc, char** argv) {
   }
   for (const auto& r : cli::CommandRequiredFlags(name)) {
     gflags::CommandLineFlagInfo f;
-    if (gflags::GetCommandLineFlagInfo(r.c_str(), &f) && (f.is_default || f.current_value.empty())) {
+    if (gflags::GetCommandLineFlagInfo(r.c_str(), &f) &&
+        (f.is_default || f.current_value.empty())) {
       return cli::FailUsage(name, "--" + cli::Dashed(r) + " is required (see 'carmba " + name +
                                       " --help')");
     }

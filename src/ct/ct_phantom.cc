@@ -384,7 +384,8 @@ void AddMetalStreaks(const std::vector<CtMarker>& markers,
             sum += (s % 2 == 0 ? 1.0 : -1.0) *
                    std::exp(-0.5 * (across / kWidthMm) * (across / kWidthMm));
           }
-          if (sum != 0) add[idx] += static_cast<float>(amplitude * std::exp(-(d - radius) / kDecayMm) * sum);
+          if (sum != 0)
+            add[idx] += static_cast<float>(amplitude * std::exp(-(d - radius) / kDecayMm) * sum);
         }
       }
     }

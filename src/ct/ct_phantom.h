@@ -8,8 +8,8 @@
 // half-diagonal) and is estimated by S x S x S supersampling (regular sub-grid of sample
 // centres) for voxels cut by a surface. Then independent Gaussian noise of sigma noise_hu is
 // added to every voxel (white noise: real CT noise is correlated between neighbours, which is not
-// modelled; streaks near metal are, optionally: AddMetalStreaks). The random stream of slice k is seeded from
-// (seed, k), so a volume is the same for the same seed whatever the slice count.
+// modelled; streaks near metal are, optionally: AddMetalStreaks). The random stream of slice k is
+// seeded from (seed, k), so a volume is the same for the same seed whatever the slice count.
 #pragma once
 
 #include <Eigen/Core>

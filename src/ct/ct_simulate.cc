@@ -218,8 +218,12 @@ void ParseCtGridKey(YamlMap& scene, CtScene* s, CtGridKey* k) {
 
 // The markers from the CSV (at least two diameters apart) and the block: given, or the markers'
 // bounding box grown by the padding and a radius; *lo_out, *hi_out the markers' bounding box.
-Status PlaceCtMarkersAndBlock(YamlMap& scene, const CtMarkersKey& markers, const CtBlockKey& block, CtScene* s,
-                              Eigen::Vector3d* lo_out, Eigen::Vector3d* hi_out) {
+Status PlaceCtMarkersAndBlock(YamlMap& scene,
+                              const CtMarkersKey& markers,
+                              const CtBlockKey& block,
+                              CtScene* s,
+                              Eigen::Vector3d* lo_out,
+                              Eigen::Vector3d* hi_out) {
   const std::string csv_path = JoinPath(DirName(scene.file()), markers.csv);
   CARMBA_RETURN_IF_ERROR(ReadPhantomMarkersCsv(csv_path, markers.id_column, markers.columns,
                                         scene.file() + ": key 'markers.csv'",
@@ -258,15 +262,26 @@ Status PlaceCtMarkersAndBlock(YamlMap& scene, const CtMarkersKey& markers, const
 }
 
 // The CT's geometry (centred on the markers unless given), every marker wholly inside it.
-Status PlaceCtVolume(YamlMap& scene, const CtGridKey& k, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+Status PlaceCtVolume(YamlMap& scene,
+                     const CtGridKey& k,
+                     const Eigen::Vector3d& lo,
+                     const Eigen::Vector3d& hi,
                      CtScene* s) {
   const double radius = 0.5 * s->phantom.marker_diameter_mm;
   const double t = k.tilt_deg * M_PI / 180.0;
   const Eigen::Matrix3d tilt = Eigen::AngleAxisd(t, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  const Eigen::Vector3d centre_mm =
-      k.centre.size() == 3 ? Eigen::Vector3d(k.centre[0], k.centre[1], k.centre[2]) : 0.5 * (lo + hi);
-  s->geometry = MakeCtGeometry(k.columns_px, k.rows_px, k.slices, k.pixel_mm, k.spacing_mm, k.thickness_mm,
-                              tilt * k.row_dir, tilt * k.col_dir, centre_mm);
+  const Eigen::Vector3d centre_mm = k.centre.size() == 3
+                                        ? Eigen::Vector3d(k.centre[0], k.centre[1], k.centre[2])
+                                        : 0.5 * (lo + hi);
+  s->geometry = MakeCtGeometry(k.columns_px,
+                               k.rows_px,
+                               k.slices,
+                               k.pixel_mm,
+                               k.spacing_mm,
+                               k.thickness_mm,
+                               tilt * k.row_dir,
+                               tilt * k.col_dir,
+                               centre_mm);
   const Eigen::Matrix3d A_inv = s->geometry.PatientFromIndexLinear().inverse();
   const Eigen::Vector3d size(k.columns_px, k.rows_px, k.slices);
   for (const auto& m : s->phantom.markers) {

@@ -289,10 +289,10 @@ StatusOr<CtVolume> ReadCtSeries(const std::string& dir,
         const double missing = steps[k] / expected - 1;
         return Status::Error(
             dir + ": unevenly spaced or missing slices: gap of " + FixedDecimals(steps[k], 3) +
-            " mm between " + BaseName(slices[k].file) + " (at " + FixedDecimals(slices[k].position, 3) +
-            " mm along the slice normal) and " + BaseName(slices[k + 1].file) + " (at " +
-            FixedDecimals(slices[k + 1].position, 3) + " mm), expected " + FixedDecimals(expected, 3) +
-            " mm like the other slices" +
+            " mm between " + BaseName(slices[k].file) + " (at " +
+            FixedDecimals(slices[k].position, 3) + " mm along the slice normal) and " +
+            BaseName(slices[k + 1].file) + " (at " + FixedDecimals(slices[k + 1].position, 3) +
+            " mm), expected " + FixedDecimals(expected, 3) + " mm like the other slices" +
             (missing > 0.5 ? " (about " + std::to_string(static_cast<int>(std::lround(missing))) +
                                  " slices missing)"
                            : ""));
@@ -305,9 +305,9 @@ StatusOr<CtVolume> ReadCtSeries(const std::string& dir,
         return Status::Error(dir + ": inconsistent in-plane offset between " +
                              BaseName(slices[k].file) + " and " + BaseName(slices[k + 1].file) +
                              ": ImagePositionPatient moves by (" + FixedDecimals(d.x(), 3) + ", " +
-                             FixedDecimals(d.y(), 3) + ", " + FixedDecimals(d.z(), 3) + ") mm, expected (" +
-                             FixedDecimals(step.x(), 3) + ", " + FixedDecimals(step.y(), 3) + ", " +
-                             FixedDecimals(step.z(), 3) + ")");
+                             FixedDecimals(d.y(), 3) + ", " + FixedDecimals(d.z(), 3) +
+                             ") mm, expected (" + FixedDecimals(step.x(), 3) + ", " +
+                             FixedDecimals(step.y(), 3) + ", " + FixedDecimals(step.z(), 3) + ")");
       }
     }
   }

@@ -170,7 +170,8 @@ double BallFraction(const Eigen::Vector3d& d,
       const double disc = beta * beta - gamma;
       if (disc <= 0) continue;
       const double root = std::sqrt(disc);
-      const double lo = std::max(-beta - root, -0.5 * e.z()), hi = std::min(-beta + root, 0.5 * e.z());
+      const double lo = std::max(-beta - root, -0.5 * e.z()),
+                   hi = std::min(-beta + root, 0.5 * e.z());
       if (hi > lo) inside += (hi - lo) / e.z();
     }
   }
@@ -402,7 +403,8 @@ double OddBackgroundRms(const CtVolume& vol, const CentroidRegion& region, const
     const int i0 = static_cast<int>(std::floor(refl.x()));
     const int j0 = static_cast<int>(std::floor(refl.y()));
     const int k0 = static_cast<int>(std::floor(refl.z()));
-    if (i0 < 0 || j0 < 0 || k0 < 0 || i0 + 1 >= vol.columns || j0 + 1 >= vol.rows || k0 + 1 >= vol.slices) {
+    if (i0 < 0 || j0 < 0 || k0 < 0 || i0 + 1 >= vol.columns || j0 + 1 >= vol.rows ||
+        k0 + 1 >= vol.slices) {
       return;
     }
     const double fx = refl.x() - i0, fy = refl.y() - j0, fz = refl.z() - k0;
@@ -410,7 +412,8 @@ double OddBackgroundRms(const CtVolume& vol, const CentroidRegion& region, const
     for (int dk = 0; dk < 2; ++dk) {
       for (int dj = 0; dj < 2; ++dj) {
         for (int di = 0; di < 2; ++di) {
-          r += (di ? fx : 1 - fx) * (dj ? fy : 1 - fy) * (dk ? fz : 1 - fz) * vol.At(i0 + di, j0 + dj, k0 + dk);
+          r += (di ? fx : 1 - fx) * (dj ? fy : 1 - fy) * (dk ? fz : 1 - fz) *
+               vol.At(i0 + di, j0 + dj, k0 + dk);
         }
       }
     }
@@ -435,8 +438,13 @@ struct WeightedCentroid {
 // The last iteration's covariance in the axis frame (offsets relative to the final centre): the
 // noise's part at the white sigma (centroid_white_cov) and at the larger of it and the odd
 // background's RMS (the marker's covariance_noise_mm2 and covariance_mm2).
-void CentroidCovarianceMm2(const CtVolume& vol, const CentroidRegion& region, const Eigen::Vector3d& c,
-                           const Eigen::Vector3d& shift_mm, double r_in, WeightedCentroid* wc, DetectedMarker* m) {
+void CentroidCovarianceMm2(const CtVolume& vol,
+                           const CentroidRegion& region,
+                           const Eigen::Vector3d& c,
+                           const Eigen::Vector3d& shift_mm,
+                           double r_in,
+                           WeightedCentroid* wc,
+                           DetectedMarker* m) {
   const double W = wc->weight;
   Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
   Eigen::Vector3d g = Eigen::Vector3d::Zero();
@@ -464,8 +472,12 @@ void CentroidCovarianceMm2(const CtVolume& vol, const CentroidRegion& region, co
 // 4-5. The background-subtracted weighted centroid, iterated from *c: the region of interest
 // (radius plus a margin, the first pass half a voxel wider) against the shell's median; its
 // covariance at the last iteration.
-WeightedCentroid IterateWeightedCentroid(const CtVolume& vol, const MarkerDetectionOptions& opt, double radius,
-                                         const Eigen::Vector3d& e, Eigen::Vector3d* c, DetectedMarker* m) {
+WeightedCentroid IterateWeightedCentroid(const CtVolume& vol,
+                                         const MarkerDetectionOptions& opt,
+                                         double radius,
+                                         const Eigen::Vector3d& e,
+                                         Eigen::Vector3d* c,
+                                         DetectedMarker* m) {
   const Eigen::Vector3d h = vol.spacing_mm;
   WeightedCentroid wc;
   CentroidRegion region;
@@ -488,7 +500,8 @@ WeightedCentroid IterateWeightedCentroid(const CtVolume& vol, const MarkerDetect
     // replaces both.
     wc.background = Median(&region.shell);
     std::vector<double> dev(region.shell.size());
-    for (size_t s = 0; s < region.shell.size(); ++s) dev[s] = std::abs(region.shell[s] - wc.background);
+    for (size_t s = 0; s < region.shell.size(); ++s)
+      dev[s] = std::abs(region.shell[s] - wc.background);
     wc.sigma = 1.4826 * Median(&dev);
     wc.weight = 0;
     Eigen::Vector3d moment = Eigen::Vector3d::Zero();
@@ -512,8 +525,14 @@ WeightedCentroid IterateWeightedCentroid(const CtVolume& vol, const MarkerDetect
 // The robust partial-volume ball fit over the voxels within R + e_max of `start`, re-fitted once
 // over the region around its first result; false when it fails or ends farther from the peak
 // voxel than a ball's peak can be (half a voxel diagonal: it found a neighbour, bone or air).
-bool FitBallFrom(const CtVolume& vol, const MarkerDetectionOptions& opt, const Eigen::Vector3d& e,
-                 const DetectedMarker& m, double background, Eigen::Vector3d start, BallFitResult* fit, int* n_vox) {
+bool FitBallFrom(const CtVolume& vol,
+                 const MarkerDetectionOptions& opt,
+                 const Eigen::Vector3d& e,
+                 const DetectedMarker& m,
+                 double background,
+                 Eigen::Vector3d start,
+                 BallFitResult* fit,
+                 int* n_vox) {
   const Eigen::Vector3d h = vol.spacing_mm;
   const double r_fit = 0.5 * opt.diameter_mm + e.maxCoeff();
   const Eigen::Matrix3d A = vol.PatientFromIndexLinear(), A_inv = A.inverse();
@@ -534,7 +553,14 @@ bool FitBallFrom(const CtVolume& vol, const MarkerDetectionOptions& opt, const E
         }
       }
     }
-    if (!FitBall(vox, vol.axes, e, 0.5 * opt.diameter_mm, Eigen::Vector3d::Zero(), m.peak_hu, background, fit)) {
+    if (!FitBall(vox,
+                 vol.axes,
+                 e,
+                 0.5 * opt.diameter_mm,
+                 Eigen::Vector3d::Zero(),
+                 m.peak_hu,
+                 background,
+                 fit)) {
       return false;
     }
     *n_vox = static_cast<int>(vox.size());
@@ -549,8 +575,13 @@ bool FitBallFrom(const CtVolume& vol, const MarkerDetectionOptions& opt, const E
 // surroundings outweigh the marker) -- and the fit is the centre; else the centroid, its
 // covariance widened by the Birge ratio of the disagreement when it exceeds its expectation (3)
 // (the odd part's widening (5.) may already cover it: the larger of the two).
-void ChooseCentroidOrFit(const CtVolume& vol, const MarkerDetectionOptions& opt, const BallFitResult& fit, int n_fit,
-                         bool centroid_ok, const Eigen::Matrix3d& centroid_white_cov, DetectedMarker* m) {
+void ChooseCentroidOrFit(const CtVolume& vol,
+                         const MarkerDetectionOptions& opt,
+                         const BallFitResult& fit,
+                         int n_fit,
+                         bool centroid_ok,
+                         const Eigen::Matrix3d& centroid_white_cov,
+                         DetectedMarker* m) {
   const Eigen::Vector3d cf = fit.centre;
   m->fit_centre_mm = vol.PatientFromIndex(cf);
   m->fit_covariance_mm2 = fit.covariance;  // patient frame already
@@ -829,11 +860,12 @@ double SpheroidFill(const CtVolume& vol, const SurfaceFit& s, double level) {
                           s.radii_mm.y() - 0.5 * vol.spacing_mm.z());
   if (r.minCoeff() <= 0) return 0;
   int inside = 0, full = 0;
-  ForVoxelsWithin(vol, s.centre_mm, r.maxCoeff(), [&](int i, int j, int k, const Eigen::Vector3d& d) {
-    if ((vol.axes.transpose() * d).cwiseQuotient(r).norm() > 1) return;
-    ++inside;
-    full += vol.At(i, j, k) >= level;
-  });
+  ForVoxelsWithin(
+      vol, s.centre_mm, r.maxCoeff(), [&](int i, int j, int k, const Eigen::Vector3d& d) {
+        if ((vol.axes.transpose() * d).cwiseQuotient(r).norm() > 1) return;
+        ++inside;
+        full += vol.At(i, j, k) >= level;
+      });
   return inside ? static_cast<double>(full) / inside : 0.0;
 }
 
@@ -1114,7 +1146,8 @@ Eigen::Vector3i VoxelIjk(const CtVolume& vol, size_t v) {
 }
 
 // 1. The voxels at or above the threshold; an error when they are too many for markers.
-StatusOr<std::vector<size_t>> ThresholdCore(const CtVolume& vol, const MarkerDetectionOptions& opt) {
+StatusOr<std::vector<size_t>> ThresholdCore(const CtVolume& vol,
+                                            const MarkerDetectionOptions& opt) {
   const float thr = static_cast<float>(opt.threshold_hu);
   const size_t max_core = static_cast<size_t>(opt.max_core_fraction * vol.hu.size()) + 1;
   std::vector<size_t> core;
@@ -1135,7 +1168,9 @@ StatusOr<std::vector<size_t>> ThresholdCore(const CtVolume& vol, const MarkerDet
 
 // 8. The scanner's clip: given, or the largest value when enough voxels hold it; and how many
 // core voxels hold it.
-void ScannerClip(const CtVolume& vol, const MarkerDetectionOptions& opt, const std::vector<size_t>& core,
+void ScannerClip(const CtVolume& vol,
+                 const MarkerDetectionOptions& opt,
+                 const std::vector<size_t>& core,
                  MarkerDetection* out) {
   if (opt.clip_hu > 0) {
     out->clip_hu = opt.clip_hu;
@@ -1196,7 +1231,9 @@ struct ComponentStats {
   double peak = -1e30, volume_mm3 = 0;
 };
 
-ComponentStats StatsOfComponent(const CtVolume& vol, const std::vector<size_t>& core, const std::vector<int>& members) {
+ComponentStats StatsOfComponent(const CtVolume& vol,
+                                const std::vector<size_t>& core,
+                                const std::vector<int>& members) {
   ComponentStats c;
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   c.lo = c.hi = VoxelIjk(vol, core[members[0]]);
@@ -1226,10 +1263,14 @@ struct MarkerSeed {
 // 3. Seeds: the component itself when it is marker-sized; else (a marker touching bone or
 // another dense structure above the threshold) its local maxima, strongest first, at least one
 // diameter apart, each started with the nominal radius.
-std::vector<MarkerSeed> ComponentSeeds(const CtVolume& vol, const MarkerDetectionOptions& opt,
-                                       const std::vector<size_t>& core, const std::vector<int>& members,
-                                       const ComponentStats& c, bool large) {
-  if (!large) return {{c.centroid, std::cbrt(3.0 * c.volume_mm3 / (4.0 * M_PI)), c.peak, c.peak_at}};
+std::vector<MarkerSeed> ComponentSeeds(const CtVolume& vol,
+                                       const MarkerDetectionOptions& opt,
+                                       const std::vector<size_t>& core,
+                                       const std::vector<int>& members,
+                                       const ComponentStats& c,
+                                       bool large) {
+  if (!large)
+    return {{c.centroid, std::cbrt(3.0 * c.volume_mm3 / (4.0 * M_PI)), c.peak, c.peak_at}};
   const double radius = 0.5 * opt.diameter_mm;
   const Eigen::Matrix3d A = vol.PatientFromIndexLinear();
   std::vector<std::pair<double, Eigen::Vector3i>> maxima;
@@ -1241,7 +1282,8 @@ std::vector<MarkerSeed> ComponentSeeds(const CtVolume& vol, const MarkerDetectio
       for (int dj = -1; dj <= 1 && is_max; ++dj) {
         for (int di = -1; di <= 1 && is_max; ++di) {
           const int i = q.x() + di, j = q.y() + dj, k = q.z() + dk;
-          if (i < 0 || j < 0 || k < 0 || i >= vol.columns || j >= vol.rows || k >= vol.slices) continue;
+          if (i < 0 || j < 0 || k < 0 || i >= vol.columns || j >= vol.rows || k >= vol.slices)
+            continue;
           const float w = vol.At(i, j, k);
           // Ties: the first in memory order is the maximum.
           if (w > v || (w == v && vol.Index(i, j, k) < core[p])) is_max = false;
@@ -1250,7 +1292,8 @@ std::vector<MarkerSeed> ComponentSeeds(const CtVolume& vol, const MarkerDetectio
     }
     if (is_max) maxima.emplace_back(v, q);
   }
-  std::sort(maxima.begin(), maxima.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::sort(
+      maxima.begin(), maxima.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<MarkerSeed> seeds;
   for (const auto& [v, q] : maxima) {
     const Eigen::Vector3d x = q.cast<double>();
@@ -1264,7 +1307,9 @@ std::vector<MarkerSeed> ComponentSeeds(const CtVolume& vol, const MarkerDetectio
 
 // 6. Why a refined marker is not accepted (not metal, no ball fit, not ball-shaped, far from its
 // seed), or "".
-std::string RefinedMarkerRejection(const CtVolume& vol, const MarkerDetectionOptions& opt, const DetectedMarker& m) {
+std::string RefinedMarkerRejection(const CtVolume& vol,
+                                   const MarkerDetectionOptions& opt,
+                                   const DetectedMarker& m) {
   const double radius = 0.5 * opt.diameter_mm;
   const Eigen::Matrix3d A = vol.PatientFromIndexLinear();
   char b[200] = "";
@@ -1276,14 +1321,22 @@ std::string RefinedMarkerRejection(const CtVolume& vol, const MarkerDetectionOpt
   } else if (!m.fit_ok) {
     std::snprintf(b, sizeof(b), "the partial-volume ball fit failed");
   } else if (m.fit_metal_hu < opt.min_metal_hu) {
-    std::snprintf(b, sizeof(b), "fitted ball HU %.0f < %.0f (not metal: bone?)", m.fit_metal_hu, opt.min_metal_hu);
+    std::snprintf(b,
+                  sizeof(b),
+                  "fitted ball HU %.0f < %.0f (not metal: bone?)",
+                  m.fit_metal_hu,
+                  opt.min_metal_hu);
   } else if (m.fit_inner_fraction < opt.min_inner_fraction) {
     std::snprintf(b, sizeof(b),
                   "not ball-shaped: %.0f%% of the voxels inside the fitted %.3g mm ball are "
                   "within 25%% of its contrast (< %.0f%%)",
                   100 * m.fit_inner_fraction, opt.diameter_mm, 100 * opt.min_inner_fraction);
-  } else if ((m.fit_centre_mm - m.core_centroid_mm).norm() > radius + 0.5 * A.colwise().norm().maxCoeff()) {
-    std::snprintf(b, sizeof(b), "the fitted ball is %.2f mm from its seed", (m.fit_centre_mm - m.core_centroid_mm).norm());
+  } else if ((m.fit_centre_mm - m.core_centroid_mm).norm() >
+             radius + 0.5 * A.colwise().norm().maxCoeff()) {
+    std::snprintf(b,
+                  sizeof(b),
+                  "the fitted ball is %.2f mm from its seed",
+                  (m.fit_centre_mm - m.core_centroid_mm).norm());
   }
   return b;
 }
@@ -1291,9 +1344,13 @@ std::string RefinedMarkerRejection(const CtVolume& vol, const MarkerDetectionOpt
 // One component: rejected by size or the volume's border, or its seeds refined (4-6; saturated
 // metal: 8) into markers not already taken. A component that gives none is rejected with the
 // last seed's reason.
-void DetectInComponent(const CtVolume& vol, const MarkerDetectionOptions& opt, const std::vector<size_t>& core,
-                       const std::vector<int>& members, double min_peak_fraction,
-                       std::vector<DetectedMarker>* accepted, MarkerDetection* out) {
+void DetectInComponent(const CtVolume& vol,
+                       const MarkerDetectionOptions& opt,
+                       const std::vector<size_t>& core,
+                       const std::vector<int>& members,
+                       double min_peak_fraction,
+                       std::vector<DetectedMarker>* accepted,
+                       MarkerDetection* out) {
   const double nominal_mm3 = M_PI / 6.0 * std::pow(opt.diameter_mm, 3);
   const ComponentStats c = StatsOfComponent(vol, core, members);
   const double volume = c.volume_mm3;
@@ -1322,14 +1379,16 @@ void DetectInComponent(const CtVolume& vol, const MarkerDetectionOptions& opt, c
   for (const auto& seed : seeds) {
     const Eigen::Vector3d seed_mm = vol.PatientFromIndex(seed.index);
     bool taken = false;
-    for (const auto& a : *accepted) taken = taken || (a.centre_mm - seed_mm).norm() < opt.diameter_mm;
+    for (const auto& a : *accepted)
+      taken = taken || (a.centre_mm - seed_mm).norm() < opt.diameter_mm;
     if (taken) continue;
     DetectedMarker m;
     m.core_voxels = static_cast<int>(members.size());
     m.volume_mm3 = large ? 0 : volume;
     m.peak_hu = seed.peak_hu;
     m.core_centroid_mm = vol.PatientFromIndex(large ? seed.index : c.centroid);
-    m.bbox_centre_mm = large ? m.core_centroid_mm : vol.PatientFromIndex(0.5 * (c.lo + c.hi).cast<double>());
+    m.bbox_centre_mm =
+        large ? m.core_centroid_mm : vol.PatientFromIndex(0.5 * (c.lo + c.hi).cast<double>());
     m.centre_index = seed.index;
     m.peak_index = seed.peak_index;
     m.merged = large;
@@ -1371,7 +1430,9 @@ void DetectInComponent(const CtVolume& vol, const MarkerDetectionOptions& opt, c
 
 // Two seeds of one marker (a merged component's maxima): the better fit is kept; the markers
 // numbered from 1.
-void KeepDistinctMarkers(const std::vector<DetectedMarker>& accepted, double radius, MarkerDetection* out) {
+void KeepDistinctMarkers(const std::vector<DetectedMarker>& accepted,
+                         double radius,
+                         MarkerDetection* out) {
   std::vector<bool> dropped(accepted.size(), false);
   for (size_t a = 0; a < accepted.size(); ++a) {
     for (size_t b = a + 1; b < accepted.size(); ++b) {
@@ -1437,7 +1498,8 @@ StatusOr<MarkerDetection> DetectMarkers(const CtVolume& vol,
   }
   KeepDistinctMarkers(accepted, 0.5 * opt.diameter_mm, &out);
   const int found = static_cast<int>(out.markers.size());
-  if (found == 0 || (opt.expected_count > 0 && found != opt.expected_count)) return CountError(out, opt);
+  if (found == 0 || (opt.expected_count > 0 && found != opt.expected_count))
+    return CountError(out, opt);
   return out;
 }
 

@@ -14,8 +14,8 @@
 //    w_i = HU_i - b, over the region of interest of voxels whose box (voxel extent along the
 //    volume axes) comes within R_roi = max(d/2, r_core) + roi_margin_mm of the current centre,
 //    where r_core is the radius of a sphere of the core's volume. b is the local background: the
-//    median HU of a shell of voxels beyond the ROI (0.5 .. 0.5 + shell_mm mm outside it); sigma_b, the
-//    local noise, is 1.4826 x the shell's median absolute deviation. Started at the seed, the
+//    median HU of a shell of voxels beyond the ROI (0.5 .. 0.5 + shell_mm mm outside it); sigma_b,
+//    the local noise, is 1.4826 x the shell's median absolute deviation. Started at the seed, the
 //    ROI is re-centred and the centroid recomputed `iterations` times. Because every voxel is a
 //    box average of the object (partial volume), the weighted centroid is the object's centre up
 //    to the sampling (aliasing) error below -- when its surroundings are uniform. The thesis's
@@ -66,36 +66,34 @@
 //    least kMinClippedVoxels voxels hold it and it is >= threshold_hu (clip_hu > 0 sets it, < 0
 //    disables). A seed whose peak is at the clip is measured by two independent estimators:
 //    - surface fit: from the most interior clipped voxel within 1.5 R of the seed (farthest from
-//      any voxel below the clip: the ball is thicker than a post or tail), 400 rays (a Fibonacci sphere) each
-//      find where the trilinear HU falls below the half level L = b + (clip - b) / 2 (b the median
-//      of a shell 1.5 R + 1 .. 1.5 R + 2.5 mm out, R the nominal radius), then again below the
-//      ray's own half level, between the clip and the median 1 .. 2 mm beyond that first edge
-//      (a holder on one side, air on the other would move a common level's crossing unequally);
-//      an axis-aligned spheroid
-//      (centre, in-plane and along-slice radii: the scanner's blur differs in and across the
-//      slices) is fitted to these edge points by Tukey-weighted Gauss-Newton (4.685 x the MAD
-//      of the radial residuals, the scale frozen after 3 iterations; steps at most 0.5 mm, radii
-//      kept within 0.3 .. 2.5 R), the rays re-cast from the new centre 4 times. Rays that run
-//      into a post, a pin or the holder, or stop early in a streak, are outliers. Covariance: s^2
-//      H^-1 of the centre, s^2 the weighted residual variance, multiplied by n_inliers / n_eff,
-//      plus the sampling term of 5. at the fitted radii (the edge is interpolated between voxels),
-//      n_eff = the inliers' share of the spheroid's area / voxel area^(2/3) (neighbouring rays
-//      see the same voxels). Slices further apart than they are thick (gaps: the odd or even
-//      half of a series) hide where an edge falls between them: there the sampling term is at
-//      least the surface fit's own error on noise-free clipped balls of the fitted radius in a
-//      volume sampled alike (8 sub-voxel positions, metal 2, 4 and 8 x (clip - b) above b,
-//      the mean). The diameter need only be roughly known: the radii must be within
-//      0.6 .. 1.6 x R. Not a ball (a pin, a wire): radii in a ratio beyond 1.3 (the axial radius
-//      moved toward the in-plane one by up to half the slice step's excess over the pixel: sparse
-//      slices move the edge across them by that much), less than half
-//      the rays ending within 20 % of the spheroid, or less than min_inner_fraction of the voxels
-//      inside the spheroid shrunk by half a voxel reaching L. A clip less than 500 HU above b is
-//      refused;
+//      any voxel below the clip: the ball is thicker than a post or tail), 400 rays (a Fibonacci
+//      sphere) each find where the trilinear HU falls below the half level L = b + (clip - b) / 2
+//      (b the median of a shell 1.5 R + 1 .. 1.5 R + 2.5 mm out, R the nominal radius), then again
+//      below the ray's own half level, between the clip and the median 1 .. 2 mm beyond that first
+//      edge (a holder on one side, air on the other would move a common level's crossing
+//      unequally); an axis-aligned spheroid (centre, in-plane and along-slice radii: the scanner's
+//      blur differs in and across the slices) is fitted to these edge points by Tukey-weighted
+//      Gauss-Newton (4.685 x the MAD of the radial residuals, the scale frozen after 3 iterations;
+//      steps at most 0.5 mm, radii kept within 0.3 .. 2.5 R), the rays re-cast from the new centre
+//      4 times. Rays that run into a post, a pin or the holder, or stop early in a streak, are
+//      outliers. Covariance: s^2 H^-1 of the centre, s^2 the weighted residual variance, multiplied
+//      by n_inliers / n_eff, plus the sampling term of 5. at the fitted radii (the edge is
+//      interpolated between voxels), n_eff = the inliers' share of the spheroid's area / voxel
+//      area^(2/3) (neighbouring rays see the same voxels). Slices further apart than they are thick
+//      (gaps: the odd or even half of a series) hide where an edge falls between them: there the
+//      sampling term is at least the surface fit's own error on noise-free clipped balls of the
+//      fitted radius in a volume sampled alike (8 sub-voxel positions, metal 2, 4 and 8 x (clip -
+//      b) above b, the mean). The diameter need only be roughly known: the radii must be within 0.6
+//      .. 1.6 x R. Not a ball (a pin, a wire): radii in a ratio beyond 1.3 (the axial radius moved
+//      toward the in-plane one by up to half the slice step's excess over the pixel: sparse slices
+//      move the edge across them by that much), less than half the rays ending within 20 % of the
+//      spheroid, or less than min_inner_fraction of the voxels inside the spheroid shrunk by half a
+//      voxel reaching L. A clip less than 500 HU above b is refused;
 //    - clipped centroid: the centroid of the occupancy u = clamp((v - b) / (clip - b), 0, 1)
 //      (a clipped voxel counts as fully inside, whatever metal HU the scanner lost) over the
 //      voxels within the fitted spheroid grown by 0.5 mm around its own iterate (its radii, not
-//      its centre, from the surface fit), started at the same clipped voxel; covariance: the shell's noise (MAD /
-//      (clip - b)) propagated + the sampling term of 5. at the fitted radius.
+//      its centre, from the surface fit), started at the same clipped voxel; covariance: the
+//      shell's noise (MAD / (clip - b)) propagated + the sampling term of 5. at the fitted radius.
 //    The centre is the surface fit's, its covariance widened by max(1, chi2 / 3) (chi2 between
 //    the two estimators, 3 dof): the Birge ratio says how far the estimate can be trusted when
 //    streaks or a holder move one estimator more than its covariance allows. Both estimates and

@@ -61,13 +61,19 @@ std::optional<BlobPairFit> Refuse(std::string* why, const std::string& text) {
 
 }  // namespace
 
-std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, double diameter_px,
-                                       double min_contrast, double correlation_factor, std::string* why) {
+std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey,
+                                       cv::Point2d centre,
+                                       double diameter_px,
+                                       double min_contrast,
+                                       double correlation_factor,
+                                       std::string* why) {
   if (grey.type() != CV_32F || !(diameter_px > 1)) return Refuse(why, "bad input");
   const int half = static_cast<int>(std::ceil(1.6 * diameter_px));
-  const cv::Rect box = cv::Rect(cvRound(centre.x) - half, cvRound(centre.y) - half, 2 * half + 1, 2 * half + 1) &
-                       cv::Rect(0, 0, grey.cols, grey.rows);
-  if (box.width < 2 * half + 1 || box.height < 2 * half + 1) return Refuse(why, "at the image border");
+  const cv::Rect box =
+      cv::Rect(cvRound(centre.x) - half, cvRound(centre.y) - half, 2 * half + 1, 2 * half + 1) &
+      cv::Rect(0, 0, grey.cols, grey.rows);
+  if (box.width < 2 * half + 1 || box.height < 2 * half + 1)
+    return Refuse(why, "at the image border");
   const cv::Mat patch = grey(box);
   Window w;
   w.origin = cv::Point2d(box.x + half, box.y + half);
@@ -77,7 +83,8 @@ std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, 
       w.x.push_back(x - half);
       w.y.push_back(y - half);
       w.value.push_back(patch.at<float>(y, x));
-      if (x == 0 || y == 0 || x == patch.cols - 1 || y == patch.rows - 1) border.push_back(patch.at<float>(y, x));
+      if (x == 0 || y == 0 || x == patch.cols - 1 || y == patch.rows - 1)
+        border.push_back(patch.at<float>(y, x));
     }
   }
   std::nth_element(border.begin(), border.begin() + border.size() / 2, border.end());
@@ -152,7 +159,8 @@ std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, 
   }
   const auto n = static_cast<double>(w.value.size());
   const double sigma2 = cost / (n - kParams);
-  const Eigen::MatrixXd C = (J.transpose() * J).inverse() * sigma2 * std::max(1.0, correlation_factor);
+  const Eigen::MatrixXd C =
+      (J.transpose() * J).inverse() * sigma2 * std::max(1.0, correlation_factor);
   if (!C.allFinite()) return Refuse(why, "singular fit");
   BlobPairFit out;
   out.rms_grey = std::sqrt(cost / n);
@@ -160,7 +168,9 @@ std::optional<BlobPairFit> FitBlobPair(const cv::Mat& grey, cv::Point2d centre, 
   for (int k = 0; k < 2; ++k) {
     MarkerBlob& b = out.blobs[k];
     b.uv_px = w.origin + cv::Point2d(p[4 + 3 * k], p[5 + 3 * k]);
-    b.covariance_px2 = cv::Matx22d(C(4 + 3 * k, 4 + 3 * k), C(4 + 3 * k, 5 + 3 * k), C(5 + 3 * k, 4 + 3 * k),
+    b.covariance_px2 = cv::Matx22d(C(4 + 3 * k, 4 + 3 * k),
+                                   C(4 + 3 * k, 5 + 3 * k),
+                                   C(5 + 3 * k, 4 + 3 * k),
                                    C(5 + 3 * k, 5 + 3 * k));
     b.diameter_px = 2.355 * p[9];
     b.contrast = p[3 + 3 * k] / bg;

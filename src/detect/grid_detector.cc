@@ -130,8 +130,15 @@ struct CentroidWindow {
 // disc and ring: the tails and ring fit between the blob (edge r_half) and its neighbours (edge
 // nn_px - r_half), the disc no larger than needed (the centroid's noise grows with its area):
 // within disc_px while the tails stay >= 1 px. False when there is no blob.
-bool SizeCentroidWindow(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
-                        int cx, int cy, int w, CentroidWindow* win) {
+bool SizeCentroidWindow(const cv::Mat& f,
+                        const cv::Mat& valid,
+                        bool dark,
+                        double nn_px,
+                        double disc_px,
+                        int cx,
+                        int cy,
+                        int w,
+                        CentroidWindow* win) {
   if (cx < 0 || cy < 0 || cx >= f.cols || cy >= f.rows) return false;
   std::vector<float> vals, band;
   vals.reserve((2 * w + 1) * (2 * w + 1));
@@ -175,7 +182,8 @@ bool CollectDiscAndRing(const cv::Mat& f, const cv::Mat& valid, cv::Point2d c, i
                         const CentroidWindow& win, std::vector<CentroidPixel>* disc,
                         std::vector<CentroidPixel>* ring) {
   const int rw = win.rw;
-  const double ring_in2 = win.rho * win.rho, ring_out2 = (win.rho + win.ring_width) * (win.rho + win.ring_width);
+  const double ring_in2 = win.rho * win.rho,
+               ring_out2 = (win.rho + win.ring_width) * (win.rho + win.ring_width);
   ring->clear();
   disc->clear();
   for (int y = cy - rw; y <= cy + rw; ++y) {
@@ -219,7 +227,8 @@ bool FitRingPlane(const std::vector<CentroidPixel>& ring, cv::Vec3d* plane, doub
     *ring_AtA = AtA;
     if (pass == 1) break;
     res.clear();
-    for (const CentroidPixel& q : ring) res.push_back(static_cast<float>(std::fabs(q.value - PlaneAt(*plane, q))));
+    for (const CentroidPixel& q : ring)
+      res.push_back(static_cast<float>(std::fabs(q.value - PlaneAt(*plane, q))));
     const float largest = *std::max_element(res.begin(), res.end());
     std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
     *ring_sigma = 1.4826 * res[res.size() / 2];
@@ -246,8 +255,15 @@ struct CentroidEstimate {
 // ey], var I_i = sigma^2. Cov_p = sigma^2 (A^T A)^-1 (the ring fit). Both scaled by the noise's
 // correlation factor. The pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 +
 // dy^2), |d| <= 3: sum_ij g_i g_j^T rho(i - j), g_i = a_i dw/dI sqrt(var I_i / sigma^2).
-void CentroidCovariance(const std::vector<CentroidPixel>& disc, const CentroidEstimate& e, const cv::Vec3d& plane,
-                        double ring_sigma, const cv::Matx33d& ring_AtA, bool dark, int cx, int cy, int rw,
+void CentroidCovariance(const std::vector<CentroidPixel>& disc,
+                        const CentroidEstimate& e,
+                        const cv::Vec3d& plane,
+                        double ring_sigma,
+                        const cv::Matx33d& ring_AtA,
+                        bool dark,
+                        int cx,
+                        int cy,
+                        int rw,
                         CentroidNoise* noise) {
   const int side = 2 * rw + 1;
   std::vector<cv::Vec2d> g(static_cast<size_t>(side) * side, cv::Vec2d(0, 0));
@@ -256,7 +272,8 @@ void CentroidCovariance(const std::vector<CentroidPixel>& disc, const CentroidEs
     if (q.value - e.floor <= 0) continue;
     const double x = q.ex + cx, y = q.ey + cy;
     cv::Vec2d a = cv::Vec2d(x - e.full.x, y - e.full.y) * ((1.0 - e.toward_core) / e.sw);
-    if (q.value - e.core_floor > 0) a += cv::Vec2d(x - e.core.x, y - e.core.y) * (e.toward_core / e.hw);
+    if (q.value - e.core_floor > 0)
+      a += cv::Vec2d(x - e.core.x, y - e.core.y) * (e.toward_core / e.hw);
     const double bg = PlaneAt(plane, q);
     const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
     const double var_I = dark ? std::max(0.0, I / bg) : 1.0;
@@ -291,7 +308,8 @@ void CentroidCovariance(const std::vector<CentroidPixel>& disc, const CentroidEs
                                      noise->floor_variance_gray)));
   const double sigma2 = sigma_used * sigma_used;
   const cv::Matx22d cov =
-      (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) * sigma2;
+      (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) *
+      sigma2;
   noise->covariance_px2 = cov;
   noise->sigma_gray = sigma_used;
   noise->peak_contrast = e.peak;
@@ -299,7 +317,11 @@ void CentroidCovariance(const std::vector<CentroidPixel>& disc, const CentroidEs
 }
 
 // The disc's pixels as contrast against the plane, and the centroids; false without contrast.
-bool DiscCentroids(std::vector<CentroidPixel>* disc, const cv::Vec3d& plane, bool dark, int cx, int cy,
+bool DiscCentroids(std::vector<CentroidPixel>* disc,
+                   const cv::Vec3d& plane,
+                   bool dark,
+                   int cx,
+                   int cy,
                    CentroidEstimate* e) {
   for (CentroidPixel& q : *disc) {
     const double bg = PlaneAt(plane, q);
@@ -429,13 +451,15 @@ double FullyExposedRadius(const cv::Mat& f, cv::Point2d c, double r) {
   if (r < 2 * kDepth) return r;
   std::vector<std::vector<float>> bins(kDepth + 1);
   const double r_in = r - kDepth;
-  const int y0 = std::max(0, static_cast<int>(c.y - r)), y1 = std::min(f.rows - 1, static_cast<int>(c.y + r) + 1);
+  const int y0 = std::max(0, static_cast<int>(c.y - r)),
+            y1 = std::min(f.rows - 1, static_cast<int>(c.y + r) + 1);
   for (int y = y0; y <= y1; y += 2) {  // every second row: ~300+ pixels per annulus still
     const float* fr = f.ptr<float>(y);
     const double dy2 = (y - c.y) * (y - c.y);
     if (dy2 > r * r) continue;
     // The row's pixels in the annulus: |x - cx| in [w_in, w_out].
-    const double w_out = std::sqrt(r * r - dy2), w_in = dy2 < r_in * r_in ? std::sqrt(r_in * r_in - dy2) : 0;
+    const double w_out = std::sqrt(r * r - dy2),
+                 w_in = dy2 < r_in * r_in ? std::sqrt(r_in * r_in - dy2) : 0;
     for (int side = -1; side <= 1; side += 2) {
       const double a = c.x + side * w_in, b = c.x + side * w_out;
       const int xa = std::max(0, static_cast<int>(std::floor(std::min(a, b))));
@@ -470,8 +494,10 @@ double FullyExposedRadius(const cv::Mat& f, cv::Point2d c, double r) {
 // True if every pixel within `radius` of `pt` is inside the image and set in `mask` (the
 // distance from `pt` to the mask's border, outside the image included, exceeds `radius`).
 bool ClearOfMaskBorder(const cv::Mat& mask, cv::Point2d pt, double radius) {
-  const int x0 = static_cast<int>(std::floor(pt.x - radius)), x1 = static_cast<int>(std::ceil(pt.x + radius));
-  const int y0 = static_cast<int>(std::floor(pt.y - radius)), y1 = static_cast<int>(std::ceil(pt.y + radius));
+  const int x0 = static_cast<int>(std::floor(pt.x - radius)),
+            x1 = static_cast<int>(std::ceil(pt.x + radius));
+  const int y0 = static_cast<int>(std::floor(pt.y - radius)),
+            y1 = static_cast<int>(std::ceil(pt.y + radius));
   const double r2 = radius * radius;
   for (int y = y0; y <= y1; ++y) {
     const double dy2 = (y - pt.y) * (y - pt.y);
@@ -501,8 +527,12 @@ cv::Point2f LatticeNode(const GridSpec& g, int r, int c) {
 // the pitch; a new line counts when at least 2 of its nodes and half of those in the field of
 // view are found. Stray blobs (noise, other markers) rarely sit on lattice nodes, let alone on
 // half a line of them.
-cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, const std::vector<int>& ids,
-                       const std::vector<cv::KeyPoint>& blobs, const cv::Mat& mask, double pitch_px) {
+cv::Size LatticeExtent(const GridSpec& g,
+                       const std::vector<cv::Point2d>& pts,
+                       const std::vector<int>& ids,
+                       const std::vector<cv::KeyPoint>& blobs,
+                       const cv::Mat& mask,
+                       double pitch_px) {
   cv::Size extent(g.cols, g.rows);
   // A continuation needs at least 2 blobs beyond the grid's.
   if (static_cast<int>(blobs.size()) < g.NumPoints() + 2 || ids.empty()) return extent;
@@ -540,7 +570,10 @@ cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, c
     for (int side = 0; side < 4; ++side) {
       // side 0 / 1: a new row above / below; 2 / 3: a new column left / right.
       const bool row = side < 2;
-      const int line = side == 0 ? rmin - 1 : side == 1 ? rmax + 1 : side == 2 ? cmin - 1 : cmax + 1;
+      const int line = side == 0   ? rmin - 1
+                       : side == 1 ? rmax + 1
+                       : side == 2 ? cmin - 1
+                                   : cmax + 1;
       std::vector<cv::Point2f> plate, image;
       for (const Node& n : nodes) {
         if (std::abs((row ? n.r : n.c) - line) <= 3) {
@@ -553,7 +586,8 @@ cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, c
       if (H.empty()) continue;
       std::vector<cv::Point2f> pred_plate;
       const int lo = row ? cmin : rmin, hi = row ? cmax : rmax;
-      for (int k = lo; k <= hi; ++k) pred_plate.push_back(row ? LatticeNode(g, line, k) : LatticeNode(g, k, line));
+      for (int k = lo; k <= hi; ++k)
+        pred_plate.push_back(row ? LatticeNode(g, line, k) : LatticeNode(g, k, line));
       std::vector<cv::Point2f> pred;
       cv::perspectiveTransform(pred_plate, pred, H);
       int counted = 0;
@@ -590,7 +624,8 @@ cv::Size LatticeExtent(const GridSpec& g, const std::vector<cv::Point2d>& pts, c
 bool PlausibleGrid(const std::vector<cv::Point2f>& pts, const GridSpec& g) {
   std::vector<double> steps;
   for (int r = 0; r < g.rows; ++r) {
-    for (int c = 0; c + 1 < g.cols; ++c) steps.push_back(cv::norm(pts[r * g.cols + c + 1] - pts[r * g.cols + c]));
+    for (int c = 0; c + 1 < g.cols; ++c)
+      steps.push_back(cv::norm(pts[r * g.cols + c + 1] - pts[r * g.cols + c]));
   }
   if (steps.empty()) return true;
   std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
@@ -601,7 +636,8 @@ bool PlausibleGrid(const std::vector<cv::Point2f>& pts, const GridSpec& g) {
     }
   }
   std::vector<cv::Point2f> plate;
-  for (int id = 0; id < g.NumPoints(); ++id) plate.push_back(LatticeNode(g, id / g.cols, id % g.cols));
+  for (int id = 0; id < g.NumPoints(); ++id)
+    plate.push_back(LatticeNode(g, id / g.cols, id % g.cols));
   const cv::Mat H = cv::findHomography(plate, pts, 0);
   if (H.empty()) return false;
   std::vector<cv::Point2f> mapped;
@@ -709,7 +745,8 @@ bool ToFloatGrey(const cv::Mat& image, const DetectionOptions& o, cv::Mat* f, cv
   *offset = cv::Point(0, 0);
   if (!o.roi_px.empty()) {
     cv::Rect roi(o.roi_px[0], o.roi_px[1], o.roi_px[2], o.roi_px[3]);
-    if ((roi & cv::Rect(0, 0, f->cols, f->rows)) != roi) return *reason = "roi_px outside the image", false;
+    if ((roi & cv::Rect(0, 0, f->cols, f->rows)) != roi)
+      return *reason = "roi_px outside the image", false;
     *f = (*f)(roi).clone();
     *offset = roi.tl();
   }
@@ -750,7 +787,10 @@ FieldOfView FindFieldOfView(const cv::Mat& f, const DetectionOptions& o, cv::Poi
     fov.centre = cv::Point2d(o.fov_circle_px[0] - offset.x, o.fov_circle_px[1] - offset.y);
     fov.radius = o.fov_circle_px[2];
     fov.mask.setTo(0);
-    cv::circle(fov.mask, fov.centre, static_cast<int>(fov.radius - o.fov_margin_px), cv::Scalar(255),
+    cv::circle(fov.mask,
+               fov.centre,
+               static_cast<int>(fov.radius - o.fov_margin_px),
+               cv::Scalar(255),
                cv::FILLED);
   } else if (o.auto_fov_mask) {
     // The intensifier's field: the largest component above 15 % of the range, its convex hull
@@ -939,7 +979,8 @@ bool FindCircleGrid(const cv::Mat& f, const WorkingImage& w, const cv::Mat& mask
         // f2[r' * rows + c'] is plate point (row c', col r').
         found.assign(f2.size(), cv::Point2f());
         for (int rp = 0; rp < grid.cols; ++rp) {
-          for (int cp = 0; cp < grid.rows; ++cp) found[cp * grid.cols + rp] = f2[rp * grid.rows + cp];
+          for (int cp = 0; cp < grid.rows; ++cp)
+            found[cp * grid.cols + rp] = f2[rp * grid.rows + cp];
         }
       } else {
         found = f2;
@@ -970,7 +1011,10 @@ bool FindCircleGrid(const cv::Mat& f, const WorkingImage& w, const cv::Mat& mask
 }
 
 // Step 3 (chessboard): OpenCV's corners, refined by cornerSubPix on the working image.
-bool FindChessboard(const cv::Mat& work, const GridSpec& grid, GridCandidate* out, std::string* reason) {
+bool FindChessboard(const cv::Mat& work,
+                    const GridSpec& grid,
+                    GridCandidate* out,
+                    std::string* reason) {
   std::vector<cv::Point2f> found;
   if (!cv::findChessboardCorners(work, cv::Size(grid.cols, grid.rows), found,
                                  cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE) ||
@@ -1006,7 +1050,8 @@ constexpr double kUnreliableShiftPx = 0.15;
 void RefineCentres(const cv::Mat& f, const cv::Mat& refine_valid, const GridSpec& grid,
                    const GridCandidate& cand, std::vector<cv::Point2d>* pts,
                    std::vector<bool>* refined_ok, std::vector<double>* shift_px) {
-  const double pitch = GridPitchPx(grid, std::vector<cv::Point2d>(cand.centres.begin(), cand.centres.end()));
+  const double pitch =
+      GridPitchPx(grid, std::vector<cv::Point2d>(cand.centres.begin(), cand.centres.end()));
   for (size_t i = 0; i < pts->size(); ++i) {
     // The distance to the nearest other grid point bounds the blob's window and ring.
     double nn = 1e30;
@@ -1050,7 +1095,8 @@ bool KeepPointsOnGrid(const GridSpec& grid, const std::vector<cv::Point2d>& pts,
                       std::vector<int>* kept, cv::Mat* H, std::string* reason) {
   const bool circles = grid.pattern != GridPattern::kChessboard;
   for (int id = 0; id < grid.NumPoints(); ++id) {
-    const int x = static_cast<int>(std::lround(pts[id].x)), y = static_cast<int>(std::lround(pts[id].y));
+    const int x = static_cast<int>(std::lround(pts[id].x)),
+              y = static_cast<int>(std::lround(pts[id].y));
     if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) continue;
     if (circles && !ClearOfMaskBorder(mask, pts[id], 0.2 * pitch_px)) continue;
     if (!circles && !mask.at<uint8_t>(y, x)) continue;
@@ -1073,7 +1119,8 @@ bool KeepPointsOnGrid(const GridSpec& grid, const std::vector<cv::Point2d>& pts,
   std::vector<cv::Point2f> mapped;
   cv::perspectiveTransform(plate_xy, mapped, *H);
   double worst = 0;
-  for (size_t i = 0; i < mapped.size(); ++i) worst = std::max(worst, cv::norm(mapped[i] - image_xy[i]));
+  for (size_t i = 0; i < mapped.size(); ++i)
+    worst = std::max(worst, cv::norm(mapped[i] - image_xy[i]));
   if (worst > 0.3 * pitch_px) {
     *reason = "ambiguous grid ordering: a point is " + std::to_string(worst) +
               " px off the fitted grid (a wrong blob?)";
@@ -1092,7 +1139,8 @@ bool PlateNotLarger(const GridSpec& grid, const std::vector<cv::Point2d>& pts,
     *reason = "ambiguous: more grid points than " + std::to_string(grid.rows) + "x" +
               std::to_string(grid.cols) + " (the plate has at least " +
               std::to_string(std::max(plate.height, grid.rows)) + "x" +
-              std::to_string(std::max(plate.width, grid.cols)) + "; give its full --rows and --cols)";
+              std::to_string(std::max(plate.width, grid.cols)) +
+              "; give its full --rows and --cols)";
     return false;
   }
   return true;
@@ -1116,7 +1164,8 @@ void MakeRightHanded(const GridSpec& grid, const cv::Mat& H, std::vector<cv::Poi
   if (du_dx * dv_dy - du_dy * dv_dx >= 0) return;
   std::vector<cv::Point2d> flipped(pts->size());
   for (int r = 0; r < grid.rows; ++r) {
-    for (int c = 0; c < grid.cols; ++c) flipped[r * grid.cols + c] = (*pts)[r * grid.cols + (grid.cols - 1 - c)];
+    for (int c = 0; c < grid.cols; ++c)
+      flipped[r * grid.cols + c] = (*pts)[r * grid.cols + (grid.cols - 1 - c)];
   }
   *pts = flipped;
   for (int& id : *kept) id = (id / grid.cols) * grid.cols + (grid.cols - 1 - id % grid.cols);
@@ -1124,9 +1173,14 @@ void MakeRightHanded(const GridSpec& grid, const cv::Mat& H, std::vector<cv::Poi
 }
 
 // The blobs and grid points not among `kept`, and why (RejectedBlob in the header).
-void ListRejected(const GridSpec& grid, const GridCandidate& cand, const std::vector<cv::Point2d>& pts,
-                  const std::vector<bool>& refined_ok, const std::vector<double>& shift_px,
-                  const std::vector<int>& kept, double pitch_px, cv::Point offset,
+void ListRejected(const GridSpec& grid,
+                  const GridCandidate& cand,
+                  const std::vector<cv::Point2d>& pts,
+                  const std::vector<bool>& refined_ok,
+                  const std::vector<double>& shift_px,
+                  const std::vector<int>& kept,
+                  double pitch_px,
+                  cv::Point offset,
                   std::vector<RejectedBlob>* rejected) {
   const cv::Point2d off(offset.x, offset.y);
   std::vector<bool> is_kept(grid.NumPoints(), false), has_blob(grid.NumPoints(), false);
@@ -1147,7 +1201,8 @@ void ListRejected(const GridSpec& grid, const GridCandidate& cand, const std::ve
     }
     if (nearest >= 0) has_blob[nearest] = true;
     if (nearest >= 0 && is_kept[nearest]) continue;
-    rejected->push_back({cv::Point2d(k.pt) + off, k.size, nearest < 0 ? "not on the grid" : why_dropped(nearest)});
+    rejected->push_back(
+        {cv::Point2d(k.pt) + off, k.size, nearest < 0 ? "not on the grid" : why_dropped(nearest)});
   }
   for (int id = 0; id < grid.NumPoints(); ++id) {
     if (!is_kept[id] && !has_blob[id]) rejected->push_back({pts[id] + off, 0.0, why_dropped(id)});
@@ -1172,7 +1227,8 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   if (circles ? !FindCircleGrid(f, work, fov.mask, grid, o, &det, &cand)
               : !FindChessboard(work.work, grid, &cand, &det.reason)) {
     for (const cv::KeyPoint& k : cand.blobs) {
-      det.rejected.push_back({cv::Point2d(k.pt.x + offset.x, k.pt.y + offset.y), k.size, "no grid"});
+      det.rejected.push_back(
+          {cv::Point2d(k.pt.x + offset.x, k.pt.y + offset.y), k.size, "no grid"});
     }
     return det;
   }
@@ -1180,12 +1236,15 @@ GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const Detec
   std::vector<cv::Point2d> pts(cand.centres.begin(), cand.centres.end());
   std::vector<bool> refined_ok(pts.size(), true);
   std::vector<double> shift(pts.size(), 0.0);
-  if (circles && o.refine) RefineCentres(f, fov.refine_valid, grid, cand, &pts, &refined_ok, &shift);
+  if (circles && o.refine)
+    RefineCentres(f, fov.refine_valid, grid, cand, &pts, &refined_ok, &shift);
   const double pitch_px = GridPitchPx(grid, pts);
   std::vector<int> kept;
   cv::Mat H;
-  const bool kept_ok = KeepPointsOnGrid(grid, pts, refined_ok, fov.mask, pitch_px, &kept, &H, &det.reason);
-  if (circles) ListRejected(grid, cand, pts, refined_ok, shift, kept, pitch_px, offset, &det.rejected);
+  const bool kept_ok =
+      KeepPointsOnGrid(grid, pts, refined_ok, fov.mask, pitch_px, &kept, &H, &det.reason);
+  if (circles)
+    ListRejected(grid, cand, pts, refined_ok, shift, kept, pitch_px, offset, &det.rejected);
   if (!kept_ok) return det;
   // 6: not a sub-window of a larger plate.
   if (circles && !PlateNotLarger(grid, pts, kept, cand.blobs, fov.mask, pitch_px, &det.reason)) {

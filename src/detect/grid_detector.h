@@ -123,7 +123,9 @@ struct GridDetection {
 
 
 // Detects `grid` in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
-GridDetection DetectGrid(const cv::Mat& image, const GridSpec& grid, const DetectionOptions& options);
+GridDetection DetectGrid(const cv::Mat& image,
+                         const GridSpec& grid,
+                         const DetectionOptions& options);
 
 // Detects the grid in every view of every file (ReadImageViews: a multi-frame DICOM file gives
 // one view per frame, named `file#frameN`). Views where it is found go into the set; the others

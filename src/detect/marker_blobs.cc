@@ -38,9 +38,11 @@ bool MarkerBlobOptions::Check(std::string* error) const {
     *error = "min_contrast: expected 0 <= value < 1";
     return false;
   }
-  if (!(max_elongation >= 1 && max_elongation < 10) || !(merge_area_ratio > 1 && merge_area_ratio < 10) ||
+  if (!(max_elongation >= 1 && max_elongation < 10) ||
+      !(merge_area_ratio > 1 && merge_area_ratio < 10) ||
       !(merge_distance > 0 && merge_distance < 10)) {
-    *error = "max_elongation (1..10), merge_area_ratio (1..10), merge_distance (0..10) out of range";
+    *error =
+        "max_elongation (1..10), merge_area_ratio (1..10), merge_distance (0..10) out of range";
     return false;
   }
   return fov.Check(error);
@@ -86,7 +88,10 @@ struct Piece {
 
 }  // namespace
 
-double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1, double* sigma_pixel) {
+double NoiseCorrelationFactor(const cv::Mat& f,
+                              const cv::Mat& mask,
+                              double* rho1,
+                              double* sigma_pixel) {
   std::vector<float> d1, d2;
   d1.reserve(f.total() / 8);
   d2.reserve(f.total() / 8);
@@ -99,8 +104,8 @@ double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho
     const uint8_t* m = mask.ptr<uint8_t>(y);
     for (int x = 0; x + 2 < f.cols; x += 2) {
       if (!m[x] || !m[x + 2]) continue;
-      const bool clipped = r[x] <= f_min || r[x] >= f_max || r[x + 1] <= f_min || r[x + 1] >= f_max ||
-                           r[x + 2] <= f_min || r[x + 2] >= f_max;
+      const bool clipped = r[x] <= f_min || r[x] >= f_max || r[x + 1] <= f_min ||
+                           r[x + 1] >= f_max || r[x + 2] <= f_min || r[x + 2] >= f_max;
       if (clipped) continue;
       d1.push_back(r[x + 1] - r[x]);
       d2.push_back(r[x + 2] - r[x]);
@@ -119,7 +124,8 @@ double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho
   }
   const double rho = 0.5 * (lo + hi);
   if (rho1) *rho1 = rho;
-  if (sigma_pixel) *sigma_pixel = s1 / std::sqrt(2.0 * std::max(1e-3, 1.0 - rho));  // var d1 = 2 s^2 (1 - rho)
+  if (sigma_pixel)
+    *sigma_pixel = s1 / std::sqrt(2.0 * std::max(1e-3, 1.0 - rho));  // var d1 = 2 s^2 (1 - rho)
   double F = 0;
   for (int kx = -4; kx <= 4; ++kx) {
     for (int ky = -4; ky <= 4; ++ky) F += std::pow(rho, kx * kx + ky * ky);
@@ -160,7 +166,10 @@ double ContrastNoise(const cv::Mat& contrast, const cv::Mat& mask) {
 // The least ring noise a centre's covariance uses (detect_steps.h CentroidNoise): half the
 // quantum noise expected at the ring's level (variance proportional to the grey level, scaled
 // from the image's pixel noise at its median level), and an integer image's quantisation.
-void RingNoiseFloors(const cv::Mat& image, const cv::Mat& f, const cv::Mat& valid, double sigma_pixel,
+void RingNoiseFloors(const cv::Mat& image,
+                     const cv::Mat& f,
+                     const cv::Mat& valid,
+                     double sigma_pixel,
                      CentroidNoise* noise) {
   std::vector<float> levels;
   for (int y = 0; y < f.rows; y += 8) {
@@ -173,19 +182,26 @@ void RingNoiseFloors(const cv::Mat& image, const cv::Mat& f, const cv::Mat& vali
     std::nth_element(levels.begin(), levels.begin() + levels.size() / 2, levels.end());
     median_level = levels[levels.size() / 2];
   }
-  noise->floor_variance_per_grey = median_level > 0 ? 0.25 * sigma_pixel * sigma_pixel / median_level : 0.0;
-  noise->floor_variance_gray = image.depth() == CV_32F || image.depth() == CV_64F ? 0.0 : 1.0 / 12.0;
+  noise->floor_variance_per_grey =
+      median_level > 0 ? 0.25 * sigma_pixel * sigma_pixel / median_level : 0.0;
+  noise->floor_variance_gray =
+      image.depth() == CV_32F || image.depth() == CV_64F ? 0.0 : 1.0 / 12.0;
 }
 
 // The pieces above half the component's peak, by their moments.
-std::vector<Piece> HalfPeakPieces(const cv::Mat& labels, const cv::Mat& contrast, int k, const cv::Rect& box,
-                                  double peak, double min_area) {
+std::vector<Piece> HalfPeakPieces(const cv::Mat& labels,
+                                  const cv::Mat& contrast,
+                                  int k,
+                                  const cv::Rect& box,
+                                  double peak,
+                                  double min_area) {
   cv::Mat half(box.size(), CV_8U, cv::Scalar(0));
   for (int y = 0; y < box.height; ++y) {
     const int* l = labels.ptr<int>(y + box.y);
     const float* c = contrast.ptr<float>(y + box.y);
     uint8_t* h = half.ptr<uint8_t>(y);
-    for (int x = 0; x < box.width; ++x) h[x] = (l[x + box.x] == k && c[x + box.x] > 0.5 * peak) ? 255 : 0;
+    for (int x = 0; x < box.width; ++x)
+      h[x] = (l[x + box.x] == k && c[x + box.x] > 0.5 * peak) ? 255 : 0;
   }
   cv::Mat plabels;
   const int np = cv::connectedComponents(half, plabels, 8, CV_32S);
@@ -213,7 +229,8 @@ std::string PieceRejection(const std::vector<Piece>& pieces, size_t i, const Blo
   const double elong = pc.major / pc.minor;
   const double length = 4 * pc.major;  // full extent of a uniform ellipse along its axis
   for (size_t j = 0; j < pieces.size(); ++j) {
-    if (j != i && cv::norm(pieces[j].centre - pc.centre) < o.merge_distance * z.d_nom) return "merged";
+    if (j != i && cv::norm(pieces[j].centre - pc.centre) < o.merge_distance * z.d_nom)
+      return "merged";
   }
   if (elong > o.max_elongation || pc.area > o.merge_area_ratio * z.area_nom) {
     if (length > 2.6 * z.d_max) return "elongated";
@@ -265,11 +282,13 @@ std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low,
 
 // Whether the disc or ring of a candidate at `centre` reaches the invalid area (the rim).
 bool NearInvalidArea(const cv::Mat& valid, cv::Point2d centre, double r_nom) {
-  const cv::Point ip(static_cast<int>(std::lround(centre.x)), static_cast<int>(std::lround(centre.y)));
+  const cv::Point ip(static_cast<int>(std::lround(centre.x)),
+                     static_cast<int>(std::lround(centre.y)));
   const int rr = static_cast<int>(std::ceil(r_nom + 4));
   for (int y = ip.y - rr; y <= ip.y + rr; ++y) {
     for (int x = ip.x - rr; x <= ip.x + rr; ++x) {
-      if (x < 0 || y < 0 || x >= valid.cols || y >= valid.rows || !valid.at<uint8_t>(y, x)) return true;
+      if (x < 0 || y < 0 || x >= valid.cols || y >= valid.rows || !valid.at<uint8_t>(y, x))
+        return true;
     }
   }
   return false;
@@ -277,9 +296,15 @@ bool NearInvalidArea(const cv::Mat& valid, cv::Point2d centre, double r_nom) {
 
 // 5, 6. The sub-pixel centre and covariance of candidate i (accepted so far) into det, or its
 // rejection.
-void RefineCandidate(const cv::Mat& f, const cv::Mat& valid, const std::vector<BlobCandidate>& cands,
-                     size_t i, const BlobSizes& z, const CentroidNoise& noise_model,
-                     const MarkerBlobOptions& o, cv::Point offset, MarkerBlobDetection* det) {
+void RefineCandidate(const cv::Mat& f,
+                     const cv::Mat& valid,
+                     const std::vector<BlobCandidate>& cands,
+                     size_t i,
+                     const BlobSizes& z,
+                     const CentroidNoise& noise_model,
+                     const MarkerBlobOptions& o,
+                     cv::Point offset,
+                     MarkerBlobDetection* det) {
   const BlobCandidate& c = cands[i];
   const cv::Point2d full = c.centre + cv::Point2d(offset);
   const double r_nom = 0.5 * z.d_nom;
@@ -290,10 +315,13 @@ void RefineCandidate(const cv::Mat& f, const cv::Mat& valid, const std::vector<B
   cv::Point2d q = c.centre;
   double r_half = 0, shift = 0;
   CentroidNoise noise = noise_model;
-  const bool refined = RefineCentroid(f, valid, /*dark=*/true, nn, 1.5 * r_nom + 2.0, &q, &r_half, &noise, &shift);
+  const bool refined =
+      RefineCentroid(f, valid, /*dark=*/true, nn, 1.5 * r_nom + 2.0, &q, &r_half, &noise, &shift);
   if (!refined) {
     det->rejected.push_back(
-        {full, c.diameter, NearInvalidArea(valid, c.centre, r_nom) ? "field-of-view border" : "refinement failed"});
+        {full,
+         c.diameter,
+         NearInvalidArea(valid, c.centre, r_nom) ? "field-of-view border" : "refinement failed"});
     return;
   }
   if (cv::norm(q - c.centre) > std::max(1.5, 0.25 * z.d_nom)) {
@@ -356,7 +384,8 @@ MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOpti
   if (s == 0) return det.reason = "field of view / region of interest is (almost) empty", det;
   det.noise_contrast = s;
   double sigma_pixel = 0;
-  det.correlation_factor = NoiseCorrelationFactor(f, fov.refine_valid, &det.noise_rho1, &sigma_pixel);
+  det.correlation_factor =
+      NoiseCorrelationFactor(f, fov.refine_valid, &det.noise_rho1, &sigma_pixel);
   CentroidNoise noise;
   noise.correlation_factor = det.correlation_factor;
   noise.rho1 = det.noise_rho1;
@@ -366,7 +395,8 @@ MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOpti
   const std::vector<BlobCandidate> cands = BlobCandidates(contrast, t_low, t_peak, z, o);
   for (size_t i = 0; i < cands.size(); ++i) {
     if (!cands[i].why.empty()) {
-      det.rejected.push_back({cands[i].centre + cv::Point2d(offset), cands[i].diameter, cands[i].why});
+      det.rejected.push_back(
+          {cands[i].centre + cv::Point2d(offset), cands[i].diameter, cands[i].why});
       continue;
     }
     RefineCandidate(f, fov.refine_valid, cands, i, z, noise, o, offset, &det);

@@ -36,8 +36,8 @@
 //      correlation rho^(k^2); F = sum over lags |k| <= 4 of rho^(kx^2 + ky^2); rho = 0, F = 1
 //      for white noise). The ring's noise is floored at half the image's pixel noise and an integer
 //      image's quantisation (a ring clipped at the image's maximum has none to measure: a zero
-//      covariance would be an infinitely trusted centre). Checked against a seeded Monte Carlo (tests/detect/marker_views_test.cc
-//      MarkerBlobs.CovarianceAgreesWithMonteCarlo).
+//      covariance would be an infinitely trusted centre). Checked against a seeded Monte Carlo
+//      (tests/detect/marker_views_test.cc MarkerBlobs.CovarianceAgreesWithMonteCarlo).
 // Polarity: dark blobs (metal on a bright background, the X-ray convention of carmba's images).
 #pragma once
 

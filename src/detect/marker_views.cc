@@ -64,7 +64,8 @@ void ReadObjectViewsOptions(YamlMap& m, ObjectViewsOptions* o) {
 }
 
 double IsotropicSigmaPx(const Eigen::Matrix2d& C, double floor_px) {
-  const double lmax = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(C, Eigen::EigenvaluesOnly).eigenvalues()(1);
+  const double lmax =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(C, Eigen::EigenvaluesOnly).eigenvalues()(1);
   return std::sqrt(std::max(0.0, lmax) + floor_px * floor_px);
 }
 
@@ -81,8 +82,9 @@ std::vector<MarkerObservation> LabelledObservations(const ObjectView& view) {
         b.covariance_px2(1, 1);
     out.push_back(o);
   }
-  std::sort(out.begin(), out.end(),
-            [](const MarkerObservation& a, const MarkerObservation& b) { return a.marker_id < b.marker_id; });
+  std::sort(out.begin(), out.end(), [](const MarkerObservation& a, const MarkerObservation& b) {
+    return a.marker_id < b.marker_id;
+  });
   return out;
 }
 
@@ -93,8 +95,11 @@ std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double f
     PoseView pv;
     pv.id = v.id;
     for (const MarkerObservation& o : LabelledObservations(v)) {
-      pv.observations.push_back({o.marker_id, o.uv_px, IsotropicSigmaPx(o.covariance_px2, floor_px),
-                                 o.covariance_px2 + floor_px * floor_px * Eigen::Matrix2d::Identity()});
+      pv.observations.push_back(
+          {o.marker_id,
+           o.uv_px,
+           IsotropicSigmaPx(o.covariance_px2, floor_px),
+           o.covariance_px2 + floor_px * floor_px * Eigen::Matrix2d::Identity()});
     }
     out.push_back(pv);
   }
@@ -121,20 +126,23 @@ void LeaveOutPredictedOverlaps(const Camera& camera, const std::vector<Eigen::Ve
   std::vector<Eigen::Vector2d> proj(P.size());
   std::vector<bool> ok(P.size());
   for (size_t m = 0; m < P.size(); ++m) {
-    ok[m] = ProjectPoint(camera.params.data(), v->labelling.cam_from_object.data(), P[m].data(), proj[m].data());
+    ok[m] = ProjectPoint(
+        camera.params.data(), v->labelling.cam_from_object.data(), P[m].data(), proj[m].data());
   }
   for (size_t i = 0; i < v->marker_id_of_blob.size(); ++i) {
     const int m = v->labelling.marker_of_blob[i];
     if (m < 0 || !ok[m]) continue;
     int other = -1;
     for (size_t k = 0; k < P.size() && other < 0; ++k) {
-      if (static_cast<int>(k) != m && ok[k] && (proj[k] - proj[m]).norm() < limit) other = static_cast<int>(k);
+      if (static_cast<int>(k) != m && ok[k] && (proj[k] - proj[m]).norm() < limit)
+        other = static_cast<int>(k);
     }
     if (other < 0) continue;
     const MarkerBlob& b = v->detection.blobs[i];
-    v->detection.rejected.push_back(
-        {b.uv_px, b.diameter_px,
-         "overlaps another marker (predicted " + Fixed((proj[other] - proj[m]).norm(), 1) + " px apart)"});
+    v->detection.rejected.push_back({b.uv_px,
+                                     b.diameter_px,
+                                     "overlaps another marker (predicted " +
+                                         Fixed((proj[other] - proj[m]).norm(), 1) + " px apart)"});
     v->labelling.marker_of_blob[i] = -1;
     v->marker_id_of_blob[i] = -1;
     --v->labelling.num_labelled;
@@ -204,8 +212,10 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       if (bo.diameter_px.empty() && !(bo.px_per_mm > 0)) {
         const double z = sod ? *sod : o.source_to_object_mm;
         if (!(z > 0)) {
-          return Status::Error(v.name + ": diameter_mm needs the magnification: give px_per_mm or "
-                               "source_to_object_mm (no Distance Source to Patient (0018,1111) in the image)");
+          return Status::Error(
+              v.name +
+              ": diameter_mm needs the magnification: give px_per_mm or "
+              "source_to_object_mm (no Distance Source to Patient (0018,1111) in the image)");
         }
         bo.px_per_mm = camera.params[kFx] / z;
       }
@@ -236,7 +246,9 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       }
       if (co.px_per_mm == 0) {
         // The nominal magnification: the blob options', else fx / SOD when the file has it.
-        co.px_per_mm = bo.diameter_px.empty() ? bo.px_per_mm : sod ? camera.params[kFx] / *sod : 0.0;
+        co.px_per_mm = bo.diameter_px.empty() ? bo.px_per_mm
+                       : sod                  ? camera.params[kFx] / *sod
+                                              : 0.0;
       }
       auto lab = LabelMarkerBlobs(camera, P, uv, co, predicted, CorrespondenceContext(v.detection));
       if (!lab.ok()) {
@@ -251,7 +263,8 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
       v.labelling = *lab;
       v.marker_id_of_blob.assign(uv.size(), -1);
       for (size_t i = 0; i < uv.size(); ++i) {
-        if (lab->marker_of_blob[i] >= 0) v.marker_id_of_blob[i] = markers[lab->marker_of_blob[i]].id;
+        if (lab->marker_of_blob[i] >= 0)
+          v.marker_id_of_blob[i] = markers[lab->marker_of_blob[i]].id;
       }
       for (const OffPoseBlob& off : lab->off_pose) {
         const MarkerBlob& b = v.detection.blobs[off.blob];
@@ -270,7 +283,8 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
                     std::to_string(co.min_markers) + " needed)";
       }
       views.push_back(std::move(v));
-      if (ref < 0 && views.back().nominal_cam_from_patient) ref = static_cast<int>(views.size()) - 1;
+      if (ref < 0 && views.back().nominal_cam_from_patient)
+        ref = static_cast<int>(views.size()) - 1;
     }
   }
   int labelled = 0;
@@ -292,13 +306,14 @@ std::string MarkerObservationsCsv(const std::vector<ObjectView>& views) {
   std::ostringstream os;
   os.precision(10);
   os << "# carmba marker observations: detected blobs labelled with CT markers\n"
-        "# u_px, v_px: sub-pixel centre (pixel (0,0) = centre of the top-left pixel); cov_*: its 2x2 "
-        "covariance (px^2) from the local image noise\n"
+        "# u_px, v_px: sub-pixel centre (pixel (0,0) = centre of the top-left pixel); cov_*: "
+        "its 2x2 covariance (px^2) from the local image noise\n"
         "view,marker,u_px,v_px,cov_uu,cov_uv,cov_vv\n";
   for (const ObjectView& v : views) {
     for (const MarkerObservation& o : LabelledObservations(v)) {
       os << v.id << "," << o.marker_id << "," << o.uv_px.x() << "," << o.uv_px.y() << ","
-         << o.covariance_px2(0, 0) << "," << o.covariance_px2(0, 1) << "," << o.covariance_px2(1, 1) << "\n";
+         << o.covariance_px2(0, 0) << "," << o.covariance_px2(0, 1) << "," << o.covariance_px2(1, 1)
+         << "\n";
     }
   }
   return os.str();
@@ -322,14 +337,18 @@ nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
       for (int id : v.marker_id_of_blob) unlabelled += id < 0;
       j["blobs_not_markers"] = unlabelled;
       if (v.labelling.second_num_labelled > 0) {
-        j["second_best"] = {{"markers", v.labelling.second_num_labelled}, {"rms_px", v.labelling.second_rms_px}};
+        j["second_best"] = {{"markers", v.labelling.second_num_labelled},
+                            {"rms_px", v.labelling.second_rms_px}};
       }
     }
     j["px_per_mm"] = v.px_per_mm;
     j["noise_correlation_factor"] = v.detection.correlation_factor;
     nlohmann::json rej = nlohmann::json::array();
     for (const RejectedBlob& b : v.detection.rejected) {
-      rej.push_back({{"u_px", b.uv_px.x}, {"v_px", b.uv_px.y}, {"diameter_px", b.diameter_px}, {"why", b.why}});
+      rej.push_back({{"u_px", b.uv_px.x},
+                     {"v_px", b.uv_px.y},
+                     {"diameter_px", b.diameter_px},
+                     {"why", b.why}});
     }
     j["rejected"] = rej;
     out.push_back(j);
@@ -357,7 +376,9 @@ cv::Mat DrawMarkerOverlay(const ObjectView& v,
   if (cam_from_object) {
     for (const Marker& m : markers) {
       Eigen::Vector2d q;
-      if (!ProjectPoint(camera.params.data(), cam_from_object->data(), m.p_in_object.data(), q.data())) continue;
+      if (!ProjectPoint(
+              camera.params.data(), cam_from_object->data(), m.p_in_object.data(), q.data()))
+        continue;
       cv::drawMarker(out, cv::Point2d(q.x(), q.y()), cyan, cv::MARKER_CROSS, 14, 1, cv::LINE_AA);
     }
   }
@@ -365,13 +386,26 @@ cv::Mat DrawMarkerOverlay(const ObjectView& v,
     const MarkerBlob& b = v.detection.blobs[i];
     const int id = v.labelled ? v.marker_id_of_blob[i] : -1;
     const double r = std::max(4.0, 0.5 * b.diameter_px + 2);
-    cv::circle(out, b.uv_px, static_cast<int>(std::lround(r)), id >= 0 ? green : yellow, 1, cv::LINE_AA);
-    cv::putText(out, id >= 0 ? std::to_string(id) : std::string("not a marker"), b.uv_px + cv::Point2d(r + 2, -r),
-                cv::FONT_HERSHEY_SIMPLEX, (id >= 0 ? 1.0 : 0.8) * scale, id >= 0 ? green : yellow, 1, cv::LINE_AA);
+    cv::circle(
+        out, b.uv_px, static_cast<int>(std::lround(r)), id >= 0 ? green : yellow, 1, cv::LINE_AA);
+    cv::putText(out,
+                id >= 0 ? std::to_string(id) : std::string("not a marker"),
+                b.uv_px + cv::Point2d(r + 2, -r),
+                cv::FONT_HERSHEY_SIMPLEX,
+                (id >= 0 ? 1.0 : 0.8) * scale,
+                id >= 0 ? green : yellow,
+                1,
+                cv::LINE_AA);
   }
   for (const RejectedBlob& b : v.detection.rejected) {
     cv::drawMarker(out, b.uv_px, red, cv::MARKER_TILTED_CROSS, 10, 1, cv::LINE_AA);
-    cv::putText(out, b.why, b.uv_px + cv::Point2d(6, 12), cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale, red, 1,
+    cv::putText(out,
+                b.why,
+                b.uv_px + cv::Point2d(6, 12),
+                cv::FONT_HERSHEY_SIMPLEX,
+                0.8 * scale,
+                red,
+                1,
                 cv::LINE_AA);
   }
   std::ostringstream head;
@@ -382,8 +416,14 @@ cv::Mat DrawMarkerOverlay(const ObjectView& v,
   } else {
     head << "skipped: " << v.skipped;
   }
-  cv::putText(out, head.str(), cv::Point(4, static_cast<int>(4 + 28 * scale)), cv::FONT_HERSHEY_SIMPLEX, scale,
-              v.labelled ? green : yellow, 1, cv::LINE_AA);
+  cv::putText(out,
+              head.str(),
+              cv::Point(4, static_cast<int>(4 + 28 * scale)),
+              cv::FONT_HERSHEY_SIMPLEX,
+              scale,
+              v.labelled ? green : yellow,
+              1,
+              cv::LINE_AA);
   return out;
 }
 

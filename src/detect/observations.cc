@@ -61,8 +61,8 @@ Status WriteObservationsCsv(const ObservationSet& obs, const std::string& path) 
   for (size_t v = 0; v < obs.views.size(); ++v) {
     const auto& view = obs.views[v];
     for (size_t i = 0; i < view.uv_px.size(); ++i) {
-      o << v << "," << view.image << "," << view.point_ids[i] << "," << FmtRoundTrip(view.uv_px[i].x())
-        << "," << FmtRoundTrip(view.uv_px[i].y()) << "\n";
+      o << v << "," << view.image << "," << view.point_ids[i] << ","
+        << FmtRoundTrip(view.uv_px[i].x()) << "," << FmtRoundTrip(view.uv_px[i].y()) << "\n";
     }
   }
   return WriteFileAtomic(path, o.str());
@@ -100,7 +100,8 @@ StatusOr<ObservationSet> ReadObservationsCsv(const std::string& path) {
       have_size = true;
     }
   }
-  if (!have_grid) return Status::Error(path + ": missing comment '# grid: pattern rows cols spacing_mm'");
+  if (!have_grid)
+    return Status::Error(path + ": missing comment '# grid: pattern rows cols spacing_mm'");
   if (!have_size) return Status::Error(path + ": missing comment '# image_size: width height'");
   std::string err;
   if (!obs.grid.Check(&err)) return Status::Error(path + ": " + err);
@@ -158,8 +159,8 @@ std::string CornersVnl(const ObservationSet& obs) {
       if (where[id] < 0) {
         o << name << " nan nan -\n";
       } else {
-        o << name << " " << FmtRoundTrip(view.uv_px[where[id]].x()) << " " << FmtRoundTrip(view.uv_px[where[id]].y())
-          << " 0\n";
+        o << name << " " << FmtRoundTrip(view.uv_px[where[id]].x()) << " "
+          << FmtRoundTrip(view.uv_px[where[id]].y()) << " 0\n";
       }
     }
   }

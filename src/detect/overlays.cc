@@ -45,10 +45,11 @@ cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const G
     }
   }
   const std::string head =
-      d.found ? "found " + std::to_string(d.view.uv_px.size()) + " of " +
-                    std::to_string(grid.NumPoints()) + " points" +
-                    (d.rejected.empty() ? "" : ", " + std::to_string(d.rejected.size()) + " rejected")
-              : "not found: " + d.reason;
+      d.found
+          ? "found " + std::to_string(d.view.uv_px.size()) + " of " +
+                std::to_string(grid.NumPoints()) + " points" +
+                (d.rejected.empty() ? "" : ", " + std::to_string(d.rejected.size()) + " rejected")
+          : "not found: " + d.reason;
   cv::putText(out, head, cv::Point(4, static_cast<int>(4 + 28 * scale)), cv::FONT_HERSHEY_SIMPLEX,
               scale, d.found ? green : yellow, 1, cv::LINE_AA);
   return out;

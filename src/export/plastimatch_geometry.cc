@@ -117,9 +117,10 @@ std::string PlastimatchDrrArgs(const PlastimatchProjMat& pm) {
   const double ps_u = 1 / pm.intrinsic(0, 0), ps_v = 1 / pm.intrinsic(1, 1);
   std::ostringstream o;
   o << "-r \"" << pm.width << " " << pm.height << "\" -z \"" << FmtRoundTrip(pm.width * ps_u) << " "
-    << FmtRoundTrip(pm.height * ps_v) << "\" -c \"" << FmtRoundTrip(pm.ic[0]) << " " << FmtRoundTrip(pm.ic[1])
-    << "\" -o \"" << Triple(pm.isocentre_ct_mm) << "\" -n \"" << Triple(-pm.nrm) << "\" --vup \""
-    << Triple(pm.vup) << "\" --sad " << FmtRoundTrip(pm.sad_mm) << " --sid " << FmtRoundTrip(pm.sid_mm);
+    << FmtRoundTrip(pm.height * ps_v) << "\" -c \"" << FmtRoundTrip(pm.ic[0]) << " "
+    << FmtRoundTrip(pm.ic[1]) << "\" -o \"" << Triple(pm.isocentre_ct_mm) << "\" -n \""
+    << Triple(-pm.nrm) << "\" --vup \"" << Triple(pm.vup) << "\" --sad " << FmtRoundTrip(pm.sad_mm)
+    << " --sid " << FmtRoundTrip(pm.sid_mm);
   return o.str();
 }
 

@@ -134,7 +134,8 @@ StatusOr<std::vector<RtkProjection>> RtkFromGeometry(const GeometrySet& set,
     p.matrix = RtkMatrix(p);
     // The parameters must reproduce the pixel projection exactly (a failure is a bug here, not
     // bad input; say so rather than write a wrong file).
-    const double d = RelativeMatrixDifference(PixelMatrixFromRtk(p.matrix, det), ProjectionMatrix(v));
+    const double d =
+        RelativeMatrixDifference(PixelMatrixFromRtk(p.matrix, det), ProjectionMatrix(v));
     if (!(d < 1e-9)) {
       return Status::Error("view '" + v.id + "': internal error: the RTK parameters do not "
                            "reproduce the projection matrix (relative difference " +
@@ -157,7 +158,8 @@ std::string RtkGeometryXml(const std::vector<RtkProjection>& ps) {
   bool same_sdd = true;
   for (const auto& p : ps) same_sdd = same_sdd && p.sdd_mm == ps[0].sdd_mm;
   if (same_sdd && !ps.empty()) {
-    o << "  <SourceToDetectorDistance>" << FmtRoundTrip(ps[0].sdd_mm) << "</SourceToDetectorDistance>\n";
+    o << "  <SourceToDetectorDistance>" << FmtRoundTrip(ps[0].sdd_mm)
+      << "</SourceToDetectorDistance>\n";
   }
   for (const auto& p : ps) {
     o << "  <Projection>\n";
@@ -193,8 +195,8 @@ StatusOr<std::vector<RtkProjection>> ReadRtkGeometryXml(const std::string& path)
   const std::string s = std::regex_replace(
       *text, std::regex("<!--[\\s\\S]*?-->|<\\?[\\s\\S]*?\\?>|<!DOCTYPE[^>]*>"), " ");
   std::smatch root;
-  if (!std::regex_search(s, root,
-                         std::regex("<RTKThreeDCircularGeometry(\\s+version=\"([0-9]+)\")?\\s*>"))) {
+  if (!std::regex_search(
+          s, root, std::regex("<RTKThreeDCircularGeometry(\\s+version=\"([0-9]+)\")?\\s*>"))) {
     return Status::Error(path + ": expected the element <RTKThreeDCircularGeometry version=\"3\">");
   }
   if (root[2].str() != "2" && root[2].str() != "3") {

@@ -240,7 +240,8 @@ StatusOr<GeometrySet> ReadGeometryJson(const std::string& path) {
       }
       const double d = RelativeMatrixDifference(P, ProjectionMatrix(v));
       if (!(d <= kPTolerance)) {
-        return Status::Error(where + ".P: differs from K [R | t] of its camera and cam_from_ct by " +
+        return Status::Error(where +
+                             ".P: differs from K [R | t] of its camera and cam_from_ct by " +
                              FormatCompact(d) + " (relative; expected <= 1e-9): edited by hand?");
       }
     }

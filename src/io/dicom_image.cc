@@ -260,7 +260,9 @@ gdcm::SmartPointer<gdcm::Image> ImageFor(const DecodeRequest& r, const gdcm::Dat
 class Decoder {
  public:
   // Returns "" with *out filled, else why not.
-  std::string Decode(const std::string& path, const DecodeRequest& request, std::vector<char>* out) {
+  std::string Decode(const std::string& path,
+                     const DecodeRequest& request,
+                     std::vector<char>* out) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (pid_ < 0) {
       const std::string why = Start();

@@ -212,8 +212,10 @@ bool SplitDicomFrameName(const std::string& name,
 
 Status CheckProjectionImage(const DicomXrayImage& image) {
   // CT Image, Enhanced CT, MR Image, Enhanced MR Image Storage.
-  static const char* kVolumeClasses[] = {"1.2.840.10008.5.1.4.1.1.2", "1.2.840.10008.5.1.4.1.1.2.1",
-                                         "1.2.840.10008.5.1.4.1.1.4", "1.2.840.10008.5.1.4.1.1.4.1"};
+  static const char* kVolumeClasses[] = {"1.2.840.10008.5.1.4.1.1.2",
+                                         "1.2.840.10008.5.1.4.1.1.2.1",
+                                         "1.2.840.10008.5.1.4.1.1.4",
+                                         "1.2.840.10008.5.1.4.1.1.4.1"};
   bool volume = image.modality == "CT" || image.modality == "MR" || image.modality == "PT" ||
                 image.modality == "NM";
   for (const char* uid : kVolumeClasses) volume = volume || image.sop_class_uid == uid;
@@ -324,8 +326,12 @@ namespace {
 
 // The frames' pixels in one buffer (MONOCHROME1: inverted); an error when a value exceeds
 // 2^bits - 1.
-Status PackFrames(const std::string& path, const std::vector<cv::Mat>& frames, int depth_bits, int bits,
-                  bool mono1, std::vector<char>* buffer) {
+Status PackFrames(const std::string& path,
+                  const std::vector<cv::Mat>& frames,
+                  int depth_bits,
+                  int bits,
+                  bool mono1,
+                  std::vector<char>* buffer) {
   const cv::Mat& f0 = frames[0];
   const uint32_t max_value = (1u << bits) - 1u;
   const size_t n = static_cast<size_t>(f0.rows) * f0.cols;
@@ -351,9 +357,14 @@ Status PackFrames(const std::string& path, const std::vector<cv::Mat>& frames, i
 
 // The pixel data element in the transfer syntax the options ask for (GDCM encodes it); *ts the
 // syntax.
-StatusOr<gdcm::DataElement> EncodePixels(const std::string& path, const std::vector<cv::Mat>& frames,
-                                         const std::vector<char>& buffer, int depth_bits, int bits, bool mono1,
-                                         const DicomXrayWriteOptions& options, gdcm::TransferSyntax* ts_out) {
+StatusOr<gdcm::DataElement> EncodePixels(const std::string& path,
+                                         const std::vector<cv::Mat>& frames,
+                                         const std::vector<char>& buffer,
+                                         int depth_bits,
+                                         int bits,
+                                         bool mono1,
+                                         const DicomXrayWriteOptions& options,
+                                         gdcm::TransferSyntax* ts_out) {
   const cv::Mat& f0 = frames[0];
   // Reference counted: a filter's SetInput takes a SmartPointer to it (a stack object would be
   // deleted by the filter).

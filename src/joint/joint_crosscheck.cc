@@ -84,7 +84,8 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const Problem& problem,
     const ba::BaView& view = variant.views[v];
     nlohmann::json obs = nlohmann::json::array();
     for (size_t i = 0; i < view.point_ids.size(); ++i) {
-      const int id = view.kind == ba::ViewKind::kPlate ? view.point_ids[i] : point_index.at(view.point_ids[i]);
+      const int id =
+          view.kind == ba::ViewKind::kPlate ? view.point_ids[i] : point_index.at(view.point_ids[i]);
       obs.push_back({id, view.uv_px[i].x(), view.uv_px[i].y()});
     }
     const double* sol = r->block(L.view_block(static_cast<int>(v)));

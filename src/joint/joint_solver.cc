@@ -43,8 +43,10 @@ PoseSigmas SigmasOf(const std::string& method,
     if (bp.views[v].kind != ba::ViewKind::kObject) continue;
     Eigen::Vector3d rot, t;
     for (int a = 0; a < 3; ++a) {
-      rot[a] = ba::FindBudgetRow(rows, ba::QuantityKey::ViewRotation(static_cast<int>(v), a))->sigma;
-      t[a] = ba::FindBudgetRow(rows, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a))->sigma;
+      rot[a] =
+          ba::FindBudgetRow(rows, ba::QuantityKey::ViewRotation(static_cast<int>(v), a))->sigma;
+      t[a] =
+          ba::FindBudgetRow(rows, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a))->sigma;
     }
     s.sigma_rotation_deg.push_back(rot);
     s.sigma_translation_mm.push_back(t);
@@ -118,8 +120,9 @@ void SelectDistortion(const Problem& problem,
   if (problem.plate.views.empty()) return;
   if (problem.smooth || problem.per_group || bp->groups.size() != 1) {
     if (config.distortion_auto) {
-      sol->distortion_error = std::string("distortion: auto is for one shared intrinsics group (model ") +
-                              IntrinsicsModelName(problem) + "): the distortion terms are those `fix` leaves free";
+      sol->distortion_error =
+          std::string("distortion: auto is for one shared intrinsics group (model ") +
+          IntrinsicsModelName(problem) + "): the distortion terms are those `fix` leaves free";
     }
     return;
   }
@@ -156,9 +159,11 @@ struct GroupAssignment {
     for (size_t v = 0; v < problem.plate.views.size(); ++v) {
       of_plate_view.push_back(Index(GroupOfPlateView(problem, v)));
     }
-    for (const auto& v : problem.object_views) of_object_view.push_back(Index(GroupOfObjectView(problem, v.id)));
+    for (const auto& v : problem.object_views)
+      of_object_view.push_back(Index(GroupOfObjectView(problem, v.id)));
     plate_views.resize(names.size());
-    for (size_t v = 0; v < of_plate_view.size(); ++v) plate_views[of_plate_view[v]].push_back(static_cast<int>(v));
+    for (size_t v = 0; v < of_plate_view.size(); ++v)
+      plate_views[of_plate_view[v]].push_back(static_cast<int>(v));
   }
 
  private:
@@ -185,7 +190,8 @@ void SetCameraPrior(const Camera& c, ba::IntrinsicsGroup* grp) {
   const int n = static_cast<int>(names_index.size());
   grp->prior.covariance.resize(n, n);
   for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) grp->prior.covariance(i, j) = c.covariance[names_index[i]][names_index[j]];
+    for (int j = 0; j < n; ++j)
+      grp->prior.covariance(i, j) = c.covariance[names_index[i]][names_index[j]];
   }
 }
 
@@ -272,18 +278,22 @@ Status AddObjectViews(const Problem& problem,
     ba::BaView view = ToBaObjectView(problem.object_views[k], problem.object_sigma_px);
     view.group = groups.of_object_view[k];
     Camera cam;
-    std::copy(bp->groups[view.group].initial.begin(), bp->groups[view.group].initial.end(), cam.params.begin());
+    std::copy(bp->groups[view.group].initial.begin(),
+              bp->groups[view.group].initial.end(),
+              cam.params.begin());
     std::vector<Eigen::Vector3d> pts;
     for (int id : view.point_ids) pts.push_back(fiducial.at(id));
     auto init = InitialObjectPose(cam, config.initializer, pts, view.uv_px);
     if (!init.ok()) {
-      return Status::Error(problem.path + ": object view '" + view.id + "': " + init.status().message());
+      return Status::Error(problem.path + ": object view '" + view.id +
+                           "': " + init.status().message());
     }
     view.initial = *init;
     object_index[view.id] = static_cast<int>(bp->views.size());
     bp->views.push_back(view);
   }
-  for (const auto& vp : problem.validation) sol->pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
+  for (const auto& vp : problem.validation)
+    sol->pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
   return Status::Ok();
 }
 
@@ -333,9 +343,12 @@ Status ApplyModels(const Problem& problem,
     sol->smooth_basis = *basis;
   }
   if (problem.select_model && !problem.plate.views.empty()) {
-    auto sel = analysis::SelectIntrinsicsModel(
-        bp, sol->smooth_basis, options,
-        {analysis::IntrinsicsModel::kShared, analysis::IntrinsicsModel::kPerGroup, analysis::IntrinsicsModel::kSmooth});
+    auto sel = analysis::SelectIntrinsicsModel(bp,
+                                               sol->smooth_basis,
+                                               options,
+                                               {analysis::IntrinsicsModel::kShared,
+                                                analysis::IntrinsicsModel::kPerGroup,
+                                                analysis::IntrinsicsModel::kSmooth});
     if (sel.ok()) {
       sol->selection = *sel;
     } else {
@@ -343,7 +356,8 @@ Status ApplyModels(const Problem& problem,
     }
   }
   if (problem.smooth) {
-    const Status s = analysis::ApplyIntrinsicsModel(analysis::IntrinsicsModel::kSmooth, sol->smooth_basis, &bp);
+    const Status s =
+        analysis::ApplyIntrinsicsModel(analysis::IntrinsicsModel::kSmooth, sol->smooth_basis, &bp);
     if (!s.ok()) return Status::Error(problem.path + ": " + s.message());
   }
   return Status::Ok();
@@ -378,7 +392,8 @@ void TwoStepProblems(const ba::BaProblem& bp,
     const int n = static_cast<int>(g3.prior.indices.size());
     g3.prior.covariance.resize(n, n);
     for (int i = 0; i < n; ++i) {
-      for (int j = 0; j < n; ++j) g3.prior.covariance(i, j) = C(g3.prior.indices[i], g3.prior.indices[j]);
+      for (int j = 0; j < n; ++j)
+        g3.prior.covariance(i, j) = C(g3.prior.indices[i], g3.prior.indices[j]);
     }
   }
 }
@@ -397,9 +412,11 @@ void CompareWithTwoStep(const Problem& problem, const ba::BaOptions& options, Jo
   const ba::BaProblem& bp = sol->ba_problem;
   sol->comparison.push_back(SigmasOf("joint", bp, sol->result, sol->pairs));
   ba::BaProblem calib = bp;
-  calib.views.erase(std::remove_if(calib.views.begin(), calib.views.end(),
-                                   [](const ba::BaView& v) { return v.kind == ba::ViewKind::kObject; }),
-                    calib.views.end());
+  calib.views.erase(
+      std::remove_if(calib.views.begin(),
+                     calib.views.end(),
+                     [](const ba::BaView& v) { return v.kind == ba::ViewKind::kObject; }),
+      calib.views.end());
   calib.markers.clear();
   auto rc = ba::SolveBundleAdjustment(calib, options);
   if (!rc.ok()) {
@@ -412,11 +429,13 @@ void CompareWithTwoStep(const Problem& problem, const ba::BaOptions& options, Jo
   auto r2 = ba::SolveBundleAdjustment(two_step, options);
   auto r3 = ba::SolveBundleAdjustment(with_prior, options);
   if (!r2.ok() || !r3.ok()) {
-    sol->comparison_error = "two-step: " + (r2.ok() ? r3.status().message() : r2.status().message());
+    sol->comparison_error =
+        "two-step: " + (r2.ok() ? r3.status().message() : r2.status().message());
     return;
   }
   sol->comparison.push_back(SigmasOf("two-step (intrinsics fixed)", two_step, *r2, pairs2));
-  sol->comparison.push_back(SigmasOf("two-step with the calibration's covariance as prior", with_prior, *r3, pairs2));
+  sol->comparison.push_back(
+      SigmasOf("two-step with the calibration's covariance as prior", with_prior, *r3, pairs2));
 }
 
 }  // namespace
@@ -435,10 +454,12 @@ StatusOr<JointSolution> SolveJointProblem(const Problem& problem, const SolverCo
   if (sol.distortion && !config.distortion_auto &&
       analysis::DistortionModelOf(bp.groups[0].free, &solved)) {
     const double* K = sol.result.block(sol.result.layout->group_block(0));
-    sol.distortion_warning = analysis::DistortionWarning(*sol.distortion, solved, Eigen::Vector2d(K[kCx], K[kCy]));
+    sol.distortion_warning =
+        analysis::DistortionWarning(*sol.distortion, solved, Eigen::Vector2d(K[kCx], K[kCy]));
   }
   sol.budget = ba::ComputeErrorBudget(bp, sol.result, sol.pairs);
-  sol.relative_poses = analysis::EstimateRelativePoses(sol.result, analysis::RelativePosePairs(bp, sol.pairs));
+  sol.relative_poses =
+      analysis::EstimateRelativePoses(sol.result, analysis::RelativePosePairs(bp, sol.pairs));
   if (config.tre) {
     auto tre = analysis::LeaveOneMarkerOut(bp, sol.result, options);
     if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());

@@ -16,7 +16,8 @@
 namespace carmba {
 
 bool CorrespondenceOptions::Check(std::string* error) const {
-  if (!(gate_px > 0 && gate_px < 1000) || !(predict_gate_px >= gate_px && predict_gate_px < 10000)) {
+  if (!(gate_px > 0 && gate_px < 1000) ||
+      !(predict_gate_px >= gate_px && predict_gate_px < 10000)) {
     *error = "gate_px: expected 0 < gate_px <= predict_gate_px < 10000";
     return false;
   }
@@ -84,8 +85,8 @@ class Labeller {
     }
   }
   bool InImage(size_t a) const {
-    return ok_[a] && proj_[a].x() >= -0.5 && proj_[a].y() >= -0.5 && proj_[a].x() <= cam_.width - 0.5 &&
-           proj_[a].y() <= cam_.height - 0.5;
+    return ok_[a] && proj_[a].x() >= -0.5 && proj_[a].y() >= -0.5 &&
+           proj_[a].x() <= cam_.width - 0.5 && proj_[a].y() <= cam_.height - 0.5;
   }
 
   // Markers with some blob within `gate` of their projection (after Project).
@@ -356,13 +357,14 @@ class Labeller {
              std::to_string(Separable(s.pose)) +
              " its pose predicts visible and apart from other markers and rejected blobs)";
     }
-    if (!(s.Rms() <= o_.accept_rms_px)) return "needs an RMS within " + Fmt("%.2f", o_.accept_rms_px) + " px";
+    if (!(s.Rms() <= o_.accept_rms_px))
+      return "needs an RMS within " + Fmt("%.2f", o_.accept_rms_px) + " px";
     if (o_.px_per_mm > 0) {
       const double mag = Magnification(s.pose);
       const double k = 1 + o_.scale_tolerance;
       if (!(mag > o_.px_per_mm / k && mag < o_.px_per_mm * k)) {
-        return "its magnification " + Fmt("%.2f", mag) + " px/mm is not within " + Percent(o_.scale_tolerance) +
-               " of the nominal " + Fmt("%.2f", o_.px_per_mm);
+        return "its magnification " + Fmt("%.2f", mag) + " px/mm is not within " +
+               Percent(o_.scale_tolerance) + " of the nominal " + Fmt("%.2f", o_.px_per_mm);
       }
     }
     return "";
@@ -399,10 +401,14 @@ class Labeller {
 // different blobs.
 bool Contradict(const Scored& x, const Scored& y) {
   for (size_t i = 0; i < x.marker_of_blob.size(); ++i) {
-    if (x.marker_of_blob[i] >= 0 && y.marker_of_blob[i] >= 0 && x.marker_of_blob[i] != y.marker_of_blob[i]) return true;
+    if (x.marker_of_blob[i] >= 0 && y.marker_of_blob[i] >= 0 &&
+        x.marker_of_blob[i] != y.marker_of_blob[i])
+      return true;
   }
   for (size_t a = 0; a < x.blob_of_marker.size(); ++a) {
-    if (x.blob_of_marker[a] >= 0 && y.blob_of_marker[a] >= 0 && x.blob_of_marker[a] != y.blob_of_marker[a]) return true;
+    if (x.blob_of_marker[a] >= 0 && y.blob_of_marker[a] >= 0 &&
+        x.blob_of_marker[a] != y.blob_of_marker[a])
+      return true;
   }
   return false;
 }
@@ -411,7 +417,8 @@ bool Contradict(const Scored& x, const Scored& y) {
 // well-shaped ones (roundness 4 sqrt(3) area / sum of squared sides >= 0.3; equilateral = 1),
 // so that the magnification bound prunes most blob triples; then every other triple, in the same
 // order.
-std::vector<std::array<int, 3>> MarkerTriples(const std::vector<Eigen::Vector3d>& P, int* num_disjoint) {
+std::vector<std::array<int, 3>> MarkerTriples(const std::vector<Eigen::Vector3d>& P,
+                                              int* num_disjoint) {
   const int m = static_cast<int>(P.size());
   struct T {
     double key;
@@ -422,7 +429,8 @@ std::vector<std::array<int, 3>> MarkerTriples(const std::vector<Eigen::Vector3d>
     for (int b = a + 1; b < m; ++b) {
       for (int c = b + 1; c < m; ++c) {
         const double area = 0.5 * (P[b] - P[a]).cross(P[c] - P[a]).norm();
-        const double s2 = (P[b] - P[a]).squaredNorm() + (P[c] - P[a]).squaredNorm() + (P[c] - P[b]).squaredNorm();
+        const double s2 =
+            (P[b] - P[a]).squaredNorm() + (P[c] - P[a]).squaredNorm() + (P[c] - P[b]).squaredNorm();
         if (!(area > 1e-6)) continue;
         const double round = 4 * std::sqrt(3.0) * area / s2;
         const double perimeter = (P[b] - P[a]).norm() + (P[c] - P[a]).norm() + (P[c] - P[b]).norm();
@@ -585,8 +593,8 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
   if (!o.Check(&err)) return Status::Error("correspondence options: " + err);
   const int n = static_cast<int>(blobs.size()), m = static_cast<int>(markers.size());
   if (m < o.min_markers) {
-    return Status::Error(std::to_string(m) + " fiducials, at least " + std::to_string(o.min_markers) +
-                         " needed");
+    return Status::Error(std::to_string(m) + " fiducials, at least " +
+                         std::to_string(o.min_markers) + " needed");
   }
   if (n < o.min_markers) {
     return Status::Error("only " + std::to_string(n) + " marker blobs found, at least " +

@@ -114,10 +114,10 @@ StatusOr<PositResult> Posit(const std::vector<Eigen::Vector3d>& object_points,
                          std::to_string(sv[0]) + ", " + std::to_string(sv[1]) + ", " +
                          std::to_string(sv[2]) + "); need 4 or more non-coplanar points");
   }
-  const PositResult r = options.mode == PositMode::kLegacy
-                            ? PositIterate<float>(object_points, image_points, focal_length, options)
-                            : PositIterate<double>(object_points, image_points, focal_length,
-                                                   options);
+  const PositResult r =
+      options.mode == PositMode::kLegacy
+          ? PositIterate<float>(object_points, image_points, focal_length, options)
+          : PositIterate<double>(object_points, image_points, focal_length, options);
   if (!r.R.allFinite() || !r.t.allFinite()) {
     return Status::Error("POSIT: the iteration diverged (non-finite pose)");
   }
@@ -137,7 +137,8 @@ StatusOr<Eigen::Matrix<double, 6, 1>> PositPose(const Camera& camera,
   std::vector<Eigen::Vector2d> img(uv_px.size());
   for (size_t i = 0; i < uv_px.size(); ++i) {
     double xy[2];
-    if (!uv_px[i].allFinite() || !UnprojectToNormalized(camera.params.data(), uv_px[i].data(), xy)) {
+    if (!uv_px[i].allFinite() ||
+        !UnprojectToNormalized(camera.params.data(), uv_px[i].data(), xy)) {
       return Status::Error("POSIT: pixel " + std::to_string(i) + " cannot be undistorted");
     }
     img[i] = Eigen::Vector2d(xy[0], xy[1]) * f;

@@ -25,7 +25,8 @@ StatusOr<std::pair<std::vector<int>, Eigen::MatrixXd>> ConsideredCalibration(con
   if (n == 0) return out;
   out.second.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
   for (size_t i = 0; i < n; ++i) {
-    const auto* it = std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, camera.covariance_names[i]);
+    const auto* it =
+        std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, camera.covariance_names[i]);
     if (it == kIntrinsicNames + kNumIntrinsics || camera.covariance.size() != n ||
         camera.covariance[i].size() != n) {
       return Status::Error("covariance: expected a square matrix over intrinsic names");
@@ -54,7 +55,8 @@ ba::BaView ToBaObjectView(const PoseView& pose_view, double sigma_px) {
     if (per_observation) view.obs_sigma_px.push_back(sigma);
     if (full) {
       view.obs_covariance_px2.push_back(
-          o.HasCovariance() ? o.covariance_px2 : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
+          o.HasCovariance() ? o.covariance_px2
+                            : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
     }
   }
   return view;
@@ -167,7 +169,8 @@ StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const Problem& problem, const Solve
   g.height = problem.camera->height;
   if (config.consider_calibration) {
     auto considered = ConsideredCalibration(*problem.camera);
-    if (!considered.ok()) return Status::Error(problem.path + ": camera: " + considered.status().message());
+    if (!considered.ok())
+      return Status::Error(problem.path + ": camera: " + considered.status().message());
     g.consider_indices = considered->first;
     g.consider_covariance = considered->second;
   }
@@ -285,11 +288,13 @@ Status PoseCovariance(const Problem& problem,
     return Status::Ok();
   }
   std::vector<int> pose_blocks;
-  for (size_t v = 0; v < poses.size(); ++v) pose_blocks.push_back(r.layout->view_block(static_cast<int>(v)));
+  for (size_t v = 0; v < poses.size(); ++v)
+    pose_blocks.push_back(r.layout->view_block(static_cast<int>(v)));
   if (config.covariance_algorithm == "schur") {
     sol->joint_covariance = r.Covariance(pose_blocks);
   } else {
-    auto cov = ba::CeresBlockCovariance(*sol->ba_problem, options, r, pose_blocks, config.covariance_algorithm);
+    auto cov = ba::CeresBlockCovariance(
+        *sol->ba_problem, options, r, pose_blocks, config.covariance_algorithm);
     if (!cov.ok()) {
       return Status::Error(problem.path +
                            ": the covariance is rank-deficient (degenerate geometry: too few or "
@@ -380,15 +385,18 @@ StatusOr<PoseSolution> SolvePoseProblem(const Problem& problem,
   // Relative poses (every pair of few views, else the validation pairs) and, when asked, the
   // leave-one-marker-out TRE: both from the engine's covariance.
   const ba::BaResult& r = *sol.ba_result;
-  const bool engine_covariance = config.refine && config.covariance_algorithm == "schur" && r.covariance;
+  const bool engine_covariance =
+      config.refine && config.covariance_algorithm == "schur" && r.covariance;
   if (engine_covariance) {
-    sol.relative_poses = analysis::EstimateRelativePoses(r, analysis::RelativePosePairs(*sol.ba_problem, sol.validation_pairs));
+    sol.relative_poses = analysis::EstimateRelativePoses(
+        r, analysis::RelativePosePairs(*sol.ba_problem, sol.validation_pairs));
   }
   sol.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (config.tre) {
     if (!engine_covariance) {
-      return Status::Error(config.path + ": tre: true needs the refined solve with the engine's "
-                                         "covariance (refine: true, covariance: {algorithm: schur})");
+      return Status::Error(config.path +
+                           ": tre: true needs the refined solve with the engine's "
+                           "covariance (refine: true, covariance: {algorithm: schur})");
     }
     auto tre = analysis::LeaveOneMarkerOut(*sol.ba_problem, r, options);
     if (!tre.ok()) return Status::Error(problem.path + ": " + tre.status().message());

@@ -24,7 +24,8 @@ ObservationSet FromArray(const py::object& o, const GridSpec& grid, const py::ob
   }
   if (image_size.is_none()) throw Error("image_size: (width, height) is required with arrays");
   const auto wh = image_size.cast<std::vector<int>>();
-  if (wh.size() != 2 || wh[0] <= 0 || wh[1] <= 0) throw Error("image_size: expected (width, height) > 0");
+  if (wh.size() != 2 || wh[0] <= 0 || wh[1] <= 0)
+    throw Error("image_size: expected (width, height) > 0");
   ObservationSet obs;
   obs.grid = grid;
   obs.width = wh[0];
@@ -75,8 +76,8 @@ CalibrationRun Calibrate(const py::object& observations,
   } else {
     const auto files = ValueOrThrow(ListImageFiles(py::str(images)));
     py::gil_scoped_release release;
-    run.observations =
-        ValueOrThrow(DetectGridInFiles(files, grid, detect, &run.skipped, nullptr, &run.detections));
+    run.observations = ValueOrThrow(
+        DetectGridInFiles(files, grid, detect, &run.skipped, nullptr, &run.detections));
   }
   {
     py::gil_scoped_release release;
@@ -90,37 +91,46 @@ CalibrationRun Calibrate(const py::object& observations,
 }  // namespace
 
 void BindCalibrate(py::module_& m) {
-  py::class_<CalibrationRun>(m, "Calibration",
+  py::class_<CalibrationRun>(m,
+                             "Calibration",
                              "An intrinsic calibration: camera (with its 9 x 9 covariance over "
                              "fx fy cx cy k1 k2 p1 p2 k3, marginal over the plate poses) and the "
                              "plate poses cam_from_plate [rx ry rz (rad), tx ty tz (mm)].")
       .def_property_readonly("camera", [](const CalibrationRun& r) { return r.result.camera; })
       .def_property_readonly("covariance",
                              [](const CalibrationRun& r) { return ToNumpy(r.result.covariance); })
-      .def_property_readonly("sigmas", [](const CalibrationRun& r) {
-        return ToNumpyVector(Eigen::Map<const Eigen::VectorXd>(r.result.sigma.data(), kNumIntrinsics));
-      })
-      .def_property_readonly("cam_from_plate", [](const CalibrationRun& r) {
-        Eigen::MatrixXd p(r.result.cam_from_plate.size(), 6);
-        for (size_t v = 0; v < r.result.cam_from_plate.size(); ++v) {
-          for (int i = 0; i < 6; ++i) p(v, i) = r.result.cam_from_plate[v][i];
-        }
-        return ToNumpy(p);
-      })
+      .def_property_readonly("sigmas",
+                             [](const CalibrationRun& r) {
+                               return ToNumpyVector(Eigen::Map<const Eigen::VectorXd>(
+                                   r.result.sigma.data(), kNumIntrinsics));
+                             })
+      .def_property_readonly("cam_from_plate",
+                             [](const CalibrationRun& r) {
+                               Eigen::MatrixXd p(r.result.cam_from_plate.size(), 6);
+                               for (size_t v = 0; v < r.result.cam_from_plate.size(); ++v) {
+                                 for (int i = 0; i < 6; ++i)
+                                   p(v, i) = r.result.cam_from_plate[v][i];
+                               }
+                               return ToNumpy(p);
+                             })
       .def_property_readonly("free", [](const CalibrationRun& r) { return r.result.free; })
       .def_property_readonly("rms_px", [](const CalibrationRun& r) { return r.result.rms_px; })
       .def_property_readonly("sigma_px", [](const CalibrationRun& r) { return r.result.sigma_px; })
       .def_property_readonly("sigma_px_estimated",
                              [](const CalibrationRun& r) { return r.result.sigma_estimated; })
-      .def_property_readonly("num_points", [](const CalibrationRun& r) { return r.result.num_points; })
-      .def_property_readonly("images", [](const CalibrationRun& r) {
-        std::vector<std::string> out;
-        for (const auto& v : r.result.views) out.push_back(v.image);
-        return out;
-      })
+      .def_property_readonly("num_points",
+                             [](const CalibrationRun& r) { return r.result.num_points; })
+      .def_property_readonly("images",
+                             [](const CalibrationRun& r) {
+                               std::vector<std::string> out;
+                               for (const auto& v : r.result.views) out.push_back(v.image);
+                               return out;
+                             })
       .def_readonly("skipped", &CalibrationRun::skipped)
-      .def("camera_json", [](const CalibrationRun& r) { return CalibrationCameraJson(r).dump(2) + "\n"; },
-           "camera.json's text as `carmba calibrate --no-mrcal --no-opencv` writes it");
+      .def(
+          "camera_json",
+          [](const CalibrationRun& r) { return CalibrationCameraJson(r).dump(2) + "\n"; },
+          "camera.json's text as `carmba calibrate --no-mrcal --no-opencv` writes it");
   m.def("calibrate", &Calibrate, py::arg("observations") = py::none(),
         py::arg("images") = py::none(), py::arg("image_size") = py::none(),
         py::arg("pattern") = "circles", py::arg("rows") = 5, py::arg("cols") = 5,

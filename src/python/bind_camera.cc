@@ -92,7 +92,8 @@ py::object Project(const py::object& points, const py::object& camera, bool get_
     return s;
   };
   auto full = [&](const Array& a, int last) {
-    return Array::ensure(np.attr("ascontiguousarray")(np.attr("broadcast_to")(a, py::tuple(py::cast(shape(last))))));
+    return Array::ensure(
+        np.attr("ascontiguousarray")(np.attr("broadcast_to")(a, py::tuple(py::cast(shape(last))))));
   };
   const Array P = full(p, 3), I = full(in, kNumIntrinsics);
   size_t count = 1;
@@ -146,8 +147,11 @@ void BindCamera(py::module_& m) {
       .def("__repr__", &Repr);
   m.attr("INTRINSIC_NAMES") =
       py::make_tuple("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3");
-  m.def("read_camera", [](const std::string& path) { return ValueOrThrow(ReadCameraJson(path)); },
-        py::arg("path"), "Reads camera.json (camera/camera.h). Raises carmba.Error naming the key.");
+  m.def(
+      "read_camera",
+      [](const std::string& path) { return ValueOrThrow(ReadCameraJson(path)); },
+      py::arg("path"),
+      "Reads camera.json (camera/camera.h). Raises carmba.Error naming the key.");
   m.def("project", &Project, py::arg("points"), py::arg("camera"),
         py::arg("get_gradients") = false,
         "Projects points (..., 3) given in the camera frame (mm) with `camera` (a Camera or "

@@ -166,8 +166,10 @@ std::vector<View> JointViews(const Solved& s) {
     w.pose = Eigen::Map<const Pose6>(r.block(b));
     if (r.covariance) w.covariance = r.Covariance({b});
     for (int a = 0; a < 3; ++a) {
-      const auto* rot = ba::FindBudgetRow(s.joint->budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a));
-      const auto* t = ba::FindBudgetRow(s.joint->budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a));
+      const auto* rot =
+          ba::FindBudgetRow(s.joint->budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a));
+      const auto* t = ba::FindBudgetRow(s.joint->budget,
+                                        ba::QuantityKey::ViewTranslation(static_cast<int>(v), a));
       if (rot) w.sigma_rotation_deg[a] = rot->sigma;
       if (t) w.sigma_translation_mm[a] = t->sigma;
     }
@@ -311,7 +313,8 @@ std::shared_ptr<Solved> SolveJoint(std::shared_ptr<const Problem> problem,
   auto s = std::make_shared<Solved>();
   s->kind = "joint";
   s->config = config;
-  auto solution = std::make_shared<JointSolution>(ValueOrThrow(SolveJointProblem(*problem, config)));
+  auto solution =
+      std::make_shared<JointSolution>(ValueOrThrow(SolveJointProblem(*problem, config)));
   s->json = JointSolutionToJson(*problem, config, *solution);
   if (mrcal_crosscheck) {
     // A unique work directory under the system's temporary directory ($TMPDIR), as the plots'
@@ -480,7 +483,8 @@ py::object OptionalMatrix(const std::optional<Matrix6>& m) {
 }  // namespace
 
 void BindSolve(py::module_& m) {
-  py::class_<View>(m, "View",
+  py::class_<View>(m,
+                   "View",
                    "One view of a solve: pose cam_from_object (object view) or cam_from_plate "
                    "(plate view) = [rx, ry, rz (rad, Rodrigues), tx, ty, tz (mm)], "
                    "p_in_cam = R(r) p + t, and its 6 x 6 covariance in that order.")
@@ -490,7 +494,8 @@ void BindSolve(py::module_& m) {
       .def_property_readonly("pose", [](const View& v) { return ToNumpyVector(v.pose); })
       .def_property_readonly("rvec", [](const View& v) { return ToNumpyVector(v.pose.head<3>()); })
       .def_property_readonly("t_mm", [](const View& v) { return ToNumpyVector(v.pose.tail<3>()); })
-      .def_property_readonly("covariance_6x6", [](const View& v) { return OptionalMatrix(v.covariance); })
+      .def_property_readonly("covariance_6x6",
+                             [](const View& v) { return OptionalMatrix(v.covariance); })
       .def_property_readonly("sigma_rotation_deg",
                              [](const View& v) { return ToNumpyVector(v.sigma_rotation_deg); })
       .def_property_readonly("sigma_translation_mm",
@@ -514,44 +519,60 @@ void BindSolve(py::module_& m) {
 
   py::class_<Solved, std::shared_ptr<Solved>>(m, "Result", "A solved pose or joint problem.")
       .def_readonly("kind", &Solved::kind)
-      .def_property_readonly("views", [](const Solved& s) {
-        return s.kind == "joint" ? JointViews(s) : PoseViews(s);
-      })
-      .def_property_readonly("intrinsics", [](const Solved& s) {
-        return s.kind == "joint" ? JointIntrinsics(s) : PoseIntrinsics(s);
-      })
-      .def_property_readonly("blocks", [](const Solved& s) {
-        std::vector<std::string> names;
-        for (const auto& [n, b] : BlockNames(s.problem(), *s.result().layout)) names.push_back(n);
-        return names;
-      })
-      .def("block_parameters", [](const Solved& s, const std::string& name) {
-        return BlockParameters(s, FindBlock(s, name));
-      }, py::arg("block"))
-      .def("covariance", [](const Solved& s, const std::string& a, const py::object& b) {
-        return ToNumpy(CrossCovariance(s, a, b.is_none() ? a : std::string(py::str(b))));
-      }, py::arg("block_a"), py::arg("block_b") = py::none(),
-         "Cov(block_a, block_b): rows over block_a's parameters, columns over block_b's "
-         "(block_parameters), ambient (held parameters as zero rows/columns).")
+      .def_property_readonly(
+          "views", [](const Solved& s) { return s.kind == "joint" ? JointViews(s) : PoseViews(s); })
+      .def_property_readonly("intrinsics",
+                             [](const Solved& s) {
+                               return s.kind == "joint" ? JointIntrinsics(s) : PoseIntrinsics(s);
+                             })
+      .def_property_readonly(
+          "blocks",
+          [](const Solved& s) {
+            std::vector<std::string> names;
+            for (const auto& [n, b] : BlockNames(s.problem(), *s.result().layout))
+              names.push_back(n);
+            return names;
+          })
+      .def(
+          "block_parameters",
+          [](const Solved& s, const std::string& name) {
+            return BlockParameters(s, FindBlock(s, name));
+          },
+          py::arg("block"))
+      .def(
+          "covariance",
+          [](const Solved& s, const std::string& a, const py::object& b) {
+            return ToNumpy(CrossCovariance(s, a, b.is_none() ? a : std::string(py::str(b))));
+          },
+          py::arg("block_a"),
+          py::arg("block_b") = py::none(),
+          "Cov(block_a, block_b): rows over block_a's parameters, columns over block_b's "
+          "(block_parameters), ambient (held parameters as zero rows/columns).")
       .def_property_readonly("error_budget", &ErrorBudget)
       .def_property_readonly("relative_poses", &RelativePoses)
       .def_property_readonly("statistics", &Statistics)
-      .def_property_readonly("variance_components",
-                             [](const Solved& s) {
-                               return ToPython(s.json.value("variance_components", nlohmann::json()));
-                             })
+      .def_property_readonly(
+          "variance_components",
+          [](const Solved& s) {
+            return ToPython(s.json.value("variance_components", nlohmann::json()));
+          })
       .def_property_readonly("warnings",
                              [](const Solved& s) {
                                return ToPython(s.json.value("warnings", nlohmann::json::array()));
                              })
-      .def_property_readonly("tre", [](const Solved& s) {
-        const auto& tre = s.kind == "joint" ? s.joint->tre : s.pose->tre;
-        return tre ? ToPython(TreJson(*tre)) : py::object(py::none());
-      })
-      .def("to_json", [](const Solved& s) { return s.json.dump(2) + "\n"; },
-           "result.json's text as `carmba solve` writes it")
-      .def("geometry", [](const Solved& s) { return GeometryToJson(Geometry(s)).dump(2) + "\n"; },
-           "geometry.json's text as `carmba solve` writes it")
+      .def_property_readonly("tre",
+                             [](const Solved& s) {
+                               const auto& tre = s.kind == "joint" ? s.joint->tre : s.pose->tre;
+                               return tre ? ToPython(TreJson(*tre)) : py::object(py::none());
+                             })
+      .def(
+          "to_json",
+          [](const Solved& s) { return s.json.dump(2) + "\n"; },
+          "result.json's text as `carmba solve` writes it")
+      .def(
+          "geometry",
+          [](const Solved& s) { return GeometryToJson(Geometry(s)).dump(2) + "\n"; },
+          "geometry.json's text as `carmba solve` writes it")
       .def("__repr__", [](const Solved& s) {
         return "carmba.Result(" + s.kind + ", " + std::to_string(s.bp ? s.bp->views.size() : 0) +
                " views)";
@@ -567,9 +588,12 @@ void BindSolve(py::module_& m) {
         py::arg("min_angle_deg") = 5.0,
         "Triangulates one point from pixels {object view id: (u, v)} of a solved result, as "
         "`carmba triangulate --pixels`: position and 3 x 3 covariance in the CT frame (mm).");
-  m.def("tre", &Tre, py::arg("result"),
-        "The leave-one-marker-out target registration error (analysis/tre.h): the solve's own when its "
-        "config had tre: true, else computed now with the same options.");
+  m.def(
+      "tre",
+      &Tre,
+      py::arg("result"),
+      "The leave-one-marker-out target registration error (analysis/tre.h): the solve's own when "
+      "its config had tre: true, else computed now with the same options.");
   m.def("export_geometry", &ExportGeometry, py::arg("source"), py::arg("out") = py::none(),
         py::arg("format") = "all", py::arg("sdd_mm") = 0.0, py::arg("force") = false,
         "The files `carmba export-geometry` writes ({name: text}) from a Result or a "

@@ -96,7 +96,8 @@ void CalibrationDetectionDoc(const CalibrationRun& run, ReportDoc* doc) {
       for (const RejectedBlob& b : g.rejected) why[b.why.substr(0, b.why.find(" ("))]++;
       std::string rejected = std::to_string(g.rejected.size());
       for (const auto& [reason, count] : why) {
-        rejected += (reason == why.begin()->first ? " (" : "; ") + std::to_string(count) + " " + reason;
+        rejected +=
+            (reason == why.begin()->first ? " (" : "; ") + std::to_string(count) + " " + reason;
       }
       if (!why.empty()) rejected += ")";
       rows.push_back({std::to_string(i), ids[i],
@@ -124,7 +125,10 @@ void CalibrationResidualsDoc(const CalibrationResult& r, ReportDoc* doc) {
 }
 
 // The intrinsics with their sigmas, against mrcal (m) and OpenCV (cvr) when they ran.
-void CalibrationIntrinsicsDoc(const CalibrationResult& r, const nlohmann::json* m, const OpenCvReference* cvr, ReportDoc* doc) {
+void CalibrationIntrinsicsDoc(const CalibrationResult& r,
+                              const nlohmann::json* m,
+                              const OpenCvReference* cvr,
+                              ReportDoc* doc) {
   ReportDoc& d = *doc;
   std::vector<std::vector<std::string>> rows;
   d.Heading(2, "Intrinsics (1-sigma marginal over the plate poses)");
@@ -157,7 +161,6 @@ void CalibrationIntrinsicsDoc(const CalibrationResult& r, const nlohmann::json* 
   }
   d.Table(header, rows);
   d.Figures({"distortion"});
-
 }
 
 void CalibrationConditioningDoc(const CalibrationRun& run, ReportDoc* doc) {
@@ -198,7 +201,8 @@ void CalibrationProjectionDoc(const CalibrationResult& r, const nlohmann::json* 
               "plate poses (mrcal's definition); 1-sigma, px, from the " + PixelSigmaKind(r) +
               " pixel sigma " + Fixed(r.sigma_px) +
               " px (mrcal's columns: mrcal.projection_uncertainty given the same pixel sigma).");
-  std::vector<std::string> header = {"where", "pixel", "carmba sigma_u", "carmba sigma_v", "carmba worst"};
+  std::vector<std::string> header = {
+      "where", "pixel", "carmba sigma_u", "carmba sigma_v", "carmba worst"};
   if (m) {
     header.push_back("mrcal formula at carmba's solution");
     header.push_back("mrcal at its solution");
@@ -325,7 +329,10 @@ void MrcalCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, Repo
 }
 
 // The OpenCV cross-check (cvr, or null when it did not run).
-void OpenCvCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, const OpenCvReference* cvr, ReportDoc* doc) {
+void OpenCvCrossCheckDoc(const CalibrationRun& run,
+                         const nlohmann::json* m,
+                         const OpenCvReference* cvr,
+                         ReportDoc* doc) {
   ReportDoc& d = *doc;
   const CalibrationResult& r = run.result;
   d.Heading(2, "Cross-check: OpenCV calibrateCamera");
@@ -345,8 +352,9 @@ void OpenCvCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, con
                          Fixed(pdo["rms_px"].get<double>()) + " px, max " +
                          Fixed(pdo["max_px"].get<double>()) + " px";
       if (pdo.contains("fitted_rms_px")) {
-        item += "; after mrcal's fitted rotation: rms " + Fixed(pdo["fitted_rms_px"].get<double>()) +
-                " px, max " + Fixed(pdo["fitted_max_px"].get<double>()) + " px";
+        item += "; after mrcal's fitted rotation: rms " +
+                Fixed(pdo["fitted_rms_px"].get<double>()) + " px, max " +
+                Fixed(pdo["fitted_max_px"].get<double>()) + " px";
       }
       items.push_back(item);
     }

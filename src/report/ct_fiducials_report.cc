@@ -31,18 +31,19 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
   ReportDoc doc;
   std::vector<std::vector<std::string>> rows;
   doc.Heading(1, "CT fiducials");
-  std::string text = "Centres in `" + csv_name + "`. Series `" + r.dicom_dir +
-                     "` (SeriesInstanceUID " + g.series_uid + "): " + std::to_string(g.columns) +
-                     " x " + std::to_string(g.rows) + " x " + std::to_string(g.slices) +
-                     " voxels of " + Fmt("%.4f", g.spacing_mm.x()) + " x " +
-                     Fmt("%.4f", g.spacing_mm.y()) + " x " + Fmt("%.4f", g.spacing_mm.z()) +
-                     " mm (slice thickness " + Fmt("%.3f", g.slice_thickness_mm) +
-                     " mm), slice axes (row, column, stack) " + Vec3Text(g.axes.col(0), "%.4f") + ", " +
-                     Vec3Text(g.axes.col(1), "%.4f") + ", " + Vec3Text(g.axes.col(2), "%.4f") +
-                     ", first voxel at " + Vec3Text(g.origin_mm) + " mm";
+  std::string text =
+      "Centres in `" + csv_name + "`. Series `" + r.dicom_dir + "` (SeriesInstanceUID " +
+      g.series_uid + "): " + std::to_string(g.columns) + " x " + std::to_string(g.rows) + " x " +
+      std::to_string(g.slices) + " voxels of " + Fmt("%.4f", g.spacing_mm.x()) + " x " +
+      Fmt("%.4f", g.spacing_mm.y()) + " x " + Fmt("%.4f", g.spacing_mm.z()) +
+      " mm (slice thickness " + Fmt("%.3f", g.slice_thickness_mm) +
+      " mm), slice axes (row, column, stack) " + Vec3Text(g.axes.col(0), "%.4f") + ", " +
+      Vec3Text(g.axes.col(1), "%.4f") + ", " + Vec3Text(g.axes.col(2), "%.4f") +
+      ", first voxel at " + Vec3Text(g.origin_mm) + " mm";
   if (r.skipped_files) {
     text += "; " + std::to_string(r.skipped_files) + " non-image file(s) skipped:";
-    for (size_t a = 0; a < r.skipped.size() && a < 10; ++a) text += " `" + BaseName(r.skipped[a]) + "`";
+    for (size_t a = 0; a < r.skipped.size() && a < 10; ++a)
+      text += " `" + BaseName(r.skipped[a]) + "`";
     if (r.skipped.size() > 10) text += " ...";
   }
   doc.Paragraph(text + ".");
@@ -83,10 +84,17 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
                                                      : "ball fit (chi2 " +
                                                            Fmt("%.1f", m.contamination_chi2) + ")")
                          : "centroid (chi2 " + Fmt("%.1f", m.contamination_chi2) + ")";
-    rows.push_back({std::to_string(m.id), Vec3Text(m.centre_mm), from, Vec3Text(sd, "%.4f"),
-                    Vec3Text(m.bbox_centre_mm), Fmt("%.3f", (m.bbox_centre_mm - m.centre_mm).norm()),
-                    Fmt("%.3f", m.volume_mm3), Fmt("%.0f", m.peak_hu), Fmt("%.0f", m.fit_metal_hu),
-                    Fmt("%.0f", m.background_hu), Fmt("%.1f", m.noise_hu)});
+    rows.push_back({std::to_string(m.id),
+                    Vec3Text(m.centre_mm),
+                    from,
+                    Vec3Text(sd, "%.4f"),
+                    Vec3Text(m.bbox_centre_mm),
+                    Fmt("%.3f", (m.bbox_centre_mm - m.centre_mm).norm()),
+                    Fmt("%.3f", m.volume_mm3),
+                    Fmt("%.0f", m.peak_hu),
+                    Fmt("%.0f", m.fit_metal_hu),
+                    Fmt("%.0f", m.background_hu),
+                    Fmt("%.1f", m.noise_hu)});
   }
   doc.Table({"id", "centre", "from", "sd (x, y, z)", "bbox centre", "bbox - centre",
              "volume mm^3", "peak HU", "fit HU", "background HU", "noise HU"},
@@ -96,7 +104,8 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
     doc.Heading(2, "Rejected components");
     rows.clear();
     for (const auto& c : r.detection.rejected) {
-      rows.push_back({Vec3Text(c.centroid_mm), Fmt("%.3f", c.volume_mm3), Fmt("%.0f", c.peak_hu), c.reason});
+      rows.push_back(
+          {Vec3Text(c.centroid_mm), Fmt("%.3f", c.volume_mm3), Fmt("%.0f", c.peak_hu), c.reason});
     }
     doc.Table({"centroid (mm)", "volume mm^3", "peak HU", "reason"}, rows);
   }
@@ -130,11 +139,11 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
                   "`: p_in_object = object_from_ct * p_in_patient with");
     std::string code = "R = ";
     for (int i = 0; i < 3; ++i) {
-      code += std::string(i ? "    " : "") + Fmt("%12.9f", T.R(i, 0)) + " " + Fmt("%12.9f", T.R(i, 1)) +
-              " " + Fmt("%12.9f", T.R(i, 2)) + "\n";
+      code += std::string(i ? "    " : "") + Fmt("%12.9f", T.R(i, 0)) + " " +
+              Fmt("%12.9f", T.R(i, 1)) + " " + Fmt("%12.9f", T.R(i, 2)) + "\n";
     }
-    code += "t_mm = " + Fmt("%.6f", T.t.x()) + " " + Fmt("%.6f", T.t.y()) + " " + Fmt("%.6f", T.t.z()) +
-            "\n";
+    code += "t_mm = " + Fmt("%.6f", T.t.x()) + " " + Fmt("%.6f", T.t.y()) + " " +
+            Fmt("%.6f", T.t.z()) + "\n";
     doc.Code(code);
   } else {
     doc.Paragraph("The CSV is in DICOM patient coordinates (LPS, mm).");

@@ -112,10 +112,11 @@ void AddFlexJson(const Problem& problem, const JointSolution& s, nlohmann::json*
       sj["held_out"] = held;
       scores.push_back(sj);
     }
-    (*j)["model_selection"] = {{"recommended", analysis::IntrinsicsModelName(s.selection->recommended)},
-                               {"why", s.selection->why},
-                               {"used", IntrinsicsModelName(problem)},
-                               {"scores", scores}};
+    (*j)["model_selection"] = {
+        {"recommended", analysis::IntrinsicsModelName(s.selection->recommended)},
+        {"why", s.selection->why},
+        {"used", IntrinsicsModelName(problem)},
+        {"scores", scores}};
   } else if (!s.selection_error.empty()) {
     (*j)["model_selection"] = {{"error", s.selection_error}};
   }
@@ -159,11 +160,12 @@ ReportDoc FlexReportDoc(const Problem& problem, const JointSolution& s) {
   d.Heading(2, "Intrinsics per view (C-arm angles)");
   std::string text = std::string("Model `") + IntrinsicsModelName(problem) + "`";
   if (problem.smooth) {
-    text += ": fx, fy, cx, cy as functions of the angles (Fourier order " +
-            std::to_string(s.smooth_basis.primary_order) + " in the primary angle, degree " +
-            std::to_string(s.smooth_basis.secondary_degree) +
-            " in the secondary), distortion shared; a view's intrinsics and their sigma follow from "
-            "the coefficients' covariance, also between the calibrated angles";
+    text +=
+        ": fx, fy, cx, cy as functions of the angles (Fourier order " +
+        std::to_string(s.smooth_basis.primary_order) + " in the primary angle, degree " +
+        std::to_string(s.smooth_basis.secondary_degree) +
+        " in the secondary), distortion shared; a view's intrinsics and their sigma follow from "
+        "the coefficients' covariance, also between the calibrated angles";
   }
   d.Paragraph(text + ". Values +- 1 sigma (px); the plot of the intrinsics against the primary "
                      "angle is in report.html.");
@@ -223,7 +225,8 @@ ReportDoc FlexReportDoc(const Problem& problem, const JointSolution& s) {
   rows.clear();
   for (const auto& sc : s.selection->scores) {
     if (!sc.ok) {
-      rows.push_back({analysis::IntrinsicsModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
+      rows.push_back(
+          {analysis::IntrinsicsModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
       continue;
     }
     rows.push_back({analysis::IntrinsicsModelName(sc.model), std::to_string(sc.num_free),
@@ -248,7 +251,8 @@ ReportDoc FlexReportDoc(const Problem& problem, const JointSolution& s) {
   std::string rec = std::string("**Recommended: `") +
                     analysis::IntrinsicsModelName(s.selection->recommended) + "`** -- " +
                     s.selection->why + ".";
-  if (std::string(analysis::IntrinsicsModelName(s.selection->recommended)) != IntrinsicsModelName(problem)) {
+  if (std::string(analysis::IntrinsicsModelName(s.selection->recommended)) !=
+      IntrinsicsModelName(problem)) {
     rec += std::string(" This solve used `") + IntrinsicsModelName(problem) +
            "` (intrinsics.model in the problem).";
   }

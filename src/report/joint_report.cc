@@ -40,7 +40,8 @@ nlohmann::json GroupJson(const JointSolution& s, int g) {
   }
   nlohmann::json j = CameraToJson(c);
   nlohmann::json sig;
-  for (int i = 0; i < kNumIntrinsics; ++i) sig[kIntrinsicNames[i]] = std::sqrt(std::max(0.0, C(i, i)));
+  for (int i = 0; i < kNumIntrinsics; ++i)
+    sig[kIntrinsicNames[i]] = std::sqrt(std::max(0.0, C(i, i)));
   j["sigmas"] = sig;
   j["group"] = s.ba_problem.groups[g].name;
   return j;
@@ -97,8 +98,12 @@ nlohmann::json ViewsJson(const Problem& problem, const JointSolution& s) {
       vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
       nlohmann::json sr = nlohmann::json::array(), st = nlohmann::json::array();
       for (int a = 0; a < 3; ++a) {
-        sr.push_back(JsonNumber(ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a))->sigma));
-        st.push_back(JsonNumber(ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a))->sigma));
+        sr.push_back(JsonNumber(
+            ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a))
+                ->sigma));
+        st.push_back(JsonNumber(
+            ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a))
+                ->sigma));
       }
       vj["sigma_rotation_deg"] = sr;
       vj["sigma_translation_mm"] = st;
@@ -122,8 +127,10 @@ nlohmann::json ValidationJson(const Problem& problem, const JointSolution& s) {
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
     const auto [ia, ib] = s.pairs[k];
-    const ba::BudgetRow* rr = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairRelativeRotation(ia, ib));
-    const ba::BudgetRow* vd = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairViewDirections(ia, ib));
+    const ba::BudgetRow* rr =
+        ba::FindBudgetRow(s.budget, ba::QuantityKey::PairRelativeRotation(ia, ib));
+    const ba::BudgetRow* vd =
+        ba::FindBudgetRow(s.budget, ba::QuantityKey::PairViewDirections(ia, ib));
     nlohmann::json pj = {{"a", vp.a},
                          {"b", vp.b},
                          {"relative_rotation_deg", JsonNumber(rr->quantity.value)},
@@ -134,7 +141,8 @@ nlohmann::json ValidationJson(const Problem& problem, const JointSolution& s) {
                                                           : nlohmann::json()}};
     auto ta = problem.truth.object_poses.find(vp.a), tb = problem.truth.object_poses.find(vp.b);
     if (ta != problem.truth.object_poses.end() && tb != problem.truth.object_poses.end()) {
-      pj["true_relative_rotation_deg"] = RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
+      pj["true_relative_rotation_deg"] =
+          RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
     }
     val.push_back(pj);
   }
@@ -181,13 +189,15 @@ nlohmann::json JointSolutionToJson(const Problem& problem,
     j["intrinsics"] = GroupJson(s, 0);
   } else {
     nlohmann::json a = nlohmann::json::array();
-    for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) a.push_back(GroupJson(s, static_cast<int>(g)));
+    for (size_t g = 0; g < s.ba_problem.groups.size(); ++g)
+      a.push_back(GroupJson(s, static_cast<int>(g)));
     j["intrinsics"] = a;
   }
   j["views"] = ViewsJson(problem, s);
   AddFlexJson(problem, s, &j);
   j["validation"] = ValidationJson(problem, s);
-  j["relative_poses"] = RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
+  j["relative_poses"] =
+      RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
   if (s.tre) j["tre"] = TreJson(*s.tre);
   MarkersAndOutliersJson(s.ba_problem, s.result, &j);
   nlohmann::json layout = nlohmann::json::array();
@@ -249,13 +259,13 @@ void JointIntroDoc(const Problem& problem, const SolverConfig& config, ReportDoc
   ReportDoc& d = *doc;
   d.Heading(1, "Joint bundle adjustment: " + problem.name);
   if (!problem.description.empty()) d.Paragraph(problem.description);
-  d.Paragraph("Calibration and pose as one bundle adjustment (src/ba): " +
-              std::to_string(problem.plate.views.size()) + " plate views (sigma " +
-              Fmt("%g", problem.plate_sigma_px) + " px), " +
-              std::to_string(problem.object_views.size()) + " object views (sigma " +
-              Fmt("%g", problem.object_sigma_px) + " px), " +
-              std::to_string(problem.fiducials.size()) + " CT fiducials as priors. Config `" +
-              config.name + "`; uncertainties: " + CovarianceScaleNote(config.covariance_scale) + ".");
+  d.Paragraph(
+      "Calibration and pose as one bundle adjustment (src/ba): " +
+      std::to_string(problem.plate.views.size()) + " plate views (sigma " +
+      Fmt("%g", problem.plate_sigma_px) + " px), " + std::to_string(problem.object_views.size()) +
+      " object views (sigma " + Fmt("%g", problem.object_sigma_px) + " px), " +
+      std::to_string(problem.fiducials.size()) + " CT fiducials as priors. Config `" + config.name +
+      "`; uncertainties: " + CovarianceScaleNote(config.covariance_scale) + ".");
   if (!problem.skipped_images.empty()) {
     d.Paragraph("Plate images without a usable grid (" +
                 std::to_string(problem.skipped_images.size()) + "):");
@@ -346,8 +356,10 @@ void JointValidationDoc(const Problem& problem,
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
     const auto [ia, ib] = s.pairs[k];
-    const ba::BudgetRow* rr = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairRelativeRotation(ia, ib));
-    const ba::BudgetRow* vd = ba::FindBudgetRow(s.budget, ba::QuantityKey::PairViewDirections(ia, ib));
+    const ba::BudgetRow* rr =
+        ba::FindBudgetRow(s.budget, ba::QuantityKey::PairRelativeRotation(ia, ib));
+    const ba::BudgetRow* vd =
+        ba::FindBudgetRow(s.budget, ba::QuantityKey::PairViewDirections(ia, ib));
     std::vector<std::string> row = {vp.a,
                                     vp.b,
                                     vp.expected_deg ? Fmt("%g", *vp.expected_deg) : "",
@@ -506,8 +518,10 @@ ReportDoc JointMrcalDoc(const nlohmann::json& c) {
     const double rms_c = c.at("rms_px_carmba_in_mrcal").get<double>();
     std::string cost;
     if (rms_c < rms_m) {
-      cost = "mrcal's own solve from the initial values stops slightly short of it (carmba's solution "
-             "has the lower cost in mrcal's own residuals, by " + Fmt("%.1e", rms_m - rms_c) + " px RMS)";
+      cost =
+          "mrcal's own solve from the initial values stops slightly short of it (carmba's solution "
+          "has the lower cost in mrcal's own residuals, by " +
+          Fmt("%.1e", rms_m - rms_c) + " px RMS)";
     } else if (rms_c > rms_m) {
       cost = "mrcal's own solve from the initial values ends at a cost lower than carmba's by " +
              Fmt("%.1e", rms_c - rms_m) + " px RMS (" + Fmt("%.1e", (rms_c - rms_m) / rms_m) +
@@ -515,11 +529,13 @@ ReportDoc JointMrcalDoc(const nlohmann::json& c) {
     } else {
       cost = "mrcal's own solve from the initial values ends at the same cost";
     }
-    d.Paragraph("mrcal seeded at carmba's optimum stays there: it moves the nine intrinsics by at most " +
-                Fmt("%.1e", c.at("max_move_in_sigmas_of_mrcal_seeded_at_carmba").get<double>()) +
-                " sigma (" + Fmt("%.1e", c.at("max_relative_move_of_mrcal_seeded_at_carmba").get<double>()) +
-                " relative, largest in the weakly determined terms). " + cost +
-                "; the distortion terms' differences above are that stopping tolerance.");
+    d.Paragraph(
+        "mrcal seeded at carmba's optimum stays there: it moves the nine intrinsics by at most " +
+        Fmt("%.1e", c.at("max_move_in_sigmas_of_mrcal_seeded_at_carmba").get<double>()) +
+        " sigma (" +
+        Fmt("%.1e", c.at("max_relative_move_of_mrcal_seeded_at_carmba").get<double>()) +
+        " relative, largest in the weakly determined terms). " + cost +
+        "; the distortion terms' differences above are that stopping tolerance.");
   }
   return d;
 }

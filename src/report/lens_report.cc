@@ -37,8 +37,10 @@ nlohmann::json DistortionSelectionJson(const analysis::DistortionSelection* sele
           {"scores", scores}};
 }
 
-ReportDoc DistortionSelectionDoc(const analysis::DistortionSelection* selection, const std::string& error,
-                                 bool applied, const std::string& warning) {
+ReportDoc DistortionSelectionDoc(const analysis::DistortionSelection* selection,
+                                 const std::string& error,
+                                 bool applied,
+                                 const std::string& warning) {
   ReportDoc d;
   if (!selection && error.empty()) return d;
   d.Heading(2, "Distortion model: which terms the plate views support");
@@ -52,17 +54,20 @@ ReportDoc DistortionSelectionDoc(const analysis::DistortionSelection* selection,
           ? "; chi-squares at the pixel sigma the full model's residuals give, " +
                 Fmt("%.3g", sel.sigma_px) + " px"
           : "";
-  d.Paragraph("Each candidate fitted to the plate views alone (AIC = chi-square + 2 x free "
-              "parameters" + sigma + "), and by " + std::to_string(sel.folds) +
-              "-fold held-out plate views (the intrinsics without them, one Gauss-Newton step "
-              "from the full fit; their poses refitted with those intrinsics held). Recommended: **" + analysis::DistortionModelName(sel.recommended) +
-              "**: " + sel.why + ". " +
-              (applied ? "Applied (`distortion: auto`)."
-                       : "Not applied: the config gives the terms (`distortion: given`)."));
+  d.Paragraph(
+      "Each candidate fitted to the plate views alone (AIC = chi-square + 2 x free "
+      "parameters" +
+      sigma + "), and by " + std::to_string(sel.folds) +
+      "-fold held-out plate views (the intrinsics without them, one Gauss-Newton step "
+      "from the full fit; their poses refitted with those intrinsics held). Recommended: **" +
+      analysis::DistortionModelName(sel.recommended) + "**: " + sel.why + ". " +
+      (applied ? "Applied (`distortion: auto`)."
+               : "Not applied: the config gives the terms (`distortion: given`)."));
   std::vector<std::vector<std::string>> rows;
   for (const auto& sc : sel.scores) {
     if (!sc.ok) {
-      rows.push_back({analysis::DistortionModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
+      rows.push_back(
+          {analysis::DistortionModelName(sc.model), "failed: " + sc.error, "", "", "", "", ""});
       continue;
     }
     rows.push_back({analysis::DistortionModelName(sc.model), Fmt("%.1f", sc.chi2),

@@ -17,7 +17,9 @@ nlohmann::json DistortionSelectionJson(const analysis::DistortionSelection* sele
 
 // The report's section (nothing when there is neither a selection nor an error); `warning`: the
 // solved model's principal point against the recommended one's (analysis::DistortionWarning).
-ReportDoc DistortionSelectionDoc(const analysis::DistortionSelection* selection, const std::string& error,
-                                 bool applied, const std::string& warning);
+ReportDoc DistortionSelectionDoc(const analysis::DistortionSelection* selection,
+                                 const std::string& error,
+                                 bool applied,
+                                 const std::string& warning);
 
 }  // namespace carmba

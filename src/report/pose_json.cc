@@ -22,7 +22,8 @@ nlohmann::json PoseToJson(const Pose6& p) {
 
 std::vector<ba::BudgetRow> PoseErrorBudget(const PoseSolution& s) {
   if (!s.ba_problem || !s.ba_result || !s.ba_result->covariance) return {};
-  std::vector<ba::BudgetRow> budget = ba::ComputeErrorBudget(*s.ba_problem, *s.ba_result, s.validation_pairs);
+  std::vector<ba::BudgetRow> budget =
+      ba::ComputeErrorBudget(*s.ba_problem, *s.ba_result, s.validation_pairs);
   // The held intrinsics' centre projection has no uncertainty unless the calibration's is
   // considered: rows without a sigma say nothing.
   budget.erase(std::remove_if(budget.begin(), budget.end(),

@@ -191,7 +191,8 @@ void PoseValidationDoc(const Problem& problem,
                                     p.expected_deg ? Fmt("%.1f", *p.expected_deg) : "n/a"};
     if (thesis) {
       const auto it = problem.reference_angles_deg.find(key);
-      row.push_back(Fmt("%.4f", it != problem.reference_angles_deg.end() ? it->second : std::nan("")));
+      row.push_back(
+          Fmt("%.4f", it != problem.reference_angles_deg.end() ? it->second : std::nan("")));
     }
     if (legacy) {
       const auto it = c.legacy_view_dirs_deg.find(key);
@@ -364,7 +365,8 @@ void AppendObjectViews(ReportDoc* d, const std::vector<ObjectView>& views) {
     std::map<std::string, int> reasons;
     for (const RejectedBlob& b : v.detection.rejected) ++reasons[b.why];
     std::string rej;
-    for (const auto& [why, k] : reasons) rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
+    for (const auto& [why, k] : reasons)
+      rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
     if (!v.labelled) {
       rows.push_back({v.id, std::to_string(v.detection.blobs.size()), "skipped: " + v.skipped, "",
                       "", "", rej});
@@ -377,10 +379,11 @@ void AppendObjectViews(ReportDoc* d, const std::vector<ObjectView>& views) {
                     v.labelling.method, Fmt("%.3g", v.labelling.rms_px), rej});
   }
   d->Table({"view", "blobs", "labelled", "not markers", "method", "RMS px", "rejected"}, rows);
-  d->Paragraph("Each observation is weighted in the bundle adjustment by its blob's 2x2 covariance "
-               "plus the sigma floor squared (the engine whitens it with that covariance). "
-               "The overlays (`overlay_<view>.png`) show the blobs, labels, reprojected markers and "
-               "rejected blobs with their reason.");
+  d->Paragraph(
+      "Each observation is weighted in the bundle adjustment by its blob's 2x2 covariance "
+      "plus the sigma floor squared (the engine whitens it with that covariance). "
+      "The overlays (`overlay_<view>.png`) show the blobs, labels, reprojected markers and "
+      "rejected blobs with their reason.");
 }
 
 }  // namespace carmba

@@ -74,7 +74,8 @@ void AppendRelativePoses(ReportDoc* d,
   std::vector<std::string> header = {"a", "b", "angle (deg)", "sigma", "sigma rot x / y / z (deg)",
                                      "t (mm)", "sigma t x / y / z (mm)", "baseline (mm)"};
   if (any_truth) {
-    for (const char* h : {"rotation error (deg)", "rotation error (sigma, 3 dof)", "NEES (6 dof)"}) {
+    for (const char* h :
+         {"rotation error (deg)", "rotation error (sigma, 3 dof)", "NEES (6 dof)"}) {
       header.push_back(h);
     }
   }
@@ -84,9 +85,12 @@ void AppendRelativePoses(ReportDoc* d,
     const std::string& ib = problem.views[e.view_b].id;
     const Eigen::Vector3d t = e.cam_b_from_cam_a.tail<3>();
     std::vector<std::string> row = {
-        ia, ib, Fmt("%.3f", e.angle_deg), Fmt("%.3f", e.sigma_angle_deg),
-        Fmt("%.3f", e.sigma_rotation_deg[0]) + " / " + Fmt("%.3f", e.sigma_rotation_deg[1]) + " / " +
-            Fmt("%.3f", e.sigma_rotation_deg[2]),
+        ia,
+        ib,
+        Fmt("%.3f", e.angle_deg),
+        Fmt("%.3f", e.sigma_angle_deg),
+        Fmt("%.3f", e.sigma_rotation_deg[0]) + " / " + Fmt("%.3f", e.sigma_rotation_deg[1]) +
+            " / " + Fmt("%.3f", e.sigma_rotation_deg[2]),
         Fmt("%.1f", t[0]) + ", " + Fmt("%.1f", t[1]) + ", " + Fmt("%.1f", t[2]),
         Fmt("%.2f", e.sigma_translation_mm[0]) + " / " + Fmt("%.2f", e.sigma_translation_mm[1]) +
             " / " + Fmt("%.2f", e.sigma_translation_mm[2]),
@@ -167,7 +171,8 @@ void AppendTre(ReportDoc* d, const analysis::TreResult& t) {
   std::vector<std::vector<std::string>> rows;
   for (const auto& m : t.markers) {
     if (!m.skipped.empty()) {
-      rows.push_back({std::to_string(m.marker_id), "skipped: " + m.skipped, "", "", "", "", "", ""});
+      rows.push_back(
+          {std::to_string(m.marker_id), "skipped: " + m.skipped, "", "", "", "", "", ""});
       continue;
     }
     rows.push_back({std::to_string(m.marker_id), std::to_string(m.num_views),

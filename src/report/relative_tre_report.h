@@ -1,5 +1,6 @@
-// result.json blocks and report sections (report.md and report.html) for the relative C-arm poses (analysis/relative_pose.h)
-// and the leave-one-marker-out TRE (analysis/tre.h), shared by the pose and the joint front ends.
+// result.json blocks and report sections (report.md and report.html) for the relative C-arm poses
+// (analysis/relative_pose.h) and the leave-one-marker-out TRE (analysis/tre.h), shared by the pose
+// and the joint front ends.
 #pragma once
 
 #include <map>

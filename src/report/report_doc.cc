@@ -118,14 +118,16 @@ std::string ReportDoc::Html(const std::string& title,
                             const std::string& plots_note) const {
   std::ostringstream o;
   o << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>"
-    << HtmlEscape(title) << "</title>\n<style>\n"
+    << HtmlEscape(title)
+    << "</title>\n<style>\n"
        "body{font-family:sans-serif;max-width:1250px;margin:1em auto;padding:0 1em;color:#222;"
        "line-height:1.4}\n"
        "h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;margin-top:1.6em}\n"
        "table{border-collapse:collapse;margin:0.5em 0;font-size:0.9em}\n"
        "th,td{border:1px solid #ccc;padding:2px 8px;text-align:left;vertical-align:top}\n"
        "th{background:#f0f0f0}tr:nth-child(even) td{background:#fafafa}\n"
-       "code{background:#f3f3f3;padding:0 3px;font-size:0.95em}pre{background:#f3f3f3;padding:0.5em}\n"
+       "code{background:#f3f3f3;padding:0 3px;font-size:0.95em}"
+       "pre{background:#f3f3f3;padding:0.5em}\n"
        ".warning{border-left:4px solid #d62728;background:#fff3f3;padding:0.4em 0.8em}\n"
        ".note{border-left:4px solid #ff7f0e;background:#fff8ef;padding:0.4em 0.8em}\n"
        "figure.plot{display:inline-block;margin:0.5em;vertical-align:top;max-width:100%}\n"

@@ -33,9 +33,9 @@ const char* Verdict(bool ok) { return ok ? "yes" : "**no**"; }
 
 std::string TrackPointsCsv(const TrackResult& r) {
   std::ostringstream o;
-  o << "# carmba track: each bead per frame in the cameras' lab frame (mm) from the bundle adjustment "
-       "over all frames, its covariance (mm^2; poses and beads jointly), the cameras that saw it and "
-       "its reprojection RMS (px per coordinate)\n";
+  o << "# carmba track: each bead per frame in the cameras' lab frame (mm) from the bundle "
+       "adjustment over all frames, its covariance (mm^2; poses and beads jointly), the cameras "
+       "that saw it and its reprojection RMS (px per coordinate)\n";
   o << "frame,point,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,num_views,rms_px\n";
   for (size_t f = 0; f < r.frames.size(); ++f) {
     for (size_t b = 0; b < r.beads.size(); ++b) {
@@ -44,8 +44,8 @@ std::string TrackPointsCsv(const TrackResult& r) {
       const Eigen::Matrix3d& C = r.bead_lab_covariance[f][b];
       o << r.frames[f].number << ',' << r.beads[b].id << ',' << G(x[0]) << ',' << G(x[1]) << ','
         << G(x[2]) << ',' << G(C(0, 0)) << ',' << G(C(0, 1)) << ',' << G(C(0, 2)) << ','
-        << G(C(1, 1)) << ',' << G(C(1, 2)) << ',' << G(C(2, 2)) << ',' << r.bead_num_views[f][b] << ','
-        << Fmt("%.4f", r.bead_rms_px[f][b]) << '\n';
+        << G(C(1, 1)) << ',' << G(C(1, 2)) << ',' << G(C(2, 2)) << ',' << r.bead_num_views[f][b]
+        << ',' << Fmt("%.4f", r.bead_rms_px[f][b]) << '\n';
     }
   }
   return o.str();
@@ -143,7 +143,8 @@ nlohmann::json TrackBodiesJson(const TrackResult& r) {
 
 std::string TrackOverlayName(const TrackResult& r, size_t i) {
   const TrackImage& im = r.images[i];
-  return "overlays/frame" + std::to_string(r.frames[im.frame].number) + "_" + r.cameras[im.camera].name + ".png";
+  return "overlays/frame" + std::to_string(r.frames[im.frame].number) + "_" +
+         r.cameras[im.camera].name + ".png";
 }
 
 cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
@@ -183,8 +184,13 @@ cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
     const cv::Point p(cvRound(rb.uv_px.x), cvRound(rb.uv_px.y));
     cv::drawMarker(out, p, cv::Scalar(0, 0, 255), cv::MARKER_TILTED_CROSS, 9, 1);
     // The reason's head only ("merged", not the pair fit's detail: the report has room for it).
-    cv::putText(out, rb.why.substr(0, rb.why.find(" (")), p + cv::Point(6, -4), cv::FONT_HERSHEY_PLAIN, 0.9,
-                cv::Scalar(0, 0, 255), 1);
+    cv::putText(out,
+                rb.why.substr(0, rb.why.find(" (")),
+                p + cv::Point(6, -4),
+                cv::FONT_HERSHEY_PLAIN,
+                0.9,
+                cv::Scalar(0, 0, 255),
+                1);
   }
   std::map<int, int> id_of_blob;
   for (const TrackBead& bead : r.beads) {
@@ -208,10 +214,12 @@ cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
                   cv::Scalar(0, 220, 255), 1);
     }
   }
-  const std::string title = "frame " + std::to_string(r.frames[im.frame].number) + ", camera " + cam.name +
-                            ": green = bead (id), yellow = blob without id, red = rejected (reason), "
-                            "cyan = epipolar lines of the other cameras' beads";
-  cv::putText(out, title, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 2);
+  const std::string title =
+      "frame " + std::to_string(r.frames[im.frame].number) + ", camera " + cam.name +
+      ": green = bead (id), yellow = blob without id, red = rejected (reason), "
+      "cyan = epipolar lines of the other cameras' beads";
+  cv::putText(
+      out, title, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 2);
   return out;
 }
 
@@ -220,26 +228,35 @@ namespace {
 // What the spread check says about the data: met; out of reach (the noise alone exceeds the
 // target); or beyond what the noise explains (a wrong match or a body that is not rigid).
 std::string SpreadVerdict(const TrackChecks& c, const TrackTargets& t) {
-  const std::string measured = Fmt("%.3f", c.max_spread_mm) + " mm", predicted = Fmt("%.3f", c.predicted_max_spread_mm) + " mm";
+  const std::string measured = Fmt("%.3f", c.max_spread_mm) + " mm",
+                    predicted = Fmt("%.3f", c.predicted_max_spread_mm) + " mm";
   if (c.max_spread_mm <= t.max_spread_mm) {
-    return "The spread target holds: the largest spread is " + measured + " (the noise alone would give " + predicted + ").";
+    return "The spread target holds: the largest spread is " + measured +
+           " (the noise alone would give " + predicted + ").";
   }
   // The sigmas scale linearly with the pixel sigma scale, and so does the prediction.
   const double stated = c.predicted_max_spread_mm / c.pixel_sigma_scale;
   if (std::min(c.predicted_max_spread_mm, stated) > t.max_spread_mm) {
-    return "The spread target (<= " + Fmt("%.2f", t.max_spread_mm) + " mm) is out of reach on these data: the pixel "
-           "noise alone, propagated to each distance, gives an expected largest spread of " + predicted +
-           " over these distances and frames at the sigmas above, and " + Fmt("%.3f", stated) +
-           " mm even at the detector's stated covariances. The measured " + measured +
-           " is within what the noise predicts (see the chi-square). Smaller spreads need less noise per "
-           "bead (larger or denser beads, more photons, more cameras), not a different method.";
+    return "The spread target (<= " + Fmt("%.2f", t.max_spread_mm) +
+           " mm) is out of reach on these data: the pixel "
+           "noise alone, propagated to each distance, gives an expected largest spread of " +
+           predicted + " over these distances and frames at the sigmas above, and " +
+           Fmt("%.3f", stated) + " mm even at the detector's stated covariances. The measured " +
+           measured +
+           " is within what the noise predicts (see the chi-square). Smaller spreads need less "
+           "noise per bead (larger or denser beads, more photons, more cameras), not a different "
+           "method.";
   }
   if (c.max_spread_mm <= c.predicted_max_spread_mm) {
-    return "The largest spread, " + measured + ", exceeds the target but not what the noise predicts at the data's "
-           "own sigmas (" + predicted + "; " + Fmt("%.3f", stated) + " mm at the detector's stated covariances): "
+    return "The largest spread, " + measured +
+           ", exceeds the target but not what the noise predicts at the data's "
+           "own sigmas (" +
+           predicted + "; " + Fmt("%.3f", stated) +
+           " mm at the detector's stated covariances): "
            "the target is within reach only if the detector's stated noise holds.";
   }
-  return "The largest spread, " + measured + ", exceeds both the target and what the noise alone gives (" + predicted +
+  return "The largest spread, " + measured +
+         ", exceeds both the target and what the noise alone gives (" + predicted +
          "): look for a wrong match or a body that is not rigid (the distances table above).";
 }
 
@@ -249,38 +266,60 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
   ReportDoc doc;
   const TrackChecks& c = r.checks;
   doc.Heading(1, "carmba track");
-  doc.Paragraph(std::to_string(r.cameras.size()) + " cameras, " + std::to_string(r.frames.size()) +
-                " frames, " + std::to_string(r.beads.size()) + " beads in " + std::to_string(r.bodies.size()) +
-                " rigid bodies. Positions are in the cameras' lab frame (mm); a body's frame is the lab "
-                "frame at the first frame (frame " + std::to_string(r.frames.front().number) + ").");
+  doc.Paragraph(
+      std::to_string(r.cameras.size()) + " cameras, " + std::to_string(r.frames.size()) +
+      " frames, " + std::to_string(r.beads.size()) + " beads in " +
+      std::to_string(r.bodies.size()) +
+      " rigid bodies. Positions are in the cameras' lab frame (mm); a body's frame is the lab "
+      "frame at the first frame (frame " +
+      std::to_string(r.frames.front().number) + ").");
   for (const std::string& w : r.warnings) doc.Warning(w);
   doc.Heading(2, "Checks");
-  doc.Paragraph("Without ground truth: the distances between the beads of one body, triangulated in each "
-                "frame on its own (pixels only, the cameras held), must not change between frames beyond "
-                "their predicted sigmas. The sigmas use the detector's pixel covariances scaled by the "
-                "bundle adjustment's variance component of the detected blobs (sigma x " +
-                Fmt("%.2f", c.pixel_sigma_scale) + "); at the detector's stated covariances the largest "
-                "change is " + Fmt("%.2f", c.max_change_sigmas_stated) + " sigma. The chi-square treats the "
-                "distances as independent (beads shared by two distances make them correlated).");
-  doc.Table({"check", "target", "measured", "holds"},
-            {{"beads per frame from >= 2 cameras (least frame)", ">= " + std::to_string(t.min_beads_per_frame),
-              std::to_string(c.min_beads_per_frame), Verdict(c.min_beads_per_frame >= t.min_beads_per_frame)},
-             {"reprojection RMS (bundle adjustment, px per coordinate)", "<= " + Fmt("%.2f", t.max_rms_px),
-              Fmt("%.3f", c.rms_px), Verdict(c.rms_px <= t.max_rms_px)},
-             {"largest change of a body distance between frames", "<= " + Fmt("%.0f", t.max_change_sigmas) + " sigma",
-              Fmt("%.2f", c.max_change_sigmas) + " sigma", Verdict(c.max_change_sigmas <= t.max_change_sigmas)},
-             {"largest spread of a body distance over the frames", "<= " + Fmt("%.2f", t.max_spread_mm) + " mm",
-              Fmt("%.3f", c.max_spread_mm) + " mm", Verdict(c.max_spread_mm <= t.max_spread_mm)},
-             {"largest spread the noise alone gives (expected, from the sigmas)", "",
-              Fmt("%.3f", c.predicted_max_spread_mm) + " mm", ""},
-             {"RMS of the distances about their means", "", Fmt("%.4f", c.rms_spread_mm) + " mm", ""},
-             {"chi-square of the distances about their means", "P >= 0.005",
-              Fmt("%.1f", c.distance_chi2) + " on " + std::to_string(c.distance_dof) + " dof, P = " +
-                  Fmt("%.3g", c.distance_chi2_p),
-              Verdict(c.distance_chi2_p >= 0.005)}});
-  doc.Paragraph(SpreadVerdict(c, t) + " (Published marker-tracking precisions are usually a standard deviation of "
-                "each inter-marker distance over the frames; its analogue here, the RMS of the distances about "
-                "their means, is " + Fmt("%.3f", c.rms_spread_mm) + " mm.)");
+  doc.Paragraph(
+      "Without ground truth: the distances between the beads of one body, triangulated in each "
+      "frame on its own (pixels only, the cameras held), must not change between frames beyond "
+      "their predicted sigmas. The sigmas use the detector's pixel covariances scaled by the "
+      "bundle adjustment's variance component of the detected blobs (sigma x " +
+      Fmt("%.2f", c.pixel_sigma_scale) +
+      "); at the detector's stated covariances the largest "
+      "change is " +
+      Fmt("%.2f", c.max_change_sigmas_stated) +
+      " sigma. The chi-square treats the "
+      "distances as independent (beads shared by two distances make them correlated).");
+  doc.Table(
+      {"check", "target", "measured", "holds"},
+      {{"beads per frame from >= 2 cameras (least frame)",
+        ">= " + std::to_string(t.min_beads_per_frame),
+        std::to_string(c.min_beads_per_frame),
+        Verdict(c.min_beads_per_frame >= t.min_beads_per_frame)},
+       {"reprojection RMS (bundle adjustment, px per coordinate)",
+        "<= " + Fmt("%.2f", t.max_rms_px),
+        Fmt("%.3f", c.rms_px),
+        Verdict(c.rms_px <= t.max_rms_px)},
+       {"largest change of a body distance between frames",
+        "<= " + Fmt("%.0f", t.max_change_sigmas) + " sigma",
+        Fmt("%.2f", c.max_change_sigmas) + " sigma",
+        Verdict(c.max_change_sigmas <= t.max_change_sigmas)},
+       {"largest spread of a body distance over the frames",
+        "<= " + Fmt("%.2f", t.max_spread_mm) + " mm",
+        Fmt("%.3f", c.max_spread_mm) + " mm",
+        Verdict(c.max_spread_mm <= t.max_spread_mm)},
+       {"largest spread the noise alone gives (expected, from the sigmas)",
+        "",
+        Fmt("%.3f", c.predicted_max_spread_mm) + " mm",
+        ""},
+       {"RMS of the distances about their means", "", Fmt("%.4f", c.rms_spread_mm) + " mm", ""},
+       {"chi-square of the distances about their means",
+        "P >= 0.005",
+        Fmt("%.1f", c.distance_chi2) + " on " + std::to_string(c.distance_dof) +
+            " dof, P = " + Fmt("%.3g", c.distance_chi2_p),
+        Verdict(c.distance_chi2_p >= 0.005)}});
+  doc.Paragraph(
+      SpreadVerdict(c, t) +
+      " (Published marker-tracking precisions are usually a standard deviation of "
+      "each inter-marker distance over the frames; its analogue here, the RMS of the distances "
+      "about their means, is " +
+      Fmt("%.3f", c.rms_spread_mm) + " mm.)");
   doc.Heading(2, "Frames");
   std::vector<std::vector<std::string>> rows;
   for (size_t f = 0; f < r.frames.size(); ++f) {
@@ -292,12 +331,16 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
     std::string per_cam;
     for (const TrackImage& im : r.images) {
       if (im.frame != static_cast<int>(f)) continue;
-      per_cam += (per_cam.empty() ? "" : ", ") + r.cameras[im.camera].name + " " +
-                 std::to_string(im.detection.blobs.size()) +
-                 (im.split_pairs ? " (" + std::to_string(2 * im.split_pairs) + " from split pairs)" : "");
+      per_cam +=
+          (per_cam.empty() ? "" : ", ") + r.cameras[im.camera].name + " " +
+          std::to_string(im.detection.blobs.size()) +
+          (im.split_pairs ? " (" + std::to_string(2 * im.split_pairs) + " from split pairs)" : "");
     }
-    rows.push_back({std::to_string(r.frames[f].number), per_cam, std::to_string(r.candidates[f].size() - single),
-                    std::to_string(beads), std::to_string(single)});
+    rows.push_back({std::to_string(r.frames[f].number),
+                    per_cam,
+                    std::to_string(r.candidates[f].size() - single),
+                    std::to_string(beads),
+                    std::to_string(single)});
   }
   doc.Table({"frame", "blobs per camera", "epipolar candidates", "beads with an id (2+ cameras)",
              "beads seen by one camera (by prediction)"},
@@ -309,7 +352,13 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
     for (int bi : body.beads) ids += (ids.empty() ? "" : " ") + std::to_string(r.beads[bi].id);
     for (size_t f = 0; f < r.frames.size(); ++f) {
       if (!body.found[f]) {
-        rows.push_back({std::to_string(body.id), ids, std::to_string(r.frames[f].number), "not found", "", "", ""});
+        rows.push_back({std::to_string(body.id),
+                        ids,
+                        std::to_string(r.frames[f].number),
+                        "not found",
+                        "",
+                        "",
+                        ""});
         continue;
       }
       const Pose6& p = body.lab_from_body[f];
@@ -326,43 +375,62 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
       Eigen::Matrix<double, 3, 6> J;
       J << J_r, Eigen::Matrix3d::Identity();
       const double centroid_sigma = std::sqrt((J * body.covariance[f] * J.transpose()).trace());
-      rows.push_back({std::to_string(body.id), ids, std::to_string(r.frames[f].number),
+      rows.push_back({std::to_string(body.id),
+                      ids,
+                      std::to_string(r.frames[f].number),
                       Fmt("%.2f", angle),
                       Fmt("%.2f", p[3]) + ", " + Fmt("%.2f", p[4]) + ", " + Fmt("%.2f", p[5]),
-                      f == 0 ? "held (gauge)" : Fmt("%.3f", std::sqrt(C.topLeftCorner<3, 3>().trace())) + " deg",
+                      f == 0 ? "held (gauge)"
+                             : Fmt("%.3f", std::sqrt(C.topLeftCorner<3, 3>().trace())) + " deg",
                       f == 0 ? "" : Fmt("%.3f", centroid_sigma) + " mm"});
     }
   }
-  doc.Table({"body", "beads", "frame", "rotation from the first frame (deg)", "translation (mm, lab_from_body)",
-             "sigma of the rotation (root of the trace)", "sigma of the beads' centroid (root of the trace)"},
+  doc.Table({"body",
+             "beads",
+             "frame",
+             "rotation from the first frame (deg)",
+             "translation (mm, lab_from_body)",
+             "sigma of the rotation (root of the trace)",
+             "sigma of the beads' centroid (root of the trace)"},
             rows);
   doc.Heading(2, "Distances within the bodies");
   rows.clear();
   for (const BodyDistance& d : r.distances) {
     std::string per_frame;
     for (size_t f = 0; f < r.frames.size(); ++f) {
-      per_frame += (f ? ", " : "") + (std::isfinite(d.distance_mm[f]) ? Fmt("%.3f", d.distance_mm[f]) : std::string("-"));
+      per_frame +=
+          (f ? ", " : "") +
+          (std::isfinite(d.distance_mm[f]) ? Fmt("%.3f", d.distance_mm[f]) : std::string("-"));
     }
     double sigma = 0;
     for (double s : d.sigma_mm) if (std::isfinite(s)) sigma = std::max(sigma, s);
-    rows.push_back({std::to_string(d.body), std::to_string(d.bead_a) + "-" + std::to_string(d.bead_b), per_frame,
-                    Fmt("%.3f", sigma), Fmt("%.3f", d.spread_mm), Fmt("%.2f", d.max_change_sigmas)});
+    rows.push_back({std::to_string(d.body),
+                    std::to_string(d.bead_a) + "-" + std::to_string(d.bead_b),
+                    per_frame,
+                    Fmt("%.3f", sigma),
+                    Fmt("%.3f", d.spread_mm),
+                    Fmt("%.2f", d.max_change_sigmas)});
   }
   doc.Table({"body", "beads", "distance per frame (mm)", "sigma (mm, largest)", "spread (mm)",
              "largest change (sigma)"},
             rows);
   doc.Heading(2, "Bundle adjustment");
-  doc.Paragraph("Beads in their body's frame and the bodies' poses per frame, the cameras held, the first "
-                "frame's poses held at the identity; pixels whitened by the detector's 2x2 covariances, "
-                "scaled per noise group (covariance.scale per_group). Chi-square " +
-                Fmt("%.1f", r.ba_chi2) + " on " + std::to_string(r.ba_dof) + " dof at the detector's "
-                "covariances (sigma0 " + Fmt("%.2f", r.ba_sigma0) + ").");
+  doc.Paragraph(
+      "Beads in their body's frame and the bodies' poses per frame, the cameras held, the first "
+      "frame's poses held at the identity; pixels whitened by the detector's 2x2 covariances, "
+      "scaled per noise group (covariance.scale per_group). Chi-square " +
+      Fmt("%.1f", r.ba_chi2) + " on " + std::to_string(r.ba_dof) +
+      " dof at the detector's "
+      "covariances (sigma0 " +
+      Fmt("%.2f", r.ba_sigma0) + ").");
   doc.Paragraph("Time: detection " + Fmt("%.2f", r.time_detect_s) + " s, matching and identity " +
-                Fmt("%.3f", r.time_match_s) + " s, bundle adjustment " + Fmt("%.3f", r.time_ba_s) + " s.");
+                Fmt("%.3f", r.time_match_s) + " s, bundle adjustment " + Fmt("%.3f", r.time_ba_s) +
+                " s.");
   doc.Heading(2, "Overlays");
-  doc.Paragraph("Around the beads (report.html); the whole images are in `overlays/`. Green: a bead and its "
-                "id; yellow: a blob without an id; red: a rejected blob and the reason; cyan: the epipolar "
-                "lines of the other cameras' beads.");
+  doc.Paragraph(
+      "Around the beads (report.html); the whole images are in `overlays/`. Green: a bead and its "
+      "id; yellow: a blob without an id; red: a rejected blob and the reason; cyan: the epipolar "
+      "lines of the other cameras' beads.");
   doc.Figures({"overlay-"});
   std::vector<std::string> items;
   for (size_t i = 0; i < r.images.size(); ++i) items.push_back("`" + TrackOverlayName(r, i) + "`");
@@ -370,7 +438,8 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
   return doc;
 }
 
-std::vector<ReportPlot> TrackOverlayPlots(const TrackResult& r, const std::vector<cv::Mat>& overlays) {
+std::vector<ReportPlot> TrackOverlayPlots(const TrackResult& r,
+                                          const std::vector<cv::Mat>& overlays) {
   std::vector<ReportPlot> plots;
   for (size_t i = 0; i < r.images.size() && i < overlays.size(); ++i) {
     const TrackImage& im = r.images[i];
@@ -391,19 +460,27 @@ std::vector<ReportPlot> TrackOverlayPlots(const TrackResult& r, const std::vecto
     if (!cv::imencode(".png", overlays[i](box), png)) continue;
     ReportPlot p;
     p.id = "overlay-" + std::to_string(i);
-    p.title = "frame " + std::to_string(r.frames[im.frame].number) + ", " + r.cameras[im.camera].name;
-    p.caption = "Pixels " + std::to_string(box.x) + ".." + std::to_string(box.x + box.width) + " x " +
-                std::to_string(box.y) + ".." + std::to_string(box.y + box.height) + " of " + TrackOverlayName(r, i) + ".";
+    p.title =
+        "frame " + std::to_string(r.frames[im.frame].number) + ", " + r.cameras[im.camera].name;
+    p.caption = "Pixels " + std::to_string(box.x) + ".." + std::to_string(box.x + box.width) +
+                " x " + std::to_string(box.y) + ".." + std::to_string(box.y + box.height) + " of " +
+                TrackOverlayName(r, i) + ".";
     p.png_base64 = Base64(png);
     plots.push_back(std::move(p));
   }
   return plots;
 }
 
-Status WriteTrackOutputs(const TrackResult& r, const TrackTargets& targets, const std::string& dir) {
+Status WriteTrackOutputs(const TrackResult& r,
+                         const TrackTargets& targets,
+                         const std::string& dir) {
   if (Status s = WriteFileAtomic(JoinPath(dir, "points.csv"), TrackPointsCsv(r)); !s.ok()) return s;
-  if (Status s = WriteFileAtomic(JoinPath(dir, "observations.csv"), TrackObservationsCsv(r)); !s.ok()) return s;
-  if (Status s = WriteFileAtomic(JoinPath(dir, "rigid_bodies.json"), TrackBodiesJson(r).dump(2) + "\n"); !s.ok()) {
+  if (Status s = WriteFileAtomic(JoinPath(dir, "observations.csv"), TrackObservationsCsv(r));
+      !s.ok())
+    return s;
+  if (Status s =
+          WriteFileAtomic(JoinPath(dir, "rigid_bodies.json"), TrackBodiesJson(r).dump(2) + "\n");
+      !s.ok()) {
     return s;
   }
   if (Status s = MakeDirs(JoinPath(dir, "overlays")); !s.ok()) return s;
@@ -411,11 +488,13 @@ Status WriteTrackOutputs(const TrackResult& r, const TrackTargets& targets, cons
   for (size_t i = 0; i < r.images.size(); ++i) {
     overlays.push_back(DrawTrackOverlay(r, i));
     const std::string path = JoinPath(dir, TrackOverlayName(r, i));
-    if (overlays.back().empty() || !cv::imwrite(path, overlays.back())) return Status::Error(path + ": cannot be written");
+    if (overlays.back().empty() || !cv::imwrite(path, overlays.back()))
+      return Status::Error(path + ": cannot be written");
   }
   const ReportDoc doc = TrackReportDoc(r, targets);
   if (Status s = WriteFileAtomic(JoinPath(dir, "report.md"), doc.Markdown()); !s.ok()) return s;
-  return WriteFileAtomic(JoinPath(dir, "report.html"), doc.Html("carmba track", TrackOverlayPlots(r, overlays), ""));
+  return WriteFileAtomic(JoinPath(dir, "report.html"),
+                         doc.Html("carmba track", TrackOverlayPlots(r, overlays), ""));
 }
 
 }  // namespace carmba

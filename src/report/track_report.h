@@ -34,7 +34,8 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& targets);
 cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i);
 std::string TrackOverlayName(const TrackResult& r, size_t i);
 // The overlays cropped to the beads, for report.html (PNG, base64).
-std::vector<ReportPlot> TrackOverlayPlots(const TrackResult& r, const std::vector<cv::Mat>& overlays);
+std::vector<ReportPlot> TrackOverlayPlots(const TrackResult& r,
+                                          const std::vector<cv::Mat>& overlays);
 
 // Writes every output into `dir` (a staging directory: the caller commits it).
 Status WriteTrackOutputs(const TrackResult& r, const TrackTargets& targets, const std::string& dir);

@@ -45,7 +45,8 @@ namespace {
 
 std::string WhatWasDone(const ba::VarianceComponent& c, ba::CovarianceScale scale) {
   if (c.applied) return "sigmas x " + Fmt("%.3f", c.SigmaScale());
-  if (!c.estimable) return "stated (redundancy < " + Fmt("%g", ba::kMinVarianceComponentRedundancy) + ")";
+  if (!c.estimable)
+    return "stated (redundancy < " + Fmt("%g", ba::kMinVarianceComponentRedundancy) + ")";
   return scale == ba::CovarianceScale::kGlobal ? "global sigma0^2" : "stated (apriori)";
 }
 
@@ -84,12 +85,15 @@ ReportDoc VarianceComponentsDoc(const ba::BaResult& result) {
       "sigmas are twice the stated ones (Förstner's variance-component estimate). " + how);
   std::vector<std::vector<std::string>> rows;
   for (const ba::VarianceComponent& c : result.variance_components) {
-    rows.push_back({ba::NoiseGroupName(c.group), std::to_string(c.num_rows),
-                    Fmt("%.1f", c.redundancy), Fmt("%.1f", c.chi2_stated),
-                    c.redundancy > 0.5 ? Fmt("%.3g", c.factor) + " +- " + Fmt("%.2g", c.factor_sigma)
-                                       : "-",
-                    Fmt("%.2g", c.p_value), c.outside_band ? "**outside**" : "inside",
-                    WhatWasDone(c, scale)});
+    rows.push_back(
+        {ba::NoiseGroupName(c.group),
+         std::to_string(c.num_rows),
+         Fmt("%.1f", c.redundancy),
+         Fmt("%.1f", c.chi2_stated),
+         c.redundancy > 0.5 ? Fmt("%.3g", c.factor) + " +- " + Fmt("%.2g", c.factor_sigma) : "-",
+         Fmt("%.2g", c.p_value),
+         c.outside_band ? "**outside**" : "inside",
+         WhatWasDone(c, scale)});
   }
   d.Table({"group", "rows", "redundancy", "chi-square (stated)", "factor", "P", "band 0.5-99.5 %",
            "covariance"},

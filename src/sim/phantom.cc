@@ -20,7 +20,8 @@ std::map<std::string, double> DefaultMaterials() {
 }
 
 namespace {
-StatusOr<double> MaterialMu(const std::map<std::string, double>& materials, const std::string& name) {
+StatusOr<double> MaterialMu(const std::map<std::string, double>& materials,
+                            const std::string& name) {
   auto it = materials.find(name);
   if (it == materials.end()) {
     std::string known;

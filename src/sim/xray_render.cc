@@ -255,7 +255,9 @@ void AddVeilingGlare(const cv::Mat& coverage, const RenderOptions& o, cv::Mat* i
 namespace {
 
 // A sphere in the camera frame with the pixel box its image can reach (px).
-CamSphere SphereInCamera(const Camera& camera, const PlacedPhantom& placed, const SpherePrimitive& s,
+CamSphere SphereInCamera(const Camera& camera,
+                         const PlacedPhantom& placed,
+                         const SpherePrimitive& s,
                          int box_base) {
   CamSphere cs;
   cs.c = placed.cam_from_phantom * s.center_mm;
@@ -293,7 +295,8 @@ Status SolidsInCameraFrame(const Camera& camera, const std::vector<PlacedPhantom
     }
     for (const auto& s : placed.phantom->spheres) {
       if (!((placed.cam_from_phantom * s.center_mm).z() > s.radius_mm)) {
-        return Status::Error("sphere " + std::to_string(s.id) + " is not entirely in front of the source");
+        return Status::Error("sphere " + std::to_string(s.id) +
+                             " is not entirely in front of the source");
       }
       spheres->push_back(SphereInCamera(camera, placed, s, box_base));
     }
@@ -304,9 +307,13 @@ Status SolidsInCameraFrame(const Camera& camera, const std::vector<PlacedPhantom
 // The line integral of mu along the unit ray d: every box's chord, the chord of each sphere of
 // the tile, less the part of its host box the sphere displaces. box_t0, box_t1, box_hit are
 // scratch (per box).
-double LineIntegral(const Eigen::Vector3d& d, const std::vector<CamBox>& boxes,
-                    const std::vector<CamSphere>& spheres, const std::vector<int>& tile_spheres,
-                    std::vector<double>* box_t0, std::vector<double>* box_t1, std::vector<char>* box_hit) {
+double LineIntegral(const Eigen::Vector3d& d,
+                    const std::vector<CamBox>& boxes,
+                    const std::vector<CamSphere>& spheres,
+                    const std::vector<int>& tile_spheres,
+                    std::vector<double>* box_t0,
+                    std::vector<double>* box_t1,
+                    std::vector<char>* box_hit) {
   double line_integral = 0.0;
   for (size_t b = 0; b < boxes.size(); ++b) {
     (*box_hit)[b] = BoxInterval(boxes[b], d, &(*box_t0)[b], &(*box_t1)[b]);
@@ -320,7 +327,8 @@ double LineIntegral(const Eigen::Vector3d& d, const std::vector<CamBox>& boxes,
     const double h = std::sqrt(disc);
     line_integral += sp.mu * 2.0 * h;
     if (sp.host >= 0 && (*box_hit)[sp.host]) {
-      const double overlap = std::min(b + h, (*box_t1)[sp.host]) - std::max(b - h, (*box_t0)[sp.host]);
+      const double overlap =
+          std::min(b + h, (*box_t1)[sp.host]) - std::max(b - h, (*box_t0)[sp.host]);
       if (overlap > 0) line_integral -= sp.mu_host * overlap;
     }
   }
@@ -388,7 +396,8 @@ void RenderExpected(const Camera& camera, const RenderOptions& options, const Ra
             const float* xy = grid.xy(u, v, s);
             Eigen::Vector3d d(xy[0], xy[1], 1.0);
             d.normalize();
-            sum += std::exp(-LineIntegral(d, boxes, spheres, tile_spheres, &box_t0, &box_t1, &box_hit));
+            sum += std::exp(
+                -LineIntegral(d, boxes, spheres, tile_spheres, &box_t0, &box_t1, &box_hit));
           }
           double value = options.outside_fov_gray * (SS - n_inside) / SS;
           if (n_inside > 0) value += pixel_gain(u, v, grid.radius2(u, v)) * sum / SS;

@@ -365,7 +365,9 @@ void ParseSceneObject(YamlMap& scene, const std::string& dir,
 }
 
 // Spheres and wires on the marker object that are not markers.
-void ParseSceneClutter(YamlMap& scene, const std::map<std::string, double>& materials, XrayScene* s) {
+void ParseSceneClutter(YamlMap& scene,
+                       const std::map<std::string, double>& materials,
+                       XrayScene* s) {
   const bool has_markers = scene.Has("markers");
   if (scene.Has("clutter")) {
     YamlMap& cl = scene.Map("clutter");
@@ -415,7 +417,6 @@ void ParseSceneClutter(YamlMap& scene, const std::map<std::string, double>& mate
       s->clutter.boxes.push_back(box);
     }
   }
-
 }
 
 // The views: C-arm angles and the object's placement in each.
@@ -546,8 +547,9 @@ Status CheckViewsInsideFov(const XrayScene& s) {
                              " is not in front of the X-ray source");
       }
       const double r = SphereImageRadius(camera, c, sp.radius_mm, {uv[0], uv[1]});
-      const std::string at = "sphere " + std::to_string(sp.id) + " projects to (" + Fmt("%.1f", uv[0]) +
-                             ", " + Fmt("%.1f", uv[1]) + ") px with radius " + Fmt("%.1f", r) + " px, ";
+      const std::string at = "sphere " + std::to_string(sp.id) + " projects to (" +
+                             Fmt("%.1f", uv[0]) + ", " + Fmt("%.1f", uv[1]) + ") px with radius " +
+                             Fmt("%.1f", r) + " px, ";
       if (!(uv[0] - r >= 0 && uv[0] + r <= W - 1 && uv[1] - r >= 0 && uv[1] + r <= H - 1)) {
         return Status::Error(where + ": " + at + "outside the " + std::to_string(s.camera.width) +
                              "x" + std::to_string(s.camera.height) +
@@ -557,8 +559,8 @@ Status CheckViewsInsideFov(const XrayScene& s) {
       const double usable = fr - s.render.fov_edge_px - 1.0;
       if (s.render.circular_fov && !(std::hypot(uv[0] - fu, uv[1] - fv) + r <= usable)) {
         return Status::Error(where + ": " + at + "outside the circular field of view (centre (" +
-                             Fmt("%.1f", fu) + ", " + Fmt("%.1f", fv) + "), radius " + Fmt("%.1f", fr) + " px, edge " +
-                             Fmt("%.1f", s.render.fov_edge_px) +
+                             Fmt("%.1f", fu) + ", " + Fmt("%.1f", fv) + "), radius " +
+                             Fmt("%.1f", fr) + " px, edge " + Fmt("%.1f", s.render.fov_edge_px) +
                              " px; the pattern is larger than the field of view?)");
       }
     }

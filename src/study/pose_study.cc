@@ -378,8 +378,9 @@ bool IsFlex(const StudyProblem& p) {
 StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
   for (const auto& kv : run.sweep) {
     if (kv.first != "flex_scale" && kv.first != "pixel_noise_px") {
-      return Status::Error("sweep variable '" + kv.first +
-                           "' is not understood by flex problems (known: flex_scale, pixel_noise_px)");
+      return Status::Error(
+          "sweep variable '" + kv.first +
+          "' is not understood by flex problems (known: flex_scale, pixel_noise_px)");
     }
   }
   const StudyProblem& sp = *run.problem;
@@ -411,7 +412,8 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
   const CarmFlex t = CarmFlex::Typical();
   spec.flex = {scale * t.cx_primary_px, scale * t.cx_secondary_px, scale * t.cy_primary_px,
                scale * t.cy_secondary_px, scale * t.f_primary, scale * t.f_secondary};
-  auto config = state->configs.Get(run.config->file, [&] { return LoadSolverConfig(run.config->file); });
+  auto config =
+      state->configs.Get(run.config->file, [&] { return LoadSolverConfig(run.config->file); });
   if (!config->ok()) return config->status();
   ba::BaOptions options = config->value().ToBaOptions();
   options.num_threads = 1;
@@ -469,19 +471,26 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
   values["intrinsics_within_3_sigma"] = within / std::max(1, n_comp);
   values["sigma0"] = JsonNumber(r->sigma0);
   errors["between_cx_px"] = std::abs(signed_errors.value("between_cx_px", 0.0));
-  errors["between_translation_mm"] =
-      std::hypot(signed_errors.value("between_pose_tx_mm", 0.0), signed_errors.value("between_pose_ty_mm", 0.0),
-                 signed_errors.value("between_pose_tz_mm", 0.0));
+  errors["between_translation_mm"] = std::hypot(signed_errors.value("between_pose_tx_mm", 0.0),
+                                                signed_errors.value("between_pose_ty_mm", 0.0),
+                                                signed_errors.value("between_pose_tz_mm", 0.0));
   if (select > 0) {
-    auto sel = analysis::SelectIntrinsicsModel(
-        sf.problem, ba::SmoothBasis(), options,
-        {analysis::IntrinsicsModel::kShared, analysis::IntrinsicsModel::kPerGroup, analysis::IntrinsicsModel::kSmooth});
+    auto sel = analysis::SelectIntrinsicsModel(sf.problem,
+                                               ba::SmoothBasis(),
+                                               options,
+                                               {analysis::IntrinsicsModel::kShared,
+                                                analysis::IntrinsicsModel::kPerGroup,
+                                                analysis::IntrinsicsModel::kSmooth});
     if (!sel.ok()) return sel.status();
-    for (auto mm : {analysis::IntrinsicsModel::kShared, analysis::IntrinsicsModel::kPerGroup, analysis::IntrinsicsModel::kSmooth}) {
-      values[std::string("recommended_") + analysis::IntrinsicsModelName(mm)] = sel->recommended == mm ? 1 : 0;
+    for (auto mm : {analysis::IntrinsicsModel::kShared,
+                    analysis::IntrinsicsModel::kPerGroup,
+                    analysis::IntrinsicsModel::kSmooth}) {
+      values[std::string("recommended_") + analysis::IntrinsicsModelName(mm)] =
+          sel->recommended == mm ? 1 : 0;
     }
     for (const auto& sc : sel->scores) {
-      values[std::string("held_out_d2_") + analysis::IntrinsicsModelName(sc.model)] = JsonNumber(sc.held_out_d2_mean);
+      values[std::string("held_out_d2_") + analysis::IntrinsicsModelName(sc.model)] =
+          JsonNumber(sc.held_out_d2_mean);
     }
   }
   return RunRecordJson(r->converged, r->termination, errors, signed_errors, sigmas, values);
@@ -499,9 +508,9 @@ std::string BudgetKey(ba::Source s) {
   return "?";
 }
 
-// A synthetic joint problem (synthetic/synthetic_joint.h): calibration and pose in one bundle adjustment with
-// the config's held intrinsics; accuracy of intrinsics and object poses against the truth and
-// the error budget.
+// A synthetic joint problem (synthetic/synthetic_joint.h): calibration and pose in one bundle
+// adjustment with the config's held intrinsics; accuracy of intrinsics and object poses against the
+// truth and the error budget.
 StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   static const std::set<std::string> kSweeps = {"num_plate_views", "plate_noise_px",
                                                 "pixel_noise_px", "ct_noise_mm"};
@@ -558,7 +567,8 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   static const char* const kIntr[4] = {"fx_px", "fy_px", "cx_px", "cy_px"};
   for (int i = 0; i < 4; ++i) {
     signed_errors[kIntr[i]] = x[i] - sj.true_intrinsics[i];
-    const ba::BudgetRow* row = ba::FindBudgetRow(budget, {ba::QuantityKind::kIntrinsic, 0, -1, -1, i});
+    const ba::BudgetRow* row =
+        ba::FindBudgetRow(budget, {ba::QuantityKind::kIntrinsic, 0, -1, -1, i});
     if (row) sigmas[kIntr[i]] = row->sigma;
   }
   errors["focal_px"] = Rms({x[kFx] - sj.true_intrinsics[kFx], x[kFy] - sj.true_intrinsics[kFy]});
@@ -573,7 +583,8 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
     const Eigen::Matrix3d R_est = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
     const Eigen::Matrix3d R_true = RotationFromRvec(sj.true_poses[v].head<3>());
     const Eigen::Vector3d d = RvecFromRotation(R_est * R_true.transpose()) * kRadToDeg;
-    const Eigen::Vector3d dt = Eigen::Vector3d(pose[3], pose[4], pose[5]) - sj.true_poses[v].tail<3>();
+    const Eigen::Vector3d dt =
+        Eigen::Vector3d(pose[3], pose[4], pose[5]) - sj.true_poses[v].tail<3>();
     rot.push_back(d.norm());
     trans.push_back(dt.norm());
     if (!first) continue;
@@ -584,8 +595,10 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
     for (int a = 0; a < 3; ++a) {
       signed_errors[kRot[a]] = d[a];
       signed_errors[kTrans[a]] = dt[a];
-      const ba::BudgetRow* br = ba::FindBudgetRow(budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a));
-      const ba::BudgetRow* bt = ba::FindBudgetRow(budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a));
+      const ba::BudgetRow* br =
+          ba::FindBudgetRow(budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a));
+      const ba::BudgetRow* bt =
+          ba::FindBudgetRow(budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a));
       sigmas[kRot[a]] = br->sigma;
       sigmas[kTrans[a]] = bt->sigma;
       for (int s = 0; s < ba::kNumSources; ++s) {
@@ -595,8 +608,10 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
     }
     for (int s = 0; s < ba::kNumSources; ++s) {
       if (rot_var[s] <= 0 && trans_var[s] <= 0) continue;
-      budget_json["v0_rotation_deg." + BudgetKey(static_cast<ba::Source>(s))] = std::sqrt(rot_var[s]);
-      budget_json["v0_translation_mm." + BudgetKey(static_cast<ba::Source>(s))] = std::sqrt(trans_var[s]);
+      budget_json["v0_rotation_deg." + BudgetKey(static_cast<ba::Source>(s))] =
+          std::sqrt(rot_var[s]);
+      budget_json["v0_translation_mm." + BudgetKey(static_cast<ba::Source>(s))] =
+          std::sqrt(trans_var[s]);
     }
   }
   errors["rotation_deg"] = Rms(rot);
@@ -608,16 +623,19 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
     const double est = RelativeRotationAngle(pa, pb) * kRadToDeg;
     const double truth =
         RelativeRotationAngle(sj.true_poses[a].data(), sj.true_poses[b].data()) * kRadToDeg;
-    const std::string name = "pair_" + sj.problem.views[a].id + "_" + sj.problem.views[b].id + "_deg";
+    const std::string name =
+        "pair_" + sj.problem.views[a].id + "_" + sj.problem.views[b].id + "_deg";
     signed_errors[name] = est - truth;
     sigmas[name] = ba::FindBudgetRow(budget, ba::QuantityKey::PairRelativeRotation(a, b))->sigma;
     validation.push_back(est - truth);
   }
   errors["validation_deg"] = Rms(validation);
-  const ba::BudgetRow* fx = ba::FindBudgetRow(budget, {ba::QuantityKind::kIntrinsic, 0, -1, -1, kFx});
+  const ba::BudgetRow* fx =
+      ba::FindBudgetRow(budget, {ba::QuantityKind::kIntrinsic, 0, -1, -1, kFx});
   if (fx) {
     for (int s = 0; s < ba::kNumSources; ++s) {
-      if (fx->source_sigma[s] > 0) budget_json["fx_px." + BudgetKey(static_cast<ba::Source>(s))] = fx->source_sigma[s];
+      if (fx->source_sigma[s] > 0)
+        budget_json["fx_px." + BudgetKey(static_cast<ba::Source>(s))] = fx->source_sigma[s];
     }
   }
   values["rms_plate_px"] = JsonNumber(r->rms_plate_px);
@@ -699,7 +717,8 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   double worst = 0;
   for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
   values["projection_sigma_worst_px"] = JsonNumber(worst);
-  return RunRecordJson(result->converged, result->termination, errors, signed_errors, sigmas, values);
+  return RunRecordJson(
+      result->converged, result->termination, errors, signed_errors, sigmas, values);
 }
 
 // The predicted error budget of the first view from the engine (ba/quantities.h): the shares of

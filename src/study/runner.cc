@@ -95,8 +95,10 @@ std::vector<FailureReason> CountFailureReasons(const std::vector<RunRecord>& sor
       ++it->count;
     }
   }
-  std::stable_sort(reasons.begin(), reasons.end(),
-                   [](const FailureReason& a, const FailureReason& b) { return a.count > b.count; });
+  std::stable_sort(
+      reasons.begin(), reasons.end(), [](const FailureReason& a, const FailureReason& b) {
+        return a.count > b.count;
+      });
   return reasons;
 }
 

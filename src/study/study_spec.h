@@ -23,8 +23,9 @@
 //
 // A problem has a `file` or a `synthetic` mapping (exactly one) and an optional `options`
 // mapping; a config has a `file` and an optional `options` mapping. The run function interprets
-// `synthetic` and `options` (and rejects what it does not understand, as a run error). Files are NOT read here: a missing or malformed problem or config
-// file is an error of the runs that use it (recorded, the study goes on), not of the study.
+// `synthetic` and `options` (and rejects what it does not understand, as a run error). Files are
+// NOT read here: a missing or malformed problem or config file is an error of the runs that use it
+// (recorded, the study goes on), not of the study.
 //
 // Runs are enumerated problem-major: for each problem, each config, each sweep point, each trial.
 // A run's key is a stable string, e.g.

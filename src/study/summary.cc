@@ -426,9 +426,9 @@ void AddTimingSection(const nlohmann::json& info,
     total += g.time_total_s;
     cpu += g.cpu_total_s;
   }
-  std::vector<std::string> items = {
-      "runs from: shard " + info.value("shard", std::string("1/1")),
-      "sum of the runs' own times: " + FormatNumber(total) + " s (CPU " + FormatNumber(cpu) + " s)"};
+  std::vector<std::string> items = {"runs from: shard " + info.value("shard", std::string("1/1")),
+                                    "sum of the runs' own times: " + FormatNumber(total) +
+                                        " s (CPU " + FormatNumber(cpu) + " s)"};
   if (wall_s > 0 && jobs > 0) {
     items.push_back("wall time of this invocation: " + FormatNumber(wall_s) + " s with " +
                     std::to_string(jobs) + " jobs");

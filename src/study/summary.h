@@ -2,12 +2,13 @@
 // DIR/summary.md and DIR/timing.csv.
 //
 // Reproducibility contract: summary.csv and summary.md depend only on the set of run records
-// (sorted by enumeration index, aggregated in that order, numbers printed with %.6g), so they are byte-identical for any --jobs, for a resumed study and for merged
-// shards, provided the run function returns the same numbers for the same run. (The pose solver
-// does up to the last bits: Ceres was observed to vary by ~1e-15 relative between identical
-// calls; %.6g hides that except when a number falls exactly on a rounding boundary, a chance of
-// about 1e-9 per printed number.) Wall-clock times vary from run to run; they are kept out of
-// both (they go to timing.csv and to the last section of report.html, "Timing").
+// (sorted by enumeration index, aggregated in that order, numbers printed with %.6g), so they are
+// byte-identical for any --jobs, for a resumed study and for merged shards, provided the run
+// function returns the same numbers for the same run. (The pose solver does up to the last bits:
+// Ceres was observed to vary by ~1e-15 relative between identical calls; %.6g hides that except
+// when a number falls exactly on a rounding boundary, a chance of about 1e-9 per printed number.)
+// Wall-clock times vary from run to run; they are kept out of both (they go to timing.csv and to
+// the last section of report.html, "Timing").
 //
 // summary.csv is long-format, one row per group and metric:
 //   problem,config,<one column per swept variable>,runs,failed,kind,metric,n,mean,median,rms,

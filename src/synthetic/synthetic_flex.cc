@@ -47,7 +47,8 @@ SyntheticFlex MakeSyntheticFlex(const SyntheticFlexSpec& spec, uint64_t seed) {
       ang = spec.object_orientations_deg[object_k++];
       between = true;
       for (const auto& o : spec.plate_orientations_deg) {
-        if (std::abs(o.first - ang.first) < 1e-9 && std::abs(o.second - ang.second) < 1e-9) between = false;
+        if (std::abs(o.first - ang.first) < 1e-9 && std::abs(o.second - ang.second) < 1e-9)
+          between = false;
       }
       char id[48];
       std::snprintf(id, sizeof id, "o%+05.1f%+05.1f", ang.first, ang.second);

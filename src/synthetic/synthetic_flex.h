@@ -1,10 +1,11 @@
 // A synthetic joint problem on a FLEXING C-arm (issue 14), for the engine's tests, Monte Carlo
-// checks and the flex study: the geometry of synthetic/synthetic_joint.h (5x5 plate at ~700 mm with tilts up
-// to 30 deg, the thesis's 9-marker object), but every view has C-arm angles and its own true
-// intrinsics from a CarmFlex (camera/carm_flex.h). Plate views are taken at a few calibrated
+// checks and the flex study: the geometry of synthetic/synthetic_joint.h (5x5 plate at ~700 mm with
+// tilts up to 30 deg, the thesis's 9-marker object), but every view has C-arm angles and its own
+// true intrinsics from a CarmFlex (camera/carm_flex.h). Plate views are taken at a few calibrated
 // orientations, `plate_views_per_orientation` each; object views at and between them. The problem
 // comes with ONE shared group whose initial intrinsics are the truth at (0, 0); apply an
-// intrinsics model (analysis/flex_models.h) before solving. Deterministic for (geometry_seed, seed).
+// intrinsics model (analysis/flex_models.h) before solving. Deterministic for (geometry_seed,
+// seed).
 #pragma once
 
 #include <array>

@@ -86,7 +86,8 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
     const Eigen::Matrix3d R = RotationFromRvec(axis * tilt + Eigen::Vector3d(0, 0, 0.3 * uni(geo)));
     const double d = spec.plate_distance_mm * (1.0 + 0.1 * uni(geo));
     const Eigen::Vector3d centre_in_plate(w / 2, h / 2, 0);
-    const double mx = std::max(0.0, half_fov_x * d - 0.75 * w), my = std::max(0.0, half_fov_y * d - 0.75 * h);
+    const double mx = std::max(0.0, half_fov_x * d - 0.75 * w),
+                 my = std::max(0.0, half_fov_y * d - 0.75 * h);
     const Eigen::Vector2d offset = RandomVector<2>(uni, geo);
     const Eigen::Vector3d centre_in_cam(0.5 * mx * offset[0], 0.5 * my * offset[1], d);
     Pose6 pose;
@@ -128,7 +129,8 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
   const Eigen::Matrix3d R0 = RotationFromRvec(Eigen::Vector3d(0.3, -0.4, 0.2));
   std::vector<int> object_view_index;
   for (double a : spec.object_angles_deg) {
-    const Eigen::Matrix3d Rv = RotationFromRvec(Eigen::Vector3d(0, 1, 0) * a * kDegToRad).transpose() * R0;
+    const Eigen::Matrix3d Rv =
+        RotationFromRvec(Eigen::Vector3d(0, 1, 0) * a * kDegToRad).transpose() * R0;
     Pose6 pose;
     pose.head<3>() = RvecFromRotation(Rv);
     pose.tail<3>() = Eigen::Vector3d(0, 0, spec.object_distance_mm) - Rv * centroid;
@@ -148,7 +150,8 @@ SyntheticJoint MakeSyntheticJoint(const SyntheticJointSpec& spec,
         R << std::cos(phi), -std::sin(phi), std::sin(phi), std::cos(phi);
         const Eigen::Matrix2d C =
             spec.sigma_object_px * spec.sigma_object_px * R *
-            Eigen::Vector2d(spec.object_px_anisotropy, 1.0 / spec.object_px_anisotropy).asDiagonal() *
+            Eigen::Vector2d(spec.object_px_anisotropy, 1.0 / spec.object_px_anisotropy)
+                .asDiagonal() *
             R.transpose();
         view.obs_covariance_px2.push_back(0.5 * (C + C.transpose()));
         if (noise.object_px) q += C.llt().matrixL() * RandomVector<2>(gauss, rng);

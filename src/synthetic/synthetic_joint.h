@@ -7,9 +7,9 @@
 // object pixel noise, CT localisation noise, plate manufacturing noise (the true plate differs
 // from the nominal grid; only meaningful with plate.free), intrinsics prior noise (the prior's
 // mean differs from the truth by a draw from its covariance), considered calibration noise (the
-// held intrinsics differ from the truth by a draw from their covariance). Initial values are the truth: the
-// Monte Carlo measures the estimator, not the initialiser. Deterministic for a seed: the geometry
-// comes from `spec.geometry_seed`, the noise from `seed`.
+// held intrinsics differ from the truth by a draw from their covariance). Initial values are the
+// truth: the Monte Carlo measures the estimator, not the initialiser. Deterministic for a seed: the
+// geometry comes from `spec.geometry_seed`, the noise from `seed`.
 #pragma once
 
 #include <array>

@@ -36,7 +36,8 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
          Eigen::AngleAxisd(spin, Eigen::Vector3d::UnitZ()))
             .toRotationMatrix();
     const double z = o.distance_min_mm + (o.distance_max_mm - o.distance_min_mm) * U(rng);
-    const double half_fov_x = 0.5 * width / intr[kFx] * z, half_fov_y = 0.5 * height / intr[kFy] * z;
+    const double half_fov_x = 0.5 * width / intr[kFx] * z,
+                 half_fov_y = 0.5 * height / intr[kFy] * z;
     const double offset_y = 2 * U(rng) - 1;  // y before x (geometry/random_vector.h)
     const double offset_x = 2 * U(rng) - 1;
     const Eigen::Vector3d c_cam(offset_x * o.max_offset_fraction * half_fov_x,

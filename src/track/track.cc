@@ -50,8 +50,13 @@ Eigen::Vector3d CommonFieldCentre(const std::vector<TrackCamera>& cameras) {
 bool Project(const TrackCamera& cam, const Eigen::Vector3d& p_lab, Eigen::Vector2d* uv,
              Eigen::Matrix<double, 2, 3>* J_lab = nullptr) {
   Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J;
-  if (!ProjectPointWithJac(cam.intrinsics.data(), cam.cam_from_lab.data(), p_lab.data(), uv->data(), nullptr,
-                           nullptr, J_lab ? J.data() : nullptr)) {
+  if (!ProjectPointWithJac(cam.intrinsics.data(),
+                           cam.cam_from_lab.data(),
+                           p_lab.data(),
+                           uv->data(),
+                           nullptr,
+                           nullptr,
+                           J_lab ? J.data() : nullptr)) {
     return false;
   }
   if (J_lab) *J_lab = J;
@@ -59,7 +64,10 @@ bool Project(const TrackCamera& cam, const Eigen::Vector3d& p_lab, Eigen::Vector
 }
 
 // The ray of pixel uv in the lab frame: origin (the source) and unit direction.
-bool Ray(const TrackCamera& cam, const Eigen::Vector2d& uv, Eigen::Vector3d* origin, Eigen::Vector3d* dir) {
+bool Ray(const TrackCamera& cam,
+         const Eigen::Vector2d& uv,
+         Eigen::Vector3d* origin,
+         Eigen::Vector3d* dir) {
   double xy[2];
   if (!UnprojectToNormalized(cam.intrinsics.data(), uv.data(), xy)) return false;
   const Eigen::Matrix3d R = RotationOf(cam.cam_from_lab.data());
@@ -72,8 +80,11 @@ bool Ray(const TrackCamera& cam, const Eigen::Vector2d& uv, Eigen::Vector3d* ori
 double Distance(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).norm(); }
 
 // Bron-Kerbosch with pivoting: the largest clique of `adj` (sets of neighbours) among `nodes`.
-void LargestClique(const std::vector<std::vector<char>>& adj, std::vector<int> R, std::vector<int> P,
-                   std::vector<int> X, std::vector<int>* best) {
+void LargestClique(const std::vector<std::vector<char>>& adj,
+                   std::vector<int> R,
+                   std::vector<int> P,
+                   std::vector<int> X,
+                   std::vector<int>* best) {
   if (P.empty() && X.empty()) {
     if (R.size() > best->size()) *best = R;
     return;
@@ -119,7 +130,8 @@ std::vector<Correspondence> RigidCorrespondences(const std::vector<TrackCandidat
                                                  const TrackOptions& o) {
   std::vector<std::pair<int, int>> nodes;
   for (size_t i = 0; i < ref.size(); ++i)
-    for (size_t k = 0; k < cur.size(); ++k) nodes.emplace_back(static_cast<int>(i), static_cast<int>(k));
+    for (size_t k = 0; k < cur.size(); ++k)
+      nodes.emplace_back(static_cast<int>(i), static_cast<int>(k));
   const size_t n = nodes.size();
   std::vector<std::vector<char>> adj(n, std::vector<char>(n, 0));
   for (size_t x = 0; x < n; ++x) {
@@ -152,7 +164,8 @@ std::vector<Correspondence> RigidCorrespondences(const std::vector<TrackCandidat
     for (size_t x = 0; x < n; ++x) {
       for (const auto& [i, k] : c) {
         const auto [j, l] = nodes[x];
-        if (j == i || l == k || ShareBlob(ref[i], ref[j]) || ShareBlob(cur[k], cur[l])) alive[x] = 0;
+        if (j == i || l == k || ShareBlob(ref[i], ref[j]) || ShareBlob(cur[k], cur[l]))
+          alive[x] = 0;
       }
     }
   }
@@ -167,7 +180,9 @@ Pose6 RigidFit(const std::vector<Eigen::Vector3d>& ref, const std::vector<Eigen:
   return PoseOf(T.topLeftCorner<3, 3>(), T.topRightCorner<3, 1>());
 }
 
-std::string FrameLabel(const TrackResult& r, size_t f) { return "frame " + std::to_string(r.frames[f].number); }
+std::string FrameLabel(const TrackResult& r, size_t f) {
+  return "frame " + std::to_string(r.frames[f].number);
+}
 
 }  // namespace
 
@@ -187,10 +202,12 @@ void SplitMergedPairs(const cv::Mat& image, const MarkerBlobOptions& blobs, Trac
       continue;
     }
     bool done = false;  // both pieces of one pair are listed: fit it once
-    for (const MarkerBlob& b : det.blobs) done |= std::hypot(b.uv_px.x - rb.uv_px.x, b.uv_px.y - rb.uv_px.y) < 0.8 * d_nom;
+    for (const MarkerBlob& b : det.blobs)
+      done |= std::hypot(b.uv_px.x - rb.uv_px.x, b.uv_px.y - rb.uv_px.y) < 0.8 * d_nom;
     if (done) continue;
     std::string why;
-    const auto pair = FitBlobPair(grey, rb.uv_px, d_nom, blobs.min_contrast, det.correlation_factor, &why);
+    const auto pair =
+        FitBlobPair(grey, rb.uv_px, d_nom, blobs.min_contrast, det.correlation_factor, &why);
     if (!pair) {
       RejectedBlob r = rb;
       r.why = "merged (" + why + ")";
@@ -204,13 +221,15 @@ void SplitMergedPairs(const cv::Mat& image, const MarkerBlobOptions& blobs, Trac
 }
 
 bool TrackOptions::Check(std::string* error) const {
-  if (!CheckRange("marker_diameter_mm", marker_diameter_mm, plausible::kMarkerDiameterMm, error)) return false;
+  if (!CheckRange("marker_diameter_mm", marker_diameter_mm, plausible::kMarkerDiameterMm, error))
+    return false;
   if (!(diameter_tolerance > 0 && diameter_tolerance < 1)) {
     *error = "diameter_tolerance: expected 0 .. 1 (a fraction of the diameter)";
     return false;
   }
   if (!CheckRange("epipolar_px", epipolar_px, plausible::kPixelSigmaPx, error)) return false;
-  if (!CheckRange("rigid_tolerance_mm", rigid_tolerance_mm, plausible::kToleranceMm, error)) return false;
+  if (!CheckRange("rigid_tolerance_mm", rigid_tolerance_mm, plausible::kToleranceMm, error))
+    return false;
   if (min_body_beads < 3) {
     *error = "min_body_beads: expected >= 3 (a rigid pose needs three beads)";
     return false;
@@ -226,7 +245,8 @@ StatusOr<HeldPoint> TriangulateHeld(const std::vector<TrackCamera>& cameras,
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
   for (const auto& o : obs) {
     Eigen::Vector3d c, d;
-    if (!Ray(cameras[o.camera], o.uv_px, &c, &d)) return Status::Error("a pixel cannot be undistorted");
+    if (!Ray(cameras[o.camera], o.uv_px, &c, &d))
+      return Status::Error("a pixel cannot be undistorted");
     const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - d * d.transpose();
     A += P;
     b += P * c;
@@ -276,7 +296,8 @@ std::vector<TrackCandidate> MatchFrame(const std::vector<TrackCamera>& cameras,
     double worst = 0;
     for (const auto& ob : c.observations) {
       Eigen::Vector2d uv;
-      if (!Project(cameras[ob.camera], c.point.p_lab, &uv)) return std::numeric_limits<double>::infinity();
+      if (!Project(cameras[ob.camera], c.point.p_lab, &uv))
+        return std::numeric_limits<double>::infinity();
       worst = std::max(worst, (uv - ob.uv_px).norm());
     }
     return worst;
@@ -353,7 +374,8 @@ void Reassociate(const TrackOptions& o, size_t f, TrackResult* r) {
         }
       }
     }
-    std::sort(choices.begin(), choices.end(), [](const Choice& a, const Choice& b) { return a.d < b.d; });
+    std::sort(
+        choices.begin(), choices.end(), [](const Choice& a, const Choice& b) { return a.d < b.d; });
     std::vector<char> bead_done(r->beads.size(), 0);
     std::vector<int> taken;
     for (TrackBead& bead : r->beads) bead.candidate[f] = -1;
@@ -390,7 +412,8 @@ void FindBodies(const TrackOptions& o, TrackResult* r) {
     std::vector<int> body;
     for (size_t i = 0; i < ref.size(); ++i) {
       bool shared = false;
-      for (size_t j = 0; j < ref.size() && !shared; ++j) shared = j != i && ShareBlob(ref[i], ref[j]);
+      for (size_t j = 0; j < ref.size() && !shared; ++j)
+        shared = j != i && ShareBlob(ref[i], ref[j]);
       if (!shared) body.push_back(static_cast<int>(i));
     }
     if (static_cast<int>(body.size()) >= o.min_body_beads) members.push_back(body);
@@ -488,7 +511,8 @@ void AddSingleCameraBeads(const TrackOptions& o, TrackResult* r) {
     std::set<std::pair<int, int>> used;
     for (const TrackBead& bead : r->beads) {
       if (bead.candidate[f] < 0) continue;
-      for (const TrackObservation& ob : r->candidates[f][bead.candidate[f]].observations) used.insert({ob.camera, ob.blob});
+      for (const TrackObservation& ob : r->candidates[f][bead.candidate[f]].observations)
+        used.insert({ob.camera, ob.blob});
     }
     for (const TrackBody& body : r->bodies) {
       if (!body.found[f]) continue;
@@ -496,7 +520,8 @@ void AddSingleCameraBeads(const TrackOptions& o, TrackResult* r) {
       for (int bi : body.beads) {
         TrackBead& bead = r->beads[bi];
         if (bead.candidate[f] >= 0) continue;
-        const Eigen::Vector3d predicted = R * ref[bead.candidate[0]].point.p_lab + body.lab_from_body[f].tail<3>();
+        const Eigen::Vector3d predicted =
+            R * ref[bead.candidate[0]].point.p_lab + body.lab_from_body[f].tail<3>();
         // The nearest unused blob to the prediction in each camera; only a bead that exactly one
         // camera sees this way is added (two would have been an epipolar candidate).
         std::vector<TrackObservation> found;
@@ -518,8 +543,8 @@ void AddSingleCameraBeads(const TrackOptions& o, TrackResult* r) {
           t.camera = im.camera;
           t.blob = best;
           t.uv_px = Eigen::Vector2d(b.uv_px.x, b.uv_px.y);
-          t.covariance_px2 << b.covariance_px2(0, 0), b.covariance_px2(0, 1), b.covariance_px2(1, 0),
-              b.covariance_px2(1, 1);
+          t.covariance_px2 << b.covariance_px2(0, 0), b.covariance_px2(0, 1),
+              b.covariance_px2(1, 0), b.covariance_px2(1, 1);
           found.push_back(t);
         }
         if (found.size() != 1) continue;
@@ -598,15 +623,18 @@ Status SolveTrack(double marker_diameter_mm, TrackResult* r) {
   ba::BaOptions options;
   options.covariance_scale = ba::CovarianceScale::kPerGroup;
   auto solved = ba::SolveBundleAdjustment(problem, options);
-  if (!solved.ok()) return Status::Error("the bundle adjustment over the frames: " + solved.status().message());
+  if (!solved.ok())
+    return Status::Error("the bundle adjustment over the frames: " + solved.status().message());
   const ba::BaResult& res = *solved;
   const ba::StateLayout& L = *res.layout;
   r->ba_chi2 = res.chi2;
   r->ba_dof = res.dof;
   r->ba_sigma0 = res.sigma0;
   r->checks.rms_px = res.rms_object_px;
-  r->checks.pixel_sigma_scale = res.group_sigma_scale[static_cast<int>(ba::NoiseGroup::kDetectedBlobs)];
-  for (const std::string& w : ba::SolveWarnings(res)) r->warnings.push_back("bundle adjustment: " + w);
+  r->checks.pixel_sigma_scale =
+      res.group_sigma_scale[static_cast<int>(ba::NoiseGroup::kDetectedBlobs)];
+  for (const std::string& w : ba::SolveWarnings(res))
+    r->warnings.push_back("bundle adjustment: " + w);
   const size_t F = r->frames.size(), B = r->beads.size();
   r->bead_in_body.assign(B, Eigen::Vector3d::Zero());
   r->bead_covariance.assign(B, Eigen::Matrix3d::Zero());
@@ -634,7 +662,8 @@ Status SolveTrack(double marker_diameter_mm, TrackResult* r) {
         // x = R(r) p + t: Jacobian over [r, t, p].
         Eigen::Vector3d Rp;
         Eigen::Matrix<double, 3, 3, Eigen::RowMajor> J_r;
-        RotatePointWithJac(body.lab_from_body[f].data(), r->bead_in_body[bi].data(), Rp.data(), J_r.data());
+        RotatePointWithJac(
+            body.lab_from_body[f].data(), r->bead_in_body[bi].data(), Rp.data(), J_r.data());
         Eigen::Matrix<double, 3, 9> J;
         J << J_r, Eigen::Matrix3d::Identity(), R;
         r->bead_lab[f][bi] = Rp + body.lab_from_body[f].tail<3>();
@@ -720,7 +749,8 @@ void CheckTrack(TrackResult* r) {
           const HeldPoint& pb = r->candidates[f][b.candidate[f]].point;
           const Eigen::Vector3d u = (pa.p_lab - pb.p_lab).normalized();
           d.distance_mm[f] = (pa.p_lab - pb.p_lab).norm();
-          d.sigma_mm[f] = c.pixel_sigma_scale * std::sqrt(u.dot((pa.covariance + pb.covariance) * u));
+          d.sigma_mm[f] =
+              c.pixel_sigma_scale * std::sqrt(u.dot((pa.covariance + pb.covariance) * u));
           wsum += 1.0 / (d.sigma_mm[f] * d.sigma_mm[f]);
           wd += d.distance_mm[f] / (d.sigma_mm[f] * d.sigma_mm[f]);
           lo = std::min(lo, d.distance_mm[f]);
@@ -736,18 +766,21 @@ void CheckTrack(TrackResult* r) {
           for (size_t g = f + 1; g < F; ++g) {
             if (!std::isfinite(d.distance_mm[g])) continue;
             const double s = std::hypot(d.sigma_mm[f], d.sigma_mm[g]);
-            d.max_change_sigmas = std::max(d.max_change_sigmas, std::abs(d.distance_mm[f] - d.distance_mm[g]) / s);
+            d.max_change_sigmas =
+                std::max(d.max_change_sigmas, std::abs(d.distance_mm[f] - d.distance_mm[g]) / s);
           }
         }
         if (n < 2) continue;
         for (size_t f = 0; f < F; ++f) {
-          if (std::isfinite(d.distance_mm[f])) sum_sq += std::pow(d.distance_mm[f] - mean, 2), ++num_sq;
+          if (std::isfinite(d.distance_mm[f]))
+            sum_sq += std::pow(d.distance_mm[f] - mean, 2), ++num_sq;
         }
         c.distance_dof += n - 1;
         d.spread_mm = hi - lo;
         c.max_spread_mm = std::max(c.max_spread_mm, d.spread_mm);
         c.max_change_sigmas = std::max(c.max_change_sigmas, d.max_change_sigmas);
-        c.max_change_sigmas_stated = std::max(c.max_change_sigmas_stated, d.max_change_sigmas * c.pixel_sigma_scale);
+        c.max_change_sigmas_stated =
+            std::max(c.max_change_sigmas_stated, d.max_change_sigmas * c.pixel_sigma_scale);
         r->distances.push_back(d);
       }
     }
@@ -776,9 +809,10 @@ StatusOr<TrackResult> Track(const std::vector<TrackCamera>& cameras,
       const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
       if (image.empty()) return Status::Error(path + ": cannot be read as an image");
       if (image.cols != cameras[c].width || image.rows != cameras[c].height) {
-        return Status::Error(path + ": " + std::to_string(image.cols) + " x " + std::to_string(image.rows) +
-                             " px, but camera " + cameras[c].name + " is calibrated for " +
-                             std::to_string(cameras[c].width) + " x " + std::to_string(cameras[c].height));
+        return Status::Error(path + ": " + std::to_string(image.cols) + " x " +
+                             std::to_string(image.rows) + " px, but camera " + cameras[c].name +
+                             " is calibrated for " + std::to_string(cameras[c].width) + " x " +
+                             std::to_string(cameras[c].height));
       }
       MarkerBlobOptions blobs = options.blobs;
       blobs.diameter_mm = options.marker_diameter_mm;
@@ -832,32 +866,37 @@ StatusOr<TrackResult> TrackDetections(const std::vector<TrackCamera>& cameras,
   AddSingleCameraBeads(options, &r);
   r.time_match_s = Seconds(t0);
   if (r.bodies.empty()) {
-    return Status::Error("no rigid body of >= " + std::to_string(options.min_body_beads) +
-                         " beads found in every frame (" + std::to_string(r.candidates[0].size()) +
-                         " bead candidates in the first frame; check --marker-diameter-mm and the cameras)");
+    return Status::Error(
+        "no rigid body of >= " + std::to_string(options.min_body_beads) +
+        " beads found in every frame (" + std::to_string(r.candidates[0].size()) +
+        " bead candidates in the first frame; check --marker-diameter-mm and the cameras)");
   }
   for (size_t f = 0; f < frames.size(); ++f) {
     for (const TrackBody& b : r.bodies) {
       if (!b.found[f]) {
         r.warnings.push_back(FrameLabel(r, f) + ": body " + std::to_string(b.id) +
-                             " not identified (fewer than " + std::to_string(options.min_body_beads) +
-                             " of its beads matched)");
+                             " not identified (fewer than " +
+                             std::to_string(options.min_body_beads) + " of its beads matched)");
       }
     }
     std::set<int> used;
-    for (const TrackBead& bead : r.beads) if (bead.candidate[f] >= 0) used.insert(bead.candidate[f]);
+    for (const TrackBead& bead : r.beads)
+      if (bead.candidate[f] >= 0) used.insert(bead.candidate[f]);
     std::set<std::pair<int, int>> used_blobs;
     for (int k : used)
-      for (const auto& ob : r.candidates[f][k].observations) used_blobs.insert({ob.camera, ob.blob});
+      for (const auto& ob : r.candidates[f][k].observations)
+        used_blobs.insert({ob.camera, ob.blob});
     int unassigned = 0;
     for (size_t k = 0; k < r.candidates[f].size(); ++k) {
       bool shares = false;
-      for (const auto& ob : r.candidates[f][k].observations) shares |= used_blobs.count({ob.camera, ob.blob}) > 0;
+      for (const auto& ob : r.candidates[f][k].observations)
+        shares |= used_blobs.count({ob.camera, ob.blob}) > 0;
       unassigned += !used.count(static_cast<int>(k)) && !shares;
     }
     if (unassigned > 0) {
-      r.warnings.push_back(FrameLabel(r, f) + ": " + std::to_string(unassigned) +
-                           " bead candidate(s) matched across the cameras but in no rigid body (no id)");
+      r.warnings.push_back(
+          FrameLabel(r, f) + ": " + std::to_string(unassigned) +
+          " bead candidate(s) matched across the cameras but in no rigid body (no id)");
     }
   }
   // 4. One bundle adjustment.

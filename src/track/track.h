@@ -20,7 +20,8 @@
 //      each body's frame (the lab frame at the first frame) and each body's pose per later frame,
 //      lab_from_body, are the unknowns; the cameras are held (intrinsics with a camera.json
 //      covariance free within it, as a prior; the cameras' poses always held); the first frame's
-//      poses are held at the identity (the gauge). Its covariance gives each bead's 3x3 and each pose's 6x6.
+//      poses are held at the identity (the gauge). Its covariance gives each bead's 3x3 and each
+//      pose's 6x6.
 //   5. Checks without ground truth (TrackChecks): per frame independent triangulations, the
 //      distances within each body compared between frames against their predicted sigmas.
 #pragma once
@@ -59,7 +60,8 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
 
 // carmba's camera.json (intrinsics with distortion) and a pose file {"cam_from_lab": {"rvec":
 // [rad x3], "t_mm": [mm x3]}} (x_cam = R(rvec) x_lab + t). Errors name the file and key.
-StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json, const std::string& pose_json,
+StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json,
+                                             const std::string& pose_json,
                                              const std::string& name);
 // `spec` as --cameras gives it: FILE (the XMALab text) or CAMERA_JSON+POSE_JSON.
 StatusOr<TrackCamera> ReadTrackCamera(const std::string& name, const std::string& spec);

@@ -54,10 +54,13 @@ Eigen::Vector3d TrackCamera::AxisInLab() const {
 
 StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::string& name) {
   std::ifstream in(path);
-  if (!in) return Status::Error(path + ": cannot be read (expected an XMALab camera calibration text)");
+  if (!in)
+    return Status::Error(path + ": cannot be read (expected an XMALab camera calibration text)");
   // Section name -> (rows expected, numbers per row).
-  const std::map<std::string, std::pair<int, int>> kSections = {
-      {"image size", {1, 2}}, {"camera matrix", {3, 3}}, {"rotation", {3, 3}}, {"translation", {3, 1}}};
+  const std::map<std::string, std::pair<int, int>> kSections = {{"image size", {1, 2}},
+                                                                {"camera matrix", {3, 3}},
+                                                                {"rotation", {3, 3}},
+                                                                {"translation", {3, 1}}};
   std::map<std::string, std::vector<std::vector<double>>> values;
   std::string section, line;
   int line_no = 0;
@@ -80,8 +83,8 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
     std::vector<double> row;
     const auto [rows, per_row] = kSections.at(section);
     if (!ParseNumbers(t, &row) || static_cast<int>(row.size()) != per_row) {
-      return Status::Error(where + ": expected " + std::to_string(per_row) + " number(s) in section '" +
-                           section + "', got '" + t + "'");
+      return Status::Error(where + ": expected " + std::to_string(per_row) +
+                           " number(s) in section '" + section + "', got '" + t + "'");
     }
     if (static_cast<int>(values[section].size()) == rows) {
       return Status::Error(where + ": section '" + section + "' has more than " +
@@ -100,7 +103,8 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
   cam.width = static_cast<int>(values["image size"][0][0]);
   cam.height = static_cast<int>(values["image size"][0][1]);
   if (cam.width != values["image size"][0][0] || cam.height != values["image size"][0][1] ||
-      !InRange(cam.width, plausible::kImageSizePx) || !InRange(cam.height, plausible::kImageSizePx)) {
+      !InRange(cam.width, plausible::kImageSizePx) ||
+      !InRange(cam.height, plausible::kImageSizePx)) {
     return Status::Error(path + ": image size must be two whole numbers in " +
                          FormatRange(plausible::kImageSizePx));
   }
@@ -110,35 +114,41 @@ StatusOr<TrackCamera> ReadXmaCalibration(const std::string& path, const std::str
   }
   cam.intrinsics = {K[0][0], K[1][1], K[0][2], K[1][2], 0, 0, 0, 0, 0};
   if (!InRange(K[0][0], plausible::kFocalPx) || !InRange(K[1][1], plausible::kFocalPx) ||
-      !InRange(K[0][2], plausible::kPixelCoordinatePx) || !InRange(K[1][2], plausible::kPixelCoordinatePx)) {
-    return Status::Error(path + ": camera matrix fx, fy must be in " + FormatRange(plausible::kFocalPx) +
-                         ", cx, cy in " + FormatRange(plausible::kPixelCoordinatePx));
+      !InRange(K[0][2], plausible::kPixelCoordinatePx) ||
+      !InRange(K[1][2], plausible::kPixelCoordinatePx)) {
+    return Status::Error(path + ": camera matrix fx, fy must be in " +
+                         FormatRange(plausible::kFocalPx) + ", cx, cy in " +
+                         FormatRange(plausible::kPixelCoordinatePx));
   }
   Eigen::Matrix3d R;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) R(i, j) = values["rotation"][i][j];
   if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-4 || R.determinant() < 0) {
-    return Status::Error(path + ": rotation is not a rotation matrix (orthonormal, det +1 within 1e-4)");
+    return Status::Error(path +
+                         ": rotation is not a rotation matrix (orthonormal, det +1 within 1e-4)");
   }
   cam.cam_from_lab.head<3>() = RvecFromRotation(NearestRotation(R));
   for (int i = 0; i < 3; ++i) cam.cam_from_lab[3 + i] = values["translation"][i][0];
   if (!InRange(cam.CentreInLab().norm(), plausible::kSourceToObjectMm)) {
     return Status::Error(path + ": the source lies " + FormatCompact(cam.CentreInLab().norm()) +
-                         " mm from the lab origin, outside " + FormatRange(plausible::kSourceToObjectMm) +
-                         " (translation in metres?)");
+                         " mm from the lab origin, outside " +
+                         FormatRange(plausible::kSourceToObjectMm) + " (translation in metres?)");
   }
   return cam;
 }
 
-StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json, const std::string& pose_json,
+StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json,
+                                             const std::string& pose_json,
                                              const std::string& name) {
   auto camera = ReadCameraJson(camera_json);
   if (!camera.ok()) return camera.status();
   auto j = ReadJsonFile(pose_json, "a JSON object with cam_from_lab {rvec, t_mm}");
   if (!j.ok()) return j.status();
-  const nlohmann::json* pose = j->is_object() && j->contains("cam_from_lab") ? &(*j)["cam_from_lab"] : nullptr;
+  const nlohmann::json* pose =
+      j->is_object() && j->contains("cam_from_lab") ? &(*j)["cam_from_lab"] : nullptr;
   auto vec3 = [&](const char* key, Eigen::Vector3d* out) {
-    if (!pose || !pose->is_object() || !pose->contains(key) || !(*pose)[key].is_array() || (*pose)[key].size() != 3) {
+    if (!pose || !pose->is_object() || !pose->contains(key) || !(*pose)[key].is_array() ||
+        (*pose)[key].size() != 3) {
       return false;
     }
     for (int i = 0; i < 3; ++i) {
@@ -149,9 +159,14 @@ StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json, con
   };
   Eigen::Vector3d r, t;
   if (!vec3("rvec", &r) || !vec3("t_mm", &t)) {
-    return Status::Error(pose_json + ": key 'cam_from_lab': expected {\"rvec\": [3 numbers, rad], \"t_mm\": [3 numbers, mm]}");
+    return Status::Error(
+        pose_json +
+        ": key 'cam_from_lab': expected {\"rvec\": [3 numbers, rad], \"t_mm\": [3 numbers, mm]}");
   }
-  if (r.norm() > 2 * M_PI + 1e-9) return Status::Error(pose_json + ": key 'cam_from_lab.rvec': a rotation vector of at most 2 pi rad (degrees given?)");
+  if (r.norm() > 2 * M_PI + 1e-9)
+    return Status::Error(
+        pose_json +
+        ": key 'cam_from_lab.rvec': a rotation vector of at most 2 pi rad (degrees given?)");
   TrackCamera cam;
   cam.name = name;
   cam.width = camera->width;
@@ -167,9 +182,10 @@ StatusOr<TrackCamera> ReadCameraJsonWithPose(const std::string& camera_json, con
     for (Eigen::Index k = 0; k < n; ++k) cam.covariance(i, k) = camera->covariance[i][k];
   }
   if (!InRange(cam.CentreInLab().norm(), plausible::kSourceToObjectMm)) {
-    return Status::Error(pose_json + ": the source lies " + FormatCompact(cam.CentreInLab().norm()) +
-                         " mm from the lab origin, outside " + FormatRange(plausible::kSourceToObjectMm) +
-                         " (t_mm in metres?)");
+    return Status::Error(pose_json + ": the source lies " +
+                         FormatCompact(cam.CentreInLab().norm()) +
+                         " mm from the lab origin, outside " +
+                         FormatRange(plausible::kSourceToObjectMm) + " (t_mm in metres?)");
   }
   return cam;
 }
@@ -188,7 +204,8 @@ StatusOr<int> FrameNumberOfFile(const std::string& path) {
   if (dot != std::string::npos && dot > 0) base = base.substr(0, dot);
   const auto last = base.find_last_of("0123456789");
   if (last == std::string::npos) {
-    return Status::Error(path + ": no frame number in the file name (expected digits, e.g. name.0002.tif)");
+    return Status::Error(
+        path + ": no frame number in the file name (expected digits, e.g. name.0002.tif)");
   }
   auto first = last;
   while (first > 0 && std::isdigit(static_cast<unsigned char>(base[first - 1]))) --first;

@@ -264,7 +264,8 @@ class DicomWalker {
   }
 
   // The items of a sequence from *pos: until the sequence delimiter (end == kUndefined) or filling
-  // [*pos, end) exactly. `fragments`: encapsulated pixel data, whose items are bytes, not data sets.
+  // [*pos, end) exactly. `fragments`: encapsulated pixel data, whose items are bytes, not data
+  // sets.
   bool WalkSequence(size_t* pos, size_t end, bool explicit_vr, bool fragments, int depth) {
     size_t p = *pos;
     while (end == kUndefined || p < end) {

@@ -245,7 +245,8 @@ Status StagedOutputDir::Commit(bool replace_all) {
   std::error_code ec;
   if (!inside_) {
     fs::rename(staging_, dir_, ec);
-    if (ec) return Status::Error(dir_ + ": cannot move the results into place (" + ec.message() + ")");
+    if (ec)
+      return Status::Error(dir_ + ": cannot move the results into place (" + ec.message() + ")");
     UnregisterTempPath(slot_);
     slot_ = -1;
     done_ = true;
@@ -262,7 +263,8 @@ Status StagedOutputDir::Commit(bool replace_all) {
   };
   if (replace_all) {
     fs::create_directory(old, ec);
-    if (ec) return Status::Error(dir_ + ": cannot move the old contents aside (" + ec.message() + ")");
+    if (ec)
+      return Status::Error(dir_ + ": cannot move the old contents aside (" + ec.message() + ")");
     std::vector<fs::path> before;
     for (const auto& e : fs::directory_iterator(dir_, ec)) {
       if (e.path() != staging && e.path() != old) before.push_back(e.path());

@@ -125,7 +125,9 @@ bool ParseTiff(const std::string& path, const std::string& s, ImageHeader* h) {
   if (s.size() < 8) return false;
   const bool le = s.compare(0, 2, "II") == 0;
   if (!le && s.compare(0, 2, "MM") != 0) return false;
-  auto get = [&](const std::string& b, size_t at, int n) { return le ? Le(b, at, n) : Be(b, at, n); };
+  auto get = [&](const std::string& b, size_t at, int n) {
+    return le ? Le(b, at, n) : Be(b, at, n);
+  };
   const uint64_t magic = get(s, 2, 2);
   const bool big = magic == 43;
   if (magic != 42 && !big) return false;
@@ -153,7 +155,8 @@ bool ParseTiff(const std::string& path, const std::string& s, ImageHeader* h) {
     const uint64_t value = get(e, value_at, value_size);
     if (tag == 256) h->width = static_cast<int64_t>(value);
     if (tag == 257) h->height = static_cast<int64_t>(value);
-    if (tag == 258 && get(e, at + 4, big ? 8 : 4) == 1) h->bytes_per_sample = value > 8 ? (value + 7) / 8 : 1;
+    if (tag == 258 && get(e, at + 4, big ? 8 : 4) == 1)
+      h->bytes_per_sample = value > 8 ? (value + 7) / 8 : 1;
     if (tag == 277) h->channels = static_cast<int64_t>(value);
   }
   return h->width > 0 || h->height > 0;

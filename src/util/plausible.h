@@ -105,10 +105,10 @@ inline constexpr PlausibleRange kPlateDistanceMm{100, 5000, "mm"};
 // Views of a (synthetic) calibration: 1000 views calibrate in 73 ms; 1e5 is a day of images.
 inline constexpr PlausibleRange kViews{1, 1e5, ""};
 
-// --- Noise and solver settings ---------------------------------------------------------------------
-// Pixel noise sigma (problem sigma_px, calibration pixel_sigma_px, study noise): a simulated
-// noise-free scene still needs a positive sigma to whiten residuals (1e-6 px); more than 1000 px
-// is not a measurement.
+// --- Noise and solver settings
+// --------------------------------------------------------------------- Pixel noise sigma (problem
+// sigma_px, calibration pixel_sigma_px, study noise): a simulated noise-free scene still needs a
+// positive sigma to whiten residuals (1e-6 px); more than 1000 px is not a measurement.
 inline constexpr PlausibleRange kPixelSigmaPx{1e-6, 1e3, "px"};
 // CT marker sigma (problem sigma_mm, study CT noise): 1e-6 mm (a fixed prior) .. 1 m.
 inline constexpr PlausibleRange kCtSigmaMm{1e-6, 1e3, "mm"};

@@ -33,8 +33,8 @@ class PythonWorker {
   PythonWorker(const PythonWorker&) = delete;
   PythonWorker& operator=(const PythonWorker&) = delete;
 
-  // Hands the worker its one job (an empty stdout_path or stderr_path: carmba's own). Returns false (then Wait gives kCannotRun) when the worker is
-  // not running or already has a job.
+  // Hands the worker its one job (an empty stdout_path or stderr_path: carmba's own). Returns false
+  // (then Wait gives kCannotRun) when the worker is not running or already has a job.
   bool Start(const std::string& script_path,
              const std::vector<std::string>& args,
              const std::string& stdout_path,

@@ -53,7 +53,9 @@ struct LinuxDirent64 {
   char d_name[1];
 };
 
-bool IsDotOrDotDot(const char* n) { return n[0] == '.' && (n[1] == 0 || (n[1] == '.' && n[2] == 0)); }
+bool IsDotOrDotDot(const char* n) {
+  return n[0] == '.' && (n[1] == 0 || (n[1] == '.' && n[2] == 0));
+}
 
 // Removes `name` in the directory `dirfd` and, for a directory, everything in it (depth-limited:
 // carmba's temporary trees are two levels deep). Async-signal-safe.

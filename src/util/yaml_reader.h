@@ -4,9 +4,9 @@
 // ("did you mean"). A required key that is missing while an unknown key resembles it reports the
 // unknown key instead ("unknown key 'sigma_pz'; did you mean 'sigma_px'?"), since a parser may stop
 // at the missing key before Finish() sees the rest. The keys a parser asks for are
-// also what util/accepted_keys.h records, for the check of src/docs/formats.md. Wrong types, missing
-// required keys and non-finite numbers are errors naming the file, the line and the dotted key
-// path, and what was expected, e.g.
+// also what util/accepted_keys.h records, for the check of src/docs/formats.md. Wrong types,
+// missing required keys and non-finite numbers are errors naming the file, the line and the dotted
+// key path, and what was expected, e.g.
 //   configs/x.yaml:7: key 'solver.max_iterations': expected an integer, got 'many'
 //
 //   YamlMap m(root, path);
@@ -61,7 +61,10 @@ class YamlMap {
                   double* out,
                   const PlausibleRange& range,
                   bool required = false);
-  void GetInRange(const std::string& key, int* out, const PlausibleRange& range, bool required = false);
+  void GetInRange(const std::string& key,
+                  int* out,
+                  const PlausibleRange& range,
+                  bool required = false);
 
   // A nested map (absent -> an empty map). Its errors and unknown keys are reported by this
   // map's Finish().
