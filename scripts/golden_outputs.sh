@@ -31,7 +31,7 @@ for c in calib calib_free calib_radial calib_robust calib_thesis; do
     --spacing-mm=20 --truth="$SIM/calibration/truth.json" --config="configs/$c.yaml" \
     --out="$OUT/calibration_$c" --no-plots --no-mrcal --no-opencv
 done
-run calibrate --problem=problems/calib_opencv_left.yaml --out="$OUT/calibration_opencv_left" --no-plots --no-mrcal --no-opencv
+run calibrate --problem=problems/calib_opencv_left.yaml --config=configs/calib_free.yaml --out="$OUT/calibration_opencv_left" --no-plots --no-mrcal --no-opencv
 
 # 3. CT fiducials, and 4. the joint problems (thesis and flexing C-arm) as the problem files read them.
 mkdir -p "$OUT/out/sim"

@@ -4,13 +4,15 @@
 // report.md (and mrcal/ with the cross-check's script, input and output) into --out; on any
 // error nothing is written.
 //
-// Problem file (problems/calib_*.yaml; relative paths are relative to the file):
+// Problem file (problems/calib_*.yaml): a problem of the one schema (problem/problem.h) with plate
+// views only, read by the one problem reader:
 //   name: ...                    description: ...
-//   images: DIR_OR_GLOB          # or
-//   observations: observations.csv
-//   pattern: circles | acircles | chessboard      rows: 5    cols: 5    spacing_mm: 20
-//   config: ../configs/calib_thesis.yaml          # optional; --config overrides
+//   plate_views: {images: DIR_OR_GLOB, pattern: circles, rows: 5, cols: 5, spacing_mm: 20,
+//                 detection: {...}}          # or observations: observations.csv
+//   camera: camera.json          # optional: initial intrinsics
 //   truth: truth.json            # optional: simulator truth (or a camera.json) to compare with
+// Calibration problems written before the one schema (top-level images / observations, pattern,
+// rows, cols, spacing_mm, config) are still read. --config and --truth win over the file's.
 // Config file (configs/calib_*.yaml): calib/calibrate.h CalibrationOptions keys at top level, plus
 //   detection: {polarity, roi_px, fov_circle_px, auto_fov_mask, fov_margin_px, min_blob_area_px,
 //               max_blob_area_px, refine}
@@ -31,6 +33,7 @@
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
+#include "problem/problem.h"
 #include "report/calibration_report.h"
 #include "report/plots.h"
 #include "util/file_util.h"
@@ -77,35 +80,20 @@ struct CalibrateInputs {
   double spacing = FLAGS_spacing_mm;
 };
 
-// A calibration problem file (problems/calib_*.yaml): its keys fill what the flags left empty,
-// paths relative to the file.
-Status ReadCalibrationProblemFile(const std::string& path, CalibrateInputs* in) {
-  YamlMap p = YamlMap::Load(path);
-  CARMBA_RETURN_IF_ERROR(p.status());
-  const std::string dir = DirName(path);
-  std::string name, description, p_images, p_obs, p_config, p_truth;
-  p.Get("name", &name);
-  p.Get("description", &description);
-  p.Get("images", &p_images);
-  p.Get("observations", &p_obs);
-  p.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &in->pattern);
-  p.GetInRange("rows", &in->rows, plausible::kGridRowsCols);
-  p.GetInRange("cols", &in->cols, plausible::kGridRowsCols);
-  double p_spacing = 0;
-  p.GetInRange("spacing_mm", &p_spacing, plausible::kGridSpacingMm);
-  p.Get("config", &p_config);
-  p.Get("truth", &p_truth);
-  CARMBA_RETURN_IF_ERROR(p.Finish());
-  if (in->images.empty() && !p_images.empty()) in->images = JoinPath(dir, p_images);
-  if (in->observations.empty() && !p_obs.empty()) in->observations = JoinPath(dir, p_obs);
-  if (in->config.empty() && !p_config.empty()) in->config = JoinPath(dir, p_config);
-  if (in->truth.empty() && !p_truth.empty()) in->truth = JoinPath(dir, p_truth);
-  if (in->spacing == 0) in->spacing = p_spacing;
-  return Status::Ok();
+// Fewer than min_views images with the grid is an error naming the grid and the first skipped.
+Status CheckEnoughViews(const CalibrationRun& run, const CalibrationOptions& options) {
+  const size_t found = run.observations.views.size();
+  if (static_cast<int>(found) >= options.min_views) return Status::Ok();
+  const GridSpec& g = run.observations.grid;
+  return Status::Error("the grid (" + std::string(GridPatternName(g.pattern)) + " " +
+                       std::to_string(g.rows) + " x " + std::to_string(g.cols) + ") was found in " +
+                       std::to_string(found) + " of " + std::to_string(found + run.skipped.size()) +
+                       " images, min_views is " + std::to_string(options.min_views) +
+                       (run.skipped.empty() ? "" : "; first skipped: " + run.skipped[0]));
 }
 
-// The grid's observations: read from the CSV, or detected in the images (skipped images and
-// detections into run). Errors when fewer than min_views images show the grid.
+// The grid's observations from the flags: read from the CSV, or detected in the images (skipped
+// images and detections into run).
 Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
                                const DetectionOptions& detect, const CalibrationOptions& options,
                                CalibrationRun* run) {
@@ -137,15 +125,66 @@ Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
   if (!obs.ok()) return obs.status();
   run->observations = *obs;
   for (const auto& s : run->skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";
-  const size_t found = run->observations.views.size();
-  if (static_cast<int>(found) < options.min_views) {
-    return Status::Error("the grid (" + in.pattern + " " + std::to_string(in.rows) + " x " +
-                         std::to_string(in.cols) + ") was found in " + std::to_string(found) +
-                         " of " + std::to_string(found + run->skipped.size()) +
-                         " images, min_views is " + std::to_string(options.min_views) +
-                         (run->skipped.empty() ? "" : "; first skipped: " + run->skipped[0]));
+  return CheckEnoughViews(*run, options);
+}
+
+// The plate flags that a --problem replaces, if one was given ("" if none).
+std::string PlateFlagGiven() {
+  for (const char* f : {"images", "observations", "pattern", "rows", "cols", "spacing_mm"}) {
+    gflags::CommandLineFlagInfo info;
+    if (!gflags::GetCommandLineFlagInfo(f, &info) || info.is_default) continue;
+    return std::string(f) == "spacing_mm" ? "spacing-mm" : f;
+  }
+  return "";
+}
+
+// What `carmba calibrate` solves of a problem: one shared intrinsics from plate views alone, the
+// plate held at its nominal grid. The rest is `carmba solve`'s.
+Status CheckCalibrationProblem(const Problem& p) {
+  const std::string solve = "; `carmba solve --problem " + p.path + "` solves it";
+  auto refuse = [&](const std::string& what) { return Status::Error(p.path + ": " + what); };
+  if (p.plate.views.empty()) {
+    return refuse("no plate_views: `carmba calibrate` takes a calibration problem (plate views)");
+  }
+  if (!p.object_views.empty()) {
+    return refuse("object_views: a calibration problem has plate views only" + solve);
+  }
+  if (p.plate_free) {
+    return refuse("plate_views.plate.free: `carmba calibrate` holds the plate at its grid" + solve);
+  }
+  if (p.per_group || p.smooth || p.camera_prior) {
+    return refuse("intrinsics: `carmba calibrate` solves one shared intrinsics without a prior" +
+                  solve);
   }
   return Status::Ok();
+}
+
+// A --problem (the one problem reader), with the --config's detection options if one was given.
+// An older calibration file's config becomes in->config when --config was not given.
+StatusOr<Problem> ReadCalibrationProblem(const std::optional<DetectionOptions>& detect,
+                                         CalibrateInputs* in,
+                                         CalibrationRun* run) {
+  cli::Step("calibrate", "reading the problem " + FLAGS_problem);
+  ProblemReadOptions ro;
+  ro.plate_detection = detect;
+  auto problem = LoadProblem(FLAGS_problem, ro);
+  if (!problem.ok()) return problem.status();
+  CARMBA_RETURN_IF_ERROR(CheckCalibrationProblem(*problem));
+  run->observations = problem->plate;
+  run->skipped = problem->skipped_images;
+  run->detections = problem->plate_detections;
+  for (const auto& s : run->skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";
+  if (in->config.empty()) in->config = problem->older_config_file;
+  return problem;
+}
+
+// The problem's initial intrinsics (its camera, unless the config gives them) and its plate
+// sigma (the data's detection noise: it replaces the config's pixel_sigma_px).
+void ApplyProblemToOptions(const Problem& p, CalibrationOptions* options) {
+  if (p.camera && options->initial_intrinsics.empty()) {
+    options->initial_intrinsics.assign(p.camera->params.begin(), p.camera->params.end());
+  }
+  if (p.plate_sigma_px > 0) options->pixel_sigma_px = p.plate_sigma_px;
 }
 
 // --truth: the true camera (truth.json's "camera", or a camera.json), into run and `others`.
@@ -219,13 +258,15 @@ std::string CalibrateCommandLine(const CalibrateInputs& in, const CalibrationRun
   auto quoted = [](const std::string& v) { return "'" + v + "'"; };
   std::ostringstream cmd;
   cmd << "carmba calibrate";
-  if (!in.images.empty()) {
+  if (!FLAGS_problem.empty()) {
+    cmd << " --problem " << quoted(FLAGS_problem);
+  } else if (!in.images.empty()) {
     cmd << " --images " << quoted(in.images) << " --pattern " << in.pattern << " --rows " << in.rows
         << " --cols " << in.cols;
   } else {
     cmd << " --observations " << quoted(in.observations);
   }
-  cmd << " --spacing-mm " << run.observations.grid.spacing_mm;
+  if (FLAGS_problem.empty()) cmd << " --spacing-mm " << run.observations.grid.spacing_mm;
   if (!in.config.empty()) cmd << " --config " << quoted(in.config);
   if (!in.truth.empty()) cmd << " --truth " << quoted(in.truth);
   if (!cross.mrcal) cmd << " --no-mrcal";
@@ -259,6 +300,41 @@ void PrintCalibrationSummary(const CalibrationRun& run) {
             << "observations.csv, corners.vnl, report.md, report.html}" << std::endl;
 }
 
+// The config (calibration options, detection, cross-checks) with the --no-mrcal / --no-opencv
+// flags applied.
+Status LoadCalibrateConfig(const std::string& path, CalibrationOptions* options,
+                           DetectionOptions* detect, CrossCheckConfig* cross) {
+  if (!path.empty()) CARMBA_RETURN_IF_ERROR(LoadConfig(path, options, detect, cross));
+  if (!FLAGS_mrcal) cross->mrcal = false;
+  if (!FLAGS_opencv) cross->opencv = false;
+  return Status::Ok();
+}
+
+// The plate views, from a --problem or from the flags, into run (and the problem's options into
+// options; an older problem's config read). mrcal's interpreter starts once the config is known.
+Status ReadPlateViews(CalibrateInputs* in, CalibrationOptions* options, DetectionOptions* detect,
+                      CrossCheckConfig* cross, std::unique_ptr<PythonWorker>* mrcal_python,
+                      CalibrationRun* run) {
+  const bool config_given = !in->config.empty();
+  if (config_given && cross->mrcal) *mrcal_python = StartMrcalPython(cross->python);
+  if (FLAGS_problem.empty()) {
+    auto pat = ParseGridPattern(in->pattern);
+    if (!pat.ok()) return pat.status().WithContext("--pattern");
+    return CalibrationObservations(*in, *pat, *detect, *options, run);
+  }
+  auto problem = ReadCalibrationProblem(
+      config_given ? std::optional<DetectionOptions>(*detect) : std::nullopt, in, run);
+  if (!problem.ok()) return problem.status();
+  if (!config_given) {
+    CARMBA_RETURN_IF_ERROR(LoadCalibrateConfig(in->config, options, detect, cross));
+    if (cross->mrcal) *mrcal_python = StartMrcalPython(cross->python);
+  }
+  ApplyProblemToOptions(*problem, options);
+  if (!run->detections.empty()) CARMBA_RETURN_IF_ERROR(CheckEnoughViews(*run, *options));
+  if (in->truth.empty() && problem->truth.camera) run->truth = *problem->truth.camera;
+  return Status::Ok();
+}
+
 int RunCalibrate() {
   const char* kCmd = "calibrate";
   CalibrateInputs in;
@@ -266,52 +342,40 @@ int RunCalibrate() {
     std::string err;
     if (!cli::CheckGridFlags(&err)) return cli::FailUsage(kCmd, err);
   }
-  if (!FLAGS_problem.empty()) {
-    if (const Status s = ReadCalibrationProblemFile(FLAGS_problem, &in); !s.ok())
-      return cli::Fail(kCmd, s);
-    const std::string key = "--problem key ";
-    const Status s = cli::CheckOutIsNoInput({{key + "'images'", in.images},
-                                             {key + "'observations'", in.observations},
-                                             {key + "'config'", in.config},
-                                             {key + "'truth'", in.truth}});
-    if (!s.ok()) return cli::FailUsage(kCmd, s);
+  if (!FLAGS_problem.empty() && !PlateFlagGiven().empty()) {
+    return cli::FailUsage(kCmd, "--" + PlateFlagGiven() +
+                                    ": the --problem names the plate views; give one or the other");
   }
   // --out is required (checked before this runs: cli/command.h).
   if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail(kCmd, s);
-  if (in.images.empty() == in.observations.empty()) {
+  if (FLAGS_problem.empty() && in.images.empty() == in.observations.empty()) {
     return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
   }
   CalibrationOptions options;
   DetectionOptions detect;
   CrossCheckConfig cross;
-  if (!in.config.empty()) {
-    if (const Status s = LoadConfig(in.config, &options, &detect, &cross); !s.ok())
-      return cli::Fail(kCmd, s);
-  }
-  if (!FLAGS_mrcal) cross.mrcal = false;
-  if (!FLAGS_opencv) cross.opencv = false;
+  if (const Status s = LoadCalibrateConfig(in.config, &options, &detect, &cross); !s.ok())
+    return cli::Fail(kCmd, s);
   // The plot and mrcal interpreters start now: their imports overlap the detection and the
   // solve; the plots are then drawn while the cross-checks run.
   PlotOptions plot_options;
   plot_options.enabled = FLAGS_plots;
   PlotProcess plots(plot_options);
   std::unique_ptr<PythonWorker> mrcal_python;
-  if (cross.mrcal) mrcal_python = StartMrcalPython(cross.python);
-
   CalibrationRun run;
-  run.options = options;
-  auto pat = ParseGridPattern(in.pattern);
-  if (!pat.ok()) return cli::FailUsage(kCmd, pat.status().WithContext("--pattern"));
-  if (const Status s = CalibrationObservations(in, *pat, detect, options, &run); !s.ok())
+  if (const Status s = ReadPlateViews(&in, &options, &detect, &cross, &mrcal_python, &run);
+      !s.ok()) {
     return cli::Fail(kCmd, s);
+  }
+  run.options = options;
   cli::Step(kCmd,
             "bundle adjustment over " + std::to_string(run.observations.views.size()) + " views");
   auto result = Calibrate(run.observations, options);
   if (!result.ok()) return cli::Fail(kCmd, result.status());
   run.result = *result;
   // Where the pitch came from, for the error on an implausible plate distance.
-  const std::string pitch_source = FLAGS_spacing_mm > 0      ? "--spacing-mm"
-                                   : in.spacing > 0           ? "--problem key 'spacing_mm'"
+  const std::string pitch_source = FLAGS_spacing_mm > 0 ? "--spacing-mm"
+                                   : !FLAGS_problem.empty() ? FLAGS_problem + ": spacing_mm"
                                    : !in.observations.empty() ? in.observations + " spacing_mm"
                                                               : "--spacing-mm (default)";
   if (const Status s =
@@ -325,6 +389,8 @@ int RunCalibrate() {
   if (!in.truth.empty()) {
     if (const Status s = ReadCalibrationTruth(in.truth, &run, &others); !s.ok())
       return cli::Fail(kCmd, s);
+  } else if (run.truth) {
+    others["truth"] = run.truth->params;
   }
   OpenCvCrossCheck(cross, options, &run, &others);
   const ScopedTempPath work_dir(FLAGS_out + ".mrcal.tmp." + std::to_string(::getpid()));

@@ -442,6 +442,11 @@ void CompareWithTwoStep(const Problem& problem, const ba::BaOptions& options, Jo
 
 StatusOr<JointSolution> SolveJointProblem(const Problem& problem, const SolverConfig& config) {
   CARMBA_RETURN_IF_ERROR(CheckJointConfig(config));
+  if (!problem.plate.views.empty() && !(problem.plate_sigma_px > 0)) {
+    return Status::Error(problem.path +
+                         ": key 'plate_views.sigma_px': missing (the plate points' detection "
+                         "noise in px, 1 sigma per coordinate; `carmba solve` needs it)");
+  }
   JointSolution sol;
   CARMBA_RETURN_IF_ERROR(JointBaProblem(problem, config, &sol));
   const ba::BaOptions options = config.ToBaOptions();

@@ -9,8 +9,11 @@
 //   description: ...
 //   plate_views:                      # calibration plate views
 //     observations: plate/observations.csv   # as `carmba detect` writes it (grid in its header)
-//     # or images: DIR_OR_GLOB with pattern: circles, rows: 5, cols: 5, spacing_mm: 20
-//     sigma_px: 0.05                  # detection noise, 1 sigma per coordinate
+//     # or images: DIR_OR_GLOB with pattern: circles, rows: 5, cols: 5, spacing_mm: 20 and
+//     # detection: {polarity: dark, ...} (detect/grid_detector.h DetectionOptions; default: the
+//     # command's, e.g. `carmba calibrate`'s config's `detection`)
+//     sigma_px: 0.05                  # detection noise, 1 sigma per coordinate (required by
+//                                     # `carmba solve`; `carmba calibrate` may estimate it)
 //     plate: {free: false, sigma_mm: 0.01}    # optional: sphere positions free, tied to the
 //                                             # nominal grid by the manufacturing tolerance
 //   object_views:
@@ -56,6 +59,9 @@
 // Pose problems written before the one schema keep working: top-level `markers` (the map of
 // `fiducials`), `observations: {file, format, marker_column}`, `sigma_px` and `views` are read as
 // `fiducials`, `object_views: {observations, format, marker_column, sigma_px, views}`.
+// So do calibration problems written before it: top-level `images` or `observations` (a CSV path),
+// `pattern`, `rows`, `cols` and `spacing_mm` are read as `plate_views`, and their `config` (which
+// the one schema leaves to the command's --config) is kept in Problem::older_config_file.
 #pragma once
 
 #include <Eigen/Core>
@@ -68,6 +74,7 @@
 
 #include "ba/smooth_intrinsics.h"
 #include "camera/camera.h"
+#include "detect/grid_detector.h"
 #include "detect/observations.h"
 #include "geometry/pose.h"
 #include "io/object_views.h"
@@ -106,6 +113,10 @@ struct Problem {
   bool plate_free = false;
   double plate_sigma_mm = 0;
   std::vector<std::string> skipped_images;  // plate images without a usable grid ("file: why")
+  std::vector<GridDetection> plate_detections;  // every plate image's detection, when from images
+  // A calibration problem file in the spelling before the one schema names its config (resolved
+  // against the file's directory); empty otherwise.
+  std::string older_config_file;
   // Object views.
   std::vector<PoseView> object_views;  // io/object_views.h: the one object-view form
   double object_sigma_px = 0;          // from images: the median of the per-observation sigmas
@@ -149,8 +160,16 @@ inline const char* IntrinsicsModelName(const Problem& p) {
   return p.smooth ? "smooth" : p.per_group ? "per_group" : "shared";
 }
 
+// What the command reading a problem adds: the detection options of plate images whose
+// `plate_views` has no `detection` map of its own (else an older calibration file's config's
+// `detection`, else the defaults).
+struct ProblemReadOptions {
+  std::optional<DetectionOptions> plate_detection;
+};
+
 // The one problem reader, for every problem kind; the result has passed Check().
-StatusOr<Problem> LoadProblem(const std::string& yaml_path);
+StatusOr<Problem> LoadProblem(const std::string& yaml_path,
+                              const ProblemReadOptions& options = {});
 
 // A pose problem's marker position in its handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const Problem& problem, const Marker& m);

@@ -51,21 +51,65 @@ void NamePlateViews(Problem* p) {
   }
 }
 
-Status ReadPlateViews(YamlMap& m, const std::string& base, Problem* p) {
+// Where a problem's plate views are: its `plate_views` map, or, in a calibration problem file
+// written before the one schema, the file's top level (without sigma_px, plate and detection).
+struct PlateViewsSource {
+  bool older = false;
+  std::string older_config;  // that older file's `config`, resolved
+};
+
+// The plate images' detection options: `plate_views.detection`, else the command's, else an older
+// calibration file's config's `detection`, else the defaults.
+Status PlateDetectionOptions(YamlMap& m,
+                             const PlateViewsSource& src,
+                             const ProblemReadOptions& o,
+                             DetectionOptions* d) {
+  if (!src.older && m.Has("detection")) {
+    YamlMap& dm = m.Map("detection");
+    ReadDetectionOptions(dm, d);
+    CARMBA_RETURN_IF_ERROR(dm.Finish());
+  } else if (o.plate_detection) {
+    *d = *o.plate_detection;
+  } else if (!src.older_config.empty()) {
+    YamlMap config = YamlMap::Load(src.older_config);
+    CARMBA_RETURN_IF_ERROR(config.status());
+    YamlMap& dm = config.Map("detection");
+    ReadDetectionOptions(dm, d);
+    CARMBA_RETURN_IF_ERROR(dm.Finish());
+  }
+  std::string err;
+  if (m.status().ok() && !d->Check(&err)) m.Fail("detection", err);
+  return m.status();
+}
+
+Status ReadPlateViews(YamlMap& m,
+                      const std::string& base,
+                      const PlateViewsSource& src,
+                      const ProblemReadOptions& options,
+                      Problem* p) {
   std::string observations, images, pattern = "circles";
   GridSpec grid;
   bool has_grid = m.Has("rows") || m.Has("cols") || m.Has("spacing_mm") || m.Has("pattern");
   m.Get("observations", &observations);
   m.Get("images", &images);
   m.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &pattern);
-  m.Get("rows", &grid.rows);
-  m.Get("cols", &grid.cols);
+  m.GetInRange("rows", &grid.rows, plausible::kGridRowsCols);
+  m.GetInRange("cols", &grid.cols, plausible::kGridRowsCols);
   m.GetInRange("spacing_mm", &grid.spacing_mm, plausible::kGridSpacingMm);
-  m.GetInRange("sigma_px", &p->plate_sigma_px, plausible::kPixelSigmaPx, true);
-  YamlMap& plate = m.Map("plate");
-  plate.Get("free", &p->plate_free);
-  if (plate.Has("sigma_mm")) {
-    plate.GetInRange("sigma_mm", &p->plate_sigma_mm, plausible::kToleranceMm);
+  DetectionOptions detection;
+  if (!src.older) {
+    m.GetInRange("sigma_px", &p->plate_sigma_px, plausible::kPixelSigmaPx);
+    YamlMap& plate = m.Map("plate");
+    plate.Get("free", &p->plate_free);
+    if (plate.Has("sigma_mm")) {
+      plate.GetInRange("sigma_mm", &p->plate_sigma_mm, plausible::kToleranceMm);
+    }
+  }
+  if (!images.empty()) {
+    CARMBA_RETURN_IF_ERROR(PlateDetectionOptions(m, src, options, &detection));
+  } else if (!src.older && m.Has("detection")) {
+    m.Raw("detection");
+    m.Fail("detection", "detection options are for plate images; these plate views are a CSV");
   }
   if (!m.status().ok()) return m.status();
   if (observations.empty() == images.empty()) {
@@ -93,7 +137,8 @@ Status ReadPlateViews(YamlMap& m, const std::string& base, Problem* p) {
     }
     auto files = ListImageFiles(JoinPath(base, images));
     if (!files.ok()) return files.status().WithContext(m.KeyPath("images"));
-    auto obs = DetectGridInFiles(*files, grid, DetectionOptions(), &p->skipped_images);
+    auto obs = DetectGridInFiles(*files, grid, detection, &p->skipped_images, nullptr,
+                                 &p->plate_detections);
     if (!obs.ok()) return obs.status();
     p->plate = *obs;
   }
@@ -199,6 +244,29 @@ void ReadFiducialsKey(YamlMap& root, bool has_object, FiducialsKey* f) {
 // `observations: {file, format, marker_column}`, `sigma_px` and `views` for `object_views`.
 bool HasOlderPoseKeys(const YamlMap& root) {
   return root.Has("markers") || root.Has("observations");
+}
+
+// A calibration problem in the spelling before the one schema: top-level `images` or
+// `observations` (a CSV path), `pattern`, `rows`, `cols`, `spacing_mm` for `plate_views`, and its
+// `config`.
+bool HasOlderCalibrationKeys(YamlMap& root) {
+  for (const char* key : {"images", "pattern", "rows", "cols", "spacing_mm"}) {
+    if (root.Has(key)) return true;
+  }
+  return root.Has("observations") && !root.Has("markers") && root.Raw("observations").IsScalar();
+}
+
+void ReadOlderCalibrationKeys(YamlMap& root, const std::string& base, PlateViewsSource* src) {
+  src->older = true;
+  if (root.Has("plate_views")) {
+    root.Raw("plate_views");
+    root.Fail("plate_views",
+              "give plate_views, or the older top-level images (or observations), pattern, rows, "
+              "cols, spacing_mm, not both");
+  }
+  std::string config;
+  root.Get("config", &config);
+  if (!config.empty()) src->older_config = JoinPath(base, config);
 }
 
 void ReadOlderPoseKeys(YamlMap& root, Problem* p, FiducialsKey* f, ObjectViewsKey* k) {
@@ -624,7 +692,7 @@ void ReadTruthPose(const nlohmann::json& v, ProblemTruth* truth) {
 }
 
 // The simulator's truth: the camera, per-view intrinsics of a flexing C-arm, the object poses
-// ("object_views", or a pose scene's "views").
+// ("object_views", or a pose scene's "views"); or a camera.json, the true camera alone.
 Status ReadTruth(const std::string& path, ProblemTruth* truth) {
   auto text = ReadFile(path);
   if (!text.ok()) return text.status();
@@ -634,7 +702,11 @@ Status ReadTruth(const std::string& path, ProblemTruth* truth) {
   try {
     const nlohmann::json j = nlohmann::json::parse(*text);
     if (!j.contains("camera") && !j.contains("object_views") && !j.contains("views")) {
-      return Status::Error(path + expected);
+      // A camera.json (`carmba calibrate` output) is the true camera alone.
+      auto cam = CameraFromJson(j, path);
+      if (!cam.ok()) return Status::Error(path + expected + " or a camera.json");
+      truth->camera = *cam;
+      return Status::Ok();
     }
     if (j.contains("camera")) {
       auto cam = CameraFromJson(j.at("camera"), path + ": camera");
@@ -650,7 +722,10 @@ Status ReadTruth(const std::string& path, ProblemTruth* truth) {
     }
     for (const char* list : {"object_views", "views"}) {
       if (!j.contains(list)) continue;
-      for (const auto& v : j.at(list)) ReadTruthPose(v, truth);
+      for (const auto& v : j.at(list)) {
+        if (v.contains("cam_from_plate")) continue;  // a plate scene's view: no object pose
+        ReadTruthPose(v, truth);
+      }
     }
   } catch (const std::exception& e) {
     return Status::Error(path + expected + ": " + e.what());
@@ -665,13 +740,14 @@ Status ReadTruth(const std::string& path, ProblemTruth* truth) {
 struct ProblemKeys {
   std::string camera_file, truth_file, angles_file, handedness = "as_given";
   bool has_plate = false, has_object = false;
+  PlateViewsSource plate;
   IntrinsicsKey intrinsics;
   FiducialsKey fiducials;
   ObjectViewsKey object;
   std::pair<std::string, std::string> reference_files;
 };
 
-Status ReadKeys(YamlMap& root, Problem* p, ProblemKeys* k) {
+Status ReadKeys(YamlMap& root, const std::string& base, Problem* p, ProblemKeys* k) {
   root.Get("name", &p->name, true);
   root.Get("description", &p->description);
   root.Get("camera", &k->camera_file);
@@ -679,14 +755,16 @@ Status ReadKeys(YamlMap& root, Problem* p, ProblemKeys* k) {
   root.GetEnum("handedness", {"as_given", "mirrored"}, &k->handedness);
   ReadIntrinsicsKey(root, p, &k->intrinsics);
   root.Get("angles", &k->angles_file);
-  if (root.Has("config")) {
+  if (HasOlderCalibrationKeys(root)) {
+    ReadOlderCalibrationKeys(root, base, &k->plate);
+  } else if (root.Has("config")) {
     root.Raw("config");
-    root.Fail("config", "a problem does not name its config: give --config to `carmba solve`");
+    root.Fail("config", "a problem does not name its config: give --config to the command");
   }
   ReadValidationPairs(root, &p->validation);
   ReadReferenceKey(root.Map("reference"), p, &k->reference_files);
-  const bool older = HasOlderPoseKeys(root);
-  k->has_plate = root.Has("plate_views");
+  const bool older = !k->plate.older && HasOlderPoseKeys(root);
+  k->has_plate = k->plate.older || root.Has("plate_views");
   k->has_object = older || root.Has("object_views");
   if (!k->has_plate && !k->has_object) {
     root.Fail("plate_views", "give plate_views, object_views or both");
@@ -703,8 +781,16 @@ Status ReadKeys(YamlMap& root, Problem* p, ProblemKeys* k) {
 
 // The files the keys name: views, fiducials, camera, references; the detection of object views
 // in images last (it needs the camera and the fiducials).
-Status ReadFiles(YamlMap& root, const std::string& base, const ProblemKeys& k, Problem* p) {
-  if (k.has_plate) CARMBA_RETURN_IF_ERROR(ReadPlateViews(root.Map("plate_views"), base, p));
+Status ReadFiles(YamlMap& root,
+                 const std::string& base,
+                 const ProblemKeys& k,
+                 const ProblemReadOptions& options,
+                 Problem* p) {
+  if (k.has_plate) {
+    YamlMap& m = k.plate.older ? root : root.Map("plate_views");
+    CARMBA_RETURN_IF_ERROR(ReadPlateViews(m, base, k.plate, options, p));
+    p->older_config_file = k.plate.older_config;
+  }
   if (k.has_object) {
     CARMBA_RETURN_IF_ERROR(k.fiducials.status);
     CARMBA_RETURN_IF_ERROR(k.object.status);
@@ -804,15 +890,15 @@ Status Problem::Check() const {
   return Status::Ok();
 }
 
-StatusOr<Problem> LoadProblem(const std::string& yaml_path) {
+StatusOr<Problem> LoadProblem(const std::string& yaml_path, const ProblemReadOptions& options) {
   YamlMap root = YamlMap::Load(yaml_path);
   if (!root.status().ok()) return root.status();
   Problem p;
   p.path = yaml_path;
   const std::string base = DirName(yaml_path);
   ProblemKeys keys;
-  CARMBA_RETURN_IF_ERROR(ReadKeys(root, &p, &keys));
-  CARMBA_RETURN_IF_ERROR(ReadFiles(root, base, keys, &p));
+  CARMBA_RETURN_IF_ERROR(ReadKeys(root, base, &p, &keys));
+  CARMBA_RETURN_IF_ERROR(ReadFiles(root, base, keys, options, &p));
   CARMBA_RETURN_IF_ERROR(CheckCamera(p));
   // C-arm angles: views.csv, then the DICOM plate images.
   if (!keys.angles_file.empty()) {

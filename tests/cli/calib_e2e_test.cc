@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -44,6 +45,8 @@ CliRun Carmba(const std::string& args) {
   const int status = std::system((std::string(CARMBA_BIN) + " " + args + " >" + o + " 2>" + e).c_str());
   return {WEXITSTATUS(status), carmba::test::ReadTextFile(o), carmba::test::ReadTextFile(e)};
 }
+
+void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
 nlohmann::json Json(const fs::path& p) { return nlohmann::json::parse(carmba::test::ReadTextFile(p)); }
 
@@ -197,7 +200,8 @@ TEST(CalibE2E, OpenCvChessboardPhotosAgreeWithOpenCvAndMrcal) {
   const std::string out = Tmp("out_left");
   fs::remove_all(out);
   CliRun r = Carmba("calibrate --problem " + std::string(CARMBA_SOURCE_DIR) +
-                 "/problems/calib_opencv_left.yaml --out " + out);
+                    "/problems/calib_opencv_left.yaml --config " + std::string(CARMBA_SOURCE_DIR) +
+                    "/configs/calib_free.yaml --out " + out);
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json cam = Json(out + "/camera.json");
   const nlohmann::json m = Json(out + "/mrcal/mrcal_out.json");
@@ -232,6 +236,57 @@ void ExpectFailsCleanly(const std::string& args, const std::string& expected) {
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find(expected), std::string::npos) << "stderr: " << r.err;
   EXPECT_FALSE(fs::exists(out)) << args;
+}
+
+// A calibration problem in the one schema and the same problem in the spelling before it give
+// the same calibration as the flags; the problem's truth reaches the report.
+TEST(CalibE2E, ProblemInTheOneSchemaAndTheOlderSpellingCalibrateAlike) {
+  const std::string sim = Simulated("thesis_calibration");
+  const std::string config = std::string(CARMBA_SOURCE_DIR) + "/configs/calib_radial.yaml";
+  const std::string grid = "pattern: circles\nrows: 5\ncols: 5\nspacing_mm: 20\n";
+  const std::string one = Tmp("calib_one.yaml"), older = Tmp("calib_older.yaml");
+  WriteText(one, "name: one\nplate_views:\n  images: " + sim +
+                                       "\n  detection: {polarity: dark}\n" +
+                                       std::regex_replace(grid, std::regex("(^|\n)(.)"), "$1  $2") +
+                                       "truth: " + sim + "/truth.json\n");
+  WriteText(older, "name: older\nimages: " + sim + "\n" + grid + "config: " +
+                                         config + "\ntruth: " + sim + "/truth.json\n");
+  const std::string skip = " --no-plots --no-mrcal --no-opencv --out ";
+  CliRun a = Carmba("calibrate --problem " + one + " --config " + config + skip + Tmp("one"));
+  ASSERT_EQ(a.code, 0) << a.err;
+  CliRun b = Carmba("calibrate --problem " + older + skip + Tmp("older"));
+  ASSERT_EQ(b.code, 0) << b.err;
+  CliRun c = Carmba("calibrate --images " + sim + " --pattern circles --rows 5 --cols 5 " +
+                    "--spacing-mm 20 --config " + config + skip + Tmp("flags"));
+  ASSERT_EQ(c.code, 0) << c.err;
+  const nlohmann::json ca = Json(Tmp("one") + "/camera.json");
+  for (const std::string other : {"older", "flags"}) {
+    const nlohmann::json cb = Json(Tmp(other) + "/camera.json");
+    for (const char* key : {"fx", "fy", "cx", "cy", "distortion", "sigmas", "sigma_px"}) {
+      EXPECT_EQ(ca[key], cb[key]) << other << " " << key;
+    }
+  }
+  // The truth named in the problem is compared in the report, as --truth is.
+  EXPECT_NE(carmba::test::ReadTextFile(Tmp("one") + "/report.md").find("truth"), std::string::npos);
+}
+
+// What `carmba calibrate` does not solve is refused naming the key, and a --problem excludes the
+// plate flags.
+TEST(CalibE2E, ProblemKeysCalibrateDoesNotSolveAreRefused) {
+  const std::string sim = Simulated("thesis_calibration");
+  const std::string plate = "plate_views: {images: " + sim +
+                            ", pattern: circles, rows: 5, cols: 5, spacing_mm: 20";
+  const std::string free = Tmp("calib_free_plate.yaml"), roi = Tmp("calib_roi.yaml");
+  WriteText(free, "name: f\n" + plate + ", plate: {free: true}}\n");
+  WriteText(roi,
+                              "name: r\n" + plate + ", detection: {roi_px: [0, 0, 20, 20]}}\n");
+  ExpectFailsCleanly("calibrate --problem " + free, "plate_views.plate.free");
+  // The problem's detection options are used: a 20 px region of interest holds no grid.
+  ExpectFailsCleanly("calibrate --problem " + roi, "plate_views.images: the grid");
+  ExpectFailsCleanly("calibrate --problem " + free + " --rows 6",
+                     "--rows: the --problem names the plate views");
+  const std::string pose = std::string(CARMBA_SOURCE_DIR) + "/problems/thesis_pose.yaml";
+  ExpectFailsCleanly("calibrate --problem " + pose, "no plate_views");
 }
 
 TEST(CalibE2E, BadInputs) {

@@ -336,6 +336,14 @@ TEST_F(JointBadInput, FiducialsSigmaOutOfRange) {
   ExpectError("problem.yaml:4: key 'fiducials.sigma_mm': expected 1e-06 .. 1000 mm, got 2e-09");
 }
 
+// plate_views.sigma_px is optional in the schema (`carmba calibrate` estimates it) but `carmba
+// solve` needs it, and says so before it solves.
+TEST_F(JointBadInput, PlateSigmaMissing) {
+  const std::string from = "plate_views: {observations: plate.csv, sigma_px: 0.05}\n";
+  problem_.replace(problem_.find(from), from.size(), "plate_views: {observations: plate.csv}\n");
+  ExpectError("key 'plate_views.sigma_px': missing");
+}
+
 TEST_F(JointBadInput, ObjectViewWithFewerThanFourMarkers) {
   object_ += "+045,1,200.0,200.0\n+045,2,210.0,200.0\n+045,3,200.0,210.0\n";
   ExpectError("object view '+045' has 3 observed markers; a pose needs at least 4");
