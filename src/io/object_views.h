@@ -1,7 +1,7 @@
 // The data of an object view as every reader hands it on: the markers (CT fiducials) in the
 // object frame, and per view the markers' pixels with their noise. The one form of an object view
 // between the readers (io/pixel_csv.h, detect/marker_views.h ToPoseViews, the problem loader
-// problem/problem.h) and the engine (problem/pose_solver.h ToBaObjectView).
+// problem/problem.h) and the engine (problem/ba_assembly.h ToBaObjectView).
 #pragma once
 
 #include <Eigen/Core>

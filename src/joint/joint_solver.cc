@@ -8,6 +8,7 @@
 
 #include "analysis/lens_models.h"
 #include "calib/calibrate.h"
+#include "problem/ba_assembly.h"
 #include "util/format.h"
 
 namespace carmba {
@@ -241,10 +242,10 @@ StatusOr<ba::IntrinsicsGroup> InitialGroup(const Problem& problem,
 }
 
 // The plate views, each initialised by its group's calibration.
-void AddPlateViews(const Problem& problem,
-                   const GroupAssignment& groups,
-                   const std::vector<std::vector<Pose6>>& plate_poses,
-                   ba::BaProblem* bp) {
+std::vector<ba::BaView> PlateViews(const Problem& problem,
+                                   const GroupAssignment& groups,
+                                   const std::vector<std::vector<Pose6>>& plate_poses) {
+  std::vector<ba::BaView> views;
   std::vector<size_t> next_pose(groups.names.size(), 0);
   for (size_t v = 0; v < problem.plate.views.size(); ++v) {
     const int g = groups.of_plate_view[v];
@@ -257,74 +258,29 @@ void AddPlateViews(const Problem& problem,
     for (int i = 0; i < 6; ++i) view.initial[i] = pose[i];
     view.point_ids = problem.plate.views[v].point_ids;
     view.uv_px = problem.plate.views[v].uv_px;
-    bp->views.push_back(view);
+    views.push_back(view);
   }
+  return views;
 }
 
-// The fiducials and the object views, each initialised by the config's initializer with its
-// group's initial intrinsics; the validation pairs as view indices into sol->pairs.
-Status AddObjectViews(const Problem& problem,
-                      const SolverConfig& config,
-                      const GroupAssignment& groups,
-                      ba::BaProblem* bp,
-                      JointSolution* sol) {
-  std::map<int, Eigen::Vector3d> fiducial;
-  for (const auto& m : problem.fiducials) {
-    fiducial[m.id] = m.p_in_object;
-    bp->markers.push_back({m.id, m.p_in_object, m.covariance});
-  }
-  std::map<std::string, int> object_index;
-  for (size_t k = 0; k < problem.object_views.size(); ++k) {
-    ba::BaView view = ToBaObjectView(problem.object_views[k], problem.object_sigma_px);
-    view.group = groups.of_object_view[k];
-    Camera cam;
-    std::copy(bp->groups[view.group].initial.begin(),
-              bp->groups[view.group].initial.end(),
-              cam.params.begin());
-    std::vector<Eigen::Vector3d> pts;
-    for (int id : view.point_ids) pts.push_back(fiducial.at(id));
-    auto init = InitialObjectPose(cam, config.initializer, pts, view.uv_px);
-    if (!init.ok()) {
-      return Status::Error(problem.path + ": object view '" + view.id +
-                           "': " + init.status().message());
-    }
-    view.initial = *init;
-    object_index[view.id] = static_cast<int>(bp->views.size());
-    bp->views.push_back(view);
-  }
-  for (const auto& vp : problem.validation)
-    sol->pairs.emplace_back(object_index.at(vp.a), object_index.at(vp.b));
-  return Status::Ok();
-}
-
-// The engine's problem with initial values: groups, plate points, plate views, fiducials and
-// object views, the C-arm angles of the views that have them.
+// The engine's problem (problem/ba_assembly.h) with the groups initialised by the calibration of
+// their plate views (or camera.json), the plate views by theirs.
 Status JointBaProblem(const Problem& problem, const SolverConfig& config, JointSolution* sol) {
-  ba::BaProblem& bp = sol->ba_problem;
-  bp.name = problem.name;
-  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
   const GroupAssignment groups(problem);
-  for (int id = 0; id < problem.plate.grid.NumPoints() && !problem.plate.views.empty(); ++id) {
-    bp.plate.points.push_back(problem.plate.grid.PointInPlate(id));
-  }
-  bp.plate.free = problem.plate_free;
-  bp.plate.sigma_mm = problem.plate_sigma_mm;
+  BaAssemblyInput input;
   std::vector<std::vector<Pose6>> plate_poses(groups.names.size());
   sol->initial_intrinsics_from = problem.camera ? "camera file" : "calibration of the plate views";
   for (size_t g = 0; g < groups.names.size(); ++g) {
     auto grp = InitialGroup(problem, config, groups, g, &plate_poses[g]);
     if (!grp.ok()) return grp.status();
-    bp.groups.push_back(*grp);
+    input.groups.push_back(*grp);
   }
-  AddPlateViews(problem, groups, plate_poses, &bp);
-  CARMBA_RETURN_IF_ERROR(AddObjectViews(problem, config, groups, &bp, sol));
-  for (auto& v : bp.views) {
-    auto it = problem.angles.find(v.id);
-    if (it == problem.angles.end()) continue;
-    v.has_angles = true;
-    v.primary_deg = it->second.first;
-    v.secondary_deg = it->second.second;
-  }
+  input.plate_views = PlateViews(problem, groups, plate_poses);
+  input.object_view_groups = groups.of_object_view;
+  auto assembled = ToBaProblem(problem, config, std::move(input));
+  if (!assembled.ok()) return assembled.status();
+  sol->ba_problem = std::move(assembled->problem);
+  sol->pairs = std::move(assembled->validation_pairs);
   return Status::Ok();
 }
 

@@ -9,12 +9,11 @@
 #include <cmath>
 #include <limits>
 #include <memory>
-#include <opencv2/calib3d.hpp>
 #include <set>
 
 #include "ba/bundle_adjuster.h"
 #include "geometry/rotation.h"
-#include "pose/posit.h"
+#include "problem/ba_assembly.h"
 #include "util/stats.h"
 
 namespace carmba {
@@ -38,126 +37,12 @@ StatusOr<std::pair<std::vector<int>, Eigen::MatrixXd>> ConsideredCalibration(con
   return out;
 }
 
-ba::BaView ToBaObjectView(const PoseView& pose_view, double sigma_px) {
-  ba::BaView view;
-  view.id = pose_view.id;
-  view.kind = ba::ViewKind::kObject;
-  view.sigma_px = sigma_px;
-  bool per_observation = false, full = false;
-  for (const auto& o : pose_view.observations) {
-    per_observation |= o.sigma_px > 0;
-    full |= o.HasCovariance();
-  }
-  for (const auto& o : pose_view.observations) {
-    view.point_ids.push_back(o.marker_id);
-    view.uv_px.push_back(o.uv_px);
-    const double sigma = o.sigma_px > 0 ? o.sigma_px : sigma_px;
-    if (per_observation) view.obs_sigma_px.push_back(sigma);
-    if (full) {
-      view.obs_covariance_px2.push_back(
-          o.HasCovariance() ? o.covariance_px2
-                            : Eigen::Matrix2d(sigma * sigma * Eigen::Matrix2d::Identity()));
-    }
-  }
-  return view;
-}
-
-namespace {
-
-Eigen::Matrix3d MarkerCovarianceInProblemFrame(const Problem& problem, const Marker& m) {
-  if (problem.handedness == Handedness::kAsGiven) return m.covariance;
-  const Eigen::Matrix3d F = Eigen::Vector3d(1, -1, 1).asDiagonal();
-  return F * m.covariance * F;
-}
-
-}  // namespace
-
-StatusOr<Pose6> InitialObjectPose(const Camera& cam,
-                                  Initializer initializer,
-                                  const std::vector<Eigen::Vector3d>& pts,
-                                  const std::vector<Eigen::Vector2d>& uv) {
-  switch (initializer) {
-    case Initializer::kPosit:
-      return PositPose(cam, pts, uv, PositOptions());
-    case Initializer::kLegacyPosit: {
-      // OpenCV 1.x cvPOSIT as the thesis used it, but in this problem's camera convention:
-      // undistorted pixels relative to the principal point, one focal length (fx + fy) / 2,
-      // float32, non-orthonormal rows; the result is projected to the nearest rotation.
-      std::vector<Eigen::Vector2d> img(uv.size());
-      for (size_t i = 0; i < uv.size(); ++i) {
-        double xy[2];
-        if (!UnprojectToNormalized(cam.params.data(), uv[i].data(), xy)) {
-          return Status::Error("legacy POSIT: pixel " + std::to_string(i) +
-                               " cannot be undistorted");
-        }
-        img[i] = Eigen::Vector2d(xy[0] * cam.params[kFx], xy[1] * cam.params[kFy]);
-      }
-      PositOptions o;
-      o.mode = PositMode::kLegacy;
-      auto r = Posit(pts, img, 0.5 * (cam.params[kFx] + cam.params[kFy]), o);
-      if (!r.ok()) return r.status();
-      const Eigen::Matrix3d R = NearestRotation(r->R);
-      Pose6 pose;
-      pose.head<3>() = RvecFromRotation(R);
-      pose.tail<3>() = r->t - R * pts[0];
-      return pose;
-    }
-    case Initializer::kEpnp:
-    case Initializer::kSqpnp: {
-      cv::Mat obj(static_cast<int>(pts.size()), 3, CV_64F), img(static_cast<int>(uv.size()), 2,
-                                                                CV_64F);
-      for (size_t i = 0; i < pts.size(); ++i) {
-        for (int c = 0; c < 3; ++c) obj.at<double>(static_cast<int>(i), c) = pts[i][c];
-        for (int c = 0; c < 2; ++c) img.at<double>(static_cast<int>(i), c) = uv[i][c];
-      }
-      const cv::Matx33d K(cam.params[kFx], 0, cam.params[kCx], 0, cam.params[kFy],
-                          cam.params[kCy], 0, 0, 1);
-      const cv::Matx<double, 1, 5> dist(cam.params[kK1], cam.params[kK2], cam.params[kP1],
-                                        cam.params[kP2], cam.params[kK3]);
-      cv::Mat rvec, tvec;
-      bool ok = false;
-      try {
-        ok = cv::solvePnP(obj, img, K, dist, rvec, tvec, false,
-                          initializer == Initializer::kEpnp ? cv::SOLVEPNP_EPNP
-                                                                   : cv::SOLVEPNP_SQPNP);
-      } catch (const cv::Exception& e) {
-        return Status::Error(std::string(InitializerName(initializer)) + ": " + e.what());
-      }
-      if (!ok || rvec.empty()) {
-        return Status::Error(std::string(InitializerName(initializer)) + " failed");
-      }
-      Pose6 pose;
-      for (int c = 0; c < 3; ++c) pose[c] = rvec.at<double>(c), pose[3 + c] = tvec.at<double>(c);
-      if (!pose.allFinite() || !(pose[5] > 0)) {
-        return Status::Error(std::string(InitializerName(initializer)) +
-                             " returned an invalid pose");
-      }
-      return pose;
-    }
-  }
-  return Status::Error("unknown initializer");
-}
-
 std::vector<std::string> PoseWarnings(const PoseSolution& solution) {
   if (!solution.ba_result) return {};
   return ba::SolveWarnings(*solution.ba_result);
 }
 
 namespace {
-
-// The markers some view observes, in the problem frame (an unobserved marker would add nothing
-// but its own prior).
-std::map<int, Eigen::Vector3d> ObservedMarkers(const Problem& problem) {
-  std::set<int> observed;
-  for (const auto& v : problem.object_views) {
-    for (const auto& o : v.observations) observed.insert(o.marker_id);
-  }
-  std::map<int, Eigen::Vector3d> markers;
-  for (const auto& m : problem.fiducials) {
-    if (observed.count(m.id)) markers[m.id] = MarkerInProblemFrame(problem, m);
-  }
-  return markers;
-}
 
 // One intrinsics group held at the camera's values, with camera.json's covariance considered
 // when the config asks.
@@ -177,44 +62,28 @@ StatusOr<ba::IntrinsicsGroup> HeldIntrinsics(const Problem& problem, const Solve
   return g;
 }
 
-// The engine's problem: the held intrinsics, one object view per pose view initialised by the
-// config's initializer, the observed markers tied to their CT measurements. Fills each view's
-// initial pose into `sol`.
+// The engine's problem (problem/ba_assembly.h) with its one group held at the camera's values.
+// Fills each view's initial pose into `sol`, and the validation pairs.
 StatusOr<ba::BaProblem> PoseBaProblem(const Problem& problem,
                                       const SolverConfig& config,
-                                      const std::map<int, Eigen::Vector3d>& markers,
                                       const ProgressFn& progress,
                                       PoseSolution* sol) {
-  ba::BaProblem bp;
-  bp.name = problem.name;
-  bp.marker_radius_mm = problem.marker_diameter_mm / 2;
   auto group = HeldIntrinsics(problem, config);
   if (!group.ok()) return group.status();
-  bp.groups.push_back(*group);
-  std::map<int, const Marker*> marker_by_id;
-  for (const auto& m : problem.fiducials) marker_by_id[m.id] = &m;
-  for (const auto& [id, p] : markers) {
-    bp.markers.push_back({id, p, MarkerCovarianceInProblemFrame(problem, *marker_by_id.at(id))});
-  }
-  sol->views.resize(problem.object_views.size());
-  for (size_t v = 0; v < problem.object_views.size(); ++v) {
-    ba::BaView view = ToBaObjectView(problem.object_views[v], problem.object_sigma_px);
-    std::vector<Eigen::Vector3d> pts;
-    for (int id : view.point_ids) pts.push_back(markers.at(id));
-    auto init = InitialObjectPose(*problem.camera, config.initializer, pts, view.uv_px);
-    if (!init.ok()) {
-      return Status::Error(problem.path + ": view '" + problem.object_views[v].id +
-                           "': " + init.status().message());
-    }
-    view.initial = *init;
-    bp.views.push_back(view);
+  BaAssemblyInput input;
+  input.groups.push_back(*group);
+  auto assembled = ToBaProblem(problem, config, std::move(input), progress);
+  if (!assembled.ok()) return assembled.status();
+  const ba::BaProblem& bp = assembled->problem;
+  sol->views.resize(bp.views.size());
+  for (size_t v = 0; v < bp.views.size(); ++v) {
     ViewSolution& vs = sol->views[v];
-    vs.id = problem.object_views[v].id;
-    vs.initial = *init;
-    vs.num_observations = static_cast<int>(problem.object_views[v].observations.size());
-    if (progress) progress(problem.object_views[v].id);
+    vs.id = bp.views[v].id;
+    vs.initial = bp.views[v].initial;
+    vs.num_observations = static_cast<int>(bp.views[v].point_ids.size());
   }
-  return bp;
+  sol->validation_pairs = assembled->validation_pairs;
+  return std::move(assembled->problem);
 }
 
 // The engine's failures with the pose problem's advice.
@@ -235,7 +104,6 @@ Status PoseSolveError(const Problem& problem, const Status& s) {
 // The solution's poses, markers and statistics from the engine's result.
 std::vector<Pose6> TakePoseSolution(const Problem& problem,
                                     const SolverConfig& config,
-                                    std::map<int, Eigen::Vector3d> markers,
                                     PoseSolution* sol) {
   const ba::BaResult& r = *sol->ba_result;
   const ba::StateLayout& L = *r.layout;
@@ -248,10 +116,10 @@ std::vector<Pose6> TakePoseSolution(const Problem& problem,
   for (size_t v = 0; v < V; ++v) {
     for (int i = 0; i < 6; ++i) poses[v][i] = r.block(L.view_block(static_cast<int>(v)))[i];
   }
-  size_t k = 0;
-  for (auto& [id, p] : markers) {
+  std::map<int, Eigen::Vector3d> markers;
+  for (size_t k = 0; k < sol->ba_problem->markers.size(); ++k) {
+    Eigen::Vector3d& p = markers[sol->ba_problem->markers[k].id];
     for (int i = 0; i < 3; ++i) p[i] = r.block(L.marker_block(static_cast<int>(k)))[i];
-    ++k;
   }
   sol->chi2 = r.chi2;
   sol->num_residuals = r.num_residuals;
@@ -364,23 +232,19 @@ StatusOr<PoseSolution> SolvePoseProblem(const Problem& problem,
   CARMBA_RETURN_IF_ERROR(problem.Check());
   PoseSolution sol;
   sol.config_name = config.name;
-  const std::map<int, Eigen::Vector3d> markers = ObservedMarkers(problem);
-  auto bp = PoseBaProblem(problem, config, markers, progress, &sol);
+  auto bp = PoseBaProblem(problem, config, progress, &sol);
   if (!bp.ok()) return bp.status();
   const ba::BaOptions options = config.ToBaOptions();
   auto solved = ba::SolveBundleAdjustment(*bp, options);
   if (!solved.ok()) return PoseSolveError(problem, solved.status());
   sol.ba_problem = std::make_shared<const ba::BaProblem>(std::move(*bp));
   sol.ba_result = std::make_shared<const ba::BaResult>(std::move(*solved));
-  const std::vector<Pose6> poses = TakePoseSolution(problem, config, markers, &sol);
+  const std::vector<Pose6> poses = TakePoseSolution(problem, config, &sol);
   CARMBA_RETURN_IF_ERROR(PoseCovariance(problem, config, options, poses, &sol));
 
-  std::map<std::string, size_t> index;
-  for (size_t v = 0; v < problem.object_views.size(); ++v) index[problem.object_views[v].id] = v;
-  for (const auto& pr : problem.validation) {
-    const size_t ia = index.at(pr.a), ib = index.at(pr.b);
-    sol.validation.push_back(ValidationPairSolution(pr, ia, ib, poses, sol));
-    sol.validation_pairs.emplace_back(static_cast<int>(ia), static_cast<int>(ib));
+  for (size_t k = 0; k < problem.validation.size(); ++k) {
+    const auto [ia, ib] = sol.validation_pairs[k];
+    sol.validation.push_back(ValidationPairSolution(problem.validation[k], ia, ib, poses, sol));
   }
   // Relative poses (every pair of few views, else the validation pairs) and, when asked, the
   // leave-one-marker-out TRE: both from the engine's covariance.

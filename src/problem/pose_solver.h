@@ -42,18 +42,6 @@
 
 namespace carmba {
 
-// The engine's view of an object view (the one translation, for the pose and the joint
-// problems): its marker ids and pixels with their per-observation sigmas or covariances,
-// `sigma_px` where an observation has none; no group and no initial pose yet.
-ba::BaView ToBaObjectView(const PoseView& view, double sigma_px);
-
-// The initial pose cam_from_object of one view from its 2-D/3-D pairs by `initializer` with the
-// camera's intrinsics. Errors: the initialiser fails or returns an invalid pose.
-StatusOr<Pose6> InitialObjectPose(const Camera& camera,
-                                  Initializer initializer,
-                                  const std::vector<Eigen::Vector3d>& p_in_object,
-                                  const std::vector<Eigen::Vector2d>& uv_px);
-
 struct ViewSolution {
   std::string id;
   Pose6 cam_from_object;               // in the problem's handedness

@@ -171,7 +171,8 @@ struct ProblemReadOptions {
 StatusOr<Problem> LoadProblem(const std::string& yaml_path,
                               const ProblemReadOptions& options = {});
 
-// A pose problem's marker position in its handedness (mirrored: y negated).
+// A fiducial's position and CT covariance in the problem's handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const Problem& problem, const Marker& m);
+Eigen::Matrix3d MarkerCovarianceInProblemFrame(const Problem& problem, const Marker& m);
 
 }  // namespace carmba

@@ -836,6 +836,12 @@ Eigen::Vector3d MarkerInProblemFrame(const Problem& problem, const Marker& m) {
   return p;
 }
 
+Eigen::Matrix3d MarkerCovarianceInProblemFrame(const Problem& problem, const Marker& m) {
+  if (problem.handedness == Handedness::kAsGiven) return m.covariance;
+  const Eigen::Matrix3d F = Eigen::Vector3d(1, -1, 1).asDiagonal();
+  return F * m.covariance * F;
+}
+
 Status Problem::Check() const {
   std::string e;
   if (IsPoseProblem() &&

@@ -11,7 +11,7 @@
 #include "analysis/lens_models.h"
 #include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
-#include "problem/pose_solver.h"
+#include "problem/ba_assembly.h"
 #include "synthetic/synthetic_joint.h"
 
 namespace {
