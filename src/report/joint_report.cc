@@ -14,6 +14,7 @@
 #include "report/plots.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
+#include "report/result_views_json.h"
 #include "report/lens_report.h"
 #include "report/variance_report.h"
 
@@ -74,7 +75,7 @@ GeometrySet JointSolutionGeometry(const Problem& problem, const JointSolution& s
 
 namespace {
 
-// Every view: its pose, RMS and, for object views, the covariance, sigmas and the truth.
+// Every view: its pose, RMS and, for object views, the covariance and sigmas (the budget's).
 nlohmann::json ViewsJson(const Problem& problem, const JointSolution& s) {
   const ba::StateLayout& L = *s.result.layout;
   const ba::BaResult& r = s.result;
@@ -82,41 +83,26 @@ nlohmann::json ViewsJson(const Problem& problem, const JointSolution& s) {
   for (size_t v = 0; v < s.ba_problem.views.size(); ++v) {
     const ba::BaView& bv = s.ba_problem.views[v];
     const int b = L.view_block(static_cast<int>(v));
-    Pose6 pose;
-    for (int i = 0; i < 6; ++i) pose[i] = r.block(b)[i];
-    nlohmann::json vj;
-    vj["id"] = bv.id;
-    vj["kind"] = bv.kind == ba::ViewKind::kPlate ? "plate" : "object";
-    vj["group"] = s.ba_problem.groups[bv.group].name;
-    vj[bv.kind == ba::ViewKind::kPlate ? "cam_from_plate" : "cam_from_object"] = PoseToJson(pose);
-    vj["rms_px"] = JsonNumber(r.views[v].rms_px);
-    vj["num_observations"] = r.views[v].num_observations;
-    if (bv.rig < 0) vj["initial"] = PoseToJson(bv.initial);  // a rig view's is its rig's
-    vj["initial_rms_px"] = JsonNumber(r.initial_view_rms_px.at(v));
-    if (bv.kind == ba::ViewKind::kObject) {
-      vj["covariance_6x6"] = JsonRows(r.Covariance({b}));
-      vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
-      nlohmann::json sr = nlohmann::json::array(), st = nlohmann::json::array();
+    ViewRecord rec;
+    rec.id = bv.id;
+    rec.plate = bv.kind == ba::ViewKind::kPlate;
+    rec.group = s.ba_problem.groups[bv.group].name;
+    for (int i = 0; i < 6; ++i) rec.pose[i] = r.block(b)[i];
+    rec.rms_px = r.views[v].rms_px;
+    rec.num_observations = r.views[v].num_observations;
+    if (bv.rig < 0) rec.initial = bv.initial;  // a rig view's is its rig's
+    rec.initial_rms_px = r.initial_view_rms_px.at(v);
+    if (!rec.plate) {
+      rec.covariance = r.Covariance({b});
       for (int a = 0; a < 3; ++a) {
-        sr.push_back(JsonNumber(
-            ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a))
-                ->sigma));
-        st.push_back(JsonNumber(
-            ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewTranslation(static_cast<int>(v), a))
-                ->sigma));
-      }
-      vj["sigma_rotation_deg"] = sr;
-      vj["sigma_translation_mm"] = st;
-      auto it = problem.truth.object_poses.find(bv.id);
-      if (it != problem.truth.object_poses.end()) {
-        vj["truth"] = PoseToJson(it->second);
-        vj["rotation_error_deg"] = AngleBetweenRotations(RotationFromRvec(pose.head<3>()),
-                                                         RotationFromRvec(it->second.head<3>())) *
-                                   kRadToDeg;
-        vj["translation_error_mm"] = (pose.tail<3>() - it->second.tail<3>()).norm();
+        const int iv = static_cast<int>(v);
+        rec.sigma_rotation_deg[a] =
+            ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewRotation(iv, a))->sigma;
+        rec.sigma_translation_mm[a] =
+            ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewTranslation(iv, a))->sigma;
       }
     }
-    views.push_back(vj);
+    views.push_back(ViewJson(rec, problem.truth));
   }
   return views;
 }
@@ -131,20 +117,13 @@ nlohmann::json ValidationJson(const Problem& problem, const JointSolution& s) {
         ba::FindBudgetRow(s.budget, ba::QuantityKey::PairRelativeRotation(ia, ib));
     const ba::BudgetRow* vd =
         ba::FindBudgetRow(s.budget, ba::QuantityKey::PairViewDirections(ia, ib));
-    nlohmann::json pj = {{"a", vp.a},
-                         {"b", vp.b},
-                         {"relative_rotation_deg", JsonNumber(rr->quantity.value)},
-                         {"sigma_relative_rotation_deg", JsonNumber(rr->sigma)},
-                         {"angle_view_dirs_deg", JsonNumber(vd->quantity.value)},
-                         {"sigma_view_dirs_deg", JsonNumber(vd->sigma)},
-                         {"expected_deg", vp.expected_deg ? nlohmann::json(*vp.expected_deg)
-                                                          : nlohmann::json()}};
-    auto ta = problem.truth.object_poses.find(vp.a), tb = problem.truth.object_poses.find(vp.b);
-    if (ta != problem.truth.object_poses.end() && tb != problem.truth.object_poses.end()) {
-      pj["true_relative_rotation_deg"] =
-          RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
-    }
-    val.push_back(pj);
+    PairRecord rec;
+    rec.a = vp.a, rec.b = vp.b, rec.expected_deg = vp.expected_deg;
+    rec.relative_rotation_deg = rr->quantity.value;
+    rec.sigma_relative_rotation_deg = rr->sigma;
+    rec.angle_view_dirs_deg = vd->quantity.value;
+    rec.sigma_view_dirs_deg = vd->sigma;
+    val.push_back(PairJson(rec, problem.truth));
   }
   return val;
 }

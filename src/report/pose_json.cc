@@ -7,6 +7,7 @@
 #include "report/engine_json.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
+#include "report/result_views_json.h"
 #include "report/variance_report.h"
 #include "util/format.h"
 
@@ -40,44 +41,32 @@ nlohmann::json PoseSolutionToJson(const Problem& problem, const PoseSolution& s)
       {"sigma_px", problem.object_sigma_px},
       {"handedness", problem.handedness == Handedness::kMirrored ? "mirrored" : "as_given"},
       {"camera", CameraToJson(*problem.camera)}};
+  const std::string& group = s.ba_problem->groups[0].name;  // SolvePoseProblem sets it
   nlohmann::json views = nlohmann::json::array();
   for (const auto& v : s.views) {
-    nlohmann::json vj;
-    vj["id"] = v.id;
-    vj["kind"] = "object";
-    vj["group"] = s.ba_problem && !s.ba_problem->groups.empty() ? s.ba_problem->groups[0].name
-                                                                : std::string("shared");
-    vj["cam_from_object"] = PoseToJson(v.cam_from_object);
-    vj["covariance_6x6"] = s.has_covariance ? JsonRows(v.covariance) : nlohmann::json();
-    vj["covariance_order"] = "rx ry rz (rad, rotation vector), tx ty tz (mm)";
-    vj["sigma_rotation_deg"] = JsonVector(v.sigma_rotation_deg);
-    vj["sigma_translation_mm"] = JsonVector(v.sigma_translation_mm);
-    vj["rms_px"] = JsonNumber(v.rms_px);
-    vj["num_observations"] = v.num_observations;
-    vj["initial"] = PoseToJson(v.initial);
-    vj["initial_rms_px"] = JsonNumber(v.initial_rms_px);
-    if (problem.truth.object_poses.count(v.id)) {
-      const Pose6& t = problem.truth.object_poses.at(v.id);
-      vj["truth"] = PoseToJson(t);
-      vj["rotation_error_deg"] =
-          AngleBetweenRotations(RotationFromRvec(v.cam_from_object.head<3>()),
-                                RotationFromRvec(t.head<3>())) *
-          kRadToDeg;
-      vj["translation_error_mm"] = (v.cam_from_object.tail<3>() - t.tail<3>()).norm();
-    }
-    views.push_back(vj);
+    ViewRecord rec;
+    rec.id = v.id;
+    rec.group = group;
+    rec.pose = v.cam_from_object;
+    rec.rms_px = v.rms_px;
+    rec.num_observations = v.num_observations;
+    rec.initial = v.initial;
+    rec.initial_rms_px = v.initial_rms_px;
+    if (s.has_covariance) rec.covariance = v.covariance;
+    rec.sigma_rotation_deg = v.sigma_rotation_deg;
+    rec.sigma_translation_mm = v.sigma_translation_mm;
+    views.push_back(ViewJson(rec, problem.truth));
   }
   j["views"] = views;
   nlohmann::json val = nlohmann::json::array();
   for (const auto& p : s.validation) {
-    val.push_back({{"a", p.a},
-                   {"b", p.b},
-                   {"angle_view_dirs_deg", JsonNumber(p.angle_view_dirs_deg)},
-                   {"sigma_view_dirs_deg", JsonNumber(p.sigma_view_dirs_deg)},
-                   {"relative_rotation_deg", JsonNumber(p.relative_rotation_deg)},
-                   {"sigma_relative_rotation_deg", JsonNumber(p.sigma_relative_rotation_deg)},
-                   {"expected_deg", p.expected_deg ? nlohmann::json(*p.expected_deg)
-                                                   : nlohmann::json()}});
+    PairRecord rec;
+    rec.a = p.a, rec.b = p.b, rec.expected_deg = p.expected_deg;
+    rec.relative_rotation_deg = p.relative_rotation_deg;
+    rec.sigma_relative_rotation_deg = p.sigma_relative_rotation_deg;
+    rec.angle_view_dirs_deg = p.angle_view_dirs_deg;
+    rec.sigma_view_dirs_deg = p.sigma_view_dirs_deg;
+    val.push_back(PairJson(rec, problem.truth));
   }
   j["validation"] = val;
   // The engine's problem and result: SolvePoseProblem always sets both.
