@@ -1,5 +1,5 @@
-// Answers that leave the calibrated range say so (analysis/calibrated_range.h): object views at C-arm
-// angles the smooth model's plate views did not cover, and object views far nearer than the
+// Answers that leave the calibrated range say so (analysis/calibrated_range.h): object views at
+// C-arm angles the smooth model's plate views did not cover, and object views far nearer than the
 // plate views; views inside the range say nothing.
 #include <gtest/gtest.h>
 
@@ -57,7 +57,8 @@ TEST(CalibratedRange, ObjectViewsFarNearerThanThePlateAreNamed) {
     ASSERT_TRUE(r.ok()) << r.status().message();
     const auto w = CalibratedRangeWarnings(sj.problem, *r);
     int named = 0;
-    for (const auto& v : sj.problem.views) named += v.kind == ba::ViewKind::kObject && Names(w, v.id);
+    for (const auto& v : sj.problem.views)
+      named += v.kind == ba::ViewKind::kObject && Names(w, v.id);
     if (distance == 700.0) {
       EXPECT_TRUE(w.empty()) << w.front();
     } else {

@@ -30,11 +30,12 @@ constexpr double kFlexJacTol = 1e-10;
 // the central differences' rounding error is ~1e-13 absolute, which is ~1e-5 relative for the
 // smallest entries (dr/dk3 ~ r^6 ~ 1e-8 near the image centre).
 constexpr double kFdTol = 1e-4;
-// Schur complement vs ceres::Covariance dense SVD: two factorisations of a matrix of condition ~1e9.
+// Schur complement vs ceres::Covariance dense SVD: two factorisations of a matrix of condition
+// ~1e9.
 constexpr double kFlexCovTol = 1e-6;
 
-const std::vector<IntrinsicsModel> kAllModels = {IntrinsicsModel::kShared, IntrinsicsModel::kPerGroup,
-                                                 IntrinsicsModel::kSmooth};
+const std::vector<IntrinsicsModel> kAllModels = {
+    IntrinsicsModel::kShared, IntrinsicsModel::kPerGroup, IntrinsicsModel::kSmooth};
 
 TEST(SmoothIntrinsics, BasisNamesAndMap) {
   ba::SmoothBasis b;
@@ -48,7 +49,8 @@ TEST(SmoothIntrinsics, BasisNamesAndMap) {
   EXPECT_EQ(b.ParameterName(7 * 2 + 6), "cx sec^2");
   EXPECT_EQ(b.ParameterName(28), "k1");
   EXPECT_EQ(b.IntrinsicOf(7 * 3 + 5), kCy);
-  const std::array<double, kNumIntrinsics> x{2000, 2010, 205, 200, 0.08, 0.01, 0.001, -0.002, 0.003};
+  const std::array<double, kNumIntrinsics> x{
+      2000, 2010, 205, 200, 0.08, 0.01, 0.001, -0.002, 0.003};
   const auto c = b.ConstantCoefficients(x);
   const auto back = ba::SmoothIntrinsicsAt(b.Map(0.7, -0.3), c.data());
   for (int i = 0; i < kNumIntrinsics; ++i) EXPECT_DOUBLE_EQ(back[i], x[i]) << i;
@@ -65,16 +67,19 @@ TEST(SmoothIntrinsics, AnalyticJacobianEqualsAutodiffAndFiniteDifferences) {
   for (int trial = 0; trial < 20; ++trial) {
     const Eigen::Vector2d angles = RandomVector<2>(u, rng);
     const Eigen::MatrixXd A = b.Map(1.5 * angles[0], 0.5 * angles[1]);
-    std::vector<double> c = b.ConstantCoefficients({2000, 2010, 205, 200, 0.08, 0.01, 0.001, -0.002, 0.003});
+    std::vector<double> c =
+        b.ConstantCoefficients({2000, 2010, 205, 200, 0.08, 0.01, 0.001, -0.002, 0.003});
     for (int k = 0; k < 4; ++k) {
       for (int t = 1; t < b.NumTerms(); ++t) c[k * b.NumTerms() + t] = 5 * u(rng);
     }
     // A wide field (normalised radius up to ~0.3), so that dr/dk3 ~ r^6 is not lost in rounding.
-    std::vector<double> pose = {0.2 * u(rng), 0.2 * u(rng), 0.3 * u(rng), 20 * u(rng), 20 * u(rng), 250};
+    std::vector<double> pose = {
+        0.2 * u(rng), 0.2 * u(rng), 0.3 * u(rng), 20 * u(rng), 20 * u(rng), 250};
     std::vector<double> p = {60 * u(rng), 60 * u(rng), 10 * u(rng)};
     const double* params[3] = {pose.data(), p.data(), c.data()};
     ba::SmoothReprojectionError analytic(150, 210, 0.3, A);
-    std::unique_ptr<ceres::CostFunction> twin(ba::SmoothReprojectionErrorAutoDiff::Create(150, 210, 0.3, A));
+    std::unique_ptr<ceres::CostFunction> twin(
+        ba::SmoothReprojectionErrorAutoDiff::Create(150, 210, 0.3, A));
     double ra[2], rt[2];
     std::vector<double> Ja[3] = {std::vector<double>(12), std::vector<double>(6),
                                  std::vector<double>(2 * c.size())};
@@ -127,7 +132,10 @@ TEST(SmoothIntrinsics, SchurCovarianceEqualsCeresAndAnalyticEqualsAutodiff) {
 }
 
 // NEES e^T C^-1 e of a view's fx fy cx cy and of an object view's pose.
-double IntrinsicsNees(const ba::BaProblem& p, const ba::BaResult& r, int v, const std::array<double, 9>& truth) {
+double IntrinsicsNees(const ba::BaProblem& p,
+                      const ba::BaResult& r,
+                      int v,
+                      const std::array<double, 9>& truth) {
   const ba::ViewIntrinsics vi = ba::IntrinsicsOfView(p, r, v);
   Eigen::Vector4d e;
   for (int i = 0; i < 4; ++i) e[i] = vi.value[i] - truth[i];
@@ -162,7 +170,8 @@ FlexMc RunFlexMonteCarlo(IntrinsicsModel m, const CarmFlex& flex, int trials) {
       const double n = IntrinsicsNees(p, *r, vi, sf.true_intrinsics[v]);
       const ba::ViewIntrinsics x = ba::IntrinsicsOfView(p, *r, vi);
       for (int i = 0; i < 4; ++i) {
-        mc.intr_within3 += std::abs(x.value[i] - sf.true_intrinsics[v][i]) < 3 * std::sqrt(x.covariance(i, i));
+        mc.intr_within3 +=
+            std::abs(x.value[i] - sf.true_intrinsics[v][i]) < 3 * std::sqrt(x.covariance(i, i));
         ++mc.n_comp;
       }
       if (p.views[v].kind == ba::ViewKind::kPlate) {
@@ -191,7 +200,8 @@ FlexMc RunFlexMonteCarlo(IntrinsicsModel m, const CarmFlex& flex, int trials) {
 TEST(FlexMonteCarlo, SmoothIsConsistentSharedIsNot) {
   constexpr int kTrials = 30;
   // Mean NEES of `kTrials` x views: the sampling sd of a mean of ~150 chi2_4 values is ~0.23 (but
-  // the views of one trial are correlated through the shared coefficients), so 4 +- 1.2 and 6 +- 1.8.
+  // the views of one trial are correlated through the shared coefficients), so 4 +- 1.2 and 6
+  // +- 1.8.
   const FlexMc smooth = RunFlexMonteCarlo(IntrinsicsModel::kSmooth, CarmFlex::Typical(), kTrials);
   const FlexMc shared = RunFlexMonteCarlo(IntrinsicsModel::kShared, CarmFlex::Typical(), kTrials);
   std::printf("smooth: intrinsics NEES calibrated %.2f between %.2f (dim 4), within 3 sigma %.4f; "
@@ -214,11 +224,13 @@ TEST(FlexSelection, FlexingPicksAModelOfTheFlexRigidPicksShared) {
   ba::BaOptions o;
   for (uint64_t seed : {3, 4}) {
     ba::SyntheticFlexSpec spec;
-    auto flexing = SelectIntrinsicsModel(ba::MakeSyntheticFlex(spec, seed).problem, ba::SmoothBasis(), o, kAllModels);
+    auto flexing = SelectIntrinsicsModel(
+        ba::MakeSyntheticFlex(spec, seed).problem, ba::SmoothBasis(), o, kAllModels);
     ASSERT_TRUE(flexing.ok()) << flexing.status().message();
     EXPECT_EQ(flexing->recommended, IntrinsicsModel::kSmooth) << flexing->why;
     spec.flex = CarmFlex();
-    auto rigid = SelectIntrinsicsModel(ba::MakeSyntheticFlex(spec, seed).problem, ba::SmoothBasis(), o, kAllModels);
+    auto rigid = SelectIntrinsicsModel(
+        ba::MakeSyntheticFlex(spec, seed).problem, ba::SmoothBasis(), o, kAllModels);
     ASSERT_TRUE(rigid.ok()) << rigid.status().message();
     EXPECT_EQ(rigid->recommended, IntrinsicsModel::kShared) << rigid->why;
     ASSERT_EQ(rigid->scores.size(), 3u);
@@ -243,7 +255,8 @@ TEST(FlexBadInput, TooFewOrientationsAndViewsWithoutAngles) {
   spec.plate_orientations_deg = {{-45, 0}, {0, 0}, {45, 0}, {90, 0}};
   p = ba::MakeSyntheticFlex(spec, 1).problem;
   s = ApplyIntrinsicsModel(IntrinsicsModel::kSmooth, ba::SmoothBasis(), &p);
-  EXPECT_NE(s.message().find("distinct secondary angles (have 1)"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("distinct secondary angles (have 1)"), std::string::npos)
+      << s.message();
 
   ba::BaProblem q = ba::MakeSyntheticFlex(ba::SyntheticFlexSpec(), 1).problem;
   q.views[3].has_angles = false;
@@ -260,8 +273,9 @@ TEST(FlexBadInput, TooFewOrientationsAndViewsWithoutAngles) {
   ba::BaProblem h = ba::MakeSyntheticFlex(ba::SyntheticFlexSpec(), 1).problem;
   h.groups[0].smooth = true;
   h.views[0].has_angles = false;
-  EXPECT_NE(h.Check().message().find("has no C-arm angles, but its intrinsics group 'shared' is smooth"),
-            std::string::npos)
+  EXPECT_NE(
+      h.Check().message().find("has no C-arm angles, but its intrinsics group 'shared' is smooth"),
+      std::string::npos)
       << h.Check().message();
 }
 

@@ -39,11 +39,19 @@ TEST(LensModels, TangentialCarmGetsTangentialTermsAndTheRadialSolveIsWarned) {
   auto sel = SelectDistortionModel(sj.problem, ba::BaOptions());
   ASSERT_TRUE(sel.ok()) << sel.status().message();
   for (const auto& sc : sel->scores) {
-    std::printf("%-16s chi2 %8.1f free %3d AIC %8.1f BIC %8.1f held-out %.4f/res cx %.2f +- %.2f cy %.2f +- %.2f\n",
-                DistortionModelName(sc.model), sc.chi2, sc.num_free, sc.aic, sc.bic,
-                sc.held_out_chi2_per_residual, sc.principal_point[0],
-                std::sqrt(sc.principal_point_covariance(0, 0)), sc.principal_point[1],
-                std::sqrt(sc.principal_point_covariance(1, 1)));
+    std::printf(
+        "%-16s chi2 %8.1f free %3d AIC %8.1f BIC %8.1f held-out %.4f/res "
+        "cx %.2f +- %.2f cy %.2f +- %.2f\n",
+        DistortionModelName(sc.model),
+        sc.chi2,
+        sc.num_free,
+        sc.aic,
+        sc.bic,
+        sc.held_out_chi2_per_residual,
+        sc.principal_point[0],
+        std::sqrt(sc.principal_point_covariance(0, 0)),
+        sc.principal_point[1],
+        std::sqrt(sc.principal_point_covariance(1, 1)));
   }
   std::printf("recommended %s: %s\n", DistortionModelName(sel->recommended), sel->why.c_str());
   EXPECT_TRUE(HasTangential(sel->recommended)) << sel->why;
@@ -53,7 +61,8 @@ TEST(LensModels, TangentialCarmGetsTangentialTermsAndTheRadialSolveIsWarned) {
   auto rr = ba::SolveBundleAdjustment(radial, ba::BaOptions());
   ASSERT_TRUE(rr.ok());
   const double* Kr = rr->block(rr->layout->group_block(0));
-  const std::string w = DistortionWarning(*sel, DistortionModel::kRadial2, Eigen::Vector2d(Kr[kCx], Kr[kCy]));
+  const std::string w =
+      DistortionWarning(*sel, DistortionModel::kRadial2, Eigen::Vector2d(Kr[kCx], Kr[kCy]));
   std::printf("radial-only: cx %.2f cy %.2f (truth %.2f %.2f); warning: %s\n", Kr[kCx], Kr[kCy],
               sj.true_intrinsics[kCx], sj.true_intrinsics[kCy], w.c_str());
   EXPECT_NE(w.find("distortion model k1 k2: its principal point"), std::string::npos) << w;
@@ -92,7 +101,8 @@ TEST(LensModels, RecommendedModelIsWithinThreeSigmaOverSeeds) {
         const Eigen::MatrixXd C = r->Covariance({gb});
         for (int i = 0; i < kNumIntrinsics; ++i) {
           if (!(C(i, i) > 0)) continue;
-          const bool out = std::abs(r->block(gb)[i] - sj.true_intrinsics[i]) > 3 * std::sqrt(C(i, i));
+          const bool out =
+              std::abs(r->block(gb)[i] - sj.true_intrinsics[i]) > 3 * std::sqrt(C(i, i));
           (radial_only ? beyond_radial : beyond) += out;
           params += !radial_only;
         }

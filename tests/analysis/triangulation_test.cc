@@ -74,19 +74,22 @@ TEST(RelativePose, JacobianMatchesCentralDifferences) {
 
 TEST(RelativePose, MonteCarloNeesAndThreeSigma) {
   constexpr int kTrials = 200;
-  const ba::SyntheticJoint ref = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 0);
+  const ba::SyntheticJoint ref =
+      ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 0);
   const auto pairs = RelativePosePairs(ref.problem, ref.pairs);
   ASSERT_EQ(pairs.size(), 21u);  // 7 object views: all pairs
   std::vector<double> nees(pairs.size(), 0.0);
   int within3 = 0, total = 0;
   double worst_sigma = 0, us = 0, us_batch = 0;
   for (int t = 0; t < kTrials; ++t) {
-    const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 7000 + t);
+    const ba::SyntheticJoint sj =
+        ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 7000 + t);
     auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
     ASSERT_TRUE(r.ok()) << r.status().message();
     const auto tb = std::chrono::steady_clock::now();
     const auto batch = EstimateRelativePoses(*r, pairs);
-    us_batch += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - tb).count();
+    us_batch +=
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - tb).count();
     if (t == 0) {
       // The batch (one covariance of all views) equals pair by pair.
       ASSERT_EQ(batch.size(), pairs.size());
@@ -100,7 +103,8 @@ TEST(RelativePose, MonteCarloNeesAndThreeSigma) {
       const auto [a, b] = pairs[k];
       const auto t0 = std::chrono::steady_clock::now();
       const RelativePoseEstimate est = EstimateRelativePose(*r, a, b);
-      us += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+      us +=
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
       const RelativePoseError err = CompareRelativePose(est, sj.true_poses[a], sj.true_poses[b]);
       nees[k] += err.nees / 6.0;
       within3 += err.rotation_mahalanobis < 3.0;
@@ -147,7 +151,8 @@ TEST(Triangulation, MonteCarloNees) {
     int flagged = 0;
     double chi2_per_dof = 0;
     for (int t = 0; t < kTrials; ++t) {
-      const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 9000 + t);
+      const ba::SyntheticJoint sj =
+          ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 9000 + t);
       auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
       ASSERT_TRUE(r.ok()) << r.status().message();
       std::vector<int> views = ObjectViews(sj.problem);
@@ -155,7 +160,8 @@ TEST(Triangulation, MonteCarloNees) {
       const auto obs = TipPixels(sj, views, kTipSigmaPx, &rng);
       const auto t0 = std::chrono::steady_clock::now();
       auto tp = TriangulatePoint(sj.problem, *r, obs);
-      us += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+      us +=
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
       ASSERT_TRUE(tp.ok()) << tp.status().message();
       // The self-check flags (and with 3+ rays rejects) at its 0.5 % tail: 0 and 3 of 300 here;
       // the mean chi2 / dof (1.03, 1.00) says its residual covariance is right.
@@ -164,7 +170,8 @@ TEST(Triangulation, MonteCarloNees) {
       const Eigen::Vector3d e = tp->p_in_object - kTip;
       nees += e.dot(tp->covariance.ldlt().solve(e)) / 3.0;
       const double tr = tp->covariance.trace();
-      for (int s = 0; s < ba::kNumSources; ++s) share[s] += tp->solve_trace_by_source[s] / tr / kTrials;
+      for (int s = 0; s < ba::kNumSources; ++s)
+        share[s] += tp->solve_trace_by_source[s] / tr / kTrials;
       share_pixels += tp->covariance_pixels.trace() / tr / kTrials;
     }
     nees /= kTrials;
@@ -186,7 +193,8 @@ TEST(Triangulation, MonteCarloNees) {
 // its covariance of the truth; with two rays it cannot be told which is wrong, and the point is
 // flagged instead of reported silently.
 TEST(Triangulation, AMisclickedRayIsRejectedOrFlagged) {
-  const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 31337);
+  const ba::SyntheticJoint sj =
+      ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 31337);
   auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
   ASSERT_TRUE(r.ok()) << r.status().message();
   std::mt19937_64 rng(5);
@@ -225,13 +233,16 @@ TEST(Triangulation, EachSourceAloneMatchesItsShare) {
   // share (plate pixels, intrinsics prior) is small here -- the per-view poses absorb most of an
   // intrinsics error (shared/notes/joint-ba.md) -- and is checked like the others.
   constexpr int kTrials = 150;
-  const ba::Source sources[] = {ba::Source::kPlatePixels, ba::Source::kObjectPixels, ba::Source::kCt,
-                            ba::Source::kIntrinsicsPrior};
+  const ba::Source sources[] = {ba::Source::kPlatePixels,
+                                ba::Source::kObjectPixels,
+                                ba::Source::kCt,
+                                ba::Source::kIntrinsicsPrior};
   for (ba::Source src : sources) {
     double e2 = 0, predicted = 0;
     std::mt19937_64 rng(7);
     for (int t = 0; t < kTrials; ++t) {
-      const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches::Only(src), 20000 + t);
+      const ba::SyntheticJoint sj =
+          ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches::Only(src), 20000 + t);
       auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
       ASSERT_TRUE(r.ok()) << r.status().message();
       const std::vector<int> views = ObjectViews(sj.problem);
@@ -241,8 +252,11 @@ TEST(Triangulation, EachSourceAloneMatchesItsShare) {
       predicted += tp->solve_trace_by_source[static_cast<int>(src)];
     }
     const double ratio = e2 / predicted;
-    std::printf("tip error from %s alone: mean squared error / predicted share = %.3f (RMS %.4f mm)\n",
-                ba::SourceName(src), ratio, std::sqrt(e2 / kTrials));
+    std::printf(
+        "tip error from %s alone: mean squared error / predicted share = %.3f (RMS %.4f mm)\n",
+        ba::SourceName(src),
+        ratio,
+        std::sqrt(e2 / kTrials));
     EXPECT_GE(ratio, kTriNeesLow) << ba::SourceName(src);
     EXPECT_LE(ratio, kTriNeesHigh) << ba::SourceName(src);
   }
@@ -255,7 +269,8 @@ TEST(Triangulation, CovarianceIgnoringTheSolveIsTooSmall) {
   double nees_pixels = 0;
   std::mt19937_64 rng(43);
   for (int t = 0; t < kTrials; ++t) {
-    const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 11000 + t);
+    const ba::SyntheticJoint sj =
+        ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 11000 + t);
     auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
     ASSERT_TRUE(r.ok());
     const std::vector<int> views = ObjectViews(sj.problem);
@@ -314,7 +329,8 @@ TEST(Triangulation, BadInput) {
     ASSERT_EQ(t->warnings.size(), 1u);
     EXPECT_NE(t->warnings[0].find("nearly parallel"), std::string::npos);
     // The rays of the tip are 9.3 deg apart (the C-arm's 10 deg about an axis not through the tip).
-    EXPECT_NE(t->warnings[0].find("'+000' and '+010') is 9.28 deg apart (below 15)"), std::string::npos)
+    EXPECT_NE(t->warnings[0].find("'+000' and '+010') is 9.28 deg apart (below 15)"),
+              std::string::npos)
         << t->warnings[0];
     auto t2 = TriangulatePoint(sj.problem, *r, near);  // default 5 deg
     ASSERT_TRUE(t2.ok());
@@ -325,7 +341,8 @@ TEST(Triangulation, BadInput) {
     ba::BaProblem p = sj.problem;
     ba::BaResult same = *r;
     const int b0 = same.layout->view_block(views[0]), b1 = same.layout->view_block(views[1]);
-    std::copy(same.block(b0), same.block(b0) + 6, same.state.data() + same.layout->block(b1).offset);
+    std::copy(
+        same.block(b0), same.block(b0) + 6, same.state.data() + same.layout->block(b1).offset);
     auto par = obs;
     par[1].view = views[1];
     par[1].uv_px = par[0].uv_px;
@@ -346,7 +363,8 @@ TEST(Fitzpatrick, HandWorkedLayout) {
   // At the centroid: FLE^2 / N.
   EXPECT_NEAR(FitzpatrickTre2(f, Eigen::Vector3d::Zero(), fle2), fle2 / 4, 1e-12);
   // Collinear fiducials: undefined.
-  EXPECT_TRUE(std::isnan(FitzpatrickTre2({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}, Eigen::Vector3d::Zero(), 1)));
+  EXPECT_TRUE(
+      std::isnan(FitzpatrickTre2({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}, Eigen::Vector3d::Zero(), 1)));
 }
 
 TEST(LeaveOneMarkerOut, MonteCarloMeanSquaredErrorOverPredicted) {
@@ -355,7 +373,8 @@ TEST(LeaveOneMarkerOut, MonteCarloMeanSquaredErrorOverPredicted) {
   int n = 0;
   double time_s = 0;
   for (int t = 0; t < kTrials; ++t) {
-    const ba::SyntheticJoint sj = ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 13000 + t);
+    const ba::SyntheticJoint sj =
+        ba::MakeSyntheticJoint(TriangulationSpec(), ba::NoiseSwitches(), 13000 + t);
     auto r = ba::SolveBundleAdjustment(sj.problem, ba::BaOptions());
     ASSERT_TRUE(r.ok());
     auto tre = LeaveOneMarkerOut(sj.problem, *r, ba::BaOptions());

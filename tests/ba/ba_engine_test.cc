@@ -87,7 +87,8 @@ TEST(BaPriors, PlateViewReprojectionIsStackedPointBlocks) {
   double* jac[2] = {Jp.data(), Ji.data()};
   ASSERT_TRUE(view.Evaluate(params, r.data(), jac));
   for (size_t i = 0; i < p.size(); ++i) {
-    std::unique_ptr<ceres::CostFunction> one(ReprojectionError::Create(uv[i].x(), uv[i].y(), sigma));
+    std::unique_ptr<ceres::CostFunction> one(
+        ReprojectionError::Create(uv[i].x(), uv[i].y(), sigma));
     const double* pp[3] = {pose, p[i].data(), intr};
     double ri[2], jp[12], jpt[6], ji[18];
     double* jj[3] = {jp, jpt, ji};
@@ -458,16 +459,19 @@ TEST(BaResiduals, InitialViewRmsIsTheRmsAtTheInitialValues) {
     at_solution.views[v].initial = first->ViewPose(static_cast<int>(v));
   }
   for (size_t m = 0; m < at_solution.markers.size(); ++m) {
-    at_solution.markers[m].p_ct = Eigen::Map<const Eigen::Vector3d>(first->block(L.marker_block(static_cast<int>(m))));
+    at_solution.markers[m].p_ct =
+        Eigen::Map<const Eigen::Vector3d>(first->block(L.marker_block(static_cast<int>(m))));
   }
   for (size_t p = 0; p < at_solution.plate.points.size(); ++p) {
-    at_solution.plate.points[p] = Eigen::Map<const Eigen::Vector3d>(first->block(L.plate_point_block(static_cast<int>(p))));
+    at_solution.plate.points[p] =
+        Eigen::Map<const Eigen::Vector3d>(first->block(L.plate_point_block(static_cast<int>(p))));
   }
   auto second = SolveBundleAdjustment(at_solution, o);
   ASSERT_TRUE(second.ok()) << second.status().message();
   int larger = 0;
   for (size_t v = 0; v < sj.problem.views.size(); ++v) {
-    EXPECT_NEAR(second->initial_view_rms_px[v], first->views[v].rms_px, 1e-6 * first->views[v].rms_px)
+    EXPECT_NEAR(
+        second->initial_view_rms_px[v], first->views[v].rms_px, 1e-6 * first->views[v].rms_px)
         << sj.problem.views[v].id;
     larger += first->initial_view_rms_px[v] > 1.01 * first->views[v].rms_px;
   }
@@ -512,8 +516,9 @@ TEST(BaBackend, CarmbaLmReachesTheCeresOptimum) {
   SyntheticJoint joint = MakeSyntheticJoint(SyntheticJointSpec(), NoiseSwitches(), 1);
   auto c = SolveBundleAdjustment(joint.problem, lm_options);
   ASSERT_FALSE(c.ok());
-  EXPECT_NE(c.status().message().find("backend carmba_lm (calibration problems) needs plate views only"),
-            std::string::npos)
+  EXPECT_NE(
+      c.status().message().find("backend carmba_lm (calibration problems) needs plate views only"),
+      std::string::npos)
       << c.status().message();
   lm_options.backend = "levmar";
   EXPECT_FALSE(SolveBundleAdjustment(sj.problem, lm_options).ok());

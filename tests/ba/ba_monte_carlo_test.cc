@@ -136,7 +136,8 @@ TEST(BaMonteCarlo, ErrorBudgetMatchesEachSourceAlone) {
   std::string worst_what;
   for (int s = 0; s < kNumResidualSources; ++s) {  // no considered calibration here
     const Source src = static_cast<Source>(s);
-    const Eigen::VectorXd var = EmpiricalVariance(ref, NoiseSwitches::Only(src), 100000 * (s + 1), kTrials);
+    const Eigen::VectorXd var =
+        EmpiricalVariance(ref, NoiseSwitches::Only(src), 100000 * (s + 1), kTrials);
     for (int q = 0; q < nq; ++q) {
       const double predicted = ref.budget[q].source_sigma[s] * ref.budget[q].source_sigma[s];
       const double ratio = var[q] / predicted;
@@ -192,7 +193,8 @@ TEST(BaMonteCarlo, NeesOfIntrinsicsAndPoses) {
     ++n;
   }
   nees_intr /= n;
-  std::printf("mean NEES / dim over %d trials: intrinsics (fx, fy, cx, cy) %.3f; poses", n, nees_intr);
+  std::printf(
+      "mean NEES / dim over %d trials: intrinsics (fx, fy, cx, cy) %.3f; poses", n, nees_intr);
   EXPECT_GE(nees_intr, 0.8);
   EXPECT_LE(nees_intr, 1.25);
   for (double& x : nees_pose) {

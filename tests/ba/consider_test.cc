@@ -258,7 +258,8 @@ TEST(Consider, MonteCarloNeesWithAndWithoutTheConsiderTerm) {
     // Two tips seen in all object views: amid the markers, and 120 mm beyond them.
     for (int k = 0; k < 2; ++k) {
       const Eigen::Vector3d tip = k == 0 ? kTipInside : kTipOutside;
-      auto tp = analysis::TriangulatePoint(sj.problem, *r, TruePointPixels(sj, tip, views, kTipSigmaPx, &rng));
+      auto tp = analysis::TriangulatePoint(
+          sj.problem, *r, TruePointPixels(sj, tip, views, kTipSigmaPx, &rng));
       ASSERT_TRUE(tp.ok()) << tp.status().message();
       const Eigen::Vector3d et = tp->p_in_object - tip;
       tip_on[k] += Nees(et, tp->covariance);
@@ -354,9 +355,14 @@ TEST(Whitening2x2, PoseNeesWithFullBlobCovariancesAgainstTheIsotropicBound) {
     }
   }
   nees_full /= n, nees_iso /= n;
-  std::printf("anisotropic blobs (sigma axes ratio 3), %d trials: pose NEES per dof full 2x2 "
-              "%.3f, isotropic larger-eigenvalue bound %.3f; RMS translation error %.4f / %.4f mm\n",
-              kTrials, nees_full, nees_iso, std::sqrt(e2_full / n), std::sqrt(e2_iso / n));
+  std::printf(
+      "anisotropic blobs (sigma axes ratio 3), %d trials: pose NEES per dof full 2x2 "
+      "%.3f, isotropic larger-eigenvalue bound %.3f; RMS translation error %.4f / %.4f mm\n",
+      kTrials,
+      nees_full,
+      nees_iso,
+      std::sqrt(e2_full / n),
+      std::sqrt(e2_iso / n));
   EXPECT_GE(nees_full, kNeesLow);
   EXPECT_LE(nees_full, kNeesHigh);
   EXPECT_LT(nees_iso, nees_full);
@@ -383,7 +389,8 @@ TEST(Consider, BadConsideredCalibrationIsRefused) {
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("5x5"), std::string::npos) << r.status().message();
   p = sj.problem;
-  p.views.back().obs_covariance_px2.assign(p.views.back().uv_px.size(), Eigen::Matrix2d::Identity());
+  p.views.back().obs_covariance_px2.assign(p.views.back().uv_px.size(),
+                                           Eigen::Matrix2d::Identity());
   p.views.back().obs_covariance_px2[2](0, 1) = 3;
   p.views.back().obs_covariance_px2[2](1, 0) = 3;
   r = SolveBundleAdjustment(p, BaOptions());

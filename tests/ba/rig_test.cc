@@ -22,9 +22,11 @@ TEST(RigReprojectionError, AnalyticEqualsJetsAndFiniteDifferences) {
   const double cam_from_rig[6] = {0.3, 0.6, -0.1, -10, 5, 700};
   const double* params[3] = {rig, point, intr};
   PixelWhitening w;
-  ASSERT_TRUE(PixelWhitening::FromCovariance((Eigen::Matrix2d() << 0.09, 0.03, 0.03, 0.04).finished(), &w));
+  ASSERT_TRUE(
+      PixelWhitening::FromCovariance((Eigen::Matrix2d() << 0.09, 0.03, 0.03, 0.04).finished(), &w));
   RigReprojectionError analytic(200, 190, w, cam_from_rig);
-  std::unique_ptr<ceres::CostFunction> twin(RigReprojectionErrorAutoDiff::Create(200, 190, w, cam_from_rig));
+  std::unique_ptr<ceres::CostFunction> twin(
+      RigReprojectionErrorAutoDiff::Create(200, 190, w, cam_from_rig));
   double r1[2], r2[2], a[3][18], b[3][18];
   double* ja[3] = {a[0], a[1], a[2]};
   double* jb[3] = {b[0], b[1], b[2]};
@@ -34,7 +36,8 @@ TEST(RigReprojectionError, AnalyticEqualsJetsAndFiniteDifferences) {
   for (int k = 0; k < 2; ++k) EXPECT_NEAR(r1[k], r2[k], 1e-9 * std::max(1.0, std::abs(r2[k])));
   for (int blk = 0; blk < 3; ++blk) {
     for (int i = 0; i < 2 * sizes[blk]; ++i) {
-      EXPECT_NEAR(a[blk][i], b[blk][i], 1e-9 * std::max(1.0, std::abs(b[blk][i]))) << blk << " " << i;
+      EXPECT_NEAR(a[blk][i], b[blk][i], 1e-9 * std::max(1.0, std::abs(b[blk][i])))
+          << blk << " " << i;
     }
   }
   ceres::NumericDiffOptions nd;
@@ -47,7 +50,8 @@ TEST(RigReprojectionError, AnalyticEqualsJetsAndFiniteDifferences) {
   ceres::AngleAxisToRotationMatrix(cam_from_rig, ceres::ColumnMajorAdapter3x3(Rc.data()));
   ceres::AngleAxisToRotationMatrix(rig, ceres::ColumnMajorAdapter3x3(Rr.data()));
   const Eigen::Matrix3d R = Rc * Rr;
-  const Eigen::Vector3d t = Rc * Eigen::Vector3d(rig[3], rig[4], rig[5]) + Eigen::Vector3d(cam_from_rig + 3);
+  const Eigen::Vector3d t =
+      Rc * Eigen::Vector3d(rig[3], rig[4], rig[5]) + Eigen::Vector3d(cam_from_rig + 3);
   double composed[6];
   ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(R.data()), composed);
   for (int i = 0; i < 3; ++i) composed[3 + i] = t[i];
@@ -72,7 +76,8 @@ TEST(Rigs, TwoHeldCamerasThreeFramesRecoverTheMotionAndTheBeads) {
   }
   const Pose6 cam_a = (Pose6() << 0, -0.5, 0, 0, 0, 900).finished();
   const Pose6 cam_b = (Pose6() << 0, 0.6, 0, 0, 0, 1000).finished();
-  std::vector<Eigen::Vector3d> beads = {{0, 0, 0}, {8, 1, -2}, {-3, 7, 4}, {5, -6, 3}, {-6, -2, -5}};
+  std::vector<Eigen::Vector3d> beads = {
+      {0, 0, 0}, {8, 1, -2}, {-3, 7, 4}, {5, -6, 3}, {-6, -2, -5}};
   for (size_t i = 0; i < beads.size(); ++i) {
     BaMarker m;
     m.id = static_cast<int>(i) + 1;
@@ -80,7 +85,8 @@ TEST(Rigs, TwoHeldCamerasThreeFramesRecoverTheMotionAndTheBeads) {
     p.markers.push_back(m);
   }
   p.marker_priors = false;
-  const std::vector<Pose6> truth = {Pose6::Zero(), (Pose6() << 0.1, -0.05, 0.2, 3, -2, 5).finished(),
+  const std::vector<Pose6> truth = {Pose6::Zero(),
+                                    (Pose6() << 0.1, -0.05, 0.2, 3, -2, 5).finished(),
                                     (Pose6() << -0.15, 0.1, 0.05, -4, 6, 2).finished()};
   for (size_t f = 0; f < truth.size(); ++f) {
     BaRig rig;
@@ -98,8 +104,10 @@ TEST(Rigs, TwoHeldCamerasThreeFramesRecoverTheMotionAndTheBeads) {
       for (size_t i = 0; i < beads.size(); ++i) {
         Eigen::Matrix3d Rr, Rc;
         ceres::AngleAxisToRotationMatrix(truth[f].data(), ceres::ColumnMajorAdapter3x3(Rr.data()));
-        ceres::AngleAxisToRotationMatrix(v.cam_from_rig.data(), ceres::ColumnMajorAdapter3x3(Rc.data()));
-        const Eigen::Vector3d pc = Rc * (Rr * beads[i] + truth[f].tail<3>()) + v.cam_from_rig.tail<3>();
+        ceres::AngleAxisToRotationMatrix(v.cam_from_rig.data(),
+                                         ceres::ColumnMajorAdapter3x3(Rc.data()));
+        const Eigen::Vector3d pc =
+            Rc * (Rr * beads[i] + truth[f].tail<3>()) + v.cam_from_rig.tail<3>();
         double uv[2];
         ASSERT_TRUE(ProjectCamPoint(p.groups[c].initial.data(), pc.data(), uv));
         v.point_ids.push_back(static_cast<int>(i) + 1);
@@ -117,7 +125,8 @@ TEST(Rigs, TwoHeldCamerasThreeFramesRecoverTheMotionAndTheBeads) {
     const Eigen::Map<const Pose6> est(r->block(b));
     const Eigen::MatrixXd C = r->Covariance({b});
     for (int i = 0; i < 6; ++i) {
-      EXPECT_LT(std::abs(est[i] - truth[f][i]), 5 * std::sqrt(C(i, i))) << "frame " << f << " param " << i;
+      EXPECT_LT(std::abs(est[i] - truth[f][i]), 5 * std::sqrt(C(i, i)))
+          << "frame " << f << " param " << i;
     }
   }
   // The first frame's rig is held: a zero covariance.

@@ -92,7 +92,8 @@ Eigen::Vector2d ShadowAreaCentroidPx(const double* intr, const Eigen::Vector3d& 
   const Eigen::Vector3d w = n.cross(u);
   const double alpha = std::asin(r / c.norm());
   auto pixel = [&](double psi, double phi) {
-    const Eigen::Vector3d d = std::cos(psi) * n + std::sin(psi) * (std::cos(phi) * u + std::sin(phi) * w);
+    const Eigen::Vector3d d =
+        std::cos(psi) * n + std::sin(psi) * (std::cos(phi) * u + std::sin(phi) * w);
     Eigen::Vector2d q;
     EXPECT_TRUE(ProjectCamPoint(intr, d.data(), q.data()));
     return q;
@@ -126,21 +127,26 @@ TEST(SphereShadowOffset, ThroughTheLensModel) {
     ASSERT_TRUE(ProjectCamPoint(lens, c.data(), p.data()));
     const Eigen::Vector2d offset = SphereShadowOffsetPx(lens, c, 4.0);
     const Eigen::Vector2d reference = ShadowAreaCentroidPx(lens, c, 4.0) - p;
-    std::cout << "offset " << offset.transpose() << " px, quadrature " << reference.transpose() << " px\n";
+    std::cout << "offset " << offset.transpose() << " px, quadrature " << reference.transpose()
+              << " px\n";
     EXPECT_LT((offset - reference).norm(), 0.02 * reference.norm());
     // The lens matters: the same camera without distortion gives a several times larger offset
     // (the barrel's compression towards the rim pulls the centroid back in).
     const double same_pinhole[9] = {3000, 3010, 500, 520, 0, 0, 0, 0, 0};
     std::cout << "without the distortion: " << SphereShadowOffsetPx(same_pinhole, c, 4.0).norm()
-              << " px; relative difference from the quadrature " << (offset - reference).norm() / reference.norm() << "\n";
-    EXPECT_GT((SphereShadowOffsetPx(same_pinhole, c, 4.0) - reference).norm(), 3 * reference.norm());
+              << " px; relative difference from the quadrature "
+              << (offset - reference).norm() / reference.norm() << "\n";
+    EXPECT_GT((SphereShadowOffsetPx(same_pinhole, c, 4.0) - reference).norm(),
+              3 * reference.norm());
   }
   // Without distortion the quadrature is the ellipse's centre.
   const double pinhole[9] = {3000, 3000, 500, 520, 0, 0, 0, 0, 0};
   const Eigen::Vector3d c(60, -45, 500);
   Eigen::Vector2d p;
   ASSERT_TRUE(ProjectCamPoint(pinhole, c.data(), p.data()));
-  EXPECT_LT((SphereShadowOffsetPx(pinhole, c, 4.0) - (ShadowAreaCentroidPx(pinhole, c, 4.0) - p)).norm(), 1e-4);
+  EXPECT_LT(
+      (SphereShadowOffsetPx(pinhole, c, 4.0) - (ShadowAreaCentroidPx(pinhole, c, 4.0) - p)).norm(),
+      1e-4);
 }
 
 // A pose problem: `n` markers of radius r in a 120 mm cluster 380 mm from the source, seen in
@@ -206,9 +212,10 @@ TEST(ShadowCorrection, TheEngineRemovesTheBiasOfLargeSpheres) {
   EXPECT_TRUE(corrected->shadow.applied);
   EXPECT_EQ(corrected->shadow.num_observations, 30);
   EXPECT_GT(corrected->shadow.max_sigma, 5);
-  std::cout << "shadow offsets: max " << corrected->shadow.max_px << " px (" << corrected->shadow.max_sigma
-            << " sigma), rms " << corrected->shadow.rms_px << " px; sigma0 biased " << biased->sigma0
-            << ", corrected " << corrected->sigma0 << "\n";
+  std::cout << "shadow offsets: max " << corrected->shadow.max_px << " px ("
+            << corrected->shadow.max_sigma << " sigma), rms " << corrected->shadow.rms_px
+            << " px; sigma0 biased " << biased->sigma0 << ", corrected " << corrected->sigma0
+            << "\n";
   // Biased: the shadows look like a nearer object (a larger cluster): tz too small by many
   // sigmas, while the residuals do not show it (the offsets are nearly a radial scaling, which
   // a pose absorbs). Corrected: within 3 sigma of the truth.
@@ -217,8 +224,8 @@ TEST(ShadowCorrection, TheEngineRemovesTheBiasOfLargeSpheres) {
     const Eigen::MatrixXd C = corrected->Covariance({b});
     const double tz_c = corrected->block(b)[5], tz_b = biased->block(b)[5];
     const double sz = std::sqrt(C(5, 5));
-    std::cout << "view " << v << ": tz error biased " << (tz_b - s.truth[v][5]) / sz << " sigma, corrected "
-              << (tz_c - s.truth[v][5]) / sz << " sigma\n";
+    std::cout << "view " << v << ": tz error biased " << (tz_b - s.truth[v][5]) / sz
+              << " sigma, corrected " << (tz_c - s.truth[v][5]) / sz << " sigma\n";
     EXPECT_GT(std::abs(tz_b - s.truth[v][5]) / sz, 10);
     EXPECT_LT(std::abs(tz_c - s.truth[v][5]) / sz, 3);
   }
@@ -229,7 +236,9 @@ TEST(ShadowCorrection, TheEngineRemovesTheBiasOfLargeSpheres) {
   auto off = SolveBundleAdjustment(with, o);
   ASSERT_TRUE(off.ok());
   EXPECT_FALSE(off->shadow.evaluated);
-  EXPECT_NEAR(off->block(off->layout->view_block(0))[5], biased->block(biased->layout->view_block(0))[5], 1e-9);
+  EXPECT_NEAR(off->block(off->layout->view_block(0))[5],
+              biased->block(biased->layout->view_block(0))[5],
+              1e-9);
 }
 
 TEST(ShadowCorrection, RigViewsUseTheirComposedPose) {
@@ -242,7 +251,8 @@ TEST(ShadowCorrection, RigViewsUseTheirComposedPose) {
   for (size_t v = 0; v < rigged.views.size(); ++v) {
     BaView& view = rigged.views[v];
     view.cam_from_rig << 0.2, -0.1 * v, 0.3, 5.0 * v, -3, 10;
-    const Eigen::Matrix3d Rc = RotationOf(view.cam_from_rig.data()), Rp = RotationOf(view.initial.data());
+    const Eigen::Matrix3d Rc = RotationOf(view.cam_from_rig.data()),
+                          Rp = RotationOf(view.initial.data());
     const Eigen::AngleAxisd aa(Rc.transpose() * Rp);
     BaRig rig;
     rig.id = "r" + std::to_string(v);
@@ -263,7 +273,8 @@ TEST(ShadowCorrection, RigViewsUseTheirComposedPose) {
     const double* pa = a->block(a->layout->view_block(static_cast<int>(v)));
     const double* rb = b->block(b->layout->view_block(static_cast<int>(v)));
     const Eigen::Matrix3d Rc = RotationOf(rigged.views[v].cam_from_rig.data());
-    const Eigen::Vector3d t = Rc * Eigen::Vector3d(rb[3], rb[4], rb[5]) + rigged.views[v].cam_from_rig.tail<3>();
+    const Eigen::Vector3d t =
+        Rc * Eigen::Vector3d(rb[3], rb[4], rb[5]) + rigged.views[v].cam_from_rig.tail<3>();
     EXPECT_NEAR(t.z(), pa[5], 1e-6) << v;
     EXPECT_NEAR(t.x(), pa[3], 1e-6) << v;
   }
@@ -287,7 +298,8 @@ TEST(ShadowCorrection, AnAbsurdRadiusIsAnError) {
     p.marker_radius_mm = bad;
     auto r = SolveBundleAdjustment(p, BaOptions());
     ASSERT_FALSE(r.ok());
-    EXPECT_NE(r.status().message().find("sphere radius"), std::string::npos) << r.status().message();
+    EXPECT_NE(r.status().message().find("sphere radius"), std::string::npos)
+        << r.status().message();
   }
 }
 

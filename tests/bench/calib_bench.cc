@@ -148,7 +148,8 @@ void BM_CalibEngine(benchmark::State& state) {
   g.width = obs.width;
   g.height = obs.height;
   p.groups.push_back(g);
-  for (int id = 0; id < obs.grid.NumPoints(); ++id) p.plate.points.push_back(obs.grid.PointInPlate(id));
+  for (int id = 0; id < obs.grid.NumPoints(); ++id)
+    p.plate.points.push_back(obs.grid.PointInPlate(id));
   for (size_t v = 0; v < obs.views.size(); ++v) {
     ba::BaView view;
     view.id = std::to_string(v);

@@ -3,7 +3,8 @@
 // started away from the optimum (intrinsics off by 1 % / 2 px, poses by ~0.5 deg / 2 mm); solve +
 // covariance + error budget timed. And one object view with 9 markers through the engine: POSIT +
 // bundle adjustment (intrinsics held, CT priors) + covariance.
-//   taskset -c 0 build/tests/carmba_bench --benchmark_filter='Joint|EngineOneView' --benchmark_repetitions=3
+//   taskset -c 0 build/tests/carmba_bench --benchmark_filter='Joint|EngineOneView'
+//   --benchmark_repetitions=3
 #include <benchmark/benchmark.h>
 
 #include <random>
@@ -97,7 +98,8 @@ void BM_EngineOneView(benchmark::State& state) {
   ba::SyntheticJoint sj = ba::MakeSyntheticJoint(spec, ba::NoiseSwitches(), 7);
   sj.problem.groups[0].free.fill(false);
   Camera cam;
-  std::copy(sj.problem.groups[0].initial.begin(), sj.problem.groups[0].initial.end(), cam.params.begin());
+  std::copy(
+      sj.problem.groups[0].initial.begin(), sj.problem.groups[0].initial.end(), cam.params.begin());
   ba::BaView& view = sj.problem.views[0];
   std::vector<Eigen::Vector3d> pts;
   for (int id : view.point_ids) pts.push_back(sj.problem.markers[id - 1].p_ct);

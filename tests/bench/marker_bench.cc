@@ -48,7 +48,8 @@ void BM_MarkerDetectAndLabel(benchmark::State& state) {
   size_t i = 0;
   int labelled = 0;
   for (auto _ : state) {
-    const carmba::MarkerBlobDetection d = carmba::DetectMarkerBlobs(s.images[i++ % s.images.size()], o);
+    const carmba::MarkerBlobDetection d =
+        carmba::DetectMarkerBlobs(s.images[i++ % s.images.size()], o);
     std::vector<Eigen::Vector2d> uv;
     for (const auto& b : d.blobs) uv.emplace_back(b.uv_px.x, b.uv_px.y);
     carmba::CorrespondenceOptions co;

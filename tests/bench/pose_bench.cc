@@ -40,7 +40,8 @@ void BM_PoseOneView(benchmark::State& state) {
   }
   state.counters["lm_iterations"] = iterations;
   state.SetLabel(std::string(c.analytic_jacobians ? "analytic" : "autodiff") + ", " +
-                 std::to_string(state.range(0)) + " markers, " + c.covariance_algorithm + ", " + c.linear_solver);
+                 std::to_string(state.range(0)) + " markers, " + c.covariance_algorithm + ", " +
+                 c.linear_solver);
 }
 BENCHMARK(BM_PoseOneView)
     // markers, analytic (1) / autodiff (0), covariance (0 dense_svd, 1 sparse_qr,

@@ -1,5 +1,5 @@
-// `carmba track`'s pipeline on the real Autoscoper wrist set (data/real/autoscoper-wrist: 3 frames x
-// 2 cameras of 1760 x 1760), split into its stages: reading and detecting the beads (the marker
+// `carmba track`'s pipeline on the real Autoscoper wrist set (data/real/autoscoper-wrist: 3 frames
+// x 2 cameras of 1760 x 1760), split into its stages: reading and detecting the beads (the marker
 // detector and the pair fit), matching and identity, the bundle adjustment over all frames with
 // its covariance and the checks. The outputs (CSV, JSON, report, overlays) are not timed.
 //   taskset -c 0 build/tests/carmba_bench --benchmark_filter='Track' --benchmark_repetitions=3
@@ -23,7 +23,8 @@ WristInputs Inputs() {
   WristInputs in;
   std::vector<std::vector<std::string>> images;
   for (const char* c : {"cam01", "cam02"}) {
-    in.cameras.push_back(*ReadXmaCalibration(kWrist + "/calibration/xr_calib_wrist_" + std::string(c) + ".txt", c));
+    in.cameras.push_back(
+        *ReadXmaCalibration(kWrist + "/calibration/xr_calib_wrist_" + std::string(c) + ".txt", c));
     images.push_back(*ListImageFiles(kWrist + "/images/" + c));
   }
   in.frames = *PairFrames(images, nullptr);

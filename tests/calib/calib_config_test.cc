@@ -66,7 +66,8 @@ TEST_F(CalibConfigVocabulary, BothSpellingsOfOneThingAreAnError) {
       << r.status().message();
   auto b = Read("backend: ceres\nsolver: lm\n");
   ASSERT_FALSE(b.ok());
-  EXPECT_NE(b.status().message().find("'backend' or its older spelling 'solver'"), std::string::npos);
+  EXPECT_NE(b.status().message().find("'backend' or its older spelling 'solver'"),
+            std::string::npos);
   auto t = Read("loss: {type: none}\n");
   ASSERT_FALSE(t.ok());
   EXPECT_NE(t.status().message().find("type"), std::string::npos) << t.status().message();

@@ -199,7 +199,8 @@ TEST(CalibrateTest, OwnLmAndCeresReachTheSameOptimum) {
   EXPECT_NEAR(ra->rms_px / rb->rms_px, 1.0, kRmsRelTol);
   for (double x : {-0.08, 0.0, 0.08}) {
     for (int c = 0; c < 2; ++c) {
-      EXPECT_NEAR(Projected(ra->camera.params, x, 0.05, c), Projected(rb->camera.params, x, 0.05, c),
+      EXPECT_NEAR(Projected(ra->camera.params, x, 0.05, c),
+                  Projected(rb->camera.params, x, 0.05, c),
                   kProjTolPx);
     }
   }

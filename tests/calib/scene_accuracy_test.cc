@@ -148,11 +148,15 @@ TEST(SceneAccuracy, ProjectionWithinThreeSigmaOfTheTruthFromImages) {
     const int w = scene.camera.width, h = scene.camera.height;
     // A 9 x 9 grid over the fully exposed field of view, plus its centre and the image corners
     // (outside the circular field: extrapolated, with correspondingly large sigmas).
-    const double fu = scene.render.fov_center_u_px >= 0 ? scene.render.fov_center_u_px : 0.5 * (w - 1);
-    const double fv = scene.render.fov_center_v_px >= 0 ? scene.render.fov_center_v_px : 0.5 * (h - 1);
-    const double fr = (scene.render.fov_radius_px > 0 ? scene.render.fov_radius_px : 0.5 * std::min(w, h)) -
-                      scene.render.fov_edge_px;
-    std::vector<Eigen::Vector2d> field, corners = {{0, 0}, {w - 1.0, 0}, {0, h - 1.0}, {w - 1.0, h - 1.0}};
+    const double fu =
+        scene.render.fov_center_u_px >= 0 ? scene.render.fov_center_u_px : 0.5 * (w - 1);
+    const double fv =
+        scene.render.fov_center_v_px >= 0 ? scene.render.fov_center_v_px : 0.5 * (h - 1);
+    const double fr =
+        (scene.render.fov_radius_px > 0 ? scene.render.fov_radius_px : 0.5 * std::min(w, h)) -
+        scene.render.fov_edge_px;
+    std::vector<Eigen::Vector2d> field,
+        corners = {{0, 0}, {w - 1.0, 0}, {0, h - 1.0}, {w - 1.0, h - 1.0}};
     for (int i = 0; i < 9; ++i) {
       for (int j = 0; j < 9; ++j) {
         const Eigen::Vector2d q(fu + fr * (i - 4) / 4.0, fv + fr * (j - 4) / 4.0);
@@ -200,7 +204,8 @@ TEST(SceneAccuracy, TheThreeSigmaCheckIsCalibratedOnIdealObservations) {
       for (int j = 0; j < 9; ++j) {
         const Eigen::Vector2d q(0.5 * (w - 1) + 0.4 * w * (i - 4) / 4.0,
                                 0.5 * (h - 1) + 0.4 * h * (j - 4) / 4.0);
-        if ((q - Eigen::Vector2d(0.5 * (w - 1), 0.5 * (h - 1))).norm() <= 0.4 * w) field.push_back(q);
+        if ((q - Eigen::Vector2d(0.5 * (w - 1), 0.5 * (h - 1))).norm() <= 0.4 * w)
+          field.push_back(q);
       }
     }
     int over = 0, over_m = 0;

@@ -73,8 +73,10 @@ const char* const kScenes[] = {"thesis_calibration", "calib_7x6_pincushion"};
 
 void ExpectMatches(const std::string& what, const McResult& m, std::initializer_list<int> which) {
   for (int i : which) {
-    EXPECT_NEAR(m.spread[i] / m.at_truth[i], 1.0, kSceneSigmaRelTol) << what << " " << kIntrinsicNames[i];
-    EXPECT_NEAR(m.spread[i] / m.rms_reported[i], 1.0, kSceneSigmaRelTol) << what << " " << kIntrinsicNames[i];
+    EXPECT_NEAR(m.spread[i] / m.at_truth[i], 1.0, kSceneSigmaRelTol)
+        << what << " " << kIntrinsicNames[i];
+    EXPECT_NEAR(m.spread[i] / m.rms_reported[i], 1.0, kSceneSigmaRelTol)
+        << what << " " << kIntrinsicNames[i];
   }
 }
 
@@ -100,8 +102,8 @@ TEST(SceneMonteCarlo, TangentialAndK3HeldAtCoarseNoise) {
     CalibrationOptions opt;
     opt.zero_tangential = true;
     opt.fix_k3 = true;
-    const McResult m =
-        RunMonteCarlo(SceneTruthObservations(LoadShippedScene(name)), opt, kSceneTrials, kCoarseNoisePx);
+    const McResult m = RunMonteCarlo(
+        SceneTruthObservations(LoadShippedScene(name)), opt, kSceneTrials, kCoarseNoisePx);
     Print(std::string(name) + " p1 = p2 = k3 = 0, 0.3 px", m);
     ExpectMatches(name, m, {0, 1, 2, 3});
   }

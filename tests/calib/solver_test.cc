@@ -1,7 +1,7 @@
-// `carmba calibrate`'s solve (the engine's carmba_lm / Ceres back ends, ba/bundle_adjuster.h) and its
-// covariance (the engine's Schur covariance) against a plain dense reference:
-// the normal equations of all parameters (plate poses and free intrinsics) assembled point by point
-// from camera/camera_model.h's ProjectPointWithJac (not the solver's per-view kernel) and inverted
+// `carmba calibrate`'s solve (the engine's carmba_lm / Ceres back ends, ba/bundle_adjuster.h) and
+// its covariance (the engine's Schur covariance) against a plain dense reference: the normal
+// equations of all parameters (plate poses and free intrinsics) assembled point by point from
+// camera/camera_model.h's ProjectPointWithJac (not the solver's per-view kernel) and inverted
 // densely. Checked: the marginal covariance of the intrinsics, the projection uncertainty (mrcal's
 // definition) and that the returned solution is the minimum (a further Gauss-Newton step is
 // negligible against the reported sigmas), for the plain problem, the thesis's constraints and a

@@ -83,7 +83,8 @@ TEST_F(AbsurdInput, SpacingFlagTiny) {
 }
 
 TEST_F(AbsurdInput, RowsAndColsFlags) {
-  ExpectFails("detect --images " + dir_.File("none") + " --rows 0", "--rows: expected 2 .. 1000, got 0");
+  ExpectFails("detect --images " + dir_.File("none") + " --rows 0",
+              "--rows: expected 2 .. 1000, got 0");
   ExpectFails("detect --images " + dir_.File("none") + " --cols 100000",
               "--cols: expected 2 .. 1000, got 100000");
   ExpectFails("calibrate --images " + dir_.File("none") + " --cols 1000000",

@@ -42,13 +42,16 @@ std::string Tmp(const std::string& name) {
 
 CliRun Carmba(const std::string& args) {
   const std::string o = Tmp("stdout.txt"), e = Tmp("stderr.txt");
-  const int status = std::system((std::string(CARMBA_BIN) + " " + args + " >" + o + " 2>" + e).c_str());
+  const int status =
+      std::system((std::string(CARMBA_BIN) + " " + args + " >" + o + " 2>" + e).c_str());
   return {WEXITSTATUS(status), carmba::test::ReadTextFile(o), carmba::test::ReadTextFile(e)};
 }
 
 void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
-nlohmann::json Json(const fs::path& p) { return nlohmann::json::parse(carmba::test::ReadTextFile(p)); }
+nlohmann::json Json(const fs::path& p) {
+  return nlohmann::json::parse(carmba::test::ReadTextFile(p));
+}
 
 // A shipped scene rendered (cli_test_util.h: once per ctest run or test binary run); read only.
 std::string Simulated(const std::string& scene) {
@@ -81,21 +84,24 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
   ASSERT_TRUE(read_back.ok()) << read_back.status().message();
   EXPECT_EQ(read_back->params[0], cam["fx"].get<double>());
   EXPECT_EQ(read_back->covariance.size(), 9u);
-  const std::string py = "/usr/bin/python3 -c \"import mrcal, cv2; m = mrcal.cameramodel('" + out +
-                         "/camera.cameramodel'); f = cv2.FileStorage('" + out +
-                         "/camera_opencv.yml', cv2.FILE_STORAGE_READ); "
-                         "w = mrcal.cameramodel('" + out + "/mrcal/camera_with_optimization_inputs.cameramodel'); "
-                         "assert w.optimization_inputs() is not None; "
-                         "print(repr(m.intrinsics()[1][0]), repr(f.getNode('camera_matrix').mat()[0][0]))\" > " +
-                         Tmp("py.txt");
+  const std::string py =
+      "/usr/bin/python3 -c \"import mrcal, cv2; m = mrcal.cameramodel('" + out +
+      "/camera.cameramodel'); f = cv2.FileStorage('" + out +
+      "/camera_opencv.yml', cv2.FILE_STORAGE_READ); "
+      "w = mrcal.cameramodel('" +
+      out +
+      "/mrcal/camera_with_optimization_inputs.cameramodel'); "
+      "assert w.optimization_inputs() is not None; "
+      "print(repr(m.intrinsics()[1][0]), repr(f.getNode('camera_matrix').mat()[0][0]))\" > " +
+      Tmp("py.txt");
   ASSERT_EQ(std::system(py.c_str()), 0);
   std::istringstream py_out(carmba::test::ReadTextFile(Tmp("py.txt")));
   double fx_mrcal = 0, fx_cv = 0;
   py_out >> fx_mrcal >> fx_cv;
   EXPECT_DOUBLE_EQ(fx_mrcal, cam["fx"].get<double>());
   EXPECT_NEAR(fx_cv, cam["fx"].get<double>(), 1e-9 * fx_cv);  // FileStorage prints 16 digits
-  // The grid is found in at least 90 % of the rendered views (OpenCV's grid finder misses a strongly
-  // distorted view with a sphere at the field-of-view rim in the pincushion scene).
+  // The grid is found in at least 90 % of the rendered views (OpenCV's grid finder misses a
+  // strongly distorted view with a sphere at the field-of-view rim in the pincushion scene).
   EXPECT_GE(cam["views"].size(), 0.9 * truth["views"].size()) << r.err;
   // fx, fy, cx, cy within 3 sigma of the truth (the projection over the field is checked in
   // tests/calib/scene_accuracy_test.cc).
@@ -131,7 +137,8 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
   const int rows = truth["object"]["rows"].get<int>(), cols = truth["object"]["cols"].get<int>();
   for (size_t i = 0; i < truth["views"].size(); ++i) {
     const std::string file = truth["views"][i]["file"].get<std::string>();
-    EXPECT_NE(report.find("| " + fs::path(file).stem().string() + " | "), std::string::npos) << file;
+    EXPECT_NE(report.find("| " + fs::path(file).stem().string() + " | "), std::string::npos)
+        << file;
     char name[64];
     std::snprintf(name, sizeof(name), "%03zu_", i);
     const std::string overlay =
@@ -148,7 +155,8 @@ TEST(CalibE2E, ThesisCalibrationScene) {
   CheckSimulatedCalibration("thesis_calibration", "*.png");
   // report.html: residuals, distortion, mrcal's projection uncertainty over the image and the
   // source positions drawn, and the page renders in a browser.
-  const std::string html = carmba::test::ReadTextFile(Tmp("out_thesis_calibration") + "/report.html");
+  const std::string html =
+      carmba::test::ReadTextFile(Tmp("out_thesis_calibration") + "/report.html");
   for (const char* id : {"residuals-per-view", "residual-field", "distortion-the-camera",
                          "projection-uncertainty-the-camera", "poses-plate"}) {
     EXPECT_NE(html.find(std::string("data-plot=\"") + id + "\""), std::string::npos) << id;
@@ -187,13 +195,14 @@ TEST(CalibE2E, DetectThenCalibrateFromObservations) {
   const std::string sim = Simulated("thesis_calibration");
   const std::string csv = Tmp("detected.csv"), out = Tmp("out_from_csv");
   fs::remove_all(out);
-  CliRun d = Carmba("detect --images '" + sim + "/*.png' --pattern circles --rows 5 --cols 5 --out " +
-                 csv);
+  CliRun d = Carmba("detect --images '" + sim +
+                    "/*.png' --pattern circles --rows 5 --cols 5 --out " + csv);
   ASSERT_EQ(d.code, 0) << d.err;
   EXPECT_NE(d.out.find("found the grid in 20 of 20"), std::string::npos) << d.out;
   CliRun r = Carmba("calibrate --observations " + csv + " --out " + out + " --nomrcal --noopencv");
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(carmba::test::ReadTextFile(out + "/report.md").find("Not run: disabled"), std::string::npos);
+  EXPECT_NE(carmba::test::ReadTextFile(out + "/report.md").find("Not run: disabled"),
+            std::string::npos);
 }
 
 TEST(CalibE2E, OpenCvChessboardPhotosAgreeWithOpenCvAndMrcal) {
@@ -207,7 +216,8 @@ TEST(CalibE2E, OpenCvChessboardPhotosAgreeWithOpenCvAndMrcal) {
   const nlohmann::json m = Json(out + "/mrcal/mrcal_out.json");
   // Same optimum as mrcal (1e-3 px on fx..cy) and the same projection.
   for (int i = 0; i < 4; ++i) {
-    EXPECT_NEAR(cam[carmba::kIntrinsicNames[i]].get<double>(), m["intrinsics"][i].get<double>(), 1e-3);
+    EXPECT_NEAR(
+        cam[carmba::kIntrinsicNames[i]].get<double>(), m["intrinsics"][i].get<double>(), 1e-3);
   }
   EXPECT_LT(m["projection_diff"]["mrcal"]["rms_px"].get<double>(), 0.01);
   EXPECT_LT(m["projection_diff"]["opencv"]["rms_px"].get<double>(), 0.01);
@@ -302,8 +312,9 @@ TEST(CalibE2E, BadInputs) {
   const std::string sim = Simulated("thesis_calibration");
   ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --pattern circles --rows 4 --cols 9",
                      "found in 0 of 20 images");
-  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --pattern chessboard --rows 5 --cols 5",
-                     "found in 0 of 20 images");
+  ExpectFailsCleanly(
+      "calibrate --images '" + sim + "/*.png' --pattern chessboard --rows 5 --cols 5",
+      "found in 0 of 20 images");
 
   ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --spacing_mm -20",
                      "--spacing-mm: expected 0 (not given) or 0.1 .. 1000 mm, got -20");
@@ -314,7 +325,8 @@ TEST(CalibE2E, BadInputs) {
   carmba::SyntheticViewsOptions so;
   so.min_tilt_deg = so.max_tilt_deg = 0;
   carmba::GridSpec g;
-  const auto obs = carmba::MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
+  const auto obs =
+      carmba::MakeSyntheticViews({2061, 2255, 204, 205, 0, 0, 0, 0, 0}, 408, 408, g, so);
   const std::string csv = Tmp("fronto.csv");
   ASSERT_TRUE(carmba::WriteObservationsCsv(obs, csv).ok());
   ExpectFailsCleanly("calibrate --observations " + csv, "fronto-parallel");

@@ -101,7 +101,8 @@ inline std::string LinkSimulatedScene(const std::string& scene, const std::strin
 // failing command's stderr, or "" on success.
 inline std::string SimulateJointScene(const std::string& scene_yaml, const std::string& scene) {
   const std::string src = CARMBA_SOURCE_DIR;
-  auto r = RunCarmba("simulate --scene " + src + "/configs/scenes/" + scene_yaml + " --out " + scene);
+  auto r =
+      RunCarmba("simulate --scene " + src + "/configs/scenes/" + scene_yaml + " --out " + scene);
   if (r.exit_code != 0) return "simulate: " + r.err;
   r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + src +
                 "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +

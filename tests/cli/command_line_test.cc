@@ -198,22 +198,38 @@ TEST(CommandLine, ExitCodesTwoForUsageOneForData) {
       {"slove", 2, "unknown command 'slove'"},
       {calibrate + " --out " + dir.File("o") + " --spacing-nm 20", 2, "unknown flag --spacing-nm"},
       {calibrate + " --out " + dir.File("o") + " --scene x.yaml", 2, "not a flag of 'calibrate'"},
-      {calibrate + " --out " + dir.File("o") + " --rows abc", 2, "--rows: expected an integer, got 'abc'"},
-      {calibrate + " --out " + dir.File("o") + " --rows=4.5", 2, "--rows: expected an integer, got '4.5'"},
-      {calibrate + " --out " + dir.File("o") + " --spacing-mm 2cm", 2, "--spacing-mm: expected a number, got '2cm'"},
-      {calibrate + " --out " + dir.File("o") + " --mrcal=maybe", 2, "--mrcal: expected true or false, got 'maybe'"},
-      {"study --study x.yaml --out " + dir.File("o") + " --jobs -3", 2, "--jobs: expected 0 .. 1024"},
+      {calibrate + " --out " + dir.File("o") + " --rows abc",
+       2,
+       "--rows: expected an integer, got 'abc'"},
+      {calibrate + " --out " + dir.File("o") + " --rows=4.5",
+       2,
+       "--rows: expected an integer, got '4.5'"},
+      {calibrate + " --out " + dir.File("o") + " --spacing-mm 2cm",
+       2,
+       "--spacing-mm: expected a number, got '2cm'"},
+      {calibrate + " --out " + dir.File("o") + " --mrcal=maybe",
+       2,
+       "--mrcal: expected true or false, got 'maybe'"},
+      {"study --study x.yaml --out " + dir.File("o") + " --jobs -3",
+       2,
+       "--jobs: expected 0 .. 1024"},
       {calibrate + " --out " + dir.File("o") + " --rows 1", 2, "--rows: expected 2 .. 1000"},
       {calibrate + " --out", 2, "flag --out needs a value"},
       {calibrate + " --out " + dir.File("o") + " stray", 2, "unexpected argument 'stray'"},
       {"solve --problem x.yaml --out " + dir.File("o"), 2, "--config is required"},
       {"pose --images " + dir.path() + " --fiducials f.csv --camera c.json --out " + dir.File("o") +
-           " --marker-diameter-mm 0.002", 2, "--marker-diameter-mm: expected 0.1 .. 100 mm, got 0.002"},
+           " --marker-diameter-mm 0.002",
+       2,
+       "--marker-diameter-mm: expected 0.1 .. 100 mm, got 0.002"},
       // Data: a file that does not exist, a file that is wrong.
       {"solve --problem " + dir.File("none.yaml") + " --config " + dir.File("none.yaml") +
-           " --out " + dir.File("o"), 1, "none.yaml"},
+           " --out " + dir.File("o"),
+       1,
+       "none.yaml"},
       {"calibrate --no-mrcal --no-opencv --observations " + dir.File("none.csv") + " --out " +
-           dir.File("o"), 1, "none.csv"},
+           dir.File("o"),
+       1,
+       "none.csv"},
   };
   for (const auto& c : cases) {
     const auto r = RunCarmba(c.args);
@@ -223,7 +239,8 @@ TEST(CommandLine, ExitCodesTwoForUsageOneForData) {
     EXPECT_FALSE(fs::exists(dir.File("o"))) << c.args;
   }
   const auto help = RunCarmba("help").out;
-  EXPECT_NE(help.find("Exit codes (every command):\n  0  success\n  1  the data"), std::string::npos)
+  EXPECT_NE(help.find("Exit codes (every command):\n  0  success\n  1  the data"),
+            std::string::npos)
       << help;
   EXPECT_NE(help.find("  2  usage: an unknown command or flag"), std::string::npos) << help;
 }

@@ -158,7 +158,8 @@ TEST_F(CtFiducialsCli, BadInputsFailWithAMessageAndWriteNothing) {
        "column 'a'"},
       {"--dicom " + series + " --model " + root_ + "/mirror.csv --out OUT", "no labelling"},
       {"--dicom " + series + " --frame marker:12 --out OUT", "no marker with id 12"},
-      {"--dicom " + series + " --out " + root_ + "/mirror.csv/f.csv", "is a file, expected a directory"},
+      {"--dicom " + series + " --out " + root_ + "/mirror.csv/f.csv",
+       "is a file, expected a directory"},
       {"--dicom /usr/lib/python3/dist-packages/pydicom/data/test_files/dicomdirtests/77654033/"
        "CT2 --out OUT",
        "gap of 202.500 mm"},

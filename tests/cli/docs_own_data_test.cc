@@ -86,7 +86,8 @@ std::set<std::string> PromisedPaths(const std::vector<std::string>& lines,
                                     const test::MarkdownDoc& doc) {
   std::vector<bool> fenced(lines.size(), false);
   for (const auto& b : doc.blocks) {
-    for (int n = b.line; n <= b.end_line && n < static_cast<int>(lines.size()); ++n) fenced[n] = true;
+    for (int n = b.line; n <= b.end_line && n < static_cast<int>(lines.size()); ++n)
+      fenced[n] = true;
   }
   std::set<std::string> out;
   const std::regex path("`((out|mydata)/[A-Za-z0-9_./-]*)`");

@@ -8,10 +8,10 @@
 // WITHOUT the plastic block: with it, a plain centroid is pulled by the block's projected edges
 // (measured: markers near an edge up to 1.2 px off, the others within 0.2 px), which is the
 // detector's limit, not the geometry's. (plastimatch maps HU <= -800 to no attenuation: the
-// noisy air is exactly 0 in the DRR.) The views have the thesis's intrinsics (fx 2061.389 != fy 2254.646, an
-// off-centre principal point), one of them a non-square 360 x 300 detector; the blobs are found
-// in the DRR alone (white top-hat, threshold, weighted centroid), then matched to the nearest
-// projected marker.
+// noisy air is exactly 0 in the DRR.) The views have the thesis's intrinsics (fx 2061.389 != fy
+// 2254.646, an off-centre principal point), one of them a non-square 360 x 300 detector; the blobs
+// are found in the DRR alone (white top-hat, threshold, weighted centroid), then matched to the
+// nearest projected marker.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -87,7 +87,8 @@ TEST(DrrExportE2e, PlastimatchDrrBlobsLieWhereCarmbaProjectsTheMarkers) {
             "block: {enabled: false}\n"
             "ct: {columns: 192, rows: 112, pixel_spacing_mm: 0.5, slices: 128, "
             "slice_spacing_mm: 0.5, noise_hu: 20, supersampling: 8}\n");
-  auto sim = test::RunCarmba("simulate --scene " + tmp.File("ct.yaml") + " --out " + tmp.File("sim"));
+  auto sim =
+      test::RunCarmba("simulate --scene " + tmp.File("ct.yaml") + " --out " + tmp.File("sim"));
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
   // The markers' true centres (patient = CT frame, mm).
   const nlohmann::json truth = nlohmann::json::parse(*ReadFile(tmp.File("sim/truth.json")));
@@ -117,9 +118,12 @@ TEST(DrrExportE2e, PlastimatchDrrBlobsLieWhereCarmbaProjectsTheMarkers) {
     const double a = az_deg * M_PI / 180, e = el_deg * M_PI / 180;
     return Eigen::Vector3d(std::cos(e) * std::sin(a), std::cos(e) * std::cos(a), std::sin(e));
   };
-  set.views.push_back(ViewLookingAt("pa", cam, centroid - sod * dir(0, 0), centroid + Eigen::Vector3d(3, 0, 2), 0.1));
-  set.views.push_back(ViewLookingAt("lao35_cran15", cam, centroid - sod * dir(35, 15), centroid, -0.4));
-  set.views.push_back(ViewLookingAt("rao60", wide, centroid - sod * dir(-60, -5), centroid + Eigen::Vector3d(0, 4, -3), 2.0));
+  set.views.push_back(ViewLookingAt(
+      "pa", cam, centroid - sod * dir(0, 0), centroid + Eigen::Vector3d(3, 0, 2), 0.1));
+  set.views.push_back(
+      ViewLookingAt("lao35_cran15", cam, centroid - sod * dir(35, 15), centroid, -0.4));
+  set.views.push_back(ViewLookingAt(
+      "rao60", wide, centroid - sod * dir(-60, -5), centroid + Eigen::Vector3d(0, 4, -3), 2.0));
   set.views.push_back(ViewLookingAt("axial", cam, centroid - sod * dir(20, 70), centroid, 0.7));
   tmp.Write("geometry.json", GeometryToJson(set).dump(2));
 

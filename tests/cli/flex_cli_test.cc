@@ -35,7 +35,8 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   // The simulator's per-view truth follows the flex (camera/carm_flex.h).
   for (const auto& v : truth.at("view_intrinsics")) {
     if (v.at("id") != "plate_pp40_sp00_1") continue;
-    EXPECT_NEAR(v.at("camera").at("cx").get<double>(), 203.655 + 6.0 * std::sin(40 * M_PI / 180), 1e-9);
+    EXPECT_NEAR(
+        v.at("camera").at("cx").get<double>(), 203.655 + 6.0 * std::sin(40 * M_PI / 180), 1e-9);
     EXPECT_NEAR(v.at("camera").at("fx").get<double>(),
                 2061.389 * (1 + 0.004 * (1 - std::cos(40 * M_PI / 180))), 1e-9);
   }
@@ -43,7 +44,8 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
       Replace(ReadTextFile(kSource + "/problems/flex_joint_smooth.yaml"), "../out/sim/flex", scene);
   dir.Write("problem.yaml", problem);
   const std::string config = " --config " + kSource + "/configs/joint_radial.yaml";
-  auto r = RunCarmba("solve --problem " + dir.File("problem.yaml") + config + " --out " + dir.File("out"));
+  auto r = RunCarmba("solve --problem " + dir.File("problem.yaml") + config + " --out " +
+                     dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
   std::map<std::string, nlohmann::json> true_intr;
@@ -60,7 +62,8 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
       const std::string k = names.at(i);
       const double e = in.at(k).get<double>() - true_intr.at(id).at(k).get<double>();
       const double s = std::sqrt(in.at("covariance").at("matrix").at(i).at(i).get<double>());
-      EXPECT_LT(std::abs(e), kFlexSigmas * s) << id << " " << k << ": error " << e << " sigma " << s;
+      EXPECT_LT(std::abs(e), kFlexSigmas * s)
+          << id << " " << k << ": error " << e << " sigma " << s;
     }
     ++n_views;
     if (v.at("kind") != "object") continue;
@@ -69,8 +72,10 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
     const auto& est = v.at("cam_from_object");
     const auto& tp = true_pose.at(id);
     for (int i = 0; i < 6; ++i) {
-      const double x = i < 3 ? est.at("rvec").at(i).get<double>() : est.at("t_mm").at(i - 3).get<double>();
-      const double t = i < 3 ? tp.at("rvec").at(i).get<double>() : tp.at("t_mm").at(i - 3).get<double>();
+      const double x =
+          i < 3 ? est.at("rvec").at(i).get<double>() : est.at("t_mm").at(i - 3).get<double>();
+      const double t =
+          i < 3 ? tp.at("rvec").at(i).get<double>() : tp.at("t_mm").at(i - 3).get<double>();
       const double s = std::sqrt(C.at(i).at(i).get<double>());
       EXPECT_LT(std::abs(x - t), kFlexSigmas * s) << id << " pose " << i;
     }
@@ -83,20 +88,23 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   EXPECT_EQ(j.at("intrinsics_model").at("name"), "smooth");
   EXPECT_EQ(j.at("intrinsics_model").at("coefficients").at("names").size(), 21u);
   EXPECT_EQ(j.at("intrinsics_model").at("coefficients").at("covariance").size(), 21u);
-  EXPECT_EQ(j.at("model_selection").at("recommended"), "smooth") << j.at("model_selection").at("why");
+  EXPECT_EQ(j.at("model_selection").at("recommended"), "smooth")
+      << j.at("model_selection").at("why");
   EXPECT_EQ(j.at("model_selection").at("scores").size(), 3u);
   // Its keys as formats.md lists them: the joint result's table plus the flex table, and every
   // key of the flex table written.
   {
     const MarkdownDoc formats = ReadMarkdownDoc(kSource + "/src/docs/formats.md");
-    ASSERT_TRUE(formats.tables.count("json-result-joint") && formats.tables.count("json-result-joint-flex"));
+    ASSERT_TRUE(formats.tables.count("json-result-joint") &&
+                formats.tables.count("json-result-joint-flex"));
     const auto& flex_rows = formats.tables.at("json-result-joint-flex");
     std::set<std::string> documented(flex_rows.begin(), flex_rows.end());
     const std::set<std::string> flex_keys = documented;
     for (const auto& k : formats.tables.at("json-result-joint")) documented.insert(k);
     std::set<std::string> written;
     FlattenJsonKeys(j, "", 2, &written);
-    EXPECT_TRUE(Minus(written, documented).empty()) << "written, not in formats.md: " << JoinSet(Minus(written, documented));
+    EXPECT_TRUE(Minus(written, documented).empty())
+        << "written, not in formats.md: " << JoinSet(Minus(written, documented));
     std::set<std::string> missing;  // the `...error` keys are written only when a check fails
     for (const auto& k : Minus(flex_keys, written)) {
       if (k.size() < 5 || k.compare(k.size() - 5, 5, "error") != 0) missing.insert(k);
@@ -113,21 +121,28 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
 
   // Bad input, one corruption at a time: no output, a one-line error.
   const std::string angles = ReadTextFile(scene + "/views.csv");
-  auto expect_error = [&](const std::string& csv, const std::string& model, const std::string& what) {
+  auto expect_error = [&](const std::string& csv,
+                          const std::string& model,
+                          const std::string& what) {
     ScratchDir bad;
     bad.Write("views.csv", csv);
     bad.Write("problem.yaml", Replace(Replace(problem, scene + "/views.csv", bad.File("views.csv")),
                                       "model: smooth", "model: " + model));
-    auto e = RunCarmba("solve --problem " + bad.File("problem.yaml") + config + " --out " + bad.File("out"));
+    auto e = RunCarmba("solve --problem " + bad.File("problem.yaml") + config + " --out " +
+                       bad.File("out"));
     EXPECT_NE(e.exit_code, 0);
     EXPECT_NE(e.err.find(what), std::string::npos) << e.err;
     EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << e.err;
     EXPECT_FALSE(std::filesystem::exists(bad.File("out")));
   };
-  expect_error(Replace(angles, "obj_pp10_sp10,10,10\n", ""), "smooth",
-               "object view 'obj_pp10_sp10' has no C-arm angles; intrinsics model smooth needs them");
-  expect_error(Replace(angles, "obj_pp10_sp10,10,10\n", ""), "per_group",
-               "object view 'obj_pp10_sp10' has no C-arm angles; intrinsics model per_group without groups");
+  expect_error(
+      Replace(angles, "obj_pp10_sp10,10,10\n", ""),
+      "smooth",
+      "object view 'obj_pp10_sp10' has no C-arm angles; intrinsics model smooth needs them");
+  expect_error(
+      Replace(angles, "obj_pp10_sp10,10,10\n", ""),
+      "per_group",
+      "object view 'obj_pp10_sp10' has no C-arm angles; intrinsics model per_group without groups");
   // Plate views at 3 orientations only (primary +-40 -> +-20, secondary +-20 -> 0).
   std::string three = Replace(Replace(angles, ",-40,0\n", ",-20,0\n"), ",40,0\n", ",20,0\n");
   three = Replace(Replace(three, ",0,-20\n", ",0,0\n"), ",0,20\n", ",0,0\n");
@@ -137,7 +152,8 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
     ScratchDir one;
     one.Write("views.csv", three);
     one.Write("problem.yaml", Replace(problem, scene + "/views.csv", one.File("views.csv")));
-    auto e = RunCarmba("solve --problem " + one.File("problem.yaml") + config + " --no-plots --no-mrcal --out " + one.File("out"));
+    auto e = RunCarmba("solve --problem " + one.File("problem.yaml") + config +
+                       " --no-plots --no-mrcal --out " + one.File("out"));
     ASSERT_EQ(e.exit_code, 0) << e.err;
     EXPECT_NE(e.err.find("warning: every plate view is at secondary angle 0 deg: the smooth model "
                          "takes secondary_degree 0"),
@@ -149,7 +165,8 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
         << e.err;
     const nlohmann::json j1 = ReadJsonFile(one.File("out/result.json"));
     bool said = false;
-    for (const auto& w : j1.at("warnings")) said |= w.get<std::string>().find("secondary_degree 0") != std::string::npos;
+    for (const auto& w : j1.at("warnings"))
+      said |= w.get<std::string>().find("secondary_degree 0") != std::string::npos;
     EXPECT_TRUE(said);
   }
   // Asked for explicitly, a degree the angles cannot support is an error that says what to do.
@@ -158,8 +175,10 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
     bad.Write("views.csv", three);
     bad.Write("problem.yaml",
               Replace(Replace(problem, scene + "/views.csv", bad.File("views.csv")),
-                      "intrinsics: {model: smooth}", "intrinsics: {model: smooth, secondary_degree: 1}"));
-    auto e = RunCarmba("solve --problem " + bad.File("problem.yaml") + config + " --out " + bad.File("out"));
+                      "intrinsics: {model: smooth}",
+                      "intrinsics: {model: smooth, secondary_degree: 1}"));
+    auto e = RunCarmba("solve --problem " + bad.File("problem.yaml") + config + " --out " +
+                       bad.File("out"));
     EXPECT_NE(e.exit_code, 0);
     EXPECT_NE(e.err.find("intrinsics.secondary_degree 1: every plate view is at secondary angle 0 "
                          "deg, so no dependence on it can be estimated; set secondary_degree: 0"),
@@ -170,11 +189,14 @@ TEST(FlexCli, FlexingSceneSmoothModelWithinThreeSigmaAndBadInput) {
   }
   // Too few orientations for the primary order: an error.
   std::string two = Replace(Replace(three, ",-20,0\n", ",0,0\n"), ",20,0\n", ",0,0\n");
-  expect_error(two, "smooth",
-               "model smooth has 3 coefficients per intrinsic (Fourier order 1 in the primary angle, "
-               "degree 0 in the secondary) but the plate views cover 1 orientation group(s); it "
-               "needs at least 3");
-  expect_error(angles + "nosuchview,0,0\n", "smooth", "view 'nosuchview' is not a view of the problem");
+  expect_error(
+      two,
+      "smooth",
+      "model smooth has 3 coefficients per intrinsic (Fourier order 1 in the primary angle, "
+      "degree 0 in the secondary) but the plate views cover 1 orientation group(s); it "
+      "needs at least 3");
+  expect_error(
+      angles + "nosuchview,0,0\n", "smooth", "view 'nosuchview' is not a view of the problem");
 }
 
 }  // namespace

@@ -51,7 +51,8 @@ TEST(GeometryCli, PoseSolveWritesTheProjectionMatricesOfItsPoses) {
       EXPECT_LT((q - Eigen::Vector2d(uv[0], uv[1])).norm(), 1e-8);
     }
   }
-  // json export is a copy; RTK and plastimatch refuse the mirrored frame, naming it, with no output.
+  // json export is a copy; RTK and plastimatch refuse the mirrored frame, naming it, with no
+  // output.
   auto e = RunCarmba("export-geometry --result " + out.path() + " --format json --out " +
                      out.File("exp"));
   ASSERT_EQ(e.exit_code, 0) << e.err;
@@ -189,7 +190,8 @@ TEST(UndistortCli, BadInputIsOneLineAndNoOutput) {
   // b.png is 64x40: an error naming it, and a.png is not left behind either.
   expect_error("--images " + dir.File("in") + " --camera " + dir.File("camera.json"),
                "b.png: image is 64x40 px, the camera's image_size 64x48");
-  dir.Write("bad_camera.json", "{\"image_size\": [64, 48], \"fx\": -3, \"fy\": 320, \"cx\": 1, \"cy\": 1}");
+  dir.Write("bad_camera.json",
+            "{\"image_size\": [64, 48], \"fx\": -3, \"fy\": 320, \"cx\": 1, \"cy\": 1}");
   expect_error("--images " + dir.File("in/a.png") + " --camera " + dir.File("bad_camera.json"),
                "fx");
 }

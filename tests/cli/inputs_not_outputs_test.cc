@@ -206,7 +206,8 @@ TEST(InputsNotOutputs, FilesNamedInsideProblemConfigAndStudyFiles) {
   fs::create_directories(in.dir.File("data"));
   in.dir.Write("data/markers.csv", "original markers");
   in.dir.Write("nested_problem.yaml", "name: p\nviews:\n  - observations: data/markers.csv\n");
-  in.dir.Write("nested_study.yaml", "name: s\nproblems:\n  - {name: p, file: nested_problem.yaml}\n");
+  in.dir.Write("nested_study.yaml",
+               "name: s\nproblems:\n  - {name: p, file: nested_problem.yaml}\n");
   struct Case {
     std::string args, named_in;
   };

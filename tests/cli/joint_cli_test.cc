@@ -83,11 +83,14 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   // Leave-one-marker-out TRE: every marker evaluated; the measured RMS beside the predicted.
   const auto& tre = j.at("tre");
   EXPECT_EQ(tre.at("evaluated"), 9);
-  std::printf("TRE: RMS measured %.3f mm, predicted %.3f mm, Fitzpatrick %.3f mm, mean e^T C^-1 e "
-              "/ 3 = %.2f, %.0f ms\n",
-              tre.at("rms_error_mm").get<double>(), tre.at("rms_predicted_mm").get<double>(),
-              tre.at("rms_fitzpatrick_mm").get<double>(),
-              tre.at("mean_mahalanobis2_per_dof").get<double>(), 1e3 * tre.at("time_s").get<double>());
+  std::printf(
+      "TRE: RMS measured %.3f mm, predicted %.3f mm, Fitzpatrick %.3f mm, mean e^T C^-1 e "
+      "/ 3 = %.2f, %.0f ms\n",
+      tre.at("rms_error_mm").get<double>(),
+      tre.at("rms_predicted_mm").get<double>(),
+      tre.at("rms_fitzpatrick_mm").get<double>(),
+      tre.at("mean_mahalanobis2_per_dof").get<double>(),
+      1e3 * tre.at("time_s").get<double>());
   // Triangulation with the joint covariance (the calibration's share in it): markers 1 and 5
   // from the scene's picks in two and in all seven views, against their true positions. These
   // picks are also in the solve, which the covariance assumes they are not (a new point's are
@@ -125,7 +128,8 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
       Eigen::Matrix3d C;
       for (const auto& m : truth.at("ct_markers")) {
         if (m.at("id") != id) continue;
-        e = Eigen::Vector3d(m.at("x_mm").get<double>(), m.at("y_mm").get<double>(), m.at("z_mm").get<double>());
+        e = Eigen::Vector3d(
+            m.at("x_mm").get<double>(), m.at("y_mm").get<double>(), m.at("z_mm").get<double>());
       }
       for (int i = 0; i < 3; ++i) {
         e[i] = p.at("p_in_ct_mm")[i].get<double>() - e[i];
@@ -148,7 +152,8 @@ TEST(JointCli, SimulatedJointSceneWithinThreeSigma) {
   // Per view, the keys a pose problem's views have too: the initial pose and its RMS.
   for (const auto& v : j.at("views")) {
     EXPECT_TRUE(v.contains("initial")) << v.at("id");
-    EXPECT_GE(v.at("initial_rms_px").get<double>(), 0.99 * v.at("rms_px").get<double>()) << v.at("id");
+    EXPECT_GE(v.at("initial_rms_px").get<double>(), 0.99 * v.at("rms_px").get<double>())
+        << v.at("id");
   }
   EXPECT_EQ(j.at("state_layout").at(0), "fx");
   EXPECT_TRUE(j.at("solver").at("converged").get<bool>());
@@ -360,8 +365,9 @@ TEST_F(JointBadInput, MarkerNotInFiducials) {
 }
 
 TEST_F(JointBadInput, FiducialsWithoutCovarianceAndNoSigma) {
-  fiducials_ = "id,x_mm,y_mm,z_mm\n1,0,0,0\n2,-58.85,1,14\n3,13.35,1,14\n4,-8.25,-20.5,24\n"
-               "5,-56.05,19,31\n6,-27.07,-20,31\n7,-15.01,-21.5,40\n8,-42.2,18.75,44\n9,-1.4,5,49\n";
+  fiducials_ =
+      "id,x_mm,y_mm,z_mm\n1,0,0,0\n2,-58.85,1,14\n3,13.35,1,14\n4,-8.25,-20.5,24\n"
+      "5,-56.05,19,31\n6,-27.07,-20,31\n7,-15.01,-21.5,40\n8,-42.2,18.75,44\n9,-1.4,5,49\n";
   ExpectError("fiducials.sigma_mm: missing: give the CT sigma or covariance columns");
 }
 
@@ -408,7 +414,9 @@ TEST_F(JointBadInput, PlateObservationsOfAnotherGridSize) {
       " spacing_mm: 15}\n"
       "object_views: {observations: object.csv, sigma_px: 0.2}\n"
       "fiducials: fiducials.csv\n";
-  ExpectError("plate.csv: grid circles 5x5 spacing 20.000000 mm, but plate_views.rows/cols/spacing_mm say circles 6x8");
+  ExpectError(
+      "plate.csv: grid circles 5x5 spacing 20.000000 mm, "
+      "but plate_views.rows/cols/spacing_mm say circles 6x8");
 }
 
 TEST_F(JointBadInput, CalibrationConfigGivenToSolve) {

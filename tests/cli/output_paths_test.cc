@@ -56,9 +56,10 @@ class OutputPaths : public ::testing::Test {
     dir_.Write("markers.csv",
                "id,x_mm,y_mm,z_mm\n1,0,0,0\n2,-58.85,1,14\n3,13.35,1,14\n4,-8.25,-20.5,24\n"
                "5,-56.05,19,31\n");
-    dir_.Write("obs.csv",
-               "view,marker,u_px,v_px\n"
-               "a,1,230.0,210.0\na,2,54.1,214.5\na,3,269.0,214.7\na,4,183.1,145.2\na,5,63.0,267.2\n");
+    dir_.Write(
+        "obs.csv",
+        "view,marker,u_px,v_px\n"
+        "a,1,230.0,210.0\na,2,54.1,214.5\na,3,269.0,214.7\na,4,183.1,145.2\na,5,63.0,267.2\n");
     dir_.Write("problem.yaml",
                "name: out_test\ncamera: camera.json\nsigma_px: 0.5\n"
                "markers: {file: markers.csv, sigma_mm: 0.2}\n"
@@ -134,7 +135,8 @@ TEST_F(OutputPaths, ReadOnlyMount) {
   fs::create_directories(dir_.File("ro_src"));
   fs::create_directories(dir_.File("ro"));
   BindMount mount(dir_.File("ro_src"), dir_.File("ro"), /*read_only=*/true);
-  if (!mount.ok()) GTEST_SKIP() << "mount --bind is not allowed here (see DirectoryThatTakesNoFiles)";
+  if (!mount.ok())
+    GTEST_SKIP() << "mount --bind is not allowed here (see DirectoryThatTakesNoFiles)";
   const std::string ro = dir_.File("ro");
   ExpectFails(Solve(ro + "/out"),
               "--out " + ro + "/out: " + ro +

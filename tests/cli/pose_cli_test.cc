@@ -31,8 +31,8 @@ class PoseCli : public ::testing::Test {
     const auto& obj = truth_["object"];
     for (size_t k = 0; k < obj["sphere_ids"].size(); ++k) {
       const auto& c = obj["centers_mm"][k];
-      f << obj["sphere_ids"][k].get<int>() << "," << c[0].get<double>() << "," << c[1].get<double>() << ","
-        << c[2].get<double>() << ",0.01,0,0,0.01,0,0.01\n";
+      f << obj["sphere_ids"][k].get<int>() << "," << c[0].get<double>() << "," << c[1].get<double>()
+        << "," << c[2].get<double>() << ",0.01,0,0,0.01,0,0.01\n";
     }
   }
   static void TearDownTestSuite() {
@@ -40,8 +40,9 @@ class PoseCli : public ::testing::Test {
     dir_ = nullptr;
   }
   static std::string Args(const std::string& images) {
-    return "pose --images '" + images + "' --fiducials " + dir_->File("fiducials.csv") + " --camera " +
-           dir_->File("camera.json") + " --marker_diameter_mm 2 --source_to_object_mm 700";
+    return "pose --images '" + images + "' --fiducials " + dir_->File("fiducials.csv") +
+           " --camera " + dir_->File("camera.json") +
+           " --marker_diameter_mm 2 --source_to_object_mm 700";
   }
   static ScratchDir* dir_;
   static nlohmann::json truth_;
@@ -58,7 +59,8 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
   // 9 markers in 5 views, 8 in the partial view, 7 in the overlap view.
   EXPECT_EQ(CountLines(csv) - 3, 5 * 9 + 8 + 7);
   int overlays = 0;
-  for (const auto& e : fs::directory_iterator(out)) overlays += e.path().filename().string().rfind("overlay_", 0) == 0;
+  for (const auto& e : fs::directory_iterator(out))
+    overlays += e.path().filename().string().rfind("overlay_", 0) == 0;
   EXPECT_EQ(overlays, 7);
   const auto j = nlohmann::json::parse(ReadTextFile(out + "/result.json"));
   ASSERT_EQ(j["views"].size(), 7u);
@@ -67,7 +69,8 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
   // covariance, which is ~20 % conservative over anatomy: sigma0 0.64 here, 0.57 with the
   // isotropic larger-eigenvalue bound it replaced).
   const double sigma0 = j["statistics"]["sigma0"].get<double>();
-  std::cout << "pose on the clutter scene: sigma0 " << sigma0 << ", RMS " << j["statistics"]["rms_px"] << " px\n";
+  std::cout << "pose on the clutter scene: sigma0 " << sigma0 << ", RMS "
+            << j["statistics"]["rms_px"] << " px\n";
   EXPECT_GT(sigma0, 0.5);
   EXPECT_LT(sigma0, 1.5);
   // Each view's translation within 4 sigma of the truth.
@@ -77,7 +80,8 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
     nlohmann::json tv;
     // Views are named by their file's stem (the file is kept in marker_detection[].image).
     for (const auto& t : truth_["views"]) {
-      if (fs::path(t["file"].get<std::string>()).stem().string() == id) tv = t["cam_from_object"]["t_mm"];
+      if (fs::path(t["file"].get<std::string>()).stem().string() == id)
+        tv = t["cam_from_object"]["t_mm"];
     }
     ASSERT_FALSE(tv.is_null()) << id;
     for (int a = 0; a < 3; ++a) {
@@ -86,31 +90,37 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
           << jv["id"] << " axis " << a;
     }
   }
-  EXPECT_NE(ReadTextFile(out + "/report.md").find("Marker detection and labelling"), std::string::npos);
+  EXPECT_NE(ReadTextFile(out + "/report.md").find("Marker detection and labelling"),
+            std::string::npos);
   // report.html: the same report with its plots, rendered in a browser.
-  EXPECT_NE(ReadTextFile(out + "/report.html").find("Marker detection and labelling"), std::string::npos);
+  EXPECT_NE(ReadTextFile(out + "/report.html").find("Marker detection and labelling"),
+            std::string::npos);
   ExpectReportRenders(out + "/report.html", 2);
 }
 
 // A problem naming object_views: {images, detection} instead of observations: object views only,
 // so a pose problem (the intrinsics held at camera.json), solved by the pose front end.
 TEST_F(PoseCli, JointProblemWithObjectViewImages) {
-  dir_->Write("problem.yaml",
-              "name: pose_from_images\ncamera: camera.json\nfiducials: fiducials.csv\n"
-              "object_views:\n  images: sim/*.png\n  detection: {diameter_mm: 2, source_to_object_mm: 700}\n");
+  dir_->Write(
+      "problem.yaml",
+      "name: pose_from_images\ncamera: camera.json\nfiducials: fiducials.csv\n"
+      "object_views:\n  images: sim/*.png\n"
+      "  detection: {diameter_mm: 2, source_to_object_mm: 700}\n");
   dir_->Write("fixed.yaml", "name: fixed_intrinsics\nfix: [fx, fy, cx, cy, k1, k2, p1, p2, k3]\n");
   const std::string out = dir_->File("joint_out");
-  const auto r = RunCarmba("solve --problem " + dir_->File("problem.yaml") + " --config " + dir_->File("fixed.yaml") +
-                           " --out " + out);
+  const auto r = RunCarmba("solve --problem " + dir_->File("problem.yaml") + " --config " +
+                           dir_->File("fixed.yaml") + " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("solved pose_from_images with fixed_intrinsics: 7 views"), std::string::npos)
       << r.out;
   // Images and observations together are an error naming the key.
-  dir_->Write("both.yaml",
-              "name: both\ncamera: camera.json\nfiducials: fiducials.csv\nobject_views:\n  images: sim/*.png\n"
-              "  observations: obs.csv\n  detection: {diameter_mm: 2}\n");
-  const auto b = RunCarmba("solve --problem " + dir_->File("both.yaml") + " --config " + dir_->File("fixed.yaml") +
-                           " --out " + dir_->File("both_out"));
+  dir_->Write(
+      "both.yaml",
+      "name: both\ncamera: camera.json\nfiducials: fiducials.csv\n"
+      "object_views:\n  images: sim/*.png\n  observations: obs.csv\n"
+      "  detection: {diameter_mm: 2}\n");
+  const auto b = RunCarmba("solve --problem " + dir_->File("both.yaml") + " --config " +
+                           dir_->File("fixed.yaml") + " --out " + dir_->File("both_out"));
   EXPECT_NE(b.exit_code, 0);
   EXPECT_NE(b.err.find("object_views.observations"), std::string::npos) << b.err;
   EXPECT_FALSE(fs::exists(dir_->File("both_out")));
@@ -124,22 +134,31 @@ TEST_F(PoseCli, BadInputIsAOneLineErrorAndNoOutput) {
   std::ofstream(bad.File("corrupt.png")) << "not an image";
   // Another object's 9 fiducials (a different layout of the same size).
   std::string other = "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
-  const double xyz[9][3] = {{0, 0, 0},    {35, 5, 2},   {-20, 30, 10}, {10, -25, 18}, {-40, -10, 25},
-                            {25, 28, 33}, {-5, 12, 41}, {30, -15, 47}, {-30, 22, 52}};
+  const double xyz[9][3] = {{0, 0, 0},
+                            {35, 5, 2},
+                            {-20, 30, 10},
+                            {10, -25, 18},
+                            {-40, -10, 25},
+                            {25, 28, 33},
+                            {-5, 12, 41},
+                            {30, -15, 47},
+                            {-30, 22, 52}};
   for (int k = 0; k < 9; ++k) {
-    other += std::to_string(k + 1) + "," + std::to_string(xyz[k][0]) + "," + std::to_string(xyz[k][1]) + "," +
-             std::to_string(xyz[k][2]) + ",0.01,0,0,0.01,0,0.01\n";
+    other += std::to_string(k + 1) + "," + std::to_string(xyz[k][0]) + "," +
+             std::to_string(xyz[k][1]) + "," + std::to_string(xyz[k][2]) +
+             ",0.01,0,0,0.01,0,0.01\n";
   }
   bad.Write("other.csv", other);
   const std::string base = Args(dir_->File("sim/*.png"));
   const std::vector<Case> cases = {
       {Args(bad.File("corrupt.png")), bad.File("corrupt.png") + ": unreadable image"},
       {Args(bad.File("missing.png")), "missing.png"},
-      {"pose --images '" + dir_->File("sim/*.png") + "' --fiducials " + bad.File("other.csv") + " --camera " +
-           dir_->File("camera.json") + " --marker_diameter_mm 2 --source_to_object_mm 700",
+      {"pose --images '" + dir_->File("sim/*.png") + "' --fiducials " + bad.File("other.csv") +
+           " --camera " + dir_->File("camera.json") +
+           " --marker_diameter_mm 2 --source_to_object_mm 700",
        "no view could be labelled"},
-      {"pose --images '" + dir_->File("sim/*.png") + "' --fiducials " + dir_->File("fiducials.csv") +
-           " --camera " + dir_->File("camera.json"),
+      {"pose --images '" + dir_->File("sim/*.png") + "' --fiducials " +
+           dir_->File("fiducials.csv") + " --camera " + dir_->File("camera.json"),
        "marker diameter"},
   };
   for (const Case& c : cases) {

@@ -68,9 +68,12 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   const fs::path out2 = tmp.File("pose2");
   ASSERT_EQ(Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out2.string()).code, 0);
   for (const auto& e : fs::directory_iterator(out)) {
-    EXPECT_EQ(carmba::test::ReadTextFile(e.path()).size(), carmba::test::ReadTextFile(out2 / e.path().filename()).size());
+    EXPECT_EQ(carmba::test::ReadTextFile(e.path()).size(),
+              carmba::test::ReadTextFile(out2 / e.path().filename()).size());
     if (e.path().filename() != "truth.json") {
-      EXPECT_TRUE(carmba::test::ReadTextFile(e.path()) == carmba::test::ReadTextFile(out2 / e.path().filename())) << e.path();
+      EXPECT_TRUE(carmba::test::ReadTextFile(e.path()) ==
+                  carmba::test::ReadTextFile(out2 / e.path().filename()))
+          << e.path();
     }
   }
 
@@ -78,10 +81,12 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   const fs::path out3 = tmp.File("pose3");
   ASSERT_EQ(
       Simulate("--scene=" + kScenes + "thesis_pose.yaml --seed=77 --out=" + out3.string()).code, 0);
-  const nlohmann::json truth3 = nlohmann::json::parse(carmba::test::ReadTextFile(out3 / "truth.json"));
+  const nlohmann::json truth3 =
+      nlohmann::json::parse(carmba::test::ReadTextFile(out3 / "truth.json"));
   EXPECT_EQ(truth3["seed"], 77);
   EXPECT_EQ(truth3["views"][0]["centers_px"], truth["views"][0]["centers_px"]);
-  EXPECT_FALSE(carmba::test::ReadTextFile(out3 / "orient_000.png") == carmba::test::ReadTextFile(out / "orient_000.png"));
+  EXPECT_FALSE(carmba::test::ReadTextFile(out3 / "orient_000.png") ==
+               carmba::test::ReadTextFile(out / "orient_000.png"));
 
   // An existing non-empty output is not overwritten without --force ...
   const SimRun again = Simulate("--scene=" + kScenes + "thesis_pose.yaml --out=" + out.string());
@@ -100,7 +105,8 @@ TEST(SimulateCli, CtSceneIsDispatched) {
   const fs::path out = tmp.File("ct");
   const SimRun r = Simulate("--scene=" + kScenes + "thesis_ct.yaml --out=" + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
-  const nlohmann::json truth = nlohmann::json::parse(carmba::test::ReadTextFile(out / "truth.json"));
+  const nlohmann::json truth =
+      nlohmann::json::parse(carmba::test::ReadTextFile(out / "truth.json"));
   EXPECT_EQ(truth["kind"], "ct");
   EXPECT_EQ(truth["markers"].size(), 9u);
   EXPECT_TRUE(fs::is_directory(out / "ct"));

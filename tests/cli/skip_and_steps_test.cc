@@ -112,8 +112,8 @@ TEST(SkipAndSteps, ExportGeometryNamesItsSteps) {
                      kSource + "/configs/posit_ba_analytic.yaml --no-plots --out " +
                      dir.File("solve"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  r = RunCarmba("export-geometry --result " + dir.File("solve") + " --format json --verbose --out " +
-                dir.File("export"));
+  r = RunCarmba("export-geometry --result " + dir.File("solve") +
+                " --format json --verbose --out " + dir.File("export"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   ExpectTimedSteps("export-geometry", r.err, 3);
 }

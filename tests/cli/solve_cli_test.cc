@@ -54,31 +54,38 @@ TEST(SolveCli, ResidualsThatContradictTheNoiseAreWarnings) {
   std::ifstream csv_in(kSource + "/data/thesis/projections_table_5_2.csv");
   std::stringstream csv;
   csv << csv_in.rdbuf();
-  const std::string bad_csv = std::regex_replace(
-      csv.str(), std::regex("\n4,-21.6,-21.5,10,134,270,160,271,201,"), "\n4,-21.6,-21.5,10,134,270,160,271,221,");
+  const std::string bad_csv =
+      std::regex_replace(csv.str(),
+                         std::regex("\n4,-21.6,-21.5,10,134,270,160,271,201,"),
+                         "\n4,-21.6,-21.5,10,134,270,160,271,221,");
   ASSERT_NE(bad_csv, csv.str());
   dir.Write("projections.csv", bad_csv);
   std::ifstream in(kSource + "/problems/thesis_pose.yaml");
   std::stringstream text;
   text << in.rdbuf();
-  std::string problem = std::regex_replace(text.str(), std::regex("\\.\\./data/thesis/projections_table_5_2.csv"),
-                                           dir.File("projections.csv"));
+  std::string problem =
+      std::regex_replace(text.str(),
+                         std::regex("\\.\\./data/thesis/projections_table_5_2.csv"),
+                         dir.File("projections.csv"));
   problem = std::regex_replace(problem, std::regex("\\.\\./data/"), kSource + "/data/");
   dir.Write("problem.yaml", problem);
   const auto r = RunCarmba("solve --problem=" + dir.File("problem.yaml") + " --config=" + kSource +
                            "/configs/posit_ba_analytic.yaml --no-plots --out=" + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("carmba solve: warning: chi-square "), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("the residuals are larger than the stated noise explains"), std::string::npos);
-  EXPECT_NE(r.err.find("carmba solve: warning: view '30' marker 4: residual"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the residuals are larger than the stated noise explains"),
+            std::string::npos);
+  EXPECT_NE(r.err.find("carmba solve: warning: view '30' marker 4: residual"), std::string::npos)
+      << r.err;
   const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
   ASSERT_GE(j.at("warnings").size(), 2u);
   for (const auto& w : j.at("warnings")) {
     EXPECT_NE(r.err.find("carmba solve: warning: " + w.get<std::string>()), std::string::npos) << w;
   }
   // The thesis's own picks: no such warning.
-  const auto ok = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" +
-                            kSource + "/configs/posit_ba_analytic.yaml --no-plots --out=" + dir.File("ok"));
+  const auto ok =
+      RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" + kSource +
+                "/configs/posit_ba_analytic.yaml --no-plots --out=" + dir.File("ok"));
   ASSERT_EQ(ok.exit_code, 0) << ok.err;
   EXPECT_EQ(ok.err.find("warning: chi-square"), std::string::npos) << ok.err;
   EXPECT_TRUE(ReadJsonFile(dir.File("ok/result.json")).at("warnings").empty());
@@ -467,7 +474,8 @@ TEST_F(AbsurdValue, Tolerance) {
 
 TEST_F(AbsurdValue, MaxIterations) {
   config_ += "max_iterations: 2000000000\n";
-  ExpectAbsurd("config.yaml:3: key 'max_iterations': expected an integer 0 .. 1e+06, got 2000000000");
+  ExpectAbsurd(
+      "config.yaml:3: key 'max_iterations': expected an integer 0 .. 1e+06, got 2000000000");
 }
 
 TEST_F(AbsurdValue, NumThreads) {

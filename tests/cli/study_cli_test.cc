@@ -147,8 +147,10 @@ TEST(StudyCliTest, JobsAndMergedShardsGiveIdenticalSummaries) {
   const std::string dir = test::MakeScratchDir("study_cli");
   const std::string study = WriteStudy(dir, 15);
   const std::string s = kStudyNoPlots + study + " --out=" + dir;
-  for (const std::string& a : {s + "/j1 --jobs=1", s + "/j2 --jobs=2",
-                               s + "/shard1 --jobs=2 --shard=1/2", s + "/shard2 --jobs=1 --shard=2/2"}) {
+  for (const std::string& a : {s + "/j1 --jobs=1",
+                               s + "/j2 --jobs=2",
+                               s + "/shard1 --jobs=2 --shard=1/2",
+                               s + "/shard2 --jobs=1 --shard=2/2"}) {
     const Result r = Carmba(a, dir);
     ASSERT_EQ(r.code, 0) << a << "\n" << r.err;
   }
@@ -348,8 +350,8 @@ TEST(StudyCliTest, ProgressLineOnlyOnATerminal) {
   EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
   if (!FileExists("/usr/bin/script")) GTEST_SKIP() << "no /usr/bin/script to provide a terminal";
   // script(1) runs the command on a pseudo-terminal.
-  r = Shell("/usr/bin/script -qec \"'" + kBin + "' study --no-plots --study=" + study + " --out=" + dir +
-                "/tty --jobs=2\" /dev/null",
+  r = Shell("/usr/bin/script -qec \"'" + kBin + "' study --no-plots --study=" + study +
+                " --out=" + dir + "/tty --jobs=2\" /dev/null",
             dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("] 20/20 runs 100%"), std::string::npos) << r.out;

@@ -56,28 +56,35 @@ echo $RANDOM
 )";
   ::chmod(sbatch.c_str(), 0755);
   const std::string study = dir + "/study.yaml";
-  std::ofstream(study) << "name: slurm\ntrials: 5\nproblems:\n  - name: sim\n    synthetic: {camera: "
-                       << kSlurmSrc << "/data/thesis/camera.json, markers: thesis}\nconfigs:\n"
-                       << "  - {name: c, file: " << kSlurmSrc << "/configs/posit_ba_analytic.yaml}\n"
-                       << "sweeps:\n  pixel_noise_px: [0.2, 0.6, 1.0]\n";
+  std::ofstream(study)
+      << "name: slurm\ntrials: 5\nproblems:\n  - name: sim\n    synthetic: {camera: " << kSlurmSrc
+      << "/data/thesis/camera.json, markers: thesis}\nconfigs:\n"
+      << "  - {name: c, file: " << kSlurmSrc << "/configs/posit_ba_analytic.yaml}\n"
+      << "sweeps:\n  pixel_noise_px: [0.2, 0.6, 1.0]\n";
   const std::string log = " > '" + dir + "/log.txt' 2>&1";
-  ASSERT_EQ(SlurmShell("PATH='" + dir + "/fakebin':\"$PATH\" CARMBA='" + kSlurmBin + "' '" + kSlurmSrc +
-                  "/scripts/slurm_study.sh' '" + study + "' '" + dir + "/out' 3" + log),
-            0)
+  ASSERT_EQ(
+      SlurmShell("PATH='" + dir + "/fakebin':\"$PATH\" CARMBA='" + kSlurmBin + "' '" + kSlurmSrc +
+                 "/scripts/slurm_study.sh' '" + study + "' '" + dir + "/out' 3" + log),
+      0)
       << ReadSlurmFile(dir + "/log.txt");
   for (int k = 1; k <= 3; ++k) {
     EXPECT_TRUE(FileExists(dir + "/out/shard-" + std::to_string(k) + "/runs.jsonl")) << k;
   }
-  ASSERT_EQ(SlurmShell("'" + kSlurmBin + "' study --study='" + study + "' --out='" + dir + "/whole'" + log), 0)
+  ASSERT_EQ(SlurmShell("'" + kSlurmBin + "' study --study='" + study + "' --out='" + dir +
+                       "/whole'" + log),
+            0)
       << ReadSlurmFile(dir + "/log.txt");
-  EXPECT_EQ(ReadSlurmFile(dir + "/out/merged/summary.csv"), ReadSlurmFile(dir + "/whole/summary.csv"));
+  EXPECT_EQ(ReadSlurmFile(dir + "/out/merged/summary.csv"),
+            ReadSlurmFile(dir + "/whole/summary.csv"));
   const std::string calls = ReadSlurmFile(dir + "/fakebin/calls.log");
   EXPECT_NE(calls.find("--array=1-3"), std::string::npos) << calls;
   EXPECT_NE(calls.find("--dependency=afterok:"), std::string::npos) << calls;
   // Usage errors are reported before anything is submitted.
-  EXPECT_EQ(SlurmShell("'" + kSlurmSrc + "/scripts/slurm_study.sh' '" + study + "' '" + dir + "/x' zero" + log),
+  EXPECT_EQ(SlurmShell("'" + kSlurmSrc + "/scripts/slurm_study.sh' '" + study + "' '" + dir +
+                       "/x' zero" + log),
             2);
-  EXPECT_NE(ReadSlurmFile(dir + "/log.txt").find("NUM_SHARDS must be a positive integer"), std::string::npos);
+  EXPECT_NE(ReadSlurmFile(dir + "/log.txt").find("NUM_SHARDS must be a positive integer"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -165,7 +165,8 @@ TEST(SolveTre, FourMarkerViewsAreSkippedWithTheReason) {
   std::stringstream rs;
   rs << rep.rdbuf();
   EXPECT_NE(rs.str().find("## Relative C-arm poses"), std::string::npos);
-  EXPECT_NE(rs.str().find("## Target registration error (leave one marker out)"), std::string::npos);
+  EXPECT_NE(rs.str().find("## Target registration error (leave one marker out)"),
+            std::string::npos);
 }
 
 // The thesis's pose problem with a covariance in camera.json: the intrinsics stay held (the same
@@ -176,8 +177,9 @@ TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangul
   std::ifstream cam_in(kSource + "/data/thesis/camera.json");
   nlohmann::json cam = nlohmann::json::parse(cam_in);
   // sigmas fx, fy 20 px, cx, cy 5 px; fx-fy correlation 0.9.
-  cam["covariance"] = {{"names", {"fx", "fy", "cx", "cy"}},
-                       {"matrix", {{400, 360, 0, 0}, {360, 400, 0, 0}, {0, 0, 25, 0}, {0, 0, 0, 25}}}};
+  cam["covariance"] = {
+      {"names", {"fx", "fy", "cx", "cy"}},
+      {"matrix", {{400, 360, 0, 0}, {360, 400, 0, 0}, {0, 0, 25, 0}, {0, 0, 0, 25}}}};
   dir.Write("camera.json", cam.dump(2));
   std::ifstream pin(kSource + "/problems/thesis_pose.yaml");
   std::stringstream ps;
@@ -187,18 +189,21 @@ TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangul
   for (size_t at; (at = problem.find("../data/thesis/")) != std::string::npos;) {
     problem.replace(at, std::string("../data/thesis/").size(), data);
   }
-  problem.replace(problem.find(data + "camera.json"), (data + "camera.json").size(), dir.File("camera.json"));
+  problem.replace(
+      problem.find(data + "camera.json"), (data + "camera.json").size(), dir.File("camera.json"));
   dir.Write("problem.yaml", problem);
   std::ifstream cin_(kSource + "/configs/posit_ba_analytic.yaml");
   std::stringstream cs;
   cs << cin_.rdbuf();
   dir.Write("off.yaml", cs.str() + "consider_calibration: false\n");
   const std::string config = kSource + "/configs/posit_ba_analytic.yaml";
-  auto solve = [&](const std::string& problem_file, const std::string& cfg, const std::string& out) {
-    const auto r = RunCarmba("solve --problem " + problem_file + " --config " + cfg + " --out " + dir.File(out));
-    EXPECT_EQ(r.exit_code, 0) << r.err;
-    return ReadJsonFile(dir.File(out + "/result.json"));
-  };
+  auto solve =
+      [&](const std::string& problem_file, const std::string& cfg, const std::string& out) {
+        const auto r = RunCarmba("solve --problem " + problem_file + " --config " + cfg +
+                                 " --out " + dir.File(out));
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        return ReadJsonFile(dir.File(out + "/result.json"));
+      };
   const nlohmann::json on = solve(dir.File("problem.yaml"), config, "on");
   const nlohmann::json off = solve(dir.File("problem.yaml"), dir.File("off.yaml"), "off");
   const nlohmann::json held = solve(kSource + "/problems/thesis_pose.yaml", config, "held");
@@ -206,7 +211,9 @@ TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangul
   for (size_t v = 0; v < 5; ++v) {
     for (int a = 0; a < 3; ++a) {
       const double t_on = on["views"][v]["cam_from_object"]["t_mm"][a].get<double>();
-      EXPECT_NEAR(t_on, held["views"][v]["cam_from_object"]["t_mm"][a].get<double>(), 1e-9 * std::abs(t_on) + 1e-9);
+      EXPECT_NEAR(t_on,
+                  held["views"][v]["cam_from_object"]["t_mm"][a].get<double>(),
+                  1e-9 * std::abs(t_on) + 1e-9);
       const double s_on = on["views"][v]["sigma_translation_mm"][a].get<double>();
       const double s_off = off["views"][v]["sigma_translation_mm"][a].get<double>();
       EXPECT_NEAR(s_off, held["views"][v]["sigma_translation_mm"][a].get<double>(), 1e-9 * s_off);
@@ -226,16 +233,18 @@ TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangul
   EXPECT_NE(rs.str().find("its covariance is considered"), std::string::npos);
   EXPECT_EQ(rs.str().find("leave the calibration's uncertainty out"), std::string::npos);
   // Triangulation: marker 4 from all five views.
-  const auto r = RunCarmba("triangulate --problem " + dir.File("problem.yaml") + " --config " + config +
-                           " --pixels '0=134,270;10=160,271;30=201,271;50=221,275;90=182,286' --out " +
-                           dir.File("tri"));
+  const auto r = RunCarmba(
+      "triangulate --problem " + dir.File("problem.yaml") + " --config " + config +
+      " --pixels '0=134,270;10=160,271;30=201,271;50=221,275;90=182,286' --out " + dir.File("tri"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err.find("not in the covariance"), std::string::npos) << r.err;
   const nlohmann::json t = ReadJsonFile(dir.File("tri/triangulation.json"));
   EXPECT_NE(t.at("covariance").get<std::string>().find("considered"), std::string::npos);
   const auto& cc = t.at("points")[0].at("covariance_calibration_mm2");
   EXPECT_GT(cc[0][0].get<double>() + cc[1][1].get<double>() + cc[2][2].get<double>(), 0.0);
-  EXPECT_GT(t.at("points")[0].at("variance_by_source_mm2").at("calibration (intrinsics)").get<double>(), 0.0);
+  EXPECT_GT(
+      t.at("points")[0].at("variance_by_source_mm2").at("calibration (intrinsics)").get<double>(),
+      0.0);
 }
 
 }  // namespace

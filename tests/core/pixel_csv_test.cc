@@ -33,7 +33,8 @@ TEST_F(PixelCsv, MarkersWithAndWithoutCovariance) {
   EXPECT_FALSE((*r)[0].HasCovariance());
   EXPECT_NE((*r)[1].where.find("pixels.csv:4"), std::string::npos) << (*r)[1].where;
 
-  auto c = ReadPixelCsv(Write("u_px,v_px,cov_vv,view,cov_uv,marker,cov_uu\n1,2,0.09,a,0.01,7,0.04\n"));
+  auto c =
+      ReadPixelCsv(Write("u_px,v_px,cov_vv,view,cov_uv,marker,cov_uu\n1,2,0.09,a,0.01,7,0.04\n"));
   ASSERT_TRUE(c.ok()) << c.status().message();
   Eigen::Matrix2d expected;
   expected << 0.04, 0.01, 0.01, 0.09;

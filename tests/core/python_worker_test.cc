@@ -78,7 +78,8 @@ TEST_F(PythonWorkerTest, AFailingPreloadLeavesTheErrorToTheScript) {
 
 TEST_F(PythonWorkerTest, TimesOutAfterTheLimit) {
   PythonWorker w(kPython, "");
-  ASSERT_TRUE(w.Start(Script("import time\ntime.sleep(60)\n"), {}, File("out.txt"), File("err.txt")));
+  ASSERT_TRUE(
+      w.Start(Script("import time\ntime.sleep(60)\n"), {}, File("out.txt"), File("err.txt")));
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(w.Wait(1), PythonWorker::kTimedOut);
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

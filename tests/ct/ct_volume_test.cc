@@ -27,7 +27,8 @@ namespace fs = std::filesystem;
 using testing::ScratchDir;
 using testing::WriteText;
 
-const std::string kPydicom = "/usr/lib/python3/dist-packages/pydicom/data/test_files/dicomdirtests/";
+const std::string kPydicom =
+    "/usr/lib/python3/dist-packages/pydicom/data/test_files/dicomdirtests/";
 const std::string kCt5n = kPydicom + "98892001/CT5N";
 const std::string kCt2n = kPydicom + "98892001/CT2N";
 const std::string kCt2 = kPydicom + "77654033/CT2";

@@ -103,7 +103,8 @@ TEST(RealCt, ARoughDiameterGivesTheSameCentres) {
     ASSERT_TRUE(det.ok()) << "diameter " << d << ": " << det.status().message();
     for (const auto& m : det->markers) {
       double nearest = 1e9;
-      for (const auto& r : ref->markers) nearest = std::min(nearest, (r.centre_mm - m.centre_mm).norm());
+      for (const auto& r : ref->markers)
+        nearest = std::min(nearest, (r.centre_mm - m.centre_mm).norm());
       std::printf("diameter %.0f mm: centre %.4f mm from the 6 mm one\n", d, nearest);
       EXPECT_LT(nearest, 3 * std::sqrt(m.covariance_mm2.trace()));
     }
@@ -131,7 +132,9 @@ TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
   auto nearest = [](const MarkerDetection& d, const Eigen::Vector3d& p) -> const DetectedMarker* {
     const DetectedMarker* best = nullptr;
     for (const auto& m : d.markers) {
-      if ((m.centre_mm - p).norm() < 3.0 && (!best || (m.centre_mm - p).norm() < (best->centre_mm - p).norm())) best = &m;
+      if ((m.centre_mm - p).norm() < 3.0 &&
+          (!best || (m.centre_mm - p).norm() < (best->centre_mm - p).norm()))
+        best = &m;
     }
     return best;
   };
@@ -141,8 +144,12 @@ TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
     const DetectedMarker* e = nearest(*even, f.centre_mm);
     const DetectedMarker* o = nearest(*odd, f.centre_mm);
     if (!e || !o) {
-      std::printf("sphere (%.2f, %.2f, %.2f): %s%s\n", f.centre_mm.x(), f.centre_mm.y(),
-                  f.centre_mm.z(), e ? "" : "not in the even slices ", o ? "" : "not in the odd slices");
+      std::printf("sphere (%.2f, %.2f, %.2f): %s%s\n",
+                  f.centre_mm.x(),
+                  f.centre_mm.y(),
+                  f.centre_mm.z(),
+                  e ? "" : "not in the even slices ",
+                  o ? "" : "not in the odd slices");
       continue;
     }
     ++both;
@@ -155,9 +162,14 @@ TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
     EXPECT_LT(d.norm(), 1.6);
     chi2 += c;
   }
-  std::printf("odd/even: %d of %d spheres in both halves; NEES per dof %.2f (even %zu markers, odd "
-              "%zu)\n",
-              both, kSpheres, both ? chi2 / (3 * both) : 0.0, even->markers.size(), odd->markers.size());
+  std::printf(
+      "odd/even: %d of %d spheres in both halves; NEES per dof %.2f (even %zu markers, odd "
+      "%zu)\n",
+      both,
+      kSpheres,
+      both ? chi2 / (3 * both) : 0.0,
+      even->markers.size(),
+      odd->markers.size());
   EXPECT_GE(both, 3);
 }
 

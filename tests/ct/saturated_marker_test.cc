@@ -68,7 +68,8 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
       // The holder: a plastic block whose top face is holder_offset_mm above the sphere's centre
       // (1 mm: the sphere sits in it, touching; 100: the block encloses it).
       ph.block_min_mm = Eigen::Vector3d(-14, -14, -14);
-      ph.block_max_mm = Eigen::Vector3d(14, 14, std::min(14.0, mk.centre_mm.z() + c.holder_offset_mm));
+      ph.block_max_mm =
+          Eigen::Vector3d(14, 14, std::min(14.0, mk.centre_mm.z() + c.holder_offset_mm));
       const int slices = static_cast<int>(std::lround(27.5 / c.slice_step_mm));
       CtVolume vol = MakeCtGeometry(40, 40, slices, 0.878906, c.slice_step_mm, 1.25,
                                     Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(),
@@ -96,7 +97,8 @@ TEST(SaturatedMarker, FoundWithAConsistentCovarianceUnderClipBloomingStreaksAndH
       nees += e.dot(m.covariance_mm2.inverse() * e);
       sq += e.squaredNorm();
       const Eigen::Vector3d d = m.centroid_mm - m.surface_centre_mm;
-      chi2_estimators += d.dot((m.centroid_covariance_mm2 + m.surface_covariance_mm2).inverse() * d);
+      chi2_estimators +=
+          d.dot((m.centroid_covariance_mm2 + m.surface_covariance_mm2).inverse() * d);
     }
     nees /= std::max(found, 1);
     chi2_estimators /= std::max(found, 1);

@@ -17,8 +17,12 @@ namespace {
 
 // A sphere's shadow (chord length through a ball of radius R px, blurred by the focal spot),
 // attenuating by `depth` at its centre, on background `bg` with a slope; noise sigma ~ sqrt(I).
-cv::Mat RenderPair(const std::vector<cv::Point2d>& centres, double R, double depth, double bg, std::mt19937* rng,
-               double noise_scale = 0.25) {
+cv::Mat RenderPair(const std::vector<cv::Point2d>& centres,
+                   double R,
+                   double depth,
+                   double bg,
+                   std::mt19937* rng,
+                   double noise_scale = 0.25) {
   cv::Mat f(64, 64, CV_32F);
   for (int y = 0; y < f.rows; ++y) {
     for (int x = 0; x < f.cols; ++x) {
@@ -41,7 +45,8 @@ cv::Mat RenderPair(const std::vector<cv::Point2d>& centres, double R, double dep
   for (int y = 0; y < f.rows; ++y) {
     for (int x = 0; x < f.cols; ++x) {
       float& v = f.at<float>(y, x);
-      v = static_cast<float>(std::round(std::clamp(v + noise_scale * std::sqrt(v) * n01(*rng), 0.0, 255.0)));
+      v = static_cast<float>(
+          std::round(std::clamp(v + noise_scale * std::sqrt(v) * n01(*rng), 0.0, 255.0)));
     }
   }
   return f;
@@ -80,9 +85,11 @@ TEST(BlobPairFit, TouchingBlobsSeparatedWithinTheirCovariances) {
 TEST(BlobPairFit, OneBlobOrAFaintSecondIsRefused) {
   std::mt19937 rng(8);
   std::string why;
-  EXPECT_FALSE(FitBlobPair(RenderPair({{32, 32}}, 3.0, 0.9, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
+  EXPECT_FALSE(
+      FitBlobPair(RenderPair({{32, 32}}, 3.0, 0.9, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
   EXPECT_FALSE(why.empty());
-  EXPECT_FALSE(FitBlobPair(RenderPair({{28, 32}, {36, 32}}, 3.0, 0.05, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
+  EXPECT_FALSE(FitBlobPair(
+      RenderPair({{28, 32}, {36, 32}}, 3.0, 0.05, 150, &rng), {32, 32}, 6.0, 0.15, 1.0, &why));
   EXPECT_NE(why.find("fainter"), std::string::npos) << why;
 }
 

@@ -39,8 +39,11 @@ double NonPlanarity(const cv::Mat& gain, const Eigen::Vector2d& c, double r) {
   const double R = 1.5 * r + 5.0;
   double s1 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, sv = 0, sxv = 0, syv = 0;
   std::vector<cv::Vec3d> px;
-  for (int y = static_cast<int>(std::floor(c.y() - R)); y <= static_cast<int>(std::ceil(c.y() + R)); ++y) {
-    for (int x = static_cast<int>(std::floor(c.x() - R)); x <= static_cast<int>(std::ceil(c.x() + R)); ++x) {
+  for (int y = static_cast<int>(std::floor(c.y() - R)); y <= static_cast<int>(std::ceil(c.y() + R));
+       ++y) {
+    for (int x = static_cast<int>(std::floor(c.x() - R));
+         x <= static_cast<int>(std::ceil(c.x() + R));
+         ++x) {
       if (x < 0 || y < 0 || x >= gain.cols || y >= gain.rows) continue;
       const double dx = x - c.x(), dy = y - c.y();
       if (dx * dx + dy * dy > R * R) continue;
@@ -125,7 +128,8 @@ TEST(EdgeAccuracy, CentresNextToSharpAnatomy) {
         ASSERT_TRUE(scenes.Render(plates[p], seed, is_clean, true, &image, &truth, &what)) << what;
         std::vector<Matched> matched;
         const std::string label = "seed " + std::to_string(seed) + (is_clean ? " noise-free" : "");
-        const GridDetection d = Score(plates[p], image, truth.centres_px, label, &run.all, &matched);
+        const GridDetection d =
+            Score(plates[p], image, truth.centres_px, label, &run.all, &matched);
         for (size_t i = 0; i < matched.size(); ++i) {
           const Matched& m = matched[i];
           run.shift_vs_error.emplace_back(d.background_shift_px[i], m.error_px.norm());
@@ -151,7 +155,8 @@ TEST(EdgeAccuracy, CentresNextToSharpAnatomy) {
               << r->over_05 << " over 0.5 px\n";
     r->bins.Print(r == &clean ? "noise-free" : "as rendered");
   }
-  for (const RunStats* r : {&clean, &noisy}) r->PrintByShift(r == &clean ? "noise-free" : "as rendered");
+  for (const RunStats* r : {&clean, &noisy})
+    r->PrintByShift(r == &clean ? "noise-free" : "as rendered");
   // Bounds (default run, 4 views per plate). Before the core centroid (issue 12) this run had a
   // point 1.8 px off (a wrong grid by the recall test's definition), noise-free max 0.50 px and
   // 0.20 px RMS over the points with >= 4 % non-planarity; now max ~0.1 px.

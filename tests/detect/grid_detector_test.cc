@@ -35,15 +35,22 @@ struct RenderedGrid {
 };
 
 // `extra_mm`: further discs (not grid points) at these plate positions.
-RenderedGrid RenderCircles(const GridSpec& g, int size, bool dark, int depth, double radius_px,
-                       double scale, uint64_t seed, const std::vector<Eigen::Vector3d>& extra_mm = {}) {
+RenderedGrid RenderCircles(const GridSpec& g,
+                           int size,
+                           bool dark,
+                           int depth,
+                           double radius_px,
+                           double scale,
+                           uint64_t seed,
+                           const std::vector<Eigen::Vector3d>& extra_mm = {}) {
   RenderedGrid out;
   cv::Mat big(size * kSuper, size * kSuper, CV_32F, cv::Scalar(0));
   // Bright circular field of view with vignetting, dark outside.
   for (int y = 0; y < big.rows; ++y) {
     for (int x = 0; x < big.cols; ++x) {
       const double r = std::hypot(x / double(kSuper) - size / 2.0, y / double(kSuper) - size / 2.0);
-      if (r < size * 0.48) big.at<float>(y, x) = static_cast<float>(200 - 60 * (r / size) * (r / size));
+      if (r < size * 0.48)
+        big.at<float>(y, x) = static_cast<float>(200 - 60 * (r / size) * (r / size));
     }
   }
   cv::Mat disc(big.size(), CV_8U, cv::Scalar(0));
@@ -52,10 +59,16 @@ RenderedGrid RenderCircles(const GridSpec& g, int size, bool dark, int depth, do
     const cv::Point2d q =
         PlateToPixel(grid_point ? g.PointInPlate(id) : extra_mm[id - g.NumPoints()], size, scale);
     if (grid_point) out.centres.push_back(q);
-    // Pixel centre convention: pixel (0,0) centre at 0 -> supersampled centre at (q + 0.5) * S - 0.5.
+    // Pixel centre convention: pixel (0,0) centre at 0 -> supersampled centre at (q + 0.5) * S -
+    // 0.5.
     const cv::Point2d qs((q.x + 0.5) * kSuper - 0.5, (q.y + 0.5) * kSuper - 0.5);
-    cv::circle(disc, cv::Point(std::lround(qs.x * 16), std::lround(qs.y * 16)),
-               static_cast<int>(radius_px * kSuper * 16), cv::Scalar(255), cv::FILLED, cv::LINE_AA, 4);
+    cv::circle(disc,
+               cv::Point(std::lround(qs.x * 16), std::lround(qs.y * 16)),
+               static_cast<int>(radius_px * kSuper * 16),
+               cv::Scalar(255),
+               cv::FILLED,
+               cv::LINE_AA,
+               4);
   }
   cv::Mat discf;
   disc.convertTo(discf, CV_32F, 1.0 / 255);
@@ -133,8 +146,9 @@ TEST(GridDetectorTest, AsymmetricGridKeepsOpenCvOrdering) {
 
 // Circles large relative to their spacing, up to nearly touching (diameter / nearest-neighbour
 // distance 0.4 .. 0.8, a gap of 5 px here; at 0.85, a 3.75 px gap, the error reaches 0.4 px):
-// the window and the background ring follow the blob's size and its neighbours. Before they did not (window 0.35 x pitch, ring clipped inside it): errors of
-// 0.5 .. 6 px from a diameter of ~0.5 x the spacing on.
+// the window and the background ring follow the blob's size and its neighbours. Before they did not
+// (window 0.35 x pitch, ring clipped inside it): errors of 0.5 .. 6 px from a diameter of ~0.5 x
+// the spacing on.
 TEST(GridDetectorTest, LargeCirclesSubPixel) {
   constexpr double kTol = 0.05;  // px
   GridSpec sym;
@@ -148,7 +162,8 @@ TEST(GridDetectorTest, LargeCirclesSubPixel) {
     GridDetection d = DetectGrid(r.image, sym, DetectionOptions());
     ASSERT_TRUE(d.found) << "symmetric, diameter " << ratio << " x pitch: " << d.reason;
     EXPECT_EQ(d.view.uv_px.size(), 48u) << ratio;
-    std::cout << "symmetric 6x8, diameter " << ratio << " x pitch: max error " << MaxError(d, r.centres) << " px\n";
+    std::cout << "symmetric 6x8, diameter " << ratio << " x pitch: max error "
+              << MaxError(d, r.centres) << " px\n";
     EXPECT_LT(MaxError(d, r.centres), kTol) << "symmetric, diameter " << ratio << " x pitch";
   }
   GridSpec asym;
@@ -164,7 +179,8 @@ TEST(GridDetectorTest, LargeCirclesSubPixel) {
     GridDetection d = DetectGrid(r.image, asym, DetectionOptions());
     ASSERT_TRUE(d.found) << "asymmetric, diameter " << ratio << " x spacing: " << d.reason;
     EXPECT_EQ(d.view.uv_px.size(), 44u) << ratio;
-    std::cout << "asymmetric 11x4, diameter " << ratio << " x spacing: max error " << MaxError(d, r.centres) << " px\n";
+    std::cout << "asymmetric 11x4, diameter " << ratio << " x spacing: max error "
+              << MaxError(d, r.centres) << " px\n";
     EXPECT_LT(MaxError(d, r.centres), kTol) << "asymmetric, diameter " << ratio << " x spacing";
   }
 }
@@ -174,7 +190,8 @@ TEST(GridDetectorTest, LargeCirclesSubPixel) {
 // size; a few stray blobs, even one on a lattice node, are not a larger plate.
 TEST(GridDetectorTest, PatternSmallerThanThePlateIsAmbiguous) {
   GridSpec g;  // 5 x 5, 20 mm
-  const std::vector<Eigen::Vector3d> stray = {{-30, 17, 0}, {110, 63, 0}, {47, -28, 0}, {100, 40, 0}};
+  const std::vector<Eigen::Vector3d> stray = {
+      {-30, 17, 0}, {110, 63, 0}, {47, -28, 0}, {100, 40, 0}};
   RenderedGrid r = RenderCircles(g, 408, true, CV_8U, 4.0, 2.2, 7, stray);
   GridDetection d = DetectGrid(r.image, g, DetectionOptions());
   ASSERT_TRUE(d.found) << d.reason;
@@ -248,7 +265,8 @@ TEST(GridDetectorTest, RejectedBlobsAndOverlay) {
     for (int y = static_cast<int>(p.y) - 8; y <= p.y + 8; ++y) {
       for (int x = static_cast<int>(p.x) - 8; x <= p.x + 8; ++x) {
         const cv::Vec3b c = overlay.at<cv::Vec3b>(y, x);
-        n += c[channel] > 150 && c[channel] > c[(channel + 1) % 3] + 80 && c[channel] > c[(channel + 2) % 3] + 80;
+        n += c[channel] > 150 && c[channel] > c[(channel + 1) % 3] + 80 &&
+             c[channel] > c[(channel + 2) % 3] + 80;
       }
     }
     return n;

@@ -115,7 +115,8 @@ RandomScene MakeScene(uint64_t seed, Anatomy anatomy, const std::string& dir) {
     << "object_pose: {rotation_deg: [" << U(-180, 180) << ", " << U(-60, 60) << ", " << U(-180, 180)
     << "], center_mm: [0, 0, 0]}\nviews:\n";
   for (int v = 0; v < 5; ++v) {
-    y << "  - {name: v" << v << ", primary_deg: " << U(-45, 45) << ", secondary_deg: " << U(-30, 30) << "}\n";
+    y << "  - {name: v" << v << ", primary_deg: " << U(-45, 45) << ", secondary_deg: " << U(-30, 30)
+      << "}\n";
   }
   // The head of a real CT about the marker block, placed and turned at random, its water
   // attenuation that of a fluoroscopy spectrum through less or more tissue.
@@ -150,7 +151,8 @@ void RunRecall(Anatomy anatomy, int scenes, uint64_t base, Tally* tally) {
     nlohmann::json truth;
     ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
     std::vector<std::string> files;
-    for (const auto& v : truth["views"]) files.push_back(JoinPath(dir, v["file"].get<std::string>()));
+    for (const auto& v : truth["views"])
+      files.push_back(JoinPath(dir, v["file"].get<std::string>()));
     ObjectViewsOptions o;
     o.blobs.diameter_mm = rs.diameter_mm;
     o.source_to_object_mm = rs.sod_mm;
@@ -172,9 +174,9 @@ void RunRecall(Anatomy anatomy, int scenes, uint64_t base, Tally* tally) {
     }
     const Tally t = Score(*scene, truth, *labelled);
     std::cout << "seed " << seed << ": " << scene->phantom.spheres.size() << " markers, d "
-              << rs.diameter_mm << " mm: " << t.correct << " / " << t.expected << " correct, " << t.wrong
-              << " wrong, " << t.spurious_labelled << " beads labelled, " << t.overlap_labelled << " of "
-              << t.overlapping_pairs << " overlapped labelled\n";
+              << rs.diameter_mm << " mm: " << t.correct << " / " << t.expected << " correct, "
+              << t.wrong << " wrong, " << t.spurious_labelled << " beads labelled, "
+              << t.overlap_labelled << " of " << t.overlapping_pairs << " overlapped labelled\n";
     total.expected += t.expected;
     total.correct += t.correct;
     total.wrong += t.wrong;
@@ -184,12 +186,13 @@ void RunRecall(Anatomy anatomy, int scenes, uint64_t base, Tally* tally) {
     total.crossed_by_wire += t.crossed_by_wire;
   }
   std::filesystem::remove_all(dir);
-  std::cout << "randomised marker scenes: " << used << " scenes, " << views << " views (" << views_skipped
-            << " skipped): " << total.correct << " of " << total.expected
-            << " visible separated markers labelled correctly, " << total.wrong << " wrong, "
-            << total.spurious_labelled << " beads labelled, " << total.overlap_labelled << " of "
-            << total.overlapping_pairs << " overlapped markers labelled; " << total.crossed_by_wire
-            << " markers with the wire across them (labelled or not, at their centre if labelled)\n";
+  std::cout
+      << "randomised marker scenes: " << used << " scenes, " << views << " views (" << views_skipped
+      << " skipped): " << total.correct << " of " << total.expected
+      << " visible separated markers labelled correctly, " << total.wrong << " wrong, "
+      << total.spurious_labelled << " beads labelled, " << total.overlap_labelled << " of "
+      << total.overlapping_pairs << " overlapped markers labelled; " << total.crossed_by_wire
+      << " markers with the wire across them (labelled or not, at their centre if labelled)\n";
   ASSERT_EQ(used, scenes) << "too few random draws fit the field of view";
 }
 

@@ -36,10 +36,13 @@ struct Tally {
   int outside_labelled = 0, overlapping_pairs = 0, outside = 0, crossed_by_wire = 0;
 };
 
-inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, const std::vector<ObjectView>& views) {
+inline Tally Score(const sim::XrayScene& scene,
+                   const nlohmann::json& truth,
+                   const std::vector<ObjectView>& views) {
   Tally t;
   const double fov_r = scene.render.fov_radius_px, cu = 255.5, cv_ = 255.5;
-  const double d_px = scene.markers.sphere_diameter_mm * scene.camera.params[kFx] / scene.views[0].carm.sod_mm;
+  const double d_px =
+      scene.markers.sphere_diameter_mm * scene.camera.params[kFx] / scene.views[0].carm.sod_mm;
   EXPECT_EQ(views.size(), truth["views"].size());
   for (size_t v = 0; v < views.size() && v < truth["views"].size(); ++v) {
     const auto& tv = truth["views"][v];
@@ -47,7 +50,8 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
     for (const auto& p : tv["centers_px"]) c.emplace_back(p[0].get<double>(), p[1].get<double>());
     std::vector<Eigen::Vector2d> clutter;
     if (tv.contains("clutter_centers_px")) {
-      for (const auto& p : tv["clutter_centers_px"]) clutter.emplace_back(p[0].get<double>(), p[1].get<double>());
+      for (const auto& p : tv["clutter_centers_px"])
+        clutter.emplace_back(p[0].get<double>(), p[1].get<double>());
     }
     const ObjectView& ov = views[v];
     // The clutter's wires (thin boxes) projected, as polylines of 200 points.
@@ -62,7 +66,8 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
         p_box[axis] = box.half_size_mm[axis] * (2.0 * i / 200 - 1);
         const Eigen::Vector3d p_cam = cam_from_object * (box.phantom_from_box * p_box);
         Eigen::Vector2d uv;
-        if (ProjectCamPoint(view_camera.params.data(), p_cam.data(), uv.data())) wire_px.push_back(uv);
+        if (ProjectCamPoint(view_camera.params.data(), p_cam.data(), uv.data()))
+          wire_px.push_back(uv);
       }
     }
     for (size_t k = 0; k < c.size(); ++k) {
@@ -80,7 +85,8 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
       for (const auto& w : wire_px) crossed |= (w - c[k]).norm() < 0.5 * d_px + 2.0;
       t.crossed_by_wire += crossed;
       const bool overlapped = nearest < 1.25, close = nearest < 1.5 || crossed;
-      const bool inside = std::hypot(c[k].x() - cu, c[k].y() - cv_) + d_px < fov_r - scene.render.fov_edge_px - 10;
+      const bool inside =
+          std::hypot(c[k].x() - cu, c[k].y() - cv_) + d_px < fov_r - scene.render.fov_edge_px - 10;
       const bool outside = std::hypot(c[k].x() - cu, c[k].y() - cv_) - d_px > fov_r;
       t.outside += outside;
       t.overlapping_pairs += overlapped;
@@ -131,8 +137,11 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
       const cv::Matx22d& C = ov.detection.blobs[labelled_blob].covariance_px2;
       const Eigen::Vector2d e(q.x - c[k].x(), q.y - c[k].y());
       const double det = C(0, 0) * C(1, 1) - C(0, 1) * C(1, 0);
-      const double m2 = det > 0 ? (C(1, 1) * e.x() * e.x() - 2 * C(0, 1) * e.x() * e.y() + C(0, 0) * e.y() * e.y()) / det
-                                : 1e9;
+      const double m2 =
+          det > 0
+              ? (C(1, 1) * e.x() * e.x() - 2 * C(0, 1) * e.x() * e.y() + C(0, 0) * e.y() * e.y()) /
+                    det
+              : 1e9;
       if (err < 0.5 || m2 < 18.4) {
         ++t.correct;
       } else {
@@ -147,7 +156,8 @@ inline Tally Score(const sim::XrayScene& scene, const nlohmann::json& truth, con
     for (size_t b = 0; b < ov.detection.blobs.size() && ov.labelled; ++b) {
       if (ov.marker_id_of_blob[b] < 0) continue;
       const cv::Point2d q = ov.detection.blobs[b].uv_px;
-      for (const auto& s : clutter) t.spurious_labelled += std::hypot(q.x - s.x(), q.y - s.y()) < 0.5 * d_px;
+      for (const auto& s : clutter)
+        t.spurious_labelled += std::hypot(q.x - s.x(), q.y - s.y()) < 0.5 * d_px;
     }
   }
   return t;

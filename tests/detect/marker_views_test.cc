@@ -40,8 +40,8 @@ void ExpectAllCorrect(const Tally& t, const std::string& what) {
   std::cout << what << ": " << t.correct << " of " << t.expected
             << " visible separated markers labelled correctly, " << t.wrong << " wrong, "
             << t.spurious_labelled << " spurious beads labelled, " << t.overlap_labelled << " of "
-            << t.overlapping_pairs << " overlapping markers labelled, " << t.outside_labelled << " of "
-            << t.outside << " outside the field labelled\n";
+            << t.overlapping_pairs << " overlapping markers labelled, " << t.outside_labelled
+            << " of " << t.outside << " outside the field labelled\n";
   EXPECT_GT(t.expected, 40);
   EXPECT_EQ(t.correct, t.expected);
   EXPECT_EQ(t.wrong, 0);
@@ -60,14 +60,16 @@ TEST(MarkerViews, ClutterSceneEveryVisibleMarkerLabelledNoSpuriousNoOverlap) {
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   std::vector<std::string> files;
   for (const auto& v : truth["views"]) files.push_back(JoinPath(dir, v["file"].get<std::string>()));
-  auto views = DetectAndLabelObjectViews(files, scene->camera, SceneMarkers(*scene), SceneOptions());
+  auto views =
+      DetectAndLabelObjectViews(files, scene->camera, SceneMarkers(*scene), SceneOptions());
   ASSERT_TRUE(views.ok()) << views.status().message();
   const Tally t = Score(*scene, truth, *views);
   ExpectAllCorrect(t, "PNG 16 bit");
   // The rejected candidates carry reasons; the overlap view flags a merged blob.
   bool merged = false;
   for (const ObjectView& v : *views) {
-    for (const RejectedBlob& b : v.detection.rejected) merged |= v.name.find("overlap") != std::string::npos && b.why == "merged";
+    for (const RejectedBlob& b : v.detection.rejected)
+      merged |= v.name.find("overlap") != std::string::npos && b.why == "merged";
   }
   EXPECT_TRUE(merged);
   std::filesystem::remove_all(dir);
@@ -87,7 +89,8 @@ TEST(MarkerViews, MultiFrameDicomXaUsesTheNominalGeometry) {
   EXPECT_EQ(truth["views"][2]["file"], "views.dcm#frame3");
   ObjectViewsOptions o = SceneOptions();
   o.source_to_object_mm = 0;  // must come from the file's SOD
-  auto views = DetectAndLabelObjectViews({JoinPath(dir, "views.dcm")}, scene->camera, SceneMarkers(*scene), o);
+  auto views = DetectAndLabelObjectViews(
+      {JoinPath(dir, "views.dcm")}, scene->camera, SceneMarkers(*scene), o);
   ASSERT_TRUE(views.ok()) << views.status().message();
   ASSERT_EQ(views->size(), scene->views.size());
   ExpectAllCorrect(Score(*scene, truth, *views), "multi-frame DICOM XA");
@@ -145,7 +148,8 @@ double BlobNees(sim::XrayScene scene, int trials, int* n) {
           const Eigen::Vector2d e(b.uv_px.x - c.x(), b.uv_px.y - c.y());
           if (e.norm() > 1.0) continue;
           Eigen::Matrix2d C;
-          C << b.covariance_px2(0, 0), b.covariance_px2(0, 1), b.covariance_px2(1, 0), b.covariance_px2(1, 1);
+          C << b.covariance_px2(0, 0), b.covariance_px2(0, 1), b.covariance_px2(1, 0),
+              b.covariance_px2(1, 1);
           nees += e.dot(C.inverse() * e) / 2.0;
           ++*n;
         }
@@ -164,8 +168,9 @@ TEST(MarkerBlobs, CovarianceAgreesWithMonteCarlo) {
   sim::XrayScene flat = *loaded;
   flat.render.background_gain = cv::Mat();
   const double nees_flat = BlobNees(flat, kTrials / 2, &n_flat);
-  std::cout << "blob centre NEES per dimension (" << kTrials << " noise seeds, 2 views): " << nees << " over " << n
-            << " blobs with the anatomy, " << nees_flat << " over " << n_flat << " without\n";
+  std::cout << "blob centre NEES per dimension (" << kTrials << " noise seeds, 2 views): " << nees
+            << " over " << n << " blobs with the anatomy, " << nees_flat << " over " << n_flat
+            << " without\n";
   EXPECT_GT(n, 400);
   // Ideal [0.8, 1.25]; the test allows the Monte Carlo's spread (+-7 % at 1 sigma here) and the
   // centroid's known sub-0.01 px systematic error.
@@ -249,8 +254,15 @@ Camera TestCamera() {
 }
 
 std::vector<Eigen::Vector3d> ThesisLayout() {
-  return {{0, 0, 0},         {-58.85, 1, 14},  {13.35, 1, 14},     {-8.25, -20.5, 24}, {-56.05, 19, 31},
-          {-27.07, -20, 31}, {-15.01, -21.5, 40}, {-42.2, 18.75, 44}, {-1.4, 5, 49}};
+  return {{0, 0, 0},
+          {-58.85, 1, 14},
+          {13.35, 1, 14},
+          {-8.25, -20.5, 24},
+          {-56.05, 19, 31},
+          {-27.07, -20, 31},
+          {-15.01, -21.5, 40},
+          {-42.2, 18.75, 44},
+          {-1.4, 5, 49}};
 }
 
 Pose6 RandomPose(std::mt19937_64& rng, const std::vector<Eigen::Vector3d>& P) {
@@ -260,13 +272,16 @@ Pose6 RandomPose(std::mt19937_64& rng, const std::vector<Eigen::Vector3d>& P) {
   centroid /= P.size();
   Pose6 pose;
   pose.head<3>() = RandomVector<3>(g, rng) * 1.2;
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(pose.head<3>().norm(), pose.head<3>().normalized()).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(pose.head<3>().norm(), pose.head<3>().normalized()).toRotationMatrix();
   const Eigen::Vector2d xy = 10 * RandomVector<2>(g, rng);
   pose.tail<3>() = Eigen::Vector3d(xy[0], xy[1], 700) - R * centroid;
   return pose;
 }
 
-std::vector<Eigen::Vector2d> Project(const Camera& cam, const Pose6& pose, const std::vector<Eigen::Vector3d>& P) {
+std::vector<Eigen::Vector2d> Project(const Camera& cam,
+                                     const Pose6& pose,
+                                     const std::vector<Eigen::Vector3d>& P) {
   std::vector<Eigen::Vector2d> out;
   for (const auto& p : P) {
     Eigen::Vector2d q;
@@ -320,11 +335,13 @@ TEST(MarkerCorrespondence, TwoSpuriousBlobsAndOneMissingMarkerPerView) {
       // A spurious blob may coincide with the missing marker's projection by chance: then it is
       // (rightly) within the gate; count only contradictions.
       if (t2[i] >= 0 && lab->marker_of_blob[i] != t2[i]) all = false, ++wrong;
-      if (t2[i] < 0 && lab->marker_of_blob[i] >= 0 && lab->marker_of_blob[i] != missing) all = false, ++wrong;
+      if (t2[i] < 0 && lab->marker_of_blob[i] >= 0 && lab->marker_of_blob[i] != missing)
+        all = false, ++wrong;
     }
     correct_views += all;
   }
-  std::cout << correct_views << " of " << trials << " views labelled correctly (8 of 9 markers + 2 spurious blobs)\n";
+  std::cout << correct_views << " of " << trials
+            << " views labelled correctly (8 of 9 markers + 2 spurious blobs)\n";
   EXPECT_GT(trials, 30);
   EXPECT_EQ(correct_views, trials);
   EXPECT_EQ(wrong, 0);
@@ -470,12 +487,14 @@ TEST(MarkerCorrespondence, BlobOffThePoseIsDropped) {
 TEST(MarkerCorrespondence, SymmetricLayoutIsAnAmbiguityError) {
   const Camera cam = TestCamera();
   // A rectangle and its centre raised: invariant under a half turn about z.
-  const std::vector<Eigen::Vector3d> P = {{-30, -20, 0}, {30, -20, 0}, {30, 20, 0}, {-30, 20, 0}, {0, 0, 15}};
+  const std::vector<Eigen::Vector3d> P = {
+      {-30, -20, 0}, {30, -20, 0}, {30, 20, 0}, {-30, 20, 0}, {0, 0, 15}};
   std::mt19937_64 rng(3);
   const Pose6 pose = RandomPose(rng, P);
   auto lab = LabelMarkerBlobs(cam, P, Project(cam, pose, P), CorrespondenceOptions());
   ASSERT_FALSE(lab.ok());
-  EXPECT_NE(lab.status().message().find("ambiguous marker labelling"), std::string::npos) << lab.status().message();
+  EXPECT_NE(lab.status().message().find("ambiguous marker labelling"), std::string::npos)
+      << lab.status().message();
   EXPECT_NE(lab.status().message().find("symmetric"), std::string::npos);
   EXPECT_EQ(lab.status().message().find('\n'), std::string::npos);
 }
@@ -514,8 +533,13 @@ cv::Mat DiscImage(int n, uint64_t seed) {
   cv::Mat f(512, 512, CV_32F, cv::Scalar(40000));
   for (int k = 0; k < n; ++k) {
     const double a = 2 * M_PI * k / std::max(n, 1);
-    cv::circle(f, cv::Point(256 + static_cast<int>(80 * std::cos(a)), 256 + static_cast<int>(80 * std::sin(a))), 3,
-               cv::Scalar(8000), cv::FILLED, cv::LINE_AA);
+    cv::circle(f,
+               cv::Point(256 + static_cast<int>(80 * std::cos(a)),
+                         256 + static_cast<int>(80 * std::sin(a))),
+               3,
+               cv::Scalar(8000),
+               cv::FILLED,
+               cv::LINE_AA);
   }
   cv::GaussianBlur(f, f, cv::Size(5, 5), 0.7);
   cv::Mat noise(f.size(), CV_32F);
@@ -536,8 +560,11 @@ TEST(MarkerViews, ViewWithFewerThanFourMarkersIsSkippedOthersGoOn) {
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   const std::string few = JoinPath(dir, "few.png");
   ASSERT_TRUE(cv::imwrite(few, DiscImage(3, 1)));
-  auto views = DetectAndLabelObjectViews({JoinPath(dir, truth["views"][0]["file"].get<std::string>()), few},
-                                         scene->camera, SceneMarkers(*scene), SceneOptions());
+  auto views =
+      DetectAndLabelObjectViews({JoinPath(dir, truth["views"][0]["file"].get<std::string>()), few},
+                                scene->camera,
+                                SceneMarkers(*scene),
+                                SceneOptions());
   ASSERT_TRUE(views.ok()) << views.status().message();
   ASSERT_EQ(views->size(), 2u);
   EXPECT_TRUE((*views)[0].labelled);
@@ -546,7 +573,8 @@ TEST(MarkerViews, ViewWithFewerThanFourMarkersIsSkippedOthersGoOn) {
   // Only such views: an error listing them.
   auto none = DetectAndLabelObjectViews({few}, scene->camera, SceneMarkers(*scene), SceneOptions());
   ASSERT_FALSE(none.ok());
-  EXPECT_NE(none.status().message().find("no view could be labelled (" + few + ": only 3"), std::string::npos)
+  EXPECT_NE(none.status().message().find("no view could be labelled (" + few + ": only 3"),
+            std::string::npos)
       << none.status().message();
   std::filesystem::remove_all(dir);
 }
@@ -558,7 +586,8 @@ TEST(MarkerViews, MissingOrCorruptImageIsAnErrorNamingIt) {
   const std::string missing = JoinPath(dir, "missing.png"), corrupt = JoinPath(dir, "corrupt.png");
   std::ofstream(corrupt) << "not a png";
   for (const std::string& f : {missing, corrupt}) {
-    auto views = DetectAndLabelObjectViews({f}, scene->camera, SceneMarkers(*scene), SceneOptions());
+    auto views =
+        DetectAndLabelObjectViews({f}, scene->camera, SceneMarkers(*scene), SceneOptions());
     ASSERT_FALSE(views.ok()) << f;
     EXPECT_EQ(views.status().message().rfind(f, 0), 0u) << views.status().message();
     EXPECT_EQ(views.status().message().find('\n'), std::string::npos);
@@ -581,12 +610,18 @@ TEST(MarkerScene, BadClutterKeysAreRejected) {
   };
   const std::vector<Case> cases = {
       {"diameter_mm: 2.0, material: steel}\n    - {center_mm: [-5",
-       "diameter_mm: 2.0, material: unobtainium}\n    - {center_mm: [-5", "unknown material 'unobtainium'"},
+       "diameter_mm: 2.0, material: unobtainium}\n    - {center_mm: [-5",
+       "unknown material 'unobtainium'"},
       {"to_mm: [15, -40, 60]", "to_mm: [-75, -35, -5]", "non-zero length"},
-      {"{center_mm: [-35, -8, 20], diameter_mm: 2.0", "{center_mm: [-35, -8], diameter_mm: 2.0", "center_mm"},
-      {"output: {format: png, bit_depth: 16}", "output: {format: png, bit_depth: 16, multiframe: true}",
+      {"{center_mm: [-35, -8, 20], diameter_mm: 2.0",
+       "{center_mm: [-35, -8], diameter_mm: 2.0",
+       "center_mm"},
+      {"output: {format: png, bit_depth: 16}",
+       "output: {format: png, bit_depth: 16, multiframe: true}",
        "only with format: dcm"},
-      {"object_center_mm: [-40, 0, -46], partial: true}", "object_center_mm: [-40, 0, -46]}", "outside"},
+      {"object_center_mm: [-40, 0, -46], partial: true}",
+       "object_center_mm: [-40, 0, -46]}",
+       "outside"},
   };
   const std::string dir = test::MakeScratchDir("markers_scene");
   for (const Case& c : cases) {
@@ -598,7 +633,8 @@ TEST(MarkerScene, BadClutterKeysAreRejected) {
     { std::ofstream(path) << text; }
     auto scene = sim::LoadXrayScene(path);
     ASSERT_FALSE(scene.ok()) << c.to;
-    EXPECT_NE(scene.status().message().find(c.expected), std::string::npos) << scene.status().message();
+    EXPECT_NE(scene.status().message().find(c.expected), std::string::npos)
+        << scene.status().message();
     EXPECT_EQ(scene.status().message().find('\n'), std::string::npos);
   }
   std::filesystem::remove_all(dir);

@@ -87,7 +87,9 @@ class RecallScenes {
   bool Render(const Plate& plate, uint64_t seed, bool clean, bool anatomy, cv::Mat* image,
               SceneTruth* truth, std::string* what) const {
     std::mt19937_64 rng(seed);
-    auto uni = [&rng](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+    auto uni = [&rng](double a, double b) {
+      return std::uniform_real_distribution<double>(a, b)(rng);
+    };
     Camera cam;
     cam.width = cam.height = 512;
     const double fx = uni(1800, 1900);
@@ -110,14 +112,16 @@ class RecallScenes {
     o.glare_sigma_px = uni(40, 90);
     o.seed = seed;
     // The anatomy: a random 512 x 512 window of the frame, random flips, strength 0.35-0.6.
-    const int x0 = static_cast<int>(uni(0, gain_.cols - 512)), y0 = static_cast<int>(uni(0, gain_.rows - 512));
+    const int x0 = static_cast<int>(uni(0, gain_.cols - 512)),
+              y0 = static_cast<int>(uni(0, gain_.rows - 512));
     cv::Mat window = gain_(cv::Rect(x0, y0, 512, 512)).clone();
     const int flip = static_cast<int>(uni(0, 4));
     if (flip < 3) cv::flip(window, window, flip - 1);
     const double strength = anatomy ? uni(0.5, 0.9) : 0.0;
     o.background_gain = 1.0 - strength + strength * window;
     auto phantom = sim::MakePlatePhantom(
-        sim::PlateSpec{plate.rows, plate.cols, plate.pitch_mm, plate.diameter_mm, 4.0, 8.0, "steel", "pmma"},
+        sim::PlateSpec{
+            plate.rows, plate.cols, plate.pitch_mm, plate.diameter_mm, 4.0, 8.0, "steel", "pmma"},
         sim::DefaultMaterials());
     if (!phantom.ok()) return *what = phantom.status().message(), false;
     // Pose: depth 550-790 mm, in-plane rotation any, tilt up to 35 degrees about a random axis,
@@ -212,9 +216,10 @@ inline GridDetection Score(const Plate& plate, const cv::Mat& image,
   if (wrong || !consistent) {
     ++t->wrong_grids;
     std::cout << "  " << label << ": WRONG GRID ("
-              << (wrong ? "a point off its sphere: " + std::to_string(worst) + " px at (" +
-                              std::to_string(worst_at.x()) + ", " + std::to_string(worst_at.y()) + ")"
-                        : std::string("ids"))
+              << (wrong
+                      ? "a point off its sphere: " + std::to_string(worst) + " px at (" +
+                            std::to_string(worst_at.x()) + ", " + std::to_string(worst_at.y()) + ")"
+                      : std::string("ids"))
               << ")\n";
     return d;
   }

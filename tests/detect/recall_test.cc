@@ -36,7 +36,8 @@ constexpr double kMinRecall = 0.995;
 // shipped scenes' (README: ~0.004 px RMS; measured here 0.0034): bound 0.006 as in
 // simulated_scene_test.cc. The anatomy adds structure inside the background ring that its plane
 // does not follow: measured 0.012 px RMS, max 0.056 px (before and after the recall changes;
-// 0.015 px, max 0.18 px on the scenes of CARMBA_RECALL_SEED=50000), bound 0.02. With noise (600-2000 quanta per pixel) measured 0.027 px RMS.
+// 0.015 px, max 0.18 px on the scenes of CARMBA_RECALL_SEED=50000), bound 0.02. With noise
+// (600-2000 quanta per pixel) measured 0.027 px RMS.
 constexpr double kSystematicRmsPx = 0.006;
 constexpr double kSystematicAnatomyRmsPx = 0.02;
 constexpr double kSystematicMeanPx = 0.003;

@@ -42,7 +42,8 @@ CentreErrors Measure(double diameter_mm, uint64_t seed, int spheres) {
     } while (at.cwiseAbs().maxCoeff() > 330);
     Camera cam;
     cam.width = cam.height = 224;
-    cam.params = {f, f, 111.5 - at.x() + (U(rng) - 0.5), 111.5 - at.y() + (U(rng) - 0.5), 0, 0, 0, 0, 0};
+    cam.params = {
+        f, f, 111.5 - at.x() + (U(rng) - 0.5), 111.5 - at.y() + (U(rng) - 0.5), 0, 0, 0, 0, 0};
     sim::Phantom ph;
     sim::SpherePrimitive s;
     s.center_mm = Eigen::Vector3d(at.x() * depth / f, at.y() * depth / f, depth);
@@ -86,8 +87,9 @@ TEST(ShadowCentre, DetectedCentresFollowTheShadowOutlineNotTheProjection) {
   for (double d : {6.0, 3.0, 1.5}) {
     const CentreErrors e = Measure(d, seed + static_cast<uint64_t>(10 * d), n);
     std::cout << d << " mm spheres (" << e.n << "): mean radial error against the projected centre "
-              << e.radial_to_projection << " px, against the shadow outline's centre " << e.radial_to_outline
-              << " px; RMS against the outline " << e.rms_to_outline << " px per coordinate\n";
+              << e.radial_to_projection << " px, against the shadow outline's centre "
+              << e.radial_to_outline << " px; RMS against the outline " << e.rms_to_outline
+              << " px per coordinate\n";
     ASSERT_EQ(e.n, n);
     // The goal: |mean radial bias| < 0.003 px once the offset is accounted for. Small blobs
     // (1.5 mm: ~7 px) have a noise-free pixel-phase error of ~0.009 px RMS that averages out

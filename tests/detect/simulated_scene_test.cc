@@ -98,7 +98,8 @@ TEST(SimulatedSceneDetection, SystematicErrorWellBelowTheNoise) {
     clean.read_noise_gray = 0;
     const ErrorStats sys = DetectionError(scene, clean, true);
     const ErrorStats all = DetectionError(scene, scene.render);
-    const double noise_rms = std::sqrt(std::max(0.0, all.rms_px * all.rms_px - sys.rms_px * sys.rms_px));
+    const double noise_rms =
+        std::sqrt(std::max(0.0, all.rms_px * all.rms_px - sys.rms_px * sys.rms_px));
     std::cout << name << " noise-free: " << sys << "\n" << name << " as rendered: " << all
               << "\n" << name << " noise-driven RMS " << noise_rms << " px = "
               << noise_rms / sys.rms_px << " x the systematic RMS\n";
@@ -113,11 +114,12 @@ TEST(SimulatedSceneDetection, SystematicErrorWellBelowTheNoise) {
 
 // The shipped scenes' plates with spheres 0.6 x the pitch in diameter, noise-free. Before the
 // window and background ring followed the blob's size: 0.098 / 0.128 px RMS per coordinate, up to
-// 0.49 / 0.67 px, a thesis view not found; now ~0.03 px, max < 0.09 px. Views where a sphere comes within 1.5 of its
-// radii + 3 px of the field's rim are left out (the scenes' views were checked for their own
-// small spheres). The remaining error (~0.03 px per coordinate) includes the large sphere's own
-// geometry: its silhouette's centre is not its projected centre under perspective and lens
-// distortion (the anti-aliased discs of grid_detector_test.cc LargeCirclesSubPixel: < 0.035 px).
+// 0.49 / 0.67 px, a thesis view not found; now ~0.03 px, max < 0.09 px. Views where a sphere comes
+// within 1.5 of its radii + 3 px of the field's rim are left out (the scenes' views were checked
+// for their own small spheres). The remaining error (~0.03 px per coordinate) includes the large
+// sphere's own geometry: its silhouette's centre is not its projected centre under perspective and
+// lens distortion (the anti-aliased discs of grid_detector_test.cc LargeCirclesSubPixel: < 0.035
+// px).
 TEST(SimulatedSceneDetection, LargeSpheres) {
   for (const std::string name : {"thesis_calibration", "calib_7x6_pincushion"}) {
     sim::XrayScene scene = Scene(name);
@@ -134,9 +136,12 @@ TEST(SimulatedSceneDetection, LargeSpheres) {
     g.cols = scene.plate.cols;
     g.spacing_mm = scene.plate.pitch_mm;
     const sim::RenderOptions& ro = scene.render;
-    const double fov_r = ro.fov_radius_px > 0 ? ro.fov_radius_px : 0.5 * std::min(scene.camera.width, scene.camera.height);
-    const Eigen::Vector2d fov_c(ro.fov_center_u_px >= 0 ? ro.fov_center_u_px : 0.5 * (scene.camera.width - 1),
-                                ro.fov_center_v_px >= 0 ? ro.fov_center_v_px : 0.5 * (scene.camera.height - 1));
+    const double fov_r = ro.fov_radius_px > 0
+                             ? ro.fov_radius_px
+                             : 0.5 * std::min(scene.camera.width, scene.camera.height);
+    const Eigen::Vector2d fov_c(
+        ro.fov_center_u_px >= 0 ? ro.fov_center_u_px : 0.5 * (scene.camera.width - 1),
+        ro.fov_center_v_px >= 0 ? ro.fov_center_v_px : 0.5 * (scene.camera.height - 1));
     int views = 0, n = 0;
     double sum2 = 0, worst = 0;
     for (int i = 0; i < static_cast<int>(scene.views.size()); ++i) {
@@ -146,13 +151,15 @@ TEST(SimulatedSceneDetection, LargeSpheres) {
       for (size_t k = 0; k < v->centers_px.size(); ++k) {
         const double z = (v->cam_from_object * scene.phantom.spheres[k].center_mm).z();
         const double r_px = scene.camera.params[0] * 0.5 * scene.plate.sphere_diameter_mm / z;
-        inside = inside && (v->centers_px[k] - fov_c).norm() + 1.5 * r_px + 3 < fov_r - ro.fov_edge_px;
+        inside =
+            inside && (v->centers_px[k] - fov_c).norm() + 1.5 * r_px + 3 < fov_r - ro.fov_edge_px;
       }
       if (!inside) continue;
       ++views;
       GridDetection d = DetectGrid(v->image, g, DetectionOptions());
       EXPECT_TRUE(d.found) << name << " " << scene.views[i].name << ": " << d.reason;
-      EXPECT_GE(d.view.uv_px.size() + 2, v->centers_px.size()) << name << " " << scene.views[i].name;
+      EXPECT_GE(d.view.uv_px.size() + 2, v->centers_px.size())
+          << name << " " << scene.views[i].name;
       for (const auto& uv : d.view.uv_px) {
         double best = 1e9;
         for (const auto& t : v->centers_px) best = std::min(best, (uv - t).norm());

@@ -175,15 +175,19 @@ TEST(RtkGeometry, RoundTripThroughTheXmlFile) {
     // The parameters alone (RTK recomputes the matrix from them) give the same matrix too.
     const Matrix34 Qp = PixelMatrixFromRtk(RtkMatrix((*back)[k]), det);
     worst = std::max({worst, RelativeMatrixDifference(P, Q), RelativeMatrixDifference(P, Qp)});
-    for (const Eigen::Vector3d& x : {Eigen::Vector3d(20, -110, -590), Eigen::Vector3d(60, -80, -560)}) {
+    for (const Eigen::Vector3d& x :
+         {Eigen::Vector3d(20, -110, -590), Eigen::Vector3d(60, -80, -560)}) {
       Eigen::Vector2d a, b;
       ASSERT_TRUE(ProjectWithMatrix(P, x, &a));
       ASSERT_TRUE(ProjectWithMatrix(Qp, x, &b));
       worst_px = std::max(worst_px, (a - b).norm());
     }
   }
-  std::printf("RTK round trip over %zu views: relative matrix difference %.3g, projections %.3g px\n",
-              set.views.size(), worst, worst_px);
+  std::printf(
+      "RTK round trip over %zu views: relative matrix difference %.3g, projections %.3g px\n",
+      set.views.size(),
+      worst,
+      worst_px);
   EXPECT_LT(worst, kRoundTripTol);
   EXPECT_LT(worst_px, 1e-6);
 }
@@ -341,7 +345,8 @@ TEST(ViewGeometryJson, RoundTripAndEditedFiles) {
     EXPECT_NE(r.status().message().find(expected), std::string::npos) << r.status().message();
     EXPECT_EQ(r.status().message().find('\n'), std::string::npos);
   };
-  bad([](nlohmann::json& j) { j["views"][1]["P"][0][3] = 1.0; }, "views[1].P: differs from K [R | t]");
+  bad([](nlohmann::json& j) { j["views"][1]["P"][0][3] = 1.0; },
+      "views[1].P: differs from K [R | t]");
   bad([](nlohmann::json& j) { j["views"][0].erase("cam_from_ct"); }, "views[0].cam_from_ct");
   bad([](nlohmann::json& j) { j["views"][0]["cam_from_ct"]["rvec"][1] = "x"; },
       "views[0].cam_from_ct.rvec[1]: expected a finite number");
@@ -355,7 +360,8 @@ TEST(ViewGeometry, IsocentreIsTheAxesIntersection) {
   // Views aimed exactly at one point: the least-squares intersection is that point.
   const Eigen::Vector3d iso(10, -120, -600);
   for (size_t k = 0; k < set.views.size(); ++k) {
-    set.views[k] = ViewLookingAt(set.views[k].id, set.views[k].camera, SourceInCt(set.views[k]), iso, 0.3 * k);
+    set.views[k] =
+        ViewLookingAt(set.views[k].id, set.views[k].camera, SourceInCt(set.views[k]), iso, 0.3 * k);
   }
   set.reference_point_ct_mm.reset();
   auto c = GeometryIsocentre(set);
@@ -384,7 +390,8 @@ TEST(Undistort, DotsMoveToThePinholeProjection) {
         for (int u = static_cast<int>(uv[0]) - 8; u <= static_cast<int>(uv[0]) + 8; ++u) {
           if (u < 0 || v < 0 || u >= cam.width || v >= cam.height) continue;
           const double r2 = (u - uv[0]) * (u - uv[0]) + (v - uv[1]) * (v - uv[1]);
-          img.at<uint16_t>(v, u) += static_cast<uint16_t>(40000 * std::exp(-r2 / (2 * sigma * sigma)));
+          img.at<uint16_t>(v, u) +=
+              static_cast<uint16_t>(40000 * std::exp(-r2 / (2 * sigma * sigma)));
         }
       }
     }

@@ -1,4 +1,5 @@
-// libFuzzer harness: carmba::LoadCalibrationOptions (calib/calibrate.h) with the top-level maps carmba calibrate leaves to other readers.
+// libFuzzer harness: carmba::LoadCalibrationOptions (calib/calibrate.h) with the top-level maps
+// carmba calibrate leaves to other readers.
 #include "fuzz_util.h"
 #include "calib/calibrate.h"
 

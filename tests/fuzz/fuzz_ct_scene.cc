@@ -1,4 +1,5 @@
-// libFuzzer harness: carmba::ParseCtScene (ct/ct_simulate.h), the CT scene reader, on a scene YAML (no simulation).
+// libFuzzer harness: carmba::ParseCtScene (ct/ct_simulate.h), the CT scene reader, on a scene YAML
+// (no simulation).
 #include "fuzz_util.h"
 #include "ct/ct_simulate.h"
 #include "util/yaml_reader.h"

@@ -1,4 +1,5 @@
-// libFuzzer harness: carmba::LoadStudySpec (study/study_spec.h): a study YAML in configs/studies/ (references ../../problems and ../*.yaml resolve).
+// libFuzzer harness: carmba::LoadStudySpec (study/study_spec.h): a study YAML in configs/studies/
+// (references ../../problems and ../*.yaml resolve).
 #include "fuzz_util.h"
 #include "study/study_spec.h"
 

@@ -1,4 +1,5 @@
-// libFuzzer harness: carmba::sim::LoadXrayScene (sim/xray_scene.h): an X-ray scene YAML in configs/scenes/ (references ../../data resolve).
+// libFuzzer harness: carmba::sim::LoadXrayScene (sim/xray_scene.h): an X-ray scene YAML in
+// configs/scenes/ (references ../../data resolve).
 #include "fuzz_util.h"
 #include "sim/xray_scene.h"
 

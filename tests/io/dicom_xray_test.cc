@@ -482,7 +482,12 @@ TEST(DicomXray, VrThatTheDictionaryDoesNotAllowIsAnErrorNotAnAbort) {
   { std::ofstream(path, std::ios::binary) << bytes; }
   ExpectError(ReadDicomXray(path), {"vr_lo.dcm", "element (0028,0100) has VR 'LO', expected US"});
   // A file without preamble that starts with its file meta group and ends in it (GDCM asserts).
-  { std::ofstream(dir.File("meta_only.dcm"), std::ios::binary) << std::string("\x02\x00\x00\x00" "CS\x00\x00", 8); }
+  {
+    std::ofstream(dir.File("meta_only.dcm"), std::ios::binary) << std::string(
+        "\x02\x00\x00\x00"
+        "CS\x00\x00",
+        8);
+  }
   ExpectError(ReadDicomXray(dir.File("meta_only.dcm")),
               {"meta_only.dcm", "the file ends in its file meta group"});
   // A preamble followed by something other than a file meta group (GDCM guessed big endian
@@ -503,13 +508,16 @@ TEST(DicomXray, SequencesOfDefinedAndUndefinedLengthAreWalked) {
   const cv::Mat img = RandomImage(8, 8, CV_16UC1, 12, 4);
   ASSERT_TRUE(WriteDicomXray(path, {img}, WithGeometry()).ok());
   const std::string plain = FileBytes(path);
-  auto u16 = [](uint16_t v) { return std::string{static_cast<char>(v & 0xff), static_cast<char>(v >> 8)}; };
+  auto u16 = [](uint16_t v) {
+    return std::string{static_cast<char>(v & 0xff), static_cast<char>(v >> 8)};
+  };
   auto u32 = [&](uint32_t v) { return u16(v & 0xffff) + u16(v >> 16); };
   // An implicit VR item: (7fe1,1001) length 4 "abcd".
   const std::string implicit_elem = u16(0x7fe1) + u16(0x1001) + u32(4) + "abcd";
   const std::string un_seq = u16(0x7fe1) + u16(0x1010) + "UN" + u16(0) + u32(0xffffffff) +
                              u16(0xfffe) + u16(0xe000) + u32(0xffffffff) + implicit_elem +
-                             u16(0xfffe) + u16(0xe00d) + u32(0) + u16(0xfffe) + u16(0xe0dd) + u32(0);
+                             u16(0xfffe) + u16(0xe00d) + u32(0) + u16(0xfffe) + u16(0xe0dd) +
+                             u32(0);
   // An explicit VR item of defined length: (7fe1,1021) LO "ab".
   const std::string explicit_elem = u16(0x7fe1) + u16(0x1021) + "LO" + u16(2) + "ab";
   const std::string item = u16(0xfffe) + u16(0xe000) + u32(explicit_elem.size()) + explicit_elem;
@@ -520,7 +528,8 @@ TEST(DicomXray, SequencesOfDefinedAndUndefinedLengthAreWalked) {
   EXPECT_TRUE(Equal(r->frames[0], img));
   // The item declares 2 bytes more than its sequence holds.
   std::string bad_item = u16(0xfffe) + u16(0xe000) + u32(explicit_elem.size() + 2) + explicit_elem;
-  const std::string bad_sq = u16(0x7fe1) + u16(0x1020) + "SQ" + u16(0) + u32(item.size()) + bad_item;
+  const std::string bad_sq =
+      u16(0x7fe1) + u16(0x1020) + "SQ" + u16(0) + u32(item.size()) + bad_item;
   { std::ofstream(path, std::ios::binary) << plain + un_seq + bad_sq + "zz"; }
   ExpectError(ReadDicomXray(path), {"seq.dcm", "an item runs past the end of its sequence"});
 }
@@ -534,7 +543,8 @@ TEST(DicomXray, DecoderThatDiesIsAnErrorAndTheNextImageReads) {
   ASSERT_TRUE(plain.ok()) << plain.status().message();
   for (int round = 0; round < 2; ++round) {
     for (const auto& [name, signal] : std::vector<std::pair<std::string, std::string>>{
-             {"jpeg_decoder_segfault.dcm", "signal 11"}, {"jpeg_precision_assert.dcm", "signal 6"}}) {
+             {"jpeg_decoder_segfault.dcm", "signal 11"},
+             {"jpeg_precision_assert.dcm", "signal 6"}}) {
       ExpectError(ReadDicomXray(seeds + "regress/" + name), {name, "GDCM's decoder died", signal});
       const auto r = ReadDicomXray(seeds + "dicom/xa_1frame_16bit_jpeg.dcm");
       ASSERT_TRUE(r.ok()) << r.status().message();

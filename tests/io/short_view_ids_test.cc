@@ -11,7 +11,8 @@ using Ids = std::vector<std::string>;
 TEST(ShortViewIds, FileStemsAndFrames) {
   EXPECT_EQ(ShortViewIds({"/data/run/v_m05_m15.png", "/data/run/a.b.tif", "rel/x.dcm#frame3"}),
             (Ids{"v_m05_m15", "a.b", "x#frame3"}));
-  EXPECT_EQ(ShortViewIds({"/d/run.dcm#frame1", "/d/run.dcm#frame2"}), (Ids{"run#frame1", "run#frame2"}));
+  EXPECT_EQ(ShortViewIds({"/d/run.dcm#frame1", "/d/run.dcm#frame2"}),
+            (Ids{"run#frame1", "run#frame2"}));
   EXPECT_EQ(ShortViewIds({}), Ids{});
 }
 

@@ -94,18 +94,23 @@ TEST(JointTwoStep, FixedIntrinsicsSigmasAreTooSmall) {
     const PoseSigmas &joint = sol->comparison[0], &prior = sol->comparison[2];
     for (size_t k = 0; k < joint.sigma_translation_mm.size(); ++k) {
       for (int a = 0; a < 3; ++a) {
-        worst_excess = std::max(worst_excess, joint.sigma_translation_mm[k][a] / prior.sigma_translation_mm[k][a] - 1);
-        worst_excess = std::max(worst_excess, joint.sigma_rotation_deg[k][a] / prior.sigma_rotation_deg[k][a] - 1);
+        worst_excess = std::max(
+            worst_excess, joint.sigma_translation_mm[k][a] / prior.sigma_translation_mm[k][a] - 1);
+        worst_excess = std::max(
+            worst_excess, joint.sigma_rotation_deg[k][a] / prior.sigma_rotation_deg[k][a] - 1);
       }
     }
     for (size_t k = 0; k < joint.sigma_translation_mm.size(); ++k) {
       for (int a = 0; a < 3; ++a) {
-        EXPECT_LE(joint.sigma_translation_mm[k][a], prior.sigma_translation_mm[k][a] * (1 + kLinearisationTol));
-        EXPECT_LE(joint.sigma_rotation_deg[k][a], prior.sigma_rotation_deg[k][a] * (1 + kLinearisationTol));
+        EXPECT_LE(joint.sigma_translation_mm[k][a],
+                  prior.sigma_translation_mm[k][a] * (1 + kLinearisationTol));
+        EXPECT_LE(joint.sigma_rotation_deg[k][a],
+                  prior.sigma_rotation_deg[k][a] * (1 + kLinearisationTol));
       }
     }
     for (size_t k = 0; k < joint.sigma_relative_rotation_deg.size(); ++k) {
-      EXPECT_LE(joint.sigma_relative_rotation_deg[k], prior.sigma_relative_rotation_deg[k] * (1 + kLinearisationTol));
+      EXPECT_LE(joint.sigma_relative_rotation_deg[k],
+                prior.sigma_relative_rotation_deg[k] * (1 + kLinearisationTol));
     }
     ++n;
   }

@@ -239,7 +239,8 @@ TEST(XrayRender, VignettingProfileAndHeelGradient) {
     const double r = std::hypot(u - 50.0, v - 50.0) / 40.0;
     return 200.0 * (1 - 0.22 * std::pow(r, 3)) * (1 + 0.08 * (v - 50.0) / 40.0);
   };
-  for (const auto& [u, v] : std::vector<std::pair<int, int>>{{50, 50}, {80, 50}, {50, 85}, {50, 15}, {70, 70}}) {
+  for (const auto& [u, v] :
+       std::vector<std::pair<int, int>>{{50, 50}, {80, 50}, {50, 85}, {50, 15}, {70, 70}}) {
     EXPECT_NEAR(img->at<float>(v, u), expect(u, v), kTolRelative * 200) << u << ", " << v;
   }
   // +-8 % at the rim along the heel direction (the fall-off the same on both sides).
@@ -270,7 +271,8 @@ TEST(XrayRender, VeilingGlareLiftsShadowsAndKeepsUniformFields) {
   o.glare_sigma_px = 30;
   auto glared = RenderXray(cam, {{&ph, pose}}, o);
   ASSERT_TRUE(plain.ok() && glared.ok()) << glared.status().message();
-  const int uc = static_cast<int>(std::lround(cam.params[2])), vc = static_cast<int>(std::lround(cam.params[3]));
+  const int uc = static_cast<int>(std::lround(cam.params[2])),
+            vc = static_cast<int>(std::lround(cam.params[3]));
   EXPECT_LT(plain->at<float>(vc, uc), 1e-3);
   // The shadow's centre: g times the spread light, a little less than g * 200 (the FOV's edge
   // and the shadow itself are in the kernel).

@@ -229,8 +229,8 @@ TEST(StudyRunnerTest, MergedShardsEqualTheWholeStudy) {
   ASSERT_TRUE(RunMean(spec, f.dir + "/s2", 2, false, 2, 2).ok());
   EXPECT_EQ(CountLines(f.dir + "/s1/runs.jsonl") + CountLines(f.dir + "/s2/runs.jsonl"), 40);
   int merged = 0, missing = -1;
-  ASSERT_TRUE(MergeStudyShards({f.dir + "/s2", f.dir + "/s1"}, f.dir + "/merged", true, false, &merged,
-                               &missing)
+  ASSERT_TRUE(MergeStudyShards(
+                  {f.dir + "/s2", f.dir + "/s1"}, f.dir + "/merged", true, false, &merged, &missing)
                   .ok());
   EXPECT_EQ(merged, 40);
   EXPECT_EQ(missing, 0);

@@ -20,8 +20,9 @@ namespace carmba {
 namespace {
 
 std::string Calib(int cam) {
-  return std::string(CARMBA_SOURCE_DIR) + "/data/real/autoscoper-wrist/calibration/xr_calib_wrist_cam0" +
-         std::to_string(cam) + ".txt";
+  return std::string(CARMBA_SOURCE_DIR) +
+         "/data/real/autoscoper-wrist/calibration/xr_calib_wrist_cam0" + std::to_string(cam) +
+         ".txt";
 }
 
 std::vector<TrackCamera> WristCameras() {
@@ -46,17 +47,20 @@ TEST(TrackInputs, ReadsTheXmaCalibrationOfTheWristData) {
 
 TEST(TrackInputs, BadCalibrationTextNamesTheLine) {
   test::ScratchDir dir("track_inputs");
-  const std::string good = "image size\n1760,1760\n\ncamera matrix\n6000,0,800\n0,6000,900\n0,0,1\n\n"
-                           "rotation\n1,0,0\n0,1,0\n0,0,1\n\ntranslation\n0\n0\n900\n";
+  const std::string good =
+      "image size\n1760,1760\n\ncamera matrix\n6000,0,800\n0,6000,900\n0,0,1\n\n"
+      "rotation\n1,0,0\n0,1,0\n0,0,1\n\ntranslation\n0\n0\n900\n";
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"image size\n1760\n", ":2: expected 2 number(s) in section 'image size'"},
       {"camera matrix\n6000,0,800\n0,6000,nan\n0,0,1\n", ":3: expected 3 number(s)"},
       {"focal\n1\n", ":1: unknown section 'focal'"},
       {"image size\n1760,1760\n", "section 'camera matrix' is missing"},
-      {"image size\n1760,1760\ncamera matrix\n6000,0,800\n0,6000,900\n0,0,1\nrotation\n1,0,0\n0,1,0\n0,0,2\n"
+      {"image size\n1760,1760\ncamera matrix\n6000,0,800\n0,6000,900\n0,0,1\n"
+       "rotation\n1,0,0\n0,1,0\n0,0,2\n"
        "translation\n0\n0\n900\n",
        "rotation is not a rotation matrix"},
-      {"image size\n1760,1760\ncamera matrix\n6000,0,800\n0,6000,900\n0,0,1\nrotation\n1,0,0\n0,1,0\n0,0,1\n"
+      {"image size\n1760,1760\ncamera matrix\n6000,0,800\n0,6000,900\n0,0,1\n"
+       "rotation\n1,0,0\n0,1,0\n0,0,1\n"
        "translation\n0\n0\n0.9\n",
        "translation in metres?"},
   };
@@ -81,10 +85,12 @@ TEST(TrackInputs, CameraJsonAndPoseGiveTheSameCamera) {
   cam.height = xma.height;
   cam.params = xma.intrinsics;
   dir.Write("camera.json", CameraToJson(cam).dump(2));
-  dir.Write("pose.json", "{\"cam_from_lab\": {\"rvec\": [" + std::to_string(xma.cam_from_lab[0]) + ", " +
-                             std::to_string(xma.cam_from_lab[1]) + ", " + std::to_string(xma.cam_from_lab[2]) +
-                             "], \"t_mm\": [" + std::to_string(xma.cam_from_lab[3]) + ", " +
-                             std::to_string(xma.cam_from_lab[4]) + ", " + std::to_string(xma.cam_from_lab[5]) + "]}}");
+  dir.Write("pose.json",
+            "{\"cam_from_lab\": {\"rvec\": [" + std::to_string(xma.cam_from_lab[0]) + ", " +
+                std::to_string(xma.cam_from_lab[1]) + ", " + std::to_string(xma.cam_from_lab[2]) +
+                "], \"t_mm\": [" + std::to_string(xma.cam_from_lab[3]) + ", " +
+                std::to_string(xma.cam_from_lab[4]) + ", " + std::to_string(xma.cam_from_lab[5]) +
+                "]}}");
   auto c = ReadTrackCamera("cam01", dir.File("camera.json") + "+" + dir.File("pose.json"));
   ASSERT_TRUE(c.ok()) << c.status().message();
   EXPECT_EQ(c->width, 1760);
@@ -94,11 +100,13 @@ TEST(TrackInputs, CameraJsonAndPoseGiveTheSameCamera) {
   dir.Write("bad.json", "{\"cam_from_lab\": {\"rvec\": [1, 2], \"t_mm\": [0, 0, 900]}}");
   auto bad = ReadTrackCamera("cam01", dir.File("camera.json") + "+" + dir.File("bad.json"));
   ASSERT_FALSE(bad.ok());
-  EXPECT_NE(bad.status().message().find("key 'cam_from_lab'"), std::string::npos) << bad.status().message();
+  EXPECT_NE(bad.status().message().find("key 'cam_from_lab'"), std::string::npos)
+      << bad.status().message();
   dir.Write("deg.json", "{\"cam_from_lab\": {\"rvec\": [0, 90, 0], \"t_mm\": [0, 0, 900]}}");
   bad = ReadTrackCamera("cam01", dir.File("camera.json") + "+" + dir.File("deg.json"));
   ASSERT_FALSE(bad.ok());
-  EXPECT_NE(bad.status().message().find("degrees given?"), std::string::npos) << bad.status().message();
+  EXPECT_NE(bad.status().message().find("degrees given?"), std::string::npos)
+      << bad.status().message();
 }
 
 TEST(TrackInputs, FramesPairByTheNumberInTheFileName) {
@@ -106,7 +114,8 @@ TEST(TrackInputs, FramesPairByTheNumberInTheFileName) {
   EXPECT_EQ(*FrameNumberOfFile("cam2_frame_12.png"), 12);
   EXPECT_FALSE(FrameNumberOfFile("/a/b/image.png").ok());
   std::vector<std::string> unpaired;
-  auto frames = PairFrames({{"a.0002.tif", "a.0099.tif", "a.0007.tif"}, {"b.0099.tif", "b.0002.tif"}}, &unpaired);
+  auto frames = PairFrames(
+      {{"a.0002.tif", "a.0099.tif", "a.0007.tif"}, {"b.0099.tif", "b.0002.tif"}}, &unpaired);
   ASSERT_TRUE(frames.ok());
   ASSERT_EQ(frames->size(), 2u);
   EXPECT_EQ((*frames)[0].number, 2);
@@ -153,7 +162,8 @@ Scene MakeScene(const std::vector<TrackCamera>& cams, std::mt19937* rng, double 
     s.frames.push_back(frame);
     std::vector<Pose6> motion(2, Pose6::Zero());
     if (f > 0) {
-      for (auto& m : motion) m << 0.15 * u(*rng), 0.15 * u(*rng), 0.15 * u(*rng), 6 * u(*rng), 6 * u(*rng), 6 * u(*rng);
+      for (auto& m : motion)
+        m << 0.15 * u(*rng), 0.15 * u(*rng), 0.15 * u(*rng), 6 * u(*rng), 6 * u(*rng), 6 * u(*rng);
     }
     std::vector<Eigen::Vector3d> lab;
     for (size_t i = 0; i < beads.size(); ++i) {
@@ -238,9 +248,17 @@ TEST(Track, SyntheticBeadsAreIdentifiedInEveryFrameAndTheirCovariancesHold) {
     }
   }
   const double nees = nees_sum / std::max(1, nees_n);
-  std::printf("track synthetic (seed %u): %d trials (%d failed), %d of %d bead-frames tracked (%.1f %%), "
-              "%d wrong, bead NEES per dof %.3f\n",
-              seed, trials, failed, found, total, 100.0 * found / total, wrong, nees);
+  std::printf(
+      "track synthetic (seed %u): %d trials (%d failed), %d of %d bead-frames tracked (%.1f %%), "
+      "%d wrong, bead NEES per dof %.3f\n",
+      seed,
+      trials,
+      failed,
+      found,
+      total,
+      100.0 * found / total,
+      wrong,
+      nees);
   // Measured (seed 22, 40 trials): 98.3 % tracked, 3 of 1320 wrong; seed 901, 200 trials: 98.7 %,
   // 3 of 6600 wrong. The misses and wrong ones are beads whose images overlap within a few px in
   // one camera (ghost pairings; a real detector would merge them): issue 22's "no wrong match"
@@ -266,7 +284,8 @@ TEST(Track, ABeadMissedByOneCameraJoinsWithItsSinglePixel) {
   EXPECT_EQ(r->bead_num_views[2][id[0]], 1);
   // Its position in that frame from the body's pose, within its covariance's reach.
   const Eigen::Vector3d e = r->bead_lab[2][id[0]] - s.truth[2][0];
-  EXPECT_LT(e.dot(r->bead_lab_covariance[2][id[0]].ldlt().solve(e)), 16.3);  // chi-square 3 dof, 0.1 %
+  EXPECT_LT(e.dot(r->bead_lab_covariance[2][id[0]].ldlt().solve(e)),
+            16.3);  // chi-square 3 dof, 0.1 %
   // The distance checks leave it out in that frame.
   for (const BodyDistance& d : r->distances) {
     if (d.bead_a == r->beads[id[0]].id || d.bead_b == r->beads[id[0]].id) {
@@ -297,7 +316,8 @@ TEST(Track, CamerasWithACovarianceAreFreeWithinIt) {
     trace_held += held->bead_lab_covariance[1][id[i]].trace();
     trace_free += free->bead_lab_covariance[1][id[i]].trace();
     const Eigen::Vector3d e = free->bead_lab[1][id[i]] - s.truth[1][i];
-    EXPECT_LT(e.dot(free->bead_lab_covariance[1][id[i]].ldlt().solve(e)), 16.3);  // chi-square 3 dof, 0.1 %
+    EXPECT_LT(e.dot(free->bead_lab_covariance[1][id[i]].ldlt().solve(e)),
+              16.3);  // chi-square 3 dof, 0.1 %
   }
   EXPECT_GT(trace_free, 1.5 * trace_held);
 }
