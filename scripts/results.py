@@ -1,0 +1,317 @@
+#!/usr/bin/env python3
+"""src/docs/results.md is generated, so that a measured figure is stated once.
+
+Its text is src/docs/results.md.in; its figures, written there as {{section.name}}, are in
+src/docs/results_figures.json with the commit, date and command that measured them. Each figure
+appears exactly once in the template. Sections whose figures are not generated yet are plain text
+in the template (the template says which).
+
+  python3 scripts/results.py measure [--bin build/bin/carmba]
+      runs scripts/golden_outputs.sh (every shipped problem and scene, about 30 s on 2 cores)
+      into a scratch directory, extracts the figures from its result.json files, writes the
+      figures file and results.md
+  python3 scripts/results.py render [--check]
+      writes results.md from the template and the figures file; --check writes nothing and exits
+      1 when results.md differs from that (a hand edit, or a template changed without a render)
+"""
+import argparse
+import datetime
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import textwrap
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TEMPLATE = os.path.join(ROOT, "src/docs/results.md.in")
+FIGURES = os.path.join(ROOT, "src/docs/results_figures.json")
+RESULTS = os.path.join(ROOT, "src/docs/results.md")
+PLACEHOLDER = re.compile(r"\{\{([a-z0-9_]+\.[a-z0-9_]+)\}\}")
+
+
+def load_json(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def f(value, fmt):
+    """A number as the template states it; '-' for a missing one."""
+    return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else fmt % value
+
+
+def sci(value):
+    """1 significant decimal in scientific notation without exponent padding: 2.3e-3."""
+    return re.sub(r"e([+-])0*(\d)", lambda m: "e" + m.group(1).replace("+", "") + m.group(2),
+                  "%.1e" % value)
+
+
+def slash_list(values, fmt):
+    return " / ".join(f(v, fmt) for v in values)
+
+
+# ---- The thesis's pose experiment ------------------------------------------------------------
+
+def printed_thesis_angles():
+    """Table 5.6 as printed: (a, b) -> (achieved, expected)."""
+    rows = {}
+    with open(os.path.join(ROOT, "data/thesis/validation_table_5_6.csv")) as fh:
+        lines = [l.strip() for l in fh if l.strip() and not l.startswith("#")]
+    head = lines[0].split(",")
+    for line in lines[1:]:
+        r = dict(zip(head, line.split(",")))
+        rows[(r["orientation_a_deg"], r["orientation_b_deg"])] = (float(r["achieved_deg"]),
+                                                                  float(r["expected_deg"]))
+    return rows
+
+
+def printed_rotations():
+    """Tables 5.3-5.5: orientation -> R (object -> camera)."""
+    out = {}
+    with open(os.path.join(ROOT, "data/thesis/posit_rotations_tables_5_3_to_5_5.csv")) as fh:
+        lines = [l.strip() for l in fh if l.strip() and not l.startswith("#")]
+    for line in lines[1:]:
+        cells = line.split(",")
+        out[cells[0]] = [float(c) for c in cells[1:10]]  # row-major
+    return out
+
+
+def view_direction_angle_deg(Ra, Rb):
+    """The thesis's metric: the angle between inv(R_a)(0,0,1) and inv(R_b)(0,0,1), i.e. between
+    the third rows of the row-major R_a and R_b (the printed matrices are not orthonormal)."""
+    va, vb = Ra[6:9], Rb[6:9]
+    dot = sum(x * y for x, y in zip(va, vb))
+    c = dot / math.sqrt(sum(x * x for x in va)) / math.sqrt(sum(x * x for x in vb))
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+
+
+def thesis_figures(out):
+    r = load_json(os.path.join(out, "thesis_pose_posit_ba_analytic/result.json"))
+    legacy = r["comparison"]["legacy_posit"]
+    cam = r["problem"]["camera"]
+    printed = printed_thesis_angles()
+    rows = ["| pair | expected | thesis | legacy POSIT (ours) | bundle adjustment, view "
+            "directions +- 1 sigma | relative rotation |", "|---|---|---|---|---|---|"]
+    for p, lp in zip(r["validation"], legacy["validation"]):
+        achieved, expected = printed[(p["a"], p["b"])]
+        rows.append("| %s-%s | %g | %.4f | %.4f | %.3f +- %.3f | %.3f +- %.3f |" % (
+            p["a"], p["b"], expected, achieved, lp["angle_view_dirs_deg"],
+            p["angle_view_dirs_deg"], p["sigma_view_dirs_deg"], p["relative_rotation_deg"],
+            p["sigma_relative_rotation_deg"]))
+    diff = {v["id"]: v["max_abs_diff_to_printed"] for v in legacy["views"]}
+    R = printed_rotations()
+    s = r["statistics"]
+    return {
+        "camera": "fx %.3f, fy %.3f, cx %.3f, cy %.3f px" % (cam["fx"], cam["fy"], cam["cx"],
+                                                             cam["cy"]),
+        "sigma_px": f(r["problem"]["sigma_px"], "%g"),
+        "validation_table": "\n".join(rows),
+        "rms_legacy": slash_list([v["rms_px"] for v in legacy["views"]], "%.2f"),
+        "rms_ba": slash_list([v["rms_px"] for v in r["views"]], "%.2f"),
+        "views": ", ".join(v["id"] for v in r["views"]),
+        "chi2": "%.2f on %d degrees of freedom (P = %.2f)" % (s["chi2"], s["dof"],
+                                                             s["chi2_p_value"]),
+        "legacy_printed_10_30_50": sci(max(diff["10"], diff["30"], diff["50"])),
+        "legacy_printed_0_90": sci(diff["0"]) + ", " + sci(diff["90"]),
+        "printed_0_10_from_printed_r": "%.4f" % view_direction_angle_deg(R["0"], R["10"]),
+        "handedness_rms": "RMS %.3f vs %.3f px" % (
+            s["rms_px"], r["comparison"]["other_handedness"]["rms_px"]),
+    }
+
+
+# ---- The joint bundle adjustment -----------------------------------------------------------
+
+def joint_figures(out):
+    r = load_json(os.path.join(out, "joint_joint_radial/result.json"))
+    truth = load_json(os.path.join(out, "out/sim/joint/truth.json"))["camera"]
+    intr = r["intrinsics"]
+    z_intr = [(intr[k] - truth[k]) / intr["sigmas"][k] for k in ("fx", "fy", "cx", "cy")]
+    z_rot = [(p["relative_rotation_deg"] - p["true_relative_rotation_deg"]) /
+             p["sigma_relative_rotation_deg"] for p in r["validation"]]
+    s = r["statistics"]
+    return {
+        "intrinsics_z": ", ".join("%.2f" % z for z in z_intr),
+        "pairs": ", ".join("%s-%s" % (p["a"].split("_")[-1].lstrip("0") or "0",
+                                      p["b"].split("_")[-1].lstrip("0") or "0")
+                           for p in r["validation"]),
+        "rotation_z": ", ".join("%.2f" % z for z in z_rot),
+        "rms": "RMS %.3f px (plate) and %.2f px (object)" % (s["rms_plate_px"],
+                                                             s["rms_object_px"]),
+        "solve": "%d iterations, %.1f ms for solve + covariance" % (
+            r["solver"]["iterations"], 1e3 * r["solver"]["time_s"]),
+    }
+
+
+# ---- Real radiographs: beads tracked through frames --------------------------------------------
+
+def track_figures(out):
+    j = load_json(os.path.join(out, "track_wrist/rigid_bodies.json"))
+    c = j["checks"]
+    beads = sum(len(b["points"]) for b in j["bodies"])
+    return {
+        "bodies": "%d beads in %d bodies" % (beads, len(j["bodies"])),
+        "beads_per_frame": "%d beads per frame" % c["min_beads_per_frame"],
+        "rms": "RMS %.3f px" % c["rms_px"],
+        "max_change": "%.2f sigma" % c["max_change_sigmas"],
+        "variance_factor": "%.1f" % c["pixel_sigma_scale"] ** 2,
+        "sigma_scale": "%.1fx" % c["pixel_sigma_scale"],
+        "max_change_stated": "%.2f sigma" % c["max_change_sigmas_stated"],
+        "max_spread": "%.3f mm" % c["max_spread_mm"],
+        "rms_spread": "%.3f mm" % c["rms_spread_mm"],
+        "distance_chi2": "%.1f on %d dof" % (c["distance_chi2"], c["distance_dof"]),
+        "predicted_max_spread": "%.3f mm" % c["predicted_max_spread_mm"],
+    }
+
+
+# ---- C-arm flex: the rendered flexing scene ------------------------------------------------------
+
+def solve_linear(A, b):
+    """x with A x = b (Gaussian elimination with partial pivoting; small dense systems)."""
+    n = len(b)
+    M = [list(map(float, row)) + [float(b[i])] for i, row in enumerate(A)]
+    for i in range(n):
+        p = max(range(i, n), key=lambda r: abs(M[r][i]))
+        M[i], M[p] = M[p], M[i]
+        for r in range(n):
+            if r != i:
+                k = M[r][i] / M[i][i]
+                for c in range(i, n + 1):
+                    M[r][c] -= k * M[i][c]
+    return [M[i][n] / M[i][i] for i in range(n)]
+
+
+def pose_nees(view):
+    """d^T C^-1 d of an object view's pose parameters [rvec, t] against its truth."""
+    e, t = view["cam_from_object"], view["truth"]
+    d = [a - b for a, b in zip(e["rvec"] + e["t_mm"], t["rvec"] + t["t_mm"])]
+    x = solve_linear(view["covariance_6x6"], d)
+    return sum(a * b for a, b in zip(d, x))
+
+
+def flex_figures(out):
+    runs = {m: load_json(os.path.join(out, "flex_%s/result.json" % m))
+            for m in ("shared", "per_group", "smooth")}
+    selection = runs["smooth"]["model_selection"]
+    d2 = {sc["model"]: sc["held_out_mahalanobis_d2_mean"] for sc in selection["scores"]}
+    figures = {}
+    for m in ("shared", "per_group", "smooth"):
+        mark = " (recommended)" if selection["recommended"] == m else ""
+        figures["d2_" + m] = "%.2f%s" % (d2[m], mark)
+    for m in ("shared", "smooth"):
+        nees = [pose_nees(v) for v in runs[m]["views"] if v["kind"] == "object" and "truth" in v]
+        figures["pose_nees_" + m] = "%.1f / %.1f" % (sum(nees) / len(nees), max(nees))
+        figures["num_object_views"] = "%d views" % len(nees)
+    worst = [max(abs(x) for x in v["intrinsics_error_sigma"].values())
+             for v in runs["smooth"]["views"] if "intrinsics_error_sigma" in v]
+    figures["worst_intrinsics_smooth"] = "%.2f" % max(worst)
+    figures["num_views"] = "%d views" % len(worst)
+    return figures
+
+
+SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "track": track_figures,
+            "flex": flex_figures}
+
+
+# ---- Measure and render ---------------------------------------------------------------------
+
+def measure(binary):
+    with tempfile.TemporaryDirectory(prefix="carmba_results_") as tmp:
+        out = os.path.join(tmp, "golden")
+        subprocess.run(["bash", os.path.join(ROOT, "scripts/golden_outputs.sh"), binary, out],
+                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        figures = {}
+        for name, fn in SECTIONS.items():
+            for key, value in fn(out).items():
+                figures[name + "." + key] = value
+    commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
+                            capture_output=True, text=True).stdout.strip()
+    doc = {"measured": {"commit": commit,
+                        "date": datetime.date.today().isoformat(),
+                        "command": "python3 scripts/results.py measure (scripts/golden_outputs.sh "
+                                   "with --bin " + os.path.relpath(binary, ROOT) + ")"},
+           "figures": figures}
+    with open(FIGURES, "w") as fh:
+        json.dump(doc, fh, indent=1, sort_keys=True)
+        fh.write("\n")
+
+
+def render_text():
+    with open(TEMPLATE) as fh:
+        template = fh.read()
+    doc = load_json(FIGURES)
+    figures = doc["figures"]
+    used = PLACEHOLDER.findall(template)
+    unknown = sorted(set(used) - set(figures))
+    unused = sorted(set(figures) - set(used))
+    twice = sorted({k for k in used if used.count(k) > 1})
+    for what, keys in (("not in %s" % os.path.relpath(FIGURES, ROOT), unknown),
+                       ("never used in the template", unused),
+                       ("stated more than once in the template", twice)):
+        if keys:
+            sys.exit("results.py: figures %s: %s" % (what, ", ".join(keys)))
+    m = doc["measured"]
+    figures = dict(figures, measured="commit %s on %s" % (m["commit"], m["date"]))
+    out = []
+    for kind, lines in units(template.split("\n")):
+        text = "\n".join(lines)
+        filled = re.sub(r"\{\{([a-z0-9_.]+)\}\}", lambda mo: figures[mo.group(1)], text)
+        if filled != text and kind in ("paragraph", "item"):
+            first = "- " if kind == "item" else ""
+            body = " ".join(filled.split())[len(first):]
+            filled = textwrap.fill(body, width=100, initial_indent=first,
+                                   subsequent_indent=" " * len(first), break_long_words=False,
+                                   break_on_hyphens=False)
+        out.append(filled)
+    return "\n".join(out)
+
+
+def units(lines):
+    """The template's lines as (kind, lines): "item" (a list item with its indented continuation
+    lines), "paragraph" (plain lines up to a blank line or another kind), or "other" (one line of
+    a table, heading, comment or code block, a figure alone on its line (a table), or a blank
+    line), so that a unit whose figures are filled in is reflowed to 100 columns and nothing else
+    moves."""
+    result, fence = [], False
+    for line in lines:
+        if line.startswith("```"):
+            fence = not fence
+            result.append(["other", [line]])
+        elif fence or not line.strip() or re.match(r"[|#<]|\d+\. |\{\{[a-z0-9_.]+\}\}$", line):
+            result.append(["other", [line]])
+        elif line.startswith("- "):
+            result.append(["item", [line]])
+        elif line.startswith("  ") and result and result[-1][0] == "item":
+            result[-1][1].append(line)
+        elif result and result[-1][0] == "paragraph":
+            result[-1][1].append(line)
+        else:
+            result.append(["paragraph", [line]])
+    return result
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    me = sub.add_parser("measure")
+    me.add_argument("--bin", default=os.path.join(ROOT, "build/bin/carmba"))
+    re_ = sub.add_parser("render")
+    re_.add_argument("--check", action="store_true")
+    a = ap.parse_args()
+    if a.cmd == "measure":
+        measure(os.path.abspath(a.bin))
+    text = render_text()
+    if a.cmd == "render" and a.check:
+        with open(RESULTS) as fh:
+            if fh.read() != text:
+                sys.exit("results.py: src/docs/results.md is not what src/docs/results.md.in and "
+                         "src/docs/results_figures.json give: edit the template and run "
+                         "`python3 scripts/results.py render` (or `measure`)")
+        return
+    with open(RESULTS, "w") as fh:
+        fh.write(text)
+
+
+if __name__ == "__main__":
+    main()
