@@ -61,6 +61,7 @@ struct DistortionScore {
   double chi2 = 0, aic = 0, bic = 0;
   double held_out_chi2_per_residual = 0, held_out_rms_px = 0;
   std::array<double, kNumIntrinsics> intrinsics{};
+  std::vector<Pose6> plate_poses;  // the fit's, in the order of the problem's plate views
   Eigen::Vector2d principal_point = Eigen::Vector2d::Zero();
   Eigen::Matrix2d principal_point_covariance = Eigen::Matrix2d::Zero();
 };
@@ -84,6 +85,11 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
                                                     const ba::BaOptions& options,
                                                     int folds = kDistortionFolds,
                                                     bool estimate_sigma = false);
+
+// The fit's intrinsics (every group) and plate poses (the problem's plate views in order, as in
+// the problem the selection ran on) as `problem`'s initial values: a solve with the fit's model
+// then starts at the plate views' optimum.
+void StartFromFit(const DistortionScore& fit, ba::BaProblem* problem);
 
 // The warning of a solve with distortion model `solved` and principal point (cx, cy) (empty when
 // it is the recommended model or within kPrincipalPointWarnSigma of it).

@@ -133,7 +133,11 @@ void SelectDistortion(const Problem& problem,
     return;
   }
   sol->distortion = *sel;
-  if (config.distortion_auto) analysis::ApplyDistortionModel(sel->recommended, bp);
+  if (config.distortion_auto) {
+    // The solve starts at the recommended model's fit of the plate views.
+    analysis::ApplyDistortionModel(sel->recommended, bp);
+    analysis::StartFromFit(*sel->Score(sel->recommended), bp);
+  }
 }
 
 Status CheckJointConfig(const SolverConfig& config) {

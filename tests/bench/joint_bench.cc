@@ -73,6 +73,7 @@ void BM_JointSelfChecks(benchmark::State& state) {
         return;
       }
       analysis::ApplyDistortionModel(sel->recommended, &p);
+      analysis::StartFromFit(*sel->Score(sel->recommended), &p);
     }
     auto r = ba::SolveBundleAdjustment(p, o);
     if (!r.ok()) {
