@@ -14,7 +14,7 @@
 #include "report/plots.h"
 #include "report/pose_report.h"
 #include "report/relative_tre_report.h"
-#include "report/result_views_json.h"
+#include "report/result_json.h"
 #include "report/lens_report.h"
 #include "report/variance_report.h"
 
@@ -76,10 +76,10 @@ GeometrySet JointSolutionGeometry(const Problem& problem, const JointSolution& s
 namespace {
 
 // Every view: its pose, RMS and, for object views, the covariance and sigmas (the budget's).
-nlohmann::json ViewsJson(const Problem& problem, const JointSolution& s) {
+std::vector<ViewRecord> ViewRecords(const JointSolution& s) {
   const ba::StateLayout& L = *s.result.layout;
   const ba::BaResult& r = s.result;
-  nlohmann::json views = nlohmann::json::array();
+  std::vector<ViewRecord> views;
   for (size_t v = 0; v < s.ba_problem.views.size(); ++v) {
     const ba::BaView& bv = s.ba_problem.views[v];
     const int b = L.view_block(static_cast<int>(v));
@@ -102,14 +102,14 @@ nlohmann::json ViewsJson(const Problem& problem, const JointSolution& s) {
             ba::FindBudgetRow(s.budget, ba::QuantityKey::ViewTranslation(iv, a))->sigma;
       }
     }
-    views.push_back(ViewJson(rec, problem.truth));
+    views.push_back(rec);
   }
   return views;
 }
 
 // The validation pairs' relative rotations and view-direction angles with their sigmas.
-nlohmann::json ValidationJson(const Problem& problem, const JointSolution& s) {
-  nlohmann::json val = nlohmann::json::array();
+std::vector<PairRecord> PairRecords(const Problem& problem, const JointSolution& s) {
+  std::vector<PairRecord> pairs;
   for (size_t k = 0; k < problem.validation.size(); ++k) {
     const auto& vp = problem.validation[k];
     const auto [ia, ib] = s.pairs[k];
@@ -123,9 +123,9 @@ nlohmann::json ValidationJson(const Problem& problem, const JointSolution& s) {
     rec.sigma_relative_rotation_deg = rr->sigma;
     rec.angle_view_dirs_deg = vd->quantity.value;
     rec.sigma_view_dirs_deg = vd->sigma;
-    val.push_back(PairJson(rec, problem.truth));
+    pairs.push_back(rec);
   }
-  return val;
+  return pairs;
 }
 
 nlohmann::json TwoStepComparisonJson(const JointSolution& s) {
@@ -152,48 +152,46 @@ nlohmann::json JointSolutionToJson(const Problem& problem,
                                    const SolverConfig& config,
                                    const JointSolution& s) {
   const ba::StateLayout& L = *s.result.layout;
-  const ba::BaResult& r = s.result;
-  nlohmann::json j;
-  j["problem"] = {{"name", problem.name},
-                  {"file", problem.path},
-                  {"kind", "joint"},
-                  {"plate_views", problem.plate.views.size()},
-                  {"object_views", problem.object_views.size()},
-                  {"plate_sigma_px", problem.plate_sigma_px},
-                  {"object_sigma_px", problem.object_sigma_px},
-                  {"intrinsics_model", IntrinsicsModelName(problem)},
-                  {"initial_intrinsics_from", s.initial_intrinsics_from}};
-  j["warnings"] = JointWarnings(s);
+  ResultContent c;
+  c.problem = {{"name", problem.name},
+               {"file", problem.path},
+               {"kind", "joint"},
+               {"plate_views", problem.plate.views.size()},
+               {"object_views", problem.object_views.size()},
+               {"plate_sigma_px", problem.plate_sigma_px},
+               {"object_sigma_px", problem.object_sigma_px},
+               {"intrinsics_model", IntrinsicsModelName(problem)},
+               {"initial_intrinsics_from", s.initial_intrinsics_from}};
+  c.engine_problem = &s.ba_problem;
+  c.engine_result = &s.result;
+  c.config_name = config.name;
+  c.views = ViewRecords(s);
+  c.validation = PairRecords(problem, s);
+  c.error_budget = s.budget;
+  c.warnings = JointWarnings(s);
+  c.relative_poses = s.relative_poses;
+  c.tre = s.tre;
+  nlohmann::json& k = c.kind_sections;
   if (s.ba_problem.groups.size() == 1) {
-    j["intrinsics"] = GroupJson(s, 0);
+    k["intrinsics"] = GroupJson(s, 0);
   } else {
     nlohmann::json a = nlohmann::json::array();
     for (size_t g = 0; g < s.ba_problem.groups.size(); ++g)
       a.push_back(GroupJson(s, static_cast<int>(g)));
-    j["intrinsics"] = a;
+    k["intrinsics"] = a;
   }
-  j["views"] = ViewsJson(problem, s);
-  AddFlexJson(problem, s, &j);
-  j["validation"] = ValidationJson(problem, s);
-  j["relative_poses"] =
-      RelativePosesJson(s.ba_problem, s.relative_poses, problem.truth.object_poses);
-  if (s.tre) j["tre"] = TreJson(*s.tre);
-  MarkersAndOutliersJson(s.ba_problem, s.result, &j);
   nlohmann::json layout = nlohmann::json::array();
-  for (int k = 0; k < L.num_free(); ++k) layout.push_back(L.FreeName(k));
-  j["state_layout"] = layout;
-  j["error_budget"] = ErrorBudgetJson(s.budget);
-  j["two_step_comparison"] = TwoStepComparisonJson(s);
-  if (!s.comparison_error.empty()) j["two_step_comparison_error"] = s.comparison_error;
-  j["statistics"] = StatisticsJson(s.ba_problem, r);
-  j["variance_components"] = VarianceComponentsJson(r);
-  j["shadow_correction"] = ShadowCorrectionJson(r);
+  for (int i = 0; i < L.num_free(); ++i) layout.push_back(L.FreeName(i));
+  k["state_layout"] = layout;
+  k["two_step_comparison"] = TwoStepComparisonJson(s);
+  if (!s.comparison_error.empty()) k["two_step_comparison_error"] = s.comparison_error;
   if (s.distortion || !s.distortion_error.empty()) {
-    j["distortion_selection"] =
+    k["distortion_selection"] =
         DistortionSelectionJson(s.distortion ? &*s.distortion : nullptr, s.distortion_error,
                                 config.distortion_auto);
   }
-  j["solver"] = SolverJson(config.name, r);
+  nlohmann::json j = ResultJson(c, problem.truth);
+  AddFlexJson(problem, s, &j);  // the flex model's keys in the views and beside them
   return j;
 }
 

@@ -4,11 +4,8 @@
 
 #include "geometry/rotation.h"
 #include "problem/pose_solver.h"
-#include "report/engine_json.h"
 #include "report/pose_report.h"
-#include "report/relative_tre_report.h"
-#include "report/result_views_json.h"
-#include "report/variance_report.h"
+#include "report/result_json.h"
 #include "util/format.h"
 
 namespace carmba {
@@ -34,15 +31,18 @@ std::vector<ba::BudgetRow> PoseErrorBudget(const PoseSolution& s) {
 }
 
 nlohmann::json PoseSolutionToJson(const Problem& problem, const PoseSolution& s) {
-  nlohmann::json j;
-  j["problem"] = {
+  // The engine's problem and result: SolvePoseProblem always sets both.
+  ResultContent c;
+  c.problem = {
       {"name", problem.name},
       {"file", problem.path},
       {"sigma_px", problem.object_sigma_px},
       {"handedness", problem.handedness == Handedness::kMirrored ? "mirrored" : "as_given"},
       {"camera", CameraToJson(*problem.camera)}};
-  const std::string& group = s.ba_problem->groups[0].name;  // SolvePoseProblem sets it
-  nlohmann::json views = nlohmann::json::array();
+  c.engine_problem = s.ba_problem.get();
+  c.engine_result = s.ba_result.get();
+  c.config_name = s.config_name;
+  const std::string& group = s.ba_problem->groups[0].name;
   for (const auto& v : s.views) {
     ViewRecord rec;
     rec.id = v.id;
@@ -55,10 +55,8 @@ nlohmann::json PoseSolutionToJson(const Problem& problem, const PoseSolution& s)
     if (s.has_covariance) rec.covariance = v.covariance;
     rec.sigma_rotation_deg = v.sigma_rotation_deg;
     rec.sigma_translation_mm = v.sigma_translation_mm;
-    views.push_back(ViewJson(rec, problem.truth));
+    c.views.push_back(rec);
   }
-  j["views"] = views;
-  nlohmann::json val = nlohmann::json::array();
   for (const auto& p : s.validation) {
     PairRecord rec;
     rec.a = p.a, rec.b = p.b, rec.expected_deg = p.expected_deg;
@@ -66,34 +64,21 @@ nlohmann::json PoseSolutionToJson(const Problem& problem, const PoseSolution& s)
     rec.sigma_relative_rotation_deg = p.sigma_relative_rotation_deg;
     rec.angle_view_dirs_deg = p.angle_view_dirs_deg;
     rec.sigma_view_dirs_deg = p.sigma_view_dirs_deg;
-    val.push_back(PairJson(rec, problem.truth));
+    c.validation.push_back(rec);
   }
-  j["validation"] = val;
-  // The engine's problem and result: SolvePoseProblem always sets both.
-  const ba::BaProblem& bp = *s.ba_problem;
-  const ba::BaResult& br = *s.ba_result;
-  MarkersAndOutliersJson(bp, br, &j);  // as every problem kind writes them
-  j["statistics"] = StatisticsJson(bp, br);
-  j["statistics"]["rms_px"] = JsonNumber(s.rms_px);
-  j["statistics"]["sigma_aposteriori_px"] = JsonNumber(s.sigma_aposteriori_px);
-  if (s.ba_result) {
-    j["error_budget"] = ErrorBudgetJson(PoseErrorBudget(s));
-    j["variance_components"] = VarianceComponentsJson(*s.ba_result);
-    j["shadow_correction"] = ShadowCorrectionJson(*s.ba_result);
-  }
-  j["warnings"] = PoseWarnings(s);
-  j["solver"] = SolverJson(s.config_name, br);
+  c.error_budget = PoseErrorBudget(s);
+  c.warnings = PoseWarnings(s);
+  c.relative_poses = s.relative_poses;
+  c.tre = s.tre;
+  c.statistics_extra = {{"rms_px", JsonNumber(s.rms_px)},
+                        {"sigma_aposteriori_px", JsonNumber(s.sigma_aposteriori_px)}};
   // Where the pose front end differs: NOT_REFINED and the initial cost for refine: false, and its
   // wall time (initial poses, solve and covariance).
-  j["solver"]["termination"] = s.termination;
-  j["solver"]["final_cost"] = JsonNumber(s.final_cost);
-  j["solver"]["time_s"] = s.time_s;
-  if (s.has_covariance) j["joint_covariance"] = JsonRows(s.joint_covariance);
-  if (s.ba_problem)
-    j["relative_poses"] =
-        RelativePosesJson(*s.ba_problem, s.relative_poses, problem.truth.object_poses);
-  if (s.tre) j["tre"] = TreJson(*s.tre);
-  return j;
+  c.solver_extra = {{"termination", s.termination},
+                    {"final_cost", JsonNumber(s.final_cost)},
+                    {"time_s", s.time_s}};
+  if (s.has_covariance) c.kind_sections["joint_covariance"] = JsonRows(s.joint_covariance);
+  return ResultJson(c, problem.truth);
 }
 
 GeometrySet PoseSolutionGeometry(const Problem& problem, const PoseSolution& s) {

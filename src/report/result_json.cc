@@ -1,8 +1,11 @@
-// result.json's views and validation pairs (result_views_json.h).
-#include "report/result_views_json.h"
+// result.json for pose and joint problems: one writer (result_json.h).
+#include "report/result_json.h"
 
 #include "geometry/rotation.h"
+#include "report/engine_json.h"
 #include "report/pose_report.h"
+#include "report/relative_tre_report.h"
+#include "report/variance_report.h"
 #include "util/format.h"
 
 namespace carmba {
@@ -48,6 +51,32 @@ nlohmann::json PairJson(const PairRecord& p, const ProblemTruth& truth) {
     j["true_relative_rotation_deg"] =
         RelativeRotationAngle(ta->second.data(), tb->second.data()) * kRadToDeg;
   }
+  return j;
+}
+
+nlohmann::json ResultJson(const ResultContent& c, const ProblemTruth& truth) {
+  const ba::BaProblem& bp = *c.engine_problem;
+  const ba::BaResult& br = *c.engine_result;
+  nlohmann::json j;
+  j["problem"] = c.problem;
+  j["warnings"] = c.warnings;
+  nlohmann::json views = nlohmann::json::array();
+  for (const ViewRecord& v : c.views) views.push_back(ViewJson(v, truth));
+  j["views"] = views;
+  nlohmann::json validation = nlohmann::json::array();
+  for (const PairRecord& p : c.validation) validation.push_back(PairJson(p, truth));
+  j["validation"] = validation;
+  j["relative_poses"] = RelativePosesJson(bp, c.relative_poses, truth.object_poses);
+  if (c.tre) j["tre"] = TreJson(*c.tre);
+  MarkersAndOutliersJson(bp, br, &j);
+  j["error_budget"] = ErrorBudgetJson(c.error_budget);
+  j["statistics"] = StatisticsJson(bp, br);
+  j["statistics"].update(c.statistics_extra);
+  j["variance_components"] = VarianceComponentsJson(br);
+  j["shadow_correction"] = ShadowCorrectionJson(br);
+  j["solver"] = SolverJson(c.config_name, br);
+  j["solver"].update(c.solver_extra);
+  j.update(c.kind_sections);
   return j;
 }
 

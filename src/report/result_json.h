@@ -1,7 +1,7 @@
-// result.json's views and validation pairs, written by one writer for every problem kind: the
-// front ends' solutions (pose: report/pose_json.cc; joint: report/joint_report.cc) fill records,
-// and these functions write the keys, so that a view or a pair has the same keys in every
-// result.json.
+// result.json, written by one writer for every problem kind that solves with the engine (pose and
+// joint problems): the front ends' writers (pose: report/pose_json.cc; joint:
+// report/joint_report.cc) fill a ResultContent with records of their views and pairs, and
+// ResultJson writes the file's sections with one set of keys.
 #pragma once
 
 #include <Eigen/Core>
@@ -9,6 +9,12 @@
 #include <optional>
 #include <string>
 
+#include <vector>
+
+#include "analysis/relative_pose.h"
+#include "analysis/tre.h"
+#include "ba/bundle_adjuster.h"
+#include "ba/quantities.h"
 #include "geometry/pose.h"
 #include "problem/problem.h"
 
@@ -50,5 +56,32 @@ struct PairRecord {
 // sigma_view_dirs_deg, expected_deg (null when not given)}, and true_relative_rotation_deg where
 // `truth` has both views.
 nlohmann::json PairJson(const PairRecord& pair, const ProblemTruth& truth);
+
+// What a problem kind's solution puts into result.json.
+struct ResultContent {
+  nlohmann::json problem;  // "problem": the file and what the kind states of it
+  // The engine's problem and result (required): markers, outliers, statistics, variance
+  // components, shadow correction, solver.
+  const ba::BaProblem* engine_problem = nullptr;
+  const ba::BaResult* engine_result = nullptr;
+  std::string config_name;
+  std::vector<ViewRecord> views;
+  std::vector<PairRecord> validation;
+  std::vector<ba::BudgetRow> error_budget;
+  std::vector<std::string> warnings;
+  std::vector<analysis::RelativePoseEstimate> relative_poses;
+  std::optional<analysis::TreResult> tre;
+  // The kind's additions to "statistics" and "solver" (key by key), and the sections only one
+  // kind has (joint: intrinsics, state_layout, two_step_comparison, distortion_selection; pose:
+  // joint_covariance).
+  nlohmann::json statistics_extra = nlohmann::json::object();
+  nlohmann::json solver_extra = nlohmann::json::object();
+  nlohmann::json kind_sections = nlohmann::json::object();
+};
+
+// The whole result.json: problem, warnings, views, validation, relative_poses, tre (when
+// computed), markers, outliers, rejected, error_budget, statistics, variance_components,
+// shadow_correction, solver, and the kind's sections.
+nlohmann::json ResultJson(const ResultContent& content, const ProblemTruth& truth);
 
 }  // namespace carmba
