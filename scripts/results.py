@@ -29,7 +29,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TEMPLATE = os.path.join(ROOT, "src/docs/results.md.in")
 FIGURES = os.path.join(ROOT, "src/docs/results_figures.json")
 RESULTS = os.path.join(ROOT, "src/docs/results.md")
-PLACEHOLDER = re.compile(r"\{\{([a-z0-9_]+\.[a-z0-9_]+)\}\}")
+# A figure in the template: {{section.name}}, or {{measured}} (the commit and date of the figures).
+FIGURE_REF = re.compile(r"\{\{([a-z0-9_.]+)\}\}")
 
 
 def load_json(path):
@@ -242,7 +243,7 @@ def render_text():
         template = fh.read()
     doc = load_json(FIGURES)
     figures = doc["figures"]
-    used = PLACEHOLDER.findall(template)
+    used = [k for k in FIGURE_REF.findall(template) if k != "measured"]
     unknown = sorted(set(used) - set(figures))
     unused = sorted(set(figures) - set(used))
     twice = sorted({k for k in used if used.count(k) > 1})
@@ -256,7 +257,7 @@ def render_text():
     out = []
     for kind, lines in units(template.split("\n")):
         text = "\n".join(lines)
-        filled = re.sub(r"\{\{([a-z0-9_.]+)\}\}", lambda mo: figures[mo.group(1)], text)
+        filled = FIGURE_REF.sub(lambda mo: figures[mo.group(1)], text)
         if filled != text and kind in ("paragraph", "item"):
             first = "- " if kind == "item" else ""
             body = " ".join(filled.split())[len(first):]
@@ -278,7 +279,8 @@ def units(lines):
         if line.startswith("```"):
             fence = not fence
             result.append(["other", [line]])
-        elif fence or not line.strip() or re.match(r"[|#<]|\d+\. |\{\{[a-z0-9_.]+\}\}$", line):
+        elif (fence or not line.strip() or re.match(r"[|#<]|\d+\. ", line)
+              or FIGURE_REF.fullmatch(line)):
             result.append(["other", [line]])
         elif line.startswith("- "):
             result.append(["item", [line]])

@@ -312,9 +312,12 @@ Status LoadCalibrateConfig(const std::string& path, CalibrationOptions* options,
 
 // The plate views, from a --problem or from the flags, into run (and the problem's options into
 // options; an older problem's config read). mrcal's interpreter starts once the config is known.
-Status ReadPlateViews(CalibrateInputs* in, CalibrationOptions* options, DetectionOptions* detect,
-                      CrossCheckConfig* cross, std::unique_ptr<PythonWorker>* mrcal_python,
-                      CalibrationRun* run) {
+Status CalibrationPlateViews(CalibrateInputs* in,
+                             CalibrationOptions* options,
+                             DetectionOptions* detect,
+                             CrossCheckConfig* cross,
+                             std::unique_ptr<PythonWorker>* mrcal_python,
+                             CalibrationRun* run) {
   const bool config_given = !in->config.empty();
   if (config_given && cross->mrcal) *mrcal_python = StartMrcalPython(cross->python);
   if (FLAGS_problem.empty()) {
@@ -363,7 +366,7 @@ int RunCalibrate() {
   PlotProcess plots(plot_options);
   std::unique_ptr<PythonWorker> mrcal_python;
   CalibrationRun run;
-  if (const Status s = ReadPlateViews(&in, &options, &detect, &cross, &mrcal_python, &run);
+  if (const Status s = CalibrationPlateViews(&in, &options, &detect, &cross, &mrcal_python, &run);
       !s.ok()) {
     return cli::Fail(kCmd, s);
   }
