@@ -8,7 +8,6 @@
 #include <gflags/gflags.h>
 
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <sstream>
 
@@ -19,6 +18,7 @@
 #include "report/plots.h"
 #include "report/pose_report.h"
 #include "util/file_util.h"
+#include "util/image_codecs.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
 
@@ -150,7 +150,7 @@ int RunPose() {
       name = first.substr(0, first.size() - 4) + "_" + std::to_string(k) + ".png";
     }
     const cv::Mat overlay = DrawMarkerOverlay(v, *camera, *markers, pose);
-    if (!cv::imwrite(JoinPath(staged.path(), name), overlay)) {
+    if (!ImWrite(JoinPath(staged.path(), name), overlay)) {
       s = Status::Error(JoinPath(FLAGS_out, name) + ": cannot write the overlay");
     }
   }

@@ -4,15 +4,15 @@
 
 #include <filesystem>
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 #include <set>
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
-#include "io/image_files.h"
 #include "export/undistort.h"
+#include "io/image_files.h"
 #include "util/file_util.h"
+#include "util/image_codecs.h"
 
 namespace {
 
@@ -79,7 +79,7 @@ int RunUndistort() {
       const std::string path = JoinPath(staged.path(), name);
       bool ok = false;
       try {
-        ok = cv::imwrite(path, *out);
+        ok = ImWrite(path, *out);
       } catch (const cv::Exception&) {
         ok = false;
       }

@@ -1,10 +1,9 @@
 #include "io/image_files.h"
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <filesystem>
 #include <set>
 
+#include "util/image_codecs.h"
 #include "util/image_header.h"
 #include "util/quiet_stderr.h"
 
@@ -27,7 +26,7 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
     // libpng / libtiff print their own diagnostics on a corrupt file; the Status below is the
     // one-line message.
     QuietStderr quiet;
-    m = cv::imread(path, cv::IMREAD_UNCHANGED);
+    m = ImRead(path, cv::IMREAD_UNCHANGED);
   } catch (const cv::Exception& e) {
     return Status::Error(path + ": unreadable image (" + e.what() + ")");
   }

@@ -1,12 +1,10 @@
 #include "report/calibration_report.h"
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <opencv2/core.hpp>
 #include <sstream>
 
 #include "calib/conditioning.h"
@@ -20,6 +18,7 @@
 #include "report/lens_report.h"
 #include "util/file_util.h"
 #include "util/format.h"
+#include "util/image_codecs.h"
 
 namespace carmba {
 
@@ -615,7 +614,7 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
       std::snprintf(prefix, sizeof(prefix), "%03zu_", i);
       const std::string path = JoinPath(dir, prefix + stem + ".png");
       try {
-        if (!cv::imwrite(path, DrawDetectionOverlay(*image, run.observations.grid, d))) {
+        if (!ImWrite(path, DrawDetectionOverlay(*image, run.observations.grid, d))) {
           return Status::Error(path + ": cannot write the overlay");
         }
       } catch (const cv::Exception& e) {

@@ -5,14 +5,14 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "geometry/rotation.h"
-#include "util/format.h"
 #include "util/base64.h"
 #include "util/file_util.h"
+#include "util/format.h"
+#include "util/image_codecs.h"
 
 namespace carmba {
 
@@ -149,7 +149,7 @@ std::string TrackOverlayName(const TrackResult& r, size_t i) {
 
 cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
   const TrackImage& im = r.images[i];
-  cv::Mat grey = cv::imread(im.path, cv::IMREAD_GRAYSCALE);
+  cv::Mat grey = ImRead(im.path, cv::IMREAD_GRAYSCALE);
   if (grey.empty()) return grey;
   cv::Mat out;
   cv::cvtColor(grey, out, cv::COLOR_GRAY2BGR);
@@ -457,7 +457,7 @@ std::vector<ReportPlot> TrackOverlayPlots(const TrackResult& r,
     box = box.area() == 0 ? cv::Rect(0, 0, overlays[i].cols, overlays[i].rows)
                           : box & cv::Rect(0, 0, overlays[i].cols, overlays[i].rows);
     std::vector<uint8_t> png;
-    if (!cv::imencode(".png", overlays[i](box), png)) continue;
+    if (!ImEncode(".png", overlays[i](box), &png)) continue;
     ReportPlot p;
     p.id = "overlay-" + std::to_string(i);
     p.title =
@@ -488,7 +488,7 @@ Status WriteTrackOutputs(const TrackResult& r,
   for (size_t i = 0; i < r.images.size(); ++i) {
     overlays.push_back(DrawTrackOverlay(r, i));
     const std::string path = JoinPath(dir, TrackOverlayName(r, i));
-    if (overlays.back().empty() || !cv::imwrite(path, overlays.back()))
+    if (overlays.back().empty() || !ImWrite(path, overlays.back()))
       return Status::Error(path + ": cannot be written");
   }
   const ReportDoc doc = TrackReportDoc(r, targets);

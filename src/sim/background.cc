@@ -3,13 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
 #include "io/dicom_xray.h"
 #include "sim/xray_render.h"
 #include "util/file_util.h"
+#include "util/image_codecs.h"
 #include "util/image_header.h"
 #include "util/quiet_stderr.h"
 
@@ -43,7 +43,7 @@ StatusOr<cv::Mat> LoadBackgroundGain(
     cv::Mat raw;
     {
       QuietStderr quiet;
-      raw = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+      raw = ImRead(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
     }
     if (raw.empty()) return Status::Error(path + ": not an image OpenCV can read");
     raw.convertTo(frame, CV_32F);

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "camera/camera_model.h"
+#include "util/image_codecs.h"
 #include "util/plausible.h"
 #include "util/random.h"
 
@@ -488,7 +488,7 @@ Status WriteImage(const std::string& path, const cv::Mat& image) {
     return Status::Error(path + ": image must be 8- or 16-bit single channel");
   }
   try {
-    if (!cv::imwrite(path, image)) return Status::Error(path + ": cannot write image");
+    if (!ImWrite(path, image)) return Status::Error(path + ": cannot write image");
   } catch (const cv::Exception& e) {
     return Status::Error(path + ": cannot write image: " + e.what());
   }

@@ -1,4 +1,3 @@
-#include "geometry/rotation.h"
 #include "track/track.h"
 
 #include <Eigen/Geometry>
@@ -8,14 +7,14 @@
 #include <functional>
 #include <limits>
 #include <numeric>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <set>
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "ba/bundle_adjuster.h"
 #include "detect/blob_pair_fit.h"
+#include "geometry/rotation.h"
+#include "util/image_codecs.h"
 #include "util/plausible.h"
 #include "util/random.h"
 #include "util/stats.h"
@@ -806,7 +805,7 @@ StatusOr<TrackResult> Track(const std::vector<TrackCamera>& cameras,
     for (size_t c = 0; c < cameras.size(); ++c) {
       const std::string& path = frames[f].image_per_camera[c];
       if (path.empty()) continue;
-      const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+      const cv::Mat image = ImRead(path, cv::IMREAD_UNCHANGED);
       if (image.empty()) return Status::Error(path + ": cannot be read as an image");
       if (image.cols != cameras[c].width || image.rows != cameras[c].height) {
         return Status::Error(path + ": " + std::to_string(image.cols) + " x " +

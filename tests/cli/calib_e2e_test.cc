@@ -3,26 +3,24 @@
 // chessboard photos, and bad inputs (each: clear one-line error, non-zero exit, no output).
 #include <gtest/gtest.h>
 
-#include <opencv2/imgcodecs.hpp>
-
-#include <iostream>
-
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <regex>
+#include <iostream>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
 
 #include "calib/calibrate.h"
-#include "synthetic/synthetic_views.h"
 #include "camera/camera.h"
+#include "cli_test_util.h"
 #include "detect/observations.h"
 #include "report_browser.h"
 #include "scratch.h"
-#include "cli_test_util.h"
+#include "synthetic/synthetic_views.h"
+#include "util/image_codecs.h"
 
 namespace {
 
@@ -143,7 +141,7 @@ void CheckSimulatedCalibration(const std::string& scene, const std::string& glob
     std::snprintf(name, sizeof(name), "%03zu_", i);
     const std::string overlay =
         out + "/overlays/" + name + fs::path(file).stem().string() + ".png";
-    const cv::Mat o = cv::imread(overlay, cv::IMREAD_UNCHANGED);
+    const cv::Mat o = carmba::ImRead(overlay, cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(o.empty()) << overlay;
     EXPECT_EQ(o.type(), CV_8UC3);
     EXPECT_EQ(o.cols, truth["camera"]["image_size"][0].get<int>());

@@ -8,12 +8,12 @@
 #include <algorithm>
 #include <filesystem>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "cli/cli_test_util.h"
 #include "detect/observations.h"
 #include "io/dicom_xray.h"
 #include "sim/xray_scene.h"
+#include "util/image_codecs.h"
 
 namespace carmba {
 namespace {
@@ -40,7 +40,7 @@ void RenderBoth(const ScratchDir& dir) {
     ASSERT_TRUE(v.ok()) << v.status().message();
     char name[32];
     std::snprintf(name, sizeof(name), "png/view_%02d.png", i + 1);
-    ASSERT_TRUE(cv::imwrite(dir.File(name), v->image));
+    ASSERT_TRUE(carmba::ImWrite(dir.File(name), v->image));
     frames.push_back(v->image);
   }
   DicomXrayWriteOptions o;

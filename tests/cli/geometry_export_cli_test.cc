@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "camera/camera_model.h"
 #include "cli_test_util.h"
@@ -13,6 +12,7 @@
 #include "export/view_geometry.h"
 #include "geometry/rotation.h"
 #include "io/dicom_xray.h"
+#include "util/image_codecs.h"
 
 namespace carmba::test {
 namespace {
@@ -153,14 +153,14 @@ TEST(UndistortCli, SixteenBitImagesAndDicomFramesKeepTheirDepth) {
   for (int v = 0; v < 48; ++v) {
     for (int u = 0; u < 64; ++u) img.at<uint16_t>(v, u) = static_cast<uint16_t>(300 * u + 17 * v);
   }
-  ASSERT_TRUE(cv::imwrite(dir.File("in/a.png"), img));
+  ASSERT_TRUE(carmba::ImWrite(dir.File("in/a.png"), img));
   DicomXrayWriteOptions o;
   ASSERT_TRUE(WriteDicomXray(dir.File("in/run.dcm"), {img, img}, o).ok());
   const auto r = RunCarmba("undistort --images " + dir.File("in") + " --camera " +
                            dir.File("camera.json") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* f : {"a.png", "run_frame1.png", "run_frame2.png"}) {
-    const cv::Mat m = cv::imread(dir.File(std::string("out/") + f), cv::IMREAD_UNCHANGED);
+    const cv::Mat m = carmba::ImRead(dir.File(std::string("out/") + f), cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(m.empty()) << f;
     EXPECT_EQ(m.type(), CV_16UC1) << f;
     EXPECT_EQ(m.size(), img.size()) << f;
@@ -176,8 +176,8 @@ TEST(UndistortCli, BadInputIsOneLineAndNoOutput) {
   dir.Write("camera.json",
             "{\"image_size\": [64, 48], \"fx\": 300, \"fy\": 320, \"cx\": 31.5, \"cy\": 23.5}");
   std::filesystem::create_directories(dir.File("in"));
-  ASSERT_TRUE(cv::imwrite(dir.File("in/a.png"), cv::Mat(48, 64, CV_16UC1, cv::Scalar(5))));
-  ASSERT_TRUE(cv::imwrite(dir.File("in/b.png"), cv::Mat(40, 64, CV_16UC1, cv::Scalar(5))));
+  ASSERT_TRUE(carmba::ImWrite(dir.File("in/a.png"), cv::Mat(48, 64, CV_16UC1, cv::Scalar(5))));
+  ASSERT_TRUE(carmba::ImWrite(dir.File("in/b.png"), cv::Mat(40, 64, CV_16UC1, cv::Scalar(5))));
   auto expect_error = [&](const std::string& args, const std::string& expected) {
     const auto r = RunCarmba("undistort " + args + " --out " + dir.File("out"));
     EXPECT_NE(r.exit_code, 0) << args;

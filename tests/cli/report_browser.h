@@ -16,14 +16,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/core.hpp>
 #include <regex>
 #include <sstream>
 #include <string>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 #include "cli_test_util.h"
+#include "util/image_codecs.h"
 
 namespace carmba::test {
 
@@ -81,7 +80,7 @@ inline bool RenderInChromium(const std::string& chromium, const std::string& htm
     r->images_total = std::stoi(m[1]);
   }
   r->js_error = std::regex_search(r->dom, std::regex("<body[^>]*data-js-error"));
-  const cv::Mat grey = cv::imread(dir + "/shot.png", cv::IMREAD_GRAYSCALE);
+  const cv::Mat grey = carmba::ImRead(dir + "/shot.png", cv::IMREAD_GRAYSCALE);
   if (grey.empty()) {
     ADD_FAILURE() << "no screenshot: " << ReadTextFile(dir + "/shot.log");
     return false;

@@ -7,11 +7,11 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
 
 #include "cli_test_util.h"
+#include "util/image_codecs.h"
 
 namespace {
 
@@ -41,7 +41,7 @@ TEST(SimulateCli, ThesisPoseWritesImagesAndTruth) {
   EXPECT_EQ(truth["object"]["sphere_ids"].size(), 9u);
   for (const auto& v : truth["views"]) {
     const cv::Mat img =
-        cv::imread((out / v["file"].get<std::string>()).string(), cv::IMREAD_UNCHANGED);
+        carmba::ImRead((out / v["file"].get<std::string>()).string(), cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(img.empty()) << v["file"];
     EXPECT_EQ(img.cols, 408);
     EXPECT_EQ(img.type(), CV_8U);

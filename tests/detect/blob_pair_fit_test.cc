@@ -2,15 +2,16 @@
 // with Poisson-like noise, 8-bit: both centres within their covariances over seeded trials (NEES
 // per dof), one blob or a faint second one refused with the reason. And the marker detector's
 // ring-noise floor: beads beside skin edges clipped at 255 in a real radiograph get a covariance.
+#include "detect/blob_pair_fit.h"
+
 #include <gtest/gtest.h>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
-#include "detect/blob_pair_fit.h"
 #include "detect/marker_blobs.h"
 #include "geometry/random_vector.h"
+#include "util/image_codecs.h"
 
 namespace carmba {
 namespace {
@@ -98,7 +99,7 @@ TEST(MarkerBlobs, EveryBeadOfARealRadiographHasACovariance) {
   // zero covariance (the ring's noise measured as 0) before the floor.
   const std::string path = std::string(CARMBA_SOURCE_DIR) +
                            "/data/real/autoscoper-wrist/images/cam02/xr_rad_uln_cam02_UND.0099.tif";
-  const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  const cv::Mat image = carmba::ImRead(path, cv::IMREAD_UNCHANGED);
   ASSERT_FALSE(image.empty()) << path;
   MarkerBlobOptions o;
   o.diameter_px = {4.4, 9.2};

@@ -5,14 +5,14 @@
 
 #include <filesystem>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 
 #include "detect/grid_detector.h"
-#include "io/image_files.h"
 #include "io/dicom_xray.h"
+#include "io/image_files.h"
+#include "scratch.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
-#include "scratch.h"
+#include "util/image_codecs.h"
 
 namespace carmba {
 namespace {
@@ -74,7 +74,7 @@ TEST(DicomDetect, SimulatedPlateSamePointsFromDicomAsFromPng) {
   for (int i = 0; i < kViews; ++i) {
     png.push_back(dir.File("view_" + std::to_string(i) + ".png"));
     dcm.push_back(dir.File("view_" + std::to_string(i) + ".dcm"));
-    ASSERT_TRUE(cv::imwrite(png.back(), r.images[i]));
+    ASSERT_TRUE(carmba::ImWrite(png.back(), r.images[i]));
     DicomXrayWriteOptions o;
     o.geometry.sid_mm = 1000;
     ASSERT_TRUE(WriteDicomXray(dcm.back(), {r.images[i]}, o).ok());
@@ -171,7 +171,7 @@ TEST(DicomDetect, FramesOfAMultiFrameFileAreViews) {
 TEST(DicomDetect, DirectoryListingTakesDicomFilesWithAndWithoutExtension) {
   ScratchDir dir;
   const cv::Mat img(10, 12, CV_8UC1, cv::Scalar(5));
-  ASSERT_TRUE(cv::imwrite(dir.File("a.png"), img));
+  ASSERT_TRUE(carmba::ImWrite(dir.File("a.png"), img));
   ASSERT_TRUE(WriteDicomXray(dir.File("b.DCM"), {img}, DicomXrayWriteOptions()).ok());
   ASSERT_TRUE(WriteDicomXray(dir.File("c"), {img}, DicomXrayWriteOptions()).ok());  // no extension
   ASSERT_TRUE(WriteDicomXray(dir.File("c.IMA"), {img}, DicomXrayWriteOptions()).ok());  // Siemens

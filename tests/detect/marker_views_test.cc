@@ -3,26 +3,26 @@
 // simulator's clutter scene (configs/scenes/markers_clutter.yaml: anatomy, 2 spurious steel beads,
 // a steel wire, a marker outside the field of view, two overlapping markers) and on synthetic
 // geometry. All seeded.
-#include <gtest/gtest.h>
+#include "detect/marker_views.h"
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
+#include <gtest/gtest.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <sstream>
 
 #include "detect/marker_blobs.h"
-#include "detect/marker_views.h"
 #include "geometry/random_vector.h"
+#include "marker_test_util.h"
 #include "pose/marker_correspondence.h"
+#include "scratch.h"
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
-#include "marker_test_util.h"
-#include "scratch.h"
+#include "util/image_codecs.h"
 
 namespace carmba {
 namespace {
@@ -559,7 +559,7 @@ TEST(MarkerViews, ViewWithFewerThanFourMarkersIsSkippedOthersGoOn) {
   nlohmann::json truth;
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   const std::string few = JoinPath(dir, "few.png");
-  ASSERT_TRUE(cv::imwrite(few, DiscImage(3, 1)));
+  ASSERT_TRUE(carmba::ImWrite(few, DiscImage(3, 1)));
   auto views =
       DetectAndLabelObjectViews({JoinPath(dir, truth["views"][0]["file"].get<std::string>()), few},
                                 scene->camera,

@@ -20,10 +20,9 @@
 #include <iostream>
 #include <random>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "detect/recall_scenes.h"
 #include "test_env.h"
+#include "util/image_codecs.h"
 
 namespace carmba {
 namespace {
@@ -70,8 +69,8 @@ TEST(DetectionRecall, IntensifierEffectsAndAnatomy) {
       if (const char* dir = std::getenv("CARMBA_RECALL_DUMP")) {  // for looking at the views
         cv::Mat shown;
         cv::normalize(image, shown, 0, 255, cv::NORM_MINMAX, CV_8U);
-        cv::imwrite(std::string(dir) + "/" + std::to_string(seed) + ".png", shown);
-        cv::imwrite(std::string(dir) + "/" + std::to_string(seed) + "_16.png", image);
+        carmba::ImWrite(std::string(dir) + "/" + std::to_string(seed) + ".png", shown);
+        carmba::ImWrite(std::string(dir) + "/" + std::to_string(seed) + "_16.png", image);
         std::ofstream tf(std::string(dir) + "/" + std::to_string(seed) + "_truth.txt");
         for (const auto& q : truth.centres_px) tf << q.x() << " " << q.y() << "\n";
       }

@@ -10,12 +10,12 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "io/dicom_xray.h"
+#include "scratch.h"
 #include "sim/xray_render.h"
 #include "sim/xray_scene.h"
-#include "scratch.h"
+#include "util/image_codecs.h"
 
 namespace carmba::sim {
 namespace {
@@ -257,7 +257,7 @@ TEST(DicomBackground, FrameOfAMultiFrameFileAsFromPng) {
       }
     }
     frames.push_back(m);
-    ASSERT_TRUE(cv::imwrite(dir + "/f" + std::to_string(k + 1) + ".png", m));
+    ASSERT_TRUE(carmba::ImWrite(dir + "/f" + std::to_string(k + 1) + ".png", m));
   }
   const std::string dcm = dir + "/bg.dcm";
   ASSERT_TRUE(WriteDicomXray(dcm, frames, DicomXrayWriteOptions()).ok());

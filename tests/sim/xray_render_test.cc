@@ -8,11 +8,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 
 #include "camera/camera_model.h"
-#include "sim/phantom.h"
 #include "scratch.h"
+#include "sim/phantom.h"
+#include "util/image_codecs.h"
 
 namespace carmba::sim {
 namespace {
@@ -347,7 +347,7 @@ TEST(XrayRender, ImagesWrittenAndReadBackAreIdentical) {
     ASSERT_EQ(out.depth(), bits == 16 ? CV_16U : CV_8U);
     const std::string path = dir + "/img" + std::to_string(bits) + "." + ext;
     ASSERT_TRUE(WriteImage(path, out).ok());
-    const cv::Mat back = cv::imread(path, cv::IMREAD_UNCHANGED);
+    const cv::Mat back = carmba::ImRead(path, cv::IMREAD_UNCHANGED);
     ASSERT_EQ(back.type(), out.type()) << path;
     EXPECT_EQ(cv::norm(back, out, cv::NORM_INF), 0.0) << path;
     // The written grey is the float grey rounded and saturated.
