@@ -12,7 +12,8 @@
 # It submits:
 #   1. an array job of NUM_SHARDS tasks (--array=1-N). Task K runs
 #        carmba study --study STUDY_YAML --out OUT_DIR/shard-K --shard K/N \
-#                     --jobs $SLURM_CPUS_PER_TASK --resume
+#                     --jobs $SLURM_CPUS_PER_TASK --resume --no-plots
+#      (a shard's report.html has no plots: the merged report draws them from all runs).
 #      Each run inside is single-threaded, so --cpus-per-task cores are used in parallel.
 #      The task's exit code is carmba study's: a shard with failed runs (beyond the study's
 #      allow_failures) exits 1 and is a FAILED array task, so the merge never starts.
@@ -50,7 +51,7 @@ if [[ "${1:-}" == "--task" ]]; then
   echo "slurm_study.sh: shard $k/$shards attempt $((${SLURM_RESTART_COUNT:-0} + 1)) (job" \
     "${SLURM_JOB_ID:-?}) on $(hostname) at $(date -u +%FT%TZ)"
   exec "$CARMBA" study --study="$study" --out="$out/shard-$k" --shard="$k/$shards" \
-    --jobs="${SLURM_CPUS_PER_TASK:-1}" --resume
+    --jobs="${SLURM_CPUS_PER_TASK:-1}" --resume --no-plots
 fi
 
 if [[ $# -lt 3 ]]; then

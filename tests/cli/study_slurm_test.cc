@@ -70,8 +70,8 @@ echo $RANDOM
   for (int k = 1; k <= 3; ++k) {
     EXPECT_TRUE(FileExists(dir + "/out/shard-" + std::to_string(k) + "/runs.jsonl")) << k;
   }
-  ASSERT_EQ(SlurmShell("'" + kSlurmBin + "' study --study='" + study + "' --out='" + dir +
-                       "/whole'" + log),
+  ASSERT_EQ(SlurmShell("'" + kSlurmBin + "' study --no-plots --study='" + study + "' --out='" +
+                       dir + "/whole'" + log),
             0)
       << ReadSlurmFile(dir + "/log.txt");
   EXPECT_EQ(ReadSlurmFile(dir + "/out/merged/summary.csv"),

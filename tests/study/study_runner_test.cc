@@ -67,10 +67,14 @@ struct Fixture {
   }
 };
 
+// Runs the study of testing::MeanRun; report.html without its plots (no matplotlib process) unless
+// `plots` (ReportHasEveryPlotKind draws them).
 Status RunMean(const StudySpec& spec, const std::string& out, int jobs, bool resume = false,
-           int shard_k = 1, int shard_n = 1, StudyRunStats* stats = nullptr) {
+               int shard_k = 1, int shard_n = 1, StudyRunStats* stats = nullptr,
+               bool plots = false) {
   StudyRunOptions o;
   o.out_dir = out;
+  o.plots = plots;
   o.jobs = jobs;
   o.resume = resume;
   o.shard_k = shard_k;
@@ -447,7 +451,7 @@ TEST(StudyRunnerTest, SummaryStatisticsMatchTheory) {
 
 TEST(StudyRunnerTest, ReportHasEveryPlotKind) {
   Fixture f(4);
-  ASSERT_TRUE(RunMean(f.Spec(), f.dir + "/out", 2).ok());
+  ASSERT_TRUE(RunMean(f.Spec(), f.dir + "/out", 2, false, 1, 1, nullptr, /*plots=*/true).ok());
   const std::string html = Read(f.dir + "/out/report.html");
   for (const char* kind :
        {"error-vs-noise", "sigma-consistency", "residual-histogram", "error-budget"}) {
