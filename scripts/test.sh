@@ -19,7 +19,11 @@ trap report_times EXIT
 step env CARMBA_WITH_BROWSER="${CARMBA_WITH_BROWSER:-1}" bash scripts/setup.sh
 step bash scripts/build.sh
 BUILD_DIR=${CARMBA_BUILD_DIR:-build}
-step ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}" --timeout 900
+# One test more than cores: some tests spend seconds waiting (a Slurm cluster scheduling, Chromium,
+# a Python plot process), and the next test fills that core. On 2 cores: -j2 389 s, -j3 341 s,
+# -j4 355 s (src/docs/speed.md).
+step ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(($(nproc) + 1))}" \
+  --timeout 900
 # The fuzz harnesses (tests/fuzz/README.md): the readers of outside input built with clang,
 # ASan + UBSan and libFuzzer's coverage in their own directory (only the sources the harnesses
 # link; -O0 without debug information, which compiles fastest: reports name functions, not
