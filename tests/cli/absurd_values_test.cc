@@ -53,7 +53,7 @@ class AbsurdInput : public ::testing::Test {
   }
   std::string Calibrate(const std::string& obs_csv_text) {
     dir_.Write("bad_obs.csv", obs_csv_text);
-    return "calibrate --nomrcal --noopencv --observations " + dir_.File("bad_obs.csv");
+    return "calibrate --nomrcal --noopencv --no-plots --observations " + dir_.File("bad_obs.csv");
   }
   ScratchDir dir_;
   std::string obs_csv_;

@@ -60,16 +60,19 @@ std::string Simulated(const std::string& scene) {
 }
 
 // The acceptance checks every simulated scene must pass.
-void CheckSimulatedCalibration(const std::string& scene, const std::string& glob) {
+// `flags` are added to the command (" --no-plots" where the plots are not looked at).
+void CheckSimulatedCalibration(const std::string& scene,
+                               const std::string& glob,
+                               const std::string& flags = "") {
   const std::string sim = Simulated(scene);
   const std::string out = Tmp("out_" + scene);
   fs::remove_all(out);
   const nlohmann::json truth = Json(sim + "/truth.json");
   CliRun r = Carmba("calibrate --images '" + sim + "/" + glob + "' --pattern circles --rows " +
-                 std::to_string(truth["object"]["rows"].get<int>()) + " --cols " +
-                 std::to_string(truth["object"]["cols"].get<int>()) + " --spacing_mm " +
-                 std::to_string(truth["object"]["pitch_mm"].get<double>()) + " --truth " + sim +
-                 "/truth.json --out " + out);
+                    std::to_string(truth["object"]["rows"].get<int>()) + " --cols " +
+                    std::to_string(truth["object"]["cols"].get<int>()) + " --spacing_mm " +
+                    std::to_string(truth["object"]["pitch_mm"].get<double>()) + " --truth " + sim +
+                    "/truth.json" + flags + " --out " + out);
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* f : {"camera.json", "camera.cameramodel", "camera_opencv.yml",
                         "observations.csv", "corners.vnl", "report.md", "report.html"}) {
@@ -163,7 +166,7 @@ TEST(CalibE2E, ThesisCalibrationScene) {
 }
 
 TEST(CalibE2E, PincushionSevenBySixScene) {
-  CheckSimulatedCalibration("calib_7x6_pincushion", "*.png");
+  CheckSimulatedCalibration("calib_7x6_pincushion", "*.png", " --no-plots");
 }
 
 // The Monte Carlo on the scenes' geometry is tests/calib/scene_monte_carlo_test.cc.
@@ -172,9 +175,11 @@ TEST(CalibE2E, ThesisConfigHoldsTheThesisConstraints) {
   const std::string sim = Simulated("thesis_calibration");
   const std::string out = Tmp("out_thesis_cfg");
   fs::remove_all(out);
-  CliRun r = Carmba("calibrate --images '" + sim + "/*.png' --pattern circles --rows 5 --cols 5 "
-                 "--spacing_mm 20 --config " + std::string(CARMBA_SOURCE_DIR) +
-                 "/configs/calib_thesis.yaml --out " + out);
+  CliRun r =
+      Carmba("calibrate --images '" + sim +
+             "/*.png' --pattern circles --rows 5 --cols 5 "
+             "--spacing_mm 20 --config " +
+             std::string(CARMBA_SOURCE_DIR) + "/configs/calib_thesis.yaml --no-plots --out " + out);
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json cam = Json(out + "/camera.json");
   EXPECT_DOUBLE_EQ(cam["cx"].get<double>(), 203.5);
@@ -197,7 +202,8 @@ TEST(CalibE2E, DetectThenCalibrateFromObservations) {
                     "/*.png' --pattern circles --rows 5 --cols 5 --out " + csv);
   ASSERT_EQ(d.code, 0) << d.err;
   EXPECT_NE(d.out.find("found the grid in 20 of 20"), std::string::npos) << d.out;
-  CliRun r = Carmba("calibrate --observations " + csv + " --out " + out + " --nomrcal --noopencv");
+  CliRun r = Carmba("calibrate --observations " + csv + " --out " + out +
+                    " --nomrcal --noopencv --no-plots");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(carmba::test::ReadTextFile(out + "/report.md").find("Not run: disabled"),
             std::string::npos);
@@ -208,7 +214,7 @@ TEST(CalibE2E, OpenCvChessboardPhotosAgreeWithOpenCvAndMrcal) {
   fs::remove_all(out);
   CliRun r = Carmba("calibrate --problem " + std::string(CARMBA_SOURCE_DIR) +
                     "/problems/calib_opencv_left.yaml --config " + std::string(CARMBA_SOURCE_DIR) +
-                    "/configs/calib_free.yaml --out " + out);
+                    "/configs/calib_free.yaml --no-plots --out " + out);
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json cam = Json(out + "/camera.json");
   const nlohmann::json m = Json(out + "/mrcal/mrcal_out.json");

@@ -28,8 +28,8 @@ class CalibReportSigma : public ::testing::Test {
     ASSERT_TRUE(WriteSyntheticGridObservations(dir_.File("obs.csv")));
   }
   CommandResult Calibrate(const std::string& out, const std::string& extra = "") {
-    return RunCarmba("calibrate --no-mrcal --no-opencv --observations " + dir_.File("obs.csv") +
-                     " " + extra + " --out " + dir_.File(out));
+    return RunCarmba("calibrate --no-mrcal --no-opencv --no-plots --observations " +
+                     dir_.File("obs.csv") + " " + extra + " --out " + dir_.File(out));
   }
   ScratchDir dir_;
 };

@@ -27,8 +27,8 @@ constexpr double kSameFormulaRelTol = 1e-6;
 TEST(CameraModelUncertainty, MrcalToolsWorkOnTheTopLevelModel) {
   ScratchDir dir;
   ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
-  const auto r = RunCarmba("calibrate --no-opencv --observations " + dir.File("obs.csv") +
-                           " --out " + dir.File("out"));
+  const auto r = RunCarmba("calibrate --no-opencv --no-plots --observations " +
+                           dir.File("obs.csv") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string model = dir.File("out/camera.cameramodel");
   const auto model_text = ReadFile(model);
@@ -88,7 +88,7 @@ print(json.dumps({'max_abs_intrinsics_diff': float(np.max(np.abs(m.intrinsics()[
 TEST(CameraModelUncertainty, WithoutMrcalThePlainModel) {
   ScratchDir dir;
   ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
-  const auto r = RunCarmba("calibrate --no-mrcal --no-opencv --observations " +
+  const auto r = RunCarmba("calibrate --no-mrcal --no-opencv --no-plots --observations " +
                            dir.File("obs.csv") + " --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto text = ReadFile(dir.File("out/camera.cameramodel"));

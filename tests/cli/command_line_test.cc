@@ -111,7 +111,7 @@ class CommandLineCalibrate : public ::testing::Test {
     ASSERT_TRUE(WriteSyntheticGridObservations(dir_.File("obs.csv")));
   }
   std::string Calibrate(const std::string& flags, const std::string& out) const {
-    return "calibrate --observations " + dir_.File("obs.csv") + " " + flags + " --out " +
+    return "calibrate --no-plots --observations " + dir_.File("obs.csv") + " " + flags + " --out " +
            dir_.File(out);
   }
   ScratchDir dir_;

@@ -107,8 +107,8 @@ TEST_F(CtFiducialsCli, ThesisCtCentresWithinATenthOfAMillimetreTiltedTheSame) {
 TEST_F(CtFiducialsCli, ObjectFrames) {
   const std::string csv = root_ + "/model_frame.csv";
   CmdResult r = RunCarmba("ct-fiducials --dicom " + root_ + "/thesis_ct/ct --model " + kModel +
-                        " --model_columns x_o,y_o,z_o --frame model --out " + csv,
-                    root_);
+                              " --model_columns x_o,y_o,z_o --frame model --no-plots --out " + csv,
+                          root_);
   ASSERT_EQ(r.code, 0) << r.err;
   auto f = ReadFiducialsCsv(csv);
   ASSERT_TRUE(f.ok()) << f.status().message();
@@ -125,7 +125,7 @@ TEST_F(CtFiducialsCli, ObjectFrames) {
 
   const std::string csv1 = root_ + "/marker1_frame.csv";
   r = RunCarmba("ct-fiducials --dicom " + root_ + "/thesis_ct/ct --model " + kModel +
-                    " --model_columns x_o,y_o,z_o --frame marker:1 --out " + csv1,
+                    " --model_columns x_o,y_o,z_o --frame marker:1 --no-plots --out " + csv1,
                 root_);
   ASSERT_EQ(r.code, 0) << r.err;
   auto g = ReadFiducialsCsv(csv1);

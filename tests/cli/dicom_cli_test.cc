@@ -80,11 +80,11 @@ TEST(DicomCli, DetectAndCalibrateFromAMultiFrameXaFileAsFromPngs) {
   ASSERT_EQ(d_one.exit_code, 0) << d_one.err;
   EXPECT_NE(d_one.out.find("found the grid in 1 of 1 images"), std::string::npos) << d_one.out;
 
-  auto c_png = RunCarmba("calibrate --images " + dir.File("png") + grid + " --nomrcal --noopencv" +
-                         " --out " + dir.File("cal_png"));
+  auto c_png = RunCarmba("calibrate --images " + dir.File("png") + grid +
+                         " --nomrcal --noopencv --no-plots" + " --out " + dir.File("cal_png"));
   ASSERT_EQ(c_png.exit_code, 0) << c_png.err;
-  auto c_dcm = RunCarmba("calibrate --images " + dir.File("dcm") + grid + " --nomrcal --noopencv" +
-                         " --out " + dir.File("cal_dcm"));
+  auto c_dcm = RunCarmba("calibrate --images " + dir.File("dcm") + grid +
+                         " --nomrcal --noopencv --no-plots" + " --out " + dir.File("cal_dcm"));
   ASSERT_EQ(c_dcm.exit_code, 0) << c_dcm.err;
   const auto a = nlohmann::json::parse(test::ReadTextFile(dir.File("cal_png/camera.json")));
   const auto b = nlohmann::json::parse(test::ReadTextFile(dir.File("cal_dcm/camera.json")));

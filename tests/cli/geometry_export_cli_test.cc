@@ -20,8 +20,9 @@ namespace {
 
 TEST(GeometryCli, PoseSolveWritesTheProjectionMatricesOfItsPoses) {
   ScratchDir out;
-  const auto r = RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" +
-                           kSource + "/configs/posit_ba_analytic.yaml --out=" + out.path());
+  const auto r =
+      RunCarmba("solve --problem=" + kSource + "/problems/thesis_pose.yaml --config=" + kSource +
+                "/configs/posit_ba_analytic.yaml --no-plots --out=" + out.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   auto g = ReadGeometryJson(out.File("geometry.json"));
   ASSERT_TRUE(g.ok()) << g.status().message();

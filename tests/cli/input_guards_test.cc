@@ -49,7 +49,7 @@ TEST_F(InputGuards, CtSeriesGivenAsXrayImagesIsNamedOnce) {
 // --spacing-mm 2 (cm meant) put the plate at 78 mm without a word; now an error naming the flag.
 TEST_F(InputGuards, PlateImplausiblyNearTheSourceNamesTheSpacing) {
   ScratchDir out;
-  const std::string calibrate = "calibrate --no-mrcal --no-opencv --images " +
+  const std::string calibrate = "calibrate --no-mrcal --no-opencv --no-plots --images " +
                                 data_->File("plate") + " --rows 5 --cols 5 --out ";
   auto r = RunCarmba(calibrate + out.File("bad") + " --spacing-mm 2");
   EXPECT_EQ(r.exit_code, 1) << r.err;

@@ -266,7 +266,7 @@ class JointBadInput : public ::testing::Test {
   CommandResult Solve() {
     WriteAll();
     return RunCarmba("solve --problem=" + dir_.File("problem.yaml") + " --config=" +
-                     dir_.File("config.yaml") + " --out=" + dir_.File("out"));
+                     dir_.File("config.yaml") + " --no-plots --no-mrcal --out=" + dir_.File("out"));
   }
   void ExpectError(const std::string& expected) {
     const auto r = Solve();

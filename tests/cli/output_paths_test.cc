@@ -73,14 +73,14 @@ class OutputPaths : public ::testing::Test {
     ASSERT_TRUE(WriteObservationsCsv(obs, dir_.File("grid_obs.csv")).ok());
   }
   std::string Solve(const std::string& out) const {
-    return "solve --problem=" + dir_.File("problem.yaml") + " --config=" +
-           dir_.File("config.yaml") + " --out=" + out;
+    return "solve --problem=" + dir_.File("problem.yaml") +
+           " --config=" + dir_.File("config.yaml") + " --no-plots --out=" + out;
   }
   std::string Detect(const std::string& out) const {
     return "detect --images " + dir_.File("no_images") + " --out " + out;
   }
   std::string Calibrate(const std::string& out) const {
-    return "calibrate --nomrcal --noopencv --observations " + dir_.File("grid_obs.csv") +
+    return "calibrate --nomrcal --noopencv --no-plots --observations " + dir_.File("grid_obs.csv") +
            " --out " + out;
   }
   // Non-zero exit, one line on stderr containing `expected`; `absent` was not created.

@@ -109,7 +109,7 @@ TEST_F(PoseCli, JointProblemWithObjectViewImages) {
   dir_->Write("fixed.yaml", "name: fixed_intrinsics\nfix: [fx, fy, cx, cy, k1, k2, p1, p2, k3]\n");
   const std::string out = dir_->File("joint_out");
   const auto r = RunCarmba("solve --problem " + dir_->File("problem.yaml") + " --config " +
-                           dir_->File("fixed.yaml") + " --out " + out);
+                           dir_->File("fixed.yaml") + " --no-plots --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("solved pose_from_images with fixed_intrinsics: 7 views"), std::string::npos)
       << r.out;

@@ -182,7 +182,7 @@ class BadInput : public ::testing::Test {
 TEST_F(BadInput, ValidProblemSolves) {
   WriteAll();
   const auto r = RunCarmba("solve --problem=" + dir_.File("problem.yaml") + " --config=" +
-                           dir_.File("config.yaml") + " --out=" + dir_.File("out"));
+                           dir_.File("config.yaml") + " --no-plots --out=" + dir_.File("out"));
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(std::filesystem::exists(dir_.File("out/result.json")));
 }
@@ -286,7 +286,7 @@ TEST_F(BadInput, NotConvergedIsWarned) {
   config_ = "name: c\ninitializer: posit\nmax_iterations: 0\n";
   WriteAll();
   const auto r = RunCarmba("solve --problem=" + dir_.File("problem.yaml") + " --config=" +
-                           dir_.File("config.yaml") + " --out=" + dir_.File("out"));
+                           dir_.File("config.yaml") + " --no-plots --out=" + dir_.File("out"));
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("did not converge"), std::string::npos) << r.err;
   std::ifstream rep(dir_.File("out/report.md"));

@@ -151,7 +151,7 @@ TEST(SolveTre, FourMarkerViewsAreSkippedWithTheReason) {
   ss << in.rdbuf() << "tre: true\n";
   dir.Write("config.yaml", ss.str());
   const auto r = RunCarmba("solve --problem " + kSource + "/problems/thesis_pose.yaml --config " +
-                           dir.File("config.yaml") + " --out " + dir.File("out"));
+                           dir.File("config.yaml") + " --no-plots --out " + dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json j = ReadJsonFile(dir.File("out/result.json"));
   ASSERT_EQ(j.at("tre").at("markers").size(), 4u);
@@ -200,7 +200,7 @@ TEST(ConsiderCalibrationCli, CameraCovarianceEntersPosesRelativePosesAndTriangul
   auto solve =
       [&](const std::string& problem_file, const std::string& cfg, const std::string& out) {
         const auto r = RunCarmba("solve --problem " + problem_file + " --config " + cfg +
-                                 " --out " + dir.File(out));
+                                 " --no-plots --out " + dir.File(out));
         EXPECT_EQ(r.exit_code, 0) << r.err;
         return ReadJsonFile(dir.File(out + "/result.json"));
       };
