@@ -50,20 +50,13 @@ ba::BaProblem CalibrationProblem(const ObservationSet& obs,
   g.free = free;
   g.fy_over_fx = fy_over_fx;
   p.groups.push_back(g);
-  for (int id = 0; id < obs.grid.NumPoints(); ++id)
-    p.plate.points.push_back(obs.grid.PointInPlate(id));
+  p.plate.points = obs.grid.PointsInPlate();
   std::set<std::string> names;
   for (const auto& v : obs.views) names.insert(v.image);
   const bool by_image = names.size() == obs.views.size() && !names.count("");
   for (size_t v = 0; v < obs.views.size(); ++v) {
-    ba::BaView view;
-    view.id = by_image ? obs.views[v].image : std::to_string(v);
-    view.kind = ba::ViewKind::kPlate;
-    view.initial = Eigen::Map<const Pose6>(poses[v].data());
-    view.point_ids = obs.views[v].point_ids;
-    view.uv_px = obs.views[v].uv_px;
-    view.sigma_px = sigma_px;
-    p.views.push_back(std::move(view));
+    p.views.push_back(ToBaPlateView(
+        obs.views[v], by_image ? obs.views[v].image : std::to_string(v), 0, poses[v], sigma_px));
   }
   p.markers_free = false;
   return p;

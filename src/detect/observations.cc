@@ -45,6 +45,28 @@ Eigen::Vector3d GridSpec::PointInPlate(int id) const {
   return Eigen::Vector3d(c * spacing_mm, r * spacing_mm, 0.0);
 }
 
+std::vector<Eigen::Vector3d> GridSpec::PointsInPlate() const {
+  std::vector<Eigen::Vector3d> points;
+  for (int id = 0; id < NumPoints(); ++id) points.push_back(PointInPlate(id));
+  return points;
+}
+
+ba::BaView ToBaPlateView(const ViewObservations& view,
+                         std::string id,
+                         int group,
+                         const Pose6& cam_from_plate,
+                         double sigma_px) {
+  ba::BaView out;
+  out.id = std::move(id);
+  out.kind = ba::ViewKind::kPlate;
+  out.group = group;
+  out.initial = cam_from_plate;
+  out.point_ids = view.point_ids;
+  out.uv_px = view.uv_px;
+  out.sigma_px = sigma_px;
+  return out;
+}
+
 int ObservationSet::NumPoints() const {
   int n = 0;
   for (const auto& v : views) n += static_cast<int>(v.uv_px.size());

@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "ba/problem.h"
+#include "geometry/pose.h"
 #include "util/status.h"
 
 namespace carmba {
@@ -42,6 +44,8 @@ struct GridSpec {
   bool Check(std::string* error) const;
   // Plate-frame coordinates of point `id` (mm).
   Eigen::Vector3d PointInPlate(int id) const;
+  // PointInPlate of every point, by id: the plate's nominal points.
+  std::vector<Eigen::Vector3d> PointsInPlate() const;
 };
 
 struct ViewObservations {
@@ -57,6 +61,15 @@ struct ObservationSet {
 
   int NumPoints() const;
 };
+
+// The engine's view of plate view `view`: its points' ids and pixels, each at `sigma_px`, in
+// intrinsics group `group`, starting from `cam_from_plate`. The one translation of a plate view,
+// for the calibration (calib/calibrate.h) and the joint problem (joint/joint_solver.h) alike.
+ba::BaView ToBaPlateView(const ViewObservations& view,
+                         std::string id,
+                         int group,
+                         const Pose6& cam_from_plate,
+                         double sigma_px);
 
 // Writes observations.csv (atomically).
 Status WriteObservationsCsv(const ObservationSet& obs, const std::string& path);

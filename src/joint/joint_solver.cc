@@ -253,16 +253,11 @@ std::vector<ba::BaView> PlateViews(const Problem& problem,
   std::vector<size_t> next_pose(groups.names.size(), 0);
   for (size_t v = 0; v < problem.plate.views.size(); ++v) {
     const int g = groups.of_plate_view[v];
-    ba::BaView view;
-    view.id = problem.plate_view_ids[v];
-    view.kind = ba::ViewKind::kPlate;
-    view.group = g;
-    view.sigma_px = problem.plate_sigma_px;
-    const auto& pose = plate_poses[g][next_pose[g]++];
-    for (int i = 0; i < 6; ++i) view.initial[i] = pose[i];
-    view.point_ids = problem.plate.views[v].point_ids;
-    view.uv_px = problem.plate.views[v].uv_px;
-    views.push_back(view);
+    views.push_back(ToBaPlateView(problem.plate.views[v],
+                                  problem.plate_view_ids[v],
+                                  g,
+                                  plate_poses[g][next_pose[g]++],
+                                  problem.plate_sigma_px));
   }
   return views;
 }

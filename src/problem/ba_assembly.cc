@@ -110,9 +110,7 @@ namespace {
 
 // The plate's nominal points (none without plate views), free or held.
 void AddPlate(const Problem& problem, ba::BaProblem* bp) {
-  for (int id = 0; id < problem.plate.grid.NumPoints() && !problem.plate.views.empty(); ++id) {
-    bp->plate.points.push_back(problem.plate.grid.PointInPlate(id));
-  }
+  if (!problem.plate.views.empty()) bp->plate.points = problem.plate.grid.PointsInPlate();
   bp->plate.free = problem.plate_free;
   bp->plate.sigma_mm = problem.plate_sigma_mm;
 }
