@@ -111,8 +111,11 @@ Reference AtTruth() {
 
 Eigen::VectorXd EmpiricalVariance(const Reference& ref, const NoiseSwitches& noise, uint64_t seed0,
                                   int trials) {
+  // Only the solved states are used: no residual statistics, linearisation or covariance (the
+  // same states: this problem has no sphere radii for a shadow correction and no rejection).
   BaOptions o;
   o.compute_covariance = false;
+  o.evaluate_solution = false;
   const Eigen::Index nq = static_cast<Eigen::Index>(ref.q.quantities.size());
   Eigen::VectorXd sum = Eigen::VectorXd::Zero(nq), sum2 = Eigen::VectorXd::Zero(nq);
   for (int t = 0; t < trials; ++t) {
