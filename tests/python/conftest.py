@@ -77,7 +77,8 @@ POSE_CONFIG = source("configs", "posit_ba_analytic.yaml")  # as in scripts/demo.
 def pose_cli(tmp_path_factory):
     """`carmba solve` on the demo's pose problem: its output directory."""
     out = tmp_path_factory.mktemp("pose") / "out"
-    run_cli("solve", "--problem", POSE_PROBLEM, "--config", POSE_CONFIG, "--out", str(out))
+    run_cli("solve", "--problem", POSE_PROBLEM, "--config", POSE_CONFIG, "--no-plots", "--out",
+            str(out))
     return out
 
 
@@ -90,7 +91,7 @@ def simulate_joint_scene(tmp):
     run_cli("ct-fiducials", "--dicom", str(scene / "ct"),
             "--model", source("data", "thesis", "markers_table_5_1.csv"),
             "--model-columns", "x_o,y_o,z_o", "--diameter-mm", "2", "--expected", "9",
-            "--out", str(scene / "fiducials.csv"))
+            "--no-plots", "--out", str(scene / "fiducials.csv"))
     with open(source("problems", "thesis_joint.yaml")) as f:
         text = f.read().replace("../out/sim/joint", str(scene))
     problem = tmp / "thesis_joint.yaml"

@@ -20,7 +20,7 @@ def cli(tmp_path_factory):
             "--out", str(sim))
     out = tmp / "out"
     run_cli("calibrate", "--images", str(sim / "*.png"), *GRID, "--no-mrcal", "--no-opencv",
-            "--out", str(out))
+            "--no-plots", "--out", str(out))
     return sim, out
 
 
@@ -63,7 +63,8 @@ def test_from_observations_csv_and_arrays(carmba, cli, tmp_path):
     _, out = cli
     obs = out / "observations.csv"
     out2 = tmp_path / "out"
-    run_cli("calibrate", "--observations", str(obs), "--no-mrcal", "--no-opencv", "--out", str(out2))
+    run_cli("calibrate", "--observations", str(obs), "--no-mrcal", "--no-opencv", "--no-plots",
+            "--out", str(out2))
     expected = read_json(out2 / "camera.json")
     from_csv = carmba.calibrate(observations=str(obs))
     assert json.loads(from_csv.camera_json()) == expected

@@ -22,7 +22,8 @@ def scene(tmp_path_factory):
 @pytest.fixture(scope="module")
 def cli_out(scene, tmp_path_factory):
     out = tmp_path_factory.mktemp("joint_out") / "out"
-    run_cli("solve", "--problem", str(scene[1]), "--config", CONFIG, "--out", str(out))
+    run_cli("solve", "--problem", str(scene[1]), "--config", CONFIG, "--no-plots", "--out",
+            str(out))
     return out
 
 

@@ -166,7 +166,8 @@ def test_tre_equals_the_commands(carmba, result, tmp_path):
     config = tmp_path / "config.yaml"
     config.write_text(open(POSE_CONFIG).read() + "tre: true\n")
     out = tmp_path / "out"
-    run_cli("solve", "--problem", POSE_PROBLEM, "--config", str(config), "--out", str(out))
+    run_cli("solve", "--problem", POSE_PROBLEM, "--config", str(config), "--no-plots", "--out",
+            str(out))
     cli = read_json(out / "result.json")["tre"]
     assert result.tre is None
     mine = carmba.tre(result)
