@@ -29,7 +29,8 @@ int SlurmShell(const std::string& cmd) {
 }
 
 TEST(StudySlurmTest, JobArrayShardsMergeToTheWholeStudy) {
-  const std::string dir = test::MakeScratchDir("slurm");
+  const test::ScratchDir scratch("slurm");  // removed with its files when the test ends
+  const std::string& dir = scratch.path();
   ASSERT_TRUE(MakeDirs(dir + "/fakebin").ok());
   const std::string sbatch = dir + "/fakebin/sbatch";
   std::ofstream(sbatch) << R"(#!/usr/bin/env bash
@@ -76,6 +77,12 @@ echo $RANDOM
       << ReadSlurmFile(dir + "/log.txt");
   EXPECT_EQ(ReadSlurmFile(dir + "/out/merged/summary.csv"),
             ReadSlurmFile(dir + "/whole/summary.csv"));
+  // The array tasks draw no plots (--no-plots); the merge draws those of all runs.
+  EXPECT_NE(ReadSlurmFile(dir + "/out/shard-1/report.html").find("not drawn (--no-plots)"),
+            std::string::npos);
+  const std::string merged = ReadSlurmFile(dir + "/out/merged/report.html");
+  EXPECT_NE(merged.find("data-plot=\"error-vs-noise"), std::string::npos);
+  EXPECT_EQ(merged.find("not drawn (--no-plots)"), std::string::npos);
   const std::string calls = ReadSlurmFile(dir + "/fakebin/calls.log");
   EXPECT_NE(calls.find("--array=1-3"), std::string::npos) << calls;
   EXPECT_NE(calls.find("--dependency=afterok:"), std::string::npos) << calls;
