@@ -104,7 +104,8 @@ int CountLines(const std::string& path) {
 }
 
 TEST(StudyCliTest, KilledStudyResumesWithEveryRunOnce) {
-  const std::string dir = test::MakeScratchDir("study_cli");
+  const test::ScratchDir scratch("study_cli");  // removed when it goes
+  const std::string& dir = scratch.path();
   const std::string study = WriteStudy(dir, 150);  // 600 runs of a few ms
   const std::string out = dir + "/killed";
   std::vector<std::string> args = {kBin, "study", "--study=" + study, "--out=" + out, "--jobs=2"};
@@ -144,7 +145,8 @@ TEST(StudyCliTest, KilledStudyResumesWithEveryRunOnce) {
 }
 
 TEST(StudyCliTest, JobsAndMergedShardsGiveIdenticalSummaries) {
-  const std::string dir = test::MakeScratchDir("study_cli");
+  const test::ScratchDir scratch("study_cli");  // removed when it goes
+  const std::string& dir = scratch.path();
   const std::string study = WriteStudy(dir, 15);
   const std::string s = kStudyNoPlots + study + " --out=" + dir;
   for (const std::string& a : {s + "/j1 --jobs=1",
@@ -178,7 +180,8 @@ TEST(StudyCliTest, JobsAndMergedShardsGiveIdenticalSummaries) {
 }
 
 TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
-  const std::string dir = test::MakeScratchDir("study_cli");
+  const test::ScratchDir scratch("study_cli");  // removed when it goes
+  const std::string& dir = scratch.path();
   std::ofstream(dir + "/typo.yaml") << "name: typo\ninitializer: posit\nmax_iteration: 10\n";
   const std::string study =
       WriteStudy(dir, 3, "  - {name: lost, file: no_such_problem.yaml}\n",
@@ -226,7 +229,8 @@ TEST(StudyCliTest, MissingProblemAndInvalidConfigKeyFailOnlyTheirRuns) {
 }
 
 TEST(StudyCliTest, BadStudyFilesFailWithOneLineAndNoOutput) {
-  const std::string dir = test::MakeScratchDir("study_cli");
+  const test::ScratchDir scratch("study_cli");  // removed when it goes
+  const std::string& dir = scratch.path();
   std::ofstream(dir + "/bad.yaml") << "trials: 2\nproblems: []\nconfigs:\n  - {name: c, file: c}\n";
   Result r = Carmba(kStudyNoPlots + dir + "/bad.yaml --out=" + dir + "/out", dir);
   EXPECT_EQ(r.code, 1);
@@ -280,7 +284,8 @@ std::string WriteEditableStudy(const std::string& dir) {
 // --resume continues only the same study: an edited config or data file is named and refused,
 // whatever the run list.
 TEST(StudyCliTest, ResumeRefusesAStudyWhoseFilesChanged) {
-  const std::string dir = test::MakeScratchDir("study_cli");
+  const test::ScratchDir scratch("study_cli");  // removed when it goes
+  const std::string& dir = scratch.path();
   const std::string study = WriteEditableStudy(dir);
   const std::string s = kStudyNoPlots + study + " --out=" + dir + "/out";
   Result r = Carmba(s, dir);
@@ -314,7 +319,8 @@ TEST(StudyCliTest, ResumeRefusesAStudyWhoseFilesChanged) {
 
 // study-merge refuses shards solved with different configs, naming the config.
 TEST(StudyCliTest, MergeRefusesShardsOfDifferentConfigs) {
-  const std::string dir = test::MakeScratchDir("study_cli");
+  const test::ScratchDir scratch("study_cli");  // removed when it goes
+  const std::string& dir = scratch.path();
   const std::string study = WriteEditableStudy(dir);
   const std::string s = kStudyNoPlots + study + " --out=" + dir;
   Result r = Carmba(s + "/shard-1 --shard=1/2", dir);
@@ -338,7 +344,8 @@ TEST(StudyCliTest, MergeRefusesShardsOfDifferentConfigs) {
 // The progress bar (runs done, ETA; util/progress.h) goes to stderr only when stderr is a
 // terminal; in a pipe there is none, and --verbose gives one line per run instead.
 TEST(StudyCliTest, ProgressLineOnlyOnATerminal) {
-  const std::string dir = test::MakeScratchDir("study_cli");
+  const test::ScratchDir scratch("study_cli");  // removed when it goes
+  const std::string& dir = scratch.path();
   const std::string study = WriteStudy(dir, 5);
   Result r = Carmba(kStudyNoPlots + study + " --out=" + dir + "/plain --jobs=2", dir);
   ASSERT_EQ(r.code, 0) << r.err;
@@ -365,7 +372,8 @@ TEST(StudyCliTest, ShippedStudiesRun) {
     const std::string path = kSrc + "/configs/studies/" + name + ".yaml";
     // A copy with one trial per problem, in a temporary directory: its relative paths (relative
     // to configs/studies/) are made absolute.
-    const std::string dir = test::MakeScratchDir("study_cli");
+    const test::ScratchDir scratch("study_cli");  // removed when it goes
+    const std::string& dir = scratch.path();
     std::string one;
     std::istringstream in(Read(path));
     std::string line;

@@ -133,7 +133,8 @@ RandomScene MakeScene(uint64_t seed, Anatomy anatomy, const std::string& dir) {
 // Renders `scenes` scenes of the seed set `base` with `anatomy`, detects and labels every view,
 // and tallies them (printing every marker left out or labelled off its centre).
 void RunRecall(Anatomy anatomy, int scenes, uint64_t base, Tally* tally) {
-  const std::string dir = test::MakeScratchDir("marker_recall");
+  const test::ScratchDir scratch("marker_recall");  // removed when it goes
+  const std::string& dir = scratch.path();
   Tally& total = *tally;
   int used = 0, views_skipped = 0, views = 0;
   for (uint64_t seed = base * 1000; used < scenes && seed < base * 1000 + 10 * scenes; ++seed) {

@@ -55,7 +55,8 @@ void ExpectAllCorrect(const Tally& t, const std::string& what) {
 TEST(MarkerViews, ClutterSceneEveryVisibleMarkerLabelledNoSpuriousNoOverlap) {
   auto scene = sim::LoadXrayScene(kScene);
   ASSERT_TRUE(scene.ok()) << scene.status().message();
-  const std::string dir = test::MakeScratchDir("markers_png");
+  const test::ScratchDir scratch("markers_png");  // removed when it goes
+  const std::string& dir = scratch.path();
   nlohmann::json truth;
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   std::vector<std::string> files;
@@ -81,7 +82,8 @@ TEST(MarkerViews, MultiFrameDicomXaUsesTheNominalGeometry) {
   scene->format = "dcm";
   scene->bit_depth = 16;
   scene->multiframe = true;
-  const std::string dir = test::MakeScratchDir("markers_dcm");
+  const test::ScratchDir scratch("markers_dcm");  // removed when it goes
+  const std::string& dir = scratch.path();
   nlohmann::json truth;
   const Status s = sim::SimulateXrayScene(*scene, dir, &truth);
   ASSERT_TRUE(s.ok()) << s.message();
@@ -110,7 +112,8 @@ TEST(MarkerViews, SingleFrameDicomXa) {
   ASSERT_TRUE(scene.ok());
   scene->format = "dcm";
   scene->views.resize(2);
-  const std::string dir = test::MakeScratchDir("markers_dcm1");
+  const test::ScratchDir scratch("markers_dcm1");  // removed when it goes
+  const std::string& dir = scratch.path();
   nlohmann::json truth;
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   std::vector<std::string> files;
@@ -555,7 +558,8 @@ TEST(MarkerViews, ViewWithFewerThanFourMarkersIsSkippedOthersGoOn) {
   auto scene = sim::LoadXrayScene(kScene);
   ASSERT_TRUE(scene.ok());
   scene->views.resize(1);
-  const std::string dir = test::MakeScratchDir("markers_few");
+  const test::ScratchDir scratch("markers_few");  // removed when it goes
+  const std::string& dir = scratch.path();
   nlohmann::json truth;
   ASSERT_TRUE(sim::SimulateXrayScene(*scene, dir, &truth).ok());
   const std::string few = JoinPath(dir, "few.png");
@@ -582,7 +586,8 @@ TEST(MarkerViews, ViewWithFewerThanFourMarkersIsSkippedOthersGoOn) {
 TEST(MarkerViews, MissingOrCorruptImageIsAnErrorNamingIt) {
   auto scene = sim::LoadXrayScene(kScene);
   ASSERT_TRUE(scene.ok());
-  const std::string dir = test::MakeScratchDir("markers_bad");
+  const test::ScratchDir scratch("markers_bad");  // removed when it goes
+  const std::string& dir = scratch.path();
   const std::string missing = JoinPath(dir, "missing.png"), corrupt = JoinPath(dir, "corrupt.png");
   std::ofstream(corrupt) << "not a png";
   for (const std::string& f : {missing, corrupt}) {
@@ -623,7 +628,8 @@ TEST(MarkerScene, BadClutterKeysAreRejected) {
        "object_center_mm: [-40, 0, -46]}",
        "outside"},
   };
-  const std::string dir = test::MakeScratchDir("markers_scene");
+  const test::ScratchDir scratch("markers_scene");  // removed when it goes
+  const std::string& dir = scratch.path();
   for (const Case& c : cases) {
     std::string text = good;
     const size_t at = text.find(c.from);

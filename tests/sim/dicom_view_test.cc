@@ -209,7 +209,8 @@ TEST(DicomView, SimulatedXaFilesGiveBackTheTruePoseAndFocalLengths) {
   ASSERT_TRUE(scene.ok()) << scene.status().message();
   scene->format = "dcm";
   scene->render.supersampling = 1;  // the pixels do not matter here
-  const std::string dir = test::MakeScratchDir("sim_dcm");
+  const test::ScratchDir scratch("sim_dcm");  // removed when it goes
+  const std::string& dir = scratch.path();
   nlohmann::json truth;
   ASSERT_TRUE(scene->views[0].carm.isocenter_mm.isZero());
   const Eigen::Vector2d offset = scene->views[0].carm.axis_offset_mm;
@@ -247,7 +248,8 @@ TEST(DicomView, SimulatedXaFilesGiveBackTheTruePoseAndFocalLengths) {
 // io/dicom_xray.h: the first frame by default, frame N of `file.dcm#frameN`; the same gain as
 // from the frame saved as PNG (OpenCV's path).
 TEST(DicomBackground, FrameOfAMultiFrameFileAsFromPng) {
-  const std::string dir = test::MakeScratchDir("dicom_bg");
+  const test::ScratchDir scratch("dicom_bg");  // removed when it goes
+  const std::string& dir = scratch.path();
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 2; ++k) {
     cv::Mat m(40, 50, CV_16UC1);

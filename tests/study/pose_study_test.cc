@@ -19,7 +19,8 @@ namespace {
 const std::string kSrc = CARMBA_SOURCE_DIR;
 
 StudySpec LoadStudy(const std::string& text) {
-  const std::string dir = test::MakeScratchDir("pose_study");
+  const test::ScratchDir scratch("pose_study");  // removed when it goes
+  const std::string& dir = scratch.path();
   std::ofstream(dir + "/s.yaml") << text;
   StatusOr<StudySpec> spec = LoadStudySpec(dir + "/s.yaml");
   EXPECT_TRUE(spec.ok()) << spec.status().message();
@@ -193,7 +194,8 @@ TEST(PoseStudyTest, RejectsWhatItDoesNotUnderstand) {
 
 // A sweep value outside the variable's plausible range is an error of the study file, at load.
 TEST(PoseStudyTest, AbsurdSweepValueNamesTheLine) {
-  const std::string dir = test::MakeScratchDir("pose_study");
+  const test::ScratchDir scratch("pose_study");  // removed when it goes
+  const std::string& dir = scratch.path();
   std::ofstream(dir + "/s.yaml") << SyntheticStudy(1, "sweeps:\n  pixel_noise_px: [0.5, 1e300]\n");
   const StatusOr<StudySpec> spec = LoadStudySpec(dir + "/s.yaml");
   ASSERT_FALSE(spec.ok());

@@ -20,7 +20,8 @@ namespace carmba {
 namespace {
 
 TEST(StudyReportBrowserTest, ChromiumRendersEveryPlot) {
-  const std::string dir = test::MakeScratchDir("report");
+  const test::ScratchDir scratch("report");  // removed when it goes
+  const std::string& dir = scratch.path();
   std::ofstream(dir + "/p.yaml") << "true_mean: 1\nsamples: 30\n";
   std::ofstream(dir + "/mean.yaml") << "estimator: mean\n";
   std::ofstream(dir + "/median.yaml") << "estimator: median\n";

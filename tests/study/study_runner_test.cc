@@ -40,11 +40,13 @@ int CountLines(const std::string& path) {
 
 // A study directory with two problems, two estimators, a noise sweep and `trials` trials.
 struct Fixture {
-  std::string dir;
+  test::ScratchDir scratch{"study"};  // removed with the fixture
+  std::string dir = scratch.path();
   std::string study_path;
-  explicit Fixture(int trials, int repeat = 1, const std::string& extra_problem = "",
+  explicit Fixture(int trials,
+                   int repeat = 1,
+                   const std::string& extra_problem = "",
                    const std::string& extra_config = "") {
-    dir = test::MakeScratchDir("study");
     Write(dir + "/p_small.yaml", "true_mean: 3.0\nsamples: 20\n");
     Write(dir + "/p_large.yaml", "true_mean: -1.5\nsamples: 80\n");
     Write(dir + "/c_mean.yaml", "estimator: mean\nrepeat: " + std::to_string(repeat) + "\n");
@@ -146,7 +148,8 @@ TEST(StudySpecTest, ShardsPartitionTheRuns) {
 
 // Bad study files, one corruption at a time, each with the expected message.
 TEST(StudySpecTest, RejectsBadStudyFiles) {
-  const std::string dir = test::MakeScratchDir("study");
+  const test::ScratchDir scratch("study");  // removed when it goes
+  const std::string& dir = scratch.path();
   const std::string base =
       "trials: 2\nproblems:\n  - {name: a, file: a.yaml}\nconfigs:\n  - {name: c, file: c.yaml}\n";
   struct Case {
@@ -413,7 +416,8 @@ TEST(StudyRunnerTest, BadProblemsAndConfigsFailTheirRunsOnly) {
 // standard error sigma/sqrt(n) matches the spread over trials (consistency ~ 1), and the error
 // grows linearly with the noise.
 TEST(StudyRunnerTest, SummaryStatisticsMatchTheory) {
-  const std::string dir = test::MakeScratchDir("study");
+  const test::ScratchDir scratch("study");  // removed when it goes
+  const std::string& dir = scratch.path();
   Write(dir + "/p.yaml", "true_mean: 10\nsamples: 40\n");
   Write(dir + "/c.yaml", "estimator: mean\n");
   Write(dir + "/s.yaml",
