@@ -1,6 +1,6 @@
 // The module util/image_codecs.cc loads on first use: OpenCV's codecs behind one C symbol, so
-// that only processes that read or write an image load libopencv_imgcodecs and its ~110
-// dependencies.
+// that only processes that read or write an image load libopencv_imgcodecs and the ~140
+// libraries it brings.
 #include "codecs/image_codecs_module.h"
 
 #include <opencv2/imgcodecs.hpp>
