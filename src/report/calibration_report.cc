@@ -503,10 +503,7 @@ nlohmann::json CalibrationPlotData(const CalibrationRun& run) {
   }
   d["residual_views"] = views;
   nlohmann::json pts = nlohmann::json::array();
-  for (int id = 0; id < obs.grid.NumPoints(); ++id) {
-    const Eigen::Vector3d p = obs.grid.PointInPlate(id);
-    pts.push_back({p.x(), p.y(), p.z()});
-  }
+  for (const Eigen::Vector3d& p : obs.grid.PointsInPlate()) pts.push_back({p.x(), p.y(), p.z()});
   d["scenes"] = {{{"name", "plate"},
                   {"frame", "plate"},
                   {"pose_name", "cam_from_plate"},

@@ -22,7 +22,7 @@ ObservationSet MakeSyntheticViews(const std::array<double, kNumIntrinsics>& intr
   obs.width = width;
   obs.height = height;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (int id = 0; id < grid.NumPoints(); ++id) centre += grid.PointInPlate(id);
+  for (const Eigen::Vector3d& p : grid.PointsInPlate()) centre += p;
   centre /= grid.NumPoints();
   if (cam_from_plate) cam_from_plate->clear();
   int attempts = 0;

@@ -3,7 +3,6 @@
 #include <dlfcn.h>
 
 #include <cstdio>
-#include <mutex>
 
 #include "codecs/image_codecs_module.h"
 
@@ -15,27 +14,27 @@
 namespace carmba {
 namespace {
 
-// The module's table, loaded once per process; nullptr (after one line on stderr) when it cannot
-// be loaded. The module stays loaded until the process ends.
+// The module's table; nullptr (after one line on stderr) when it cannot be loaded. The module
+// stays loaded until the process ends.
+const ImageCodecTable* LoadCodecs() {
+  const char* path = CARMBA_IMAGE_CODECS_MODULE;
+  void* module = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+  if (module == nullptr) {
+    std::fprintf(stderr, "carmba: cannot load the image codecs module %s (%s)\n", path, dlerror());
+    return nullptr;
+  }
+  using Entry = const ImageCodecTable* (*)();
+  auto entry = reinterpret_cast<Entry>(dlsym(module, CARMBA_IMAGE_CODECS_SYMBOL));
+  if (entry == nullptr) {
+    std::fprintf(stderr, "carmba: %s has no symbol %s\n", path, CARMBA_IMAGE_CODECS_SYMBOL);
+    return nullptr;
+  }
+  return entry();
+}
+
+// Loaded once per process (a function-local static is initialised once, thread-safely).
 const ImageCodecTable* Codecs() {
-  static const ImageCodecTable* table = nullptr;
-  static std::once_flag once;
-  std::call_once(once, [] {
-    const char* path = CARMBA_IMAGE_CODECS_MODULE;
-    void* module = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (module == nullptr) {
-      std::fprintf(
-          stderr, "carmba: cannot load the image codecs module %s (%s)\n", path, dlerror());
-      return;
-    }
-    using Entry = const ImageCodecTable* (*)();
-    auto entry = reinterpret_cast<Entry>(dlsym(module, CARMBA_IMAGE_CODECS_SYMBOL));
-    if (entry == nullptr) {
-      std::fprintf(stderr, "carmba: %s has no symbol %s\n", path, CARMBA_IMAGE_CODECS_SYMBOL);
-      return;
-    }
-    table = entry();
-  });
+  static const ImageCodecTable* const table = LoadCodecs();
   return table;
 }
 
