@@ -142,23 +142,171 @@ StatusOr<Solved> Solve() {
   return s;
 }
 
-
-int RunTriangulate() {
-  const char* cmd = "triangulate";
-  if (FLAGS_problem.empty()) return cli::FailUsage(cmd, "--problem is required");
-  if (FLAGS_config.empty()) return cli::FailUsage(cmd, "--config is required");
-  if (FLAGS_out.empty()) return cli::FailUsage(cmd, "--out is required");
+// The flags' usage errors ("" when there are none); fills the triangulation options.
+std::string UsageError(analysis::TriangulationOptions* topt) {
+  if (FLAGS_problem.empty()) return "--problem is required";
+  if (FLAGS_config.empty()) return "--config is required";
+  if (FLAGS_out.empty()) return "--out is required";
   if (FLAGS_points.empty() == FLAGS_pixels.empty()) {
-    return cli::FailUsage(cmd, "give either --points CSV or --pixels 'VIEW=U,V;VIEW=U,V'");
+    return "give either --points CSV or --pixels 'VIEW=U,V;VIEW=U,V'";
   }
   std::string err;
   if (FLAGS_sigma_px != 0 &&
       !CheckRange("--sigma_px", FLAGS_sigma_px, plausible::kPixelSigmaPx, &err)) {
-    return cli::FailUsage(cmd, err);
+    return err;
   }
+  topt->min_ray_angle_deg = FLAGS_min_angle_deg;
+  if (!topt->Check(&err)) return "--min-angle-deg: " + err;
+  return "";
+}
+
+// The solve's object views by id, and their ids listed for an error message.
+struct ObjectViews {
+  std::map<std::string, int> index;
+  std::string ids;
+};
+ObjectViews ObjectViewsOf(const ba::BaProblem& bp) {
+  ObjectViews o;
+  for (size_t v = 0; v < bp.views.size(); ++v) {
+    if (bp.views[v].kind != ba::ViewKind::kObject) continue;
+    o.index[bp.views[v].id] = static_cast<int>(v);
+    o.ids += (o.ids.empty() ? "" : ", ") + bp.views[v].id;
+  }
+  return o;
+}
+
+// A point's pixels as observations of the solve's views, with their covariances (--sigma-px, the
+// point's own, or the view's sigma).
+StatusOr<std::vector<analysis::PixelObservation>> PointObservations(const PointInput& p,
+                                                                    const ObjectViews& views,
+                                                                    const ba::BaProblem& bp) {
+  std::vector<analysis::PixelObservation> obs;
+  for (const auto& px : p.pixels) {
+    auto it = views.index.find(px.view);
+    if (it == views.index.end()) {
+      return Status::Error(px.where + ": view '" + px.view +
+                           "' is not an object view of the problem (object views: " + views.ids +
+                           ")");
+    }
+    analysis::PixelObservation o;
+    o.view = it->second;
+    o.uv_px = px.uv;
+    const double s = FLAGS_sigma_px > 0 ? FLAGS_sigma_px : bp.views[o.view].sigma_px;
+    o.covariance_px2 =
+        px.cov && FLAGS_sigma_px == 0 ? *px.cov : Eigen::Matrix2d::Identity() * s * s;
+    obs.push_back(o);
+  }
+  return obs;
+}
+
+// One point of triangulation.json, in the CT frame (F: the solve's object frame -> CT).
+nlohmann::json PointJson(const PointInput& p,
+                         const analysis::TriangulatedPoint& t,
+                         const std::vector<analysis::PixelObservation>& obs,
+                         const ba::BaProblem& bp,
+                         const Eigen::Matrix3d& F) {
+  const Eigen::Vector3d X = F * t.p_in_object;
+  const Eigen::Matrix3d C = F * t.covariance * F;
+  nlohmann::json views = nlohmann::json::array();
+  for (size_t i = 0; i < obs.size(); ++i) {
+    views.push_back(
+        {{"view", bp.views[obs[i].view].id},
+         {"u_px", obs[i].uv_px[0]},
+         {"v_px", obs[i].uv_px[1]},
+         {"residual_px", {JsonNumber(t.residual_px[i][0]), JsonNumber(t.residual_px[i][1])}},
+         {"rejected", t.rejected[i] != 0}});
+  }
+  nlohmann::json by_source;
+  for (int s = 0; s < ba::kNumSources; ++s) {
+    by_source[ba::SourceName(static_cast<ba::Source>(s))] = JsonNumber(t.solve_trace_by_source[s]);
+  }
+  by_source["the point's pixels"] = JsonNumber(t.covariance_pixels.trace());
+  return {{"id", p.name},
+          {"p_in_ct_mm", {X[0], X[1], X[2]}},
+          {"covariance_mm2", JsonRows(C)},
+          {"sigma_mm",
+           {JsonNumber(std::sqrt(C(0, 0))),
+            JsonNumber(std::sqrt(C(1, 1))),
+            JsonNumber(std::sqrt(C(2, 2)))}},
+          {"rms_3d_mm", JsonNumber(std::sqrt(C.trace()))},
+          {"covariance_pixels_mm2", JsonRows(F * t.covariance_pixels * F)},
+          {"covariance_solve_mm2", JsonRows(F * t.covariance_solve * F)},
+          {"covariance_calibration_mm2", JsonRows(F * t.covariance_calibration * F)},
+          {"variance_by_source_mm2", by_source},
+          {"max_ray_angle_deg", JsonNumber(t.max_ray_angle_deg)},
+          {"rms_px", JsonNumber(t.rms_px)},
+          {"views", views},
+          {"chi2", JsonNumber(t.chi2)},
+          {"dof", t.dof},
+          {"chi2_p_value", JsonNumber(t.chi2_p_value)},
+          {"warnings", t.warnings}};
+}
+
+// points.csv's header: the command, what the covariance holds, the columns.
+std::string CsvHeader(ba::CalibrationUncertainty calibration) {
+  std::ostringstream csv;
+  csv << "# carmba triangulate --problem " << FLAGS_problem << " --config " << FLAGS_config
+      << "\n# positions in the CT frame (mm), covariance mm^2 (the solve's "
+      << (calibration == ba::CalibrationUncertainty::kEstimated ? "poses and intrinsics"
+          : calibration == ba::CalibrationUncertainty::kConsidered
+              ? "poses, with the held intrinsics' calibration covariance"
+              : "poses (intrinsics held, calibration uncertainty left out)")
+      << " and the points' pixels)\n"
+      << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
+  return csv.str();
+}
+
+// One row of points.csv.
+std::string CsvRow(const std::string& name, const Eigen::Vector3d& X, const Eigen::Matrix3d& C) {
+  char line[512];
+  std::snprintf(line,
+                sizeof line,
+                "%s,%.6f,%.6f,%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n",
+                name.c_str(),
+                X[0],
+                X[1],
+                X[2],
+                C(0, 0),
+                C(0, 1),
+                C(0, 2),
+                C(1, 1),
+                C(1, 2),
+                C(2, 2));
+  return line;
+}
+
+// triangulation.json's statement of what the covariances hold.
+std::string CovarianceStatement(ba::CalibrationUncertainty calibration, const ba::BaResult& br) {
+  const std::string scale = br.covariance_scale == 1.0 ? "a-priori" : "a-posteriori";
+  return calibration == ba::CalibrationUncertainty::kEstimated
+             ? "the solve's joint covariance of poses and intrinsics (" + scale +
+                   " sigmas) and the points' pixel noise"
+         : calibration == ba::CalibrationUncertainty::kConsidered
+             ? "the solve's covariance of the poses (" + scale +
+                   " sigmas), the held intrinsics' calibration covariance from camera.json "
+                   "(considered: covariance_calibration_mm2) and the points' pixel noise"
+             : std::string(
+                   "the solve's covariance of the poses and the points' pixel noise; the "
+                   "intrinsics are held and camera.json has no covariance (or the config "
+                   "says consider_calibration: false): the calibration's uncertainty is NOT "
+                   "included");
+}
+
+// triangulation.json and points.csv into --out, all or nothing.
+Status WriteOutputs(const nlohmann::json& j, const std::string& csv) {
+  StagedOutputDir staged(FLAGS_out);
+  Status s = staged.Begin();
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "triangulation.json"), j.dump(2) + "\n");
+  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "points.csv"), csv);
+  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
+  return s;
+}
+
+int RunTriangulate() {
+  const char* cmd = "triangulate";
   analysis::TriangulationOptions topt;
-  topt.min_ray_angle_deg = FLAGS_min_angle_deg;
-  if (!topt.Check(&err)) return cli::FailUsage(cmd, "--min-angle-deg: " + err);
+  const std::string usage = UsageError(&topt);
+  if (!usage.empty()) return cli::FailUsage(cmd, usage);
   {
     const Status s = cli::CheckOutDir();
     if (!s.ok()) return cli::Fail(cmd, s);
@@ -171,46 +319,18 @@ int RunTriangulate() {
   cli::Step(cmd, "triangulating " + std::to_string(points->size()) + " points");
   const ba::BaProblem& bp = *solved->problem;
   const ba::BaResult& br = *solved->result;
-  std::map<std::string, int> object_view;
-  std::string object_ids;
-  for (size_t v = 0; v < bp.views.size(); ++v) {
-    if (bp.views[v].kind != ba::ViewKind::kObject) continue;
-    object_view[bp.views[v].id] = static_cast<int>(v);
-    object_ids += (object_ids.empty() ? "" : ", ") + bp.views[v].id;
-  }
+  const ObjectViews object_views = ObjectViewsOf(bp);
   const ba::CalibrationUncertainty calibration = ba::CalibrationUncertaintyOf(bp);
   // The solve's object frame -> the CT frame (a mirrored pose problem negates y).
   const Eigen::Matrix3d F = Eigen::Vector3d(1, solved->mirrored ? -1 : 1, 1).asDiagonal();
 
   nlohmann::json jpoints = nlohmann::json::array();
-  std::ostringstream csv;
-  csv << "# carmba triangulate --problem " << FLAGS_problem << " --config " << FLAGS_config
-      << "\n# positions in the CT frame (mm), covariance mm^2 (the solve's "
-      << (calibration == ba::CalibrationUncertainty::kEstimated ? "poses and intrinsics"
-          : calibration == ba::CalibrationUncertainty::kConsidered
-              ? "poses, with the held intrinsics' calibration covariance"
-              : "poses (intrinsics held, calibration uncertainty left out)")
-      << " and the points' pixels)\n"
-      << "id,x_mm,y_mm,z_mm,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz\n";
+  std::string csv = CsvHeader(calibration);
   std::vector<std::string> warnings;
   for (const PointInput& p : *points) {
-    std::vector<analysis::PixelObservation> obs;
-    for (const auto& px : p.pixels) {
-      auto it = object_view.find(px.view);
-      if (it == object_view.end()) {
-        return cli::Fail(cmd, px.where + ": view '" + px.view +
-                                  "' is not an object view of the problem (object views: " +
-                                  object_ids + ")");
-      }
-      analysis::PixelObservation o;
-      o.view = it->second;
-      o.uv_px = px.uv;
-      const double s = FLAGS_sigma_px > 0 ? FLAGS_sigma_px : bp.views[o.view].sigma_px;
-      o.covariance_px2 =
-          px.cov && FLAGS_sigma_px == 0 ? *px.cov : Eigen::Matrix2d::Identity() * s * s;
-      obs.push_back(o);
-    }
-    auto t = analysis::TriangulatePoint(bp, br, obs, topt);
+    auto obs = PointObservations(p, object_views, bp);
+    if (!obs.ok()) return cli::Fail(cmd, obs.status());
+    auto t = analysis::TriangulatePoint(bp, br, *obs, topt);
     if (!t.ok()) {
       const std::string src = FLAGS_points.empty() ? "--pixels" : FLAGS_points;
       return cli::Fail(cmd, src + ": point '" + p.name + "': " + t.status().message());
@@ -218,74 +338,29 @@ int RunTriangulate() {
     const Eigen::Vector3d X = F * t->p_in_object;
     const Eigen::Matrix3d C = F * t->covariance * F;
     for (const auto& w : t->warnings) warnings.push_back("point '" + p.name + "': " + w);
-    nlohmann::json views = nlohmann::json::array();
-    for (size_t i = 0; i < obs.size(); ++i) {
-      views.push_back(
-          {{"view", bp.views[obs[i].view].id},
-           {"u_px", obs[i].uv_px[0]},
-           {"v_px", obs[i].uv_px[1]},
-           {"residual_px", {JsonNumber(t->residual_px[i][0]), JsonNumber(t->residual_px[i][1])}},
-           {"rejected", t->rejected[i] != 0}});
-    }
-    nlohmann::json by_source;
-    for (int s = 0; s < ba::kNumSources; ++s) {
-      by_source[ba::SourceName(static_cast<ba::Source>(s))] =
-          JsonNumber(t->solve_trace_by_source[s]);
-    }
-    by_source["the point's pixels"] = JsonNumber(t->covariance_pixels.trace());
-    jpoints.push_back({{"id", p.name},
-                       {"p_in_ct_mm", {X[0], X[1], X[2]}},
-                       {"covariance_mm2", JsonRows(C)},
-                       {"sigma_mm",
-                        {JsonNumber(std::sqrt(C(0, 0))),
-                         JsonNumber(std::sqrt(C(1, 1))),
-                         JsonNumber(std::sqrt(C(2, 2)))}},
-                       {"rms_3d_mm", JsonNumber(std::sqrt(C.trace()))},
-                       {"covariance_pixels_mm2", JsonRows(F * t->covariance_pixels * F)},
-                       {"covariance_solve_mm2", JsonRows(F * t->covariance_solve * F)},
-                       {"covariance_calibration_mm2", JsonRows(F * t->covariance_calibration * F)},
-                       {"variance_by_source_mm2", by_source},
-                       {"max_ray_angle_deg", JsonNumber(t->max_ray_angle_deg)},
-                       {"rms_px", JsonNumber(t->rms_px)},
-                       {"views", views},
-                       {"chi2", JsonNumber(t->chi2)},
-                       {"dof", t->dof},
-                       {"chi2_p_value", JsonNumber(t->chi2_p_value)},
-                       {"warnings", t->warnings}});
-    char line[512];
-    std::snprintf(line, sizeof line, "%s,%.6f,%.6f,%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n",
-                  p.name.c_str(), X[0], X[1], X[2], C(0, 0), C(0, 1), C(0, 2), C(1, 1), C(1, 2),
-                  C(2, 2));
-    csv << line;
-    std::printf("point %s: (%.3f, %.3f, %.3f) mm, sigma (%.3f, %.3f, %.3f) mm, rays %.1f deg "
-                "apart, %zu views\n",
-                p.name.c_str(), X[0], X[1], X[2], std::sqrt(C(0, 0)), std::sqrt(C(1, 1)),
-                std::sqrt(C(2, 2)), t->max_ray_angle_deg, obs.size());
+    jpoints.push_back(PointJson(p, *t, *obs, bp, F));
+    csv += CsvRow(p.name, X, C);
+    std::printf(
+        "point %s: (%.3f, %.3f, %.3f) mm, sigma (%.3f, %.3f, %.3f) mm, rays %.1f deg "
+        "apart, %zu views\n",
+        p.name.c_str(),
+        X[0],
+        X[1],
+        X[2],
+        std::sqrt(C(0, 0)),
+        std::sqrt(C(1, 1)),
+        std::sqrt(C(2, 2)),
+        t->max_ray_angle_deg,
+        obs->size());
   }
   nlohmann::json j;
   j["problem"] = {{"file", FLAGS_problem}, {"kind", solved->kind}, {"config", FLAGS_config}};
   j["frame"] = "CT (object) frame, mm";
-  const std::string scale = br.covariance_scale == 1.0 ? "a-priori" : "a-posteriori";
-  j["covariance"] =
-      calibration == ba::CalibrationUncertainty::kEstimated
-          ? "the solve's joint covariance of poses and intrinsics (" + scale +
-                " sigmas) and the points' pixel noise"
-      : calibration == ba::CalibrationUncertainty::kConsidered
-          ? "the solve's covariance of the poses (" + scale +
-                " sigmas), the held intrinsics' calibration covariance from camera.json "
-                "(considered: covariance_calibration_mm2) and the points' pixel noise"
-          : std::string("the solve's covariance of the poses and the points' pixel noise; the "
-                        "intrinsics are held and camera.json has no covariance (or the config "
-                        "says consider_calibration: false): the calibration's uncertainty is NOT "
-                        "included");
+  j["covariance"] = CovarianceStatement(calibration, br);
   j["points"] = jpoints;
   j["warnings"] = warnings;
   cli::Step(cmd, "writing the outputs");
-  StagedOutputDir staged(FLAGS_out);
-  Status s = staged.Begin();
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "triangulation.json"), j.dump(2) + "\n");
-  if (s.ok()) s = WriteFileAtomic(JoinPath(staged.path(), "points.csv"), csv.str());
-  if (s.ok()) s = staged.Commit(/*replace_all=*/false);
+  const Status s = WriteOutputs(j, csv);
   if (!s.ok()) return cli::Fail(cmd, s);
   for (const auto& w : warnings) std::cerr << "carmba triangulate: warning: " << w << std::endl;
   if (calibration == ba::CalibrationUncertainty::kLeftOut) {

@@ -260,22 +260,11 @@ std::string SpreadVerdict(const TrackChecks& c, const TrackTargets& t) {
          "): look for a wrong match or a body that is not rigid (the distances table above).";
 }
 
-}  // namespace
-
-ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
-  ReportDoc doc;
+// The targets against what was measured, without ground truth.
+void ChecksSection(const TrackResult& r, const TrackTargets& t, ReportDoc* doc) {
   const TrackChecks& c = r.checks;
-  doc.Heading(1, "carmba track");
-  doc.Paragraph(
-      std::to_string(r.cameras.size()) + " cameras, " + std::to_string(r.frames.size()) +
-      " frames, " + std::to_string(r.beads.size()) + " beads in " +
-      std::to_string(r.bodies.size()) +
-      " rigid bodies. Positions are in the cameras' lab frame (mm); a body's frame is the lab "
-      "frame at the first frame (frame " +
-      std::to_string(r.frames.front().number) + ").");
-  for (const std::string& w : r.warnings) doc.Warning(w);
-  doc.Heading(2, "Checks");
-  doc.Paragraph(
+  doc->Heading(2, "Checks");
+  doc->Paragraph(
       "Without ground truth: the distances between the beads of one body, triangulated in each "
       "frame on its own (pixels only, the cameras held), must not change between frames beyond "
       "their predicted sigmas. The sigmas use the detector's pixel covariances scaled by the "
@@ -286,7 +275,7 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
       Fmt("%.2f", c.max_change_sigmas_stated) +
       " sigma. The chi-square treats the "
       "distances as independent (beads shared by two distances make them correlated).");
-  doc.Table(
+  doc->Table(
       {"check", "target", "measured", "holds"},
       {{"beads per frame from >= 2 cameras (least frame)",
         ">= " + std::to_string(t.min_beads_per_frame),
@@ -314,13 +303,17 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
         Fmt("%.1f", c.distance_chi2) + " on " + std::to_string(c.distance_dof) +
             " dof, P = " + Fmt("%.3g", c.distance_chi2_p),
         Verdict(c.distance_chi2_p >= 0.005)}});
-  doc.Paragraph(
+  doc->Paragraph(
       SpreadVerdict(c, t) +
       " (Published marker-tracking precisions are usually a standard deviation of "
       "each inter-marker distance over the frames; its analogue here, the RMS of the distances "
       "about their means, is " +
       Fmt("%.3f", c.rms_spread_mm) + " mm.)");
-  doc.Heading(2, "Frames");
+}
+
+// Per frame: the blobs each camera found and the beads given an id.
+void FramesSection(const TrackResult& r, ReportDoc* doc) {
+  doc->Heading(2, "Frames");
   std::vector<std::vector<std::string>> rows;
   for (size_t f = 0; f < r.frames.size(); ++f) {
     int beads = 0, single = 0;
@@ -342,11 +335,19 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
                     std::to_string(beads),
                     std::to_string(single)});
   }
-  doc.Table({"frame", "blobs per camera", "epipolar candidates", "beads with an id (2+ cameras)",
-             "beads seen by one camera (by prediction)"},
-            rows);
-  doc.Heading(2, "Rigid bodies");
-  rows.clear();
+  doc->Table({"frame",
+              "blobs per camera",
+              "epipolar candidates",
+              "beads with an id (2+ cameras)",
+              "beads seen by one camera (by prediction)"},
+             rows);
+}
+
+// Per body and frame: its pose from the first frame with the sigmas of its rotation and of its
+// beads' centroid.
+void BodiesSection(const TrackResult& r, ReportDoc* doc) {
+  doc->Heading(2, "Rigid bodies");
+  std::vector<std::vector<std::string>> rows;
   for (const TrackBody& body : r.bodies) {
     std::string ids;
     for (int bi : body.beads) ids += (ids.empty() ? "" : " ") + std::to_string(r.beads[bi].id);
@@ -385,16 +386,20 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
                       f == 0 ? "" : Fmt("%.3f", centroid_sigma) + " mm"});
     }
   }
-  doc.Table({"body",
-             "beads",
-             "frame",
-             "rotation from the first frame (deg)",
-             "translation (mm, lab_from_body)",
-             "sigma of the rotation (root of the trace)",
-             "sigma of the beads' centroid (root of the trace)"},
-            rows);
-  doc.Heading(2, "Distances within the bodies");
-  rows.clear();
+  doc->Table({"body",
+              "beads",
+              "frame",
+              "rotation from the first frame (deg)",
+              "translation (mm, lab_from_body)",
+              "sigma of the rotation (root of the trace)",
+              "sigma of the beads' centroid (root of the trace)"},
+             rows);
+}
+
+// Per pair of beads in one body: the distance in each frame, its sigma, spread and change.
+void DistancesSection(const TrackResult& r, ReportDoc* doc) {
+  doc->Heading(2, "Distances within the bodies");
+  std::vector<std::vector<std::string>> rows;
   for (const BodyDistance& d : r.distances) {
     std::string per_frame;
     for (size_t f = 0; f < r.frames.size(); ++f) {
@@ -411,11 +416,19 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
                     Fmt("%.3f", d.spread_mm),
                     Fmt("%.2f", d.max_change_sigmas)});
   }
-  doc.Table({"body", "beads", "distance per frame (mm)", "sigma (mm, largest)", "spread (mm)",
-             "largest change (sigma)"},
-            rows);
-  doc.Heading(2, "Bundle adjustment");
-  doc.Paragraph(
+  doc->Table({"body",
+              "beads",
+              "distance per frame (mm)",
+              "sigma (mm, largest)",
+              "spread (mm)",
+              "largest change (sigma)"},
+             rows);
+}
+
+// The bundle adjustment, the time per stage and the overlays.
+void AdjustmentAndOverlaysSection(const TrackResult& r, ReportDoc* doc) {
+  doc->Heading(2, "Bundle adjustment");
+  doc->Paragraph(
       "Beads in their body's frame and the bodies' poses per frame, the cameras held, the first "
       "frame's poses held at the identity; pixels whitened by the detector's 2x2 covariances, "
       "scaled per noise group (covariance.scale per_group). Chi-square " +
@@ -423,18 +436,38 @@ ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
       " dof at the detector's "
       "covariances (sigma0 " +
       Fmt("%.2f", r.ba_sigma0) + ").");
-  doc.Paragraph("Time: detection " + Fmt("%.2f", r.time_detect_s) + " s, matching and identity " +
-                Fmt("%.3f", r.time_match_s) + " s, bundle adjustment " + Fmt("%.3f", r.time_ba_s) +
-                " s.");
-  doc.Heading(2, "Overlays");
-  doc.Paragraph(
+  doc->Paragraph("Time: detection " + Fmt("%.2f", r.time_detect_s) + " s, matching and identity " +
+                 Fmt("%.3f", r.time_match_s) + " s, bundle adjustment " + Fmt("%.3f", r.time_ba_s) +
+                 " s.");
+  doc->Heading(2, "Overlays");
+  doc->Paragraph(
       "Around the beads (report.html); the whole images are in `overlays/`. Green: a bead and its "
       "id; yellow: a blob without an id; red: a rejected blob and the reason; cyan: the epipolar "
       "lines of the other cameras' beads.");
-  doc.Figures({"overlay-"});
+  doc->Figures({"overlay-"});
   std::vector<std::string> items;
   for (size_t i = 0; i < r.images.size(); ++i) items.push_back("`" + TrackOverlayName(r, i) + "`");
-  doc.List(items);
+  doc->List(items);
+}
+
+}  // namespace
+
+ReportDoc TrackReportDoc(const TrackResult& r, const TrackTargets& t) {
+  ReportDoc doc;
+  doc.Heading(1, "carmba track");
+  doc.Paragraph(
+      std::to_string(r.cameras.size()) + " cameras, " + std::to_string(r.frames.size()) +
+      " frames, " + std::to_string(r.beads.size()) + " beads in " +
+      std::to_string(r.bodies.size()) +
+      " rigid bodies. Positions are in the cameras' lab frame (mm); a body's frame is the lab "
+      "frame at the first frame (frame " +
+      std::to_string(r.frames.front().number) + ").");
+  for (const std::string& w : r.warnings) doc.Warning(w);
+  ChecksSection(r, t, &doc);
+  FramesSection(r, &doc);
+  BodiesSection(r, &doc);
+  DistancesSection(r, &doc);
+  AdjustmentAndOverlaysSection(r, &doc);
   return doc;
 }
 
