@@ -13,6 +13,7 @@
 #include "ba/schur_lm.h"
 #include "calib/projection_uncertainty.h"
 #include "calib/zhang_init.h"
+#include "problem/ba_assembly.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
 
@@ -33,31 +34,30 @@ int IntrinsicIndexOf(const std::string& name) {
   return -1;
 }
 
-// The calibration as a problem of the bundle-adjustment engine: one intrinsics group, one plate
-// pose per view, the plate's points held at the nominal grid.
+// The calibration as a problem of the bundle-adjustment engine, its plate part alone
+// (problem/ba_assembly.h): one intrinsics group, one plate pose per view, the plate's points held
+// at the nominal grid. Views are named by their images (by number when those are not unique).
 ba::BaProblem CalibrationProblem(const ObservationSet& obs,
                                  const std::array<double, kNumIntrinsics>& x,
                                  const std::array<bool, kNumIntrinsics>& free,
                                  double fy_over_fx,
                                  double sigma_px,
                                  const std::vector<Pose6>& poses) {
-  ba::BaProblem p;
-  p.name = "calibration";
   ba::IntrinsicsGroup g;
   g.width = obs.width;
   g.height = obs.height;
   g.initial = x;
   g.free = free;
   g.fy_over_fx = fy_over_fx;
-  p.groups.push_back(g);
-  p.plate.points = obs.grid.PointsInPlate();
   std::set<std::string> names;
   for (const auto& v : obs.views) names.insert(v.image);
   const bool by_image = names.size() == obs.views.size() && !names.count("");
+  std::vector<ba::BaView> views;
   for (size_t v = 0; v < obs.views.size(); ++v) {
-    p.views.push_back(ToBaPlateView(
+    views.push_back(ToBaPlateView(
         obs.views[v], by_image ? obs.views[v].image : std::to_string(v), 0, poses[v], sigma_px));
   }
+  ba::BaProblem p = ToBaPlateProblem("calibration", obs, {g}, std::move(views));
   p.markers_free = false;
   return p;
 }

@@ -106,14 +106,19 @@ StatusOr<Pose6> InitialObjectPose(const Camera& cam,
   return Status::Error("unknown initializer");
 }
 
-namespace {
-
-// The plate's nominal points (none without plate views), free or held.
-void AddPlate(const Problem& problem, ba::BaProblem* bp) {
-  if (!problem.plate.views.empty()) bp->plate.points = problem.plate.grid.PointsInPlate();
-  bp->plate.free = problem.plate_free;
-  bp->plate.sigma_mm = problem.plate_sigma_mm;
+ba::BaProblem ToBaPlateProblem(const std::string& name,
+                               const ObservationSet& plate,
+                               std::vector<ba::IntrinsicsGroup> groups,
+                               std::vector<ba::BaView> plate_views) {
+  ba::BaProblem bp;
+  bp.name = name;
+  bp.groups = std::move(groups);
+  if (!plate.views.empty()) bp.plate.points = plate.grid.PointsInPlate();
+  bp.views = std::move(plate_views);
+  return bp;
 }
+
+namespace {
 
 // The fiducials some object view observes, in the problem's handedness, in file order.
 void AddMarkers(const Problem& problem, ba::BaProblem* bp) {
@@ -191,11 +196,11 @@ StatusOr<AssembledProblem> ToBaProblem(const Problem& problem,
                                        const ProgressFn& progress) {
   AssembledProblem out;
   ba::BaProblem& bp = out.problem;
-  bp.name = problem.name;
+  bp = ToBaPlateProblem(
+      problem.name, problem.plate, std::move(input.groups), std::move(input.plate_views));
+  bp.plate.free = problem.plate_free;
+  bp.plate.sigma_mm = problem.plate_sigma_mm;
   bp.marker_radius_mm = problem.marker_diameter_mm / 2;
-  bp.groups = std::move(input.groups);
-  AddPlate(problem, &bp);
-  bp.views = std::move(input.plate_views);
   AddMarkers(problem, &bp);
   CARMBA_RETURN_IF_ERROR(AddObjectViews(problem, config, input.object_view_groups, progress, &bp));
   AddAngles(problem, &bp);
