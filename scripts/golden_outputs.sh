@@ -31,6 +31,10 @@ for c in calib calib_free calib_radial calib_robust calib_thesis; do
     --spacing-mm=20 --truth="$SIM/calibration/truth.json" --config="configs/$c.yaml" \
     --out="$OUT/calibration_$c" --no-plots --no-mrcal --no-opencv
 done
+run simulate --scene=configs/scenes/calib_7x6_pincushion.yaml --out="$SIM/pincushion"
+run calibrate --images="$SIM/pincushion/*.png" --pattern=circles --rows=6 --cols=7 --spacing-mm=15 \
+  --truth="$SIM/pincushion/truth.json" --config=configs/calib_free.yaml \
+  --out="$OUT/calibration_pincushion_calib_free" --no-plots --no-mrcal --no-opencv
 run calibrate --problem=problems/calib_opencv_left.yaml --config=configs/calib_free.yaml --out="$OUT/calibration_opencv_left" --no-plots --no-mrcal --no-opencv
 
 # 3. CT fiducials, and 4. the joint problems (thesis and flexing C-arm) as the problem files read them.
@@ -87,5 +91,13 @@ W=data/real/autoscoper-wrist
 run track --cameras="cam01=$W/calibration/xr_calib_wrist_cam01.txt;cam02=$W/calibration/xr_calib_wrist_cam02.txt" \
   --images="cam01=$W/images/cam01;cam02=$W/images/cam02" --marker-diameter-mm=1 --out="$OUT/track_wrist"
 rm -rf "$OUT/track_wrist/overlays"
+
+# 7. Metal spheres in a real CT (clipped at the scanner's maximum), at the nominal and at rough
+# diameters.
+mkdir -p "$OUT/real_ct"
+for d in 6 5 7 8; do
+  run ct-fiducials --dicom=data/real/ggn-phantom-ct/series --diameter-mm=$d --expected=4 \
+    --out="$OUT/real_ct/fiducials_${d}mm.csv" --no-plots
+done
 find "$OUT" \( -name '*.png' -o -name '*.dcm' -o -name '*.html' \) -delete
 echo "golden outputs in $OUT" >&2

@@ -166,6 +166,98 @@ def track_figures(out):
     }
 
 
+# ---- Relative poses, TRE and triangulation on the rendered joint scene -----------------------
+
+def mahalanobis(e, C):
+    return math.sqrt(sum(a * b for a, b in zip(e, solve_linear(C, e))))
+
+
+def tre_figures(out):
+    r = load_json(os.path.join(out, "joint_tre/result.json"))
+    pairs = r["relative_poses"]
+    t = r["tre"]
+    truth = {m["id"]: [m["x_mm"], m["y_mm"], m["z_mm"]]
+             for m in load_json(os.path.join(out, "out/sim/joint/truth.json"))["ct_markers"]}
+    points = load_json(os.path.join(out, "triangulate_joint/triangulation.json"))["points"]
+    errors = [[a - b for a, b in zip(p["p_in_ct_mm"], truth[int(p["id"])])] for p in points]
+    sigmas = [mahalanobis(e, p["covariance_mm2"]) for e, p in zip(errors, points)]
+    rms = math.sqrt(sum(sum(x * x for x in e) for e in errors) / len(errors))
+    return {
+        "relative_rotations": "all %d relative rotations within %.2f sigma of the truth (3-dof "
+                              "Mahalanobis; angle errors within %.2f sigma), mean NEES / 6 = %.2f"
+                              % (len(pairs), max(p["rotation_error_sigma"] for p in pairs),
+                                 max(abs(p["angle_error_sigma"]) for p in pairs),
+                                 sum(p["nees"] for p in pairs) / 6 / len(pairs)),
+        "tre": "leave-one-out TRE RMS %.3f mm measured, %.3f mm predicted, %.3f mm by "
+               "Fitzpatrick's formula (mean e^T C^-1 e / 3 = %.2f on this one scene)"
+               % (t["rms_error_mm"], t["rms_predicted_mm"], t["rms_fitzpatrick_mm"],
+                  t["mean_mahalanobis2_per_dof"]),
+        "triangulated": "the %d markers triangulated by `carmba triangulate` from the object "
+                        "views' pixels within %.2f sigma of their true positions (3-dof "
+                        "Mahalanobis; RMS error %.3f mm)" % (len(points), max(sigmas), rms),
+    }
+
+
+# ---- Calibration from simulated images against their truth ------------------------------------
+
+def against_truth(report_path):
+    """From a calibration report's section "Against the truth": the intrinsics' errors in sigmas
+    (name -> z) and the whole image's largest projection difference over its sigma."""
+    with open(report_path) as fh:
+        text = fh.read()
+    line = re.search(r"^Intrinsics against the truth: (.*)$", text, re.M).group(1)
+    z = {m.group(1): float(m.group(2)) for m in re.finditer(r"(\w+) (-?[\d.]+) sigma", line)}
+    row = re.search(r"^\| whole image \|([^\n]*)$", text, re.M).group(1).split("|")
+    return z, float(row[3])
+
+
+def calib_figures(out):
+    scenes = [("thesis scene", "calibration_calib_free"),
+              ("7x6 pincushion scene", "calibration_pincushion_calib_free")]
+    intr, proj = [], []
+    for name, run in scenes:
+        z, worst = against_truth(os.path.join(out, run, "report.md"))
+        intr.append((max(abs(z[k]) for k in ("fx", "fy", "cx", "cy")), name))
+        proj.append("%.2f" % worst)
+    return {
+        "intrinsics": "fx, fy, cx, cy within %.2f sigma of the truth on the %s and within %.2f "
+                      "sigma on the %s" % (intr[0] + intr[1]),
+        "projection": "the true projection within %s sigma over the image" % " / ".join(proj),
+    }
+
+
+# ---- Metal spheres in a real CT ----------------------------------------------------------------
+
+def read_fiducials(path):
+    """The centres (mm) and covariances (mm^2) of a `carmba ct-fiducials` CSV, by id."""
+    with open(path) as fh:
+        lines = [l.strip() for l in fh if l.strip() and not l.startswith("#")]
+    head = lines[0].split(",")
+    out = {}
+    for line in lines[1:]:
+        r = dict(zip(head, line.split(",")))
+        c = {k: float(r["cov_" + k]) for k in ("xx", "xy", "xz", "yy", "yz", "zz")}
+        out[r["id"]] = ([float(r[k]) for k in ("x_mm", "y_mm", "z_mm")],
+                        [[c["xx"], c["xy"], c["xz"]], [c["xy"], c["yy"], c["yz"]],
+                         [c["xz"], c["yz"], c["zz"]]])
+    return out
+
+
+def realct_figures(out):
+    ref = read_fiducials(os.path.join(out, "real_ct/fiducials_6mm.csv"))
+    sigmas = [math.sqrt((C[0][0] + C[1][1] + C[2][2]) / 3) for _, C in ref.values()]
+    moved = 0.0
+    for d in (5, 7, 8):
+        other = read_fiducials(os.path.join(out, "real_ct/fiducials_%dmm.csv" % d))
+        for p, _ in other.values():
+            moved = max(moved, min(math.dist(p, q) for q, _ in ref.values()))
+    return {
+        "found": "%d of 4 spheres found" % len(ref),
+        "sigma": "centre sigma %.2f-%.2f mm (RMS per axis)" % (min(sigmas), max(sigmas)),
+        "rough_diameters": "nominal 5, 7 or 8 mm give the same centres within %.3f mm" % moved,
+    }
+
+
 # ---- C-arm flex: the rendered flexing scene ------------------------------------------------------
 
 def solve_linear(A, b):
@@ -211,7 +303,8 @@ def flex_figures(out):
     return figures
 
 
-SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "track": track_figures,
+SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "tre": tre_figures,
+            "calib": calib_figures, "track": track_figures, "realct": realct_figures,
             "flex": flex_figures}
 
 
