@@ -7,9 +7,10 @@ appears exactly once in the template. Sections whose figures are not generated y
 in the template (the template says which).
 
   python3 scripts/results.py measure [--bin build/bin/carmba]
-      runs scripts/golden_outputs.sh (every shipped problem and scene, about 30 s on 2 cores)
-      into a scratch directory, extracts the figures from its result.json files, writes the
-      figures file and results.md
+      runs scripts/golden_outputs.sh (every shipped problem and scene, about 50 s on 2 cores)
+      into a scratch directory and extracts the figures from its result files; runs the tests of
+      TEST_RUNS (beside the binary: BUILD/tests/) and takes the figures they record
+      (tests/figures.h); writes the figures file and results.md
   python3 scripts/results.py render [--check]
       writes results.md from the template and the figures file; --check writes nothing and exits
       1 when results.md differs from that (a hand edit, or a template changed without a render)
@@ -24,6 +25,7 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+from xml.etree import ElementTree
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TEMPLATE = os.path.join(ROOT, "src/docs/results.md.in")
@@ -308,6 +310,28 @@ SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "tre": tre_figures
             "flex": flex_figures}
 
 
+# ---- Figures the tests measure -----------------------------------------------------------------
+
+# (test executable, gtest filter): each test records its figures as properties named
+# "figure.SECTION.NAME" (tests/figures.h), read here from its XML output.
+TEST_RUNS = [("carmba_ba_test", "Consider.*:Whitening2x2.*"),
+             ("carmba_analysis_test", "RelativePose*:Triangulation*:LeaveOne*")]
+
+
+def test_figures(tests_dir, tmp):
+    figures = {}
+    for exe, gfilter in TEST_RUNS:
+        xml = os.path.join(tmp, exe + ".xml")
+        subprocess.run([os.path.join(tests_dir, exe), "--gtest_filter=" + gfilter,
+                        "--gtest_output=xml:" + xml], check=True, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL)
+        for prop in ElementTree.parse(xml).iter("property"):
+            name = prop.get("name")
+            if name.startswith("figure."):
+                figures[name[len("figure."):]] = prop.get("value")
+    return figures
+
+
 # ---- Measure and render ---------------------------------------------------------------------
 
 def measure(binary):
@@ -319,6 +343,8 @@ def measure(binary):
         for name, fn in SECTIONS.items():
             for key, value in fn(out).items():
                 figures[name + "." + key] = value
+        tests_dir = os.path.join(os.path.dirname(os.path.dirname(binary)), "tests")
+        figures.update(test_figures(tests_dir, tmp))
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                             capture_output=True, text=True).stdout.strip()
     doc = {"measured": {"commit": commit,

@@ -9,21 +9,24 @@
 // NEES acceptance [0.8, 1.25] is the issue's. With T trials a mean NEES / dim of dimension d has a
 // relative standard error of about sqrt(2 / (d T)) (correlated trials make it larger): 200 trials
 // of a 6-dim NEES give ~4 %, so the band is > 5 standard errors wide.
+#include "analysis/triangulation.h"
+
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <random>
 
-#include "ba/bundle_adjuster.h"
 #include "analysis/relative_pose.h"
-#include "synthetic/synthetic_joint.h"
 #include "analysis/tre.h"
-#include "analysis/triangulation.h"
+#include "ba/bundle_adjuster.h"
 #include "ba/synthetic_pixels.h"
+#include "figures.h"
 #include "geometry/rotation.h"
+#include "synthetic/synthetic_joint.h"
 
 namespace carmba {
 namespace analysis {
@@ -126,6 +129,9 @@ TEST(RelativePose, MonteCarloNeesAndThreeSigma) {
               "error %.2f sigma; %.1f us per pair alone, %.0f us for the %zu pairs together\n",
               kTrials, pairs.size(), mean, lo, hi, frac, worst_sigma, us / total,
               us_batch / kTrials, pairs.size());
+  testing::RecordFigure("mc.relative_pose_trials", "%d trials x %zu pairs", kTrials, pairs.size());
+  testing::RecordFigure("mc.relative_pose_nees", "%.3f (pairs %.3f .. %.3f)", mean, lo, hi);
+  testing::RecordFigure("mc.relative_pose_within3", "%.1f %%", 100 * frac);
   EXPECT_NEAR(frac, 0.971, 0.02);
 }
 
@@ -184,6 +190,9 @@ TEST(Triangulation, MonteCarloNees) {
                 two_views ? "views +000 and +090" : "all 7 views", kTrials, nees,
                 100 * share_pixels, 100 * share[1], 100 * share[2], 100 * share[0], 100 * share[4],
                 us / kTrials);
+    testing::RecordFigure(
+        two_views ? "mc.tip_nees_two_views" : "mc.tip_nees_all_views", "%.3f", nees);
+    testing::RecordFigure("mc.tip_trials", "%d", kTrials);
     EXPECT_GE(nees, kTriNeesLow);
     EXPECT_LE(nees, kTriNeesHigh);
   }
@@ -257,6 +266,10 @@ TEST(Triangulation, EachSourceAloneMatchesItsShare) {
         ba::SourceName(src),
         ratio,
         std::sqrt(e2 / kTrials));
+    std::string key = std::string("mc.tip_source_") + ba::SourceName(src);
+    for (char& c : key) c = c == ' ' ? '_' : static_cast<char>(std::tolower(c));
+    testing::RecordFigure(key, "%.2f", ratio);
+    testing::RecordFigure("mc.tip_source_trials", "%d", kTrials);
     EXPECT_GE(ratio, kTriNeesLow) << ba::SourceName(src);
     EXPECT_LE(ratio, kTriNeesHigh) << ba::SourceName(src);
   }
@@ -280,6 +293,7 @@ TEST(Triangulation, CovarianceIgnoringTheSolveIsTooSmall) {
     nees_pixels += e.dot(tp->covariance_pixels.ldlt().solve(e)) / 3.0 / kTrials;
   }
   std::printf("tip with 0.05 px picks, pixel-only covariance: mean NEES / 3 = %.2f\n", nees_pixels);
+  testing::RecordFigure("mc.tip_pixel_only_nees", "%.0f", nees_pixels);
   EXPECT_GT(nees_pixels, 2.0);
 }
 
@@ -399,6 +413,16 @@ TEST(LeaveOneMarkerOut, MonteCarloMeanSquaredErrorOverPredicted) {
               "%.3f mm, predicted %.3f mm, Fitzpatrick %.3f mm; %.1f ms per leave-one-out run\n",
               kTrials, n / kTrials, ratio, ratio_true, sum_m / n, std::sqrt(sum_e2 / n),
               std::sqrt(sum_pred2 / n), std::sqrt(sum_fitz2 / n), 1e3 * time_s / kTrials);
+  testing::RecordFigure("mc.tre_trials", "%d trials x %d markers", kTrials, n / kTrials);
+  testing::RecordFigure("mc.tre_ratio",
+                        "%.3f against the CT positions, %.3f against the true ones",
+                        ratio,
+                        ratio_true);
+  testing::RecordFigure("mc.tre_rms",
+                        "RMS %.3f mm measured, %.3f predicted, %.3f Fitzpatrick",
+                        std::sqrt(sum_e2 / n),
+                        std::sqrt(sum_pred2 / n),
+                        std::sqrt(sum_fitz2 / n));
   EXPECT_GE(ratio, kTriNeesLow);
   EXPECT_LE(ratio, kTriNeesHigh);
   EXPECT_GE(ratio_true, kTriNeesLow);

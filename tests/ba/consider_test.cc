@@ -22,13 +22,14 @@
 #include <memory>
 #include <random>
 
-#include "ba/bundle_adjuster.h"
-#include "ba/quantities.h"
 #include "analysis/relative_pose.h"
-#include "ba/reprojection_error.h"
-#include "synthetic/synthetic_joint.h"
 #include "analysis/tre.h"
 #include "analysis/triangulation.h"
+#include "ba/bundle_adjuster.h"
+#include "ba/quantities.h"
+#include "ba/reprojection_error.h"
+#include "figures.h"
+#include "synthetic/synthetic_joint.h"
 #include "synthetic_pixels.h"
 
 namespace carmba {
@@ -279,6 +280,14 @@ TEST(Consider, MonteCarloNeesWithAndWithoutTheConsiderTerm) {
               "(share %.0f %%)\n",
               kTrials, pose_on, pose_off, 100 * cal_share_tz, rel_on, rel_off, tip_on[0],
               tip_off[0], 100 * tip_share[0], tip_on[1], tip_off[1], 100 * tip_share[1]);
+  testing::RecordFigure("consider.trials", "%d", kTrials);
+  testing::RecordFigure("consider.poses", "%.3f / %.1f", pose_on, pose_off);
+  testing::RecordFigure("consider.tz_share", "%.0f %%", 100 * cal_share_tz);
+  testing::RecordFigure("consider.relative_pose", "%.3f / %.2f", rel_on, rel_off);
+  testing::RecordFigure("consider.tip_far", "%.3f / %.2f", tip_on[1], tip_off[1]);
+  testing::RecordFigure("consider.tip_far_share", "%.0f %%", 100 * tip_share[1]);
+  testing::RecordFigure("consider.tip_amid", "%.3f / %.3f", tip_on[0], tip_off[0]);
+  testing::RecordFigure("consider.tip_amid_share", "%.1f %%", 100 * tip_share[0]);
   for (double x : {pose_on, rel_on, tip_on[0], tip_on[1]}) {
     EXPECT_GE(x, kNeesLow);
     EXPECT_LE(x, kNeesHigh);
@@ -317,6 +326,9 @@ TEST(Consider, LeaveOneMarkerOutTreWithTheCalibrationConsidered) {
   std::printf("leave-one-marker-out TRE with the calibration considered, %d trials x 9 markers: "
               "mean e^T C^-1 e / 3 = %.3f; calibration share of tr(C_tri) %.2f %%\n",
               kTrials, m2, 100 * cal_share);
+  testing::RecordFigure("consider.tre_trials", "%d", kTrials);
+  testing::RecordFigure("consider.tre_nees", "%.3f", m2);
+  testing::RecordFigure("consider.tre_share", "%.2f %%", 100 * cal_share);
   EXPECT_GE(m2, kNeesLow);
   EXPECT_LE(m2, kNeesHigh);
   EXPECT_GT(cal_share, 0.0);
@@ -363,6 +375,10 @@ TEST(Whitening2x2, PoseNeesWithFullBlobCovariancesAgainstTheIsotropicBound) {
       nees_iso,
       std::sqrt(e2_full / n),
       std::sqrt(e2_iso / n));
+  testing::RecordFigure("whitening.trials", "%d", kTrials);
+  testing::RecordFigure("whitening.nees", "%.3f full 2x2 against %.3f", nees_full, nees_iso);
+  testing::RecordFigure(
+      "whitening.rms", "%.2f against %.2f mm", std::sqrt(e2_full / n), std::sqrt(e2_iso / n));
   EXPECT_GE(nees_full, kNeesLow);
   EXPECT_LE(nees_full, kNeesHigh);
   EXPECT_LT(nees_iso, nees_full);

@@ -1,0 +1,23 @@
+// Figures of src/docs/results.md measured by a test: scripts/results.py measure runs the test
+// with --gtest_output=xml and takes each figure from the test's properties, so that the number
+// in the document is the one the test computed (and asserted on).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+
+namespace carmba {
+namespace testing {
+
+// The figure `key` (the template's {{section.name}}), printf-formatted as the document states it.
+template <typename... Args>
+void RecordFigure(const std::string& key, const char* format, Args... args) {
+  char text[256];
+  std::snprintf(text, sizeof text, format, args...);
+  ::testing::Test::RecordProperty("figure." + key, text);
+}
+
+}  // namespace testing
+}  // namespace carmba
