@@ -3,14 +3,16 @@
 // point 4.7 sigma under a radial-only config) gets a model with p1 p2, the radial-only solve is
 // warned about, and the recommended model's joint solve has every intrinsic within 3 sigma of
 // the truth; a radial C-arm gets a model without them, over seeds.
+#include "analysis/lens_models.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 
-#include "analysis/lens_models.h"
-#include "synthetic/synthetic_joint.h"
 #include "camera/camera.h"
+#include "figures.h"
+#include "synthetic/synthetic_joint.h"
 #include "test_env.h"
 
 namespace carmba {
@@ -54,6 +56,20 @@ TEST(LensModels, TangentialCarmGetsTangentialTermsAndTheRadialSolveIsWarned) {
         std::sqrt(sc.principal_point_covariance(1, 1)));
   }
   std::printf("recommended %s: %s\n", DistortionModelName(sel->recommended), sel->why.c_str());
+  for (const auto& sc : sel->scores) {
+    const char* key = sc.model == DistortionModel::kRadial2             ? "lens.chi2_radial"
+                      : sc.model == DistortionModel::kRadial2Tangential ? "lens.chi2_tangential"
+                                                                        : nullptr;
+    if (key) testing::RecordFigure(key, "%.1f", sc.chi2);
+    if (sc.model == sel->recommended) {
+      testing::RecordFigure("lens.recommended",
+                            "%s gives %.1f, %.1f +- %.1f",
+                            DistortionModelName(sc.model),
+                            sc.principal_point[0],
+                            sc.principal_point[1],
+                            std::sqrt(sc.principal_point_covariance(0, 0)));
+    }
+  }
   EXPECT_TRUE(HasTangential(sel->recommended)) << sel->why;
   // The radial-only joint solve strays and is warned about.
   ba::BaProblem radial = sj.problem;
@@ -65,6 +81,17 @@ TEST(LensModels, TangentialCarmGetsTangentialTermsAndTheRadialSolveIsWarned) {
       DistortionWarning(*sel, DistortionModel::kRadial2, Eigen::Vector2d(Kr[kCx], Kr[kCy]));
   std::printf("radial-only: cx %.2f cy %.2f (truth %.2f %.2f); warning: %s\n", Kr[kCx], Kr[kCy],
               sj.true_intrinsics[kCx], sj.true_intrinsics[kCy], w.c_str());
+  const Eigen::MatrixXd Cr = rr->Covariance({rr->layout->group_block(0)});
+  const double zr = std::max(std::abs(Kr[kCx] - sj.true_intrinsics[kCx]) / std::sqrt(Cr(kCx, kCx)),
+                             std::abs(Kr[kCy] - sj.true_intrinsics[kCy]) / std::sqrt(Cr(kCy, kCy)));
+  testing::RecordFigure("lens.radial_pp",
+                        "%.1f, %.1f +- %.1f px (truth %.0f, %.0f; %.1f sigma)",
+                        Kr[kCx],
+                        Kr[kCy],
+                        std::sqrt(Cr(kCx, kCx)),
+                        sj.true_intrinsics[kCx],
+                        sj.true_intrinsics[kCy],
+                        zr);
   EXPECT_NE(w.find("distortion model k1 k2: its principal point"), std::string::npos) << w;
   // The recommended model's joint solve: every free intrinsic within 3 sigma of the truth.
   ba::BaProblem rec = sj.problem;
@@ -112,6 +139,14 @@ TEST(LensModels, RecommendedModelIsWithinThreeSigmaOverSeeds) {
                 "sigma: recommended model %d of %d, radial-only %d\n",
                 tangential ? "tangential" : "radial", kSeeds, with_tangential, beyond, params,
                 beyond_radial);
+    testing::RecordFigure(tangential ? "lens.seeds_tangential" : "lens.seeds_radial",
+                          "tangential terms recommended in %d of %d seeds; intrinsics beyond 3 "
+                          "sigma: recommended model %d of %d, radial-only %d",
+                          with_tangential,
+                          kSeeds,
+                          beyond,
+                          params,
+                          beyond_radial);
     EXPECT_LE(beyond, 2);
   }
 }

@@ -15,8 +15,9 @@
 #include <cstdio>
 
 #include "ba/bundle_adjuster.h"
-#include "synthetic/synthetic_joint.h"
+#include "figures.h"
 #include "geometry/rotation.h"
+#include "synthetic/synthetic_joint.h"
 #include "test_env.h"
 
 namespace carmba {
@@ -163,6 +164,13 @@ TEST_P(VarianceComponentsMonteCarlo, PerGroupScalingRestoresNees) {
               "intrinsics %.3f poses %.3f; per_group intrinsics %.3f poses %.3f\n",
               NoiseGroupName(g), trials, static_cast<unsigned long long>(seed), apriori.intrinsics,
               apriori.poses, per_group.intrinsics, per_group.poses);
+  testing::RecordFigure(g == NoiseGroup::kPlatePixels ? "vc.plate_pixels" : "vc.object_pixels",
+                        "intrinsics %.2f -> %.2f, poses %.2f -> %.2f",
+                        apriori.intrinsics,
+                        per_group.intrinsics,
+                        apriori.poses,
+                        per_group.poses);
+  testing::RecordFigure("vc.trials", "%d", trials);
   // What the understated group determines is 4x overconfident a priori.
   const double dominated = g == NoiseGroup::kPlatePixels ? apriori.intrinsics : apriori.poses;
   EXPECT_GT(dominated, 2.5);
