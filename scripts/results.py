@@ -315,7 +315,9 @@ SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "tre": tre_figures
 # (test executable, gtest filter): each test records its figures as properties named
 # "figure.SECTION.NAME" (tests/figures.h), read here from its XML output.
 TEST_RUNS = [("carmba_ba_test", "Consider.*:Whitening2x2.*:*VarianceComponentsMonteCarlo.*"),
-             ("carmba_analysis_test", "RelativePose*:Triangulation*:LeaveOne*:LensModels.*")]
+             ("carmba_analysis_test", "RelativePose*:Triangulation*:LeaveOne*:LensModels.*"),
+             ("carmba_joint_test", "JointTwoStep.*"),
+             ("carmba_core_test", "PoseSolver.MonteCarlo*")]
 
 
 def test_figures(tests_dir, tmp):
@@ -377,9 +379,9 @@ def render_text():
     for kind, lines in units(template.split("\n")):
         text = "\n".join(lines)
         filled = FIGURE_REF.sub(lambda mo: figures[mo.group(1)], text)
-        if filled != text and kind in ("paragraph", "item"):
-            first = "- " if kind == "item" else ""
-            body = " ".join(filled.split())[len(first):]
+        if filled != text and kind in ("paragraph", "item", "indented"):
+            first = {"item": "- ", "indented": "  ", "paragraph": ""}[kind]
+            body = " ".join(filled.split())[len(first.strip()):].lstrip()
             filled = textwrap.fill(body, width=100, initial_indent=first,
                                    subsequent_indent=" " * len(first), break_long_words=False,
                                    break_on_hyphens=False)
@@ -389,22 +391,25 @@ def render_text():
 
 def units(lines):
     """The template's lines as (kind, lines): "item" (a list item with its indented continuation
-    lines), "paragraph" (plain lines up to a blank line or another kind), or "other" (one line of
-    a table, heading, comment or code block, a figure alone on its line (a table), or a blank
-    line), so that a unit whose figures are filled in is reflowed to 100 columns and nothing else
-    moves."""
+    lines), "indented" (indented lines after a list item's table: the item's text goes on),
+    "paragraph" (plain lines up to a blank line or another kind), or "other" (one line of a
+    table, indented or not, heading, comment or code block, a figure alone on its line (a table),
+    or a blank line), so that a unit whose figures are filled in is reflowed to 100 columns and
+    nothing else moves."""
     result, fence = [], False
     for line in lines:
         if line.startswith("```"):
             fence = not fence
             result.append(["other", [line]])
-        elif (fence or not line.strip() or re.match(r"[|#<]|\d+\. ", line)
+        elif (fence or not line.strip() or re.match(r"\s*\||[#<]|\d+\. ", line)
               or FIGURE_REF.fullmatch(line)):
             result.append(["other", [line]])
         elif line.startswith("- "):
             result.append(["item", [line]])
-        elif line.startswith("  ") and result and result[-1][0] == "item":
+        elif line.startswith("  ") and result and result[-1][0] in ("item", "indented"):
             result[-1][1].append(line)
+        elif line.startswith("  "):
+            result.append(["indented", [line]])
         elif result and result[-1][0] == "paragraph":
             result[-1][1].append(line)
         else:

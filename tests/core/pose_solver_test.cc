@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "figures.h"
 #include "geometry/rotation.h"
 #include "report/pose_report.h"
 #include "synthetic/synthetic_pose.h"
@@ -168,10 +169,20 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
   std::printf("relative poses: mean NEES/6 over %d pair estimates %.3f; leave-one-marker-out: "
               "mean squared error / predicted over %d markers %.3f\n",
               rel_n, rel_nees / rel_n, tre_n, tre_e2 / tre_pred2);
+  testing::RecordFigure("posemc.trials", "%d", kTrials);
+  testing::RecordFigure("posemc.nees", "%.2f", mean_nees);
+  testing::RecordFigure("posemc.relative_nees",
+                        "%.3f (%d trials x %d pairs)",
+                        rel_nees / rel_n,
+                        kTrials,
+                        rel_n / kTrials);
+  testing::RecordFigure(
+      "posemc.tre", "%.3f (%d trials x %d markers)", tre_e2 / tre_pred2, kTrials, tre_n / kTrials);
   EXPECT_GE(rel_nees / rel_n, 0.8);
   EXPECT_LE(rel_nees / rel_n, 1.25);
   EXPECT_GE(tre_e2 / tre_pred2, 0.8);
   EXPECT_LE(tre_e2 / tre_pred2, 1.25);
+  std::string ratios;
   for (size_t k = 0; k < rr_err.size(); ++k) {
     double m = 0, ss = 0;
     for (double e : rr_err[k]) m += e;
@@ -182,7 +193,12 @@ TEST(PoseSolver, MonteCarloCovarianceIsHonest) {
     std::printf("pair %zu: relative rotation sigma reported %.4f deg, empirical %.4f deg\n", k,
                 reported, empirical);
     EXPECT_NEAR(reported / empirical, 1.0, 0.15) << "pair " << k;
+    char r[16];
+    std::snprintf(r, sizeof r, "%.2f", reported / empirical);
+    ratios += (ratios.empty() ? "" : ", ") + std::string(r);
   }
+  testing::RecordFigure(
+      "posemc.sigma_ratios", "%s for the %zu pairs", ratios.c_str(), rr_err.size());
 }
 
 TEST(PoseSolver, DegenerateViewIsAnError) {

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "figures.h"
 #include "joint/joint_solver.h"
 #include "synthetic/synthetic_joint.h"
 
@@ -122,6 +123,11 @@ TEST(JointTwoStep, FixedIntrinsicsSigmasAreTooSmall) {
                 names[m], ratio[m], n);
   }
   std::printf("largest joint / prior sigma - 1: %.2e\n", worst_excess);
+  testing::RecordFigure("twostep.trials", "%d", n);
+  testing::RecordFigure("twostep.joint", "%.2f", ratio[0]);
+  testing::RecordFigure("twostep.fixed", "%.2f", ratio[1]);
+  testing::RecordFigure("twostep.prior", "%.2f", ratio[2]);
+  testing::RecordFigure("twostep.excess", "%.1f %%", 100 * worst_excess);
   EXPECT_NEAR(ratio[0], 1.0, 0.1);
   EXPECT_NEAR(ratio[2], 1.0, 0.1);
   EXPECT_GT(ratio[1], 1.3);  // the fixed-intrinsics sigmas are too small
