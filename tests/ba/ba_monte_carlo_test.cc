@@ -10,13 +10,15 @@
 // makes 15 % about 4 standard errors, so the ~300 comparisons do not fail by chance.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 #include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
-#include "synthetic/synthetic_joint.h"
+#include "figures.h"
 #include "geometry/rotation.h"
+#include "synthetic/synthetic_joint.h"
 
 namespace carmba {
 namespace ba {
@@ -167,6 +169,11 @@ TEST(BaMonteCarlo, ErrorBudgetMatchesEachSourceAlone) {
   }
   std::printf("all sources (%d trials): worst |ratio - 1| = %.3f over %d quantities\n", kTrials,
               worst_total, nq);
+  testing::RecordFigure("budget.trials", "%d", kTrials);
+  testing::RecordFigure("budget.quantities", "%d", nq);
+  testing::RecordFigure(
+      "budget.each", "%.1f %% of the budget's share (worst: %s)", 100 * worst, worst_what.c_str());
+  testing::RecordFigure("budget.total", "%.1f %%", 100 * worst_total);
 }
 
 TEST(BaMonteCarlo, NeesOfIntrinsicsAndPoses) {
@@ -207,6 +214,13 @@ TEST(BaMonteCarlo, NeesOfIntrinsicsAndPoses) {
     EXPECT_LE(x, 1.25);
   }
   std::printf("\n");
+  testing::RecordFigure("budget.nees_trials", "%d", n);
+  testing::RecordFigure("budget.nees_intrinsics", "%.2f", nees_intr);
+  testing::RecordFigure("budget.nees_poses",
+                        "%.2f-%.2f for the %zu object poses",
+                        *std::min_element(nees_pose.begin(), nees_pose.end()),
+                        *std::max_element(nees_pose.begin(), nees_pose.end()),
+                        nees_pose.size());
 }
 
 }  // namespace
