@@ -318,7 +318,8 @@ TEST_RUNS = [("carmba_ba_test",
               "Consider.*:Whitening2x2.*:*VarianceComponentsMonteCarlo.*:BaMonteCarlo.*"),
              ("carmba_analysis_test", "RelativePose*:Triangulation*:LeaveOne*:LensModels.*"),
              ("carmba_joint_test", "JointTwoStep.*"),
-             ("carmba_core_test", "PoseSolver.MonteCarlo*")]
+             ("carmba_core_test", "PoseSolver.MonteCarlo*"),
+             ("carmba_calib_test", "SceneMonteCarlo.*")]
 
 
 def test_figures(tests_dir, tmp):

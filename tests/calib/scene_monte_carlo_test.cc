@@ -6,11 +6,13 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <vector>
 
 #include "calib/calibrate.h"
 #include "calib/conditioning.h"
-#include "synthetic/synthetic_views.h"
+#include "figures.h"
 #include "scene_test_util.h"
+#include "synthetic/synthetic_views.h"
 
 namespace carmba {
 namespace {
@@ -59,6 +61,20 @@ void Print(const std::string& what, const McResult& m) {
   }
 }
 
+// The range of spread / RMS reported sigma over the intrinsics `which` of `ms` (results.md).
+void RecordRatioRange(const std::string& key,
+                      const std::vector<McResult>& ms,
+                      std::initializer_list<int> which) {
+  double lo = 1e300, hi = 0;
+  for (const McResult& m : ms) {
+    for (int i : which) {
+      lo = std::min(lo, m.spread[i] / m.rms_reported[i]);
+      hi = std::max(hi, m.spread[i] / m.rms_reported[i]);
+    }
+  }
+  testing::RecordFigure(key, "%.2f-%.2fx", lo, hi);
+}
+
 // 200 trials: the sample standard deviation of 200 draws is itself uncertain by 1/sqrt(2 * 199) =
 // 5 %, so 15 % (the bound) is a 3-sigma test.
 constexpr int kSceneTrials = 200;
@@ -81,6 +97,7 @@ void ExpectMatches(const std::string& what, const McResult& m, std::initializer_
 }
 
 TEST(SceneMonteCarlo, FullModelAtTheScenesDetectionNoise) {
+  std::vector<McResult> ms;
   // Free OPENCV5 (all nine intrinsics) at the noise the scenes' images give: the problem is close
   // to linear over the noise's reach, and every trial's sigmas are honest. Measured: spread /
   // reported 0.99-1.08 (thesis), 0.95-1.03 (pincushion).
@@ -89,10 +106,14 @@ TEST(SceneMonteCarlo, FullModelAtTheScenesDetectionNoise) {
                                      CalibrationOptions(), kSceneTrials, kSceneNoisePx);
     Print(std::string(name) + " OPENCV5, 0.03 px", m);
     ExpectMatches(name, m, {0, 1, 2, 3});
+    ms.push_back(m);
   }
+  RecordRatioRange("calibmc.full_fine", ms, {0, 1, 2, 3});
+  testing::RecordFigure("calibmc.trials", "%d", kSceneTrials);
 }
 
 TEST(SceneMonteCarlo, TangentialAndK3HeldAtCoarseNoise) {
+  std::vector<McResult> ms;
   // At 0.3 px the free tangential terms make the principal point non-linear (next test). With
   // p1 = p2 = 0 and k3 = 0 held (the thesis's zero-tangential and fixed-k3 settings; the principal
   // point and focal lengths free) every trial's sigmas match the spread again: measured 1.03-1.05
@@ -106,10 +127,13 @@ TEST(SceneMonteCarlo, TangentialAndK3HeldAtCoarseNoise) {
         SceneTruthObservations(LoadShippedScene(name)), opt, kSceneTrials, kCoarseNoisePx);
     Print(std::string(name) + " p1 = p2 = k3 = 0, 0.3 px", m);
     ExpectMatches(name, m, {0, 1, 2, 3});
+    ms.push_back(m);
   }
+  RecordRatioRange("calibmc.radial_coarse", ms, {0, 1, 2, 3});
 }
 
 TEST(SceneMonteCarlo, FreeTangentialAtCoarseNoiseIsNonlinearNotACovarianceBug) {
+  std::vector<McResult> ms;
   // FINDING (documented, asserted so that a change shows): free OPENCV5 at 0.3 px on these narrow
   // fields of view (11-13 deg). The tangential terms p1, p2 act on the image almost like a shift
   // of the principal point, so cx, cy lie in a long curved valley of the cost; each trial's
@@ -130,7 +154,9 @@ TEST(SceneMonteCarlo, FreeTangentialAtCoarseNoiseIsNonlinearNotACovarianceBug) {
     EXPECT_GT(std::max(m.spread[2] / m.rms_reported[2], m.spread[3] / m.rms_reported[3]),
               1.0 + kSceneSigmaRelTol)
         << name;
+    ms.push_back(m);
   }
+  RecordRatioRange("calibmc.full_coarse_pp", ms, {2, 3});
 }
 
 TEST(SceneMonteCarlo, ConditioningWarningWhereTheSigmasAreNotHonest) {
