@@ -245,6 +245,20 @@ def read_fiducials(path):
     return out
 
 
+def simct_figures(out):
+    """`carmba ct-fiducials` on the simulated joint scene's CT against the scene's truth."""
+    found = read_fiducials(os.path.join(out, "out/sim/joint/fiducials.csv"))
+    truth = {str(m["id"]): [m["x_mm"], m["y_mm"], m["z_mm"]]
+             for m in load_json(os.path.join(out, "out/sim/joint/truth.json"))["ct_markers"]}
+    errors = {k: [a - b for a, b in zip(p, truth[k])] for k, (p, _) in found.items()}
+    nees = [mahalanobis(errors[k], C) ** 2 / 3 for k, (_, C) in found.items()]
+    return {
+        "centres": "the %d centres within %.4f mm of the truth, mean e^T C^-1 e / 3 = %.2f"
+                   % (len(found), max(math.sqrt(sum(x * x for x in e)) for e in errors.values()),
+                      sum(nees) / len(nees)),
+    }
+
+
 def realct_figures(out):
     ref = read_fiducials(os.path.join(out, "real_ct/fiducials_6mm.csv"))
     sigmas = [math.sqrt((C[0][0] + C[1][1] + C[2][2]) / 3) for _, C in ref.values()]
@@ -306,8 +320,8 @@ def flex_figures(out):
 
 
 SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "tre": tre_figures,
-            "calib": calib_figures, "track": track_figures, "realct": realct_figures,
-            "flex": flex_figures}
+            "calib": calib_figures, "track": track_figures, "simct": simct_figures,
+            "realct": realct_figures, "flex": flex_figures}
 
 
 # ---- Figures the tests measure -----------------------------------------------------------------
