@@ -2,23 +2,23 @@
 // its covariance against ceres::Covariance, per-view intrinsics and object poses of the models
 // against the truth of a flexing synthetic C-arm (seeded Monte Carlo of NEES), model selection on
 // flexing and rigid C-arms, and bad problems.
-#include <gtest/gtest.h>
-
 #include <ceres/ceres.h>
 #include <ceres/gradient_checker.h>
+#include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 #include <random>
 
-#include "ba/bundle_adjuster.h"
 #include "analysis/flex_models.h"
+#include "ba/bundle_adjuster.h"
 #include "ba/quantities.h"
 #include "ba/smooth_intrinsics.h"
-#include "geometry/random_vector.h"
-#include "synthetic/synthetic_flex.h"
 #include "ba/view_intrinsics.h"
 #include "camera/camera.h"
+#include "figures.h"
+#include "geometry/random_vector.h"
+#include "synthetic/synthetic_flex.h"
 
 namespace carmba {
 namespace analysis {
@@ -212,6 +212,17 @@ TEST(FlexMonteCarlo, SmoothIsConsistentSharedIsNot) {
               "pose NEES at %.2f between %.2f\n",
               shared.intr_nees_calibrated, shared.intr_nees_between, shared.intr_within3,
               shared.pose_nees_at, shared.pose_nees_between);
+  for (const auto& [name, m] :
+       {std::make_pair("smooth", smooth), std::make_pair("shared", shared)}) {
+    testing::RecordFigure(std::string("flexmc.") + name,
+                          "%.2f / %.2f (intrinsics at calibrated / in-between angles), pose NEES "
+                          "%.2f in between, %.1f %% within 3 sigma",
+                          m.intr_nees_calibrated,
+                          m.intr_nees_between,
+                          m.pose_nees_between,
+                          100 * m.intr_within3);
+  }
+  testing::RecordFigure("flexmc.trials", "%d", kTrials);
   EXPECT_NEAR(smooth.intr_nees_calibrated, 4.0, 1.2);
   EXPECT_NEAR(smooth.intr_nees_between, 4.0, 1.2);
   EXPECT_NEAR(smooth.pose_nees_between, 6.0, 1.8);
