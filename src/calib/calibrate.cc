@@ -13,7 +13,6 @@
 #include "ba/schur_lm.h"
 #include "calib/projection_uncertainty.h"
 #include "calib/zhang_init.h"
-#include "problem/ba_assembly.h"
 #include "util/plausible.h"
 #include "util/yaml_reader.h"
 
@@ -35,8 +34,9 @@ int IntrinsicIndexOf(const std::string& name) {
 }
 
 // The calibration as a problem of the bundle-adjustment engine, its plate part alone
-// (problem/ba_assembly.h): one intrinsics group, one plate pose per view, the plate's points held
-// at the nominal grid. Views are named by their images (by number when those are not unique).
+// (ToBaPlateProblem, detect/observations.h): one intrinsics group, one plate pose per view, the
+// plate's points held at the nominal grid. Views are named by their images (by number when those
+// are not unique).
 ba::BaProblem CalibrationProblem(const ObservationSet& obs,
                                  const std::array<double, kNumIntrinsics>& x,
                                  const std::array<bool, kNumIntrinsics>& free,

@@ -67,6 +67,18 @@ ba::BaView ToBaPlateView(const ViewObservations& view,
   return out;
 }
 
+ba::BaProblem ToBaPlateProblem(const std::string& name,
+                               const ObservationSet& plate,
+                               std::vector<ba::IntrinsicsGroup> groups,
+                               std::vector<ba::BaView> plate_views) {
+  ba::BaProblem bp;
+  bp.name = name;
+  bp.groups = std::move(groups);
+  if (!plate.views.empty()) bp.plate.points = plate.grid.PointsInPlate();
+  bp.views = std::move(plate_views);
+  return bp;
+}
+
 int ObservationSet::NumPoints() const {
   int n = 0;
   for (const auto& v : views) n += static_cast<int>(v.uv_px.size());

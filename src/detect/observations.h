@@ -71,6 +71,14 @@ ba::BaView ToBaPlateView(const ViewObservations& view,
                          const Pose6& cam_from_plate,
                          double sigma_px);
 
+// The plate part of every engine problem: the intrinsics groups, the plate's nominal points (none
+// without plate views; held) and the plate views. problem/ba_assembly.h's ToBaProblem builds on
+// it; a calibration (calib/calibrate.cc) is this part alone.
+ba::BaProblem ToBaPlateProblem(const std::string& name,
+                               const ObservationSet& plate,
+                               std::vector<ba::IntrinsicsGroup> groups,
+                               std::vector<ba::BaView> plate_views);
+
 // Writes observations.csv (atomically).
 Status WriteObservationsCsv(const ObservationSet& obs, const std::string& path);
 // Reads observations.csv. Errors name file:line and what was expected.

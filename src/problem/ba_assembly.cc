@@ -106,18 +106,6 @@ StatusOr<Pose6> InitialObjectPose(const Camera& cam,
   return Status::Error("unknown initializer");
 }
 
-ba::BaProblem ToBaPlateProblem(const std::string& name,
-                               const ObservationSet& plate,
-                               std::vector<ba::IntrinsicsGroup> groups,
-                               std::vector<ba::BaView> plate_views) {
-  ba::BaProblem bp;
-  bp.name = name;
-  bp.groups = std::move(groups);
-  if (!plate.views.empty()) bp.plate.points = plate.grid.PointsInPlate();
-  bp.views = std::move(plate_views);
-  return bp;
-}
-
 namespace {
 
 // The fiducials some object view observes, in the problem's handedness, in file order.

@@ -5,8 +5,8 @@
 //   - the plate views with their initial poses (from those calibrations);
 //   - which group each object view belongs to.
 // Everything else is assembled here, the same way for all:
-//   - the plate's nominal points, free or held (BaPlate; ToBaPlateProblem, which a calibration
-//     uses alone);
+//   - the plate's nominal points, free or held (BaPlate; detect/observations.h's
+//     ToBaPlateProblem, which a calibration uses alone);
 //   - the fiducials that some object view observes, in the problem's handedness, with their CT
 //     covariance, in the order of the fiducials file (an unobserved one would add only its prior);
 //   - the object views (ToBaObjectView), each initialised by the config's initializer with its
@@ -38,14 +38,6 @@ struct AssembledProblem {
   ba::BaProblem problem;
   std::vector<std::pair<int, int>> validation_pairs;  // Problem::validation as view indices
 };
-
-// The plate part of every engine problem: the intrinsics groups, the plate's nominal points (none
-// without plate views; held) and the plate views. ToBaProblem builds on it; a calibration
-// (calib/calibrate.cc) is this part alone.
-ba::BaProblem ToBaPlateProblem(const std::string& name,
-                               const ObservationSet& plate,
-                               std::vector<ba::IntrinsicsGroup> groups,
-                               std::vector<ba::BaView> plate_views);
 
 // The engine's view of an object view: its marker ids and pixels with their per-observation
 // sigmas or covariances, `sigma_px` where an observation has none; no group and no initial pose.
