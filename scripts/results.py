@@ -51,6 +51,13 @@ def sci(value):
                   "%.1e" % value)
 
 
+def csv_lines(path):
+    """A CSV file's header and rows (lists of cells), '#' comment lines and blank lines left out."""
+    with open(path) as fh:
+        lines = [l.strip().split(",") for l in fh if l.strip() and not l.startswith("#")]
+    return lines[0], lines[1:]
+
+
 def slash_list(values, fmt):
     return " / ".join(f(v, fmt) for v in values)
 
@@ -60,11 +67,9 @@ def slash_list(values, fmt):
 def printed_thesis_angles():
     """Table 5.6 as printed: (a, b) -> (achieved, expected)."""
     rows = {}
-    with open(os.path.join(ROOT, "data/thesis/validation_table_5_6.csv")) as fh:
-        lines = [l.strip() for l in fh if l.strip() and not l.startswith("#")]
-    head = lines[0].split(",")
-    for line in lines[1:]:
-        r = dict(zip(head, line.split(",")))
+    head, lines = csv_lines(os.path.join(ROOT, "data/thesis/validation_table_5_6.csv"))
+    for line in lines:
+        r = dict(zip(head, line))
         rows[(r["orientation_a_deg"], r["orientation_b_deg"])] = (float(r["achieved_deg"]),
                                                                   float(r["expected_deg"]))
     return rows
@@ -73,10 +78,8 @@ def printed_thesis_angles():
 def printed_rotations():
     """Tables 5.3-5.5: orientation -> R (object -> camera)."""
     out = {}
-    with open(os.path.join(ROOT, "data/thesis/posit_rotations_tables_5_3_to_5_5.csv")) as fh:
-        lines = [l.strip() for l in fh if l.strip() and not l.startswith("#")]
-    for line in lines[1:]:
-        cells = line.split(",")
+    _, lines = csv_lines(os.path.join(ROOT, "data/thesis/posit_rotations_tables_5_3_to_5_5.csv"))
+    for cells in lines:
         out[cells[0]] = [float(c) for c in cells[1:10]]  # row-major
     return out
 
@@ -232,12 +235,10 @@ def calib_figures(out):
 
 def read_fiducials(path):
     """The centres (mm) and covariances (mm^2) of a `carmba ct-fiducials` CSV, by id."""
-    with open(path) as fh:
-        lines = [l.strip() for l in fh if l.strip() and not l.startswith("#")]
-    head = lines[0].split(",")
+    head, lines = csv_lines(path)
     out = {}
-    for line in lines[1:]:
-        r = dict(zip(head, line.split(",")))
+    for line in lines:
+        r = dict(zip(head, line))
         c = {k: float(r["cov_" + k]) for k in ("xx", "xy", "xz", "yy", "yz", "zz")}
         out[r["id"]] = ([float(r[k]) for k in ("x_mm", "y_mm", "z_mm")],
                         [[c["xx"], c["xy"], c["xz"]], [c["xy"], c["yy"], c["yz"]],

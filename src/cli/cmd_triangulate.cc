@@ -199,14 +199,15 @@ StatusOr<std::vector<analysis::PixelObservation>> PointObservations(const PointI
   return obs;
 }
 
-// One point of triangulation.json, in the CT frame (F: the solve's object frame -> CT).
+// One point of triangulation.json, in the CT frame: X and C are the point and its covariance
+// there (F: the solve's object frame -> CT).
 nlohmann::json PointJson(const PointInput& p,
                          const analysis::TriangulatedPoint& t,
                          const std::vector<analysis::PixelObservation>& obs,
                          const ba::BaProblem& bp,
-                         const Eigen::Matrix3d& F) {
-  const Eigen::Vector3d X = F * t.p_in_object;
-  const Eigen::Matrix3d C = F * t.covariance * F;
+                         const Eigen::Matrix3d& F,
+                         const Eigen::Vector3d& X,
+                         const Eigen::Matrix3d& C) {
   nlohmann::json views = nlohmann::json::array();
   for (size_t i = 0; i < obs.size(); ++i) {
     views.push_back(
@@ -338,7 +339,7 @@ int RunTriangulate() {
     const Eigen::Vector3d X = F * t->p_in_object;
     const Eigen::Matrix3d C = F * t->covariance * F;
     for (const auto& w : t->warnings) warnings.push_back("point '" + p.name + "': " + w);
-    jpoints.push_back(PointJson(p, *t, *obs, bp, F));
+    jpoints.push_back(PointJson(p, *t, *obs, bp, F, X, C));
     csv += CsvRow(p.name, X, C);
     std::printf(
         "point %s: (%.3f, %.3f, %.3f) mm, sigma (%.3f, %.3f, %.3f) mm, rays %.1f deg "
