@@ -335,7 +335,8 @@ TEST_RUNS = [("carmba_ba_test",
               "RelativePose*:Triangulation*:LeaveOne*:LensModels.*:FlexMonteCarlo.*"),
              ("carmba_joint_test", "JointTwoStep.*"),
              ("carmba_core_test", "PoseSolver.MonteCarlo*"),
-             ("carmba_calib_test", "SceneMonteCarlo.*")]
+             ("carmba_calib_test", "SceneMonteCarlo.*"),
+             ("carmba_ct_test", "RealCt.*:SaturatedMarker.*")]
 
 
 def test_figures(tests_dir, tmp):

@@ -1,19 +1,20 @@
 #include "ct/marker_detection.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <array>
-#include <map>
-#include <mutex>
 #include <cmath>
 #include <cstdio>
+#include <map>
+#include <mutex>
 #include <numeric>
 #include <unordered_map>
 
 #include "ct/ct_phantom.h"
-#include "util/plausible.h"
 #include "util/format.h"
+#include "util/plausible.h"
 
 namespace carmba {
 
@@ -685,7 +686,8 @@ void ForVoxelsWithin(const CtVolume& vol, const Eigen::Vector3d& centre_mm, doub
 
 struct SurfaceFit {
   Eigen::Vector3d centre_mm = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d covariance_mm2 = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d covariance_mm2 = Eigen::Matrix3d::Zero();          // of independent rays
+  Eigen::Matrix3d sectors_covariance_mm2 = Eigen::Matrix3d::Zero();  // SectorJackknifeCovariance
   Eigen::Vector2d radii_mm = Eigen::Vector2d::Zero();  // in-plane, along the slices
   int rays = 0, inliers = 0;
   double rms_mm = 0;
@@ -810,6 +812,90 @@ bool FitSpheroid(const std::vector<Eigen::Vector3d>& edge, const Eigen::Matrix3d
   return true;
 }
 
+// Whether `vol` samples with gaps: slices further apart than they are thick (the odd or even half
+// of a series; thin slices reconstructed at a larger increment). Without gaps the partial-volume
+// averages cover the ball and the analytic term (5.) holds for the surface fit too (NEES per dof
+// 0.8-1.7 on contiguous clipped spheres, where the simulated term, a ball with no blur, says
+// 0.2-0.5); with gaps an edge can fall between slices unseen, which only the simulation has.
+bool HasGaps(const CtVolume& vol) {
+  return vol.slice_thickness_mm > 0 && vol.spacing_mm.z() > 1.01 * vol.slice_thickness_mm;
+}
+
+// The 12 sectors of the sphere of directions around an icosahedron's vertices, one vertex along
+// the slice axis: the caps across the slices, where sparse slices hide the edge, are sectors.
+int EdgeSector(const Eigen::Vector3d& u) {
+  static const std::array<Eigen::Vector3d, 12> vertices = [] {
+    std::array<Eigen::Vector3d, 12> v;
+    v[0] = Eigen::Vector3d::UnitZ();
+    v[11] = -Eigen::Vector3d::UnitZ();
+    const double z = 1 / std::sqrt(5.0), rho = 2 / std::sqrt(5.0);
+    for (int k = 0; k < 5; ++k) {
+      const double a = 2 * M_PI * k / 5, b = a + M_PI / 5;
+      v[1 + k] = Eigen::Vector3d(rho * std::cos(a), rho * std::sin(a), z);
+      v[6 + k] = Eigen::Vector3d(rho * std::cos(b), rho * std::sin(b), -z);
+    }
+    return v;
+  }();
+  int best = 0;
+  for (int k = 1; k < 12; ++k) {
+    if (vertices[k].dot(u) > vertices[best].dot(u)) best = k;
+  }
+  return best;
+}
+
+// Delete-one-sector jackknife of the spheroid's centre (axis frame, mm^2): each of the 12 sectors
+// of edge directions (EdgeSector, seen from `traced_from`) left out in turn and the spheroid
+// re-fitted from `c`, `radii`. It sees errors of the edge that are correlated over a sector,
+// which s^2 H^-1 of independent rays does not: a real sphere's shape is not a spheroid (helical
+// scanners distort metal), and slices with gaps put a whole cap's edge at the wrong height.
+// Zero when fewer than 8 sectors could be left out.
+Eigen::Matrix3d SectorJackknifeCovariance(const std::vector<Eigen::Vector3d>& edge,
+                                          const Eigen::Vector3d& traced_from,
+                                          const Eigen::Matrix3d& axes,
+                                          double R,
+                                          const Eigen::Vector3d& c,
+                                          const Eigen::Vector2d& radii) {
+  std::array<std::vector<Eigen::Vector3d>, 12> rest;
+  for (const auto& x : edge) {
+    const int sector = EdgeSector((axes.transpose() * (x - traced_from)).normalized());
+    for (int k = 0; k < 12; ++k) {
+      if (k != sector) rest[k].push_back(x);
+    }
+  }
+  std::vector<Eigen::Vector3d> centres;
+  for (const auto& points : rest) {
+    if (points.size() == edge.size()) continue;  // an empty sector: nothing left out
+    Eigen::Vector3d ck = c;
+    Eigen::Vector2d rk = radii;
+    Eigen::Matrix<double, 5, 5> H;
+    double s2 = 0;
+    int inliers = 0;
+    if (FitSpheroid(points, axes, R, &ck, &rk, &H, &s2, &inliers)) {
+      centres.push_back(axes.transpose() * ck);
+    }
+  }
+  const int K = static_cast<int>(centres.size());
+  if (K < 8) return Eigen::Matrix3d::Zero();
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& ck : centres) mean += ck / K;
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  for (const auto& ck : centres) J += (ck - mean) * (ck - mean).transpose();
+  return J * (K - 1.0) / K;
+}
+
+// The smallest widening of covariance A that covers B too: A where B is within it, B's variance
+// along the directions where B exceeds A (the eigenvalues of B whitened by A raised to 1).
+Eigen::Matrix3d CoveringCovariance(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
+  const Eigen::LLT<Eigen::Matrix3d> llt(A);
+  if (llt.info() != Eigen::Success) return A + B;
+  const Eigen::Matrix3d L = llt.matrixL();
+  const Eigen::Matrix3d L_inv = L.inverse();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(L_inv * B * L_inv.transpose());
+  const Eigen::Vector3d lambda = eig.eigenvalues().cwiseMax(1.0);
+  return L * eig.eigenvectors() * lambda.asDiagonal() * eig.eigenvectors().transpose() *
+         L.transpose();
+}
+
 // The surface fit of 8., from `start` (patient mm, inside the clipped core).
 bool FitSaturatedSurface(const CtVolume& vol, const Eigen::Vector3d& start, double b,
                          double clip, double radius, SurfaceFit* out) {
@@ -820,7 +906,9 @@ bool FitSaturatedSurface(const CtVolume& vol, const Eigen::Vector3d& start, doub
   double s2 = 0;
   int inliers = 0;
   std::vector<Eigen::Vector3d> edge;
+  Eigen::Vector3d traced_from = c;
   for (int outer = 0; outer < 4; ++outer) {
+    traced_from = c;
     edge = EdgePoints(vol, c, level, clip, 2.5 * radius);
     Eigen::Vector3d c_new = c;
     if (!FitSpheroid(edge, vol.axes, radius, &c_new, &radii, &H, &s2, &inliers)) return false;
@@ -839,6 +927,11 @@ bool FitSaturatedSurface(const CtVolume& vol, const Eigen::Vector3d& start, doub
   out->centre_mm = c;
   out->covariance_mm2 = s2 * H_inv.topLeftCorner<3, 3>() * std::max(1.0, inliers / n_eff);
   out->covariance_mm2 = vol.axes * out->covariance_mm2 * vol.axes.transpose();
+  if (HasGaps(vol)) {
+    out->sectors_covariance_mm2 =
+        vol.axes * SectorJackknifeCovariance(edge, traced_from, vol.axes, radius, c, radii) *
+        vol.axes.transpose();
+  }
   out->radii_mm = radii;
   // Ball-shaped: the share of all rays whose edge is within 20 % of the spheroid's radius along it.
   int near = 0;
@@ -927,15 +1020,6 @@ Eigen::Vector3d SimulateSurfaceSamplingMm2(const Eigen::Vector3d& spacing, doubl
     if (fitted > 0) mean += sum / fitted, ++contrasts;
   }
   return contrasts > 0 ? Eigen::Vector3d(mean / contrasts) : mean;
-}
-
-// Whether `vol` samples with gaps: slices further apart than they are thick (the odd or even half
-// of a series; thin slices reconstructed at a larger increment). Without gaps the partial-volume
-// averages cover the ball and the analytic term (5.) holds for the surface fit too (NEES per dof
-// 0.8-1.7 on contiguous clipped spheres, where the simulated term, a ball with no blur, says
-// 0.2-0.5); with gaps an edge can fall between slices unseen, which only the simulation has.
-bool HasGaps(const CtVolume& vol) {
-  return vol.slice_thickness_mm > 0 && vol.spacing_mm.z() > 1.01 * vol.slice_thickness_mm;
 }
 
 // SimulateSurfaceSamplingMm2 for `vol`'s sampling, along its axes (mm^2), remembered per
@@ -1105,6 +1189,10 @@ bool RefineSaturated(const CtVolume& vol, const MarkerDetectionOptions& opt, dou
   // The half-level edge is interpolated between voxels: its error over the sub-voxel phase is
   // of the order of the centroid's (5.), which thick or sparse slices make large.
   s.covariance_mm2 += sampling_mm2;
+  // With gaps, also what leaving out each sector of the edge does to the centre (the real CT's
+  // odd and even halves differ by twice what a simulated ball's sampling explains).
+  if (HasGaps(vol))
+    s.covariance_mm2 = CoveringCovariance(s.covariance_mm2, s.sectors_covariance_mm2);
   m->saturated = true;
   m->surface_centre_mm = s.centre_mm;
   m->surface_covariance_mm2 = s.covariance_mm2;

@@ -7,12 +7,14 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cstdio>
 #include <string>
 #include <vector>
 
 #include "ct/ct_volume.h"
 #include "ct/marker_detection.h"
+#include "figures.h"
 
 namespace carmba {
 namespace {
@@ -114,13 +116,13 @@ TEST(RealCt, ARoughDiameterGivesTheSameCentres) {
 // The odd and the even slices: two series of 2.5 mm steps (1.25 mm thick slices) from disjoint
 // data. Each of the four spheres found in the full series is looked up in both halves (any
 // count: in the sparse halves a piece of the pin may pass as a ball, and a sphere may be lost).
-// Measured (commit "ct: saturated metal markers"): 3 of 4 spheres in both halves (the fourth
-// lost in the even one), their centres 0.89-0.95 mm apart, mostly along z and the spheres'
-// common tail axis, beyond their covariances (NEES per dof 7.2, not the 0.3-3 wanted): with
-// only every second slice the tails and the z sampling pull the edge fit more than its
-// covariance says. The
-// test holds what the data support -- the spheres are found in both halves within 1.6 mm (a
-// voxel diagonal of the sparse series) -- and prints the NEES; it does not claim the 0.3-3 band.
+// Measured: 3 of 4 spheres in both halves (the fourth lost in the even one), their centres
+// 0.89-0.95 mm apart, mostly along z. With the simulated sampling term alone the covariances
+// said NEES per dof 6.88: the real spheres are not the spheroids the edge fit assumes (helical
+// scanning distorts metal), so with every second slice the fit sees a lopsided shape. The sector
+// jackknife (ct/marker_detection.h 8.) measures that from each half's own edge: NEES per dof 1.97,
+// asserted in the 0.3-3 band; and the spheres are found in both halves within 1.6 mm (a
+// voxel diagonal of the sparse series).
 TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
   const CtVolume& v = RealCt();
   auto full = DetectMarkers(v, Options(6.0, kSpheres));
@@ -138,7 +140,7 @@ TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
     }
     return best;
   };
-  double chi2 = 0;
+  double chi2 = 0, min_apart = 1e9, max_apart = 0;
   int both = 0;
   for (const auto& f : full->markers) {
     const DetectedMarker* e = nearest(*even, f.centre_mm);
@@ -161,6 +163,8 @@ TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
                 std::sqrt(o->covariance_mm2.trace()));
     EXPECT_LT(d.norm(), 1.6);
     chi2 += c;
+    min_apart = std::min(min_apart, d.norm());
+    max_apart = std::max(max_apart, d.norm());
   }
   std::printf(
       "odd/even: %d of %d spheres in both halves; NEES per dof %.2f (even %zu markers, odd "
@@ -171,14 +175,23 @@ TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
       even->markers.size(),
       odd->markers.size());
   EXPECT_GE(both, 3);
+  testing::RecordFigure("realct.odd_even_found", "%d of %d", both, kSpheres);
+  testing::RecordFigure("realct.odd_even_apart", "%.2f-%.2f mm", min_apart, max_apart);
+  testing::RecordFigure("realct.odd_even_nees", "%.2f", both ? chi2 / (3 * both) : 0.0);
+  if (both > 0) {
+    EXPECT_GE(chi2 / (3 * both), 0.3);
+    EXPECT_LE(chi2 / (3 * both), 3.0);
+  }
 }
 
 TEST(RealCt, CentroidAndSurfaceFitAgreeWithinTheirCovariances) {
   auto det = DetectMarkers(RealCt(), Options(6.0, kSpheres));
   ASSERT_TRUE(det.ok()) << det.status().message();
-  double chi2 = 0;
+  double chi2 = 0, min_apart = 1e9, max_apart = 0;
   for (const auto& m : det->markers) {
     const Eigen::Vector3d d = m.centroid_mm - m.surface_centre_mm;
+    min_apart = std::min(min_apart, d.norm());
+    max_apart = std::max(max_apart, d.norm());
     const double c = Chi2(d, m.centroid_covariance_mm2 + m.surface_covariance_mm2);
     std::printf("centroid - surface (%.3f, %.3f, %.3f) mm, chi2 %.2f; sd centroid %.3f, "
                 "surface %.3f mm\n",
@@ -188,6 +201,8 @@ TEST(RealCt, CentroidAndSurfaceFitAgreeWithinTheirCovariances) {
   }
   const double per_dof = chi2 / (3 * kSpheres);
   std::printf("centroid/surface NEES per dof %.2f over %d spheres\n", per_dof, kSpheres);
+  testing::RecordFigure("realct.estimators_apart", "%.2f-%.2f mm", min_apart, max_apart);
+  testing::RecordFigure("realct.estimators_nees", "%.2f", per_dof);
   EXPECT_GE(per_dof, 0.3);
   EXPECT_LE(per_dof, 3.0);
 }
