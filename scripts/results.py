@@ -330,13 +330,15 @@ SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "tre": tre_figures
 # (test executable, gtest filter): each test records its figures as properties named
 # "figure.SECTION.NAME" (tests/figures.h), read here from its XML output.
 TEST_RUNS = [("carmba_ba_test",
-              "Consider.*:Whitening2x2.*:*VarianceComponentsMonteCarlo.*:BaMonteCarlo.*"),
+              "Consider.*:Whitening2x2.*:*VarianceComponentsMonteCarlo.*:BaMonteCarlo.*:"
+              "SphereShadow*:ShadowCorrection.*"),
              ("carmba_analysis_test",
               "RelativePose*:Triangulation*:LeaveOne*:LensModels.*:FlexMonteCarlo.*"),
              ("carmba_joint_test", "JointTwoStep.*"),
              ("carmba_core_test", "PoseSolver.MonteCarlo*"),
              ("carmba_calib_test", "SceneMonteCarlo.*"),
-             ("carmba_ct_test", "RealCt.*:SaturatedMarker.*")]
+             ("carmba_ct_test", "RealCt.*:SaturatedMarker.*"),
+             ("carmba_detect_test", "ShadowCentre*:MarkerBlobs.CovarianceAgreesWithMonteCarlo")]
 
 
 def test_figures(tests_dir, tmp):

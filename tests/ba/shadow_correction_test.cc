@@ -1,17 +1,19 @@
 // The cone-beam shadow-centre offset (ba/shadow_correction.h): the closed form against the
 // silhouette of the sphere traced ray by ray, and the engine's correction on pose problems whose
 // observations are shadow centres (large spheres near the source, where it matters).
+#include "ba/shadow_correction.h"
+
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <iostream>
 #include <random>
-
-#include <Eigen/Geometry>
+#include <string>
 
 #include "ba/bundle_adjuster.h"
-#include "ba/shadow_correction.h"
 #include "camera/camera_model.h"
+#include "figures.h"
 #include "geometry/random_vector.h"
 #include "geometry/rotation.h"
 
@@ -75,6 +77,7 @@ TEST(SphereShadowOffset, ClosedFormEqualsTheTracedSilhouette) {
   }
   std::cout << "closed form against the traced silhouette: largest offset " << largest
             << " px, largest difference " << worst << " px\n";
+  testing::RecordFigure("shadow.traced_difference", "%.0e", worst);
   EXPECT_GT(largest, 0.01);  // the test covers offsets that matter (> 0.1 sigma of 0.03 px)
   // On the axis, for no radius, behind the source or around it: no offset.
   EXPECT_EQ(SphereShadowOffsetPx(pinhole, {0, 0, 500}, 3).norm(), 0);
@@ -122,6 +125,8 @@ TEST(SphereShadowOffset, ThroughTheLensModel) {
   // its centroid by as much as the cone does. The closed form (ellipse centre through the lens
   // plus the second-order curvature and area terms) against the quadrature.
   const double lens[9] = {3000, 3010, 500, 520, -0.3, 0.1, 4e-4, -3e-4, 0};
+  double min_rel = 1e9, max_rel = 0;
+  std::string pinhole_vs_lens;
   for (const Eigen::Vector3d& c : {Eigen::Vector3d(60, -45, 500), Eigen::Vector3d(-80, 70, 600)}) {
     Eigen::Vector2d p;
     ASSERT_TRUE(ProjectCamPoint(lens, c.data(), p.data()));
@@ -138,7 +143,20 @@ TEST(SphereShadowOffset, ThroughTheLensModel) {
               << (offset - reference).norm() / reference.norm() << "\n";
     EXPECT_GT((SphereShadowOffsetPx(same_pinhole, c, 4.0) - reference).norm(),
               3 * reference.norm());
+    const double rel = (offset - reference).norm() / reference.norm();
+    min_rel = std::min(min_rel, rel), max_rel = std::max(max_rel, rel);
+    if (pinhole_vs_lens.empty()) {
+      char b[100];
+      std::snprintf(b,
+                    sizeof b,
+                    "%.4f px cone offset back to %.4f px",
+                    SphereShadowOffsetPx(same_pinhole, c, 4.0).norm(),
+                    reference.norm());
+      pinhole_vs_lens = b;
+    }
   }
+  testing::RecordFigure("shadow.lens_quadrature", "%.2f-%.2f %%", 100 * min_rel, 100 * max_rel);
+  testing::RecordFigure("shadow.lens_pulls_back", "%s", pinhole_vs_lens.c_str());
   // Without distortion the quadrature is the ellipse's centre.
   const double pinhole[9] = {3000, 3000, 500, 520, 0, 0, 0, 0, 0};
   const Eigen::Vector3d c(60, -45, 500);
@@ -219,6 +237,7 @@ TEST(ShadowCorrection, TheEngineRemovesTheBiasOfLargeSpheres) {
   // Biased: the shadows look like a nearer object (a larger cluster): tz too small by many
   // sigmas, while the residuals do not show it (the offsets are nearly a radial scaling, which
   // a pose absorbs). Corrected: within 3 sigma of the truth.
+  double biased_min = 1e9, biased_max = 0, corrected_max = 0;
   for (int v = 0; v < 3; ++v) {
     const int b = corrected->layout->view_block(v);
     const Eigen::MatrixXd C = corrected->Covariance({b});
@@ -226,9 +245,15 @@ TEST(ShadowCorrection, TheEngineRemovesTheBiasOfLargeSpheres) {
     const double sz = std::sqrt(C(5, 5));
     std::cout << "view " << v << ": tz error biased " << (tz_b - s.truth[v][5]) / sz
               << " sigma, corrected " << (tz_c - s.truth[v][5]) / sz << " sigma\n";
+    biased_min = std::min(biased_min, std::abs(tz_b - s.truth[v][5]) / sz);
+    biased_max = std::max(biased_max, std::abs(tz_b - s.truth[v][5]) / sz);
+    corrected_max = std::max(corrected_max, std::abs(tz_c - s.truth[v][5]) / sz);
     EXPECT_GT(std::abs(tz_b - s.truth[v][5]) / sz, 10);
     EXPECT_LT(std::abs(tz_c - s.truth[v][5]) / sz, 3);
   }
+  testing::RecordFigure("shadow.tz_biased", "%.0f-%.0f", biased_min, biased_max);
+  testing::RecordFigure("shadow.tz_corrected", "%.1f", corrected_max);
+  testing::RecordFigure("shadow.sigma0_biased", "%.2f", biased->sigma0);
   EXPECT_LT(biased->sigma0, 1.5);  // what makes the bias dangerous: nothing in the fit says so
   EXPECT_LT(corrected->sigma0, 1.5);
   // Switched off, the same problem gives the biased answer.

@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "detect/marker_blobs.h"
+#include "figures.h"
 #include "geometry/random_vector.h"
 #include "marker_test_util.h"
 #include "pose/marker_correspondence.h"
@@ -174,6 +175,10 @@ TEST(MarkerBlobs, CovarianceAgreesWithMonteCarlo) {
   std::cout << "blob centre NEES per dimension (" << kTrials << " noise seeds, 2 views): " << nees
             << " over " << n << " blobs with the anatomy, " << nees_flat << " over " << n_flat
             << " without\n";
+  testing::RecordFigure("blobs.nees_anatomy", "%.2f", nees);
+  testing::RecordFigure("blobs.nees_flat", "%.2f", nees_flat);
+  testing::RecordFigure("blobs.n_anatomy", "%d", n);
+  testing::RecordFigure("blobs.n_flat", "%d", n_flat);
   EXPECT_GT(n, 400);
   // Ideal [0.8, 1.25]; the test allows the Monte Carlo's spread (+-7 % at 1 sigma here) and the
   // centroid's known sub-0.01 px systematic error.

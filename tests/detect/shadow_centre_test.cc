@@ -8,10 +8,12 @@
 #include <cmath>
 #include <iostream>
 #include <random>
+#include <string>
 
 #include "ba/shadow_correction.h"
 #include "camera/camera_model.h"
 #include "detect/marker_blobs.h"
+#include "figures.h"
 #include "sim/xray_render.h"
 #include "test_env.h"
 
@@ -90,6 +92,9 @@ TEST(ShadowCentre, DetectedCentresFollowTheShadowOutlineNotTheProjection) {
               << e.radial_to_projection << " px, against the shadow outline's centre "
               << e.radial_to_outline << " px; RMS against the outline " << e.rms_to_outline
               << " px per coordinate\n";
+    const std::string size = d == 6.0 ? "6" : d == 3.0 ? "3" : "1_5";
+    testing::RecordFigure("shadow.centre_projected_" + size, "%+.4f", e.radial_to_projection);
+    testing::RecordFigure("shadow.centre_outline_" + size, "%+.4f", e.radial_to_outline);
     ASSERT_EQ(e.n, n);
     // The goal: |mean radial bias| < 0.003 px once the offset is accounted for. Small blobs
     // (1.5 mm: ~7 px) have a noise-free pixel-phase error of ~0.009 px RMS that averages out
