@@ -7,10 +7,12 @@ appears exactly once in the template. Sections whose figures are not generated y
 in the template (the template says which).
 
   python3 scripts/results.py measure [--bin build/bin/carmba]
-      runs scripts/golden_outputs.sh (every shipped problem and scene, about 50 s on 2 cores;
-      about 2 min 30 s with the tests) into a scratch directory and extracts the figures from its result files; runs the tests of
+      runs scripts/golden_outputs.sh (every shipped problem and scene, about 50 s on 2 cores)
+      into a scratch directory and extracts the figures from its result files; runs the tests of
       TEST_RUNS (beside the binary: BUILD/tests/) and takes the figures they record
-      (tests/figures.h); writes the figures file and results.md
+      (tests/figures.h); runs BENCH_FILTER's benchmarks of BUILD/tests/carmba_bench on one core
+      (build it first: it is not in `all`); writes the figures file and results.md. About 4 min 30
+      s in all.
   python3 scripts/results.py render [--check]
       writes results.md from the template and the figures file; --check writes nothing and exits
       1 when results.md differs from that (a hand edit, or a template changed without a render)
@@ -355,6 +357,75 @@ def test_figures(tests_dir, tmp):
     return figures
 
 
+# ---- Benchmarks: carmba_bench on one core, medians of 3, in one run ----------------------------
+
+# The benchmarks results.md states, with the reference tools run in the same process and run
+# (mrcal's C API). Not BM_CalibOpenCv (88 s at 200 views): its figure stays stated by hand.
+BENCH_FILTER = ("BM_Calib(Carmba|MrcalC|Engine)|BM_Joint|BM_EngineOneView|BM_Detect|BM_Track|"
+                "BM_Marker|BM_Ct")
+BENCH_COMMAND = ("taskset -c 0 build/tests/carmba_bench --benchmark_filter='%s' "
+                 "--benchmark_repetitions=3" % BENCH_FILTER)
+UNIT_S = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+
+
+def bench_medians(tests_dir, tmp):
+    """{benchmark name: (median CPU time in s, its counters)}."""
+    out = os.path.join(tmp, "bench.json")
+    exe = os.path.join(tests_dir, "carmba_bench")
+    if not os.path.exists(exe):
+        sys.exit("results.py: %s is missing: build it first (cmake --build build --target "
+                 "carmba_bench)" % exe)
+    subprocess.run(["taskset", "-c", "0", exe, "--benchmark_filter=" + BENCH_FILTER,
+                    "--benchmark_repetitions=3", "--benchmark_report_aggregates_only=true",
+                    "--benchmark_out=" + out, "--benchmark_out_format=json"],
+                   check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    medians = {}
+    for b in load_json(out)["benchmarks"]:
+        if b.get("aggregate_name") == "median":
+            medians[b["run_name"]] = (b["cpu_time"] * UNIT_S[b["time_unit"]], b)
+    return medians
+
+
+def ms(seconds):
+    """Milliseconds to 3 significant digits (0.0123 s -> 12.3)."""
+    v = seconds * 1e3
+    return "%.3g" % v if v < 1000 else "%.0f" % v
+
+
+def bench_figures(tests_dir, tmp):
+    m = bench_medians(tests_dir, tmp)
+    t = lambda name: m[name][0]
+    fig = {"command": "`%s`" % BENCH_COMMAND}
+    for n in (16, 200, 1000):
+        mrcal = t("BM_CalibMrcalC/%d" % n)
+        fig["mrcal_%d" % n] = ms(mrcal)
+        for key, name in (("engine_lm", "BM_CalibEngine/%d/1"), ("engine_ceres", "BM_CalibEngine/%d/0"),
+                          ("calibrate_lm", "BM_CalibCarmba/%d/0"),
+                          ("calibrate_ceres", "BM_CalibCarmba/%d/1")):
+            fig["%s_%d" % (key, n)] = ms(t(name % n))
+            fig["%s_%d_ratio" % (key, n)] = "%.2fx" % (t(name % n) / mrcal)
+    fig["joint_solve"] = ms(t("BM_JointSolveCovarianceBudget"))
+    apriori = t("BM_JointSelfChecks/0")
+    fig["joint_apriori"] = ms(apriori)
+    for arg, key in ((1, "per_group"), (2, "per_group_distortion")):
+        v = t("BM_JointSelfChecks/%d" % arg)
+        fig["joint_%s" % key] = ms(v)
+        fig["joint_%s_ratio" % key] = "%.2fx" % (v / apriori)
+    fig["engine_one_view_us"] = "%.0f" % (t("BM_EngineOneView") * 1e6)
+    fig["detect_thesis"] = ms(t("BM_DetectThesis408x408"))
+    fig["detect_pincushion"] = ms(t("BM_DetectPincushion512x512x16bit"))
+    fig["marker_detect_label"] = ms(t("BM_MarkerDetectAndLabel"))
+    fig["marker_detect_only"] = ms(t("BM_MarkerDetectOnly"))
+    fig["ct_simulate"] = "%.1f s" % t("BM_CtSimulateThesis512x512x120/iterations:3")
+    fig["ct_read_segment"] = ms(t("BM_CtReadAndSegmentThesis512x512x120/iterations:5"))
+    track_s, track = m["BM_TrackWrist"]
+    fig["track_s"] = "%.2f" % track_s
+    for key in ("detect_s", "match_s", "ba_s"):
+        share = track[key] / track_s
+        fig["track_" + key[:-2]] = "%s ms (%.1f %%)" % (ms(track[key]), 100 * share)
+    return {"bench." + k: v for k, v in fig.items()}
+
+
 # ---- Measure and render ---------------------------------------------------------------------
 
 def measure(binary):
@@ -368,6 +439,7 @@ def measure(binary):
                 figures[name + "." + key] = value
         tests_dir = os.path.join(os.path.dirname(os.path.dirname(binary)), "tests")
         figures.update(test_figures(tests_dir, tmp))
+        figures.update(bench_figures(tests_dir, tmp))
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                             capture_output=True, text=True).stdout.strip()
     doc = {"measured": {"commit": commit,
