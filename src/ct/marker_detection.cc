@@ -686,11 +686,12 @@ void ForVoxelsWithin(const CtVolume& vol, const Eigen::Vector3d& centre_mm, doub
 
 struct SurfaceFit {
   Eigen::Vector3d centre_mm = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d covariance_mm2 = Eigen::Matrix3d::Zero();          // of independent rays
-  Eigen::Matrix3d sectors_covariance_mm2 = Eigen::Matrix3d::Zero();  // SectorJackknifeCovariance
+  Eigen::Matrix3d covariance_mm2 = Eigen::Matrix3d::Zero();  // of independent rays
   Eigen::Vector2d radii_mm = Eigen::Vector2d::Zero();  // in-plane, along the slices
   int rays = 0, inliers = 0;
   double rms_mm = 0;
+  std::vector<Eigen::Vector3d> edge;                      // the last rays' edge points (patient mm)
+  Eigen::Vector3d traced_from = Eigen::Vector3d::Zero();  // where they were cast from
 };
 
 // Where each ray from `c` first falls below `level` (patient-frame edge points).
@@ -927,11 +928,6 @@ bool FitSaturatedSurface(const CtVolume& vol, const Eigen::Vector3d& start, doub
   out->centre_mm = c;
   out->covariance_mm2 = s2 * H_inv.topLeftCorner<3, 3>() * std::max(1.0, inliers / n_eff);
   out->covariance_mm2 = vol.axes * out->covariance_mm2 * vol.axes.transpose();
-  if (HasGaps(vol)) {
-    out->sectors_covariance_mm2 =
-        vol.axes * SectorJackknifeCovariance(edge, traced_from, vol.axes, radius, c, radii) *
-        vol.axes.transpose();
-  }
   out->radii_mm = radii;
   // Ball-shaped: the share of all rays whose edge is within 20 % of the spheroid's radius along it.
   int near = 0;
@@ -943,6 +939,8 @@ bool FitSaturatedSurface(const CtVolume& vol, const Eigen::Vector3d& start, doub
   out->rays = kEdgeRays;
   out->inliers = near;
   out->rms_mm = std::sqrt(s2);
+  out->edge = std::move(edge);
+  out->traced_from = traced_from;
   return true;
 }
 
@@ -1191,8 +1189,12 @@ bool RefineSaturated(const CtVolume& vol, const MarkerDetectionOptions& opt, dou
   s.covariance_mm2 += sampling_mm2;
   // With gaps, also what leaving out each sector of the edge does to the centre (the real CT's
   // odd and even halves differ by twice what a simulated ball's sampling explains).
-  if (HasGaps(vol))
-    s.covariance_mm2 = CoveringCovariance(s.covariance_mm2, s.sectors_covariance_mm2);
+  if (HasGaps(vol)) {
+    const Eigen::Matrix3d sectors =
+        SectorJackknifeCovariance(s.edge, s.traced_from, vol.axes, R, s.centre_mm, s.radii_mm);
+    s.covariance_mm2 =
+        CoveringCovariance(s.covariance_mm2, vol.axes * sectors * vol.axes.transpose());
+  }
   m->saturated = true;
   m->surface_centre_mm = s.centre_mm;
   m->surface_covariance_mm2 = s.covariance_mm2;
