@@ -203,7 +203,11 @@ std::string FormatFiducialsCsv(const CtFiducialsResult& r) {
   o << "# dicom: " << r.dicom_dir << " (SeriesInstanceUID " << r.geometry.series_uid << ", "
     << r.geometry.columns << "x" << r.geometry.rows << "x" << r.geometry.slices << " voxels of "
     << F("%.4f", r.geometry.spacing_mm.x()) << " x " << F("%.4f", r.geometry.spacing_mm.y())
-    << " x " << F("%.4f", r.geometry.spacing_mm.z()) << " mm)\n";
+    << " x " << F("%.4f", r.geometry.spacing_mm.z()) << " mm"
+    << (SlicesHaveGaps(r.geometry) ? "; slices " + F("%.4f", r.geometry.slice_thickness_mm) +
+                                         " mm thick: gaps between them"
+                                   : std::string())
+    << ")\n";
   if (r.has_object_frame) {
     o << "# frame: object (" << r.frame << "); p_in_object = object_from_ct * p_in_patient\n";
     const auto& T = r.object_from_ct;
@@ -230,7 +234,11 @@ std::string FormatFiducialsCsv(const CtFiducialsResult& r) {
     << (r.detection.clip_hu > 0
             ? "; markers at the scanner's clip (" + F("%.0f", r.detection.clip_hu) +
                   " HU, read from the data): surface fit to the half-level edge, widened by its "
-                  "disagreement with the clipped centroid"
+                  "disagreement with the clipped centroid" +
+                  (SlicesHaveGaps(r.geometry)
+                       ? std::string(" and covering a delete-one-sector jackknife of the edge fit "
+                                     "(the gaps)")
+                       : std::string())
             : std::string())
     << "; frame uncertainty not included. volume_mm3: voxels >= "
     << F("%.0f", r.detect_options.threshold_hu) << " HU\n";

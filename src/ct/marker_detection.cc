@@ -60,6 +60,10 @@ bool MarkerDetectionOptions::Check(std::string* error) const {
   return true;
 }
 
+bool SlicesHaveGaps(const CtVolume& volume) {
+  return volume.slice_thickness_mm > 0 && volume.spacing_mm.z() > 1.01 * volume.slice_thickness_mm;
+}
+
 double SamplingVarianceMm2(double radius_mm, double spacing_mm, double extent_mm) {
   const double R = radius_mm, h = spacing_mm, e = extent_mm;
   // Integral of the projected area pi (R^2 - x^2) from -R to x (x clipped to [-R, R]).
@@ -813,15 +817,6 @@ bool FitSpheroid(const std::vector<Eigen::Vector3d>& edge, const Eigen::Matrix3d
   return true;
 }
 
-// Whether `vol` samples with gaps: slices further apart than they are thick (the odd or even half
-// of a series; thin slices reconstructed at a larger increment). Without gaps the partial-volume
-// averages cover the ball and the analytic term (5.) holds for the surface fit too (NEES per dof
-// 0.8-1.7 on contiguous clipped spheres, where the simulated term, a ball with no blur, says
-// 0.2-0.5); with gaps an edge can fall between slices unseen, which only the simulation has.
-bool HasGaps(const CtVolume& vol) {
-  return vol.slice_thickness_mm > 0 && vol.spacing_mm.z() > 1.01 * vol.slice_thickness_mm;
-}
-
 // The 12 sectors of the sphere of directions around an icosahedron's vertices, one vertex along
 // the slice axis: the caps across the slices, where sparse slices hide the edge, are sectors.
 int EdgeSector(const Eigen::Vector3d& u) {
@@ -1178,7 +1173,11 @@ bool RefineSaturated(const CtVolume& vol, const MarkerDetectionOptions& opt, dou
     sampling(a, a) = SamplingVarianceMm2(a < 2 ? s.radii_mm.x() : s.radii_mm.y(),
                                          vol.spacing_mm[a], e[a]);
   }
-  if (HasGaps(vol)) {
+  // Without gaps the partial-volume averages cover the ball and the analytic term (5.) holds for
+  // the surface fit too (NEES per dof 0.8-1.7 on contiguous clipped spheres, where the simulated
+  // term, a ball with no blur, says 0.2-0.5); with gaps an edge can fall between slices unseen,
+  // which only the simulation has.
+  if (SlicesHaveGaps(vol)) {
     const Eigen::Vector3d simulated = SurfaceSamplingMm2(vol, s.radii_mm.x(), b, clip);
     for (int a = 0; a < 3; ++a) sampling(a, a) = std::max(sampling(a, a), simulated[a]);
   }
@@ -1189,7 +1188,7 @@ bool RefineSaturated(const CtVolume& vol, const MarkerDetectionOptions& opt, dou
   s.covariance_mm2 += sampling_mm2;
   // With gaps, also what leaving out each sector of the edge does to the centre (the real CT's
   // odd and even halves differ by twice what a simulated ball's sampling explains).
-  if (HasGaps(vol)) {
+  if (SlicesHaveGaps(vol)) {
     const Eigen::Matrix3d sectors =
         SectorJackknifeCovariance(s.edge, s.traced_from, vol.axes, R, s.centre_mm, s.radii_mm);
     s.covariance_mm2 =

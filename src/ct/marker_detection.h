@@ -213,6 +213,11 @@ inline constexpr int kMinClippedVoxels = 8;
 StatusOr<MarkerDetection> DetectMarkers(const CtVolume& volume,
                                         const MarkerDetectionOptions& options);
 
+// Whether `volume` samples with gaps: slices further apart than they are thick (the odd or even
+// half of a series; thin slices reconstructed at a larger increment). Saturated markers' centre
+// covariances then also cover the sector jackknife of 8.
+bool SlicesHaveGaps(const CtVolume& volume);
+
 // The sampling-error variance (mm^2) of the centroid along one axis for a ball of radius
 // `radius_mm`, box-filtered over `extent_mm` and sampled every `spacing_mm`, over uniformly
 // distributed sub-voxel phases (see 5. above).
