@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 
+#include "ct/marker_detection.h"
 #include "util/file_util.h"
 #include "util/format.h"
 
@@ -66,13 +67,17 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
                            "to their half-level edge and checked against a clipped centroid."
                      : std::string()));
   doc.Heading(2, "Markers (patient coordinates, mm)");
-  doc.Paragraph("Centre: intensity-weighted centroid over the partial-volume rim, or, when bone "
-                "or air around the marker pulls it (centroid and robust partial-volume ball fit "
-                "disagree beyond their covariances, chi2 > " +
-                Fmt("%.2f", d.contamination_chi2) +
-                "), the ball fit's centre. BBox: centre of the bounding box of the voxels above "
-                "the threshold (the thesis's method), and its distance to the centre. sd: square "
-                "roots of the covariance's diagonal. Fit HU: the ball's fitted material HU.");
+  doc.Paragraph(
+      "Centre: intensity-weighted centroid over the partial-volume rim, or, when bone "
+      "or air around the marker pulls it (centroid and robust partial-volume ball fit "
+      "disagree beyond their covariances, chi2 > " +
+      Fmt("%.2f", d.contamination_chi2) +
+      "), the ball fit's centre; a marker at the scanner's clip: the centre of a "
+      "spheroid fitted to its half-level edge (\"surface fit, saturated\", its radii "
+      "in-plane / across the slices). BBox: centre of the bounding box of the voxels "
+      "above the threshold (the thesis's method), and its distance to the centre. sd: "
+      "square roots of the covariance's diagonal. Fit HU: the ball's fitted material "
+      "HU (at least the clip for a saturated marker).");
   for (const auto& m : r.detection.markers) {
     const Eigen::Vector3d sd = m.covariance_mm2.diagonal().cwiseSqrt();
     const std::string from =
@@ -163,8 +168,16 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
       ". Correlated noise, streaks and beam hardening near metal are not modelled; the frame's "
       "own uncertainty is not added. A saturated marker (at the scanner's clip): the surface "
       "fit's covariance (residual scale of the edge points, counted as one independent point "
-      "per voxel area of the surface), multiplied by max(1, chi2 / 3) with chi2 the disagreement "
-      "of the clipped centroid and the surface fit over their covariances.");
+      "per voxel area of the surface) plus the sampling term (with gaps between the slices at "
+      "least the fit's own error on simulated clipped balls sampled alike)" +
+      (SlicesHaveGaps(r.geometry)
+           ? ", widened to cover a delete-one-sector jackknife of the edge fit (this series has "
+             "gaps: slices " +
+                 Fmt("%.4g", r.geometry.slice_thickness_mm) + " mm thick every " +
+                 Fmt("%.4g", r.geometry.spacing_mm.z()) + " mm)"
+           : std::string()) +
+      ", multiplied by max(1, chi2 / 3) with chi2 the disagreement of the clipped centroid and "
+      "the surface fit over their covariances.");
   return doc;
 }
 
