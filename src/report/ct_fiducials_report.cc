@@ -24,6 +24,34 @@ std::string CsvStem(const std::string& path) {
   return path;
 }
 
+// The report's "Covariance model" paragraph: what each marker's covariance is made of.
+std::string CovarianceModelText(const CtFiducialsResult& r) {
+  const auto& d = r.detect_options;
+  return "Per marker: voxel noise (the local background's MAD) propagated through the weighted "
+         "centroid, the background level's error, and the sub-voxel sampling error of a " +
+         Fmt("%.3g", d.diameter_mm) +
+         " mm ball box-filtered over each voxel (variance over a uniform sub-voxel phase), "
+         "multiplied by max(1, chi2 / 3) when centroid and ball fit disagree more than expected; "
+         "for a ball-fit centre, the fit's covariance (its residual scale, at least that of the "
+         "voxels the ball's surface cuts) plus the same sampling term" +
+         (r.extra_sigma_mm > 0 ? ", plus an isotropic (" + Fmt("%.4g", r.extra_sigma_mm) +
+                                     " mm)^2 for what the model leaves out"
+                               : std::string()) +
+         ". Correlated noise, streaks and beam hardening near metal are not modelled; the frame's "
+         "own uncertainty is not added. A saturated marker (at the scanner's clip): the surface "
+         "fit's covariance (residual scale of the edge points, counted as one independent point "
+         "per voxel area of the surface) plus the sampling term (with gaps between the slices at "
+         "least the fit's own error on simulated clipped balls sampled alike)" +
+         (SlicesHaveGaps(r.geometry)
+              ? ", widened to cover a delete-one-sector jackknife of the edge fit (this series has "
+                "gaps: slices " +
+                    Fmt("%.4g", r.geometry.slice_thickness_mm) + " mm thick every " +
+                    Fmt("%.4g", r.geometry.spacing_mm.z()) + " mm)"
+              : std::string()) +
+         ", multiplied by max(1, chi2 / 3) with chi2 the disagreement of the clipped centroid and "
+         "the surface fit over their covariances.";
+}
+
 }  // namespace
 
 ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_name) {
@@ -154,30 +182,7 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
     doc.Paragraph("The CSV is in DICOM patient coordinates (LPS, mm).");
   }
   doc.Heading(2, "Covariance model");
-  doc.Paragraph(
-      "Per marker: voxel noise (the local background's MAD) propagated through the weighted "
-      "centroid, the background level's error, and the sub-voxel sampling error of a " +
-      Fmt("%.3g", d.diameter_mm) +
-      " mm ball box-filtered over each voxel (variance over a uniform sub-voxel phase), "
-      "multiplied by max(1, chi2 / 3) when centroid and ball fit disagree more than expected; "
-      "for a ball-fit centre, the fit's covariance (its residual scale, at least that of the "
-      "voxels the ball's surface cuts) plus the same sampling term" +
-      (r.extra_sigma_mm > 0 ? ", plus an isotropic (" + Fmt("%.4g", r.extra_sigma_mm) +
-                                  " mm)^2 for what the model leaves out"
-                            : std::string()) +
-      ". Correlated noise, streaks and beam hardening near metal are not modelled; the frame's "
-      "own uncertainty is not added. A saturated marker (at the scanner's clip): the surface "
-      "fit's covariance (residual scale of the edge points, counted as one independent point "
-      "per voxel area of the surface) plus the sampling term (with gaps between the slices at "
-      "least the fit's own error on simulated clipped balls sampled alike)" +
-      (SlicesHaveGaps(r.geometry)
-           ? ", widened to cover a delete-one-sector jackknife of the edge fit (this series has "
-             "gaps: slices " +
-                 Fmt("%.4g", r.geometry.slice_thickness_mm) + " mm thick every " +
-                 Fmt("%.4g", r.geometry.spacing_mm.z()) + " mm)"
-           : std::string()) +
-      ", multiplied by max(1, chi2 / 3) with chi2 the disagreement of the clipped centroid and "
-      "the surface fit over their covariances.");
+  doc.Paragraph(CovarianceModelText(r));
   return doc;
 }
 
