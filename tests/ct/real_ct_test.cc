@@ -38,20 +38,32 @@ MarkerDetectionOptions Options(double diameter_mm, int expected) {
   return o;
 }
 
-// Every second slice from `first`: a series of 2.5 mm steps with the same slice thickness.
-CtVolume EverySecondSlice(const CtVolume& v, int first) {
+// Every n-th slice from `first`: a series of n x 1.25 mm steps with the same slice thickness.
+CtVolume EveryNthSlice(const CtVolume& v, int n, int first) {
   CtVolume s = v;
-  s.slices = (v.slices - first + 1) / 2;
+  s.slices = (v.slices - first + n - 1) / n;
   s.origin_mm = v.PatientFromIndex(Eigen::Vector3d(0, 0, first));
-  s.spacing_mm.z() = 2 * v.spacing_mm.z();
+  s.spacing_mm.z() = n * v.spacing_mm.z();
   s.slice_thickness_mm = v.slice_thickness_mm;
   s.hu.assign(v.hu.begin(), v.hu.begin() + static_cast<size_t>(v.columns) * v.rows * s.slices);
   const size_t plane = static_cast<size_t>(v.columns) * v.rows;
   for (int k = 0; k < s.slices; ++k) {
-    std::copy(v.hu.begin() + (first + 2 * k) * plane, v.hu.begin() + (first + 2 * k + 1) * plane,
+    std::copy(v.hu.begin() + (first + n * k) * plane,
+              v.hu.begin() + (first + n * k + 1) * plane,
               s.hu.begin() + k * plane);
   }
   return s;
+}
+
+// The marker of `d` nearest to `p` within 3 mm, or null.
+const DetectedMarker* NearestWithin3Mm(const MarkerDetection& d, const Eigen::Vector3d& p) {
+  const DetectedMarker* best = nullptr;
+  for (const auto& m : d.markers) {
+    if ((m.centre_mm - p).norm() < 3.0 &&
+        (!best || (m.centre_mm - p).norm() < (best->centre_mm - p).norm()))
+      best = &m;
+  }
+  return best;
 }
 
 double Chi2(const Eigen::Vector3d& d, const Eigen::Matrix3d& C) { return d.dot(C.ldlt().solve(d)); }
@@ -126,25 +138,16 @@ TEST(RealCt, ARoughDiameterGivesTheSameCentres) {
 TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
   const CtVolume& v = RealCt();
   auto full = DetectMarkers(v, Options(6.0, kSpheres));
-  auto even = DetectMarkers(EverySecondSlice(v, 0), Options(6.0, 0));
-  auto odd = DetectMarkers(EverySecondSlice(v, 1), Options(6.0, 0));
+  auto even = DetectMarkers(EveryNthSlice(v, 2, 0), Options(6.0, 0));
+  auto odd = DetectMarkers(EveryNthSlice(v, 2, 1), Options(6.0, 0));
   ASSERT_TRUE(full.ok()) << full.status().message();
   ASSERT_TRUE(even.ok()) << even.status().message();
   ASSERT_TRUE(odd.ok()) << odd.status().message();
-  auto nearest = [](const MarkerDetection& d, const Eigen::Vector3d& p) -> const DetectedMarker* {
-    const DetectedMarker* best = nullptr;
-    for (const auto& m : d.markers) {
-      if ((m.centre_mm - p).norm() < 3.0 &&
-          (!best || (m.centre_mm - p).norm() < (best->centre_mm - p).norm()))
-        best = &m;
-    }
-    return best;
-  };
   double chi2 = 0, min_apart = 1e9, max_apart = 0;
   int both = 0;
   for (const auto& f : full->markers) {
-    const DetectedMarker* e = nearest(*even, f.centre_mm);
-    const DetectedMarker* o = nearest(*odd, f.centre_mm);
+    const DetectedMarker* e = NearestWithin3Mm(*even, f.centre_mm);
+    const DetectedMarker* o = NearestWithin3Mm(*odd, f.centre_mm);
     if (!e || !o) {
       std::printf("sphere (%.2f, %.2f, %.2f): %s%s\n",
                   f.centre_mm.x(),
@@ -182,6 +185,48 @@ TEST(RealCt, OddAndEvenSlicesFindTheSpheresWithinAVoxel) {
     EXPECT_GE(chi2 / (3 * both), 0.3);
     EXPECT_LE(chi2 / (3 * both), 3.0);
   }
+}
+
+// Every third slice (3.75 mm steps, 1.25 mm thick: gaps of 2.5 mm, one or two slices through a
+// sphere): three disjoint series, each sphere compared between every two of them that found it.
+// Measured: 4 pairs, 1.35-2.79 mm apart, NEES per dof 8.5: beyond what the covariance holds --
+// with so few slices the fit sees too little of a real (not spheroidal) sphere, which neither the
+// simulated sampling term nor the sector jackknife captures. The test asserts what holds (at
+// least 3 sphere pairs found) and records the rest for src/docs/results.md, which says it.
+TEST(RealCt, EveryThirdSliceFindsSpheresInTwoOfTheThreeSeries) {
+  const CtVolume& v = RealCt();
+  auto full = DetectMarkers(v, Options(6.0, kSpheres));
+  ASSERT_TRUE(full.ok()) << full.status().message();
+  std::vector<MarkerDetection> thirds;
+  for (int first = 0; first < 3; ++first) {
+    auto d = DetectMarkers(EveryNthSlice(v, 3, first), Options(6.0, 0));
+    thirds.push_back(d.ok() ? *d : MarkerDetection());
+  }
+  double chi2 = 0, min_apart = 1e9, max_apart = 0;
+  int pairs = 0;
+  for (const auto& f : full->markers) {
+    for (int a = 0; a < 3; ++a) {
+      for (int b = a + 1; b < 3; ++b) {
+        const DetectedMarker* ma = NearestWithin3Mm(thirds[a], f.centre_mm);
+        const DetectedMarker* mb = NearestWithin3Mm(thirds[b], f.centre_mm);
+        if (!ma || !mb) continue;
+        const Eigen::Vector3d d = ma->centre_mm - mb->centre_mm;
+        chi2 += Chi2(d, ma->covariance_mm2 + mb->covariance_mm2);
+        min_apart = std::min(min_apart, d.norm());
+        max_apart = std::max(max_apart, d.norm());
+        ++pairs;
+      }
+    }
+  }
+  std::printf("every third slice: %d pairs, %.2f-%.2f mm apart, NEES per dof %.2f\n",
+              pairs,
+              min_apart,
+              max_apart,
+              pairs ? chi2 / (3 * pairs) : 0.0);
+  testing::RecordFigure("realct.thirds_pairs", "%d", pairs);
+  testing::RecordFigure("realct.thirds_apart", "%.2f-%.2f mm", min_apart, max_apart);
+  testing::RecordFigure("realct.thirds_nees", "%.1f", pairs ? chi2 / (3 * pairs) : 0.0);
+  EXPECT_GE(pairs, 3);
 }
 
 TEST(RealCt, CentroidAndSurfaceFitAgreeWithinTheirCovariances) {
