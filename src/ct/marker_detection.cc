@@ -880,7 +880,8 @@ Eigen::Matrix3d SectorJackknifeCovariance(const std::vector<Eigen::Vector3d>& ed
 }
 
 // The smallest widening of covariance A that covers B too: A where B is within it, B's variance
-// along the directions where B exceeds A (the eigenvalues of B whitened by A raised to 1).
+// along the directions where B exceeds A (the eigenvalues of B whitened by A, each raised to at
+// least 1).
 Eigen::Matrix3d CoveringCovariance(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
   const Eigen::LLT<Eigen::Matrix3d> llt(A);
   if (llt.info() != Eigen::Success) return A + B;
