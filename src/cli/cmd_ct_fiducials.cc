@@ -70,6 +70,8 @@ int RunCtFiducials() {
   carmba::cli::Step(cmd, "reading " + FLAGS_dicom + " and finding the markers");
   auto result = carmba::ComputeCtFiducials(FLAGS_dicom, options);
   if (!result.ok()) return carmba::cli::Fail(cmd, result.status());
+  for (const auto& w : result->warnings)
+    std::cerr << "carmba " << cmd << ": warning: " << w << "\n";
   plots.Draw(carmba::FiducialsPlotData(*result));
   carmba::cli::Step(cmd, "waiting for the plot");
   const carmba::PlotSet plot_set = plots.Result();

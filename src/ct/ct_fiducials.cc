@@ -102,6 +102,7 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
   r.geometry = std::move(volume).value();
   r.geometry.hu.clear();
   r.geometry.hu.shrink_to_fit();
+  r.warnings = SliceSamplingWarnings(r.geometry, detect.diameter_mm);
 
   auto& markers = r.detection.markers;
   r.extra_sigma_mm = options.extra_sigma_mm;
@@ -196,6 +197,16 @@ StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
   return r;
 }
 
+std::vector<std::string> SliceSamplingWarnings(const CtVolume& g, double diameter_mm) {
+  if (!SlicesHaveGaps(g) || diameter_mm >= 2 * g.spacing_mm.z()) return {};
+  return {"slices " + F("%.4g", g.slice_thickness_mm) + " mm thick every " +
+          F("%.4g", g.spacing_mm.z()) + " mm: one or two slices through a " +
+          F("%.3g", diameter_mm) +
+          " mm marker, too few for its centre across the slices, which may be off by more than "
+          "its covariance says; reconstruct the series with contiguous slices (increment <= "
+          "thickness)"};
+}
+
 std::string FormatFiducialsCsv(const CtFiducialsResult& r) {
   std::ostringstream o;
   o << "# carmba ct-fiducials: spherical marker centres (intensity-weighted centroid over the "
@@ -220,6 +231,7 @@ std::string FormatFiducialsCsv(const CtFiducialsResult& r) {
   } else {
     o << "# frame: patient (DICOM patient coordinates, LPS, mm)\n";
   }
+  for (const auto& w : r.warnings) o << "# warning: " << w << "\n";
   if (r.labelled) {
     o << "# ids: labelled with model " << r.model_csv << " (rigid-fit RMS "
       << F("%.4f", r.labelling.rms_mm) << " mm)\n";

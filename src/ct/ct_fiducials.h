@@ -74,7 +74,16 @@ struct CtFiducialsResult {
   MarkerDetectionOptions detect_options;
   std::string model_csv;
   double extra_sigma_mm = 0;
+  // What makes the covariances less trustworthy than they say (SliceSamplingWarnings), one line
+  // each; printed on stderr, in the CSV's header and in the report.
+  std::vector<std::string> warnings;
 };
+
+// A series whose slices have gaps and lie more than half the nominal marker diameter apart: one or
+// two slices through each marker, too few for its centre across the slices (on the real CT, every
+// third slice put one sphere 1.35-2.79 mm apart in two such series, NEES per dof 8.5: see
+// src/docs/results.md). One line naming the slices and the diameter, or none.
+std::vector<std::string> SliceSamplingWarnings(const CtVolume& geometry, double diameter_mm);
 
 StatusOr<CtFiducialsResult> ComputeCtFiducials(const std::string& dicom_dir,
                                                const CtFiducialsOptions& options);

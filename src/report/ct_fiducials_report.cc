@@ -76,6 +76,7 @@ ReportDoc FiducialsReportDoc(const CtFiducialsResult& r, const std::string& csv_
     if (r.skipped.size() > 10) text += " ...";
   }
   doc.Paragraph(text + ".");
+  for (const auto& w : r.warnings) doc.Warning(w);
   doc.Paragraph("Detection: threshold " + Fmt("%.0f", d.threshold_hu) +
                 " HU, 26-connected components, metal if the fitted ball HU >= " +
                 Fmt("%.0f", d.min_metal_hu) + ", nominal diameter " + Fmt("%.3g", d.diameter_mm) +

@@ -193,6 +193,33 @@ TEST(CtFiducialsCsv, BadFilesAreRefused) {
 namespace carmba {
 namespace {
 
+// Slices with gaps, farther apart than half the marker's diameter (the real CT's every third
+// slice): a warning naming the slices and the diameter, in the result and the CSV; contiguous
+// slices or gaps at up to half the diameter give none.
+TEST(CtFiducialsWarnings, FewSlicesThroughAMarkerAreNamed) {
+  auto geometry = [](double step, double thickness) {
+    return MakeCtGeometry(8,
+                          8,
+                          8,
+                          0.88,
+                          step,
+                          thickness,
+                          Eigen::Vector3d::UnitX(),
+                          Eigen::Vector3d::UnitY(),
+                          Eigen::Vector3d::Zero());
+  };
+  EXPECT_TRUE(SliceSamplingWarnings(geometry(1.25, 1.25), 6).empty());  // contiguous
+  EXPECT_TRUE(SliceSamplingWarnings(geometry(5, 5), 6).empty());        // thick, contiguous
+  EXPECT_TRUE(SliceSamplingWarnings(geometry(2.5, 1.25), 6).empty());   // every second
+  const auto w = SliceSamplingWarnings(geometry(3.75, 1.25), 6);        // every third
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("slices 1.25 mm thick every 3.75 mm"), std::string::npos) << w[0];
+  EXPECT_NE(w[0].find("6 mm marker"), std::string::npos) << w[0];
+  CtFiducialsResult r;
+  r.warnings = w;
+  EXPECT_NE(FormatFiducialsCsv(r).find("\n# warning: slices 1.25 mm"), std::string::npos);
+}
+
 // A gantry-tilted acquisition: slices stacked along a direction that is not the slice normal
 // (ImagePositionPatient steps have an in-plane component). The reader recovers the step from the
 // positions and the centres come out right in patient coordinates.
