@@ -32,9 +32,18 @@ StatusOr<GridPattern> ParseGridPattern(const std::string& name) {
 }
 
 bool GridSpec::Check(std::string* error) const {
-  return CheckRange("grid: rows", rows, plausible::kGridRowsCols, error) &&
-         CheckRange("grid: cols", cols, plausible::kGridRowsCols, error) &&
-         CheckRange("grid: spacing_mm", spacing_mm, plausible::kGridSpacingMm, error);
+  if (!(CheckRange("grid: rows", rows, plausible::kGridRowsCols, error) &&
+        CheckRange("grid: cols", cols, plausible::kGridRowsCols, error) &&
+        CheckRange("grid: spacing_mm", spacing_mm, plausible::kGridSpacingMm, error))) {
+    return false;
+  }
+  // OpenCV's chessboard finder throws below 3 x 3 inner corners.
+  if (pattern == GridPattern::kChessboard && (rows < 3 || cols < 3)) {
+    *error = "grid: a chessboard needs at least 3 x 3 inner corners (rows " + std::to_string(rows) +
+             ", cols " + std::to_string(cols) + ")";
+    return false;
+  }
+  return true;
 }
 
 Eigen::Vector3d GridSpec::PointInPlate(int id) const {

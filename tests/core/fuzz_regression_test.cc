@@ -8,9 +8,11 @@
 #include <vector>
 
 #include "camera/camera.h"
+#include "detect/observations.h"
+#include "problem/problem.h"
+#include "scratch.h"
 #include "util/file_util.h"
 #include "util/yaml_reader.h"
-#include "scratch.h"
 
 namespace carmba {
 namespace {
@@ -25,6 +27,31 @@ class FuzzRegression : public ::testing::Test {
   const test::ScratchDir scratch_{"fuzz_regression"};
   const std::string dir_ = scratch_.path();
 };
+
+// fuzz_problem: a chessboard of 2 x 9 inner corners passed the grid's range check (2 .. 1000) and
+// reached OpenCV's findChessboardCorners, which throws below 3 x 3 (std::terminate).
+TEST_F(FuzzRegression, ChessboardWithTwoRowsIsAnErrorNamingTheKey) {
+  const std::string path = Write("problem.yaml",
+                                 "name: x\n"
+                                 "plate_views:\n"
+                                 "  images: nowhere/left[01][0-9].jpg\n"
+                                 "  pattern: chessboard\n"
+                                 "  rows: 2\n"
+                                 "  cols: 9\n"
+                                 "  spacing_mm: 25\n");
+  auto p = LoadProblem(path, ProblemReadOptions());
+  ASSERT_FALSE(p.ok());
+  EXPECT_NE(p.status().message().find(path + ":5: key 'plate_views.rows': grid: a chessboard "
+                                             "needs at least 3 x 3 inner corners (rows 2, cols 9)"),
+            std::string::npos)
+      << p.status().message();
+  GridSpec circles;
+  circles.pattern = GridPattern::kCircles;
+  circles.rows = 2;
+  circles.cols = 9;
+  std::string err;
+  EXPECT_TRUE(circles.Check(&err)) << err;  // a circle grid of two rows is still fine
+}
 
 // fuzz_camera_json: a number beyond a double is not a parse_error but nlohmann's out_of_range,
 // which ReadCameraJson did not catch (std::terminate).
