@@ -363,8 +363,12 @@ def test_figures(tests_dir, tmp):
 # (mrcal's C API). Not BM_CalibOpenCv (88 s at 200 views): its figure stays stated by hand.
 BENCH_FILTER = ("BM_Calib(Carmba|MrcalC|Engine)|BM_Joint|BM_EngineOneView|BM_Detect|BM_Track|"
                 "BM_Marker|BM_Ct")
+BENCH_REPETITIONS = 3
+BENCH_ARGS = ["--benchmark_filter=" + BENCH_FILTER,
+              "--benchmark_repetitions=%d" % BENCH_REPETITIONS]
+# BENCH_ARGS as a reader types them (results.md states it).
 BENCH_COMMAND = ("taskset -c 0 build/tests/carmba_bench --benchmark_filter='%s' "
-                 "--benchmark_repetitions=3" % BENCH_FILTER)
+                 "--benchmark_repetitions=%d" % (BENCH_FILTER, BENCH_REPETITIONS))
 UNIT_S = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
 
 
@@ -375,9 +379,9 @@ def bench_medians(tests_dir, tmp):
     if not os.path.exists(exe):
         sys.exit("results.py: %s is missing: build it first (cmake --build build --target "
                  "carmba_bench)" % exe)
-    subprocess.run(["taskset", "-c", "0", exe, "--benchmark_filter=" + BENCH_FILTER,
-                    "--benchmark_repetitions=3", "--benchmark_report_aggregates_only=true",
-                    "--benchmark_out=" + out, "--benchmark_out_format=json"],
+    subprocess.run(["taskset", "-c", "0", exe] + BENCH_ARGS +
+                   ["--benchmark_report_aggregates_only=true", "--benchmark_out=" + out,
+                    "--benchmark_out_format=json"],
                    check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     medians = {}
     for b in load_json(out)["benchmarks"]:

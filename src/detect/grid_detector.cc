@@ -1016,10 +1016,6 @@ bool FindChessboard(const cv::Mat& work,
                     GridCandidate* out,
                     std::string* reason) {
   std::vector<cv::Point2f> found;
-  if (grid.rows < 3 || grid.cols < 3) {  // OpenCV throws; GridSpec::Check refuses it first
-    *reason = "a chessboard needs at least 3 x 3 inner corners";
-    return false;
-  }
   if (!cv::findChessboardCorners(work, cv::Size(grid.cols, grid.rows), found,
                                  cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE) ||
       static_cast<int>(found.size()) != grid.NumPoints()) {
