@@ -10,7 +10,8 @@ in the template (the template says which).
       runs scripts/golden_outputs.sh (every shipped problem and scene, about 50 s on 2 cores)
       into a scratch directory and extracts the figures from its result files; runs the tests of
       TEST_RUNS (beside the binary: BUILD/tests/) and takes the figures they record
-      (tests/figures.h); runs BENCH_FILTER's benchmarks of BUILD/tests/carmba_bench on one core
+      (tests/figures.h); runs the marker recall test on every seed set of RECALL_RUNS (two at a
+      time); runs BENCH_FILTER's benchmarks of BUILD/tests/carmba_bench on one core
       (build it first: it is not in `all`); writes the figures file and results.md. About 4 min 30
       s in all.
   python3 scripts/results.py render [--check]
@@ -357,6 +358,83 @@ def test_figures(tests_dir, tmp):
     return figures
 
 
+# ---- Marker recall on randomised scenes: every seed set, two processes at a time -------------
+
+RECALL_SCENES = 16
+RECALL_RUNS = (("xa", "MarkerRecall.XaFrame*", range(1, 9)),
+               ("realct", "MarkerRecall.RealCt*", range(1, 17)))
+RECALL_COMMAND = ("CARMBA_MARKER_RECALL_SEED=S CARMBA_MARKER_RECALL_SCENES=%d "
+                  "build/tests/carmba_detect_test --gtest_filter='MarkerRecall.XaFrame*' (or "
+                  "'MarkerRecall.RealCt*')" % RECALL_SCENES)
+RECALL_FIELDS = ("scenes", "views", "views_skipped", "expected", "correct", "wrong", "beads",
+                 "overlap_labelled", "overlapping")
+
+
+def recall_run(tests_dir, tmp, kind, gfilter, seed_set):
+    """The figures one set's run records (the test fails when a set misses its bar: kept)."""
+    xml = os.path.join(tmp, "recall_%s_%d.xml" % (kind, seed_set))
+    env = dict(os.environ, CARMBA_MARKER_RECALL_SEED=str(seed_set),
+               CARMBA_MARKER_RECALL_SCENES=str(RECALL_SCENES))
+    subprocess.run([os.path.join(tests_dir, "carmba_detect_test"), "--gtest_filter=" + gfilter,
+                    "--gtest_output=xml:" + xml], env=env, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
+    props = {p.get("name"): p.get("value") for p in ElementTree.parse(xml).iter("property")}
+    key = "figure.recall.%s.set%d" % (kind, seed_set)
+    if key not in props:
+        sys.exit("results.py: the recall run of %s set %d recorded no figures" % (kind, seed_set))
+    counts = dict(zip(RECALL_FIELDS, map(int, props[key].split())))
+    missed = {}
+    for item in filter(None, props.get(key + ".missed", "").split(";")):
+        why, n = item.rsplit(":", 1)
+        missed[why] = int(n)
+    return counts, missed
+
+
+def pct(part, whole):
+    return "%.1f %%" % (100.0 * part / whole) if whole else "-"
+
+
+def recall_table(rows):
+    """rows: [(set, counts)] -> the markdown table with a row for all sets together, and the
+    totals."""
+    lines = ["| seed set | labelled correctly | wrong centres | beads labelled | "
+             "overlapped markers labelled | views skipped |", "|---|---|---|---|---|---|"]
+    total = {k: 0 for k in RECALL_FIELDS}
+    for seed_set, c in rows + [("all", None)]:
+        if c is None:
+            c, seed_set = total, "**all**"
+        else:
+            for k in RECALL_FIELDS:
+                total[k] += c[k]
+        lines.append("| %s | %d of %d (%s) | %d | %d | %d of %d | %d of %d |" % (
+            seed_set, c["correct"], c["expected"], pct(c["correct"], c["expected"]), c["wrong"],
+            c["beads"], c["overlap_labelled"], c["overlapping"], c["views_skipped"], c["views"]))
+    return "\n".join("  " + line for line in lines), total  # indented: inside a list item
+
+
+def recall_figures(tests_dir, tmp):
+    from concurrent.futures import ThreadPoolExecutor
+    jobs = [(kind, gfilter, s) for kind, gfilter, sets in RECALL_RUNS for s in sets]
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        results = list(pool.map(lambda j: recall_run(tests_dir, tmp, *j), jobs))
+    fig = {"command": "`%s`" % RECALL_COMMAND, "scenes": str(RECALL_SCENES)}
+    for kind, _, sets in RECALL_RUNS:
+        rows, missed = [], {}
+        for (k, _, s), (counts, why) in zip(jobs, results):
+            if k == kind:
+                rows.append((s, counts))
+                for w, n in why.items():
+                    missed[w] = missed.get(w, 0) + n
+        table, total = recall_table(rows)
+        fig[kind + "_sets"] = "%d-%d" % (min(sets), max(sets))
+        fig[kind + "_table"] = table
+        fig[kind + "_pct"] = pct(total["correct"], total["expected"])
+        fig[kind + "_at_99"] = str(sum(1 for _, c in rows if c["correct"] >= 0.99 * c["expected"]))
+        fig[kind + "_missed"] = "; ".join(
+            "%s %d" % (w, n) for w, n in sorted(missed.items(), key=lambda wn: (-wn[1], wn[0])))
+    return {"recall." + k: v for k, v in fig.items()}
+
+
 # ---- Benchmarks: carmba_bench on one core, medians of 3, in one run ----------------------------
 
 # The benchmarks results.md states, with the reference tools run in the same process and run
@@ -443,6 +521,7 @@ def measure(binary):
                 figures[name + "." + key] = value
         tests_dir = os.path.join(os.path.dirname(os.path.dirname(binary)), "tests")
         figures.update(test_figures(tests_dir, tmp))
+        figures.update(recall_figures(tests_dir, tmp))
         figures.update(bench_figures(tests_dir, tmp))
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                             capture_output=True, text=True).stdout.strip()

@@ -19,5 +19,10 @@ void RecordFigure(const std::string& key, const char* format, Args... args) {
   ::testing::Test::RecordProperty("figure." + key, text);
 }
 
+// A figure given as text of any length (a list the script parses).
+inline void RecordFigureText(const std::string& key, const std::string& text) {
+  ::testing::Test::RecordProperty("figure." + key, text);
+}
+
 }  // namespace testing
 }  // namespace carmba

@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <string>
 #include <vector>
 
 #include "camera/camera_model.h"
@@ -34,6 +36,17 @@ inline std::vector<Marker> SceneMarkers(const sim::XrayScene& s) {
 struct Tally {
   int expected = 0, correct = 0, wrong = 0, spurious_labelled = 0, overlap_labelled = 0;
   int outside_labelled = 0, overlapping_pairs = 0, outside = 0, crossed_by_wire = 0;
+  // The expected markers not labelled, by why: the detector's rejection reason ("merged", "low
+  // contrast", ...), "no blob found there", "a blob, not paired" or "view skipped".
+  std::map<std::string, int> missed;
+
+  void Add(const Tally& o) {
+    expected += o.expected, correct += o.correct, wrong += o.wrong;
+    spurious_labelled += o.spurious_labelled, overlap_labelled += o.overlap_labelled;
+    outside_labelled += o.outside_labelled, overlapping_pairs += o.overlapping_pairs;
+    outside += o.outside, crossed_by_wire += o.crossed_by_wire;
+    for (const auto& [why, n] : o.missed) missed[why] += n;
+  }
 };
 
 inline Tally Score(const sim::XrayScene& scene,
@@ -122,10 +135,15 @@ inline Tally Score(const sim::XrayScene& scene,
           if (std::hypot(q.x - c[k].x(), q.y - c[k].y()) < 0.5 * d_px) why = "a blob, not paired";
         }
         // A blob left out after the labelling (off the pose, overlapping) is also a rejection.
+        std::string rejected;
         for (const auto& r : ov.detection.rejected) {
-          if (std::hypot(r.uv_px.x - c[k].x(), r.uv_px.y - c[k].y()) < 0.5 * d_px)
-            why = "rejected: " + r.why;
+          if (std::hypot(r.uv_px.x - c[k].x(), r.uv_px.y - c[k].y()) < 0.5 * d_px) rejected = r.why;
         }
+        if (!rejected.empty()) why = "rejected: " + rejected;
+        // Counted by the reason's name, without its figures ("off the pose: 0.70 px ...").
+        ++t.missed[!ov.labelled        ? "view skipped"
+                   : !rejected.empty() ? rejected.substr(0, rejected.find(':'))
+                                       : why];
         std::cout << "  " << ov.name << ": marker " << id << " not labelled ("
                   << (ov.labelled ? why : "view skipped: " + ov.skipped) << ")\n";
         continue;
