@@ -175,6 +175,137 @@ ViewContext CorrespondenceContext(const MarkerBlobDetection& d) {
 
 }  // namespace
 
+namespace {
+
+// The pose of the object in view `v` that the labelled view `ref` and the two views' nominal
+// geometry predict (both have nominal_cam_from_patient).
+Pose6 PredictedPose(const ObjectView& ref, const ObjectView& v) {
+  const Rigid3 patient_from_object =
+      ref.nominal_cam_from_patient->Inverse() * Rigid3::FromPose(ref.labelling.cam_from_object);
+  return (*v.nominal_cam_from_patient * patient_from_object).ToPose();
+}
+
+// The correspondence options for a detected view: separation_px from its median blob, px_per_mm
+// from the blob options (or fx / SOD when the diameter was given in px).
+CorrespondenceOptions ViewCorrespondenceOptions(const ObjectView& v,
+                                                const MarkerBlobOptions& bo,
+                                                const Camera& camera,
+                                                std::optional<double> sod,
+                                                CorrespondenceOptions co) {
+  if (co.separation_px == 0 && !v.detection.blobs.empty()) {
+    // Markers closer than the detector's merge distance make one rejected blob: the median
+    // blob's diameter times merge_distance (detect/marker_blobs.h).
+    std::vector<double> d;
+    for (const MarkerBlob& b : v.detection.blobs) d.push_back(b.diameter_px);
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    co.separation_px = bo.merge_distance * d[d.size() / 2];
+  }
+  if (co.px_per_mm == 0) {
+    // The nominal magnification: the blob options', else fx / SOD when the file has it.
+    co.px_per_mm = bo.diameter_px.empty() ? bo.px_per_mm : sod ? camera.params[kFx] / *sod : 0.0;
+  }
+  return co;
+}
+
+// Labels the detected blobs of `v` with the markers (at `predicted` first when given). An
+// ambiguous view (a layout nearly symmetric as this view sees it) is not guessed: it is left
+// unlabelled with the reason, like any view that cannot be labelled.
+void LabelView(const Camera& camera,
+               const std::vector<Marker>& markers,
+               const std::vector<Eigen::Vector3d>& P,
+               const CorrespondenceOptions& co,
+               double merge_distance,
+               const std::optional<Pose6>& predicted,
+               ObjectView* view) {
+  ObjectView& v = *view;
+  std::vector<Eigen::Vector2d> uv;
+  for (const MarkerBlob& b : v.detection.blobs) uv.emplace_back(b.uv_px.x, b.uv_px.y);
+  auto lab = LabelMarkerBlobs(camera, P, uv, co, predicted, CorrespondenceContext(v.detection));
+  if (!lab.ok()) {
+    v.skipped = lab.status().message();
+    return;
+  }
+  v.labelled = true;
+  v.labelling = *lab;
+  v.marker_id_of_blob.assign(uv.size(), -1);
+  for (size_t i = 0; i < uv.size(); ++i) {
+    if (lab->marker_of_blob[i] >= 0) v.marker_id_of_blob[i] = markers[lab->marker_of_blob[i]].id;
+  }
+  for (const OffPoseBlob& off : lab->off_pose) {
+    const MarkerBlob& b = v.detection.blobs[off.blob];
+    v.detection.rejected.push_back({b.uv_px,
+                                    b.diameter_px,
+                                    "off the pose: " + Fixed(off.distance_px, 2) +
+                                        " px from where the other markers put marker " +
+                                        std::to_string(markers[off.marker].id) +
+                                        " (two shadows in line, or an edge across it)"});
+  }
+  LeaveOutPredictedOverlaps(camera, P, merge_distance, &v);
+  if (v.labelling.num_labelled < co.min_markers) {
+    v.labelled = false;
+    v.skipped = "only " + std::to_string(v.labelling.num_labelled) +
+                " markers left once the overlapping ones are left out (" +
+                std::to_string(co.min_markers) + " needed)";
+  }
+}
+
+// A view as read and detected, before its labelling.
+struct DetectedView {
+  ObjectView view;
+  CorrespondenceOptions correspondence;
+};
+
+// Reads the views of one file and detects their blobs (a view whose detection fails is kept with
+// the reason).
+Status DetectViews(const std::string& file,
+                   const Camera& camera,
+                   const ObjectViewsOptions& o,
+                   std::vector<DetectedView>* out) {
+  auto named = ReadImageViews(file);
+  if (!named.ok()) return named.status();
+  for (const NamedImage& ni : *named) {
+    DetectedView dv;
+    ObjectView& v = dv.view;
+    v.name = ni.name;
+    v.image = ni.image;
+    if (v.image.cols != camera.width || v.image.rows != camera.height) {
+      return Status::Error(v.name + ": image size " + std::to_string(v.image.cols) + "x" +
+                           std::to_string(v.image.rows) + " differs from the camera's " +
+                           std::to_string(camera.width) + "x" + std::to_string(camera.height));
+    }
+    std::optional<double> sod;
+    if (ni.geometry) {
+      auto nominal = NominalViewFromDicom(*ni.geometry, v.image.cols, v.image.rows, v.name);
+      if (!nominal.ok()) return nominal.status();
+      if (o.use_nominal_geometry) v.nominal_cam_from_patient = nominal->cam_from_patient;
+      if (ni.geometry->sod_mm) {
+        sod = *ni.geometry->sod_mm;
+      } else if (ni.geometry->sid_mm && ni.geometry->magnification) {
+        sod = *ni.geometry->sid_mm / *ni.geometry->magnification;
+      }
+    }
+    MarkerBlobOptions bo = o.blobs;
+    if (bo.diameter_px.empty() && !(bo.px_per_mm > 0)) {
+      const double z = sod ? *sod : o.source_to_object_mm;
+      if (!(z > 0)) {
+        return Status::Error(v.name +
+                             ": diameter_mm needs the magnification: give px_per_mm or "
+                             "source_to_object_mm (no Distance Source to Patient (0018,1111) in "
+                             "the image)");
+      }
+      bo.px_per_mm = camera.params[kFx] / z;
+    }
+    v.px_per_mm = bo.px_per_mm;
+    v.detection = DetectMarkerBlobs(v.image, bo);
+    if (!v.detection.ok) v.skipped = v.detection.reason;
+    dv.correspondence = ViewCorrespondenceOptions(v, bo, camera, sod, o.correspondence);
+    out->push_back(std::move(dv));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<std::string>& files,
                                                             const Camera& camera,
                                                             const std::vector<Marker>& markers,
@@ -183,109 +314,41 @@ StatusOr<std::vector<ObjectView>> DetectAndLabelObjectViews(const std::vector<st
   if (!o.Check(&err)) return Status::Error("object views: " + err);
   std::vector<Eigen::Vector3d> P;
   for (const Marker& m : markers) P.push_back(m.p_in_object);
-  std::vector<ObjectView> views;
-  int ref = -1;  // a labelled view with a nominal pose
+  std::vector<DetectedView> detected;
   for (const std::string& file : files) {
-    auto named = ReadImageViews(file);
-    if (!named.ok()) return named.status();
-    for (const NamedImage& ni : *named) {
-      ObjectView v;
-      v.name = ni.name;
-      v.image = ni.image;
-      if (v.image.cols != camera.width || v.image.rows != camera.height) {
-        return Status::Error(v.name + ": image size " + std::to_string(v.image.cols) + "x" +
-                             std::to_string(v.image.rows) + " differs from the camera's " +
-                             std::to_string(camera.width) + "x" + std::to_string(camera.height));
-      }
-      std::optional<double> sod;
-      if (ni.geometry) {
-        auto nominal = NominalViewFromDicom(*ni.geometry, v.image.cols, v.image.rows, v.name);
-        if (!nominal.ok()) return nominal.status();
-        if (o.use_nominal_geometry) v.nominal_cam_from_patient = nominal->cam_from_patient;
-        if (ni.geometry->sod_mm) {
-          sod = *ni.geometry->sod_mm;
-        } else if (ni.geometry->sid_mm && ni.geometry->magnification) {
-          sod = *ni.geometry->sid_mm / *ni.geometry->magnification;
-        }
-      }
-      MarkerBlobOptions bo = o.blobs;
-      if (bo.diameter_px.empty() && !(bo.px_per_mm > 0)) {
-        const double z = sod ? *sod : o.source_to_object_mm;
-        if (!(z > 0)) {
-          return Status::Error(
-              v.name +
-              ": diameter_mm needs the magnification: give px_per_mm or "
-              "source_to_object_mm (no Distance Source to Patient (0018,1111) in the image)");
-        }
-        bo.px_per_mm = camera.params[kFx] / z;
-      }
-      v.px_per_mm = bo.px_per_mm;
-      v.detection = DetectMarkerBlobs(v.image, bo);
-      if (!v.detection.ok) {
-        v.skipped = v.detection.reason;
-        views.push_back(std::move(v));
-        continue;
-      }
-      std::vector<Eigen::Vector2d> uv;
-      for (const MarkerBlob& b : v.detection.blobs) uv.emplace_back(b.uv_px.x, b.uv_px.y);
+    const Status st = DetectViews(file, camera, o, &detected);
+    if (!st.ok()) return st;
+  }
+  // In order: each view after the first labelled one with a nominal pose (`ref`) is labelled at
+  // the pose that view and the nominal geometry predict first.
+  std::vector<ObjectView> views;
+  int ref = -1;
+  for (const DetectedView& dv : detected) {
+    ObjectView v = dv.view;
+    if (v.detection.ok) {
       std::optional<Pose6> predicted;
-      if (ref >= 0 && v.nominal_cam_from_patient) {
-        const ObjectView& r = views[ref];
-        const Rigid3 patient_from_object =
-            r.nominal_cam_from_patient->Inverse() * Rigid3::FromPose(r.labelling.cam_from_object);
-        predicted = (*v.nominal_cam_from_patient * patient_from_object).ToPose();
-      }
-      CorrespondenceOptions co = o.correspondence;
-      if (co.separation_px == 0 && !v.detection.blobs.empty()) {
-        // Markers closer than the detector's merge distance make one rejected blob: the median
-        // blob's diameter times merge_distance (detect/marker_blobs.h).
-        std::vector<double> d;
-        for (const MarkerBlob& b : v.detection.blobs) d.push_back(b.diameter_px);
-        std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-        co.separation_px = bo.merge_distance * d[d.size() / 2];
-      }
-      if (co.px_per_mm == 0) {
-        // The nominal magnification: the blob options', else fx / SOD when the file has it.
-        co.px_per_mm = bo.diameter_px.empty() ? bo.px_per_mm
-                       : sod                  ? camera.params[kFx] / *sod
-                                              : 0.0;
-      }
-      auto lab = LabelMarkerBlobs(camera, P, uv, co, predicted, CorrespondenceContext(v.detection));
-      if (!lab.ok()) {
-        // An ambiguous view (a layout nearly symmetric as this view sees it) is not guessed: it is
-        // skipped with the reason like any view that cannot be labelled, and the others go on;
-        // with no view labelled the whole call is an error listing the reasons.
-        v.skipped = lab.status().message();
-        views.push_back(std::move(v));
-        continue;
-      }
-      v.labelled = true;
-      v.labelling = *lab;
-      v.marker_id_of_blob.assign(uv.size(), -1);
-      for (size_t i = 0; i < uv.size(); ++i) {
-        if (lab->marker_of_blob[i] >= 0)
-          v.marker_id_of_blob[i] = markers[lab->marker_of_blob[i]].id;
-      }
-      for (const OffPoseBlob& off : lab->off_pose) {
-        const MarkerBlob& b = v.detection.blobs[off.blob];
-        v.detection.rejected.push_back({b.uv_px,
-                                        b.diameter_px,
-                                        "off the pose: " + Fixed(off.distance_px, 2) +
-                                            " px from where the other markers put marker " +
-                                            std::to_string(markers[off.marker].id) +
-                                            " (two shadows in line, or an edge across it)"});
-      }
-      LeaveOutPredictedOverlaps(camera, P, o.blobs.merge_distance, &v);
-      if (v.labelling.num_labelled < co.min_markers) {
-        v.labelled = false;
-        v.skipped = "only " + std::to_string(v.labelling.num_labelled) +
-                    " markers left once the overlapping ones are left out (" +
-                    std::to_string(co.min_markers) + " needed)";
-      }
-      views.push_back(std::move(v));
-      if (ref < 0 && views.back().nominal_cam_from_patient)
-        ref = static_cast<int>(views.size()) - 1;
+      if (ref >= 0 && v.nominal_cam_from_patient) predicted = PredictedPose(views[ref], v);
+      LabelView(camera, markers, P, dv.correspondence, o.blobs.merge_distance, predicted, &v);
     }
+    views.push_back(std::move(v));
+    if (ref < 0 && views.back().labelled && views.back().nominal_cam_from_patient)
+      ref = static_cast<int>(views.size()) - 1;
+  }
+  // The views before `ref` had no prediction: one refused on its own (ambiguous, or too few
+  // markers for a labelling found by search) is labelled again at the predicted pose.
+  for (int i = 0; i < ref; ++i) {
+    if (views[i].labelled || !detected[i].view.detection.ok ||
+        !detected[i].view.nominal_cam_from_patient)
+      continue;
+    ObjectView retry = detected[i].view;
+    LabelView(camera,
+              markers,
+              P,
+              detected[i].correspondence,
+              o.blobs.merge_distance,
+              PredictedPose(views[ref], retry),
+              &retry);
+    if (retry.labelled) views[i] = std::move(retry);
   }
   int labelled = 0;
   std::ostringstream why;

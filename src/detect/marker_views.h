@@ -1,7 +1,8 @@
 // Object views from X-ray images: marker blobs (detect/marker_blobs.h) labelled with the CT
 // markers (pose/marker_correspondence.h) in every view of a set of image files, one rigid object.
 //
-// Per view, in file order (a multi-frame DICOM file gives one view per frame):
+// Every file read and its blobs detected first; then per view, in file order (a multi-frame
+// DICOM file gives one view per frame):
 //   1. Blobs. With `diameter_mm` and no px range, the magnification is px_per_mm if given, else
 //      fx / SOD with the DICOM frame's Distance Source to Patient (0018,1111) (or SID /
 //      Estimated Radiographic Magnification Factor), else fx / source_to_object_mm; none of these
@@ -15,7 +16,11 @@
 //      consistent across views by construction (one rigid object).
 //   3. A view with fewer than min_markers blobs, whose blobs no labelling explains, or whose
 //      labelling is ambiguous (the layout nearly symmetric as that view sees it: refusing to
-//      guess) is skipped with the reason; the others go on.
+//      guess) is skipped with the reason; the others go on. A view refused before the first
+//      labelled view with a nominal pose had no prediction: it is labelled again at the pose that
+//      view predicts, and kept when that labelling is accepted (in the randomised real-CT scenes
+//      a view with 4 markers as blobs of their own and two 4-marker labellings about equally
+//      good, tests/detect/marker_recall_test.cc).
 //   4. A labelled marker that the pose predicts within merge_distance blob diameters of another
 //      marker is left out (a merged blob the blob finder did not flag), listed as rejected.
 // Errors (the whole set, one line naming the view or file): an unreadable / corrupt image or a
