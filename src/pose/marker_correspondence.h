@@ -6,7 +6,8 @@
 //     relative geometry, detect/marker_views.h): project all markers, pair each with the nearest
 //     blob within `predict_gate_px` (greedy by distance, one blob per marker), refine the pose on
 //     the pairs, re-pair within `gate_px`; taken if it is accepted (below) and every blob near a
-//     projected marker is used; else the full search runs.
+//     projected marker is used; else the same from a first pairing within `gate_px` (an accurate
+//     prediction whose wide gate took a wrong blob); else the full search runs.
 //   * full search: marker triples (compact and well-shaped, disjoint first) x every ordered
 //     triple of blobs within the magnification bound (px_per_mm below) ->
 //     P3P (OpenCV's AP3P on undistorted rays) -> up to 4 poses -> a quick check that another
