@@ -12,8 +12,8 @@ in the template (the template says which).
       TEST_RUNS (beside the binary: BUILD/tests/) and takes the figures they record
       (tests/figures.h); runs the marker recall test on every seed set of RECALL_RUNS (two at a
       time); runs BENCH_FILTER's benchmarks of BUILD/tests/carmba_bench on one core
-      (build it first: it is not in `all`); writes the figures file and results.md. About 4 min 30
-      s in all.
+      (build it first: it is not in `all`); writes the figures file and results.md. About 7 min 30
+      s in all (3 min of it the recall sets).
   python3 scripts/results.py render [--check]
       writes results.md from the template and the figures file; --check writes nothing and exits
       1 when results.md differs from that (a hand edit, or a template changed without a render)
@@ -28,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+from concurrent.futures import ThreadPoolExecutor
 from xml.etree import ElementTree
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -399,13 +400,8 @@ def recall_table(rows):
     totals."""
     lines = ["| seed set | labelled correctly | wrong centres | beads labelled | "
              "overlapped markers labelled | views skipped |", "|---|---|---|---|---|---|"]
-    total = {k: 0 for k in RECALL_FIELDS}
-    for seed_set, c in rows + [("all", None)]:
-        if c is None:
-            c, seed_set = total, "**all**"
-        else:
-            for k in RECALL_FIELDS:
-                total[k] += c[k]
+    total = {k: sum(c[k] for _, c in rows) for k in RECALL_FIELDS}
+    for seed_set, c in rows + [("**all**", total)]:
         lines.append("| %s | %d of %d (%s) | %d | %d | %d of %d | %d of %d |" % (
             seed_set, c["correct"], c["expected"], pct(c["correct"], c["expected"]), c["wrong"],
             c["beads"], c["overlap_labelled"], c["overlapping"], c["views_skipped"], c["views"]))
@@ -413,7 +409,6 @@ def recall_table(rows):
 
 
 def recall_figures(tests_dir, tmp):
-    from concurrent.futures import ThreadPoolExecutor
     jobs = [(kind, gfilter, s) for kind, gfilter, sets in RECALL_RUNS for s in sets]
     with ThreadPoolExecutor(max_workers=2) as pool:
         results = list(pool.map(lambda j: recall_run(tests_dir, tmp, *j), jobs))

@@ -626,6 +626,7 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
         finish(s, "predicted");
         return out;
       }
+      if (o.gate_px >= o.predict_gate_px) break;  // the second pairing would be the first again
     }
   }
   TripleSearch search(&lab);
