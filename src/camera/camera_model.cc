@@ -149,7 +149,7 @@ bool UnprojectToNormalizedFrom(const double* in,
     double q[2], J[6];
     if (!ProjectCamPointWithJac(in, p, q, nullptr, J)) return false;
     const double ex = uv[0] - q[0], ey = uv[1] - q[1];
-    if (std::hypot(ex, ey) < 1e-10) {
+    if (ex * ex + ey * ey < 1e-20) {  // |e| < 1e-10 px (std::hypot is several times slower)
       xy[0] = x, xy[1] = y;
       return true;
     }

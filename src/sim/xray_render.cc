@@ -396,8 +396,9 @@ void RenderExpected(const Camera& camera, const RenderOptions& options, const Ra
             const float* xy = grid.xy(u, v, s);
             Eigen::Vector3d d(xy[0], xy[1], 1.0);
             d.normalize();
-            sum += std::exp(
-                -LineIntegral(d, boxes, spheres, tile_spheres, &box_t0, &box_t1, &box_hit));
+            const double mu_l =
+                LineIntegral(d, boxes, spheres, tile_spheres, &box_t0, &box_t1, &box_hit);
+            sum += mu_l == 0 ? 1.0 : std::exp(-mu_l);  // a ray through nothing: no exp
           }
           double value = options.outside_fov_gray * (SS - n_inside) / SS;
           if (n_inside > 0) value += pixel_gain(u, v, grid.radius2(u, v)) * sum / SS;

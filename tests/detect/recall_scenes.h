@@ -12,11 +12,11 @@
 #include <cmath>
 #include <functional>
 #include <iostream>
+#include <memory>
+#include <opencv2/core.hpp>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "camera/camera_model.h"
 #include "detect/grid_detector.h"
@@ -151,7 +151,13 @@ class RecallScenes {
         st.radius_px.push_back(r);
       }
       if (!inside) continue;
-      auto gray = sim::RenderXray(cam, {placed}, o);
+      // The same seed re-rendered (with and without the anatomy) has the same camera and rays.
+      if (!grid_ || !grid_->Matches(cam, o)) {
+        auto built = sim::RayGrid::Build(cam, o);
+        if (!built.ok()) return *what = built.status().message(), false;
+        grid_ = *built;
+      }
+      auto gray = sim::RenderXray(cam, {placed}, o, grid_.get());
       if (!gray.ok()) return *what = gray.status().message(), false;
       *image = sim::ToOutputImage(*gray, 16);
       st.background_gain = o.background_gain;
@@ -163,6 +169,7 @@ class RecallScenes {
 
  private:
   cv::Mat gain_;
+  mutable std::shared_ptr<const sim::RayGrid> grid_;  // the last view's rays
 };
 
 // A detected point matched to its sphere: the index into the truth and the error (detected -
