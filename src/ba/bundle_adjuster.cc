@@ -515,6 +515,10 @@ bool BaOptions::Check(std::string* error) const {
     *error = "loss scale_px must be > 0";
     return false;
   }
+  if (!(initial_trust_region_radius > 0) || !std::isfinite(initial_trust_region_radius)) {
+    *error = "initial_trust_region_radius must be > 0 and finite";
+    return false;
+  }
   if (max_iterations < 0 || num_threads < 1) {
     *error = "max_iterations must be >= 0 and num_threads >= 1";
     return false;
@@ -637,7 +641,8 @@ constexpr double kWarmTrustRegionRadius = 1e8;
 Status SolveWithCeres(const BaOptions& o, const StateLayout& layout, Start start,
                       ceres::Problem* cp, Assembly* as, BaResult* res) {
   ceres::Solver::Options so;
-  if (start == Start::kWarm) so.initial_trust_region_radius = kWarmTrustRegionRadius;
+  so.initial_trust_region_radius =
+      start == Start::kWarm ? kWarmTrustRegionRadius : o.initial_trust_region_radius;
   LinearSolverType(o.linear_solver, &so.linear_solver_type);
   so.max_num_iterations = o.max_iterations;
   so.function_tolerance = o.function_tolerance;

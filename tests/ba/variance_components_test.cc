@@ -45,9 +45,12 @@ SyntheticJoint Understated(NoiseGroup g, uint64_t seed) {
   return sj;
 }
 
+// The synthetic problems start at the truth, near their optimum: nearly Gauss-Newton steps from
+// the start (BaOptions::initial_trust_region_radius).
 BaOptions Options(CovarianceScale scale) {
   BaOptions o;
   o.covariance_scale = scale;
+  o.initial_trust_region_radius = 1e8;
   return o;
 }
 
