@@ -5,9 +5,11 @@
 //   * predicted pose (optional, e.g. from an already labelled view and the DICOM angles' nominal
 //     relative geometry, detect/marker_views.h): project all markers, pair each with the nearest
 //     blob within `predict_gate_px` (greedy by distance, one blob per marker), refine the pose on
-//     the pairs, re-pair within `gate_px`; taken if it is accepted (below) and every blob near a
-//     projected marker is used; else the same from a first pairing within `gate_px` (an accurate
-//     prediction whose wide gate took a wrong blob); else the full search runs.
+//     the pairs, re-pair within `gate_px`; the same from a first pairing within `gate_px`. The
+//     wide one is taken if it is accepted (below) and, when the tight one holds 3 or more
+//     markers (an accurate prediction), pairs the same (a pair only the wide gate made, e.g. a
+//     bead beside a hidden marker, bends a pose of few pairs to itself); else the tight one if
+//     accepted; else the full search runs.
 //   * full search: marker triples (compact and well-shaped, disjoint first) x every ordered
 //     triple of blobs within the magnification bound (px_per_mm below) ->
 //     P3P (OpenCV's AP3P on undistorted rays) -> up to 4 poses -> a quick check that another
@@ -23,7 +25,9 @@
 //     ViewContext), with RMS (per coordinate) <= accept_rms_px, and (when
 //     px_per_mm is known) its pose puts the markers' centroid at a magnification fx / z within
 //     the scale tolerance of px_per_mm: among thousands of hypotheses, a 4-marker labelling of a
-//     foreign layout fits to a few tenths of a px by chance, but at a wrong depth. The best
+//     foreign layout fits to a few tenths of a px by chance, but at a wrong depth. A labelling of
+//     exactly 4 pairs, with none to spare for the off-pose check below, must also have each pair
+//     where the other three put it (the same test as OffPoseBlob's). The best
 //     labels the most markers, then has the smallest RMS (MSAC score, sum of min(d^2, gate^2)
 //     over markers in the image, keeps the best variant of one labelling).
 //   * the search over triples stops once d disjoint triples are done with d >= m - best + 1 (m
