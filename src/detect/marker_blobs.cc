@@ -78,6 +78,10 @@ double RobustSigma(std::vector<float>* v) {
   return 1.4826 * (*v)[h];
 }
 
+// The difference of the axis extents (px) a region's pixel outline can make on its own
+// (PieceRejection).
+constexpr double kPixelStepExtentPx = 1.5;
+
 // A connected piece of a candidate's half-peak region.
 struct Piece {
   double area = 0;
@@ -232,7 +236,11 @@ std::string PieceRejection(const std::vector<Piece>& pieces, size_t i, const Blo
     if (j != i && cv::norm(pieces[j].centre - pc.centre) < o.merge_distance * z.d_nom)
       return "merged";
   }
-  if (elong > o.max_elongation || pc.area > o.merge_area_ratio * z.area_nom) {
+  // A small disc's half-peak region is a few pixels, and its outline's pixel steps alone give axis
+  // ratios up to about 1.4 (a 3 x 4 pixel region: 1.37). Its axis ratio counts only where the
+  // axes' extents (4 sigma) also differ by more than those steps.
+  const bool stretched = elong > o.max_elongation && 4 * (pc.major - pc.minor) > kPixelStepExtentPx;
+  if (stretched || pc.area > o.merge_area_ratio * z.area_nom) {
     if (length > 2.6 * z.d_max) return "elongated";
     if (4 * pc.minor > 1.3 * z.d_max && elong < 1.15) return "too large";
     return "merged";

@@ -18,8 +18,10 @@
 //        "elongated"             axis ratio > max_elongation and longer than 2.6 D_max
 //                                  (a wire, a bone edge, a catheter);
 //        "merged"                two markers overlapping: one piece with an axis ratio >
-//                                  max_elongation or an area above merge_area_ratio x the
-//                                  expected one, up to twice the diameter long; or two pieces of
+//                                  max_elongation (and axis extents more than 1.5 px apart:
+//                                  a 3 x 4 pixel region is a small disc, not two) or an area
+//                                  above merge_area_ratio x the expected one, up to twice the
+//                                  diameter long; or two pieces of
 //                                  one candidate whose centres are closer than merge_distance x D
 //                                  (both flagged). A merged blob is never used: its centroid is
 //                                  neither marker's;

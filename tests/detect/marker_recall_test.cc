@@ -254,10 +254,13 @@ TEST(MarkerRecall, RealCtAnatomyFromDicomXaNoWrongLabel) {
   ExpectRecall(total, Scenes(), 0.98);
 }
 
-// Renders the real-CT scene of `seed`, labels its views and scores them: view `view` must be
-// labelled at a predicted pose, with no wrong label and no bead.
-void ExpectViewLabelledAtThePrediction(uint64_t seed, size_t view) {
-  const test::ScratchDir dir("recall_predicted");
+// The real-CT scene of `seed`, rendered, its views detected and labelled, and scored.
+struct LabelledScene {
+  std::vector<ObjectView> views;
+  Tally tally;
+};
+void LabelRealCtScene(uint64_t seed, LabelledScene* out) {
+  const test::ScratchDir dir("recall_scene");
   const RandomScene rs = MakeScene(seed, Anatomy::kRealCt, dir.path());
   std::ofstream(dir.File("scene.yaml")) << rs.yaml;
   auto scene = sim::LoadXrayScene(dir.File("scene.yaml"));
@@ -271,26 +274,36 @@ void ExpectViewLabelledAtThePrediction(uint64_t seed, size_t view) {
   o.source_to_object_mm = rs.sod_mm;
   auto views = DetectAndLabelObjectViews(files, scene->camera, SceneMarkers(*scene), o);
   ASSERT_TRUE(views.ok()) << views.status().message();
-  ASSERT_LT(view, views->size());
-  const ObjectView& v = (*views)[view];
+  out->views = std::move(*views);
+  out->tally = Score(*scene, truth, out->views);
+}
+
+// View `view` of the real-CT scene of `seed` must be labelled at a predicted pose, with no wrong
+// label and no bead.
+void ExpectViewLabelledAtThePrediction(uint64_t seed, size_t view) {
+  LabelledScene s;
+  ASSERT_NO_FATAL_FAILURE(LabelRealCtScene(seed, &s));
+  ASSERT_LT(view, s.views.size());
+  const ObjectView& v = s.views[view];
   ASSERT_TRUE(v.labelled) << v.skipped;
   EXPECT_EQ(v.labelling.method, "predicted");
   EXPECT_GE(v.labelling.num_labelled, 4);
-  const Tally t = Score(*scene, truth, *views);
-  EXPECT_EQ(t.wrong, 0);
-  EXPECT_EQ(t.spurious_labelled, 0);
-  EXPECT_GE(t.correct, t.expected - 1);
+  EXPECT_EQ(s.tally.wrong, 0);
+  EXPECT_EQ(s.tally.spurious_labelled, 0);
+  EXPECT_GE(s.tally.correct, s.tally.expected - 1);
 }
 
 // A view that cannot be labelled on its own is labelled at the pose that a later labelled view
-// and the DICOM geometry predict (detect/marker_views.h): seed 13010's first view (6 markers, 4
-// of them as blobs of their own) has two 4-marker labellings about equally good and was refused
-// as ambiguous; the next views are labelled by search, and the first one again from them.
+// and the DICOM geometry predict (detect/marker_views.h): seed 15011's first view (6 markers, 4
+// of them as blobs of their own) has two 4-marker labellings about equally good (RMS 0.011 and
+// 0.41 px) and is refused as ambiguous; the next views are labelled by search, and the first one
+// again from them. (Seed 13010's first view was the example until small markers stopped being
+// taken for two, 2026-12-06: it is now labelled on its own.)
 TEST(MarkerRecall, AViewRefusedAloneIsLabelledFromALaterOne) {
   if (!std::filesystem::exists(kInvesaliusCraniumPath)) {
     GTEST_SKIP() << "the skull CT " << kInvesaliusCraniumPath << " is not installed";
   }
-  ExpectViewLabelledAtThePrediction(13010, 0);
+  ExpectViewLabelledAtThePrediction(15011, 0);
 }
 
 // At a predicted pose the markers are paired within predict_gate_px (40 px) first; the wide gate
@@ -302,6 +315,39 @@ TEST(MarkerRecall, APredictionIsPairedAgainWithinTheTightGate) {
     GTEST_SKIP() << "the skull CT " << kInvesaliusCraniumPath << " is not installed";
   }
   ExpectViewLabelledAtThePrediction(13001, 3);
+}
+
+// A bead beside a hidden marker is not labelled as it (pose/marker_correspondence.h): in seed
+// 13003 (7 markers of 1.8 mm, 4-6 of them as blobs of their own per view) a pose predicted from
+// view 0 paired a bead 15-26 px from its marker within the wide gate in views 1 and 2, and the
+// pose refined on 4 pairs bent to it (RMS 0.64 and 0.42 px). The tight pairing at the prediction
+// holds the other markers without it: the wide one is not taken, and neither is the bead.
+TEST(MarkerRecall, APairOnlyTheWideGateMadeIsNotTaken) {
+  if (!std::filesystem::exists(kInvesaliusCraniumPath)) {
+    GTEST_SKIP() << "the skull CT " << kInvesaliusCraniumPath << " is not installed";
+  }
+  LabelledScene s;
+  ASSERT_NO_FATAL_FAILURE(LabelRealCtScene(13003, &s));
+  EXPECT_TRUE(s.views[0].labelled) << s.views[0].skipped;
+  EXPECT_EQ(s.tally.wrong, 0);
+  EXPECT_EQ(s.tally.spurious_labelled, 0);
+  EXPECT_GE(s.tally.correct, 18);
+}
+
+// A marker of 4 px is a half-peak region of about 12 pixels, whose pixel outline alone can give an
+// axis ratio of 1.37 (3 x 4 pixels): not "merged" unless its axes' extents also differ by more
+// than those steps (detect/marker_blobs.cc). Seed 3014 (1.6 mm markers) lost 4 of its 43 markers
+// as merged, now 2 (axis extents 1.56 px apart: a missing corner pixel or two markers 2 px
+// apart look alike at this size).
+TEST(MarkerRecall, ASmallMarkerIsNotTakenForTwo) {
+  if (!std::filesystem::exists(kInvesaliusCraniumPath)) {
+    GTEST_SKIP() << "the skull CT " << kInvesaliusCraniumPath << " is not installed";
+  }
+  LabelledScene s;
+  ASSERT_NO_FATAL_FAILURE(LabelRealCtScene(3014, &s));
+  EXPECT_LE(s.tally.missed["merged"], 2);
+  EXPECT_EQ(s.tally.wrong, 0);
+  EXPECT_GE(s.tally.correct, s.tally.expected - 2);
 }
 
 }  // namespace
