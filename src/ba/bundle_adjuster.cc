@@ -631,18 +631,13 @@ std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(const StateLayout& 
 // removed), where Gauss-Newton steps are good from the first iteration.
 enum class Start { kCold, kWarm };
 
-// The trust region a warm start begins with (Ceres's default, 1e4, is for a cold one): about
-// pure Gauss-Newton steps. From a cold-sized region the minimiser creeps along weakly
-// determined directions for five more iterations, each lowering the cost by ~5e-9.
-constexpr double kWarmTrustRegionRadius = 1e8;
-
 // Minimises the assembled Ceres problem in place (as->buffer); iterations and termination
 // into res.
 Status SolveWithCeres(const BaOptions& o, const StateLayout& layout, Start start,
                       ceres::Problem* cp, Assembly* as, BaResult* res) {
   ceres::Solver::Options so;
   so.initial_trust_region_radius =
-      start == Start::kWarm ? kWarmTrustRegionRadius : o.initial_trust_region_radius;
+      start == Start::kWarm ? kNearOptimumTrustRegionRadius : o.initial_trust_region_radius;
   LinearSolverType(o.linear_solver, &so.linear_solver_type);
   so.max_num_iterations = o.max_iterations;
   so.function_tolerance = o.function_tolerance;

@@ -650,11 +650,12 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
     const Scored wide =
         o.predict_gate_px > o.gate_px ? lab.Verify(*predicted, o.predict_gate_px) : tight;
     const bool confirmed = tight.num_labelled < 3 || wide.marker_of_blob == tight.marker_of_blob;
-    for (const Scored* s : {&wide, &tight}) {
-      if ((s == &tight || confirmed) && lab.Accepted(*s)) {
-        finish(*s, "predicted");
-        return out;
-      }
+    const Scored* taken = confirmed && lab.Accepted(wide) ? &wide
+                          : lab.Accepted(tight)           ? &tight
+                                                          : nullptr;
+    if (taken) {
+      finish(*taken, "predicted");
+      return out;
     }
   }
   TripleSearch search(&lab);

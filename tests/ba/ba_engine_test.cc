@@ -267,7 +267,7 @@ TEST(BaSolve, AnalyticAndAutodiffReachTheSameOptimum) {
 TEST(BaSolve, NearOptimumTrustRegionReachesTheSameOptimumInFewerIterations) {
   const SyntheticJoint sj = MakeSyntheticJoint(SmallSpec(), NoiseSwitches(), 3);
   BaOptions cold, near;
-  near.initial_trust_region_radius = 1e8;
+  near.initial_trust_region_radius = kNearOptimumTrustRegionRadius;
   auto a = SolveBundleAdjustment(sj.problem, cold);
   auto b = SolveBundleAdjustment(sj.problem, near);
   ASSERT_TRUE(a.ok() && b.ok());

@@ -28,9 +28,6 @@ constexpr int kTrials = 1500;
 constexpr double kShareTol = 0.15;   // the figure for each source
 constexpr double kTotalTol = 0.10;   // the figure for all sources together
 constexpr int kNeesTrials = 300;
-// Every trial starts at the truth, near its optimum: nearly Gauss-Newton steps from the start
-// reach the same optimum in about half the iterations (BaOptions::initial_trust_region_radius).
-constexpr double kNearOptimumTrustRegion = 1e8;
 
 SyntheticJointSpec Spec() {
   SyntheticJointSpec s;
@@ -121,7 +118,7 @@ Eigen::VectorXd EmpiricalVariance(const Reference& ref, const NoiseSwitches& noi
   BaOptions o;
   o.compute_covariance = false;
   o.evaluate_solution = false;
-  o.initial_trust_region_radius = kNearOptimumTrustRegion;
+  o.initial_trust_region_radius = kNearOptimumTrustRegionRadius;  // starts at the truth
   const Eigen::Index nq = static_cast<Eigen::Index>(ref.q.quantities.size());
   Eigen::VectorXd sum = Eigen::VectorXd::Zero(nq), sum2 = Eigen::VectorXd::Zero(nq);
   for (int t = 0; t < trials; ++t) {
@@ -188,7 +185,7 @@ TEST(BaMonteCarlo, NeesOfIntrinsicsAndPoses) {
   for (int t = 0; t < kNeesTrials; ++t) {
     const SyntheticJoint sj = MakeSyntheticJoint(spec, NoiseSwitches(), 5000 + t);
     BaOptions o;
-    o.initial_trust_region_radius = kNearOptimumTrustRegion;
+    o.initial_trust_region_radius = kNearOptimumTrustRegionRadius;  // starts at the truth
     auto r = SolveBundleAdjustment(sj.problem, o);
     ASSERT_TRUE(r.ok()) << r.status().message();
     const StateLayout& L = *r->layout;

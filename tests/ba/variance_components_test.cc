@@ -50,7 +50,7 @@ SyntheticJoint Understated(NoiseGroup g, uint64_t seed) {
 BaOptions Options(CovarianceScale scale) {
   BaOptions o;
   o.covariance_scale = scale;
-  o.initial_trust_region_radius = 1e8;
+  o.initial_trust_region_radius = kNearOptimumTrustRegionRadius;
   return o;
 }
 
