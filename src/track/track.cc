@@ -78,34 +78,59 @@ bool Ray(const TrackCamera& cam,
 // Distances of the points of `a` against those of `b`, all pairs.
 double Distance(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).norm(); }
 
-// Bron-Kerbosch with pivoting: the largest clique of `adj` (sets of neighbours) among `nodes`.
-void LargestClique(const std::vector<std::vector<char>>& adj,
+// The compatibility graph of stage 3: which correspondences agree (adjacent) and by how much
+// their distances differ (mm).
+struct CompatibilityGraph {
+  std::vector<std::vector<char>> adj;
+  std::vector<std::vector<float>> mismatch_mm;
+};
+
+// How well the correspondences of clique `r` agree: the sum of their distance differences (mm).
+double CliqueMismatch(const CompatibilityGraph& g, const std::vector<int>& r) {
+  double sum = 0;
+  for (size_t a = 0; a < r.size(); ++a)
+    for (size_t b = a + 1; b < r.size(); ++b) sum += g.mismatch_mm[r[a]][r[b]];
+  return sum;
+}
+
+// Bron-Kerbosch with pivoting: the largest clique of `g.adj` among `nodes`; of equally large ones
+// the one whose distances agree best (CliqueMismatch). Taking the first one found instead let a
+// distance crossing the tolerance by 0.001 mm, far from the chosen clique, swap two bodies' beads
+// (the wrist radiographs, tests/cli/track_cli_test.cc).
+void LargestClique(const CompatibilityGraph& g,
                    std::vector<int> R,
                    std::vector<int> P,
                    std::vector<int> X,
-                   std::vector<int>* best) {
+                   std::vector<int>* best,
+                   double* best_mismatch) {
   if (P.empty() && X.empty()) {
-    if (R.size() > best->size()) *best = R;
+    if (R.size() > best->size() ||
+        (R.size() == best->size() && CliqueMismatch(g, R) < *best_mismatch)) {
+      *best = R;
+      *best_mismatch = CliqueMismatch(g, R);
+    }
     return;
   }
-  if (R.size() + P.size() <= best->size()) return;
+  if (R.size() + P.size() < best->size()) return;
   int pivot = P.empty() ? X[0] : P[0];
   size_t pivot_degree = 0;
   for (const std::vector<int>* s : {&P, &X}) {
     for (int u : *s) {
       size_t d = 0;
-      for (int v : P) d += adj[u][v];
+      for (int v : P) d += g.adj[u][v];
       if (d > pivot_degree) pivot_degree = d, pivot = u;
     }
   }
   const std::vector<int> candidates = P;
   for (int v : candidates) {
-    if (adj[pivot][v]) continue;
+    if (g.adj[pivot][v]) continue;
     std::vector<int> R2 = R, P2, X2;
     R2.push_back(v);
-    for (int u : P) if (adj[v][u]) P2.push_back(u);
-    for (int u : X) if (adj[v][u]) X2.push_back(u);
-    LargestClique(adj, R2, P2, X2, best);
+    for (int u : P)
+      if (g.adj[v][u]) P2.push_back(u);
+    for (int u : X)
+      if (g.adj[v][u]) X2.push_back(u);
+    LargestClique(g, R2, P2, X2, best, best_mismatch);
     P.erase(std::find(P.begin(), P.end(), v));
     X.push_back(v);
   }
@@ -132,7 +157,9 @@ std::vector<Correspondence> RigidCorrespondences(const std::vector<TrackCandidat
     for (size_t k = 0; k < cur.size(); ++k)
       nodes.emplace_back(static_cast<int>(i), static_cast<int>(k));
   const size_t n = nodes.size();
-  std::vector<std::vector<char>> adj(n, std::vector<char>(n, 0));
+  CompatibilityGraph g;
+  g.adj.assign(n, std::vector<char>(n, 0));
+  g.mismatch_mm.assign(n, std::vector<float>(n, 0.0f));
   for (size_t x = 0; x < n; ++x) {
     const auto [i, k] = nodes[x];
     for (size_t y = x + 1; y < n; ++y) {
@@ -140,7 +167,10 @@ std::vector<Correspondence> RigidCorrespondences(const std::vector<TrackCandidat
       if (i == j || k == l || ShareBlob(ref[i], ref[j]) || ShareBlob(cur[k], cur[l])) continue;
       const double d0 = Distance(ref[i].point.p_lab, ref[j].point.p_lab);
       const double d1 = Distance(cur[k].point.p_lab, cur[l].point.p_lab);
-      if (std::abs(d0 - d1) < o.rigid_tolerance_mm) adj[x][y] = adj[y][x] = 1;
+      if (std::abs(d0 - d1) < o.rigid_tolerance_mm) {
+        g.adj[x][y] = g.adj[y][x] = 1;
+        g.mismatch_mm[x][y] = g.mismatch_mm[y][x] = static_cast<float>(std::abs(d0 - d1));
+      }
     }
   }
   std::vector<char> alive(n, 1);
@@ -150,11 +180,12 @@ std::vector<Correspondence> RigidCorrespondences(const std::vector<TrackCandidat
     for (size_t x = 0; x < n; ++x) {
       if (!alive[x]) continue;
       bool any = false;
-      for (size_t y = 0; y < n && !any; ++y) any = alive[y] && adj[x][y];
+      for (size_t y = 0; y < n && !any; ++y) any = alive[y] && g.adj[x][y];
       if (any) P.push_back(static_cast<int>(x));
     }
     std::vector<int> best;
-    LargestClique(adj, {}, P, {}, &best);
+    double best_mismatch = 0;
+    LargestClique(g, {}, P, {}, &best, &best_mismatch);
     if (static_cast<int>(best.size()) < o.min_body_beads) break;
     Correspondence c;
     for (int x : best) c.push_back(nodes[x]);

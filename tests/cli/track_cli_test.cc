@@ -69,13 +69,20 @@ TEST(TrackCli, RealWristRadiographsTrackedWithEveryOutput) {
   EXPECT_LE(c["rms_px"].get<double>(), 0.4);
   EXPECT_LE(c["max_change_sigmas"].get<double>(), 3.0);
   EXPECT_LE(c["max_spread_mm"].get<double>(), 0.2);
-  // Why: the pixel noise alone predicts a larger spread (0.414 mm at the estimated noise, 0.195
-  // mm at the detector's stated covariances, when written), and the report says so.
+  // Why: the pixel noise at the noise the bundle adjustment estimates predicts a larger spread
+  // (0.225 mm; 0.085 mm at the detector's stated covariances, which the residuals say are
+  // sigma0 = 2.7 too small here; 0.414 / 0.195 mm before the noise correlation was measured from
+  // second differences, 2026-12-06), and the report says which verdict that is: not "a wrong
+  // match or a body that is not rigid".
   const double predicted = c["predicted_max_spread_mm"].get<double>();
-  EXPECT_GT(predicted / c["pixel_sigma_scale"].get<double>(), 0.1);
   EXPECT_GE(predicted, c["max_spread_mm"].get<double>());
-  EXPECT_NE(ReadTextFile(out + "/report.md").find("is out of reach on these data"),
-            std::string::npos);
+  const std::string report = ReadTextFile(out + "/report.md");
+  EXPECT_TRUE(report.find("is out of reach on these data") != std::string::npos ||
+              report.find("but not what the noise predicts") != std::string::npos);
+  EXPECT_EQ(report.find("look for a wrong match"), std::string::npos);
+  // The radius and the ulna. Moving every centre by at most 0.009 px (the blur-pull correction)
+  // once gave 3 bodies, one of them false: two 6-bead cliques tied and the first one found was
+  // taken; the tie now goes to the one whose distances agree best (track.cc LargestClique).
   EXPECT_EQ(j["bodies"].size(), 2u);
   // Every observation row names a bead of points.csv in the same frame.
   std::istringstream obs(ReadTextFile(out + "/observations.csv"));
@@ -91,7 +98,6 @@ TEST(TrackCli, RealWristRadiographsTrackedWithEveryOutput) {
     ++rows;
   }
   EXPECT_GE(rows, 18);
-  const std::string report = ReadTextFile(out + "/report.md");
   EXPECT_NE(report.find("## Checks"), std::string::npos);
 }
 
