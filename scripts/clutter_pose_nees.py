@@ -48,7 +48,9 @@ for seed in seeds:
         j = json.load(open(f"{d}/solve_{kind}/result.json"))
         s0[kind].append(j["statistics"]["sigma0"])
         for v in j["views"]:
-            tv = [t for t in truth["views"] if v["id"].endswith(t["file"])][0]["cam_from_object"]
+            # A view's id is its image's name without the extension (a path in older results).
+            tv = [t for t in truth["views"] if v["id"] in (t["file"], os.path.splitext(t["file"])[0])
+                  or v["id"].endswith("/" + t["file"])][0]["cam_from_object"]
             e = [x - y for x, y in zip(v["cam_from_object"]["rvec"] + v["cam_from_object"]["t_mm"], tv["rvec"] + tv["t_mm"])]
             x = solve(v["covariance_6x6"], e)
             res[kind].append(sum(p * q for p, q in zip(e, x)) / 6)

@@ -65,6 +65,10 @@ struct CentroidNoise {
   // width), px.
   double ring_arc_contrast = 0;
   double ring_arc_width_px = 0;
+  // Out: the gradient of the log of the ring's background plane at the centre (1/px): where the
+  // background is not flat, a detector blur of variance s^2 moves a dark blob's contrast profile
+  // (1 - I / background) by -s^2 x this gradient, towards the darker side.
+  cv::Vec2d log_background_gradient = cv::Vec2d(0, 0);
 };
 
 // Sub-pixel centre of a blob around `c` on the float image `f` (grid_detector.cc documents the

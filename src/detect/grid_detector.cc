@@ -428,6 +428,9 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
     if (shift_px) *shift_px = e.shift;
     if (noise) {
       CentroidCovariance(disc, e, plane, ring_sigma, ring_AtA, dark, cx, cy, rw, noise);
+      const double bg = plane[0] + plane[1] * (e.centre.x - cx) + plane[2] * (e.centre.y - cy);
+      noise->log_background_gradient =
+          bg > 0 ? cv::Vec2d(plane[1] / bg, plane[2] / bg) : cv::Vec2d(0, 0);
       const RingArcs arcs = FindRingArcs(ring, plane, noise->sigma_gray, dark, *c, cx, cy);
       noise->ring_arcs = arcs.arcs;
       noise->ring_arc_contrast = arcs.contrast;

@@ -33,13 +33,18 @@
 //      bounding its window.
 //   6. Covariance (2x2, px^2) per centre from the local image noise (detect_steps.h
 //      CentroidNoise): the ring's pixel noise, scaled for quantum noise inside the disc, with
-//      the noise's correlation measured once per image from horizontal pixel differences at
-//      lags 1 and 2 inside the field (var d2 / var d1 = 1 + rho + rho^2 + rho^3 for a Gaussian
+//      the noise's correlation measured once per image from horizontal second differences at
+//      lags 1 and 2 inside the field, which a linearly changing background does not reach
+//      (their variance ratio is (6 - 8 rho^4 + 2 rho^16) / (6 - 8 rho + 2 rho^4) for a Gaussian
 //      correlation rho^(k^2); F = sum over lags |k| <= 4 of rho^(kx^2 + ky^2); rho = 0, F = 1
-//      for white noise). The ring's noise is floored at half the image's pixel noise and an integer
-//      image's quantisation (a ring clipped at the image's maximum has none to measure: a zero
-//      covariance would be an infinitely trusted centre). Checked against a seeded Monte Carlo
-//      (tests/detect/marker_views_test.cc MarkerBlobs.CovarianceAgreesWithMonteCarlo).
+//      for white noise; first differences took anatomy's gradients for correlated noise: rho
+//      0.78 against the 0.5-0.68 of the recall scenes' 0.4-0.8 px blur). The ring's noise is
+//      floored at half the image's pixel noise and an integer image's quantisation (a ring clipped
+//      at the image's maximum has none to measure: a zero covariance would be an infinitely trusted
+//      centre). Checked against a seeded Monte Carlo (tests/detect/marker_views_test.cc
+//      MarkerBlobs.CovarianceAgreesWithMonteCarlo). Widened where an edge or a line is in the ring:
+//      by the core-to-whole shift beyond unreliable_shift_px, and by a share of the pull a line
+//      across the ring can exert.
 // Polarity: dark blobs (metal on a bright background, the X-ray convention of carmba's images).
 #pragma once
 
@@ -65,9 +70,12 @@ struct MarkerBlobOptions {
   double max_elongation = 1.3;    // axis ratio of a single marker's half-peak region
   double merge_area_ratio = 1.6;  // half-peak area / expected area above which it is two
   double merge_distance = 1.25;   // pieces closer than this x D are one merged blob
-  // A centre whose core and whole-blob centroids are further apart than this (px) is widened
-  // (MarkerBlob::background_shift_px).
-  double unreliable_shift_px = 0.1;
+  // A centre whose core and whole-blob centroids are further apart than this (px) is widened by
+  // the excess (MarkerBlob::background_shift_px): shifts below it are what pixel noise gives.
+  double unreliable_shift_px = 0.05;
+  // Remove the blur's pull on each centre (MarkerBlob::blur_correction_px), with the blur's
+  // variance taken from the noise's correlation (MarkerBlobDetection::blur_variance_px2).
+  bool correct_blur_pull = true;
   // Field of view / region of interest (only roi_px, fov_circle_px, auto_fov_mask,
   // fov_margin_px are used).
   DetectionOptions fov;
@@ -86,8 +94,13 @@ struct MarkerBlob {
   double contrast = 0;     // peak attenuation
   // Distance between the blob's core and whole-blob centroids (RefineCentroid's shift_px): a
   // background edge or a wire across the marker. Above unreliable_shift_px its centre is not
-  // trusted to the noise covariance: the covariance is widened by shift^2 per axis.
+  // trusted to the noise covariance: the covariance is widened by (shift - unreliable_shift_px)^2
+  // per axis.
   double background_shift_px = 0;
+  // Added to the measured centre (included in uv_px): the detector blur's pull towards the darker
+  // side of a sloping background, s^2 x the log background's gradient (MarkerBlobOptions::
+  // correct_blur_pull).
+  cv::Point2d blur_correction_px;
 };
 
 struct MarkerBlobDetection {
@@ -98,6 +111,9 @@ struct MarkerBlobDetection {
   double noise_contrast = 0;           // s of step 3
   double correlation_factor = 1;       // F of step 6
   double noise_rho1 = 0;               // rho of step 6 (neighbouring pixels' noise correlation)
+  // The detector blur's variance per axis (px^2) that rho implies: noise blurred by a Gaussian
+  // of variance s^2 has rho = exp(-1 / (4 s^2)); 0 for white noise, at most kMaxBlurVariancePx2.
+  double blur_variance_px2 = 0;
   cv::Point2d fov_centre;
   double fov_radius = 0;               // 0: no circular field found
 };
@@ -109,5 +125,13 @@ MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOpti
 // `sigma_pixel`: the pixels' noise sigma (grey levels) from the same differences.
 double NoiseCorrelationFactor(const cv::Mat& f, const cv::Mat& mask, double* rho1 = nullptr,
                               double* sigma_pixel = nullptr);
+
+// The largest blur variance (px^2) taken from the noise's correlation: a Gaussian blur of
+// sigma 2 px. A rho near 1 more likely means structure the differences did not remove.
+constexpr double kMaxBlurVariancePx2 = 4.0;
+
+// The blur variance per axis (px^2) of noise with neighbour correlation `rho1`, for noise blurred
+// by a Gaussian: rho1 = exp(-1 / (4 s^2)); 0 for rho1 <= 0, at most kMaxBlurVariancePx2.
+double BlurVarianceFromNoiseCorrelation(double rho1);
 
 }  // namespace carmba

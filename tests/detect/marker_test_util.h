@@ -39,6 +39,13 @@ struct Tally {
   // The expected markers not labelled, by why: the detector's rejection reason ("merged", "low
   // contrast", ...), "no blob found there", "a blob, not paired" or "view skipped".
   std::map<std::string, int> missed;
+  // The labelled expected markers' centre errors against their covariance (NEES, 2 dof):
+  // how many, the sum of their Mahalanobis^2, and how many lie beyond chi2(2) at 1e-3 (13.8).
+  int nees_n = 0, nees_beyond_1e3 = 0;
+  double nees_sum = 0;
+  // Their errors along the direction from the view's markers' mean centre (px): a blur or a
+  // background that moves every centre in or out shows as a mean that is not 0.
+  double radial_sum = 0, radial_sum2 = 0;
 
   void Add(const Tally& o) {
     expected += o.expected, correct += o.correct, wrong += o.wrong;
@@ -46,7 +53,18 @@ struct Tally {
     outside_labelled += o.outside_labelled, overlapping_pairs += o.overlapping_pairs;
     outside += o.outside, crossed_by_wire += o.crossed_by_wire;
     for (const auto& [why, n] : o.missed) missed[why] += n;
+    nees_n += o.nees_n, nees_beyond_1e3 += o.nees_beyond_1e3, nees_sum += o.nees_sum;
+    radial_sum += o.radial_sum, radial_sum2 += o.radial_sum2;
   }
+  // The mean radial error (px) and its standard error, over the nees_n labelled centres.
+  double MeanRadialPx() const { return nees_n ? radial_sum / nees_n : 0.0; }
+  double MeanRadialSePx() const {
+    if (nees_n < 2) return 0.0;
+    const double m = MeanRadialPx();
+    return std::sqrt(std::max(0.0, radial_sum2 / nees_n - m * m) / (nees_n - 1));
+  }
+  // Mean NEES per dof of the labelled centres (1 when the covariances are honest).
+  double NeesPerDof() const { return nees_n ? nees_sum / (2.0 * nees_n) : 0.0; }
 };
 
 inline Tally Score(const sim::XrayScene& scene,
@@ -83,6 +101,8 @@ inline Tally Score(const sim::XrayScene& scene,
           wire_px.push_back(uv);
       }
     }
+    Eigen::Vector2d mean_centre = Eigen::Vector2d::Zero();
+    for (const auto& ck : c) mean_centre += ck / static_cast<double>(c.size());
     for (size_t k = 0; k < c.size(); ++k) {
       const int id = scene.phantom.spheres[k].id;
       // Overlapping: another marker's or a bead's centre within 1.25 diameters (the blob finder's
@@ -160,6 +180,13 @@ inline Tally Score(const sim::XrayScene& scene,
               ? (C(1, 1) * e.x() * e.x() - 2 * C(0, 1) * e.x() * e.y() + C(0, 0) * e.y() * e.y()) /
                     det
               : 1e9;
+      ++t.nees_n;
+      t.nees_sum += m2;
+      const Eigen::Vector2d out = c[k] - mean_centre;
+      const double radial = out.norm() > 1 ? e.dot(out.normalized()) : 0.0;
+      t.radial_sum += radial;
+      t.radial_sum2 += radial * radial;
+      t.nees_beyond_1e3 += m2 > 13.8;
       if (err < 0.5 || m2 < 18.4) {
         ++t.correct;
       } else {
