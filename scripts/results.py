@@ -388,7 +388,25 @@ def recall_run(tests_dir, tmp, kind, gfilter, seed_set):
     for item in filter(None, props.get(key + ".missed", "").split(";")):
         why, n = item.rsplit(":", 1)
         missed[why] = int(n)
+    if key + ".nees" not in props:
+        sys.exit("results.py: the recall run of %s set %d recorded no NEES" % (kind, seed_set))
+    n, m2_sum, beyond, radial_sum, radial_sum2 = map(float, props[key + ".nees"].split())
+    counts.update(nees_n=int(n), nees_sum=m2_sum, nees_beyond=int(beyond),
+                  radial_sum=radial_sum, radial_sum2=radial_sum2)
     return counts, missed
+
+
+def centre_errors(rows):
+    """The labelled centres' NEES per dof, share beyond chi2(2) at 1e-3, and mean radial error
+    with its standard error, over the sets' counts."""
+    n = sum(c["nees_n"] for _, c in rows)
+    if n < 2:
+        return "-", "-", "-"
+    mean = sum(c["radial_sum"] for _, c in rows) / n
+    var = max(0.0, sum(c["radial_sum2"] for _, c in rows) / n - mean * mean)
+    return ("%.2f over %d centres" % (sum(c["nees_sum"] for _, c in rows) / (2.0 * n), n),
+            "%.2f %%" % (100.0 * sum(c["nees_beyond"] for _, c in rows) / n),
+            "%+.4f +- %.4f px" % (mean, math.sqrt(var / (n - 1))))
 
 
 def pct(part, whole):
@@ -425,6 +443,7 @@ def recall_figures(tests_dir, tmp):
         fig[kind + "_table"] = table
         fig[kind + "_pct"] = pct(total["correct"], total["expected"])
         fig[kind + "_at_99"] = str(sum(1 for _, c in rows if c["correct"] >= 0.99 * c["expected"]))
+        fig[kind + "_nees"], fig[kind + "_beyond"], fig[kind + "_radial"] = centre_errors(rows)
         fig[kind + "_missed"] = "; ".join(
             "%s %d" % (w, n) for w, n in sorted(missed.items(), key=lambda wn: (-wn[1], wn[0])))
     return {"recall." + k: v for k, v in fig.items()}
