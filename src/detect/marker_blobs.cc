@@ -65,6 +65,7 @@ void ReadMarkerBlobOptions(YamlMap& m, MarkerBlobOptions* o) {
   m.GetPositive("max_elongation", &o->max_elongation);
   m.GetPositive("merge_area_ratio", &o->merge_area_ratio);
   m.GetPositive("merge_distance", &o->merge_distance);
+  m.Get("correct_blur_pull", &o->correct_blur_pull);
   ReadFieldOfViewOptions(m, &o->fov);
 }
 
@@ -143,6 +144,13 @@ double NoiseCorrelationFactor(const cv::Mat& f,
     for (int ky = -4; ky <= 4; ++ky) F += std::pow(rho, kx * kx + ky * ky);
   }
   return F;
+}
+
+double LargestBlurCorrectionPx(const MarkerBlobDetection& detection) {
+  double largest = 0;
+  for (const MarkerBlob& b : detection.blobs)
+    largest = std::max(largest, std::hypot(b.blur_correction_px.x, b.blur_correction_px.y));
+  return largest;
 }
 
 double BlurVarianceFromNoiseCorrelation(double rho1) {

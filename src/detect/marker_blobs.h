@@ -118,6 +118,10 @@ struct MarkerBlobDetection {
   double fov_radius = 0;               // 0: no circular field found
 };
 
+// The largest blur-pull correction among the detection's blobs (px; MarkerBlob::
+// blur_correction_px).
+double LargestBlurCorrectionPx(const MarkerBlobDetection& detection);
+
 // Detects marker blobs in an image of any depth (CV_8U/CV_16U/CV_32F, 1 or 3 channels).
 MarkerBlobDetection DetectMarkerBlobs(const cv::Mat& image, const MarkerBlobOptions& options);
 

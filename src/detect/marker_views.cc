@@ -406,6 +406,8 @@ nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
     }
     j["px_per_mm"] = v.px_per_mm;
     j["noise_correlation_factor"] = v.detection.correlation_factor;
+    j["blur_variance_px2"] = v.detection.blur_variance_px2;
+    j["blur_correction_max_px"] = LargestBlurCorrectionPx(v.detection);
     nlohmann::json rej = nlohmann::json::array();
     for (const RejectedBlob& b : v.detection.rejected) {
       rej.push_back({{"u_px", b.uv_px.x},

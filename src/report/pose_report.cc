@@ -368,20 +368,36 @@ void AppendObjectViews(ReportDoc* d, const std::vector<ObjectView>& views) {
     for (const auto& [why, k] : reasons)
       rej += (rej.empty() ? "" : ", ") + std::to_string(k) + " " + why;
     if (!v.labelled) {
-      rows.push_back({v.id, std::to_string(v.detection.blobs.size()), "skipped: " + v.skipped, "",
-                      "", "", rej});
+      rows.push_back({v.id,
+                      std::to_string(v.detection.blobs.size()),
+                      "skipped: " + v.skipped,
+                      "",
+                      "",
+                      "",
+                      "",
+                      rej});
       continue;
     }
     int unlabelled = 0;
     for (int id : v.marker_id_of_blob) unlabelled += id < 0;
-    rows.push_back({v.id, std::to_string(v.detection.blobs.size()),
-                    std::to_string(v.labelling.num_labelled), std::to_string(unlabelled),
-                    v.labelling.method, Fmt("%.3g", v.labelling.rms_px), rej});
+    rows.push_back({v.id,
+                    std::to_string(v.detection.blobs.size()),
+                    std::to_string(v.labelling.num_labelled),
+                    std::to_string(unlabelled),
+                    v.labelling.method,
+                    Fmt("%.3g", v.labelling.rms_px),
+                    Fmt("%.4f", LargestBlurCorrectionPx(v.detection)),
+                    rej});
   }
-  d->Table({"view", "blobs", "labelled", "not markers", "method", "RMS px", "rejected"}, rows);
+  d->Table(
+      {"view", "blobs", "labelled", "not markers", "method", "RMS px", "blur pull px", "rejected"},
+      rows);
   d->Paragraph(
       "Each observation is weighted in the bundle adjustment by its blob's 2x2 covariance "
       "plus the sigma floor squared (the engine whitens it with that covariance). "
+      "Each centre has been moved back by the detector blur's pull towards the darker side of "
+      "its background (the blur's variance from the image noise's correlation; 'blur pull px' is "
+      "the largest per view; `correct_blur_pull: false` keeps the raw centres). "
       "The overlays (`overlay_<view>.png`) show the blobs, labels, reprojected markers and "
       "rejected blobs with their reason.");
 }

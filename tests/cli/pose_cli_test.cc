@@ -92,6 +92,14 @@ TEST_F(PoseCli, WritesObservationsOverlaysAndTheBundleAdjustment) {
   }
   EXPECT_NE(ReadTextFile(out + "/report.md").find("Marker detection and labelling"),
             std::string::npos);
+  // The blur's pull (the scene's 0.6 px blur on the PMMA block's sloping background) is measured
+  // and removed per view, and stated: thousandths of a pixel here.
+  for (const auto& det : j["marker_detection"]) {
+    EXPECT_GT(det["blur_variance_px2"].get<double>(), 0.1) << det["image"];
+    EXPECT_GT(det["blur_correction_max_px"].get<double>(), 0.0) << det["image"];
+    EXPECT_LT(det["blur_correction_max_px"].get<double>(), 0.05) << det["image"];
+  }
+  EXPECT_NE(ReadTextFile(out + "/report.md").find("| blur pull px |"), std::string::npos);
   // report.html: the same report with its plots, rendered in a browser.
   EXPECT_NE(ReadTextFile(out + "/report.html").find("Marker detection and labelling"),
             std::string::npos);
