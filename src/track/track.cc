@@ -104,10 +104,10 @@ void LargestClique(const CompatibilityGraph& g,
                    std::vector<int>* best,
                    double* best_mismatch) {
   if (P.empty() && X.empty()) {
-    if (R.size() > best->size() ||
-        (R.size() == best->size() && CliqueMismatch(g, R) < *best_mismatch)) {
+    const double mismatch = CliqueMismatch(g, R);
+    if (R.size() > best->size() || (R.size() == best->size() && mismatch < *best_mismatch)) {
       *best = R;
-      *best_mismatch = CliqueMismatch(g, R);
+      *best_mismatch = mismatch;
     }
     return;
   }

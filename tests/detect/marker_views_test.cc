@@ -24,6 +24,7 @@
 #include "sim/xray_scene.h"
 #include "util/file_util.h"
 #include "util/image_codecs.h"
+#include "util/random.h"
 
 namespace carmba {
 namespace {
@@ -261,7 +262,7 @@ views: [{name: a}]
 double MeanErrorOnASlope(bool correct, double g, double blur_sigma, int* n) {
   constexpr int kSize = 320, kSub = 4;
   constexpr double kRadius = 3.0, kMu = 0.2;  // px, 1/px: 30 % transmission through the centre
-  std::mt19937_64 rng(20261206);
+  Rng rng(20261206);
   std::uniform_real_distribution<double> phase(-0.5, 0.5);
   double sum = 0;
   *n = 0;
