@@ -87,8 +87,8 @@ Status WriteCtSeries(const CtVolume& volume,
   }
   const std::string tmp = dir + ".tmp." + std::to_string(::getpid());
   fs::remove_all(tmp, ec);
+  const TempPathRegistration registration(tmp);  // removed on SIGINT / SIGTERM (from its making)
   CARMBA_RETURN_IF_ERROR(MakeDirs(tmp));
-  const TempPathRegistration registration(tmp);  // removed on SIGINT / SIGTERM
   auto fail = [&](const std::string& m) {
     std::error_code ec2;
     fs::remove_all(tmp, ec2);

@@ -49,13 +49,16 @@ PlotProcess::PlotProcess(const PlotOptions& options) : options_(options) {
   namespace fs = std::filesystem;
   std::error_code ec;
   dir_ = (fs::temp_directory_path(ec) / "carmba_plots_XXXXXX").string();
-  if (ec || ::mkdtemp(dir_.data()) == nullptr) {
-    dir_.clear();
-    set_.unavailable = "cannot make a temporary directory for the plot script";
-    done_ = true;
-    return;
+  {
+    const SignalCriticalSection making;  // a SIGTERM now must find the directory registered
+    if (ec || ::mkdtemp(dir_.data()) == nullptr) {
+      dir_.clear();
+      set_.unavailable = "cannot make a temporary directory for the plot script";
+      done_ = true;
+      return;
+    }
+    dir_slot_ = RegisterTempPath(dir_);  // removed on SIGINT / SIGTERM (util/temp_paths.h)
   }
-  dir_slot_ = RegisterTempPath(dir_);  // removed on SIGINT / SIGTERM (util/temp_paths.h)
   worker_ = std::make_unique<PythonWorker>(options_.python, kPlotPreload);
 }
 

@@ -81,7 +81,12 @@ PythonWorker::PythonWorker(const std::string& python, const std::string& preload
   std::string c = "-c", boot = kBootstrap, pre = preload;
   char* argv[] = {python_.data(), c.data(), boot.data(), pre.data(), nullptr};
   pid_t pid = -1;
-  const int rc = ::posix_spawnp(&pid, python_.c_str(), &actions, nullptr, argv, environ);
+  int rc = 0;
+  {
+    const SignalCriticalSection spawning;  // a SIGTERM now must find the child registered
+    rc = ::posix_spawnp(&pid, python_.c_str(), &actions, nullptr, argv, environ);
+    if (rc == 0) child_slot_ = RegisterChildProcess(pid);
+  }
   posix_spawn_file_actions_destroy(&actions);
   ::close(fds[1]);
   if (rc != 0) {
@@ -89,7 +94,6 @@ PythonWorker::PythonWorker(const std::string& python, const std::string& preload
     return;
   }
   pid_ = pid;
-  child_slot_ = RegisterChildProcess(pid);
   socket_ = fds[0];
 }
 

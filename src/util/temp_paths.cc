@@ -3,15 +3,17 @@
 #include <dirent.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <pthread.h>
 #include <signal.h>
 #include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
-#include <cstdint>
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <system_error>
 
@@ -33,6 +35,16 @@ struct ChildSlot {
 };
 
 ChildSlot g_children[kMaxChildProcesses];
+
+// Threads inside a SignalCriticalSection (they block SIGINT / SIGTERM meanwhile).
+std::atomic<int> g_critical_sections{0};
+
+// Waits (at most 5 s) until no thread is between making a path or child and registering it.
+// Async-signal-safe (nanosleep).
+void WaitForCriticalSections() {
+  const timespec one_ms{0, 1000000};
+  for (int i = 0; i < 5000 && g_critical_sections.load() > 0; ++i) ::nanosleep(&one_ms, nullptr);
+}
 
 // Kills and reaps the registered children. Async-signal-safe (kill, waitpid).
 void KillRegisteredChildren() {
@@ -89,6 +101,7 @@ void RemoveAt(int dirfd, const char* name, int depth) {
 
 void OnSignal(int sig) {
   const int saved = errno;
+  WaitForCriticalSections();
   RemoveRegisteredTempPaths();
   errno = saved;
   ::signal(sig, SIG_DFL);
@@ -171,6 +184,20 @@ void InstallTempPathCleanup() {
     if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
     ::sigaction(sig, &sa, nullptr);
   }
+}
+
+SignalCriticalSection::SignalCriticalSection() {
+  sigset_t block;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  sigaddset(&block, SIGTERM);
+  ::pthread_sigmask(SIG_BLOCK, &block, &previous_mask_);
+  g_critical_sections.fetch_add(1);
+}
+
+SignalCriticalSection::~SignalCriticalSection() {
+  g_critical_sections.fetch_sub(1);
+  ::pthread_sigmask(SIG_SETMASK, &previous_mask_, nullptr);  // a held-back signal arrives now
 }
 
 ScopedTempPath::ScopedTempPath(std::string path)

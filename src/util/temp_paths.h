@@ -18,6 +18,7 @@
 // SIGINT, nor writes into a directory being removed.
 #pragma once
 
+#include <signal.h>
 #include <sys/types.h>
 
 #include <string>
@@ -45,6 +46,24 @@ void InstallTempPathCleanup();
 // What the handler does before re-raising (for tests): kills and reaps every registered child
 // process, then removes every registered path.
 void RemoveRegisteredTempPaths();
+
+// The moment between making a temporary path or a child process and registering it. While it
+// lasts, SIGINT and SIGTERM are blocked in this thread, and the handler, should another thread
+// take the signal, waits for it to end (at most 5 s). Without it a signal arriving there found the
+// new path or child unregistered: glibc's posix_spawn holds signals back until the child has
+// started, so a SIGTERM sent meanwhile arrived exactly between the spawn and the registration, and
+// the interpreter outlived carmba (6 of 78 runs of TempPaths.SigtermDuringTheMrcalStep... under
+// load). Scopes nest; the previous signal mask is restored at the end.
+class SignalCriticalSection {
+ public:
+  SignalCriticalSection();
+  ~SignalCriticalSection();
+  SignalCriticalSection(const SignalCriticalSection&) = delete;
+  SignalCriticalSection& operator=(const SignalCriticalSection&) = delete;
+
+ private:
+  sigset_t previous_mask_;
+};
 
 // Registration for a scope (the owner removes or renames the path itself; the handler removes it
 // on a signal until the scope ends).
