@@ -491,7 +491,7 @@ Status SolveWithCarmbaLm(const BaProblem& p,
   }
   res->iterations += report.iterations;
   res->termination = report.termination + " (carmba LM)";
-  res->converged = report.termination == "CONVERGENCE";
+  res->converged = report.converged;
   return Status::Ok();
 }
 

@@ -258,6 +258,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
         accepted = true;
         if (rel < function_tolerance) {
           report->termination = "CONVERGENCE";
+          report->converged = true;
           return Status::Ok();
         }
       } else {
@@ -267,6 +268,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
     if (!accepted) {
       // No damped step lowers the cost: at the minimum to machine precision.
       report->termination = "CONVERGENCE";
+      report->converged = true;
       return Status::Ok();
     }
   }

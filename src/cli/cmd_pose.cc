@@ -167,7 +167,7 @@ int RunPose() {
   for (const ObjectView& v : *views) {
     if (!v.labelled) std::cerr << "carmba pose: skipped " << v.name << ": " << v.skipped << "\n";
   }
-  if (config.refine && solution->termination != "CONVERGENCE") {
+  if (!solution->converged) {
     std::cerr << "carmba pose: warning: the bundle adjustment did not converge ("
               << solution->termination << ")" << std::endl;
   }

@@ -145,7 +145,7 @@ int RunPose(const carmba::Problem& problem,
   if (s.ok()) s = WriteGeometry(staged.path(), PoseSolutionGeometry(problem, *solution));
   if (s.ok()) s = staged.Commit(/*replace_all=*/false);
   if (!s.ok()) return cli::Fail("solve", s);
-  if (config.refine && solution->termination != "CONVERGENCE") {
+  if (!solution->converged) {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
               << solution->termination << "; max_iterations " << config.max_iterations
               << "): the results are not at a minimum" << std::endl;

@@ -110,6 +110,7 @@ std::vector<Pose6> TakePoseSolution(const Problem& problem,
   sol->iterations = r.iterations;
   sol->initial_cost = r.initial_cost;
   sol->termination = config.refine ? r.termination : "NOT_REFINED";
+  sol->converged = !config.refine || r.converged;
   sol->final_cost = config.refine ? r.final_cost : sol->initial_cost;
   const size_t V = problem.object_views.size();
   std::vector<Pose6> poses(V);

@@ -79,7 +79,10 @@ struct PoseSolution {
   // Solver
   std::string config_name;
   int iterations = 0;
-  std::string termination;
+  std::string termination;  // the engine's, or NOT_REFINED
+  // The engine's verdict (ba::BaResult::converged); true when the config does not refine (the
+  // initial poses are the answer asked for).
+  bool converged = true;
   double initial_cost = 0, final_cost = 0;
   double time_s = 0;  // wall time of initialisation + solve + covariance
   // Relative poses cam_b_from_cam_a with 6x6 covariances (analysis/relative_pose.h): every pair of

@@ -2,22 +2,12 @@
 #include <algorithm>
 #include <cmath>
 
-#include "geometry/rotation.h"
 #include "problem/pose_solver.h"
 #include "report/pose_report.h"
 #include "report/result_json.h"
 #include "util/format.h"
 
 namespace carmba {
-nlohmann::json PoseToJson(const Pose6& p) {
-  const Eigen::Matrix3d R = RotationFromRvec(p.head<3>());
-  nlohmann::json Rj = nlohmann::json::array();
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) Rj.push_back(R(i, j));
-  }
-  return {{"R", Rj}, {"rvec", JsonVector(p.head<3>())}, {"t_mm", JsonVector(p.tail<3>())}};
-}
-
 std::vector<ba::BudgetRow> PoseErrorBudget(const PoseSolution& s) {
   if (!s.ba_problem || !s.ba_result || !s.ba_result->covariance) return {};
   std::vector<ba::BudgetRow> budget =

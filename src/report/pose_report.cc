@@ -277,7 +277,7 @@ ReportDoc PoseReportDoc(const Problem& problem,
               Fmt("%.2f", s.time_s * 1e3) + " ms; cost " + Fmt("%.4g", s.initial_cost) + " -> " +
               Fmt("%.4g", s.final_cost)});
   if (!c.handedness_warning.empty()) d.Warning(c.handedness_warning + ".");
-  if (config.refine && s.termination != "CONVERGENCE") {
+  if (!s.converged) {
     d.Warning("the bundle adjustment did not converge (" + s.termination +
               "): the poses, sigmas and verdicts below are not at a minimum.");
   }

@@ -71,10 +71,6 @@ nlohmann::json PosePlotData(const Problem& problem, const PoseSolution& solution
 // (`carmba pose --images`): per view the blobs, the markers labelled, the rejected candidates.
 void AppendObjectViews(ReportDoc* doc, const std::vector<ObjectView>& views);
 
-// result.json's encoding of a pose (pose and joint problems alike): {"R": 9 values, row-major,
-// "rvec": rad, "t_mm"}.
-nlohmann::json PoseToJson(const Pose6& pose);
-
 // The error budget of a pose solve (ba/quantities.h): the poses and the validation pairs (rows
 // without a sigma, such as the held intrinsics' centre projection, left out); empty without the
 // engine's covariance.

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "report/result_json.h"
 #include "util/format.h"
 
 namespace carmba {
@@ -24,9 +25,7 @@ nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
     const std::string& ib = problem.views[e.view_b].id;
     nlohmann::json j = {{"a", ia},
                         {"b", ib},
-                        {"cam_b_from_cam_a",
-                         {{"rvec", JsonVector(e.cam_b_from_cam_a.head<3>())},
-                          {"t_mm", JsonVector(e.cam_b_from_cam_a.tail<3>())}}},
+                        {"cam_b_from_cam_a", PoseToJson(e.cam_b_from_cam_a)},
                         {"covariance_6x6", JsonRows(e.covariance)},
                         {"covariance_order", "rx ry rz (rad, rotation vector), tx ty tz (mm)"},
                         {"angle_deg", JsonNumber(e.angle_deg)},
@@ -42,7 +41,7 @@ nlohmann::json RelativePosesJson(const ba::BaProblem& problem,
       const analysis::RelativePoseError err = analysis::CompareRelativePose(e, *ta, *tb);
       Pose6 t;
       analysis::RelativePose(ta->data(), tb->data(), t.data());
-      j["truth"] = {{"rvec", JsonVector(t.head<3>())}, {"t_mm", JsonVector(t.tail<3>())}};
+      j["truth"] = PoseToJson(t);
       j["rotation_error_deg"] = JsonNumber(err.rotation_error_deg);
       j["rotation_error_sigma"] = JsonNumber(err.rotation_mahalanobis);
       j["angle_error_sigma"] = JsonNumber(err.angle_error_sigma);

@@ -10,6 +10,15 @@
 
 namespace carmba {
 
+nlohmann::json PoseToJson(const Pose6& p) {
+  const Eigen::Matrix3d R = RotationFromRvec(p.head<3>());
+  nlohmann::json Rj = nlohmann::json::array();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) Rj.push_back(R(i, j));
+  }
+  return {{"R", Rj}, {"rvec", JsonVector(p.head<3>())}, {"t_mm", JsonVector(p.tail<3>())}};
+}
+
 nlohmann::json ViewJson(const ViewRecord& v, const ProblemTruth& truth) {
   nlohmann::json j;
   j["id"] = v.id;

@@ -20,6 +20,11 @@
 
 namespace carmba {
 
+// result.json's encoding of every pose (views, initial poses, truth, relative poses): {"R": 9
+// values, row-major, "rvec": rad, "t_mm"}. Legacy POSIT's matrices are not poses (rows not
+// exactly orthogonal, the legacy camera) and keep their own {R, t_mm}.
+nlohmann::json PoseToJson(const Pose6& pose);
+
 // One view of the solution.
 struct ViewRecord {
   std::string id;

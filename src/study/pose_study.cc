@@ -831,7 +831,7 @@ nlohmann::json MakeResult(const Problem& problem,
     }
   }
   nlohmann::json r;
-  r["converged"] = sol.termination == "CONVERGENCE" || sol.termination == "NOT_REFINED";
+  r["converged"] = sol.converged;
   r["termination"] = sol.termination;
   r["errors"] = errors;
   r["signed_errors"] = signed_errors;
