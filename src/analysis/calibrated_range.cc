@@ -19,8 +19,8 @@ struct Range {
 
 // Depth (mm) of point p (the view's object or plate frame) in view v's camera.
 double Depth(const ba::BaResult& r, int v, const Eigen::Vector3d& p) {
-  const double* pose = r.block(r.layout->view_block(v));
-  const Eigen::Matrix3d R = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
+  const Pose6 pose = r.ViewPose(v);
+  const Eigen::Matrix3d R = RotationFromRvec(pose.head<3>());
   return (R * p)[2] + pose[5];
 }
 

@@ -46,15 +46,15 @@ StatusOr<ba::BaResult> FitFull(const ba::BaProblem& plates,
   sc->chi2 = r->chi2;
   sc->aic = sc->chi2 + 2.0 * sc->num_free;
   sc->bic = sc->chi2 + sc->num_free * std::log(static_cast<double>(sc->num_residuals));
-  const int gb = r->layout->group_block(0);
-  for (int i = 0; i < kNumIntrinsics; ++i) sc->intrinsics[i] = r->block(gb)[i];
+  const std::array<double, kNumIntrinsics> x = r->GroupIntrinsics(0);
+  for (int i = 0; i < kNumIntrinsics; ++i) sc->intrinsics[i] = x[i];
   sc->plate_poses.resize(plates.views.size());
   for (size_t v = 0; v < plates.views.size(); ++v) {
-    const double* pose = r->block(r->layout->view_block(static_cast<int>(v)));
+    const Pose6 pose = r->ViewPose(static_cast<int>(v));
     for (int i = 0; i < 6; ++i) sc->plate_poses[v][i] = pose[i];
   }
   sc->principal_point = Eigen::Vector2d(sc->intrinsics[kCx], sc->intrinsics[kCy]);
-  sc->principal_point_covariance = r->Covariance({gb}).block<2, 2>(kCx, kCx);
+  sc->principal_point_covariance = r->GroupIntrinsicsCovariance(0).block<2, 2>(kCx, kCx);
   return r;
 }
 

@@ -28,12 +28,11 @@ Pose6 RelativePoseWithJacobian(const Pose6& pose_a,
 }
 
 RelativePoseEstimate EstimateRelativePose(const ba::BaResult& result, int view_a, int view_b) {
-  const ba::StateLayout& L = *result.layout;
-  const int ba = L.view_block(view_a), bb = L.view_block(view_b);
-  RelativePoseEstimate e = EstimateRelativePose(Eigen::Map<const Pose6>(result.block(ba)),
-                                                Eigen::Map<const Pose6>(result.block(bb)),
-                                                result.Covariance({ba, bb}),  // scaled
-                                                result.CalibrationCovariance({ba, bb}));
+  RelativePoseEstimate e =
+      EstimateRelativePose(result.ViewPose(view_a),
+                           result.ViewPose(view_b),
+                           result.ViewPosesCovariance({view_a, view_b}),  // scaled
+                           result.ViewPosesCalibrationCovariance({view_a, view_b}));
   e.view_a = view_a;
   e.view_b = view_b;
   return e;
@@ -84,18 +83,16 @@ RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
 std::vector<RelativePoseEstimate> EstimateRelativePoses(
     const ba::BaResult& result, const std::vector<std::pair<int, int>>& pairs) {
   std::map<int, int> slot;  // view -> position in the joint covariance
-  std::vector<int> blocks;
+  std::vector<int> views;
   for (const auto& [a, b] : pairs) {
     for (int v : {a, b}) {
-      if (slot.emplace(v, static_cast<int>(blocks.size())).second) {
-        blocks.push_back(result.layout->view_block(v));
-      }
+      if (slot.emplace(v, static_cast<int>(views.size())).second) views.push_back(v);
     }
   }
   std::vector<RelativePoseEstimate> out;
   if (pairs.empty()) return out;
-  const Eigen::MatrixXd C_cal = result.CalibrationCovariance(blocks);
-  const Eigen::MatrixXd C = result.ObservationCovariance(blocks) + C_cal;  // scaled
+  const Eigen::MatrixXd C_cal = result.ViewPosesCalibrationCovariance(views);
+  const Eigen::MatrixXd C = result.ViewPosesCovariance(views);  // scaled
   for (const auto& [a, b] : pairs) {
     Eigen::Matrix<double, 12, 12> Cab, Cab_cal;
     const int s[2] = {slot.at(a), slot.at(b)};
@@ -106,9 +103,7 @@ std::vector<RelativePoseEstimate> EstimateRelativePoses(
       }
     }
     RelativePoseEstimate e =
-        EstimateRelativePose(Eigen::Map<const Pose6>(result.block(result.layout->view_block(a))),
-                             Eigen::Map<const Pose6>(result.block(result.layout->view_block(b))),
-                             Cab, Cab_cal);
+        EstimateRelativePose(result.ViewPose(a), result.ViewPose(b), Cab, Cab_cal);
     e.view_a = a;
     e.view_b = b;
     out.push_back(e);

@@ -41,15 +41,13 @@ namespace {
 
 // The problem with the full solve's rejections removed and its solution as initial values.
 ba::BaProblem AtTheSolution(const ba::BaProblem& problem, const ba::BaResult& full) {
-  const ba::StateLayout& L = *full.layout;
   ba::BaProblem base = problem;
   for (size_t g = 0; g < base.groups.size(); ++g) {
-    const double* x = full.block(L.group_block(static_cast<int>(g)));
-    std::copy(x, x + kNumIntrinsics, base.groups[g].initial.begin());
+    base.groups[g].initial = full.GroupIntrinsics(static_cast<int>(g));
   }
   for (size_t v = 0; v < base.views.size(); ++v) {
     ba::BaView& view = base.views[v];
-    view.initial = Eigen::Map<const Pose6>(full.block(L.view_block(static_cast<int>(v))));
+    view.initial = full.ViewPose(static_cast<int>(v));
     if (v < full.dropped.size() && !full.dropped[v].empty()) {
       std::vector<char> keep(view.point_ids.size());
       for (size_t i = 0; i < keep.size(); ++i) keep[i] = !full.dropped[v][i];

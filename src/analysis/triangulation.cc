@@ -34,7 +34,6 @@ Status ObjectRays(const ba::BaProblem& problem,
                   const std::vector<PixelObservation>& obs,
                   std::vector<Eigen::Vector3d>* origin,
                   std::vector<Eigen::Vector3d>* dir) {
-  const ba::StateLayout& L = *result.layout;
   std::set<int> seen;
   for (const auto& o : obs) {
     if (o.view < 0 || o.view >= static_cast<int>(problem.views.size())) {
@@ -57,8 +56,10 @@ Status ObjectRays(const ba::BaProblem& problem,
       return Status::Error("view '" + v.id + "': triangulation with angle-dependent (smooth) "
                            "intrinsics is not supported");
     }
-    const double* K = result.block(L.group_block(v.group));
-    const double* pose = result.block(L.view_block(o.view));
+    const std::array<double, kNumIntrinsics> intrinsics = result.GroupIntrinsics(v.group);
+    const Pose6 view_pose = result.ViewPose(o.view);
+    const double* K = intrinsics.data();
+    const double* pose = view_pose.data();
     double xy[2];
     if (!UnprojectToNormalized(K, o.uv_px.data(), xy)) {
       return Status::Error("view '" + v.id + "': pixel (" + Fmt("%g", o.uv_px[0]) + ", " +
@@ -111,15 +112,14 @@ Status PointNormalEquations(const ba::BaProblem& problem,
                             Eigen::Matrix3d* N,
                             Eigen::Vector3d* g,
                             double* cost) {
-  const ba::StateLayout& L = *result.layout;
   N->setZero();
   g->setZero();
   *cost = 0;
   for (const auto& o : obs) {
     const ba::BaView& v = problem.views[o.view];
     double uv[2], Jp[6];
-    if (!ProjectPointWithJac(result.block(L.group_block(v.group)),
-                             result.block(L.view_block(o.view)),
+    if (!ProjectPointWithJac(result.GroupIntrinsics(v.group).data(),
+                             result.ViewPose(o.view).data(),
                              p.data(),
                              uv,
                              nullptr,
@@ -197,7 +197,13 @@ StackedPointJacobians StackPointJacobians(const ba::BaProblem& problem,
     const ba::BaView& v = problem.views[o.view];
     const int gb = L.group_block(v.group), vb = L.view_block(o.view);
     double uv[2], Ji[2 * kNumIntrinsics], Jpose[12], Jp[6];
-    ProjectPointWithJac(result.block(gb), result.block(vb), X.data(), uv, Ji, Jpose, Jp);
+    ProjectPointWithJac(result.GroupIntrinsics(v.group).data(),
+                        result.ViewPose(o.view).data(),
+                        X.data(),
+                        uv,
+                        Ji,
+                        Jpose,
+                        Jp);
     const Eigen::Matrix<double, 2, 3> J =
         Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(Jp);
     const Eigen::Matrix<double, 3, 2> JW = J.transpose() * o.covariance_px2.inverse();
@@ -325,11 +331,15 @@ std::pair<Eigen::Vector2d, double> PixelResidual(const ba::BaProblem& problem,
                                                   const ba::BaResult& result,
                                                   const PixelObservation& o,
                                                   const Eigen::Vector3d& X) {
-  const ba::StateLayout& L = *result.layout;
   const ba::BaView& v = problem.views[o.view];
   double uv[2];
-  if (!ProjectPointWithJac(result.block(L.group_block(v.group)), result.block(L.view_block(o.view)),
-                           X.data(), uv, nullptr, nullptr, nullptr)) {
+  if (!ProjectPointWithJac(result.GroupIntrinsics(v.group).data(),
+                           result.ViewPose(o.view).data(),
+                           X.data(),
+                           uv,
+                           nullptr,
+                           nullptr,
+                           nullptr)) {
     return {Eigen::Vector2d::Constant(std::nan("")), std::nan("")};
   }
   const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;

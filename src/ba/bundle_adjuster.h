@@ -23,6 +23,8 @@
 // with fewer than 4 observations is an error).
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -156,9 +158,47 @@ struct BaResult {
   double time_s = 0;
 
   const double* block(int b) const { return state.data() + layout->block(b).offset; }
+
+  // Typed access: a value by what it is, not where it sits in the state (COLMAP's BACovariance
+  // getters, mrcal's state-index functions). Indices are the problem's: view v, intrinsics group
+  // g, marker m (index in BaProblem::markers), plate point p (its id).
+  //
   // View v's pose (rvec rad, t mm) as solved: cam_from_plate, cam_from_object, or for a rig view
   // its rig's pose (the view's pose is cam_from_rig times it).
   Pose6 ViewPose(int v) const { return Eigen::Map<const Pose6>(block(layout->view_block(v))); }
+  // Group g's intrinsics (LENSMODEL_OPENCV5 order; a smooth group's reference values).
+  std::array<double, kNumIntrinsics> GroupIntrinsics(int g) const {
+    std::array<double, kNumIntrinsics> x;
+    const double* b = block(layout->group_block(g));
+    std::copy(b, b + kNumIntrinsics, x.begin());
+    return x;
+  }
+  Eigen::Vector3d MarkerPosition(int m) const {
+    return Eigen::Map<const Eigen::Vector3d>(block(layout->marker_block(m)));
+  }
+  Eigen::Vector3d PlatePoint(int p) const {
+    return Eigen::Map<const Eigen::Vector3d>(block(layout->plate_point_block(p)));
+  }
+  // Their covariances (as Covariance: scaled, with the considered calibration's part).
+  Matrix6 ViewPoseCovariance(int v) const { return Covariance({layout->view_block(v)}); }
+  Eigen::MatrixXd GroupIntrinsicsCovariance(int g) const {
+    return Covariance({layout->group_block(g)});
+  }
+  Eigen::Matrix3d MarkerCovariance(int m) const { return Covariance({layout->marker_block(m)}); }
+  // The joint covariance of several views' poses, 6 rows and columns per view in the given order;
+  // the cross-covariance of views a and b is its block (0, 6) for views {a, b}.
+  Eigen::MatrixXd ViewPosesCovariance(const std::vector<int>& views) const {
+    return Covariance(ViewBlocks(views));
+  }
+  Eigen::MatrixXd ViewPosesCalibrationCovariance(const std::vector<int>& views) const {
+    return CalibrationCovariance(ViewBlocks(views));
+  }
+  std::vector<int> ViewBlocks(const std::vector<int>& views) const {
+    std::vector<int> blocks;
+    for (int v : views) blocks.push_back(layout->view_block(v));
+    return blocks;
+  }
+
   // Covariance of blocks (ambient parameters): the residuals' part scaled by covariance_scale,
   // plus the considered calibration's part (ba/covariance.h; zero without one).
   Eigen::MatrixXd Covariance(const std::vector<int>& blocks) const {

@@ -173,12 +173,8 @@ class StagedCalibration {
       }
       return res.status();
     }
-    const ba::StateLayout& L = *res->layout;
-    std::copy(res->block(L.group_block(0)), res->block(L.group_block(0)) + kNumIntrinsics,
-              x_.begin());
-    for (size_t v = 0; v < poses_.size(); ++v) {
-      std::copy(res->block(L.view_block(v)), res->block(L.view_block(v)) + 6, poses_[v].begin());
-    }
+    x_ = res->GroupIntrinsics(0);
+    for (size_t v = 0; v < poses_.size(); ++v) poses_[v] = res->ViewPose(static_cast<int>(v));
     return res;
   }
 
@@ -294,7 +290,7 @@ Status ResidualStatistics(const ObservationSet& obs,
 Status IntrinsicsCovariance(double sigma_solve, CalibrationResult* r) {
   const ba::BaResult& engine = *r->engine;
   r->covariance_scale = (r->sigma_px / sigma_solve) * (r->sigma_px / sigma_solve);
-  r->covariance = engine.Covariance({engine.layout->group_block(0)}) * r->covariance_scale;
+  r->covariance = engine.GroupIntrinsicsCovariance(0) * r->covariance_scale;
   for (int i = 0; i < kNumIntrinsics; ++i)
     r->sigma[i] = std::sqrt(std::max(0.0, r->covariance(i, i)));
   constexpr double kMaxRelativeFocalSigma = 0.1;

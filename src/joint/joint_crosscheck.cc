@@ -88,7 +88,8 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const Problem& problem,
           view.kind == ba::ViewKind::kPlate ? view.point_ids[i] : point_index.at(view.point_ids[i]);
       obs.push_back({id, view.uv_px[i].x(), view.uv_px[i].y()});
     }
-    const double* sol = r->block(L.view_block(static_cast<int>(v)));
+    const Pose6 pose = r->ViewPose(static_cast<int>(v));
+    const double* sol = pose.data();
     if (view.kind == ba::ViewKind::kPlate) {
       plate_views.push_back(obs);
       init_plate.push_back(pose_json(view.initial.data()));
@@ -102,17 +103,17 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const Problem& problem,
   in["plate_views"] = plate_views;
   in["object_views"] = object_views;
   in["weight_object"] = problem.plate_sigma_px / problem.object_sigma_px;
-  const double* x = r->block(L.group_block(0));
+  const std::array<double, kNumIntrinsics> x = r->GroupIntrinsics(0);
   in["initial"] = {{"intrinsics", joint.groups[0].initial},
                    {"plate_poses", init_plate},
                    {"object_poses", init_object}};
-  in["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},
+  in["carmba"] = {{"intrinsics", std::vector<double>(x.begin(), x.end())},
                   {"plate_poses", sol_plate},
                   {"object_poses", sol_object},
                   {"free_basis", FreeBasisJson(L.block(L.group_block(0)).basis)}};
   auto out = RunMrcalScript(in, mrcal_options);
   if (!out.ok()) return out.status();
-  const Eigen::MatrixXd C = r->Covariance({L.group_block(0)});
+  const Eigen::MatrixXd C = r->GroupIntrinsicsCovariance(0);
   double max_rel_core = 0, max_sigmas = 0;
   nlohmann::json rel = nlohmann::json::object();
   std::vector<double> mrcal_intr = out->at("intrinsics").get<std::vector<double>>();
@@ -141,7 +142,7 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const Problem& problem,
   j["max_move_in_sigmas_of_mrcal_seeded_at_carmba"] = max_sig_at_carmba;
   j["what"] = "markers held at their CT centres, " + FreeIntrinsicsText(variant.groups[0]) +
               ", one intrinsics, seeded from carmba's initial values";
-  j["carmba"] = {{"intrinsics", std::vector<double>(x, x + kNumIntrinsics)},
+  j["carmba"] = {{"intrinsics", std::vector<double>(x.begin(), x.end())},
                  {"iterations", r->iterations},
                  {"termination", r->termination}};
   j["mrcal"] = *out;

@@ -329,17 +329,16 @@ void TwoStepProblems(const ba::BaProblem& bp,
   *two_step = ObjectViewsOnly(bp, pairs, two_step_pairs);
   *with_prior = *two_step;
   for (size_t g = 0; g < bp.groups.size(); ++g) {
-    const int b = calibration.layout->group_block(static_cast<int>(g));
-    const double* x = calibration.block(b);
-    const Eigen::MatrixXd C = calibration.Covariance({b});
+    const std::array<double, kNumIntrinsics> x = calibration.GroupIntrinsics(static_cast<int>(g));
+    const Eigen::MatrixXd C = calibration.GroupIntrinsicsCovariance(static_cast<int>(g));
     ba::IntrinsicsGroup& g2 = two_step->groups[g];
-    std::copy(x, x + kNumIntrinsics, g2.initial.begin());
+    g2.initial = x;
     g2.free.fill(false);
     g2.has_prior = false;
     ba::IntrinsicsGroup& g3 = with_prior->groups[g];
-    std::copy(x, x + kNumIntrinsics, g3.initial.begin());
+    g3.initial = x;
     g3.has_prior = true;
-    std::copy(x, x + kNumIntrinsics, g3.prior.mean.begin());
+    g3.prior.mean = x;
     g3.prior.indices.clear();
     for (int i = 0; i < kNumIntrinsics; ++i) {
       if (g3.free[i]) g3.prior.indices.push_back(i);
@@ -413,7 +412,7 @@ StatusOr<JointSolution> SolveJointProblem(const Problem& problem, const SolverCo
   analysis::DistortionModel solved;
   if (sol.distortion && !config.distortion_auto &&
       analysis::DistortionModelOf(bp.groups[0].free, &solved)) {
-    const double* K = sol.result.block(sol.result.layout->group_block(0));
+    const std::array<double, kNumIntrinsics> K = sol.result.GroupIntrinsics(0);
     sol.distortion_warning =
         analysis::DistortionWarning(*sol.distortion, solved, Eigen::Vector2d(K[kCx], K[kCy]));
   }

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <numeric>
 #include <set>
 
 #include "ba/bundle_adjuster.h"
@@ -106,7 +107,6 @@ std::vector<Pose6> TakePoseSolution(const Problem& problem,
                                     const SolverConfig& config,
                                     PoseSolution* sol) {
   const ba::BaResult& r = *sol->ba_result;
-  const ba::StateLayout& L = *r.layout;
   sol->iterations = r.iterations;
   sol->initial_cost = r.initial_cost;
   sol->termination = config.refine ? r.termination : "NOT_REFINED";
@@ -114,13 +114,10 @@ std::vector<Pose6> TakePoseSolution(const Problem& problem,
   sol->final_cost = config.refine ? r.final_cost : sol->initial_cost;
   const size_t V = problem.object_views.size();
   std::vector<Pose6> poses(V);
-  for (size_t v = 0; v < V; ++v) {
-    for (int i = 0; i < 6; ++i) poses[v][i] = r.block(L.view_block(static_cast<int>(v)))[i];
-  }
+  for (size_t v = 0; v < V; ++v) poses[v] = r.ViewPose(static_cast<int>(v));
   std::map<int, Eigen::Vector3d> markers;
   for (size_t k = 0; k < sol->ba_problem->markers.size(); ++k) {
-    Eigen::Vector3d& p = markers[sol->ba_problem->markers[k].id];
-    for (int i = 0; i < 3; ++i) p[i] = r.block(L.marker_block(static_cast<int>(k)))[i];
+    markers[sol->ba_problem->markers[k].id] = r.MarkerPosition(static_cast<int>(k));
   }
   sol->chi2 = r.chi2;
   sol->num_residuals = r.num_residuals;
@@ -156,11 +153,11 @@ Status PoseCovariance(const Problem& problem,
     }
     return Status::Ok();
   }
-  std::vector<int> pose_blocks;
-  for (size_t v = 0; v < poses.size(); ++v)
-    pose_blocks.push_back(r.layout->view_block(static_cast<int>(v)));
+  std::vector<int> views(poses.size());
+  std::iota(views.begin(), views.end(), 0);
+  const std::vector<int> pose_blocks = r.ViewBlocks(views);
   if (config.covariance_algorithm == "schur") {
-    sol->joint_covariance = r.Covariance(pose_blocks);
+    sol->joint_covariance = r.ViewPosesCovariance(views);
   } else {
     auto cov = ba::CeresBlockCovariance(
         *sol->ba_problem, options, r, pose_blocks, config.covariance_algorithm);

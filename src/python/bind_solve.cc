@@ -158,13 +158,12 @@ std::vector<View> JointViews(const Solved& s) {
   std::vector<View> out;
   for (size_t v = 0; v < bp.views.size(); ++v) {
     const ba::BaView& bv = bp.views[v];
-    const int b = r.layout->view_block(static_cast<int>(v));
     View w;
     w.id = bv.id;
     w.kind = bv.kind == ba::ViewKind::kPlate ? "plate" : "object";
     w.group = bp.groups[bv.group].name;
-    w.pose = Eigen::Map<const Pose6>(r.block(b));
-    if (r.covariance) w.covariance = r.Covariance({b});
+    w.pose = r.ViewPose(static_cast<int>(v));
+    if (r.covariance) w.covariance = r.ViewPoseCovariance(static_cast<int>(v));
     for (int a = 0; a < 3; ++a) {
       const auto* rot =
           ba::FindBudgetRow(s.joint->budget, ba::QuantityKey::ViewRotation(static_cast<int>(v), a));

@@ -7,13 +7,12 @@ namespace carmba {
 void MarkersAndOutliersJson(const ba::BaProblem& problem, const ba::BaResult& result,
                             nlohmann::json* out) {
   nlohmann::json& j = *out;
-  const ba::StateLayout& L = *result.layout;
   nlohmann::json markers = nlohmann::json::array();
   for (size_t m = 0; m < problem.markers.size(); ++m) {
-    const int b = L.marker_block(static_cast<int>(m));
-    const Eigen::Map<const Eigen::Vector3d> p(result.block(b));
-    nlohmann::json mj = {{"id", problem.markers[m].id}, {"p_in_object_mm", JsonVector(p)}};
-    if (result.covariance) mj["covariance_mm2"] = JsonRows(result.Covariance({b}));
+    const int mi = static_cast<int>(m);
+    nlohmann::json mj = {{"id", problem.markers[m].id},
+                         {"p_in_object_mm", JsonVector(result.MarkerPosition(mi))}};
+    if (result.covariance) mj["covariance_mm2"] = JsonRows(result.MarkerCovariance(mi));
     markers.push_back(mj);
   }
   j["markers"] = markers;

@@ -26,14 +26,11 @@ namespace {
 // its coefficients, FlexModelJson).
 nlohmann::json GroupJson(const JointSolution& s, int g) {
   if (s.ba_problem.groups[g].smooth) return FlexModelJson(s);
-  const ba::StateLayout& L = *s.result.layout;
-  const int b = L.group_block(g);
   Camera c;
-  const double* x = s.result.block(b);
-  std::copy(x, x + kNumIntrinsics, c.params.begin());
+  c.params = s.result.GroupIntrinsics(g);
   c.width = s.ba_problem.groups[g].width;
   c.height = s.ba_problem.groups[g].height;
-  const Eigen::MatrixXd C = s.result.Covariance({b});
+  const Eigen::MatrixXd C = s.result.GroupIntrinsicsCovariance(g);
   c.covariance_names.assign(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics);
   c.covariance.assign(kNumIntrinsics, std::vector<double>(kNumIntrinsics));
   for (int i = 0; i < kNumIntrinsics; ++i) {
@@ -51,7 +48,6 @@ nlohmann::json GroupJson(const JointSolution& s, int g) {
 }  // namespace
 
 GeometrySet JointSolutionGeometry(const Problem& problem, const JointSolution& s) {
-  const ba::StateLayout& L = *s.result.layout;
   GeometrySet g;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const auto& m : problem.fiducials) centroid += m.p_in_object;
@@ -66,8 +62,7 @@ GeometrySet JointSolutionGeometry(const Problem& problem, const JointSolution& s
     vg.camera.params = ba::IntrinsicsValueOfView(s.ba_problem, s.result, static_cast<int>(v));
     vg.camera.width = grp.width;
     vg.camera.height = grp.height;
-    const double* pose = s.result.block(L.view_block(static_cast<int>(v)));
-    for (int i = 0; i < 6; ++i) vg.cam_from_ct[i] = pose[i];
+    vg.cam_from_ct = s.result.ViewPose(static_cast<int>(v));
     g.views.push_back(vg);
   }
   return g;
@@ -77,23 +72,21 @@ namespace {
 
 // Every view: its pose, RMS and, for object views, the covariance and sigmas (the budget's).
 std::vector<ViewRecord> ViewRecords(const JointSolution& s) {
-  const ba::StateLayout& L = *s.result.layout;
   const ba::BaResult& r = s.result;
   std::vector<ViewRecord> views;
   for (size_t v = 0; v < s.ba_problem.views.size(); ++v) {
     const ba::BaView& bv = s.ba_problem.views[v];
-    const int b = L.view_block(static_cast<int>(v));
     ViewRecord rec;
     rec.id = bv.id;
     rec.plate = bv.kind == ba::ViewKind::kPlate;
     rec.group = s.ba_problem.groups[bv.group].name;
-    for (int i = 0; i < 6; ++i) rec.pose[i] = r.block(b)[i];
+    rec.pose = r.ViewPose(static_cast<int>(v));
     rec.rms_px = r.views[v].rms_px;
     rec.num_observations = r.views[v].num_observations;
     if (bv.rig < 0) rec.initial = bv.initial;  // a rig view's is its rig's
     rec.initial_rms_px = r.initial_view_rms_px.at(v);
     if (!rec.plate) {
-      rec.covariance = r.Covariance({b});
+      rec.covariance = r.ViewPoseCovariance(static_cast<int>(v));
       for (int a = 0; a < 3; ++a) {
         const int iv = static_cast<int>(v);
         rec.sigma_rotation_deg[a] =
@@ -217,7 +210,7 @@ std::vector<std::string> JointWarnings(const JointSolution& s) {
               Fmt("%g", bp.views[nearest].primary_deg) + " deg, secondary " +
               Fmt("%g", bp.views[nearest].secondary_deg) + " deg";
     } else {
-      cov = s.result.Covariance({s.result.layout->group_block(static_cast<int>(g))});
+      cov = s.result.GroupIntrinsicsCovariance(static_cast<int>(g));
     }
     const auto w = IntrinsicsCorrelationWarnings(cov, label);
     out.insert(out.end(), w.begin(), w.end());
@@ -282,11 +275,11 @@ void JointIntrinsicsDoc(const Problem& problem, const JointSolution& s, ReportDo
   }
   std::vector<std::vector<std::string>> rows;
   for (size_t g = 0; g < s.ba_problem.groups.size(); ++g) {
-    const int b = r.layout->group_block(static_cast<int>(g));
-    const Eigen::MatrixXd C = r.Covariance({b});
     if (s.ba_problem.groups[g].smooth) continue;  // FlexReportDoc
+    const Eigen::MatrixXd C = r.GroupIntrinsicsCovariance(static_cast<int>(g));
+    const std::array<double, kNumIntrinsics> K = r.GroupIntrinsics(static_cast<int>(g));
     for (int i = 0; i < kNumIntrinsics; ++i) {
-      const double x = r.block(b)[i], sg = std::sqrt(std::max(0.0, C(i, i)));
+      const double x = K[i], sg = std::sqrt(std::max(0.0, C(i, i)));
       std::vector<std::string> row = {s.ba_problem.groups[g].name, kIntrinsicNames[i],
                                       Fmt("%.6g", x), sg > 0 ? Fmt("%.3g", sg) : "held"};
       if (problem.truth.camera) {

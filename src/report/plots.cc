@@ -236,7 +236,8 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
   for (size_t v = 0; v < problem.views.size(); ++v) {
     const ba::BaView& bv = problem.views[v];
     const bool plate = bv.kind == ba::ViewKind::kPlate;
-    const double* pose = result.block(L.view_block(static_cast<int>(v)));
+    const Pose6 view_pose = result.ViewPose(static_cast<int>(v));
+    const double* pose = view_pose.data();
     const std::array<double, kNumIntrinsics> view_intr =
         ba::IntrinsicsValueOfView(problem, result, static_cast<int>(v));  // smooth: at its angles
     const double* intr = view_intr.data();
@@ -247,16 +248,16 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
         continue;
       }
       const int id = bv.point_ids[k];
-      const double* p = nullptr;
+      Eigen::Vector3d p;
       if (plate) {
-        p = result.block(L.plate_point_block(id));
+        p = result.PlatePoint(id);
       } else {
         auto it = marker_index.find(id);
         if (it == marker_index.end()) continue;
-        p = result.block(L.marker_block(it->second));
+        p = result.MarkerPosition(it->second);
       }
       double uv[2];
-      if (!ProjectPoint(intr, pose, p, uv)) continue;
+      if (!ProjectPoint(intr, pose, p.data(), uv)) continue;
       u.push_back(bv.uv_px[k].x());
       vv.push_back(bv.uv_px[k].y());
       du.push_back(uv[0] - bv.uv_px[k].x());
@@ -281,7 +282,7 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
   if (num_plate > 0) {
     nlohmann::json pts = nlohmann::json::array();
     for (size_t p = 0; p < problem.plate.points.size(); ++p) {
-      const double* x = result.block(L.plate_point_block(static_cast<int>(p)));
+      const Eigen::Vector3d x = result.PlatePoint(static_cast<int>(p));
       pts.push_back({x[0], x[1], x[2]});
     }
     scenes.push_back({{"name", "plate"},
@@ -295,13 +296,13 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
   if (num_object > 0) {
     nlohmann::json pts = nlohmann::json::array();
     for (size_t m = 0; m < problem.markers.size(); ++m) {
-      const int b = L.marker_block(static_cast<int>(m));
-      const double* x = result.block(b);
+      const int mi = static_cast<int>(m);
+      const Eigen::Vector3d x = result.MarkerPosition(mi);
       pts.push_back({x[0], x[1], x[2]});
-      if (result.covariance && !L.block(b).constant) {
+      if (result.covariance && !L.block(L.marker_block(mi)).constant) {
         marker_items.push_back({{"id", problem.markers[m].id},
                                 {"p", {x[0], x[1], x[2]}},
-                                {"cov", JsonRows(result.Covariance({b}))}});
+                                {"cov", JsonRows(result.MarkerCovariance(mi))}});
       }
     }
     scenes.push_back({{"name", "object"},
@@ -327,13 +328,13 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
     // A smooth group's block holds coefficients, not one camera (its intrinsics against the
     // angle are the joint report's own plot).
     if (grp.smooth) continue;
-    const int b = L.group_block(static_cast<int>(g));
-    const double* x = result.block(b);
-    cameras.push_back({{"name", name}, {"intrinsics", std::vector<double>(x, x + kNumIntrinsics)}});
-    if (result.covariance && !L.block(b).constant && grp.width > 0 && grp.height > 0 &&
-        distance > 0) {
-      pu.push_back(IntrinsicsProjectionUncertainty(name, x, result.Covariance({b}), grp.width,
-                                                   grp.height, distance));
+    const int gi = static_cast<int>(g);
+    const std::array<double, kNumIntrinsics> x = result.GroupIntrinsics(gi);
+    cameras.push_back({{"name", name}, {"intrinsics", std::vector<double>(x.begin(), x.end())}});
+    if (result.covariance && !L.block(L.group_block(gi)).constant && grp.width > 0 &&
+        grp.height > 0 && distance > 0) {
+      pu.push_back(IntrinsicsProjectionUncertainty(
+          name, x.data(), result.GroupIntrinsicsCovariance(gi), grp.width, grp.height, distance));
     }
   }
   d["cameras"] = cameras;

@@ -440,10 +440,8 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
       nees_cal += nees, ++n_cal;
       continue;
     }
-    const int b = r->layout->view_block(static_cast<int>(v));
-    const Eigen::MatrixXd C = r->Covariance({b});
-    Eigen::Matrix<double, 6, 1> d;
-    for (int i = 0; i < 6; ++i) d[i] = r->block(b)[i] - sf.true_poses[v][i];
+    const Matrix6 C = r->ViewPoseCovariance(static_cast<int>(v));
+    const Pose6 d = r->ViewPose(static_cast<int>(v)) - sf.true_poses[v];
     const double pose_nees = d.dot(C.ldlt().solve(d));
     const bool between = sf.between[v];
     if (between) {
@@ -561,9 +559,8 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   auto r = ba::SolveBundleAdjustment(sj.problem, options);
   if (!r.ok()) return r.status();
   const auto budget = ba::ComputeErrorBudget(sj.problem, *r, sj.pairs);
-  const ba::StateLayout& L = *r->layout;
   nlohmann::json errors, signed_errors, sigmas, values, budget_json = nlohmann::json::object();
-  const double* x = r->block(L.group_block(0));
+  const std::array<double, kNumIntrinsics> x = r->GroupIntrinsics(0);
   static const char* const kIntr[4] = {"fx_px", "fy_px", "cx_px", "cy_px"};
   for (int i = 0; i < 4; ++i) {
     signed_errors[kIntr[i]] = x[i] - sj.true_intrinsics[i];
@@ -579,8 +576,8 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   const std::string first_view = sj.problem.views[sj.pairs.empty() ? 0 : sj.pairs[0].first].id;
   for (size_t v = 0; v < sj.problem.views.size(); ++v) {
     if (sj.problem.views[v].kind != ba::ViewKind::kObject) continue;
-    const double* pose = r->block(L.view_block(static_cast<int>(v)));
-    const Eigen::Matrix3d R_est = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
+    const Pose6 pose = r->ViewPose(static_cast<int>(v));
+    const Eigen::Matrix3d R_est = RotationFromRvec(pose.head<3>());
     const Eigen::Matrix3d R_true = RotationFromRvec(sj.true_poses[v].head<3>());
     const Eigen::Vector3d d = RvecFromRotation(R_est * R_true.transpose()) * kRadToDeg;
     const Eigen::Vector3d dt =
@@ -618,9 +615,8 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   errors["translation_mm"] = Rms(trans);
   std::vector<double> validation;
   for (const auto& [a, b] : sj.pairs) {
-    const double* pa = r->block(L.view_block(a));
-    const double* pb = r->block(L.view_block(b));
-    const double est = RelativeRotationAngle(pa, pb) * kRadToDeg;
+    const double est =
+        RelativeRotationAngle(r->ViewPose(a).data(), r->ViewPose(b).data()) * kRadToDeg;
     const double truth =
         RelativeRotationAngle(sj.true_poses[a].data(), sj.true_poses[b].data()) * kRadToDeg;
     const std::string name =

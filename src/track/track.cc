@@ -673,9 +673,8 @@ Status SolveTrack(double marker_diameter_mm, TrackResult* r) {
   r->bead_rms_px.assign(F, std::vector<double>(B, 0));
   r->bead_num_views.assign(F, std::vector<int>(B, 0));
   for (size_t bi = 0; bi < B; ++bi) {
-    const int mb = L.marker_block(static_cast<int>(bi));
-    r->bead_in_body[bi] = Eigen::Map<const Eigen::Vector3d>(res.block(mb));
-    r->bead_covariance[bi] = res.Covariance({mb});
+    r->bead_in_body[bi] = res.MarkerPosition(static_cast<int>(bi));
+    r->bead_covariance[bi] = res.MarkerCovariance(static_cast<int>(bi));
   }
   for (size_t f = 0; f < F; ++f) {
     for (size_t b = 0; b < r->bodies.size(); ++b) {
