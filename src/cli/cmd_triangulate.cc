@@ -46,14 +46,11 @@ namespace {
 
 using namespace carmba;
 
+// One point's pixels as the pixel-CSV reader hands them on (io/pixel_csv.h; `where` is
+// "file:line" or "--pixels"; a zero covariance: none given).
 struct PointInput {
   std::string name;
-  struct Pixel {
-    std::string view, where;   // where: "file:line" or "--pixels"
-    Eigen::Vector2d uv;
-    std::optional<Eigen::Matrix2d> cov;
-  };
-  std::vector<Pixel> pixels;
+  std::vector<PixelCsvRow> pixels;
 };
 
 StatusOr<std::vector<PointInput>> ReadPointsCsv(const std::string& path) {
@@ -69,17 +66,12 @@ StatusOr<std::vector<PointInput>> ReadPointsCsv(const std::string& path) {
   std::vector<PointInput> points;
   std::map<std::string, size_t> index;
   for (const PixelCsvRow& row : *rows) {
-    PointInput::Pixel px;
-    px.where = row.where;
-    px.view = row.view;
-    px.uv = row.uv_px;
-    if (row.HasCovariance()) px.cov = row.covariance_px2;
     auto it = index.find(row.key);
     if (it == index.end()) {
       it = index.emplace(row.key, points.size()).first;
       points.push_back({row.key, {}});
     }
-    points[it->second].pixels.push_back(px);
+    points[it->second].pixels.push_back(row);
   }
   return points;
 }
@@ -102,7 +94,12 @@ StatusOr<std::vector<PointInput>> ParsePixelsFlag(const std::string& s) {
         !CheckRange("--pixels v", v, plausible::kPixelCoordinatePx, &err)) {
       return Status::Error(err);
     }
-    p.pixels.push_back({item.substr(0, eq), "--pixels", Eigen::Vector2d(u, v), std::nullopt});
+    PixelCsvRow px;
+    px.view = item.substr(0, eq);
+    px.key = p.name;
+    px.uv_px = Eigen::Vector2d(u, v);
+    px.where = "--pixels";
+    p.pixels.push_back(px);
   }
   if (p.pixels.empty()) return Status::Error("--pixels: no VIEW=U,V given");
   return std::vector<PointInput>{p};
@@ -190,10 +187,11 @@ StatusOr<std::vector<analysis::PixelObservation>> PointObservations(const PointI
     }
     analysis::PixelObservation o;
     o.view = it->second;
-    o.uv_px = px.uv;
+    o.uv_px = px.uv_px;
     const double s = FLAGS_sigma_px > 0 ? FLAGS_sigma_px : bp.views[o.view].sigma_px;
-    o.covariance_px2 =
-        px.cov && FLAGS_sigma_px == 0 ? *px.cov : Eigen::Matrix2d::Identity() * s * s;
+    o.covariance_px2 = px.HasCovariance() && FLAGS_sigma_px == 0
+                           ? px.covariance_px2
+                           : Eigen::Matrix2d::Identity() * s * s;
     obs.push_back(o);
   }
   return obs;

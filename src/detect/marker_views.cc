@@ -69,20 +69,22 @@ double IsotropicSigmaPx(const Eigen::Matrix2d& C, double floor_px) {
   return std::sqrt(std::max(0.0, lmax) + floor_px * floor_px);
 }
 
-std::vector<MarkerObservation> LabelledObservations(const ObjectView& view) {
-  std::vector<MarkerObservation> out;
+std::vector<Observation> LabelledObservations(const ObjectView& view, double floor_px) {
+  std::vector<Observation> out;
   if (!view.labelled) return out;
   for (size_t i = 0; i < view.detection.blobs.size(); ++i) {
     if (view.marker_id_of_blob[i] < 0) continue;
     const MarkerBlob& b = view.detection.blobs[i];
-    MarkerObservation o;
+    Observation o;
     o.marker_id = view.marker_id_of_blob[i];
     o.uv_px = Eigen::Vector2d(b.uv_px.x, b.uv_px.y);
     o.covariance_px2 << b.covariance_px2(0, 0), b.covariance_px2(0, 1), b.covariance_px2(1, 0),
         b.covariance_px2(1, 1);
+    o.sigma_px = IsotropicSigmaPx(o.covariance_px2, floor_px);
+    o.covariance_px2 += floor_px * floor_px * Eigen::Matrix2d::Identity();
     out.push_back(o);
   }
-  std::sort(out.begin(), out.end(), [](const MarkerObservation& a, const MarkerObservation& b) {
+  std::sort(out.begin(), out.end(), [](const Observation& a, const Observation& b) {
     return a.marker_id < b.marker_id;
   });
   return out;
@@ -92,16 +94,7 @@ std::vector<PoseView> ToPoseViews(const std::vector<ObjectView>& views, double f
   std::vector<PoseView> out;
   for (const ObjectView& v : views) {
     if (!v.labelled) continue;
-    PoseView pv;
-    pv.id = v.id;
-    for (const MarkerObservation& o : LabelledObservations(v)) {
-      pv.observations.push_back(
-          {o.marker_id,
-           o.uv_px,
-           IsotropicSigmaPx(o.covariance_px2, floor_px),
-           o.covariance_px2 + floor_px * floor_px * Eigen::Matrix2d::Identity()});
-    }
-    out.push_back(pv);
+    out.push_back({v.id, LabelledObservations(v, floor_px)});
   }
   return out;
 }
@@ -373,7 +366,7 @@ std::string MarkerObservationsCsv(const std::vector<ObjectView>& views) {
         "its 2x2 covariance (px^2) from the local image noise\n"
         "view,marker,u_px,v_px,cov_uu,cov_uv,cov_vv\n";
   for (const ObjectView& v : views) {
-    for (const MarkerObservation& o : LabelledObservations(v)) {
+    for (const Observation& o : LabelledObservations(v)) {
       os << v.id << "," << o.marker_id << "," << o.uv_px.x() << "," << o.uv_px.y() << ","
          << o.covariance_px2(0, 0) << "," << o.covariance_px2(0, 1) << "," << o.covariance_px2(1, 1)
          << "\n";

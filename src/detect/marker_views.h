@@ -77,13 +77,10 @@ struct ObjectView {
   double px_per_mm = 0;  // the magnification used
 };
 
-// The observations of a labelled view: per labelled blob its marker id, pixel and covariance.
-struct MarkerObservation {
-  int marker_id = 0;
-  Eigen::Vector2d uv_px;
-  Eigen::Matrix2d covariance_px2;
-};
-std::vector<MarkerObservation> LabelledObservations(const ObjectView& view);
+// The observations of a labelled view in the one form every reader hands on (io/object_views.h),
+// sorted by marker id: per labelled blob its marker id, pixel, covariance plus floor^2 I and the
+// isotropic sigma of that (IsotropicSigmaPx).
+std::vector<Observation> LabelledObservations(const ObjectView& view, double sigma_floor_px = 0);
 // sqrt(lambda_max(C) + floor^2).
 double IsotropicSigmaPx(const Eigen::Matrix2d& covariance_px2, double sigma_floor_px);
 
