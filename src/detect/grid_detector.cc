@@ -9,7 +9,6 @@
 #include <chrono>
 #include <cmath>
 
-#include "io/dicom_xray.h"
 #include "io/image_files.h"
 #include "util/format.h"
 #include "util/plausible.h"
