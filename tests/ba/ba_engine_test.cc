@@ -182,6 +182,34 @@ TEST(BaCovariance, SchurEqualsCeresCovariance) {
   }
 }
 
+// The typed getters (BaResult::ViewPose, GroupIntrinsics, MarkerPosition and their covariances)
+// read the blocks they name: each value lies within 5 sigma of the truth of that view, group or
+// marker (a neighbour's block would be far off), and the joint covariance of two views equals
+// ceres::Covariance of the two pose blocks, cross-covariance included.
+TEST(BaResultAccess, TypedGettersReadTheBlocksTheyName) {
+  Solved s = SolveSmall("trivial", true);
+  ASSERT_TRUE(s.result.covariance);
+  const BaResult& r = s.result;
+  for (int v = 0; v < static_cast<int>(s.sj.true_poses.size()); ++v) {
+    const Pose6 d = r.ViewPose(v) - s.sj.true_poses[v];
+    EXPECT_LT(d.dot(r.ViewPoseCovariance(v).ldlt().solve(d)), 25.0 * 6) << "view " << v;
+  }
+  for (int m = 0; m < static_cast<int>(s.sj.true_markers.size()); ++m) {
+    const Eigen::Vector3d d = r.MarkerPosition(m) - s.sj.true_markers[m];
+    EXPECT_LT(d.dot(r.MarkerCovariance(m).ldlt().solve(d)), 25.0 * 3) << "marker " << m;
+  }
+  const std::array<double, kNumIntrinsics> K = r.GroupIntrinsics(0);
+  const Eigen::MatrixXd CK = r.GroupIntrinsicsCovariance(0);
+  for (int i : {kFx, kFy, kCx, kCy}) {
+    EXPECT_LT(std::abs(K[i] - s.sj.true_intrinsics[i]), 5 * std::sqrt(CK(i, i))) << i;
+  }
+  const Eigen::MatrixXd C = r.ViewPosesCovariance({7, 5});
+  auto ref = CeresBlockCovariance(s.sj.problem, s.options, r, r.ViewBlocks({7, 5}), "dense_svd");
+  ASSERT_TRUE(ref.ok()) << ref.status().message();
+  ExpectCovarianceEqual(C, *ref);
+  EXPECT_GT(C.topRightCorner(6, 6).norm(), 0);  // the cross-covariance is there
+}
+
 TEST(BaCovariance, CalibrationOnlyEliminatesPlatePoses) {
   SyntheticJointSpec spec = SmallSpec();
   spec.object_angles_deg.clear();
