@@ -175,8 +175,8 @@ int RunPose() {
     std::cerr << "carmba pose: warning: " << w << std::endl;
   }
   std::cout << "pose: " << problem.object_views.size() << " of " << views->size()
-            << " views labelled, RMS " << solution->rms_px << " px; wrote " << FLAGS_out
-            << "/{observations.csv,result.json,report.md,report.html} and the overlays"
+            << " views labelled, RMS " << solution->ba_result->rms_object_px << " px; wrote "
+            << FLAGS_out << "/{observations.csv,result.json,report.md,report.html} and the overlays"
             << std::endl;
   return 0;
 }

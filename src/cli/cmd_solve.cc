@@ -159,9 +159,9 @@ int RunPose(const carmba::Problem& problem,
     std::cerr << "carmba solve: warning: " << w << std::endl;
   }
   std::cout << "solved " << problem.name << " with " << config.name << ": "
-            << solution->views.size() << " views, RMS " << solution->rms_px << " px, "
-            << solution->iterations << " iterations; wrote " << FLAGS_out << "/result.json and "
-            << FLAGS_out << "/report.md (and report.html)" << std::endl;
+            << solution->views.size() << " views, RMS " << solution->ba_result->rms_object_px
+            << " px, " << solution->ba_result->iterations << " iterations; wrote " << FLAGS_out
+            << "/result.json and " << FLAGS_out << "/report.md (and report.html)" << std::endl;
   return 0;
 }
 

@@ -102,16 +102,15 @@ Status PoseSolveError(const Problem& problem, const Status& s) {
   return Status::Error(problem.path + ": " + s.message());
 }
 
-// The solution's poses, markers and statistics from the engine's result.
+// The solution's poses and markers from the engine's result, and how the front end states its
+// termination (NOT_REFINED when the config does not refine).
 std::vector<Pose6> TakePoseSolution(const Problem& problem,
                                     const SolverConfig& config,
                                     PoseSolution* sol) {
   const ba::BaResult& r = *sol->ba_result;
-  sol->iterations = r.iterations;
-  sol->initial_cost = r.initial_cost;
   sol->termination = config.refine ? r.termination : "NOT_REFINED";
   sol->converged = !config.refine || r.converged;
-  sol->final_cost = config.refine ? r.final_cost : sol->initial_cost;
+  sol->final_cost = config.refine ? r.final_cost : r.initial_cost;
   const size_t V = problem.object_views.size();
   std::vector<Pose6> poses(V);
   for (size_t v = 0; v < V; ++v) poses[v] = r.ViewPose(static_cast<int>(v));
@@ -119,21 +118,13 @@ std::vector<Pose6> TakePoseSolution(const Problem& problem,
   for (size_t k = 0; k < sol->ba_problem->markers.size(); ++k) {
     markers[sol->ba_problem->markers[k].id] = r.MarkerPosition(static_cast<int>(k));
   }
-  sol->chi2 = r.chi2;
-  sol->num_residuals = r.num_residuals;
   for (size_t v = 0; v < V; ++v) {  // the engine's reprojection statistics
     ViewSolution& vs = sol->views[v];
     vs.cam_from_object = poses[v];
     vs.rms_px = r.views[v].rms_px;
     vs.initial_rms_px = r.initial_view_rms_px.at(v);
   }
-  sol->rms_px = r.rms_object_px;
   sol->markers = std::move(markers);
-  sol->num_parameters = r.num_free;
-  sol->dof = r.dof;
-  sol->sigma0 = r.sigma0;
-  sol->sigma_aposteriori_px = sol->sigma0 * problem.object_sigma_px;
-  sol->chi2_p_value = r.chi2_p_value;
   return poses;
 }
 

@@ -67,24 +67,15 @@ struct PoseSolution {
   Eigen::MatrixXd joint_covariance;        // 6V x 6V, views in order
   std::map<int, Eigen::Vector3d> markers;  // refined marker positions (problem's handedness)
   bool has_covariance = false;
-  // Statistics
-  double rms_px = 0;       // per-coordinate RMS over all reprojection residuals
-  double chi2 = 0;         // sum of squared whitened residuals (incl. priors)
-  int num_residuals = 0;   // scalar residuals
-  int num_parameters = 0;  // free scalar parameters
-  int dof = 0;
-  double sigma0 = 0;                // sqrt(chi2 / dof), the a-posteriori factor
-  double sigma_aposteriori_px = 0;  // sigma0 * sigma_px
-  double chi2_p_value = 0;          // P(X > chi2) for X ~ chi2(dof)
-  // Solver
+  // The statistics (chi2, dof, sigma0, its P value, the RMS, iterations, costs) are the engine's:
+  // ba_result below. What the pose front end says differently:
   std::string config_name;
-  int iterations = 0;
   std::string termination;  // the engine's, or NOT_REFINED
   // The engine's verdict (ba::BaResult::converged); true when the config does not refine (the
   // initial poses are the answer asked for).
   bool converged = true;
-  double initial_cost = 0, final_cost = 0;
-  double time_s = 0;  // wall time of initialisation + solve + covariance
+  double final_cost = 0;  // the engine's, or its initial cost when not refined
+  double time_s = 0;      // wall time of initialisation + solve + covariance
   // Relative poses cam_b_from_cam_a with 6x6 covariances (analysis/relative_pose.h): every pair of
   // views when there are at most 10, else the validation pairs; empty without the engine's
   // covariance. Leave-one-marker-out TRE when the config asks (tre: true).

@@ -60,8 +60,9 @@ nlohmann::json PoseSolutionToJson(const Problem& problem, const PoseSolution& s)
   c.warnings = PoseWarnings(s);
   c.relative_poses = s.relative_poses;
   c.tre = s.tre;
-  c.statistics_extra = {{"rms_px", JsonNumber(s.rms_px)},
-                        {"sigma_aposteriori_px", JsonNumber(s.sigma_aposteriori_px)}};
+  c.statistics_extra = {
+      {"rms_px", JsonNumber(s.ba_result->rms_object_px)},
+      {"sigma_aposteriori_px", JsonNumber(s.ba_result->sigma0 * problem.object_sigma_px)}};
   // Where the pose front end differs: NOT_REFINED and the initial cost for refine: false, and its
   // wall time (initial poses, solve and covariance).
   c.solver_extra = {{"termination", s.termination},

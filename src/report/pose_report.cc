@@ -91,16 +91,16 @@ PoseComparison ComparePoseMethods(const Problem& problem,
   auto os = SolvePoseProblem(other, oc);
   if (os.ok()) {
     c.other_handedness = *os;
-    double this_rms = solution.rms_px;
+    double this_rms = solution.ba_result->rms_object_px;
     if (!config.refine) {
       auto refined = SolvePoseProblem(problem, oc);
-      this_rms = refined.ok() ? refined->rms_px : std::nan("");
+      this_rms = refined.ok() ? refined->ba_result->rms_object_px : std::nan("");
     }
-    if (os->rms_px * kHandednessWarnRatio < this_rms) {
+    if (os->ba_result->rms_object_px * kHandednessWarnRatio < this_rms) {
       c.handedness_warning = std::string("the ") + HandName(other.handedness) +
                              " object frame fits markedly better (RMS " +
-                             Fmt("%.3f", os->rms_px) + " px vs " + Fmt("%.3f", this_rms) +
-                             " px with " + HandName(problem.handedness) +
+                             Fmt("%.3f", os->ba_result->rms_object_px) + " px vs " +
+                             Fmt("%.3f", this_rms) + " px with " + HandName(problem.handedness) +
                              ", both after bundle adjustment): check the object frame's "
                              "handedness";
     }
@@ -143,7 +143,7 @@ nlohmann::json PoseComparisonToJson(const Problem& problem, const PoseComparison
       problem.handedness == Handedness::kMirrored ? Handedness::kAsGiven : Handedness::kMirrored;
   if (c.other_handedness) {
     j["other_handedness"] = {{"handedness", HandName(oh)},
-                             {"rms_px", c.other_handedness->rms_px},
+                             {"rms_px", c.other_handedness->ba_result->rms_object_px},
                              {"warning", c.handedness_warning}};
   } else {
     j["other_handedness"] = {{"handedness", HandName(oh)}, {"error", c.other_handedness_error}};
@@ -239,8 +239,9 @@ void PoseRmsDoc(const Problem& problem,
   std::vector<std::string> all = {"all", ""};
   if (legacy) all.push_back("");
   all.push_back("");
-  all.push_back(Fmt("%.3f", s.rms_px));
-  all.push_back(c.other_handedness ? Fmt("%.3f", c.other_handedness->rms_px) : "n/a");
+  all.push_back(Fmt("%.3f", s.ba_result->rms_object_px));
+  all.push_back(c.other_handedness ? Fmt("%.3f", c.other_handedness->ba_result->rms_object_px)
+                                   : "n/a");
   rows.push_back(all);
   std::vector<std::string> header = {"view", "markers"};
   if (legacy) header.push_back("legacy POSIT");
@@ -273,9 +274,9 @@ ReportDoc PoseReportDoc(const Problem& problem,
               Fmt("%.3f", problem.camera->params[kCy]) + " px (held fixed); pixel sigma " +
               Fmt("%.3g", problem.object_sigma_px) + " px; object frame " +
               HandName(problem.handedness),
-          "Solver: " + s.termination + " after " + std::to_string(s.iterations) + " iterations, " +
-              Fmt("%.2f", s.time_s * 1e3) + " ms; cost " + Fmt("%.4g", s.initial_cost) + " -> " +
-              Fmt("%.4g", s.final_cost)});
+          "Solver: " + s.termination + " after " + std::to_string(s.ba_result->iterations) +
+              " iterations, " + Fmt("%.2f", s.time_s * 1e3) + " ms; cost " +
+              Fmt("%.4g", s.ba_result->initial_cost) + " -> " + Fmt("%.4g", s.final_cost)});
   if (!c.handedness_warning.empty()) d.Warning(c.handedness_warning + ".");
   if (!s.converged) {
     d.Warning("the bundle adjustment did not converge (" + s.termination +
@@ -315,17 +316,19 @@ ReportDoc PoseReportDoc(const Problem& problem,
     d.Table({"view", "max abs element difference"}, rows);
   }
   d.Heading(2, "Statistics");
-  d.List({"Residuals: " + std::to_string(s.num_residuals) +
-              " (reprojection and CT prior), free parameters " + std::to_string(s.num_parameters) +
-              ", degrees of freedom " + std::to_string(s.dof),
-          "Reprojection RMS " + Fmt("%.3f", s.rms_px) + " px per coordinate; a-posteriori sigma " +
-              Fmt("%.3f", s.sigma_aposteriori_px) + " px (a-priori " +
-              Fmt("%.3f", problem.object_sigma_px) + " px, factor s0 = " + Fmt("%.3f", s.sigma0) +
+  const ba::BaResult& r = *s.ba_result;
+  d.List({"Residuals: " + std::to_string(r.num_residuals) +
+              " (reprojection and CT prior), free parameters " + std::to_string(r.num_free) +
+              ", degrees of freedom " + std::to_string(r.dof),
+          "Reprojection RMS " + Fmt("%.3f", s.ba_result->rms_object_px) +
+              " px per coordinate; a-posteriori sigma " +
+              Fmt("%.3f", r.sigma0 * problem.object_sigma_px) + " px (a-priori " +
+              Fmt("%.3f", problem.object_sigma_px) + " px, factor s0 = " + Fmt("%.3f", r.sigma0) +
               ")",
-          "Chi-square " + Fmt("%.2f", s.chi2) + " on " + std::to_string(s.dof) +
-              " dof, P(X > chi2) = " + Fmt("%.3f", s.chi2_p_value) +
-              (s.chi2_p_value < 0.01 ? " (residuals larger than the stated sigmas explain)"
-               : s.chi2_p_value > 0.99
+          "Chi-square " + Fmt("%.2f", r.chi2) + " on " + std::to_string(r.dof) +
+              " dof, P(X > chi2) = " + Fmt("%.3f", r.chi2_p_value) +
+              (r.chi2_p_value < 0.01 ? " (residuals larger than the stated sigmas explain)"
+               : r.chi2_p_value > 0.99
                    ? " (residuals smaller than the stated sigmas: sigmas too large?)"
                    : " (consistent with the stated sigmas)"),
           "Covariance: " + config.covariance_algorithm + ", " +

@@ -805,10 +805,11 @@ nlohmann::json MakeResult(const Problem& problem,
     }
   }
   if (!validation.empty()) errors["validation_deg"] = Rms(validation);
-  values["rms_px"] = JsonNumber(sol.rms_px);
-  values["iterations"] = sol.iterations;
-  values["sigma0"] = JsonNumber(sol.sigma0);
-  values["chi2_p_value"] = JsonNumber(sol.chi2_p_value);
+  const ba::BaResult& engine = *sol.ba_result;
+  values["rms_px"] = JsonNumber(engine.rms_object_px);
+  values["iterations"] = engine.iterations;
+  values["sigma0"] = JsonNumber(engine.sigma0);
+  values["chi2_p_value"] = JsonNumber(engine.chi2_p_value);
   // Reprojection residuals of the final state, px.
   nlohmann::json residuals = nlohmann::json::array();
   for (size_t v = 0; v < problem.object_views.size() && v < sol.views.size(); ++v) {

@@ -35,7 +35,7 @@ void BM_PoseOneView(benchmark::State& state) {
   for (auto _ : state) {
     auto s = SolvePoseProblem(p, c);
     if (!s.ok() || !s->has_covariance) state.SkipWithError("solve failed");
-    iterations = s.ok() ? s->iterations : -1;
+    iterations = s.ok() ? s->ba_result->iterations : -1;
     benchmark::DoNotOptimize(s);
   }
   state.counters["lm_iterations"] = iterations;

@@ -35,7 +35,7 @@ void BM_StudyBareSolve(benchmark::State& state) {
       state.SkipWithError(solution.status().message().c_str());
       return;
     }
-    benchmark::DoNotOptimize(solution->rms_px);
+    benchmark::DoNotOptimize(solution->ba_result->rms_object_px);
   }
 }
 BENCHMARK(BM_StudyBareSolve)->Unit(benchmark::kMillisecond);

@@ -85,7 +85,7 @@ TEST(PoseSolver, InitializersAndJacobiansAgree) {
         EXPECT_LT((s->views[v].cam_from_object - base->views[v].cam_from_object).norm(), 1e-5)
             << InitializerName(init) << (analytic ? " analytic" : " autodiff") << " view " << v;
       }
-      EXPECT_NEAR(s->chi2, base->chi2, 1e-8 * base->chi2);
+      EXPECT_NEAR(s->ba_result->chi2, base->ba_result->chi2, 1e-8 * base->ba_result->chi2);
     }
   }
 }
