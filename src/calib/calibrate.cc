@@ -116,7 +116,7 @@ class StagedCalibration {
     options_ = opt.ToSolverConfig().ToBaOptions();
   }
 
-  bool own_lm() const { return opt_.solver == "lm" && opt_.robust_loss == "none"; }
+  bool own_lm() const { return opt_.backend == "carmba_lm" && opt_.loss == "trivial"; }
   const std::array<double, kNumIntrinsics>& intrinsics() const { return x_; }
   const std::vector<Pose6>& poses() const { return poses_; }
 
@@ -222,10 +222,10 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
       vs.max_px = std::max(vs.max_px, pr.norm_px);
       point_ssr[pr.point_id] += e2;
       r->points[pr.point_id].num_views++;
-      const double w = opt.robust_loss == "none"
-                           ? 1.0
-                           : RobustWeight(opt.robust_loss, opt.robust_loss_scale_px / sigma_solve,
-                                          e2 / (sigma_solve * sigma_solve));
+      const double w = opt.loss == "trivial" ? 1.0
+                                             : RobustWeight(opt.loss,
+                                                            opt.loss_scale_px / sigma_solve,
+                                                            e2 / (sigma_solve * sigma_solve));
       *ssr_weighted += w * e2;
       all.push_back(pr);
     }
@@ -273,7 +273,7 @@ Status ResidualStatistics(const ObservationSet& obs,
     return a.norm_px > b.norm_px;
   };
   for (const auto& pr : all) {
-    if (pr.norm_px > opt.outlier_threshold_sigma * r->sigma_px) r->outliers.push_back(pr);
+    if (pr.norm_px > opt.outlier_sigma * r->sigma_px) r->outliers.push_back(pr);
   }
   std::sort(r->outliers.begin(), r->outliers.end(), larger);
   const size_t num_worst = std::min<size_t>(all.size(), 10);
@@ -379,13 +379,12 @@ bool CalibrationOptions::Check(std::string* error) const {
       return false;
     }
   }
-  if (robust_loss != "none" && robust_loss != "huber" && robust_loss != "cauchy") {
-    *error = "robust_loss: expected none, huber or cauchy, got '" + robust_loss + "'";
+  if (loss != "trivial" && loss != "huber" && loss != "cauchy") {
+    *error = "loss.type: expected trivial, huber or cauchy, got '" + loss + "'";
     return false;
   }
-  if (!CheckRange("robust_loss_scale_px", robust_loss_scale_px, pl::kLossScalePx, error) ||
-      !CheckRange("outlier_threshold_sigma", outlier_threshold_sigma, pl::kSigmaMultiple,
-                  error)) {
+  if (!CheckRange("loss.scale_px", loss_scale_px, pl::kLossScalePx, error) ||
+      !CheckRange("outliers.list_sigma", outlier_sigma, pl::kSigmaMultiple, error)) {
     return false;
   }
   if (pixel_sigma_px != 0 && !InRange(pixel_sigma_px, pl::kPixelSigmaPx)) {
@@ -407,8 +406,8 @@ bool CalibrationOptions::Check(std::string* error) const {
              FormatRange(pl::kDistanceMm) + ", got " + FormatCompact(uncertainty_distance_mm);
     return false;
   }
-  if (solver != "lm" && solver != "ceres") {
-    *error = "solver: expected lm or ceres, got '" + solver + "'";
+  if (backend != "carmba_lm" && backend != "ceres") {
+    *error = "backend: expected carmba_lm or ceres, got '" + backend + "'";
     return false;
   }
   if (!CheckRange("num_threads", num_threads, pl::kThreads, error)) return false;
@@ -436,21 +435,21 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
       }
     }
   }
-  // The older spelling first, then the solver config's (at most one of them is there).
-  m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &o->robust_loss);
-  m.GetInRange("robust_loss_scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
-  m.GetInRange("outlier_threshold_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
-  m.GetEnum("solver", {"lm", "ceres"}, &o->solver);
+  // The older spelling, translated (at most one of the two spellings is there).
+  std::string robust_loss = o->loss == "trivial" ? "none" : o->loss;
+  m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &robust_loss);
+  o->loss = robust_loss == "none" ? "trivial" : robust_loss;
+  m.GetInRange("robust_loss_scale_px", &o->loss_scale_px, plausible::kLossScalePx);
+  m.GetInRange("outlier_threshold_sigma", &o->outlier_sigma, plausible::kSigmaMultiple);
+  std::string solver = o->backend == "carmba_lm" ? "lm" : "ceres";
+  m.GetEnum("solver", {"lm", "ceres"}, &solver);
+  o->backend = solver == "lm" ? "carmba_lm" : "ceres";
+  // The solver config's spelling.
   YamlMap& loss = m.Map("loss");
-  std::string type = o->robust_loss == "none" ? "trivial" : o->robust_loss;
-  loss.GetEnum("type", {"trivial", "huber", "cauchy"}, &type);
-  o->robust_loss = type == "trivial" ? "none" : type;
-  loss.GetInRange("scale_px", &o->robust_loss_scale_px, plausible::kLossScalePx);
-  m.Map("outliers")
-      .GetInRange("list_sigma", &o->outlier_threshold_sigma, plausible::kSigmaMultiple);
-  std::string backend = o->solver == "lm" ? "carmba_lm" : "ceres";
-  m.GetEnum("backend", {"carmba_lm", "ceres"}, &backend);
-  o->solver = backend == "carmba_lm" ? "lm" : "ceres";
+  loss.GetEnum("type", {"trivial", "huber", "cauchy"}, &o->loss);
+  loss.GetInRange("scale_px", &o->loss_scale_px, plausible::kLossScalePx);
+  m.Map("outliers").GetInRange("list_sigma", &o->outlier_sigma, plausible::kSigmaMultiple);
+  m.GetEnum("backend", {"carmba_lm", "ceres"}, &o->backend);
   return Status::Ok();
 }
 
@@ -459,13 +458,13 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
 SolverConfig CalibrationOptions::ToSolverConfig() const {
   SolverConfig c;
   c.name = "calibration";
-  c.backend = solver == "lm" && robust_loss == "none" ? "carmba_lm" : "ceres";
-  c.loss = robust_loss == "none" ? "trivial" : robust_loss;
-  c.loss_scale_px = robust_loss_scale_px;
+  c.backend = backend == "carmba_lm" && loss == "trivial" ? "carmba_lm" : "ceres";
+  c.loss = loss;
+  c.loss_scale_px = loss_scale_px;
   c.linear_solver = "dense_schur";
   c.max_iterations = max_iterations;
   c.num_threads = num_threads;
-  c.outlier_sigma = outlier_threshold_sigma;
+  c.outlier_sigma = outlier_sigma;
   // The calibration estimates its pixel sigma itself (pixel_sigma_px: 0) or takes it as given.
   c.covariance_scale = ba::CovarianceScale::kApriori;
   c.fix = fix;
@@ -520,8 +519,8 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   r.initial_intrinsics = start->intrinsics;
   r.initial_cam_from_plate = start->cam_from_plate;
   r.free = FreeIntrinsics(opt);
-  r.robust_loss = opt.robust_loss;
-  r.robust_loss_scale_px = opt.robust_loss_scale_px;
+  r.loss = opt.loss;
+  r.loss_scale_px = opt.loss_scale_px;
   std::array<bool, kNumIntrinsics> free{};
   for (int i = 0; i < kNumIntrinsics; ++i) free[i] = r.free[i];
 

@@ -60,11 +60,13 @@ struct CalibrationOptions {
   // intrinsics (poses are still initialised from homographies).
   std::vector<double> initial_intrinsics;
 
-  // "none", "huber" or "cauchy" on each point's whitened residual norm; scale in px.
-  std::string robust_loss = "none";
-  double robust_loss_scale_px = 1.0;
+  // The solve in the solver config's vocabulary (problem/solver_config.h; the config's older
+  // spellings are translated where it is read, LoadCalibrationOptions):
+  // loss "trivial", "huber" or "cauchy" on each point's whitened residual norm; scale in px.
+  std::string loss = "trivial";
+  double loss_scale_px = 1.0;
   // Points whose residual norm exceeds this many sigmas are listed as outliers in the report.
-  double outlier_threshold_sigma = 4.0;
+  double outlier_sigma = 4.0;
 
   // Pixel noise sigma used to whiten and for the covariance; 0 = estimate from the residuals.
   double pixel_sigma_px = 0;
@@ -75,15 +77,15 @@ struct CalibrationOptions {
   double uncertainty_distance_mm = 0;
   // Threads for Ceres.
   int num_threads = 1;
-  // "lm": carmba's Schur-complement Levenberg-Marquardt (plain least squares; with a robust loss
-  // Ceres is used); "ceres": Ceres DENSE_SCHUR with the same cost.
-  std::string solver = "lm";
+  // "carmba_lm": carmba's Schur-complement Levenberg-Marquardt (plain least squares; with a robust
+  // loss Ceres is used); "ceres": Ceres DENSE_SCHUR with the same cost.
+  std::string backend = "carmba_lm";
 
   bool Check(std::string* error) const;
   // The solve as a solver config (problem/solver_config.h), whose ToBaOptions() is the one mapping
-  // of every problem kind onto the engine's options: backend carmba_lm (solver: lm without a
-  // robust loss) or ceres, the loss, the outlier listing, iterations, threads, the a-priori
-  // covariance scale (the calibration scales by its own pixel sigma).
+  // of every problem kind onto the engine's options: backend carmba_lm (without a robust loss) or
+  // ceres, the loss, the outlier listing, iterations, threads, the a-priori covariance scale (the
+  // calibration scales by its own pixel sigma).
   SolverConfig ToSolverConfig() const;
 };
 
@@ -91,7 +93,8 @@ struct CalibrationOptions {
 // errors. `detection` and other top-level maps are left to their readers via `other_keys`. The
 // loss, the outlier listing and the back end are also read in the solver config's vocabulary:
 // loss: {type: trivial | huber | cauchy, scale_px}, outliers: {list_sigma}, backend:
-// carmba_lm | ceres (robust_loss none = loss trivial, solver lm = backend carmba_lm).
+// carmba_lm | ceres; the older spelling (robust_loss none | huber | cauchy, robust_loss_scale_px,
+// outlier_threshold_sigma, solver lm | ceres) is translated here, once.
 Status LoadCalibrationOptions(const std::string& path,
                               CalibrationOptions* options,
                               const std::vector<std::string>& other_keys = {});
@@ -137,8 +140,8 @@ struct CalibrationResult {
   // With distortion_auto: the models compared and the one applied.
   std::optional<analysis::DistortionSelection> distortion;
   Eigen::MatrixXd intrinsics_from_free;        // A (9 x k): intrinsics = x0 + A delta
-  std::string robust_loss = "none";            // as solved (the covariance weights by it)
-  double robust_loss_scale_px = 1.0;
+  std::string loss = "trivial";                // as solved (the covariance weights by it)
+  double loss_scale_px = 1.0;
 
   double sigma_px = 0;          // the pixel sigma used for whitening and covariance
   bool sigma_estimated = false; // true if estimated from the residuals
@@ -149,7 +152,7 @@ struct CalibrationResult {
   std::vector<ViewStats> views;
   std::vector<PointStats> points;
   std::vector<PointResidual> worst;     // up to 10 largest residuals
-  std::vector<PointResidual> outliers;  // norm > outlier_threshold_sigma * sigma_px
+  std::vector<PointResidual> outliers;  // norm > outlier_sigma * sigma_px
   double uncertainty_distance_mm = 0;
   std::vector<ProjectionSigma> projection_sigma;  // centre and the four corners
 

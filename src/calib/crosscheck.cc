@@ -111,7 +111,7 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& obs,
 }
 
 nlohmann::json MrcalFreeBasis(const CalibrationResult& result) {
-  if (result.num_free_intrinsics == kNumIntrinsics || result.robust_loss != "none") return nullptr;
+  if (result.num_free_intrinsics == kNumIntrinsics || result.loss != "trivial") return nullptr;
   return JsonRows(result.intrinsics_from_free);
 }
 

@@ -29,10 +29,10 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   ASSERT_TRUE(old_spelling.ok()) << old_spelling.status().message();
   ASSERT_TRUE(new_spelling.ok()) << new_spelling.status().message();
   for (const CalibrationOptions* o : {&*old_spelling, &*new_spelling}) {
-    EXPECT_EQ(o->robust_loss, "cauchy");
-    EXPECT_EQ(o->robust_loss_scale_px, 2.5);
-    EXPECT_EQ(o->outlier_threshold_sigma, 3);
-    EXPECT_EQ(o->solver, "ceres");
+    EXPECT_EQ(o->loss, "cauchy");
+    EXPECT_EQ(o->loss_scale_px, 2.5);
+    EXPECT_EQ(o->outlier_sigma, 3);
+    EXPECT_EQ(o->backend, "ceres");
   }
   const ba::BaOptions a = old_spelling->ToSolverConfig().ToBaOptions();
   const ba::BaOptions b = new_spelling->ToSolverConfig().ToBaOptions();
@@ -45,8 +45,8 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   // trivial = none; carmba_lm = lm; the defaults are carmba's LM without a loss.
   auto plain = Read("loss: {type: trivial}\nbackend: carmba_lm\n");
   ASSERT_TRUE(plain.ok()) << plain.status().message();
-  EXPECT_EQ(plain->robust_loss, "none");
-  EXPECT_EQ(plain->solver, "lm");
+  EXPECT_EQ(plain->loss, "trivial");
+  EXPECT_EQ(plain->backend, "carmba_lm");
   const ba::BaOptions p = plain->ToSolverConfig().ToBaOptions();
   EXPECT_EQ(p.backend, "carmba_lm");
   EXPECT_EQ(p.loss, "trivial");

@@ -190,7 +190,7 @@ TEST(CalibrateTest, OwnLmAndCeresReachTheSameOptimum) {
   so.seed = 17;
   const ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   CalibrationOptions a, b;
-  b.solver = "ceres";
+  b.backend = "ceres";
   auto ra = Calibrate(obs, a);
   auto rb = Calibrate(obs, b);
   ASSERT_TRUE(ra.ok() && rb.ok());
@@ -238,8 +238,8 @@ TEST(CalibrateTest, RobustLossFlagsAnOutlier) {
   ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   obs.views[4].uv_px[7] += Eigen::Vector2d(6.0, -4.0);
   CalibrationOptions opt;
-  opt.robust_loss = "cauchy";
-  opt.robust_loss_scale_px = 1.0;
+  opt.loss = "cauchy";
+  opt.loss_scale_px = 1.0;
   auto r = Calibrate(obs, opt);
   ASSERT_TRUE(r.ok()) << r.status().message();
   ASSERT_FALSE(r->outliers.empty());
