@@ -27,6 +27,23 @@ bool TriangulationOptions::Check(std::string* error) const {
 
 namespace {
 
+// X projected into view `view` at the solution: the pixel and, when `Jp` is given, d uv / d X
+// (2 x 3, row-major). False when X lies behind the view's source.
+bool ProjectIntoView(const ba::BaProblem& problem,
+                     const ba::BaResult& result,
+                     int view,
+                     const Eigen::Vector3d& X,
+                     double* uv,
+                     double* Jp = nullptr) {
+  return ProjectPointWithJac(result.GroupIntrinsics(problem.views[view].group).data(),
+                             result.ViewPose(view).data(),
+                             X.data(),
+                             uv,
+                             nullptr,
+                             nullptr,
+                             Jp);
+}
+
 // Each observation's ray in the object frame: origin = the source -R^T t, direction
 // R^T (x, y, 1) normalised. Errors name the view that cannot give one.
 Status ObjectRays(const ba::BaProblem& problem,
@@ -118,13 +135,7 @@ Status PointNormalEquations(const ba::BaProblem& problem,
   for (const auto& o : obs) {
     const ba::BaView& v = problem.views[o.view];
     double uv[2], Jp[6];
-    if (!ProjectPointWithJac(result.GroupIntrinsics(v.group).data(),
-                             result.ViewPose(o.view).data(),
-                             p.data(),
-                             uv,
-                             nullptr,
-                             nullptr,
-                             Jp)) {
+    if (!ProjectIntoView(problem, result, o.view, p, uv, Jp)) {
       return Status::Error("the rays meet behind the source of view '" + v.id + "'");
     }
     const Eigen::Matrix<double, 2, 3> J =
@@ -331,15 +342,8 @@ std::pair<Eigen::Vector2d, double> PixelResidual(const ba::BaProblem& problem,
                                                   const ba::BaResult& result,
                                                   const PixelObservation& o,
                                                   const Eigen::Vector3d& X) {
-  const ba::BaView& v = problem.views[o.view];
   double uv[2];
-  if (!ProjectPointWithJac(result.GroupIntrinsics(v.group).data(),
-                           result.ViewPose(o.view).data(),
-                           X.data(),
-                           uv,
-                           nullptr,
-                           nullptr,
-                           nullptr)) {
+  if (!ProjectIntoView(problem, result, o.view, X, uv)) {
     return {Eigen::Vector2d::Constant(std::nan("")), std::nan("")};
   }
   const Eigen::Vector2d r = Eigen::Vector2d(uv[0], uv[1]) - o.uv_px;
