@@ -80,13 +80,21 @@ PythonWorker::PythonWorker(const std::string& python, const std::string& preload
   posix_spawn_file_actions_adddup2(&actions, fds[1], STDIN_FILENO);
   std::string c = "-c", boot = kBootstrap, pre = preload;
   char* argv[] = {python_.data(), c.data(), boot.data(), pre.data(), nullptr};
+  // The child starts with no signal blocked: it would inherit the mask of the section below.
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t none;
+  sigemptyset(&none);
+  posix_spawnattr_setsigmask(&attr, &none);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK);
   pid_t pid = -1;
   int rc = 0;
   {
     const SignalCriticalSection spawning;  // a SIGTERM now must find the child registered
-    rc = ::posix_spawnp(&pid, python_.c_str(), &actions, nullptr, argv, environ);
+    rc = ::posix_spawnp(&pid, python_.c_str(), &actions, &attr, argv, environ);
     if (rc == 0) child_slot_ = RegisterChildProcess(pid);
   }
+  posix_spawnattr_destroy(&attr);
   posix_spawn_file_actions_destroy(&actions);
   ::close(fds[1]);
   if (rc != 0) {

@@ -60,6 +60,20 @@ TEST_F(PythonWorkerTest, RunsTheScriptAsMainWithItsArgumentsAndExitCode) {
   EXPECT_GT(w.seconds(), 0);
 }
 
+// The interpreter is spawned while SIGINT and SIGTERM are blocked in carmba's thread (util/
+// temp_paths.h SignalCriticalSection, so that a signal finds it registered); it must not inherit
+// that mask, or it would ignore both.
+TEST_F(PythonWorkerTest, TheInterpreterStartsWithNoSignalBlocked) {
+  PythonWorker w(kPython, "");
+  const std::string script = Script(
+      "import signal\n"
+      "blocked = signal.pthread_sigmask(signal.SIG_BLOCK, [])\n"
+      "print(signal.SIGINT in blocked, signal.SIGTERM in blocked)\n");
+  ASSERT_TRUE(w.Start(script, {}, File("out.txt"), File("err.txt")));
+  EXPECT_EQ(w.Wait(), 0) << Slurp(File("err.txt"));
+  EXPECT_EQ(Slurp(File("out.txt")), "False False\n");
+}
+
 TEST_F(PythonWorkerTest, AnUncaughtExceptionExitsOneWithItsTraceback) {
   PythonWorker w(kPython, "");
   ASSERT_TRUE(w.Start(Script("raise ValueError('boom')\n"), {}, File("out.txt"), File("err.txt")));
