@@ -308,8 +308,13 @@ class Decoder {
     }
     if (pid == 0) {
       // A failed assertion or a crash in a codec ends the decoder only, without the handlers
-      // the parent may have (a sanitizer's, a fuzzer's).
+      // the parent may have (a sanitizer's, a fuzzer's). SIGINT and SIGTERM, unless ignored, end
+      // it too: the parent's handler (util/temp_paths.h) would remove the parent's temporary
+      // paths and kill its children from the decoder.
       for (int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) ::signal(sig, SIG_DFL);
+      for (int sig : {SIGINT, SIGTERM}) {
+        if (::signal(sig, SIG_DFL) == SIG_IGN) ::signal(sig, SIG_IGN);
+      }
       ::close(sv[0]);
       const int null_fd = ::open("/dev/null", O_WRONLY);
       if (null_fd >= 0) ::dup2(null_fd, 2);  // GDCM's and the codecs' messages
