@@ -52,7 +52,7 @@ void RemoveRegisteredTempPaths();
 // take the signal, waits for it to end (at most 5 s). Without it a signal arriving there found the
 // new path or child unregistered: glibc's posix_spawn holds signals back until the child has
 // started, so a SIGTERM sent meanwhile arrived exactly between the spawn and the registration, and
-// the interpreter outlived carmba (6 of 78 runs of TempPaths.SigtermDuringTheMrcalStep... under
+// the interpreter outlived carmba (6 of 90 runs of TempPaths.SigtermDuringTheMrcalStep... under
 // load). Scopes nest; the previous signal mask is restored at the end.
 class SignalCriticalSection {
  public:
