@@ -28,14 +28,7 @@ Pose6 RelativePoseWithJacobian(const Pose6& pose_a,
 }
 
 RelativePoseEstimate EstimateRelativePose(const ba::BaResult& result, int view_a, int view_b) {
-  RelativePoseEstimate e =
-      EstimateRelativePose(result.ViewPose(view_a),
-                           result.ViewPose(view_b),
-                           result.ViewPosesCovariance({view_a, view_b}),  // scaled
-                           result.ViewPosesCalibrationCovariance({view_a, view_b}));
-  e.view_a = view_a;
-  e.view_b = view_b;
-  return e;
+  return EstimateRelativePoses(result, {{view_a, view_b}}).front();
 }
 
 RelativePoseEstimate EstimateRelativePose(const Pose6& pa,
@@ -91,8 +84,10 @@ std::vector<RelativePoseEstimate> EstimateRelativePoses(
   }
   std::vector<RelativePoseEstimate> out;
   if (pairs.empty()) return out;
-  const Eigen::MatrixXd C_cal = result.ViewPosesCalibrationCovariance(views);
-  const Eigen::MatrixXd C = result.ViewPosesCovariance(views);  // scaled
+  // The two parts of BaResult::Covariance, the calibration's computed once.
+  const std::vector<int> blocks = result.ViewBlocks(views);
+  const Eigen::MatrixXd C_cal = result.CalibrationCovariance(blocks);
+  const Eigen::MatrixXd C = result.ObservationCovariance(blocks) + C_cal;  // scaled
   for (const auto& [a, b] : pairs) {
     Eigen::Matrix<double, 12, 12> Cab, Cab_cal;
     const int s[2] = {slot.at(a), slot.at(b)};

@@ -190,9 +190,6 @@ struct BaResult {
   Eigen::MatrixXd ViewPosesCovariance(const std::vector<int>& views) const {
     return Covariance(ViewBlocks(views));
   }
-  Eigen::MatrixXd ViewPosesCalibrationCovariance(const std::vector<int>& views) const {
-    return CalibrationCovariance(ViewBlocks(views));
-  }
   std::vector<int> ViewBlocks(const std::vector<int>& views) const {
     std::vector<int> blocks;
     for (int v : views) blocks.push_back(layout->view_block(v));

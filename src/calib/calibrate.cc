@@ -436,6 +436,8 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
     }
   }
   // The older spelling, translated (at most one of the two spellings is there).
+  // Every key is asked for whether or not it is there: the readers' key lists are checked
+  // against formats.md (DocsFormats).
   std::string robust_loss = o->loss == "trivial" ? "none" : o->loss;
   m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &robust_loss);
   o->loss = robust_loss == "none" ? "trivial" : robust_loss;
