@@ -24,7 +24,13 @@
 //                                  diameter long; or two pieces of
 //                                  one candidate whose centres are closer than merge_distance x D
 //                                  (both flagged). A merged blob is never used: its centroid is
-//                                  neither marker's;
+//                                  neither marker's. A piece so judged that is not stretched is
+//                                  judged again on its own surroundings: its region above half
+//                                  way from the median contrast on a ring 1-1.6 D about it to its
+//                                  own peak, with only neighbours standing half the peak
+//                                  threshold above their own surroundings. A marker on a plateau
+//                                  of anatomy narrower than the flat field (the real-CT recall
+//                                  scenes' sinuses and bone) is then one marker, not "merged";
 //        "field-of-view border"  the blob's disc reaches the mask border;
 //        "refinement failed"     no centroid, or the centroid moved by more than max(1.5 px, D/4)
 //                                  from the piece's centre (pulled by an edge in its ring).
