@@ -93,7 +93,7 @@ Status CheckCalibrationInput(const ObservationSet& obs, const CalibrationOptions
 // aspect ratio is held.
 std::vector<bool> FreeIntrinsics(const CalibrationOptions& opt) {
   std::vector<bool> free(kNumIntrinsics, true);
-  for (const auto& n : opt.fix) free[IntrinsicIndexOf(n)] = false;
+  for (const auto& n : opt.solve.fix) free[IntrinsicIndexOf(n)] = false;
   if (opt.fix_principal_point) free[kCx] = free[kCy] = false;
   if (opt.zero_tangential) free[kP1] = free[kP2] = false;
   if (opt.fix_k3) free[kK3] = false;
@@ -116,7 +116,7 @@ class StagedCalibration {
     options_ = opt.ToSolverConfig().ToBaOptions();
   }
 
-  bool own_lm() const { return opt_.backend == "carmba_lm" && opt_.loss == "trivial"; }
+  bool own_lm() const { return opt_.solve.backend == "carmba_lm" && opt_.solve.loss == "trivial"; }
   const std::array<double, kNumIntrinsics>& intrinsics() const { return x_; }
   const std::vector<Pose6>& poses() const { return poses_; }
 
@@ -222,10 +222,11 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
       vs.max_px = std::max(vs.max_px, pr.norm_px);
       point_ssr[pr.point_id] += e2;
       r->points[pr.point_id].num_views++;
-      const double w = opt.loss == "trivial" ? 1.0
-                                             : RobustWeight(opt.loss,
-                                                            opt.loss_scale_px / sigma_solve,
-                                                            e2 / (sigma_solve * sigma_solve));
+      const double w = opt.solve.loss == "trivial"
+                           ? 1.0
+                           : RobustWeight(opt.solve.loss,
+                                          opt.solve.loss_scale_px / sigma_solve,
+                                          e2 / (sigma_solve * sigma_solve));
       *ssr_weighted += w * e2;
       all.push_back(pr);
     }
@@ -273,7 +274,7 @@ Status ResidualStatistics(const ObservationSet& obs,
     return a.norm_px > b.norm_px;
   };
   for (const auto& pr : all) {
-    if (pr.norm_px > opt.outlier_sigma * r->sigma_px) r->outliers.push_back(pr);
+    if (pr.norm_px > opt.solve.outlier_sigma * r->sigma_px) r->outliers.push_back(pr);
   }
   std::sort(r->outliers.begin(), r->outliers.end(), larger);
   const size_t num_worst = std::min<size_t>(all.size(), 10);
@@ -333,12 +334,26 @@ void TakeSolution(const StagedCalibration& solve,
 
 }  // namespace
 
+SolverConfig CalibrationOptions::DefaultCalibrationSolve() {
+  SolverConfig c;
+  c.name = "calibration";
+  c.backend = "carmba_lm";
+  return c;
+}
+
 bool CalibrationOptions::Check(std::string* error) const {
-  for (const auto& n : fix) {
+  if (!solve.Check(error)) return false;
+  for (const auto& n : solve.fix) {
     if (IntrinsicIndexOf(n) < 0) {
       *error = "fix: unknown intrinsic '" + n + "' (expected fx fy cx cy k1 k2 p1 p2 k3)";
       return false;
     }
+  }
+  if (solve.reject_sigma != 0) {
+    *error =
+        "outliers.reject_sigma: expected 0 (a calibration lists its outliers, "
+        "outliers.list_sigma, and does not drop them)";
+    return false;
   }
   if (!(aspect_ratio_fy_over_fx >= 0) || !std::isfinite(aspect_ratio_fy_over_fx)) {
     *error = "aspect_ratio_fy_over_fx: expected >= 0 (0 = from the initial estimate)";
@@ -355,11 +370,9 @@ bool CalibrationOptions::Check(std::string* error) const {
       return false;
     }
   }
-  if (distortion_auto) {
+  // (distortion terms in `fix` beside distortion: auto: SolverConfig::Check)
+  if (solve.distortion_auto) {
     const char* conflict = zero_tangential ? "zero_tangential" : fix_k3 ? "fix_k3" : nullptr;
-    for (const auto& n : fix) {
-      if (!conflict && IntrinsicIndexOf(n) >= kK1) conflict = "fix";
-    }
     if (conflict) {
       *error = std::string("distortion: auto chooses the distortion terms itself; remove ") +
                conflict + " (or set distortion: given)";
@@ -379,14 +392,6 @@ bool CalibrationOptions::Check(std::string* error) const {
       return false;
     }
   }
-  if (loss != "trivial" && loss != "huber" && loss != "cauchy") {
-    *error = "loss.type: expected trivial, huber or cauchy, got '" + loss + "'";
-    return false;
-  }
-  if (!CheckRange("loss.scale_px", loss_scale_px, pl::kLossScalePx, error) ||
-      !CheckRange("outliers.list_sigma", outlier_sigma, pl::kSigmaMultiple, error)) {
-    return false;
-  }
   if (pixel_sigma_px != 0 && !InRange(pixel_sigma_px, pl::kPixelSigmaPx)) {
     *error = "pixel_sigma_px: expected 0 (estimate) or " + FormatRange(pl::kPixelSigmaPx) +
              ", got " + FormatCompact(pixel_sigma_px);
@@ -396,21 +401,15 @@ bool CalibrationOptions::Check(std::string* error) const {
     *error = "min_views: expected >= 1";
     return false;
   }
-  if (max_iterations < 1) {
+  if (solve.max_iterations < 1) {
     *error = "max_iterations: expected >= 1";
     return false;
   }
-  if (!CheckRange("max_iterations", max_iterations, pl::kMaxIterations, error)) return false;
   if (uncertainty_distance_mm != 0 && !InRange(uncertainty_distance_mm, pl::kDistanceMm)) {
     *error = "uncertainty_distance_mm: expected 0 (the median plate distance) or " +
              FormatRange(pl::kDistanceMm) + ", got " + FormatCompact(uncertainty_distance_mm);
     return false;
   }
-  if (backend != "carmba_lm" && backend != "ceres") {
-    *error = "backend: expected carmba_lm or ceres, got '" + backend + "'";
-    return false;
-  }
-  if (!CheckRange("num_threads", num_threads, pl::kThreads, error)) return false;
   return true;
 }
 
@@ -435,42 +434,31 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
       }
     }
   }
+  SolverConfig& c = o->solve;
   // The older spelling, translated (at most one of the two spellings is there).
   // Every key is asked for whether or not it is there: the readers' key lists are checked
   // against formats.md (DocsFormats).
-  std::string robust_loss = o->loss == "trivial" ? "none" : o->loss;
+  std::string robust_loss = c.loss == "trivial" ? "none" : c.loss;
   m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &robust_loss);
-  o->loss = robust_loss == "none" ? "trivial" : robust_loss;
-  m.GetInRange("robust_loss_scale_px", &o->loss_scale_px, plausible::kLossScalePx);
-  m.GetInRange("outlier_threshold_sigma", &o->outlier_sigma, plausible::kSigmaMultiple);
-  std::string solver = o->backend == "carmba_lm" ? "lm" : "ceres";
+  c.loss = robust_loss == "none" ? "trivial" : robust_loss;
+  m.GetInRange("robust_loss_scale_px", &c.loss_scale_px, plausible::kLossScalePx);
+  m.GetInRange("outlier_threshold_sigma", &c.outlier_sigma, plausible::kSigmaMultiple);
+  std::string solver = c.backend == "carmba_lm" ? "lm" : "ceres";
   m.GetEnum("solver", {"lm", "ceres"}, &solver);
-  o->backend = solver == "lm" ? "carmba_lm" : "ceres";
-  // The solver config's spelling.
-  YamlMap& loss = m.Map("loss");
-  loss.GetEnum("type", {"trivial", "huber", "cauchy"}, &o->loss);
-  loss.GetInRange("scale_px", &o->loss_scale_px, plausible::kLossScalePx);
-  m.Map("outliers").GetInRange("list_sigma", &o->outlier_sigma, plausible::kSigmaMultiple);
-  m.GetEnum("backend", {"carmba_lm", "ceres"}, &o->backend);
+  c.backend = solver == "lm" ? "carmba_lm" : "ceres";
+  // The solver config's spelling, read by the solver config's reader.
+  ReadSolveKeys(m, &c);
   return Status::Ok();
 }
 
 }  // namespace
 
 SolverConfig CalibrationOptions::ToSolverConfig() const {
-  SolverConfig c;
-  c.name = "calibration";
-  c.backend = backend == "carmba_lm" && loss == "trivial" ? "carmba_lm" : "ceres";
-  c.loss = loss;
-  c.loss_scale_px = loss_scale_px;
+  SolverConfig c = solve;
+  c.backend = solve.backend == "carmba_lm" && solve.loss == "trivial" ? "carmba_lm" : "ceres";
   c.linear_solver = "dense_schur";
-  c.max_iterations = max_iterations;
-  c.num_threads = num_threads;
-  c.outlier_sigma = outlier_sigma;
   // The calibration estimates its pixel sigma itself (pixel_sigma_px: 0) or takes it as given.
   c.covariance_scale = ba::CovarianceScale::kApriori;
-  c.fix = fix;
-  c.distortion_auto = distortion_auto;
   return c;
 }
 
@@ -486,23 +474,17 @@ Status LoadCalibrationOptions(const std::string& path,
                            "(fix, loss, pixel_sigma_px, detection; configs/calib_*.yaml)");
     }
   }
-  m.Get("fix", &o->fix);
   m.Get("fix_aspect_ratio", &o->fix_aspect_ratio);
   m.Get("aspect_ratio_fy_over_fx", &o->aspect_ratio_fy_over_fx);
   m.Get("zero_tangential", &o->zero_tangential);
   m.Get("fix_principal_point", &o->fix_principal_point);
   m.Get("principal_point_px", &o->principal_point_px);
   m.Get("fix_k3", &o->fix_k3);
-  std::string distortion = "given";
-  m.GetEnum("distortion", {"given", "auto"}, &distortion);
-  o->distortion_auto = distortion == "auto";
   m.Get("initial_intrinsics", &o->initial_intrinsics);
   CARMBA_RETURN_IF_ERROR(ReadCalibrationSolveKeys(path, &m, o));
   m.GetNonNegative("pixel_sigma_px", &o->pixel_sigma_px);
   m.Get("min_views", &o->min_views);
-  m.GetInRange("max_iterations", &o->max_iterations, plausible::kMaxIterations);
   m.GetNonNegative("uncertainty_distance_mm", &o->uncertainty_distance_mm);
-  m.GetInRange("num_threads", &o->num_threads, plausible::kThreads);
   for (const auto& k : other_keys) {
     if (m.Has(k)) m.Raw(k);
   }
@@ -521,15 +503,15 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   r.initial_intrinsics = start->intrinsics;
   r.initial_cam_from_plate = start->cam_from_plate;
   r.free = FreeIntrinsics(opt);
-  r.loss = opt.loss;
-  r.loss_scale_px = opt.loss_scale_px;
+  r.loss = opt.solve.loss;
+  r.loss_scale_px = opt.solve.loss_scale_px;
   std::array<bool, kNumIntrinsics> free{};
   for (int i = 0; i < kNumIntrinsics; ++i) free[i] = r.free[i];
 
   const double sigma_solve = opt.pixel_sigma_px > 0 ? opt.pixel_sigma_px : 1.0;
   StagedCalibration solve(obs, opt, *start, sigma_solve);
   CARMBA_RETURN_IF_ERROR(solve.SolveCore(free));
-  if (opt.distortion_auto) {
+  if (opt.solve.distortion_auto) {
     auto selection = solve.SelectDistortion(&free);
     if (!selection.ok()) return selection.status();
     for (int i = kK1; i < kNumIntrinsics; ++i) r.free[i] = free[i];

@@ -39,8 +39,19 @@
 namespace carmba {
 
 struct CalibrationOptions {
-  // Intrinsics held at their initial values, by name (fx fy cx cy k1 k2 p1 p2 k3).
-  std::vector<std::string> fix;
+  // The solve, in the solver config's vocabulary and read by its reader (problem/solver_config.h
+  // ReadSolveKeys: loss, outliers, backend, max_iterations, num_threads, fix, distortion; the
+  // calibration config's older spellings are translated where it is read,
+  // LoadCalibrationOptions). Defaults: backend carmba_lm, the rest as a solver config's.
+  // fix: intrinsics held at their initial values, by name (fx fy cx cy k1 k2 p1 p2 k3).
+  // distortion_auto: the distortion terms chosen by the data (k1 k2 | + p1 p2 | + k3 | all;
+  // analysis/lens_models.h), the others held at 0; excludes zero_tangential, fix_k3 and
+  // distortion names in `fix`. loss: trivial, huber, cauchy or soft_l1 on each point's whitened
+  // residual norm, scale in px. outlier_sigma: points whose residual norm exceeds this many
+  // sigmas are listed as outliers in the report (the calibration does not drop them:
+  // reject_sigma must be 0). backend: carmba_lm, carmba's Schur-complement Levenberg-Marquardt
+  // (plain least squares; with a robust loss Ceres is used), or ceres (DENSE_SCHUR, same cost).
+  SolverConfig solve = DefaultCalibrationSolve();
   // fy = aspect_ratio_fy_over_fx * fx. The ratio: the given one, or (when 0) the closed-form
   // initial estimate's.
   bool fix_aspect_ratio = false;
@@ -52,41 +63,27 @@ struct CalibrationOptions {
   std::vector<double> principal_point_px;
   // k3 = 0, held.
   bool fix_k3 = false;
-  // The distortion terms chosen by the data (k1 k2 | + p1 p2 | + k3 | all; analysis/lens_models.h),
-  // the others held at 0; excludes zero_tangential, fix_k3 and distortion names in `fix`. Config
-  // key `distortion: auto | given` (given: the flags above decide).
-  bool distortion_auto = false;
   // Optional full initial intrinsics (9 values), replacing the closed-form initialisation of the
   // intrinsics (poses are still initialised from homographies).
   std::vector<double> initial_intrinsics;
-
-  // The solve in the solver config's vocabulary (problem/solver_config.h; the config's older
-  // spellings are translated where it is read, LoadCalibrationOptions):
-  // loss "trivial", "huber" or "cauchy" on each point's whitened residual norm; scale in px.
-  std::string loss = "trivial";
-  double loss_scale_px = 1.0;
-  // Points whose residual norm exceeds this many sigmas are listed as outliers in the report.
-  double outlier_sigma = 4.0;
 
   // Pixel noise sigma used to whiten and for the covariance; 0 = estimate from the residuals.
   double pixel_sigma_px = 0;
   // Calibration fails if fewer views remain.
   int min_views = 3;
-  int max_iterations = 100;
   // Distance (mm, along the ray) for the projection uncertainty; 0 = the median plate distance.
   double uncertainty_distance_mm = 0;
-  // Threads for Ceres.
-  int num_threads = 1;
-  // "carmba_lm": carmba's Schur-complement Levenberg-Marquardt (plain least squares; with a robust
-  // loss Ceres is used); "ceres": Ceres DENSE_SCHUR with the same cost.
-  std::string backend = "carmba_lm";
 
+  // The solve's checks (SolverConfig::Check) and the calibration's own.
   bool Check(std::string* error) const;
-  // The solve as a solver config (problem/solver_config.h), whose ToBaOptions() is the one mapping
-  // of every problem kind onto the engine's options: backend carmba_lm (without a robust loss) or
-  // ceres, the loss, the outlier listing, iterations, threads, the a-priori covariance scale (the
-  // calibration scales by its own pixel sigma).
+  // The solve as the engine runs it: `solve` with backend carmba_lm only without a robust loss
+  // (ceres otherwise), Ceres's DENSE_SCHUR, the a-priori covariance scale (the calibration scales
+  // by its own pixel sigma). Its ToBaOptions() is the one mapping of every problem kind onto the
+  // engine's options.
   SolverConfig ToSolverConfig() const;
+
+ private:
+  static SolverConfig DefaultCalibrationSolve();
 };
 
 // Reads a calibration config (YAML, top-level keys = the field names above). Unknown keys are

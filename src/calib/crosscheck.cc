@@ -45,7 +45,7 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& obs,
   if (opt.fix_principal_point) add(cv::CALIB_FIX_PRINCIPAL_POINT, "FIX_PRINCIPAL_POINT");
   if (opt.fix_k3) add(cv::CALIB_FIX_K3, "FIX_K3");
   bool fx = false, fy = false, p1 = false, p2 = false, cx = false, cy = false;
-  for (const auto& n : opt.fix) {
+  for (const auto& n : opt.solve.fix) {
     if (n == "fx") fx = true;
     if (n == "fy") fy = true;
     if (n == "cx") cx = true;

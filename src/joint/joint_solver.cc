@@ -223,10 +223,10 @@ StatusOr<ba::IntrinsicsGroup> InitialGroup(const Problem& problem,
     sub.height = problem.plate.height;
     for (int v : groups.plate_views[g]) sub.views.push_back(problem.plate.views[v]);
     CalibrationOptions co;
-    co.fix = config.fix;
+    co.solve.fix = config.fix;
     co.pixel_sigma_px = problem.plate_sigma_px;
     co.min_views = 1;
-    co.max_iterations = std::max(config.max_iterations, 1);
+    co.solve.max_iterations = std::max(config.max_iterations, 1);
     if (problem.camera) co.initial_intrinsics.assign(grp.initial.begin(), grp.initial.end());
     auto cal = Calibrate(sub, co);
     if (!cal.ok()) {

@@ -51,8 +51,19 @@ bool SolverConfig::Check(std::string* error) const {
       !CheckRange("gradient_tolerance", gradient_tolerance, pl::kSolverTolerance, error) ||
       !CheckRange("parameter_tolerance", parameter_tolerance, pl::kSolverTolerance, error) ||
       !CheckRange("loss.scale_px", loss_scale_px, pl::kLossScalePx, error) ||
-      !CheckRange("num_threads", num_threads, pl::kThreads, error)) {
+      !CheckRange("num_threads", num_threads, pl::kThreads, error) ||
+      !CheckRange("outliers.list_sigma", outlier_sigma, pl::kSigmaMultiple, error)) {
     return false;
+  }
+  if (loss != "trivial" && loss != "huber" && loss != "cauchy" && loss != "soft_l1") {
+    return *error = "loss.type: expected trivial, huber, cauchy or soft_l1, got '" + loss + "'",
+           false;
+  }
+  if (backend != "carmba_lm" && backend != "ceres") {
+    return *error = "backend: expected carmba_lm or ceres, got '" + backend + "'", false;
+  }
+  if (!(reject_sigma >= 0)) {
+    return *error = "outliers.reject_sigma: expected >= 0 (0: list only)", false;
   }
   if (distortion_auto) {
     for (const auto& n : fix) {
@@ -98,9 +109,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   root.GetEnum("initializer", {"legacy_posit", "posit", "epnp", "sqpnp"}, &init);
   root.Get("refine", &c.refine);
   root.GetEnum("jacobians", {"analytic", "autodiff"}, &jac);
-  YamlMap& loss = root.Map("loss");
-  loss.GetEnum("type", {"trivial", "huber", "cauchy", "soft_l1"}, &c.loss);
-  loss.GetInRange("scale_px", &c.loss_scale_px, plausible::kLossScalePx);
+  ReadSolveKeys(root, &c);
   root.GetEnum("linear_solver",
                {"dense_qr",
                 "dense_normal_cholesky",
@@ -109,7 +118,6 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
                 "sparse_normal_cholesky",
                 "iterative_schur"},
                &c.linear_solver);
-  root.GetInRange("max_iterations", &c.max_iterations, plausible::kMaxIterations);
   root.GetInRange("function_tolerance", &c.function_tolerance, plausible::kSolverTolerance);
   root.GetInRange("gradient_tolerance", &c.gradient_tolerance, plausible::kSolverTolerance);
   root.GetInRange("parameter_tolerance", &c.parameter_tolerance, plausible::kSolverTolerance);
@@ -118,23 +126,8 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   cov.GetEnum(
       "algorithm", {"schur", "dense_svd", "sparse_qr", "eigen_sparse_qr"}, &c.covariance_algorithm);
   cov.GetEnum("scale", {"per_group", "apriori", "global", "aposteriori"}, &scale);
-  root.GetInRange("num_threads", &c.num_threads, plausible::kThreads);
-  root.Get("fix", &c.fix);
-  std::string distortion = "given";
-  root.GetEnum("distortion", {"given", "auto"}, &distortion);
-  c.distortion_auto = distortion == "auto";
-  for (const auto& n : c.fix) {
-    if (std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, n) ==
-        kIntrinsicNames + kNumIntrinsics) {
-      root.Fail("fix", "'" + n + "' is not an intrinsic (fx fy cx cy k1 k2 p1 p2 k3)");
-    }
-  }
-  root.GetEnum("backend", {"ceres", "carmba_lm"}, &c.backend);
   root.Get("tre", &c.tre);
   root.Get("consider_calibration", &c.consider_calibration);
-  YamlMap& outliers = root.Map("outliers");
-  outliers.GetPositive("list_sigma", &c.outlier_sigma);
-  outliers.GetNonNegative("reject_sigma", &c.reject_sigma);
   CARMBA_RETURN_IF_ERROR(root.Finish());
   ba::ParseCovarianceScale(scale, &c.covariance_scale);
   c.analytic_jacobians = jac == "analytic";
@@ -145,6 +138,28 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   std::string err;
   if (!c.Check(&err)) return Status::Error(yaml_path + ": " + err);
   return c;
+}
+
+void ReadSolveKeys(YamlMap& root, SolverConfig* c) {
+  YamlMap& loss = root.Map("loss");
+  loss.GetEnum("type", {"trivial", "huber", "cauchy", "soft_l1"}, &c->loss);
+  loss.GetInRange("scale_px", &c->loss_scale_px, plausible::kLossScalePx);
+  root.GetInRange("max_iterations", &c->max_iterations, plausible::kMaxIterations);
+  root.GetInRange("num_threads", &c->num_threads, plausible::kThreads);
+  root.Get("fix", &c->fix);
+  for (const auto& n : c->fix) {
+    if (std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, n) ==
+        kIntrinsicNames + kNumIntrinsics) {
+      root.Fail("fix", "'" + n + "' is not an intrinsic (fx fy cx cy k1 k2 p1 p2 k3)");
+    }
+  }
+  std::string distortion = c->distortion_auto ? "auto" : "given";
+  root.GetEnum("distortion", {"given", "auto"}, &distortion);
+  c->distortion_auto = distortion == "auto";
+  root.GetEnum("backend", {"ceres", "carmba_lm"}, &c->backend);
+  YamlMap& outliers = root.Map("outliers");
+  outliers.GetInRange("list_sigma", &c->outlier_sigma, plausible::kSigmaMultiple);
+  outliers.GetNonNegative("reject_sigma", &c->reject_sigma);
 }
 
 }  // namespace carmba

@@ -39,6 +39,8 @@
 
 namespace carmba {
 
+class YamlMap;
+
 enum class Initializer { kLegacyPosit, kPosit, kEpnp, kSqpnp };
 
 struct SolverConfig {
@@ -92,6 +94,11 @@ struct SolverConfig {
 };
 
 StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path);
+
+// The keys a solver config and a calibration config share, read (and their strings converted)
+// here only: loss {type, scale_px}, max_iterations, num_threads, fix, distortion, backend,
+// outliers {list_sigma, reject_sigma}. A key that is absent keeps c's value.
+void ReadSolveKeys(YamlMap& root, SolverConfig* c);
 const char* InitializerName(Initializer i);
 
 }  // namespace carmba

@@ -47,8 +47,9 @@ void CalibrationSummaryDoc(const CalibrationRun& run, ReportDoc* doc) {
             FmtRoundTrip(r.camera.params[kFy] / r.camera.params[kFx]) + " fx";
   }
   if (held.empty()) held = "none";
-  std::string loss = "Robust loss: " + (opt.loss == "trivial" ? std::string("none") : opt.loss);
-  if (opt.loss != "trivial") loss += " (scale " + Fmt("%g", opt.loss_scale_px) + " px)";
+  std::string loss =
+      "Robust loss: " + (opt.solve.loss == "trivial" ? std::string("none") : opt.solve.loss);
+  if (opt.solve.loss != "trivial") loss += " (scale " + Fmt("%g", opt.solve.loss_scale_px) + " px)";
   d.List({"Grid: " + std::string(GridPatternName(obs.grid.pattern)) + " " +
               std::to_string(obs.grid.rows) + " x " + std::to_string(obs.grid.cols) +
               ", spacing " + Fmt("%g", obs.grid.spacing_mm) + " mm; image " +
@@ -286,7 +287,7 @@ void MrcalCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, Repo
     d.Paragraph("Not run: " + run.mrcal_error);
     return;
   }
-  const bool same_model = r.num_free_intrinsics == kNumIntrinsics && opt.loss == "trivial";
+  const bool same_model = r.num_free_intrinsics == kNumIntrinsics && opt.solve.loss == "trivial";
   const bool held = m->contains("held") && (*m)["held"].is_object();
   d.Paragraph("mrcal " + (*m)["mrcal_version"].get<std::string>() +
               " (python3-mrcal), LENSMODEL_OPENCV5, no board warp, no regularization, no "
@@ -440,8 +441,8 @@ void CalibrationPerViewDoc(const CalibrationRun& run, ReportDoc* doc) {
   }
   d.Table({"view", "point", "du px", "dv px", "norm px"}, rows);
   d.Heading(2,
-            "Outliers (> " + Fmt("%g", opt.outlier_sigma) +
-                " sigma = " + Fixed(opt.outlier_sigma * r.sigma_px) + " px)");
+            "Outliers (> " + Fmt("%g", opt.solve.outlier_sigma) +
+                " sigma = " + Fixed(opt.solve.outlier_sigma * r.sigma_px) + " px)");
   if (r.outliers.empty()) d.Paragraph("None.");
   std::vector<std::string> items;
   for (const auto& w : r.outliers) {

@@ -675,7 +675,7 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   });
   if (!options->ok()) return options->status();
   CalibrationOptions opt = options->value();
-  opt.num_threads = 1;
+  opt.solve.num_threads = 1;
   CalibrationEntry e = entry->value();
   const double nan = std::nan("");
   const double noise = run.SweepValue("pixel_noise_px", nan);

@@ -46,8 +46,8 @@ const ObservationSet& Views(int n) {
 void BM_CalibCarmba(benchmark::State& state) {
   const ObservationSet& obs = Views(static_cast<int>(state.range(0)));
   CalibrationOptions opt;
-  if (state.range(1) == 1) opt.backend = "ceres";
-  state.SetLabel(opt.backend);
+  if (state.range(1) == 1) opt.solve.backend = "ceres";
+  state.SetLabel(opt.solve.backend);
   double rms = 0, fx = 0, cx = 0;
   for (auto _ : state) {
     auto r = Calibrate(obs, opt);

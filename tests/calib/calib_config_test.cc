@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "calib/calibrate.h"
+#include "problem/solver_config.h"
 #include "scratch.h"
 
 namespace carmba {
@@ -29,10 +30,10 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   ASSERT_TRUE(old_spelling.ok()) << old_spelling.status().message();
   ASSERT_TRUE(new_spelling.ok()) << new_spelling.status().message();
   for (const CalibrationOptions* o : {&*old_spelling, &*new_spelling}) {
-    EXPECT_EQ(o->loss, "cauchy");
-    EXPECT_EQ(o->loss_scale_px, 2.5);
-    EXPECT_EQ(o->outlier_sigma, 3);
-    EXPECT_EQ(o->backend, "ceres");
+    EXPECT_EQ(o->solve.loss, "cauchy");
+    EXPECT_EQ(o->solve.loss_scale_px, 2.5);
+    EXPECT_EQ(o->solve.outlier_sigma, 3);
+    EXPECT_EQ(o->solve.backend, "ceres");
   }
   const ba::BaOptions a = old_spelling->ToSolverConfig().ToBaOptions();
   const ba::BaOptions b = new_spelling->ToSolverConfig().ToBaOptions();
@@ -45,8 +46,8 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   // trivial = none; carmba_lm = lm; the defaults are carmba's LM without a loss.
   auto plain = Read("loss: {type: trivial}\nbackend: carmba_lm\n");
   ASSERT_TRUE(plain.ok()) << plain.status().message();
-  EXPECT_EQ(plain->loss, "trivial");
-  EXPECT_EQ(plain->backend, "carmba_lm");
+  EXPECT_EQ(plain->solve.loss, "trivial");
+  EXPECT_EQ(plain->solve.backend, "carmba_lm");
   const ba::BaOptions p = plain->ToSolverConfig().ToBaOptions();
   EXPECT_EQ(p.backend, "carmba_lm");
   EXPECT_EQ(p.loss, "trivial");
@@ -56,6 +57,38 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   auto robust_lm = Read("loss: {type: huber}\nbackend: carmba_lm\n");
   ASSERT_TRUE(robust_lm.ok());
   EXPECT_EQ(robust_lm->ToSolverConfig().backend, "ceres");
+}
+
+// The keys a calibration config shares with a solver config are read by the solver config's
+// reader (ReadSolveKeys): what one accepts, the other accepts, and a value one refuses, both
+// refuse with the same message.
+TEST_F(CalibConfigVocabulary, TheSharedKeysAreTheSolverConfigs) {
+  auto soft = Read(
+      "loss: {type: soft_l1, scale_px: 0.5}\nmax_iterations: 7\nnum_threads: 2\n"
+      "fix: [k3]\n");
+  ASSERT_TRUE(soft.ok()) << soft.status().message();
+  EXPECT_EQ(soft->solve.loss, "soft_l1");
+  EXPECT_EQ(soft->solve.loss_scale_px, 0.5);
+  EXPECT_EQ(soft->solve.max_iterations, 7);
+  EXPECT_EQ(soft->solve.num_threads, 2);
+  EXPECT_EQ(soft->solve.fix, std::vector<std::string>{"k3"});
+  EXPECT_EQ(soft->ToSolverConfig().ToBaOptions().loss, "soft_l1");
+  for (const char* text :
+       {"loss: {type: l2}\n", "fix: [f]\n", "outliers: {list_sigma: 1e9}\n", "backend: lm2\n"}) {
+    auto calib = Read(text);
+    dir_.Write("s.yaml", std::string("name: s\n") + text);
+    auto solver = LoadSolverConfig(dir_.File("s.yaml"));
+    ASSERT_FALSE(calib.ok()) << text;
+    ASSERT_FALSE(solver.ok()) << text;
+    // The same message after the file name.
+    const std::string a = calib.status().message(), b = solver.status().message();
+    EXPECT_EQ(a.substr(a.find(": ")), b.substr(b.find(": "))) << a << "\n" << b;
+  }
+  // A calibration lists its outliers; dropping them is refused, naming the key.
+  auto reject = Read("outliers: {list_sigma: 4, reject_sigma: 3}\n");
+  ASSERT_FALSE(reject.ok());
+  EXPECT_NE(reject.status().message().find("outliers.reject_sigma: expected 0"), std::string::npos)
+      << reject.status().message();
 }
 
 TEST_F(CalibConfigVocabulary, BothSpellingsOfOneThingAreAnError) {

@@ -148,7 +148,7 @@ TEST(CalibrateTest, ReportedCovarianceMatchesMonteCarloDistortionHeld) {
   const ObservationSet clean = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   CalibrationOptions opt;
   opt.pixel_sigma_px = kMcNoise;
-  opt.fix = {"k1", "k2", "p1", "p2", "k3"};
+  opt.solve.fix = {"k1", "k2", "p1", "p2", "k3"};
   opt.initial_intrinsics.assign(kTruth.begin(), kTruth.end());
   std::array<double, 4> sd, rep;
   MonteCarlo(clean, opt, kTrials, kMcNoise, &sd, &rep);
@@ -190,7 +190,7 @@ TEST(CalibrateTest, OwnLmAndCeresReachTheSameOptimum) {
   so.seed = 17;
   const ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   CalibrationOptions a, b;
-  b.backend = "ceres";
+  b.solve.backend = "ceres";
   auto ra = Calibrate(obs, a);
   auto rb = Calibrate(obs, b);
   ASSERT_TRUE(ra.ok() && rb.ok());
@@ -215,7 +215,7 @@ TEST(CalibrateTest, ThesisConstraintsHold) {
   opt.aspect_ratio_fy_over_fx = 1.09375;
   opt.zero_tangential = true;
   opt.fix_principal_point = true;
-  opt.fix = {"k3"};
+  opt.solve.fix = {"k3"};
   auto r = Calibrate(obs, opt);
   ASSERT_TRUE(r.ok()) << r.status().message();
   EXPECT_DOUBLE_EQ(r->camera.params[kCx], 203.5);
@@ -238,8 +238,8 @@ TEST(CalibrateTest, RobustLossFlagsAnOutlier) {
   ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   obs.views[4].uv_px[7] += Eigen::Vector2d(6.0, -4.0);
   CalibrationOptions opt;
-  opt.loss = "cauchy";
-  opt.loss_scale_px = 1.0;
+  opt.solve.loss = "cauchy";
+  opt.solve.loss_scale_px = 1.0;
   auto r = Calibrate(obs, opt);
   ASSERT_TRUE(r.ok()) << r.status().message();
   ASSERT_FALSE(r->outliers.empty());
@@ -269,7 +269,7 @@ TEST(CalibrateTest, TooFewViewsAndBadOptions) {
   auto r = Calibrate(obs, opt);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("min_views is 3"), std::string::npos);
-  opt.fix = {"f"};
+  opt.solve.fix = {"f"};
   r = Calibrate(obs, opt);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("unknown intrinsic 'f'"), std::string::npos);
@@ -292,7 +292,7 @@ TEST(CalibrateTest, DistortionAutoChoosesTheTermsAndRefusesConflictingFlags) {
   so.seed = 61;
   const ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   CalibrationOptions opt;
-  opt.distortion_auto = true;
+  opt.solve.distortion_auto = true;
   auto r = Calibrate(obs, opt);
   ASSERT_TRUE(r.ok()) << r.status().message();
   ASSERT_TRUE(r->distortion.has_value());
@@ -319,9 +319,11 @@ TEST(CalibrateTest, DistortionAutoChoosesTheTermsAndRefusesConflictingFlags) {
   EXPECT_EQ(err, "distortion: auto chooses the distortion terms itself; remove zero_tangential "
                  "(or set distortion: given)");
   bad = opt;
-  bad.fix = {"k3"};
+  bad.solve.fix = {"k3"};
   EXPECT_FALSE(bad.Check(&err));
-  EXPECT_NE(err.find("remove fix"), std::string::npos) << err;
+  EXPECT_EQ(err,
+            "fix: 'k3' with distortion: auto (the selection decides the distortion terms: remove "
+            "it from fix, or set distortion: given)");
 }
 
 }  // namespace

@@ -102,7 +102,7 @@ std::vector<Case> Cases() {
   given_sigma.options.pixel_sigma_px = 0.3;
   cases.push_back(given_sigma);
   Case robust{"cauchy loss (Ceres path, same covariance code)", CalibrationOptions(), 16, 5};
-  robust.options.loss = "cauchy";
+  robust.options.solve.loss = "cauchy";
   cases.push_back(robust);
   return cases;
 }
@@ -203,10 +203,10 @@ TEST(SolverTest, SolutionIsTheMinimum) {
     const ObservationSet obs = Views(c.num_views, c.seed);
     auto r = Calibrate(obs, c.options);
     ASSERT_TRUE(r.ok()) << r.status().message();
-    if (c.options.loss != "trivial") continue;  // a weighted problem: GN step differs
+    if (c.options.solve.loss != "trivial") continue;  // a weighted problem: GN step differs
     EXPECT_LT(FurtherStepInSigmas(obs, *r), kMaxStepSigma);
     CalibrationOptions early = c.options;
-    early.max_iterations = 2;
+    early.solve.max_iterations = 2;
     auto r2 = Calibrate(obs, early);
     ASSERT_TRUE(r2.ok()) << r2.status().message();
     EXPECT_GT(FurtherStepInSigmas(obs, *r2), 10 * kMaxStepSigma);
