@@ -220,6 +220,16 @@ void RingNoiseFloors(const cv::Mat& image,
       image.depth() == CV_32F || image.depth() == CV_64F ? 0.0 : 1.0 / 12.0;
 }
 
+// A region's area, centre (full image: its moments are of a window at `offset`) and axes.
+void SetShape(const cv::Moments& mo, cv::Point offset, Piece* pc) {
+  pc->area = mo.m00;
+  pc->centre = cv::Point2d(mo.m10 / mo.m00 + offset.x, mo.m01 / mo.m00 + offset.y);
+  const double a = mo.mu20 / mo.m00, b = mo.mu11 / mo.m00, c = mo.mu02 / mo.m00;
+  const double disc = std::sqrt(std::max(0.0, 0.25 * (a - c) * (a - c) + b * b));
+  pc->major = std::sqrt(std::max(1e-12, 0.5 * (a + c) + disc));
+  pc->minor = std::sqrt(std::max(1e-12, 0.5 * (a + c) - disc));
+}
+
 // The pieces above half the component's peak, by their moments.
 std::vector<Piece> HalfPeakPieces(const cv::Mat& labels,
                                   const cv::Mat& contrast,
@@ -253,12 +263,7 @@ std::vector<Piece> HalfPeakPieces(const cv::Mat& labels,
     Piece pc;
     pc.peak_at = peaks[p].second;
     pc.height = peaks[p].first;
-    pc.area = mo.m00;
-    pc.centre = cv::Point2d(mo.m10 / mo.m00 + box.x, mo.m01 / mo.m00 + box.y);
-    const double a = mo.mu20 / mo.m00, b = mo.mu11 / mo.m00, c = mo.mu02 / mo.m00;
-    const double disc = std::sqrt(std::max(0.0, 0.25 * (a - c) * (a - c) + b * b));
-    pc.major = std::sqrt(std::max(1e-12, 0.5 * (a + c) + disc));
-    pc.minor = std::sqrt(std::max(1e-12, 0.5 * (a + c) - disc));
+    SetShape(mo, box.tl(), &pc);
     pieces.push_back(pc);
   }
   return pieces;
@@ -300,12 +305,7 @@ Piece LocalHalfPeakPiece(const cv::Mat& contrast, const Piece& coarse, const Blo
   const int k = labels.at<int>(pc.peak_at.y - box.y, pc.peak_at.x - box.x);
   const cv::Moments mo = cv::moments(labels == k, true);
   if (k == 0 || mo.m00 < 1) return pc;
-  pc.area = mo.m00;
-  pc.centre = cv::Point2d(mo.m10 / mo.m00 + box.x, mo.m01 / mo.m00 + box.y);
-  const double a = mo.mu20 / mo.m00, b = mo.mu11 / mo.m00, cc = mo.mu02 / mo.m00;
-  const double disc = std::sqrt(std::max(0.0, 0.25 * (a - cc) * (a - cc) + b * b));
-  pc.major = std::sqrt(std::max(1e-12, 0.5 * (a + cc) + disc));
-  pc.minor = std::sqrt(std::max(1e-12, 0.5 * (a + cc) - disc));
+  SetShape(mo, box.tl(), &pc);
   return pc;
 }
 

@@ -63,18 +63,19 @@ TEST(TrackCli, RealWristRadiographsTrackedWithEveryOutput) {
       c["rms_px"].get<double>(),
       c["max_spread_mm"].get<double>(),
       c["max_change_sigmas"].get<double>());
-  // Issue 22's targets that hold on this data (measured: 10 beads in the least frame, RMS 0.239 px,
-  // largest change 1.91 sigma at the noise the bundle adjustment estimates). The spread target
-  // (<= 0.1 mm) does not hold: 0.127 mm, reported, not asserted beyond 0.2 mm.
+  // Issue 22's targets that hold on this data (measured 2026-12-06 with the third body: 10 beads in
+  // the least frame, RMS 0.229 px, largest change 1.51 sigma at the noise the bundle adjustment
+  // estimates). The spread target (<= 0.1 mm) does not hold: 0.189 mm (the third body's 6.8 mm
+  // distance, sigma 0.21 mm; 0.127 mm with two bodies), reported, not asserted beyond 0.2 mm.
   EXPECT_GE(c["min_beads_per_frame"].get<int>(), 10);
   EXPECT_LE(c["rms_px"].get<double>(), 0.4);
   EXPECT_LE(c["max_change_sigmas"].get<double>(), 3.0);
   EXPECT_LE(c["max_spread_mm"].get<double>(), 0.2);
   // Why: the pixel noise at the noise the bundle adjustment estimates predicts a larger spread
-  // (0.225 mm; 0.085 mm at the detector's stated covariances, which the residuals say are
-  // sigma0 = 2.7 too small here; 0.414 / 0.195 mm before the noise correlation was measured from
-  // second differences, 2026-12-06), and the report says which verdict that is: not "a wrong
-  // match or a body that is not rigid".
+  // (0.288 mm; 0.107 mm at the detector's stated covariances, which the residuals say are
+  // sigma0 = 2.7 too small here; with two bodies 0.225 / 0.085 mm, and 0.414 / 0.195 mm before
+  // the noise correlation was measured from second differences), and the report says which
+  // verdict that is: not "a wrong match or a body that is not rigid".
   const double predicted = c["predicted_max_spread_mm"].get<double>();
   EXPECT_GE(predicted, c["max_spread_mm"].get<double>());
   const std::string report = ReadTextFile(out + "/report.md");
