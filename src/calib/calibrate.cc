@@ -26,13 +26,6 @@ double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_cloc
   return std::chrono::duration<double>(b - a).count();
 }
 
-int IntrinsicIndexOf(const std::string& name) {
-  for (int i = 0; i < kNumIntrinsics; ++i) {
-    if (name == kIntrinsicNames[i]) return i;
-  }
-  return -1;
-}
-
 // The calibration as a problem of the bundle-adjustment engine, its plate part alone
 // (ToBaPlateProblem, detect/observations.h): one intrinsics group, one plate pose per view, the
 // plate's points held at the nominal grid. Views are named by their images (by number when those
@@ -343,12 +336,6 @@ SolverConfig CalibrationOptions::DefaultCalibrationSolve() {
 
 bool CalibrationOptions::Check(std::string* error) const {
   if (!solve.Check(error)) return false;
-  for (const auto& n : solve.fix) {
-    if (IntrinsicIndexOf(n) < 0) {
-      *error = "fix: unknown intrinsic '" + n + "' (expected fx fy cx cy k1 k2 p1 p2 k3)";
-      return false;
-    }
-  }
   if (solve.reject_sigma != 0) {
     *error =
         "outliers.reject_sigma: expected 0 (a calibration lists its outliers, "

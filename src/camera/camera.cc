@@ -13,6 +13,13 @@ namespace carmba {
 const char* const kIntrinsicNames[kNumIntrinsics] = {"fx", "fy", "cx", "cy", "k1",
                                                      "k2", "p1", "p2", "k3"};
 
+int IntrinsicIndexOf(const std::string& name) {
+  for (int i = 0; i < kNumIntrinsics; ++i) {
+    if (name == kIntrinsicNames[i]) return i;
+  }
+  return -1;
+}
+
 Status Camera::Check() const {
   namespace pl = plausible;
   std::string e;

@@ -38,6 +38,8 @@ struct Camera {
 
 // "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"
 extern const char* const kIntrinsicNames[kNumIntrinsics];
+// The index of the intrinsic called `name` in kIntrinsicNames (fx fy cx cy k1 k2 p1 p2 k3), or -1.
+int IntrinsicIndexOf(const std::string& name);
 
 // Parses camera.json. Errors name the file and the key.
 StatusOr<Camera> ReadCameraJson(const std::string& path);

@@ -291,7 +291,7 @@ Piece LocalHalfPeakPiece(const cv::Mat& contrast, const Piece& coarse, const Blo
   if (ring.size() < 8) return coarse;
   std::nth_element(ring.begin(), ring.begin() + ring.size() / 2, ring.end());
   const double base = std::max(0.0f, ring[ring.size() / 2]);
-  const double peak = contrast.at<float>(coarse.peak_at);
+  const double peak = coarse.height;  // the contrast at its peak pixel (HalfPeakPieces)
   Piece pc = coarse;
   pc.height = peak - base;
   if (base <= 0 || peak <= base) return pc;

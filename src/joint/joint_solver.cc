@@ -14,13 +14,6 @@
 namespace carmba {
 namespace {
 
-int IntrinsicIndexByName(const std::string& n) {
-  for (int i = 0; i < kNumIntrinsics; ++i) {
-    if (n == kIntrinsicNames[i]) return i;
-  }
-  return -1;
-}
-
 std::string GroupOfPlateView(const Problem& p, size_t v) {
   if (!p.per_group) return "shared";
   auto it = p.group_of_view.find(p.plate_view_ids[v]);
@@ -186,7 +179,7 @@ void SetCameraPrior(const Camera& c, ba::IntrinsicsGroup* grp) {
   std::copy(c.params.begin(), c.params.end(), grp->prior.mean.begin());
   std::vector<int> names_index;
   for (size_t i = 0; i < c.covariance_names.size(); ++i) {
-    const int k = IntrinsicIndexByName(c.covariance_names[i]);
+    const int k = IntrinsicIndexOf(c.covariance_names[i]);
     if (k >= 0 && c.covariance[i][i] > 0) {
       grp->prior.indices.push_back(k);
       names_index.push_back(static_cast<int>(i));
@@ -210,7 +203,7 @@ StatusOr<ba::IntrinsicsGroup> InitialGroup(const Problem& problem,
   ba::IntrinsicsGroup grp;
   grp.name = groups.names[g];
   grp.free.fill(true);
-  for (const auto& n : config.fix) grp.free[IntrinsicIndexByName(n)] = false;
+  for (const auto& n : config.fix) grp.free[IntrinsicIndexOf(n)] = false;
   if (problem.camera) {
     std::copy(problem.camera->params.begin(), problem.camera->params.end(), grp.initial.begin());
     grp.width = problem.camera->width;

@@ -1,7 +1,6 @@
 // Reading solver configuration files (format in solver_config.h).
 #include "problem/solver_config.h"
 
-#include <algorithm>
 
 #include "camera/camera.h"
 #include "util/plausible.h"
@@ -64,6 +63,12 @@ bool SolverConfig::Check(std::string* error) const {
   }
   if (!(reject_sigma >= 0)) {
     return *error = "outliers.reject_sigma: expected >= 0 (0: list only)", false;
+  }
+  for (const auto& n : fix) {
+    if (IntrinsicIndexOf(n) < 0) {
+      return *error = "fix: unknown intrinsic '" + n + "' (expected fx fy cx cy k1 k2 p1 p2 k3)",
+             false;
+    }
   }
   if (distortion_auto) {
     for (const auto& n : fix) {
@@ -148,8 +153,7 @@ void ReadSolveKeys(YamlMap& root, SolverConfig* c) {
   root.GetInRange("num_threads", &c->num_threads, plausible::kThreads);
   root.Get("fix", &c->fix);
   for (const auto& n : c->fix) {
-    if (std::find(kIntrinsicNames, kIntrinsicNames + kNumIntrinsics, n) ==
-        kIntrinsicNames + kNumIntrinsics) {
+    if (IntrinsicIndexOf(n) < 0) {
       root.Fail("fix", "'" + n + "' is not an intrinsic (fx fy cx cy k1 k2 p1 p2 k3)");
     }
   }
