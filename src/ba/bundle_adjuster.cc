@@ -671,6 +671,14 @@ struct SolutionEvaluation {
   bool any_rejected = false;
 };
 
+// A residual block's squared norm s weighted by its loss's rho'(s) (s itself without a loss).
+double RobustlyWeighted(const ceres::LossFunction* loss, double s) {
+  if (!loss) return s;
+  double rho[3];
+  loss->Evaluate(s, rho);
+  return rho[1] * s;
+}
+
 // The residuals at `state`: chi2 and residual counts, the groups' sums, the linearisation, the
 // outliers (sorted, largest first) and the worst observation above reject_sigma when rejection
 // may still run (`may_reject`).
@@ -686,6 +694,7 @@ Status EvaluateSolution(const BaProblem& problem,
   auto lin = std::make_shared<Linearization>();
   res->outliers.clear();
   res->chi2 = 0;
+  res->robust_chi2 = 0;
   res->num_residuals = 0;
   *groups = GroupResiduals();
   ev->view_ss.assign(problem.views.size(), 0.0);
@@ -701,6 +710,7 @@ Status EvaluateSolution(const BaProblem& problem,
       return Status::Error("a residual is not finite at the solution (a point behind the source?)");
     }
     res->chi2 += r.squaredNorm();
+    res->robust_chi2 += RobustlyWeighted(bb.loss, r.squaredNorm());
     res->num_residuals += static_cast<int>(r.size()) - bb.zero_rows;
     groups->chi2[static_cast<int>(bb.group)] += r.squaredNorm();
     groups->rows[static_cast<int>(bb.group)] += static_cast<int>(r.size()) - bb.zero_rows;

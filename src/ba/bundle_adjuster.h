@@ -138,6 +138,10 @@ struct BaResult {
   // Sum of squared residuals (priors included, no loss) whitened by the STATED sigmas: the
   // test of the stated noise model, whatever covariance.scale applies.
   double chi2 = 0;
+  // chi2 with each residual block's term weighted by its robust loss there (rho'(s), the weight
+  // of iteratively reweighted least squares; 1 without a loss), at the final solve's weights:
+  // a robust fit's a-posteriori sigma is sqrt(robust_chi2 / dof) x the stated one.
+  double robust_chi2 = 0;
   int num_residuals = 0;
   int num_free = 0;
   int dof = 0;

@@ -20,8 +20,6 @@ namespace carmba {
 
 namespace {
 
-using ba::RobustWeight;
-
 double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
@@ -182,15 +180,8 @@ class StagedCalibration {
 };
 
 // Every point's residual at the solution, as the engine evaluated it (BaResult::residuals), into
-// the view and point statistics; returns them all, with the sums of squares (the weighted one by
-// the robust loss the solve used).
-std::vector<PointResidual> Residuals(const ObservationSet& obs,
-                                     const CalibrationOptions& opt,
-                                     double sigma_solve,
-                                     double* ssr,
-                                     double* ssr_weighted,
-                                     CalibrationResult* r) {
-  *ssr = 0, *ssr_weighted = 0;
+// the view and point statistics; returns them all.
+std::vector<PointResidual> Residuals(const ObservationSet& obs, CalibrationResult* r) {
   std::vector<PointResidual> all;
   r->points.resize(obs.grid.NumPoints());
   std::vector<double> point_ssr(obs.grid.NumPoints(), 0.0);
@@ -215,15 +206,8 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
       vs.max_px = std::max(vs.max_px, pr.norm_px);
       point_ssr[pr.point_id] += e2;
       r->points[pr.point_id].num_views++;
-      const double w = opt.solve.loss == "trivial"
-                           ? 1.0
-                           : RobustWeight(opt.solve.loss,
-                                          opt.solve.loss_scale_px / sigma_solve,
-                                          e2 / (sigma_solve * sigma_solve));
-      *ssr_weighted += w * e2;
       all.push_back(pr);
     }
-    *ssr += vssr;
     vs.rms_px = std::sqrt(vssr / (2.0 * vs.num_points));
     vs.tilt_deg = std::acos(std::min(1.0, std::abs(RotationOf(pose.data())(2, 2)))) * 180.0 / M_PI;
     vs.distance_mm = Eigen::Vector3d(pose[3], pose[4], pose[5]).norm();
@@ -238,28 +222,29 @@ std::vector<PointResidual> Residuals(const ObservationSet& obs,
   return all;
 }
 
-// The residual statistics: RMS, degrees of freedom, the pixel sigma (given, or estimated from
-// the residuals), the outliers and the 10 worst.
+// The residual statistics: RMS, degrees of freedom and the pixel sigma (given, or the engine's
+// a-posteriori one, by the robust loss's weights when there is one) from the engine; the
+// outliers at that sigma and the 10 worst from its residuals.
 Status ResidualStatistics(const ObservationSet& obs,
                           const CalibrationOptions& opt,
                           double sigma_solve,
                           CalibrationResult* r) {
-  double ssr = 0, ssr_weighted = 0;
-  std::vector<PointResidual> all = Residuals(obs, opt, sigma_solve, &ssr, &ssr_weighted, r);
-  const int num_parameters = 6 * static_cast<int>(obs.views.size()) + r->num_free_intrinsics;
+  std::vector<PointResidual> all = Residuals(obs, r);
+  const ba::BaResult& engine = *r->engine;
   r->num_points = static_cast<int>(all.size());
-  r->dof = 2 * r->num_points - num_parameters;
-  r->rms_px = std::sqrt(ssr / (2.0 * r->num_points));
-  r->rms_opencv_px = std::sqrt(ssr / r->num_points);
+  r->dof = engine.dof;
+  r->rms_px = engine.rms_plate_px;
+  r->rms_opencv_px = std::sqrt(2.0) * engine.rms_plate_px;
   if (opt.pixel_sigma_px > 0) {
     r->sigma_px = opt.pixel_sigma_px;
   } else {
     if (r->dof <= 0) {
-      return Status::Error("cannot estimate the pixel sigma: " + std::to_string(2 * r->num_points) +
-                           " residuals for " + std::to_string(num_parameters) +
-                           " parameters (give pixel_sigma_px or more points)");
+      return Status::Error(
+          "cannot estimate the pixel sigma: " + std::to_string(engine.num_residuals) +
+          " residuals for " + std::to_string(engine.num_free) +
+          " parameters (give pixel_sigma_px or more points)");
     }
-    r->sigma_px = std::sqrt(ssr_weighted / r->dof);
+    r->sigma_px = sigma_solve * std::sqrt(engine.robust_chi2 / r->dof);
     r->sigma_estimated = true;
   }
   // Outliers and the 10 worst, largest first (only those are sorted).

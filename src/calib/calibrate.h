@@ -15,7 +15,8 @@
 // parameters delta maps to the 9x9 covariance A Cov(delta) A^T (zero rows for fixed parameters).
 //
 // Covariance: Cov(theta) = sigma^2 (J^T J)^-1 with J the unwhitened Jacobian at the solution and
-// sigma the pixel noise (given, or estimated as sqrt(SSR / (2N - n_free))). The intrinsics block
+// sigma the pixel noise (given, or the engine's a-posteriori estimate, sqrt(SSR / (2N - n_free)),
+// with a robust loss the IRLS-weighted SSR: BaResult::robust_chi2). The intrinsics block
 // is marginal over the plate poses (the engine's Schur complement eliminates them).
 // Projection uncertainty at a pixel and a distance: mrcal's definition,
 // calib/projection_uncertainty.h.
@@ -141,10 +142,10 @@ struct CalibrationResult {
   double loss_scale_px = 1.0;
 
   double sigma_px = 0;          // the pixel sigma used for whitening and covariance
-  bool sigma_estimated = false; // true if estimated from the residuals
+  bool sigma_estimated = false;  // true if estimated from the residuals (the engine's robust_chi2)
   int num_points = 0;           // observed points (2 residuals each)
-  int dof = 0;                  // 2N - free parameters
-  double rms_px = 0;            // per-coordinate RMS, sqrt(SSR / 2N) (mrcal's figure)
+  int dof = 0;                  // 2N - free parameters (the engine's)
+  double rms_px = 0;            // per-coordinate RMS, sqrt(SSR / 2N) (mrcal's figure; the engine's)
   double rms_opencv_px = 0;     // sqrt(SSR / N) = sqrt(2) rms_px (OpenCV's returned figure)
   std::vector<ViewStats> views;
   std::vector<PointStats> points;

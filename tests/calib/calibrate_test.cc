@@ -246,6 +246,21 @@ TEST(CalibrateTest, RobustLossFlagsAnOutlier) {
   EXPECT_EQ(r->outliers[0].view, 4);
   EXPECT_EQ(r->outliers[0].point_id, 7);
   EXPECT_EQ(r->worst[0].view, 4);
+  // The pixel sigma is the engine's robust a-posteriori one: sum_i rho'(s_i) s_i over the dof
+  // (Cauchy at scale 1 px, pixel sigma 1 px while solving: rho'(s) = 1 / (1 + s)), which the
+  // outlier barely moves, where the plain chi2 would.
+  double weighted = 0;
+  for (const auto& view : r->engine->residuals) {
+    for (const auto& res : view) {
+      const double s = res.du_px * res.du_px + res.dv_px * res.dv_px;
+      weighted += s / (1.0 + s);
+    }
+  }
+  EXPECT_NEAR(r->sigma_px, std::sqrt(weighted / r->dof), 1e-12 * r->sigma_px);
+  EXPECT_EQ(r->dof, r->engine->dof);
+  EXPECT_GT(r->sigma_px, 0.2);
+  EXPECT_LT(r->sigma_px, 0.4);
+  EXPECT_GT(r->engine->sigma0, 1.2 * r->sigma_px);
 }
 
 TEST(CalibrateTest, FrontoParallelViewsAreRejected) {
