@@ -440,32 +440,39 @@ cv::Mat DrawMarkerOverlay(const ObjectView& v,
       cv::drawMarker(out, cv::Point2d(q.x(), q.y()), cyan, cv::MARKER_CROSS, 14, 1, cv::LINE_AA);
     }
   }
+  // The marks first, every one kept free of labels; then the labels, the markers' ids first.
+  LabelPlacer labels(out.size());
+  for (const RejectedBlob& b : v.detection.rejected) {
+    cv::drawMarker(out, b.uv_px, red, cv::MARKER_TILTED_CROSS, 10, 1, cv::LINE_AA);
+    labels.Reserve(cv::Rect(cv::Point(b.uv_px) - cv::Point(5, 5), cv::Size(11, 11)));
+  }
+  std::vector<size_t> order;
   for (size_t i = 0; i < v.detection.blobs.size(); ++i) {
     const MarkerBlob& b = v.detection.blobs[i];
     const int id = v.labelled ? v.marker_id_of_blob[i] : -1;
-    const double r = std::max(4.0, 0.5 * b.diameter_px + 2);
-    cv::circle(
-        out, b.uv_px, static_cast<int>(std::lround(r)), id >= 0 ? green : yellow, 1, cv::LINE_AA);
-    cv::putText(out,
-                id >= 0 ? std::to_string(id) : std::string("not a marker"),
-                b.uv_px + cv::Point2d(r + 2, -r),
-                cv::FONT_HERSHEY_SIMPLEX,
-                (id >= 0 ? 1.0 : 0.8) * scale,
-                id >= 0 ? green : yellow,
-                1,
-                cv::LINE_AA);
+    const int r = static_cast<int>(std::lround(std::max(4.0, 0.5 * b.diameter_px + 2)));
+    cv::circle(out, b.uv_px, r, id >= 0 ? green : yellow, 1, cv::LINE_AA);
+    labels.Reserve(cv::Rect(cv::Point(b.uv_px) - cv::Point(r, r), cv::Size(2 * r + 1, 2 * r + 1)));
+    order.push_back(i);
   }
-  for (const RejectedBlob& b : v.detection.rejected) {
-    cv::drawMarker(out, b.uv_px, red, cv::MARKER_TILTED_CROSS, 10, 1, cv::LINE_AA);
-    cv::putText(out,
-                b.why,
-                b.uv_px + cv::Point2d(6, 12),
-                cv::FONT_HERSHEY_SIMPLEX,
-                0.8 * scale,
-                red,
-                1,
-                cv::LINE_AA);
+  const auto id_of = [&](size_t i) { return v.labelled ? v.marker_id_of_blob[i] : -1; };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return (id_of(a) >= 0) > (id_of(b) >= 0);
+  });
+  for (size_t i : order) {
+    const MarkerBlob& b = v.detection.blobs[i];
+    const int id = id_of(i);
+    const int r = static_cast<int>(std::lround(std::max(4.0, 0.5 * b.diameter_px + 2)));
+    labels.Write(
+        &out,
+        cv::Point(b.uv_px),
+        r + 2,
+        id >= 0 ? std::to_string(id) : std::string("not a marker"),
+        {cv::FONT_HERSHEY_SIMPLEX, (id >= 0 ? 1.0 : 0.8) * scale, id >= 0 ? green : yellow, 1});
   }
+  for (const RejectedBlob& b : v.detection.rejected)
+    labels.Write(
+        &out, cv::Point(b.uv_px), 6, b.why, {cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale, red, 1});
   std::ostringstream head;
   head.precision(3);
   if (v.labelled) {

@@ -1,11 +1,12 @@
 #include "detect/overlays.h"
-#include "detect/detect_steps.h"
-
-#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
+
+#include "detect/detect_steps.h"
 
 namespace carmba {
 
@@ -31,18 +32,29 @@ cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const G
   cv::Mat out = StretchedColourImage(image);
   const double scale = std::max(0.35, std::min(out.cols, out.rows) / 1400.0);
   const cv::Scalar green(0, 200, 0), red(0, 0, 255), yellow(0, 220, 255);
+  // The marks first, every one kept free of labels; then the labels, the points' ids first.
+  LabelPlacer labels(out.size());
   for (size_t i = 0; i < d.view.uv_px.size(); ++i) {
-    const cv::Point2d p(d.view.uv_px[i].x(), d.view.uv_px[i].y());
+    const cv::Point p(cvRound(d.view.uv_px[i].x()), cvRound(d.view.uv_px[i].y()));
     cv::circle(out, p, 6, green, 1, cv::LINE_AA);
-    cv::putText(out, std::to_string(d.view.point_ids[i]), p + cv::Point2d(6, -6),
-                cv::FONT_HERSHEY_SIMPLEX, scale, green, 1, cv::LINE_AA);
+    labels.Reserve(cv::Rect(p - cv::Point(6, 6), cv::Size(13, 13)));
   }
   for (const RejectedBlob& b : d.rejected) {
     cv::drawMarker(out, b.uv_px, red, cv::MARKER_CROSS, 10, 1, cv::LINE_AA);
-    if (b.why != "no grid") {
-      cv::putText(out, b.why, b.uv_px + cv::Point2d(6, 12), cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale,
-                  red, 1, cv::LINE_AA);
-    }
+    labels.Reserve(cv::Rect(cv::Point(b.uv_px) - cv::Point(5, 5), cv::Size(11, 11)));
+  }
+  for (size_t i = 0; i < d.view.uv_px.size(); ++i) {
+    const cv::Point p(cvRound(d.view.uv_px[i].x()), cvRound(d.view.uv_px[i].y()));
+    labels.Write(&out,
+                 p,
+                 7,
+                 std::to_string(d.view.point_ids[i]),
+                 {cv::FONT_HERSHEY_SIMPLEX, scale, green, 1});
+  }
+  for (const RejectedBlob& b : d.rejected) {
+    if (b.why == "no grid") continue;
+    labels.Write(
+        &out, cv::Point(b.uv_px), 6, b.why, {cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale, red, 1});
   }
   const std::string head =
       d.found
@@ -53,6 +65,59 @@ cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const G
   cv::putText(out, head, cv::Point(4, static_cast<int>(4 + 28 * scale)), cv::FONT_HERSHEY_SIMPLEX,
               scale, d.found ? green : yellow, 1, cv::LINE_AA);
   return out;
+}
+
+std::vector<cv::Rect> LabelPlacer::LabelBoxes() const {
+  std::vector<cv::Rect> boxes;
+  for (const Taken& t : taken_)
+    if (!t.text.empty()) boxes.push_back(t.box);
+  return boxes;
+}
+
+double LabelPlacer::Covered(const cv::Rect& box) const {
+  double covered = box.area() - (box & image_).area();  // outside the picture counts too
+  for (const Taken& t : taken_) covered += (box & t.box).area();
+  return covered;
+}
+
+bool LabelPlacer::Write(
+    cv::Mat* image, cv::Point p, int gap, const std::string& text, const LabelStyle& style) {
+  int baseline = 0;
+  const cv::Size size = cv::getTextSize(text, style.font, style.scale, style.thickness, &baseline);
+  const int w = size.width, h = size.height + baseline;
+  // Boxes (top-left corner) around p, in the order they are tried.
+  const cv::Point corners[] = {{p.x + gap, p.y - gap - h},
+                               {p.x + gap, p.y + gap},
+                               {p.x - gap - w, p.y - gap - h},
+                               {p.x - gap - w, p.y + gap},
+                               {p.x + gap, p.y - h / 2},
+                               {p.x - gap - w, p.y - h / 2},
+                               {p.x - w / 2, p.y - gap - h},
+                               {p.x - w / 2, p.y + gap}};
+  cv::Rect best;
+  double least = -1;
+  for (const cv::Point& c : corners) {
+    const cv::Rect box(c, cv::Size(w, h));
+    const double covered = Covered(box);
+    if (least < 0 || covered < least) least = covered, best = box;
+    if (covered == 0) break;
+  }
+  if (least > 0) {
+    for (const Taken& t : taken_) {
+      const cv::Point d = (t.box.tl() + t.box.br()) / 2 - p;
+      if (t.text == text && std::hypot(d.x, d.y) < kSameTextReachPx) return false;
+    }
+  }
+  taken_.push_back({best, text});
+  cv::putText(*image,
+              text,
+              cv::Point(best.x, best.y + size.height),
+              style.font,
+              style.scale,
+              style.colour,
+              style.thickness,
+              cv::LINE_AA);
+  return true;
 }
 
 }  // namespace carmba

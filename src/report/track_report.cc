@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "detect/overlays.h"
 #include "geometry/rotation.h"
 #include "util/base64.h"
 #include "util/file_util.h"
@@ -179,18 +180,17 @@ cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
       if (pts.size() == 2) cv::line(out, pts[0], pts[1], cv::Scalar(255, 200, 0), 1, cv::LINE_AA);
     }
   }
+  // The marks first, every one kept free of labels; then the labels, the beads' ids first.
+  LabelPlacer labels(out.size());
+  const cv::Scalar red(0, 0, 255), green(0, 220, 0), yellow(0, 220, 255);
+  std::vector<std::pair<cv::Point, std::string>> reasons;
   for (const RejectedBlob& rb : im.detection.rejected) {
     if (rb.why == "low contrast") continue;  // thousands of them: background texture
     const cv::Point p(cvRound(rb.uv_px.x), cvRound(rb.uv_px.y));
-    cv::drawMarker(out, p, cv::Scalar(0, 0, 255), cv::MARKER_TILTED_CROSS, 9, 1);
+    cv::drawMarker(out, p, red, cv::MARKER_TILTED_CROSS, 9, 1);
+    labels.Reserve(cv::Rect(p - cv::Point(4, 4), cv::Size(9, 9)));
     // The reason's head only ("merged", not the pair fit's detail: the report has room for it).
-    cv::putText(out,
-                rb.why.substr(0, rb.why.find(" (")),
-                p + cv::Point(6, -4),
-                cv::FONT_HERSHEY_PLAIN,
-                0.9,
-                cv::Scalar(0, 0, 255),
-                1);
+    reasons.emplace_back(p, rb.why.substr(0, rb.why.find(" (")));
   }
   std::map<int, int> id_of_blob;
   for (const TrackBead& bead : r.beads) {
@@ -199,21 +199,37 @@ cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
     for (const TrackObservation& ob : cands[k].observations)
       if (ob.camera == im.camera) id_of_blob[ob.blob] = bead.id;
   }
+  struct BlobLabel {
+    cv::Point p;
+    int radius;
+    int id;  // -1: no id
+  };
+  std::vector<BlobLabel> blob_labels;
   for (size_t b = 0; b < im.detection.blobs.size(); ++b) {
     const MarkerBlob& blob = im.detection.blobs[b];
     const cv::Point p(cvRound(blob.uv_px.x), cvRound(blob.uv_px.y));
     const int radius = std::max(4, cvRound(blob.diameter_px));
     const auto it = id_of_blob.find(static_cast<int>(b));
-    if (it != id_of_blob.end()) {
-      cv::circle(out, p, radius, cv::Scalar(0, 220, 0), 1, cv::LINE_AA);
-      cv::putText(out, std::to_string(it->second), p + cv::Point(radius + 2, radius + 2),
-                  cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 220, 0), 1, cv::LINE_AA);
+    const int id = it == id_of_blob.end() ? -1 : it->second;
+    cv::circle(out, p, radius, id >= 0 ? green : yellow, 1, cv::LINE_AA);
+    labels.Reserve(
+        cv::Rect(p - cv::Point(radius, radius), cv::Size(2 * radius + 1, 2 * radius + 1)));
+    blob_labels.push_back({p, radius, id});
+  }
+  std::stable_sort(
+      blob_labels.begin(), blob_labels.end(), [](const BlobLabel& a, const BlobLabel& b) {
+        return (a.id >= 0) > (b.id >= 0);
+      });
+  for (const BlobLabel& l : blob_labels) {
+    if (l.id >= 0) {
+      labels.Write(
+          &out, l.p, l.radius + 2, std::to_string(l.id), {cv::FONT_HERSHEY_SIMPLEX, 0.5, green, 1});
     } else {
-      cv::circle(out, p, radius, cv::Scalar(0, 220, 255), 1, cv::LINE_AA);
-      cv::putText(out, "no id", p + cv::Point(radius + 2, -radius), cv::FONT_HERSHEY_PLAIN, 0.9,
-                  cv::Scalar(0, 220, 255), 1);
+      labels.Write(&out, l.p, l.radius + 2, "no id", {cv::FONT_HERSHEY_PLAIN, 0.9, yellow, 1});
     }
   }
+  for (const auto& [p, why] : reasons)
+    labels.Write(&out, p, 6, why, {cv::FONT_HERSHEY_PLAIN, 0.9, red, 1});
   const std::string title =
       "frame " + std::to_string(r.frames[im.frame].number) + ", camera " + cam.name +
       ": green = bead (id), yellow = blob without id, red = rejected (reason), "

@@ -349,5 +349,41 @@ TEST(GridDetectorTest, ObservationsCsvRoundTrip) {
       << back.status().message();
 }
 
+// Labels of one picture do not cover one another or the marks reserved: a lone label goes right
+// above its point; two close points with different texts both keep theirs, apart; a row of
+// rejected blobs along an edge with the same reason keeps the reason where there is room and
+// leaves it out where there is none.
+TEST(LabelPlacer, CrowdedLabelsDoNotCoverOneAnother) {
+  cv::Mat image(200, 300, CV_8UC3, cv::Scalar(0, 0, 0));
+  const LabelStyle style{cv::FONT_HERSHEY_PLAIN, 0.9, cv::Scalar(0, 0, 255), 1};
+  LabelPlacer lone(image.size());
+  ASSERT_TRUE(lone.Write(&image, cv::Point(100, 100), 6, "merged", style));
+  const cv::Rect box = lone.LabelBoxes().at(0);
+  EXPECT_EQ(box.x, 106);
+  EXPECT_EQ(box.y + box.height, 94);
+
+  LabelPlacer pair(image.size());
+  pair.Reserve(cv::Rect(95, 95, 11, 11));
+  ASSERT_TRUE(pair.Write(&image, cv::Point(100, 100), 6, "merged", style));
+  ASSERT_TRUE(pair.Write(&image, cv::Point(103, 101), 6, "elongated", style));
+  const std::vector<cv::Rect> two = pair.LabelBoxes();
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ((two[0] & two[1]).area(), 0);
+  EXPECT_EQ((two[1] & cv::Rect(95, 95, 11, 11)).area(), 0);
+
+  LabelPlacer edge(image.size());
+  int left_out = 0;
+  for (int k = 0; k < 16; ++k)
+    left_out += !edge.Write(&image, cv::Point(60 + 4 * k, 40 + 4 * k), 6, "merged", style);
+  const std::vector<cv::Rect> written = edge.LabelBoxes();
+  EXPECT_GE(written.size(), 4u);
+  EXPECT_GE(left_out, 1);
+  EXPECT_EQ(written.size() + left_out, 16u);
+  for (size_t a = 0; a < written.size(); ++a) {
+    for (size_t b = a + 1; b < written.size(); ++b)
+      EXPECT_EQ((written[a] & written[b]).area(), 0) << a << " " << b;
+  }
+}
+
 }  // namespace
 }  // namespace carmba
