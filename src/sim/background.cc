@@ -15,8 +15,12 @@
 
 namespace carmba::sim {
 
-StatusOr<cv::Mat> LoadBackgroundGain(
-    const std::string& path, int width, int height, double strength, double crop_fraction) {
+StatusOr<cv::Mat> LoadBackgroundGain(const std::string& path,
+                                     int width,
+                                     int height,
+                                     double strength,
+                                     double crop_fraction,
+                                     cv::Point2d crop_center) {
   if (!(strength >= 0 && strength <= 1)) {
     return Status::Error("background strength must be in [0, 1]");
   }
@@ -50,7 +54,15 @@ StatusOr<cv::Mat> LoadBackgroundGain(
   }
   const int side = static_cast<int>(std::lround(crop_fraction * std::min(frame.cols, frame.rows)));
   if (side < 2) return Status::Error(path + ": image too small for the background crop");
-  const cv::Rect roi((frame.cols - side) / 2, (frame.rows - side) / 2, side, side);
+  if (!(crop_center.x >= 0 && crop_center.x <= 1 && crop_center.y >= 0 && crop_center.y <= 1)) {
+    return Status::Error("background crop centre must be fractions in [0, 1]");
+  }
+  const auto corner = [side](double c, int n) {
+    if (c == 0.5) return (n - side) / 2;  // the frame's central square, as before the key
+    return std::clamp(static_cast<int>(std::lround(c * n - 0.5 * side)), 0, n - side);
+  };
+  const cv::Rect roi(
+      corner(crop_center.x, frame.cols), corner(crop_center.y, frame.rows), side, side);
   cv::Mat crop;
   cv::resize(frame(roi), crop, cv::Size(width, height), 0, 0, cv::INTER_AREA);
   std::vector<float> values(crop.begin<float>(), crop.end<float>());

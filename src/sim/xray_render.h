@@ -180,10 +180,16 @@ FovCircle FovOf(const Camera& camera, const RenderOptions& o);
 
 // A multiplicative background from a real X-ray frame: a DICOM file (io/dicom_xray.h: the first
 // frame, or frame N of `file.dcm#frameN`; MONOCHROME2 convention, stored values) or any image
-// OpenCV reads. The central `crop_fraction` (0 < f <= 1) of the frame's shorter side is
-// cut out, resized to width x height, normalised by its 99th percentile and mapped to
+// OpenCV reads. A square of `crop_fraction` (0 < f <= 1) of the frame's shorter side, centred at
+// `crop_center` (fractions of the frame's width and height; the square is moved inside the frame
+// where it would leave it), is cut out, resized to width x height, normalised by its 99th
+// percentile and mapped to
 //   gain = 1 - strength + strength * clamp(value, 0.02, 1).
-StatusOr<cv::Mat> LoadBackgroundGain(
-    const std::string& path, int width, int height, double strength, double crop_fraction);
+StatusOr<cv::Mat> LoadBackgroundGain(const std::string& path,
+                                     int width,
+                                     int height,
+                                     double strength,
+                                     double crop_fraction,
+                                     cv::Point2d crop_center = cv::Point2d(0.5, 0.5));
 
 }  // namespace carmba::sim

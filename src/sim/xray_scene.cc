@@ -174,6 +174,7 @@ void ParseSceneCamera(YamlMap& scene, const CarmGeometry& carm, XrayScene* s) {
 struct SceneBackground {
   std::string file;
   double strength = 0.3, crop = 1.0;
+  double crop_center[2] = {0.5, 0.5};  // of the frame's width and height
 };
 
 // The imaging chain: supersampling, dose, noise, blur, vignetting, heel effect, glare, field of
@@ -229,7 +230,11 @@ void ParseSceneImaging(YamlMap& scene, XrayScene* s, SceneBackground* bg) {
   bgm.GetPositive("crop", &bg->crop);
   if (bgm.status().ok() && bg->strength > 1) bgm.Fail("strength", "expected a value in [0, 1]");
   if (bgm.status().ok() && bg->crop > 1) bgm.Fail("crop", "expected a fraction in (0, 1]");
-
+  if (GetVec(bgm, "crop_center", 2, bg->crop_center) &&
+      !(bg->crop_center[0] >= 0 && bg->crop_center[0] <= 1 && bg->crop_center[1] >= 0 &&
+        bg->crop_center[1] <= 1)) {
+    bgm.Fail("crop_center", "expected fractions of the frame's width and height in [0, 1]");
+  }
 }
 
 // The anatomy key as read (sim/ct_anatomy.h); the CT is read after the keys are checked.
@@ -473,8 +478,12 @@ Status CheckParsedScene(YamlMap& scene,
   CARMBA_RETURN_IF_ERROR(scene.Finish());
   CARMBA_RETURN_IF_ERROR(LoadSceneAnatomy(scene, dir, anatomy, s));
   if (!bg.file.empty()) {
-    auto gain = LoadBackgroundGain(
-        JoinPath(dir, bg.file), s->camera.width, s->camera.height, bg.strength, bg.crop);
+    auto gain = LoadBackgroundGain(JoinPath(dir, bg.file),
+                                   s->camera.width,
+                                   s->camera.height,
+                                   bg.strength,
+                                   bg.crop,
+                                   cv::Point2d(bg.crop_center[0], bg.crop_center[1]));
     if (!gain.ok()) {
       return gain.status().WithContext(scene.file() + ": key 'imaging.background.file'");
     }

@@ -390,6 +390,18 @@ TEST(XrayRender, BackgroundFromRealDicomFrame) {
   EXPECT_GT(hi - lo, 0.1);  // real anatomy has contrast
   EXPECT_FALSE(LoadBackgroundGain("/nonexistent.dcm", 64, 64, 0.5, 1).ok());
   EXPECT_FALSE(LoadBackgroundGain(dcm, 64, 64, 1.5, 1).ok());
+  // Another part of the frame by its crop centre: the default is the central square; an off-centre
+  // one differs; one beyond the frame's edge takes the square at that edge; outside [0, 1] is an
+  // error.
+  auto centre = LoadBackgroundGain(dcm, 64, 64, 0.5, 0.6, cv::Point2d(0.5, 0.5));
+  auto corner = LoadBackgroundGain(dcm, 64, 64, 0.5, 0.6, cv::Point2d(0.2, 0.8));
+  auto edge = LoadBackgroundGain(dcm, 64, 64, 0.5, 0.6, cv::Point2d(0.0, 1.0));
+  auto inside = LoadBackgroundGain(dcm, 64, 64, 0.5, 0.6, cv::Point2d(0.3, 0.7));
+  ASSERT_TRUE(centre.ok() && corner.ok() && edge.ok() && inside.ok());
+  EXPECT_EQ(cv::norm(*centre, *gain, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(*corner, *gain, cv::NORM_INF), 0.05);
+  EXPECT_EQ(cv::norm(*edge, *inside, cv::NORM_INF), 0.0);  // 0.6 of the side: 0.3 is the edge
+  EXPECT_FALSE(LoadBackgroundGain(dcm, 64, 64, 0.5, 0.6, cv::Point2d(1.2, 0.5)).ok());
   // Corrupt files: one error, and nothing printed by GDCM or libpng.
   const test::ScratchDir scratch("sim_background");
   const std::string& dir = scratch.path();

@@ -202,6 +202,10 @@ TEST(XrayScene, BadScenesAreRejectedWithOneLineErrors) {
        "fov: {circular: true}\n  background: {file: /no/such.png}",
        "/no/such.png: no such file"},
       {"fov: {circular: true}",
+       "fov: {circular: true}\n  background: {file: x.png, crop_center: [0.5, 1.5]}",
+       "key 'imaging.background.crop_center': expected fractions of the frame's width and height "
+       "in [0, 1]"},
+      {"fov: {circular: true}",
        "fov: {circular: true}\n  vignetting_power: 0.1",
        "key 'imaging.vignetting_power': expected a value in [0.5, 16]"},
       {"fov: {circular: true}",
