@@ -446,29 +446,28 @@ cv::Mat DrawMarkerOverlay(const ObjectView& v,
     cv::drawMarker(out, b.uv_px, red, cv::MARKER_TILTED_CROSS, 10, 1, cv::LINE_AA);
     labels.Reserve(cv::Rect(cv::Point(b.uv_px) - cv::Point(5, 5), cv::Size(11, 11)));
   }
-  std::vector<size_t> order;
+  const auto id_of = [&](size_t i) { return v.labelled ? v.marker_id_of_blob[i] : -1; };
+  const auto radius_of = [](const MarkerBlob& b) {
+    return static_cast<int>(std::lround(std::max(4.0, 0.5 * b.diameter_px + 2)));
+  };
   for (size_t i = 0; i < v.detection.blobs.size(); ++i) {
     const MarkerBlob& b = v.detection.blobs[i];
-    const int id = v.labelled ? v.marker_id_of_blob[i] : -1;
-    const int r = static_cast<int>(std::lround(std::max(4.0, 0.5 * b.diameter_px + 2)));
-    cv::circle(out, b.uv_px, r, id >= 0 ? green : yellow, 1, cv::LINE_AA);
+    const int r = radius_of(b);
+    cv::circle(out, b.uv_px, r, id_of(i) >= 0 ? green : yellow, 1, cv::LINE_AA);
     labels.Reserve(cv::Rect(cv::Point(b.uv_px) - cv::Point(r, r), cv::Size(2 * r + 1, 2 * r + 1)));
-    order.push_back(i);
   }
-  const auto id_of = [&](size_t i) { return v.labelled ? v.marker_id_of_blob[i] : -1; };
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return (id_of(a) >= 0) > (id_of(b) >= 0);
-  });
-  for (size_t i : order) {
-    const MarkerBlob& b = v.detection.blobs[i];
-    const int id = id_of(i);
-    const int r = static_cast<int>(std::lround(std::max(4.0, 0.5 * b.diameter_px + 2)));
-    labels.Write(
-        &out,
-        cv::Point(b.uv_px),
-        r + 2,
-        id >= 0 ? std::to_string(id) : std::string("not a marker"),
-        {cv::FONT_HERSHEY_SIMPLEX, (id >= 0 ? 1.0 : 0.8) * scale, id >= 0 ? green : yellow, 1});
+  for (const bool with_id : {true, false}) {
+    for (size_t i = 0; i < v.detection.blobs.size(); ++i) {
+      const int id = id_of(i);
+      if ((id >= 0) != with_id) continue;
+      const MarkerBlob& b = v.detection.blobs[i];
+      labels.Write(
+          &out,
+          cv::Point(b.uv_px),
+          radius_of(b) + 2,
+          with_id ? std::to_string(id) : std::string("not a marker"),
+          {cv::FONT_HERSHEY_SIMPLEX, (with_id ? 1.0 : 0.8) * scale, with_id ? green : yellow, 1});
+    }
   }
   for (const RejectedBlob& b : v.detection.rejected)
     labels.Write(

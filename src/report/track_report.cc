@@ -199,33 +199,41 @@ cv::Mat DrawTrackOverlay(const TrackResult& r, size_t i) {
     for (const TrackObservation& ob : cands[k].observations)
       if (ob.camera == im.camera) id_of_blob[ob.blob] = bead.id;
   }
-  struct BlobLabel {
-    cv::Point p;
-    int radius;
-    int id;  // -1: no id
-  };
-  std::vector<BlobLabel> blob_labels;
-  for (size_t b = 0; b < im.detection.blobs.size(); ++b) {
-    const MarkerBlob& blob = im.detection.blobs[b];
-    const cv::Point p(cvRound(blob.uv_px.x), cvRound(blob.uv_px.y));
-    const int radius = std::max(4, cvRound(blob.diameter_px));
+  const auto id_of = [&](size_t b) {
     const auto it = id_of_blob.find(static_cast<int>(b));
-    const int id = it == id_of_blob.end() ? -1 : it->second;
-    cv::circle(out, p, radius, id >= 0 ? green : yellow, 1, cv::LINE_AA);
+    return it == id_of_blob.end() ? -1 : it->second;
+  };
+  const auto centre_of = [&](size_t b) {
+    return cv::Point(cvRound(im.detection.blobs[b].uv_px.x),
+                     cvRound(im.detection.blobs[b].uv_px.y));
+  };
+  const auto radius_of = [&](size_t b) {
+    return std::max(4, cvRound(im.detection.blobs[b].diameter_px));
+  };
+  for (size_t b = 0; b < im.detection.blobs.size(); ++b) {
+    const cv::Point p = centre_of(b);
+    const int radius = radius_of(b);
+    cv::circle(out, p, radius, id_of(b) >= 0 ? green : yellow, 1, cv::LINE_AA);
     labels.Reserve(
         cv::Rect(p - cv::Point(radius, radius), cv::Size(2 * radius + 1, 2 * radius + 1)));
-    blob_labels.push_back({p, radius, id});
   }
-  std::stable_sort(
-      blob_labels.begin(), blob_labels.end(), [](const BlobLabel& a, const BlobLabel& b) {
-        return (a.id >= 0) > (b.id >= 0);
-      });
-  for (const BlobLabel& l : blob_labels) {
-    if (l.id >= 0) {
-      labels.Write(
-          &out, l.p, l.radius + 2, std::to_string(l.id), {cv::FONT_HERSHEY_SIMPLEX, 0.5, green, 1});
-    } else {
-      labels.Write(&out, l.p, l.radius + 2, "no id", {cv::FONT_HERSHEY_PLAIN, 0.9, yellow, 1});
+  for (const bool with_id : {true, false}) {  // the beads' ids first
+    for (size_t b = 0; b < im.detection.blobs.size(); ++b) {
+      const int id = id_of(b);
+      if ((id >= 0) != with_id) continue;
+      if (with_id) {
+        labels.Write(&out,
+                     centre_of(b),
+                     radius_of(b) + 2,
+                     std::to_string(id),
+                     {cv::FONT_HERSHEY_SIMPLEX, 0.5, green, 1});
+      } else {
+        labels.Write(&out,
+                     centre_of(b),
+                     radius_of(b) + 2,
+                     "no id",
+                     {cv::FONT_HERSHEY_PLAIN, 0.9, yellow, 1});
+      }
     }
   }
   for (const auto& [p, why] : reasons)
