@@ -20,7 +20,7 @@ struct Range {
 // Depth (mm) of point p (the view's object or plate frame) in view v's camera.
 double Depth(const ba::BaResult& r, int v, const Eigen::Vector3d& p) {
   const Pose6 pose = r.ViewPose(v);
-  const Eigen::Matrix3d R = RotationFromRvec(pose.head<3>());
+  const Eigen::Matrix3d R = RotationOf(pose.head<3>());
   return (R * p)[2] + pose[5];
 }
 

@@ -132,8 +132,8 @@ RelativePoseError CompareRelativePose(const RelativePoseEstimate& est,
   const Eigen::Vector3d er = out.error.head<3>();
   out.rotation_mahalanobis =
       std::sqrt(std::max(0.0, er.dot(est.covariance.topLeftCorner<3, 3>().ldlt().solve(er))));
-  const Eigen::Matrix3d Re = RotationFromRvec(est.cam_b_from_cam_a.head<3>());
-  const Eigen::Matrix3d Rt = RotationFromRvec(truth.head<3>());
+  const Eigen::Matrix3d Re = RotationOf(est.cam_b_from_cam_a.head<3>());
+  const Eigen::Matrix3d Rt = RotationOf(truth.head<3>());
   out.rotation_error_deg = AngleBetweenRotations(Re, Rt) * kRadToDeg;
   const double true_angle = RelativeRotationAngle(true_a.data(), true_b.data()) * kRadToDeg;
   out.angle_error_sigma =

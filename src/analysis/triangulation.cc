@@ -83,7 +83,7 @@ Status ObjectRays(const ba::BaProblem& problem,
                            Fmt("%g", o.uv_px[1]) +
                            ") cannot be undistorted with the calibrated model");
     }
-    const Eigen::Matrix3d R = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2]));
+    const Eigen::Matrix3d R = RotationOf(Eigen::Vector3d(pose[0], pose[1], pose[2]));
     const Eigen::Vector3d t(pose[3], pose[4], pose[5]);
     origin->push_back(-R.transpose() * t);
     dir->push_back((R.transpose() * Eigen::Vector3d(xy[0], xy[1], 1.0)).normalized());

@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <cmath>
 
+#include "geometry/rotation.h"
+
 namespace carmba {
 
 bool ReprojectionError::Evaluate(double const* const* parameters,

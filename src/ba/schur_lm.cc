@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "geometry/rotation.h"
+
 namespace carmba {
 namespace ba {
 
@@ -25,13 +27,6 @@ double RobustWeight(const std::string& loss, double scale_whitened, double s) {
   double rho[3];
   l->Evaluate(s, rho);
   return rho[1];
-}
-
-// SO(3) left Jacobian of a rotation vector (camera/camera_model.h).
-Eigen::Matrix3d LeftJacobianOf(const double* rvec) {
-  double jl[9];
-  SO3LeftJacobian(rvec, jl);
-  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jl);
 }
 
 // Inverse of a symmetric positive definite 6x6 matrix by Cholesky, A = L L^T, A^-1 = L^-T L^-1;
@@ -125,7 +120,7 @@ bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
     }
   }
   // [w, t] -> [rvec, t]: the rotation rows and columns times J_l.
-  const Eigen::Matrix3d Jl = LeftJacobianOf(pose);
+  const Eigen::Matrix3d Jl = SO3LeftJacobian(pose);
   out->Hpp.topLeftCorner<3, 3>().noalias() = Jl.transpose() * Hpp.topLeftCorner<3, 3>() * Jl;
   out->Hpp.topRightCorner<3, 3>().noalias() = Jl.transpose() * Hpp.topRightCorner<3, 3>();
   out->Hpp.bottomLeftCorner<3, 3>() = out->Hpp.topRightCorner<3, 3>().transpose();

@@ -50,10 +50,6 @@ std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss,
 // Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2); "none" -> 1.
 double RobustWeight(const std::string& loss, double scale_whitened, double s);
 
-// SO(3) left Jacobian of a rotation vector (camera/camera_model.h); the rotation matrix is
-// geometry/rotation.h's RotationOf.
-Eigen::Matrix3d LeftJacobianOf(const double* rvec);
-
 // Inverse of a symmetric positive definite 6x6 matrix by Cholesky; false if a pivot is not
 // positive.
 bool InvertSpd6(const Mat6& A, Mat6* inv);

@@ -7,7 +7,7 @@
 #include <utility>
 
 #include "ba/quantities.h"
-#include "ba/schur_lm.h"  // LeftJacobianOf
+#include "geometry/rotation.h"
 
 namespace carmba {
 
@@ -44,7 +44,7 @@ bool ProjectionGradient(const ba::BaResult& e,
       const Eigen::RowVector3d w(Rp.y() * c[2] - Rp.z() * c[1], Rp.z() * c[0] - Rp.x() * c[2],
                                  Rp.x() * c[1] - Rp.y() * c[0]);
       double g[6];
-      const Eigen::RowVector3d gr = w * ba::LeftJacobianOf(pose) / num_views;
+      const Eigen::RowVector3d gr = w * SO3LeftJacobian(pose) / num_views;
       for (int k = 0; k < 3; ++k) g[k] = gr(k);
       for (int k = 0; k < 3; ++k) g[3 + k] = c[k] / num_views;
       ba::AddGradientRow(L, vb, g, row, G);

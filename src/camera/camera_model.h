@@ -84,17 +84,6 @@ bool ProjectPointWithJac(const double* intrinsics,
                          double* J_uv_pose,
                          double* J_uv_p_in_object);
 
-// Rotation matrix (row-major 3x3) of a rotation vector and the derivative of R(r) p with respect
-// to r:  d(R(r) p)/dr = -[R(r) p]_x J_l(r), with J_l the left Jacobian of SO(3)
-//   J_l(r) = I + (1 - cos t)/t^2 [r]_x + (t - sin t)/t^3 [r]_x^2,  t = |r|.
-// `J_Rp_r` (3x3 row-major) may be null.
-void RotatePointWithJac(const double* rvec, const double* p, double* Rp, double* J_Rp_r);
-
-// The left Jacobian J_l(r) (3x3 row-major): exp(r + d) ~= exp(J_l(r) d) exp(r). It maps a change
-// of the rotation vector to a small rotation of the camera frame; used to turn covariances of
-// rvec into covariances of small rotation angles.
-void SO3LeftJacobian(const double* rvec, double* J);
-
 // Undistorts a pixel: returns the normalised pinhole coordinates (x, y) = (X/Z, Y/Z) whose
 // projection is `uv`, by Gauss-Newton from the undistorted guess. Returns false if it does not
 // converge to 1e-9 px (strong distortion far outside the calibrated field).

@@ -41,8 +41,8 @@
 #include <vector>
 
 #include "camera/camera.h"
+#include "camera/carm_geometry.h"
 #include "detect/marker_blobs.h"
-#include "geometry/carm_geometry.h"
 #include "io/object_views.h"
 #include "pose/marker_correspondence.h"
 #include "util/status.h"

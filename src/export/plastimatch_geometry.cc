@@ -33,7 +33,7 @@ StatusOr<std::vector<PlastimatchProjMat>> PlastimatchFromGeometry(const Geometry
       return Status::Error("view '" + v.id + "': the CT frame is mirrored (handedness: mirrored): "
                            "plastimatch's geometry cannot carry a reflection");
     }
-    const Eigen::Matrix3d R = RotationFromRvec(v.cam_from_ct.head<3>());
+    const Eigen::Matrix3d R = RotationOf(v.cam_from_ct.head<3>());
     const Eigen::Vector3d t = v.cam_from_ct.tail<3>();
     const Eigen::Vector3d src = SourceInCt(v), axis = PrincipalAxisInCt(v);
     PlastimatchProjMat pm;

@@ -103,7 +103,7 @@ StatusOr<std::vector<RtkProjection>> RtkFromGeometry(const GeometrySet& set,
                            FormatCompact(aspect0) + "): RTK's projection stack has one pixel "
                            "spacing, which carries one fx/fy");
     }
-    const Eigen::Matrix3d R = RotationFromRvec(v.cam_from_ct.head<3>());
+    const Eigen::Matrix3d R = RotationOf(v.cam_from_ct.head<3>());
     const Eigen::Matrix3d Rr = Eigen::Vector3d(1, -1, -1).asDiagonal() * R;
     const Eigen::Vector3d s = Rr * SourceInCt(v);
     RtkProjection p;

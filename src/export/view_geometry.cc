@@ -52,7 +52,7 @@ Matrix34 ProjectionMatrix(const ViewGeometry& v) {
   K(1, 1) = v.camera.params[kFy];
   K(0, 2) = v.camera.params[kCx];
   K(1, 2) = v.camera.params[kCy];
-  Eigen::Matrix3d R = RotationFromRvec(v.cam_from_ct.head<3>());
+  Eigen::Matrix3d R = RotationOf(v.cam_from_ct.head<3>());
   if (v.ct_mirrored) R = R * MirrorY();
   Matrix34 Rt;
   Rt.leftCols<3>() = R;
@@ -61,14 +61,14 @@ Matrix34 ProjectionMatrix(const ViewGeometry& v) {
 }
 
 Eigen::Vector3d SourceInCt(const ViewGeometry& v) {
-  const Eigen::Matrix3d R = RotationFromRvec(v.cam_from_ct.head<3>());
+  const Eigen::Matrix3d R = RotationOf(v.cam_from_ct.head<3>());
   Eigen::Vector3d c = -R.transpose() * v.cam_from_ct.tail<3>();
   if (v.ct_mirrored) c = MirrorY() * c;
   return c;
 }
 
 Eigen::Vector3d PrincipalAxisInCt(const ViewGeometry& v) {
-  Eigen::Vector3d a = RotationFromRvec(v.cam_from_ct.head<3>()).row(2).transpose();
+  Eigen::Vector3d a = RotationOf(v.cam_from_ct.head<3>()).row(2).transpose();
   if (v.ct_mirrored) a = MirrorY() * a;
   return a;
 }

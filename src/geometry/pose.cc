@@ -14,7 +14,7 @@ Pose6 Rigid3::ToPose() const {
 }
 
 Rigid3 Rigid3::FromRvec(const Eigen::Vector3d& rvec_rad, const Eigen::Vector3d& t_mm) {
-  return {RotationFromRvec(rvec_rad), t_mm};
+  return {RotationOf(rvec_rad), t_mm};
 }
 
 Rigid3 Rigid3::FromPose(const Pose6& pose) { return FromRvec(pose.head<3>(), pose.tail<3>()); }

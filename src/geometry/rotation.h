@@ -31,6 +31,18 @@ inline Eigen::Matrix3d RotationOf(const double* rvec) {
   ceres::AngleAxisToRotationMatrix(rvec, ceres::ColumnMajorAdapter3x3(R.data()));
   return R;
 }
+inline Eigen::Matrix3d RotationOf(const Eigen::Vector3d& rvec) { return RotationOf(rvec.data()); }
+
+// The left Jacobian J_l(r) of SO(3) (3x3 row-major into `J`): exp(r + d) ~= exp(J_l(r) d) exp(r).
+// It maps a change of the rotation vector to a small rotation of the camera frame; used to turn
+// covariances of rvec into covariances of small rotation angles.
+//   J_l(r) = I + (1 - cos t)/t^2 [r]_x + (t - sin t)/t^3 [r]_x^2,  t = |r|.
+void SO3LeftJacobian(const double* rvec, double* J);
+Eigen::Matrix3d SO3LeftJacobian(const double* rvec);
+
+// R(r) p for a rotation vector r, and the derivative of R(r) p with respect to r (3x3 row-major;
+// may be null): d(R(r) p)/dr = -[R(r) p]_x J_l(r).
+void RotatePointWithJac(const double* rvec, const double* p, double* Rp, double* J_Rp_r);
 
 template <typename T>
 T ViewDirectionAngle(const T* pose_a, const T* pose_b) {
@@ -88,7 +100,6 @@ double PairMetricWithGradient(const double* pose_a, const double* pose_b, F f, d
 // normalised before the angle is taken.
 double ViewDirectionAngleOfMatrices(const Eigen::Matrix3d& Ra, const Eigen::Matrix3d& Rb);
 
-Eigen::Matrix3d RotationFromRvec(const Eigen::Vector3d& rvec);
 // The rotation vector of a proper rotation (|r| <= pi).
 Eigen::Vector3d RvecFromRotation(const Eigen::Matrix3d& R);
 // The proper rotation closest to M in the Frobenius norm (SVD, det forced to +1).

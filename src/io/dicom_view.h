@@ -1,5 +1,5 @@
 // The nominal camera and pose of a DICOM X-ray frame, from its geometry tags (io/dicom_xray.h),
-// through carmba's one C-arm conversion (geometry/carm_geometry.h CamFromWorld,
+// through carmba's one C-arm conversion (camera/carm_geometry.h CamFromWorld,
 // CameraFromDetector). A starting point: calibration and pose estimation replace it.
 //
 // SIGNS. DICOM's positioner angles (PS3.3 C.8.7.5.1.2) and CarmGeometry use the same convention,
@@ -32,8 +32,8 @@
 #include <vector>
 
 #include "camera/camera.h"
+#include "camera/carm_geometry.h"
 #include "io/dicom_xray.h"
-#include "geometry/carm_geometry.h"
 #include "util/status.h"
 
 namespace carmba {

@@ -500,7 +500,7 @@ nlohmann::json CalibrationPlotData(const CalibrationRun& run) {
                      {"du", du},
                      {"dv", dv}});
     const Eigen::Vector3d rvec(pose[0], pose[1], pose[2]), t(pose[3], pose[4], pose[5]);
-    const Eigen::Vector3d source = -RotationFromRvec(rvec).transpose() * t;
+    const Eigen::Vector3d source = -RotationOf(rvec).transpose() * t;
     sources.push_back({{"id", std::to_string(v)}, {"p", {source.x(), source.y(), source.z()}}});
   }
   d["residual_views"] = views;

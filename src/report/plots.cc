@@ -271,7 +271,7 @@ nlohmann::json BaPlotData(const ba::BaProblem& problem,
                      {"du", du},
                      {"dv", dv}});
     const Eigen::Map<const Eigen::Vector3d> rvec(pose), t(pose + 3);
-    const Eigen::Vector3d source = -RotationFromRvec(rvec).transpose() * t;
+    const Eigen::Vector3d source = -RotationOf(rvec).transpose() * t;
     (plate ? plate_sources : object_sources)
         .push_back({{"id", bv.id}, {"p", {source.x(), source.y(), source.z()}}});
     (plate ? plate_distance : object_distance) += t.norm();

@@ -11,7 +11,7 @@
 namespace carmba {
 
 nlohmann::json PoseToJson(const Pose6& p) {
-  const Eigen::Matrix3d R = RotationFromRvec(p.head<3>());
+  const Eigen::Matrix3d R = RotationOf(p.head<3>());
   nlohmann::json Rj = nlohmann::json::array();
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) Rj.push_back(R(i, j));
@@ -39,8 +39,7 @@ nlohmann::json ViewJson(const ViewRecord& v, const ProblemTruth& truth) {
     const Pose6& t = it->second;
     j["truth"] = PoseToJson(t);
     j["rotation_error_deg"] =
-        AngleBetweenRotations(RotationFromRvec(v.pose.head<3>()), RotationFromRvec(t.head<3>())) *
-        kRadToDeg;
+        AngleBetweenRotations(RotationOf(v.pose.head<3>()), RotationOf(t.head<3>())) * kRadToDeg;
     j["translation_error_mm"] = (v.pose.tail<3>() - t.tail<3>()).norm();
   }
   return j;

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "geometry/carm_geometry.h"
+#include "camera/carm_geometry.h"
 #include "util/status.h"
 
 namespace carmba::sim {

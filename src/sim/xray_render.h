@@ -46,7 +46,7 @@
 #include <vector>
 
 #include "camera/camera.h"
-#include "geometry/carm_geometry.h"
+#include "camera/carm_geometry.h"
 #include "sim/phantom.h"
 #include "util/status.h"
 

@@ -23,7 +23,7 @@
 //     pixel_pitch_mm: 0.485          # detector pitch (number or [x, y]): fx = sid / pitch, ...
 //     principal_offset_px: [0, 0]    # ... and c = image centre + this offset
 //     distortion: [k1, k2, p1, p2, k3]          # default zeros; k1 < 0 barrel, k1 > 0 pincushion
-//   carm:                            # geometry/carm_geometry.h
+//   carm:                            # camera/carm_geometry.h
 //     sid_mm: 1000, sod_mm: 620, isocenter_mm: [0, 0, 0], axis_offset_mm: [0, 0]
 //     flex: {cx_primary_px: 6, cx_secondary_px: 0.5, cy_primary_px: 2.5, cy_secondary_px: 0.3,
 //            f_primary: 0.004, f_secondary: 0.001}
@@ -105,7 +105,7 @@
 
 #include "camera/camera.h"
 #include "camera/carm_flex.h"
-#include "geometry/carm_geometry.h"
+#include "camera/carm_geometry.h"
 #include "sim/ct_anatomy.h"
 #include "sim/phantom.h"
 #include "sim/xray_render.h"

@@ -577,8 +577,8 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   for (size_t v = 0; v < sj.problem.views.size(); ++v) {
     if (sj.problem.views[v].kind != ba::ViewKind::kObject) continue;
     const Pose6 pose = r->ViewPose(static_cast<int>(v));
-    const Eigen::Matrix3d R_est = RotationFromRvec(pose.head<3>());
-    const Eigen::Matrix3d R_true = RotationFromRvec(sj.true_poses[v].head<3>());
+    const Eigen::Matrix3d R_est = RotationOf(pose.head<3>());
+    const Eigen::Matrix3d R_true = RotationOf(sj.true_poses[v].head<3>());
     const Eigen::Vector3d d = RvecFromRotation(R_est * R_true.transpose()) * kRadToDeg;
     const Eigen::Vector3d dt =
         Eigen::Vector3d(pose[3], pose[4], pose[5]) - sj.true_poses[v].tail<3>();
@@ -757,8 +757,8 @@ nlohmann::json MakeResult(const Problem& problem,
     const ViewSolution& vs = sol.views[v];
     auto t = problem.truth.object_poses.find(vs.id);
     if (t == problem.truth.object_poses.end()) continue;
-    const Eigen::Matrix3d R_est = RotationFromRvec(vs.cam_from_object.head<3>());
-    const Eigen::Matrix3d R_true = RotationFromRvec(t->second.head<3>());
+    const Eigen::Matrix3d R_est = RotationOf(vs.cam_from_object.head<3>());
+    const Eigen::Matrix3d R_true = RotationOf(t->second.head<3>());
     const Eigen::Vector3d t_est = vs.cam_from_object.tail<3>(), t_true = t->second.tail<3>();
     rot.push_back(AngleBetweenRotations(R_est, R_true) * kRadToDeg);
     trans.push_back((t_est - t_true).norm());

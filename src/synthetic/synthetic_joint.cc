@@ -94,8 +94,7 @@ Pose6 RandomPlatePose(const SyntheticJointSpec& spec, Draws* d) {
   const double tilt = spec.plate_max_tilt_deg * kDegToRad * (0.3 + 0.7 * std::abs(d->uni(d->geo)));
   const double phi = kPi * d->uni(d->geo);
   const Eigen::Vector3d axis(std::cos(phi), std::sin(phi), 0);
-  const Eigen::Matrix3d R =
-      RotationFromRvec(axis * tilt + Eigen::Vector3d(0, 0, 0.3 * d->uni(d->geo)));
+  const Eigen::Matrix3d R = RotationOf(axis * tilt + Eigen::Vector3d(0, 0, 0.3 * d->uni(d->geo)));
   const double dist = spec.plate_distance_mm * (1.0 + 0.1 * d->uni(d->geo));
   const Eigen::Vector3d centre_in_plate(w / 2, h / 2, 0);
   const double mx = std::max(0.0, half_fov_x * dist - 0.75 * w),
@@ -190,11 +189,11 @@ void AddObjectViews(const SyntheticJointSpec& spec,
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const auto& m : markers) centroid += m;
   centroid /= static_cast<double>(markers.size());
-  const Eigen::Matrix3d R0 = RotationFromRvec(Eigen::Vector3d(0.3, -0.4, 0.2));
+  const Eigen::Matrix3d R0 = RotationOf(Eigen::Vector3d(0.3, -0.4, 0.2));
   std::vector<int> object_view_index;
   for (double a : spec.object_angles_deg) {
     const Eigen::Matrix3d Rv =
-        RotationFromRvec(Eigen::Vector3d(0, 1, 0) * a * kDegToRad).transpose() * R0;
+        RotationOf(Eigen::Vector3d(0, 1, 0) * a * kDegToRad).transpose() * R0;
     Pose6 pose;
     pose.head<3>() = RvecFromRotation(Rv);
     pose.tail<3>() = Eigen::Vector3d(0, 0, spec.object_distance_mm) - Rv * centroid;

@@ -38,11 +38,11 @@ Problem MakeSyntheticPoseProblem(const SyntheticPoseSpec& spec,
     p.fiducials.push_back(m);
   }
   // Views: the C-arm rotates about `rotation_axis` (through the object centre) by the angle.
-  const Eigen::Matrix3d R0 = RotationFromRvec(spec.base_rvec);
+  const Eigen::Matrix3d R0 = RotationOf(spec.base_rvec);
   const Eigen::Vector3d axis = spec.rotation_axis.normalized();
   for (size_t v = 0; v < spec.view_angles_deg.size(); ++v) {
     const Eigen::Matrix3d Rv =
-        RotationFromRvec(axis * spec.view_angles_deg[v] * kDegToRad).transpose() * R0;
+        RotationOf(axis * spec.view_angles_deg[v] * kDegToRad).transpose() * R0;
     const Eigen::Vector3d t = Eigen::Vector3d(0, 0, spec.source_to_object_mm) - Rv * centroid;
     Pose6 pose;
     pose.head<3>() = RvecFromRotation(Rv);

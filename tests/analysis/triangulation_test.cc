@@ -70,9 +70,9 @@ TEST(RelativePose, JacobianMatchesCentralDifferences) {
   const Eigen::Vector3d p(3, -7, 11);
   Pose6 rel;
   RelativePose(a.data(), b.data(), rel.data());
-  const Eigen::Vector3d in_a = RotationFromRvec(a.head<3>()) * p + a.tail<3>();
-  const Eigen::Vector3d in_b = RotationFromRvec(b.head<3>()) * p + b.tail<3>();
-  EXPECT_LT((RotationFromRvec(rel.head<3>()) * in_a + rel.tail<3>() - in_b).norm(), 1e-9);
+  const Eigen::Vector3d in_a = RotationOf(a.head<3>()) * p + a.tail<3>();
+  const Eigen::Vector3d in_b = RotationOf(b.head<3>()) * p + b.tail<3>();
+  EXPECT_LT((RotationOf(rel.head<3>()) * in_a + rel.tail<3>() - in_b).norm(), 1e-9);
 }
 
 TEST(RelativePose, MonteCarloNeesAndThreeSigma) {

@@ -60,8 +60,8 @@ Eigen::VectorXd Errors(const SyntheticJoint& sj,
   for (size_t v = 0; v < p.views.size(); ++v) {
     if (p.views[v].kind != ViewKind::kObject) continue;
     const double* pose = r.block(L.view_block(static_cast<int>(v)));
-    const Eigen::Matrix3d dR = RotationFromRvec(Eigen::Vector3d(pose[0], pose[1], pose[2])) *
-                               RotationFromRvec(sj.true_poses[v].head<3>()).transpose();
+    const Eigen::Matrix3d dR = RotationOf(Eigen::Vector3d(pose[0], pose[1], pose[2])) *
+                               RotationOf(sj.true_poses[v].head<3>()).transpose();
     const Eigen::Vector3d w = RvecFromRotation(dR) * kRadToDeg;
     for (int a = 0; a < 3; ++a) e[q++] = w[a];
     for (int a = 0; a < 3; ++a) e[q++] = pose[3 + a] - sj.true_poses[v][3 + a];

@@ -137,8 +137,7 @@ TEST(Posit, OrthonormalRecoversRandomPosesExactly) {
     o.max_iterations = 1000;
     auto est = PositPose(cam, obj, uv, o);
     ASSERT_TRUE(est.ok()) << est.status().message();
-    const double rot_err = AngleBetweenRotations(RotationFromRvec(est->head<3>()),
-                                                 RotationFromRvec(rvec));
+    const double rot_err = AngleBetweenRotations(RotationOf(est->head<3>()), RotationOf(rvec));
     EXPECT_LT(rot_err, 1e-8) << "trial " << trial;
     EXPECT_LT((est->tail<3>() - t).norm(), 1e-5) << "trial " << trial;
   }

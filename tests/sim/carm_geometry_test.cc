@@ -1,6 +1,6 @@
-// Sign conventions of the C-arm geometry (geometry/carm_geometry.h): DICOM positioner angles in the
+// Sign conventions of the C-arm geometry (camera/carm_geometry.h): DICOM positioner angles in the
 // LPS patient frame -> cam_from_world.
-#include "geometry/carm_geometry.h"
+#include "camera/carm_geometry.h"
 
 #include <gtest/gtest.h>
 

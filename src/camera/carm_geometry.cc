@@ -1,8 +1,8 @@
-#include "geometry/carm_geometry.h"
-#include "geometry/rotation.h"
+#include "camera/carm_geometry.h"
 
 #include <cmath>
 
+#include "geometry/rotation.h"
 #include "util/plausible.h"
 
 namespace carmba {
@@ -37,10 +37,12 @@ bool CarmGeometry::Check(std::string* error) const {
     return false;
   }
   for (int i = 0; i < 3; ++i) {
-    if (!CheckRange(std::string("isocenter_mm ") + "xyz"[i], isocenter_mm[i], pl::kCoordinateMm,
-                    error) ||
-        (i < 2 && !CheckRange(std::string("axis_offset_mm ") + "xy"[i], axis_offset_mm[i],
-                              pl::kCoordinateMm, error))) {
+    if (!CheckRange(
+            std::string("isocenter_mm ") + "xyz"[i], isocenter_mm[i], pl::kCoordinateMm, error) ||
+        (i < 2 && !CheckRange(std::string("axis_offset_mm ") + "xy"[i],
+                              axis_offset_mm[i],
+                              pl::kCoordinateMm,
+                              error))) {
       return false;
     }
   }
@@ -80,8 +82,7 @@ bool DetectorSpec::Check(std::string* error) const {
          CheckRange("detector height", height_px, pl::kImageSizePx, error) &&
          CheckRange("pixel_pitch_mm x", pitch_x_mm, pl::kPixelPitchMm, error) &&
          CheckRange("pixel_pitch_mm y", pitch_y_mm, pl::kPixelPitchMm, error) &&
-         CheckRange("principal offset x", principal_offset_px.x(), pl::kPixelCoordinatePx,
-                    error) &&
+         CheckRange("principal offset x", principal_offset_px.x(), pl::kPixelCoordinatePx, error) &&
          CheckRange("principal offset y", principal_offset_px.y(), pl::kPixelCoordinatePx, error);
   return true;
 }
