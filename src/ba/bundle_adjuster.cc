@@ -931,10 +931,11 @@ StatusOr<BaResult> SolveWithNoiseModel(const BaProblem& problem, const BaOptions
   }
   res.group_sigma_scale = o.group_sigma_scale;
   res.scale_mode = options.covariance_scale;
-  res.covariance_scale =
-      options.covariance_scale == CovarianceScale::kGlobal && std::isfinite(res.sigma0)
-          ? res.sigma0 * res.sigma0
-          : 1.0;
+  // global: the a-posteriori variance factor, robust_chi2 / dof (chi2 / dof without a loss).
+  res.covariance_scale = options.covariance_scale == CovarianceScale::kGlobal && res.dof > 0 &&
+                                 std::isfinite(res.robust_chi2)
+                             ? res.robust_chi2 / res.dof
+                             : 1.0;
   res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

@@ -117,7 +117,9 @@ struct BaResult {
   std::shared_ptr<StateLayout> layout;
   std::shared_ptr<Linearization> linearization;   // at the solution
   std::shared_ptr<SchurCovariance> covariance;    // null when not computed
-  double covariance_scale = 1.0;                  // 1 (a priori, per group) or sigma0^2 (global)
+  // 1 (a priori, per group) or, global, the a-posteriori variance factor robust_chi2 / dof
+  // (sigma0^2 without a robust loss).
+  double covariance_scale = 1.0;
   // Variance components of the observation groups (ba/variance_components.h); with per_group the
   // applied factors are in the weights of the final solve, so in every covariance and budget.
   std::vector<VarianceComponent> variance_components;

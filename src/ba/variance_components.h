@@ -35,7 +35,8 @@ namespace ba {
 enum class CovarianceScale {
   kApriori,   // the stated sigmas; the components are estimated and reported only
   kPerGroup,  // each estimable group's sigmas scaled by its factor, iterated (the default)
-  kGlobal     // one factor sigma0^2 for all (formerly `aposteriori`)
+  kGlobal     // one a-posteriori factor for all: robust_chi2 / dof, sigma0^2 without a loss
+              // (formerly `aposteriori`)
 };
 // "apriori", "per_group", "global".
 const char* CovarianceScaleName(CovarianceScale s);

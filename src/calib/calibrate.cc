@@ -244,7 +244,8 @@ Status ResidualStatistics(const ObservationSet& obs,
           " residuals for " + std::to_string(engine.num_free) +
           " parameters (give pixel_sigma_px or more points)");
     }
-    r->sigma_px = sigma_solve * std::sqrt(engine.robust_chi2 / r->dof);
+    // The engine's a-posteriori variance factor (covariance.scale: global), robust with a loss.
+    r->sigma_px = sigma_solve * std::sqrt(engine.covariance_scale);
     r->sigma_estimated = true;
   }
   // Outliers and the 10 worst, largest first (only those are sorted).
@@ -262,14 +263,14 @@ Status ResidualStatistics(const ObservationSet& obs,
   return Status::Ok();
 }
 
-// The covariance of the intrinsics, marginal over the poses (the engine's Schur covariance), in
-// units of the pixel sigma used, into r and its camera. A focal length known to worse than 10 %
-// means the views do not constrain it (a fronto-parallel set is exactly singular without noise,
-// nearly singular with it).
-Status IntrinsicsCovariance(double sigma_solve, CalibrationResult* r) {
+// The covariance of the intrinsics, marginal over the poses (the engine's Schur covariance, at the
+// pixel sigma used: given, or the engine's a-posteriori one), into r and its camera. A focal length
+// known to worse than 10 % means the views do not constrain it (a fronto-parallel set is exactly
+// singular without noise, nearly singular with it).
+Status IntrinsicsCovariance(CalibrationResult* r) {
   const ba::BaResult& engine = *r->engine;
-  r->covariance_scale = (r->sigma_px / sigma_solve) * (r->sigma_px / sigma_solve);
-  r->covariance = engine.GroupIntrinsicsCovariance(0) * r->covariance_scale;
+  r->covariance_scale = engine.covariance_scale;
+  r->covariance = engine.GroupIntrinsicsCovariance(0);
   for (int i = 0; i < kNumIntrinsics; ++i)
     r->sigma[i] = std::sqrt(std::max(0.0, r->covariance(i, i)));
   constexpr double kMaxRelativeFocalSigma = 0.1;
@@ -429,8 +430,9 @@ SolverConfig CalibrationOptions::ToSolverConfig() const {
   SolverConfig c = solve;
   c.backend = solve.backend == "carmba_lm" && solve.loss == "trivial" ? "carmba_lm" : "ceres";
   c.linear_solver = "dense_schur";
-  // The calibration estimates its pixel sigma itself (pixel_sigma_px: 0) or takes it as given.
-  c.covariance_scale = ba::CovarianceScale::kApriori;
+  // The pixel sigma given (pixel_sigma_px), or estimated: the engine's a-posteriori factor.
+  c.covariance_scale =
+      pixel_sigma_px > 0 ? ba::CovarianceScale::kApriori : ba::CovarianceScale::kGlobal;
   return c;
 }
 
@@ -497,7 +499,7 @@ StatusOr<CalibrationResult> Calibrate(const ObservationSet& obs, const Calibrati
   r.solve_seconds = Seconds(t0, t1);
 
   CARMBA_RETURN_IF_ERROR(ResidualStatistics(obs, opt, sigma_solve, &r));
-  CARMBA_RETURN_IF_ERROR(IntrinsicsCovariance(sigma_solve, &r));
+  CARMBA_RETURN_IF_ERROR(IntrinsicsCovariance(&r));
   ProjectionSigmaAtCentreAndCorners(obs.width, obs.height, opt.uncertainty_distance_mm, &r);
   r.covariance_seconds = Seconds(t1, std::chrono::steady_clock::now());
   Status s = r.camera.Check();

@@ -160,8 +160,8 @@ struct CalibrationResult {
   double solve_seconds = 0, covariance_seconds = 0;
 
   // The engine's solution (ba/bundle_adjuster.h): state, named layout, linearisation and Schur
-  // covariance, whitened with the pixel sigma the solve used; covariance_scale takes its
-  // covariance to `sigma_px` ((sigma_px / sigma used)^2).
+  // covariance, whitened with the pixel sigma the solve used; covariance_scale, the engine's,
+  // takes its covariance to `sigma_px` ((sigma_px / sigma used)^2: 1 for a given sigma).
   std::shared_ptr<const ba::BaResult> engine;
   double covariance_scale = 1.0;
 };

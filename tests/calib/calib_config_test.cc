@@ -51,7 +51,12 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   const ba::BaOptions p = plain->ToSolverConfig().ToBaOptions();
   EXPECT_EQ(p.backend, "carmba_lm");
   EXPECT_EQ(p.loss, "trivial");
-  EXPECT_EQ(p.covariance_scale, ba::CovarianceScale::kApriori);
+  // The pixel sigma estimated (no pixel_sigma_px): the engine's a-posteriori factor; given: a
+  // priori.
+  EXPECT_EQ(p.covariance_scale, ba::CovarianceScale::kGlobal);
+  auto given = Read("pixel_sigma_px: 0.3\n");
+  ASSERT_TRUE(given.ok()) << given.status().message();
+  EXPECT_EQ(given->ToSolverConfig().covariance_scale, ba::CovarianceScale::kApriori);
   // A robust loss is solved by Ceres whatever the back end says (carmba's LM is plain least
   // squares).
   auto robust_lm = Read("loss: {type: huber}\nbackend: carmba_lm\n");
