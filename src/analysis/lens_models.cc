@@ -284,12 +284,12 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
   o.function_tolerance = std::max(o.function_tolerance, 1e-10);
   // carmba's own LM serves these plate-only calibrations when they have its structure (several
   // times faster than Ceres there, the same optimum; ba/bundle_adjuster.h).
-  bool lm = o.loss == "trivial" && !plates.plate.free && !plates.groups[0].has_prior;
+  bool lm = o.loss == ba::Loss::kTrivial && !plates.plate.free && !plates.groups[0].has_prior;
   for (const auto& v : plates.views) {
     lm &= v.sigma_px == plates.views[0].sigma_px && v.obs_sigma_px.empty() &&
           v.obs_covariance_px2.empty();
   }
-  if (lm) o.backend = "carmba_lm";
+  if (lm) o.backend = ba::Backend::kCarmbaLm;
   DistortionSelection sel;
   sel.folds = std::min(folds, num_plates);
   const DistortionScore* best = nullptr;

@@ -160,7 +160,7 @@ class Assembler {
   Status AddView(int v) {
     const BaView& view = problem_.views[v];
     const bool smooth = problem_.groups[view.group].smooth;
-    if (view.kind == ViewKind::kPlate && !problem_.plate.free && o_.loss == "trivial" &&
+    if (view.kind == ViewKind::kPlate && !problem_.plate.free && o_.loss == Loss::kTrivial &&
         o_.analytic_jacobians && view.obs_sigma_px.empty() && view.obs_covariance_px2.empty() &&
         !smooth) {
       AddHeldPlateView(v);
@@ -452,7 +452,7 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   }
   need(!p.plate.free, "plate points held");
   need(p.groups.empty() || !p.groups[0].has_prior, "no intrinsics prior");
-  need(o.loss == "trivial", "the trivial loss");
+  need(o.loss == Loss::kTrivial, "the trivial loss");
   need(o.reject_sigma == 0, "no outlier rejection");
   if (!why.empty()) {
     return Status::Error("backend carmba_lm (calibration problems) needs " + why +
@@ -498,17 +498,9 @@ Status SolveWithCarmbaLm(const BaProblem& p,
 }  // namespace
 
 bool BaOptions::Check(std::string* error) const {
-  if (backend != "ceres" && backend != "carmba_lm") {
-    *error = "backend '" + backend + "' is unknown (ceres, carmba_lm)";
-    return false;
-  }
   ceres::LinearSolverType t;
   if (!LinearSolverType(linear_solver, &t)) {
     *error = "linear_solver '" + linear_solver + "' is unknown";
-    return false;
-  }
-  if (loss != "trivial" && loss != "huber" && loss != "cauchy" && loss != "soft_l1") {
-    *error = "loss '" + loss + "' is unknown (trivial, huber, cauchy, soft_l1)";
     return false;
   }
   if (!(loss_scale_px > 0) || !std::isfinite(loss_scale_px)) {
@@ -804,9 +796,9 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
   BaResult res;
   res.layout = std::move(layout_ptr);
   const StateLayout& layout = *res.layout;
-  const bool use_lm = o.backend == "carmba_lm";
+  const bool use_lm = o.backend == Backend::kCarmbaLm;
   if (use_lm) CARMBA_RETURN_IF_ERROR(CheckCarmbaLm(problem, o));
-  res.backend = use_lm ? "carmba_lm" : "ceres";
+  res.backend = o.backend;
 
   static thread_local std::unique_ptr<ceres::Context> context(ceres::Context::Create());
   constexpr int kMaxRejectionPasses = 100;
@@ -1012,7 +1004,7 @@ StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
                                                const BaOptions& o,
                                                const BaResult& result,
                                                const std::vector<int>& blocks,
-                                               const std::string& algorithm) {
+                                               CovarianceAlgorithm algorithm) {
   const StateLayout& layout = *result.layout;
   Assembly as;
   as.buffer = result.state;
@@ -1021,14 +1013,19 @@ StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
   weighted.group_sigma_scale = result.group_sigma_scale;
   CARMBA_RETURN_IF_ERROR(Assemble(problem, layout, weighted, result.dropped, &as, &cp));
   ceres::Covariance::Options co;
-  if (algorithm == "dense_svd") {
-    co.algorithm_type = ceres::DENSE_SVD;
-  } else if (algorithm == "sparse_qr" || algorithm == "eigen_sparse_qr") {
-    co.algorithm_type = ceres::SPARSE_QR;
-    if (algorithm == "eigen_sparse_qr") co.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
-  } else {
-    return Status::Error("covariance algorithm '" + algorithm +
-                         "' is unknown (dense_svd, sparse_qr, eigen_sparse_qr)");
+  switch (algorithm) {
+    case CovarianceAlgorithm::kDenseSvd:
+      co.algorithm_type = ceres::DENSE_SVD;
+      break;
+    case CovarianceAlgorithm::kSparseQr:
+      co.algorithm_type = ceres::SPARSE_QR;
+      break;
+    case CovarianceAlgorithm::kEigenSparseQr:
+      co.algorithm_type = ceres::SPARSE_QR;
+      co.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+      break;
+    case CovarianceAlgorithm::kSchur:
+      return Status::Error("CeresBlockCovariance: schur is the engine's own covariance");
   }
   co.null_space_rank = 0;
   co.min_reciprocal_condition_number = o.min_reciprocal_condition;
@@ -1040,7 +1037,8 @@ StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
     for (size_t j = i; j < ptrs.size(); ++j) pairs.emplace_back(ptrs[i], ptrs[j]);
   }
   if (!cov.Compute(pairs, &cp)) {
-    return Status::Error("ceres::Covariance (" + algorithm + "): rank-deficient",
+    return Status::Error(std::string("ceres::Covariance (") +
+                             NameOf(kCovarianceAlgorithmNames, algorithm) + "): rank-deficient",
                          ErrorKind::kNotDetermined);
   }
   int n = 0;

@@ -34,6 +34,7 @@
 #include "ba/covariance.h"
 #include "ba/problem.h"
 #include "ba/shadow_correction.h"
+#include "ba/solver_kinds.h"
 #include "ba/variance_components.h"
 #include "util/status.h"
 
@@ -51,9 +52,9 @@ struct BaOptions {
   // carmba_lm: carmba's own Schur Levenberg-Marquardt (ba/schur_lm.h) for calibration-structured
   // problems (one intrinsics group, plate views with one sigma, plate held, no prior, trivial
   // loss), several times faster there; tested to reach Ceres's optimum.
-  std::string backend = "ceres";
-  bool analytic_jacobians = true;    // false: the autodiff twins
-  std::string loss = "trivial";      // trivial | huber | cauchy | soft_l1
+  Backend backend = Backend::kCeres;
+  bool analytic_jacobians = true;  // false: the autodiff twins
+  Loss loss = Loss::kTrivial;
   double loss_scale_px = 1.0;
   std::string linear_solver = "dense_schur";  // any Ceres linear solver name in lower case
   int max_iterations = 100;
@@ -153,7 +154,7 @@ struct BaResult {
   std::vector<BaOutlier> rejected;   // dropped by the rejection pass
   std::vector<std::vector<char>> dropped;  // per view and observation: rejected (1) or used (0)
 
-  std::string backend;     // the minimiser that ran: ceres or carmba_lm (BaOptions::backend)
+  Backend backend = Backend::kCeres;  // the minimiser that ran (BaOptions::backend)
   int iterations = 0;
   std::string termination;
   bool converged = false;
@@ -229,14 +230,14 @@ std::vector<std::string> SolveWarnings(const BaResult& result);
 
 // The covariance of `blocks` (ambient parameters, as BaResult::ObservationCovariance: without a
 // considered calibration's part) by ceres::Covariance
-// over the same Ceres problem at the solution: `algorithm` dense_svd, sparse_qr or
-// eigen_sparse_qr. The reference the Schur covariance is tested against, and the configs'
+// over the same Ceres problem at the solution: `algorithm` one of ceres::Covariance's (not
+// kSchur). The reference the Schur covariance is tested against, and the configs'
 // alternative covariance algorithms.
 StatusOr<Eigen::MatrixXd> CeresBlockCovariance(const BaProblem& problem,
                                                const BaOptions& options,
                                                const BaResult& result,
                                                const std::vector<int>& blocks,
-                                               const std::string& algorithm);
+                                               CovarianceAlgorithm algorithm);
 
 }  // namespace ba
 }  // namespace carmba

@@ -12,21 +12,18 @@
 namespace carmba {
 namespace ba {
 
-// Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2).
-std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss,
-                                                      double scale_whitened) {
-  if (loss == "huber") return std::make_unique<ceres::HuberLoss>(scale_whitened);
-  if (loss == "cauchy") return std::make_unique<ceres::CauchyLoss>(scale_whitened);
-  if (loss == "soft_l1") return std::make_unique<ceres::SoftLOneLoss>(scale_whitened);
+std::unique_ptr<ceres::LossFunction> MakeLossFunction(Loss loss, double scale_whitened) {
+  switch (loss) {
+    case Loss::kTrivial:
+      return nullptr;
+    case Loss::kHuber:
+      return std::make_unique<ceres::HuberLoss>(scale_whitened);
+    case Loss::kCauchy:
+      return std::make_unique<ceres::CauchyLoss>(scale_whitened);
+    case Loss::kSoftL1:
+      return std::make_unique<ceres::SoftLOneLoss>(scale_whitened);
+  }
   return nullptr;
-}
-
-double RobustWeight(const std::string& loss, double scale_whitened, double s) {
-  const std::unique_ptr<ceres::LossFunction> l = MakeLossFunction(loss, scale_whitened);
-  if (!l) return 1.0;
-  double rho[3];
-  l->Evaluate(s, rho);
-  return rho[1];
 }
 
 // Inverse of a symmetric positive definite 6x6 matrix by Cholesky, A = L L^T, A^-1 = L^-T L^-1;
@@ -73,7 +70,6 @@ bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
                    const std::vector<Eigen::Vector2d>& uv,
                    const double* intr,
                    const double* pose,
-                   const RobustWeighting* robust,
                    ViewSystem* out,
                    Mat9* Hcc,
                    Vec9* gc) {
@@ -102,22 +98,11 @@ bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
     Eigen::Vector2d e(q[0] - uv[j].x(), q[1] - uv[j].y());
     // Blocks by lazy (coefficient-wise, fixed-size) products: Eigen's default product sends
     // these sizes to its general GEMM.
-    if (robust) {
-      const double w = (*robust)(e.squaredNorm());
-      const Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jpw = w * Jp;
-      const Eigen::Matrix<double, 2, kNumIntrinsics, Eigen::RowMajor> Jcw = w * Jc;
-      Hpp.noalias() += Jpw.transpose().lazyProduct(Jp);
-      Hpc.noalias() += Jpw.transpose().lazyProduct(Jc);
-      Hcc_view.noalias() += Jcw.transpose().lazyProduct(Jc);
-      gp.noalias() += Jpw.transpose().lazyProduct(e);
-      gc_view.noalias() += Jcw.transpose().lazyProduct(e);
-    } else {
-      Hpp.noalias() += Jp.transpose().lazyProduct(Jp);
-      Hpc.noalias() += Jp.transpose().lazyProduct(Jc);
-      Hcc_view.noalias() += Jc.transpose().lazyProduct(Jc);
-      gp.noalias() += Jp.transpose().lazyProduct(e);
-      gc_view.noalias() += Jc.transpose().lazyProduct(e);
-    }
+    Hpp.noalias() += Jp.transpose().lazyProduct(Jp);
+    Hpc.noalias() += Jp.transpose().lazyProduct(Jc);
+    Hcc_view.noalias() += Jc.transpose().lazyProduct(Jc);
+    gp.noalias() += Jp.transpose().lazyProduct(e);
+    gc_view.noalias() += Jc.transpose().lazyProduct(e);
   }
   // [w, t] -> [rvec, t]: the rotation rows and columns times J_l.
   const Eigen::Matrix3d Jl = SO3LeftJacobian(pose);
@@ -192,8 +177,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
     Mat9 Hcc9 = Mat9::Zero();
     Vec9 gc9 = Vec9::Zero();
     for (int v = 0; v < nv; ++v) {
-      if (!LineariseView(plate[v], uv[v], x->data(), (*poses)[v].data(), nullptr,
-                         &sys[v], &Hcc9, &gc9)) {
+      if (!LineariseView(plate[v], uv[v], x->data(), (*poses)[v].data(), &sys[v], &Hcc9, &gc9)) {
         return Status::Error("a grid point moved behind the source during the adjustment");
       }
     }

@@ -16,16 +16,16 @@
 // all views.
 #pragma once
 
-#include "geometry/pose.h"
-#include "geometry/rotation.h"
-
 #include <Eigen/Core>
 #include <array>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "ba/solver_kinds.h"
 #include "camera/camera_model.h"
+#include "geometry/pose.h"
+#include "geometry/rotation.h"
 #include "util/status.h"
 
 namespace ceres {
@@ -41,32 +41,17 @@ using Mat9 = Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics>;
 using Vec9 = Eigen::Matrix<double, kNumIntrinsics, 1>;
 using Mat69 = Eigen::Matrix<double, 6, kNumIntrinsics>;
 
-// The robust loss named `loss` (huber, cauchy, soft_l1) at the scale `scale_whitened` of the
-// whitened residual; null for trivial or none. The one conversion of a loss name, for the Ceres
-// problem and carmba's LM alike.
-std::unique_ptr<ceres::LossFunction> MakeLossFunction(const std::string& loss,
-                                                      double scale_whitened);
-
-// Weight of a point's residual under the robust loss (rho'(s), s = |r/sigma|^2); "none" -> 1.
-double RobustWeight(const std::string& loss, double scale_whitened, double s);
+// The robust loss `loss` at the scale `scale_whitened` of the whitened residual; null for the
+// trivial loss. For the Ceres problem and carmba's LM alike.
+std::unique_ptr<ceres::LossFunction> MakeLossFunction(Loss loss, double scale_whitened);
 
 // Inverse of a symmetric positive definite 6x6 matrix by Cholesky; false if a pivot is not
 // positive.
 bool InvertSpd6(const Mat6& A, Mat6* inv);
 
-// Robust weighting of a point's residual: w = rho'(|e|^2 / sigma^2).
-struct RobustWeighting {
-  std::string loss;
-  double scale_whitened = 1;
-  double inv_sigma2 = 1;
-  double operator()(double e2_px) const {
-    return RobustWeight(loss, scale_whitened, e2_px * inv_sigma2);
-  }
-};
-
 // The Gauss-Newton blocks of one view at (intrinsics, pose), in pixels (unwhitened), with
-// e_j = project - observed and weights w_j (1 without a robust loss):
-//   Hpp = sum w J_pose^T J_pose (6x6),  Hpc = sum w J_pose^T J_intr (6x9),  gp = sum w J_pose^T e;
+// e_j = project - observed:
+//   Hpp = sum J_pose^T J_pose (6x6),  Hpc = sum J_pose^T J_intr (6x9),  gp = sum J_pose^T e;
 // the view's share of the intrinsics blocks is added to Hcc and gc.
 struct ViewSystem {
   Mat6 Hpp;
@@ -77,7 +62,6 @@ bool LineariseView(const std::vector<Eigen::Vector3d>& plate,
                    const std::vector<Eigen::Vector2d>& uv,
                    const double* intr,
                    const double* pose,
-                   const RobustWeighting* robust,
                    ViewSystem* out,
                    Mat9* Hcc,
                    Vec9* gc);

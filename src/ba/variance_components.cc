@@ -8,31 +8,6 @@
 namespace carmba {
 namespace ba {
 
-const char* CovarianceScaleName(CovarianceScale s) {
-  switch (s) {
-    case CovarianceScale::kApriori:
-      return "apriori";
-    case CovarianceScale::kPerGroup:
-      return "per_group";
-    case CovarianceScale::kGlobal:
-      return "global";
-  }
-  return "?";
-}
-
-bool ParseCovarianceScale(const std::string& name, CovarianceScale* out) {
-  if (name == "apriori") {
-    *out = CovarianceScale::kApriori;
-  } else if (name == "per_group") {
-    *out = CovarianceScale::kPerGroup;
-  } else if (name == "global" || name == "aposteriori") {
-    *out = CovarianceScale::kGlobal;
-  } else {
-    return false;
-  }
-  return true;
-}
-
 double VarianceComponent::SigmaScale() const { return applied ? std::sqrt(factor) : 1.0; }
 
 std::array<double, kNumNoiseGroups> GroupRedundancies(const StateLayout& layout,

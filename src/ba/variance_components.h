@@ -27,6 +27,7 @@
 
 #include "ba/covariance.h"
 #include "ba/problem.h"
+#include "util/enum_names.h"
 
 namespace carmba {
 namespace ba {
@@ -38,10 +39,12 @@ enum class CovarianceScale {
   kGlobal     // one a-posteriori factor for all: robust_chi2 / dof, sigma0^2 without a loss
               // (formerly `aposteriori`)
 };
-// "apriori", "per_group", "global".
-const char* CovarianceScaleName(CovarianceScale s);
-// Also takes "aposteriori" (the former name of global). False if unknown.
-bool ParseCovarianceScale(const std::string& name, CovarianceScale* out);
+// Names (util/enum_names.h); "aposteriori" is the former name of global.
+inline constexpr EnumName<CovarianceScale> kCovarianceScaleNames[] = {
+    {CovarianceScale::kPerGroup, "per_group"},
+    {CovarianceScale::kApriori, "apriori"},
+    {CovarianceScale::kGlobal, "global"},
+    {CovarianceScale::kGlobal, "aposteriori"}};
 
 constexpr double kMinVarianceComponentRedundancy = 20;
 constexpr double kVarianceBandTail = 0.005;  // two-sided band [0.5 %, 99.5 %]

@@ -107,7 +107,7 @@ class StagedCalibration {
     options_ = opt.ToSolverConfig().ToBaOptions();
   }
 
-  bool own_lm() const { return opt_.solve.backend == "carmba_lm" && opt_.solve.loss == "trivial"; }
+  bool own_lm() const { return options_.backend == ba::Backend::kCarmbaLm; }
   const std::array<double, kNumIntrinsics>& intrinsics() const { return x_; }
   const std::vector<Pose6>& poses() const { return poses_; }
 
@@ -316,7 +316,7 @@ void TakeSolution(const StagedCalibration& solve,
 SolverConfig CalibrationOptions::DefaultCalibrationSolve() {
   SolverConfig c;
   c.name = "calibration";
-  c.backend = "carmba_lm";
+  c.backend = ba::Backend::kCarmbaLm;
   return c;
 }
 
@@ -411,14 +411,14 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
   // The older spelling, translated (at most one of the two spellings is there).
   // Every key is asked for whether or not it is there: the readers' key lists are checked
   // against formats.md (DocsFormats).
-  std::string robust_loss = c.loss == "trivial" ? "none" : c.loss;
-  m.GetEnum("robust_loss", {"none", "huber", "cauchy"}, &robust_loss);
-  c.loss = robust_loss == "none" ? "trivial" : robust_loss;
+  constexpr EnumName<ba::Loss> kOlderLossNames[] = {
+      {ba::Loss::kTrivial, "none"}, {ba::Loss::kHuber, "huber"}, {ba::Loss::kCauchy, "cauchy"}};
+  constexpr EnumName<ba::Backend> kOlderSolverNames[] = {{ba::Backend::kCarmbaLm, "lm"},
+                                                         {ba::Backend::kCeres, "ceres"}};
+  m.GetEnum("robust_loss", kOlderLossNames, &c.loss);
   m.GetInRange("robust_loss_scale_px", &c.loss_scale_px, plausible::kLossScalePx);
   m.GetInRange("outlier_threshold_sigma", &c.outlier_sigma, plausible::kSigmaMultiple);
-  std::string solver = c.backend == "carmba_lm" ? "lm" : "ceres";
-  m.GetEnum("solver", {"lm", "ceres"}, &solver);
-  c.backend = solver == "lm" ? "carmba_lm" : "ceres";
+  m.GetEnum("solver", kOlderSolverNames, &c.backend);
   // The solver config's spelling, read by the solver config's reader.
   ReadSolveKeys(m, &c);
   return Status::Ok();
@@ -428,7 +428,9 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
 
 SolverConfig CalibrationOptions::ToSolverConfig() const {
   SolverConfig c = solve;
-  c.backend = solve.backend == "carmba_lm" && solve.loss == "trivial" ? "carmba_lm" : "ceres";
+  c.backend = solve.backend == ba::Backend::kCarmbaLm && solve.loss == ba::Loss::kTrivial
+                  ? ba::Backend::kCarmbaLm
+                  : ba::Backend::kCeres;
   c.linear_solver = "dense_schur";
   // The pixel sigma given (pixel_sigma_px), or estimated: the engine's a-posteriori factor.
   c.covariance_scale =

@@ -138,7 +138,7 @@ struct CalibrationResult {
   // With distortion_auto: the models compared and the one applied.
   std::optional<analysis::DistortionSelection> distortion;
   Eigen::MatrixXd intrinsics_from_free;        // A (9 x k): intrinsics = x0 + A delta
-  std::string loss = "trivial";                // as solved (the covariance weights by it)
+  ba::Loss loss = ba::Loss::kTrivial;          // as solved (the covariance weights by it)
   double loss_scale_px = 1.0;
 
   double sigma_px = 0;          // the pixel sigma used for whitening and covariance

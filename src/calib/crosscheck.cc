@@ -111,7 +111,8 @@ StatusOr<OpenCvReference> RunOpenCvCalibration(const ObservationSet& obs,
 }
 
 nlohmann::json MrcalFreeBasis(const CalibrationResult& result) {
-  if (result.num_free_intrinsics == kNumIntrinsics || result.loss != "trivial") return nullptr;
+  if (result.num_free_intrinsics == kNumIntrinsics || result.loss != ba::Loss::kTrivial)
+    return nullptr;
   return JsonRows(result.intrinsics_from_free);
 }
 

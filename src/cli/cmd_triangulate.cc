@@ -128,7 +128,7 @@ StatusOr<Solved> Solve() {
   }
   auto sol = SolvePoseProblem(*problem, *config);
   if (!sol.ok()) return sol.status();
-  if (!config->refine || config->covariance_algorithm != "schur") {
+  if (!config->refine || config->covariance_algorithm != ba::CovarianceAlgorithm::kSchur) {
     return Status::Error(FLAGS_config + ": triangulation needs the refined solve's covariance "
                          "(refine: true, covariance: {algorithm: schur})");
   }

@@ -139,8 +139,9 @@ Status CheckJointConfig(const SolverConfig& config) {
   if (!config.refine) {
     return Status::Error(config.path + ": refine: false has no meaning for a joint problem");
   }
-  if (config.covariance_algorithm != "schur") {
-    return Status::Error(config.path + ": covariance.algorithm '" + config.covariance_algorithm +
+  if (config.covariance_algorithm != ba::CovarianceAlgorithm::kSchur) {
+    return Status::Error(config.path + ": covariance.algorithm '" +
+                         NameOf(ba::kCovarianceAlgorithmNames, config.covariance_algorithm) +
                          "': joint problems use the engine's Schur covariance (schur), which the "
                          "error budget is built on; ceres::Covariance is its test reference");
   }

@@ -89,15 +89,15 @@ StatusOr<Pose6> InitialObjectPose(const Camera& cam,
             false,
             initializer == Initializer::kEpnp ? cv::SOLVEPNP_EPNP : cv::SOLVEPNP_SQPNP);
       } catch (const cv::Exception& e) {
-        return Status::Error(std::string(InitializerName(initializer)) + ": " + e.what());
+        return Status::Error(std::string(NameOf(kInitializerNames, initializer)) + ": " + e.what());
       }
       if (!ok || rvec.empty()) {
-        return Status::Error(std::string(InitializerName(initializer)) + " failed");
+        return Status::Error(std::string(NameOf(kInitializerNames, initializer)) + " failed");
       }
       Pose6 pose;
       for (int c = 0; c < 3; ++c) pose[c] = rvec.at<double>(c), pose[3 + c] = tvec.at<double>(c);
       if (!pose.allFinite() || !(pose[5] > 0)) {
-        return Status::Error(std::string(InitializerName(initializer)) +
+        return Status::Error(std::string(NameOf(kInitializerNames, initializer)) +
                              " returned an invalid pose");
       }
       return pose;

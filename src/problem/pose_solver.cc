@@ -147,7 +147,7 @@ Status PoseCovariance(const Problem& problem,
   std::vector<int> views(poses.size());
   std::iota(views.begin(), views.end(), 0);
   const std::vector<int> pose_blocks = r.ViewBlocks(views);
-  if (config.covariance_algorithm == "schur") {
+  if (config.covariance_algorithm == ba::CovarianceAlgorithm::kSchur) {
     sol->joint_covariance = r.ViewPosesCovariance(views);
   } else {
     auto cov = ba::CeresBlockCovariance(
@@ -238,8 +238,9 @@ StatusOr<PoseSolution> SolvePoseProblem(const Problem& problem,
   // Relative poses (every pair of few views, else the validation pairs) and, when asked, the
   // leave-one-marker-out TRE: both from the engine's covariance.
   const ba::BaResult& r = *sol.ba_result;
-  const bool engine_covariance =
-      config.refine && config.covariance_algorithm == "schur" && r.covariance;
+  const bool engine_covariance = config.refine &&
+                                 config.covariance_algorithm == ba::CovarianceAlgorithm::kSchur &&
+                                 r.covariance;
   if (engine_covariance) {
     sol.relative_poses = analysis::EstimateRelativePoses(
         r, analysis::RelativePosePairs(*sol.ba_problem, sol.validation_pairs));

@@ -8,20 +8,6 @@
 
 namespace carmba {
 
-const char* InitializerName(Initializer i) {
-  switch (i) {
-    case Initializer::kLegacyPosit:
-      return "legacy_posit";
-    case Initializer::kPosit:
-      return "posit";
-    case Initializer::kEpnp:
-      return "epnp";
-    case Initializer::kSqpnp:
-      return "sqpnp";
-  }
-  return "?";
-}
-
 ba::BaOptions SolverConfig::ToBaOptions() const {
   ba::BaOptions o;
   o.backend = backend;
@@ -54,13 +40,6 @@ bool SolverConfig::Check(std::string* error) const {
       !CheckRange("outliers.list_sigma", outlier_sigma, pl::kSigmaMultiple, error)) {
     return false;
   }
-  if (loss != "trivial" && loss != "huber" && loss != "cauchy" && loss != "soft_l1") {
-    return *error = "loss.type: expected trivial, huber, cauchy or soft_l1, got '" + loss + "'",
-           false;
-  }
-  if (backend != "carmba_lm" && backend != "ceres") {
-    return *error = "backend: expected carmba_lm or ceres, got '" + backend + "'", false;
-  }
   if (!(reject_sigma >= 0)) {
     return *error = "outliers.reject_sigma: expected >= 0 (0: list only)", false;
   }
@@ -78,12 +57,6 @@ bool SolverConfig::Check(std::string* error) const {
                false;
       }
     }
-  }
-  if (covariance_algorithm != "schur" && covariance_algorithm != "dense_svd" &&
-      covariance_algorithm != "sparse_qr" && covariance_algorithm != "eigen_sparse_qr") {
-    return *error = "covariance.algorithm '" + covariance_algorithm +
-                    "' is not one of schur, dense_svd, sparse_qr, eigen_sparse_qr",
-           false;
   }
   return true;
 }
@@ -108,10 +81,10 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
                            "(initializer, loss, linear_solver, covariance; configs/posit_*.yaml)");
     }
   }
-  std::string init = "posit", jac = "analytic", description;
+  std::string jac = "analytic", description;
   root.Get("name", &c.name, true);
   root.Get("description", &description);
-  root.GetEnum("initializer", {"legacy_posit", "posit", "epnp", "sqpnp"}, &init);
+  root.GetEnum("initializer", kInitializerNames, &c.initializer);
   root.Get("refine", &c.refine);
   root.GetEnum("jacobians", {"analytic", "autodiff"}, &jac);
   ReadSolveKeys(root, &c);
@@ -127,19 +100,12 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
   root.GetInRange("gradient_tolerance", &c.gradient_tolerance, plausible::kSolverTolerance);
   root.GetInRange("parameter_tolerance", &c.parameter_tolerance, plausible::kSolverTolerance);
   YamlMap& cov = root.Map("covariance");
-  std::string scale = "per_group";
-  cov.GetEnum(
-      "algorithm", {"schur", "dense_svd", "sparse_qr", "eigen_sparse_qr"}, &c.covariance_algorithm);
-  cov.GetEnum("scale", {"per_group", "apriori", "global", "aposteriori"}, &scale);
+  cov.GetEnum("algorithm", ba::kCovarianceAlgorithmNames, &c.covariance_algorithm);
+  cov.GetEnum("scale", ba::kCovarianceScaleNames, &c.covariance_scale);
   root.Get("tre", &c.tre);
   root.Get("consider_calibration", &c.consider_calibration);
   CARMBA_RETURN_IF_ERROR(root.Finish());
-  ba::ParseCovarianceScale(scale, &c.covariance_scale);
   c.analytic_jacobians = jac == "analytic";
-  c.initializer = init == "legacy_posit" ? Initializer::kLegacyPosit
-                  : init == "epnp"       ? Initializer::kEpnp
-                  : init == "sqpnp"      ? Initializer::kSqpnp
-                                         : Initializer::kPosit;
   std::string err;
   if (!c.Check(&err)) return Status::Error(yaml_path + ": " + err);
   return c;
@@ -147,7 +113,7 @@ StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path) {
 
 void ReadSolveKeys(YamlMap& root, SolverConfig* c) {
   YamlMap& loss = root.Map("loss");
-  loss.GetEnum("type", {"trivial", "huber", "cauchy", "soft_l1"}, &c->loss);
+  loss.GetEnum("type", ba::kLossNames, &c->loss);
   loss.GetInRange("scale_px", &c->loss_scale_px, plausible::kLossScalePx);
   root.GetInRange("max_iterations", &c->max_iterations, plausible::kMaxIterations);
   root.GetInRange("num_threads", &c->num_threads, plausible::kThreads);
@@ -160,7 +126,7 @@ void ReadSolveKeys(YamlMap& root, SolverConfig* c) {
   std::string distortion = c->distortion_auto ? "auto" : "given";
   root.GetEnum("distortion", {"given", "auto"}, &distortion);
   c->distortion_auto = distortion == "auto";
-  root.GetEnum("backend", {"ceres", "carmba_lm"}, &c->backend);
+  root.GetEnum("backend", ba::kBackendNames, &c->backend);
   YamlMap& outliers = root.Map("outliers");
   outliers.GetInRange("list_sigma", &c->outlier_sigma, plausible::kSigmaMultiple);
   outliers.GetNonNegative("reject_sigma", &c->reject_sigma);

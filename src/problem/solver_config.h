@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "ba/bundle_adjuster.h"
+#include "ba/solver_kinds.h"
 #include "ba/variance_components.h"
 #include "util/status.h"
 
@@ -42,6 +43,11 @@ namespace carmba {
 class YamlMap;
 
 enum class Initializer { kLegacyPosit, kPosit, kEpnp, kSqpnp };
+inline constexpr EnumName<Initializer> kInitializerNames[] = {
+    {Initializer::kLegacyPosit, "legacy_posit"},
+    {Initializer::kPosit, "posit"},
+    {Initializer::kEpnp, "epnp"},
+    {Initializer::kSqpnp, "sqpnp"}};
 
 struct SolverConfig {
   std::string name = "default";
@@ -49,7 +55,7 @@ struct SolverConfig {
   Initializer initializer = Initializer::kPosit;
   bool refine = true;              // run the bundle adjustment
   bool analytic_jacobians = true;  // false: autodiff twin
-  std::string loss = "trivial";    // trivial | huber | cauchy | soft_l1
+  ba::Loss loss = ba::Loss::kTrivial;
   double loss_scale_px = 1.0;
   std::string linear_solver = "dense_schur";
   int max_iterations = 100;
@@ -59,7 +65,7 @@ struct SolverConfig {
   // schur: the engine's, from the residuals' Jacobians with the markers eliminated
   //        (ba/covariance.h; the fastest);
   // dense_svd | sparse_qr (SuiteSparse) | eigen_sparse_qr: ceres::Covariance (references).
-  std::string covariance_algorithm = "schur";
+  ba::CovarianceAlgorithm covariance_algorithm = ba::CovarianceAlgorithm::kSchur;
   // per_group: each observation group's sigmas scaled by its estimated variance factor where its
   // redundancy allows (ba/variance_components.h); apriori: the stated sigmas; global: sigma0^2.
   ba::CovarianceScale covariance_scale = ba::CovarianceScale::kPerGroup;
@@ -78,7 +84,7 @@ struct SolverConfig {
   double reject_sigma = 0;
   // The engine's minimiser: ceres, or carmba_lm for calibration-structured problems
   // (ba/bundle_adjuster.h).
-  std::string backend = "ceres";
+  ba::Backend backend = ba::Backend::kCeres;
   // Leave-one-marker-out target registration error (analysis/tre.h): one more solve per marker.
   bool tre = false;
   // Pose problems: when camera.json has a covariance, the intrinsics (held at its values) are
@@ -95,10 +101,9 @@ struct SolverConfig {
 
 StatusOr<SolverConfig> LoadSolverConfig(const std::string& yaml_path);
 
-// The keys a solver config and a calibration config share, read (and their strings converted)
-// here only: loss {type, scale_px}, max_iterations, num_threads, fix, distortion, backend,
-// outliers {list_sigma, reject_sigma}. A key that is absent keeps c's value.
+// The keys a solver config and a calibration config share, read here only: loss {type,
+// scale_px}, max_iterations, num_threads, fix, distortion, backend, outliers {list_sigma,
+// reject_sigma}. A key that is absent keeps c's value.
 void ReadSolveKeys(YamlMap& root, SolverConfig* c);
-const char* InitializerName(Initializer i);
 
 }  // namespace carmba

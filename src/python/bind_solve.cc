@@ -356,7 +356,8 @@ py::dict Triangulate(const Solved& s,
                      double sigma_px,
                      const py::object& covariances,
                      double min_angle_deg) {
-  if (s.kind == "pose" && (!s.config.refine || s.config.covariance_algorithm != "schur")) {
+  if (s.kind == "pose" &&
+      (!s.config.refine || s.config.covariance_algorithm != ba::CovarianceAlgorithm::kSchur)) {
     throw Error(s.config.path + ": triangulation needs the refined solve's covariance "
                 "(refine: true, covariance: {algorithm: schur})");
   }

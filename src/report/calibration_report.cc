@@ -47,9 +47,10 @@ void CalibrationSummaryDoc(const CalibrationRun& run, ReportDoc* doc) {
             FmtRoundTrip(r.camera.params[kFy] / r.camera.params[kFx]) + " fx";
   }
   if (held.empty()) held = "none";
+  const bool robust = opt.solve.loss != ba::Loss::kTrivial;
   std::string loss =
-      "Robust loss: " + (opt.solve.loss == "trivial" ? std::string("none") : opt.solve.loss);
-  if (opt.solve.loss != "trivial") loss += " (scale " + Fmt("%g", opt.solve.loss_scale_px) + " px)";
+      "Robust loss: " + std::string(robust ? NameOf(ba::kLossNames, opt.solve.loss) : "none");
+  if (robust) loss += " (scale " + Fmt("%g", opt.solve.loss_scale_px) + " px)";
   d.List({"Grid: " + std::string(GridPatternName(obs.grid.pattern)) + " " +
               std::to_string(obs.grid.rows) + " x " + std::to_string(obs.grid.cols) +
               ", spacing " + Fmt("%g", obs.grid.spacing_mm) + " mm; image " +
@@ -287,7 +288,8 @@ void MrcalCrossCheckDoc(const CalibrationRun& run, const nlohmann::json* m, Repo
     d.Paragraph("Not run: " + run.mrcal_error);
     return;
   }
-  const bool same_model = r.num_free_intrinsics == kNumIntrinsics && opt.solve.loss == "trivial";
+  const bool same_model =
+      r.num_free_intrinsics == kNumIntrinsics && opt.solve.loss == ba::Loss::kTrivial;
   const bool held = m->contains("held") && (*m)["held"].is_object();
   d.Paragraph("mrcal " + (*m)["mrcal_version"].get<std::string>() +
               " (python3-mrcal), LENSMODEL_OPENCV5, no board warp, no regularization, no "

@@ -44,7 +44,7 @@ nlohmann::json StatisticsJson(const ba::BaProblem& problem, const ba::BaResult& 
                       {"chi2_p_value", JsonNumber(result.chi2_p_value)},
                       {"num_residuals", result.num_residuals},
                       {"num_parameters", result.num_free},
-                      {"covariance_scale", ba::CovarianceScaleName(result.scale_mode)}};
+                      {"covariance_scale", NameOf(ba::kCovarianceScaleNames, result.scale_mode)}};
   if (plate) j["rms_plate_px"] = JsonNumber(result.rms_plate_px);
   if (object) j["rms_object_px"] = JsonNumber(result.rms_object_px);
   return j;
@@ -52,7 +52,7 @@ nlohmann::json StatisticsJson(const ba::BaProblem& problem, const ba::BaResult& 
 
 nlohmann::json SolverJson(const std::string& config_name, const ba::BaResult& result) {
   return {{"config", config_name},
-          {"engine", result.backend + " (src/ba)"},
+          {"engine", std::string(NameOf(ba::kBackendNames, result.backend)) + " (src/ba)"},
           {"iterations", result.iterations},
           {"termination", result.termination},
           {"converged", result.converged},

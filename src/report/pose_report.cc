@@ -177,7 +177,8 @@ void PoseValidationDoc(const Problem& problem,
                        "initializer's, without uncertainty."));
   const bool thesis = HasThesisAngles(problem), legacy = HasLegacyReference(problem);
   const std::string result_column =
-      config.refine ? "bundle adjustment" : std::string(InitializerName(config.initializer));
+      config.refine ? "bundle adjustment"
+                    : std::string(NameOf(kInitializerNames, config.initializer));
   std::vector<std::vector<std::string>> rows;
   for (const auto& p : s.validation) {
     const auto key = std::make_pair(p.a, p.b);
@@ -245,7 +246,8 @@ void PoseRmsDoc(const Problem& problem,
   rows.push_back(all);
   std::vector<std::string> header = {"view", "markers"};
   if (legacy) header.push_back("legacy POSIT");
-  header.push_back(std::string("initializer (") + InitializerName(config.initializer) + ")");
+  header.push_back(std::string("initializer (") + NameOf(kInitializerNames, config.initializer) +
+                   ")");
   header.push_back(config.refine ? "bundle adjustment" : "final (not refined)");
   header.push_back("other handedness BA");
   d.Table(header, rows);
@@ -265,9 +267,9 @@ ReportDoc PoseReportDoc(const Problem& problem,
   ReportDoc d;
   d.Heading(1, "carmba pose report: " + problem.name);
   d.List({"Problem: `" + problem.path + "`; config: `" + config.name + "` (initializer " +
-              InitializerName(config.initializer) + ", " +
+              NameOf(kInitializerNames, config.initializer) + ", " +
               (config.analytic_jacobians ? "analytic" : "autodiff") + " Jacobians, loss " +
-              config.loss + ", " + config.linear_solver + ")",
+              NameOf(ba::kLossNames, config.loss) + ", " + config.linear_solver + ")",
           "Camera: fx " + Fmt("%.3f", problem.camera->params[kFx]) + ", fy " +
               Fmt("%.3f", problem.camera->params[kFy]) + ", cx " +
               Fmt("%.3f", problem.camera->params[kCx]) + ", cy " +
@@ -331,8 +333,9 @@ ReportDoc PoseReportDoc(const Problem& problem,
                : r.chi2_p_value > 0.99
                    ? " (residuals smaller than the stated sigmas: sigmas too large?)"
                    : " (consistent with the stated sigmas)"),
-          "Covariance: " + config.covariance_algorithm + ", " +
-              CovarianceScaleNote(config.covariance_scale)});
+          "Covariance: " +
+              std::string(NameOf(ba::kCovarianceAlgorithmNames, config.covariance_algorithm)) +
+              ", " + CovarianceScaleNote(config.covariance_scale)});
   if (s.ba_result) {
     d.Append(VarianceComponentsDoc(*s.ba_result));
     d.Append(ShadowCorrectionDoc(*s.ba_result));

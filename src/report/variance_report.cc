@@ -35,7 +35,7 @@ nlohmann::json VarianceComponentsJson(const ba::BaResult& result) {
                       {"applied", c.applied},
                       {"outside_band", c.outside_band}});
   }
-  return {{"scale", ba::CovarianceScaleName(scale)},
+  return {{"scale", NameOf(ba::kCovarianceScaleNames, scale)},
           {"iterations", result.variance_iterations},
           {"min_redundancy", ba::kMinVarianceComponentRedundancy},
           {"groups", groups}};

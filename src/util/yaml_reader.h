@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "util/enum_names.h"
 #include "util/plausible.h"
 #include "util/status.h"
 
@@ -51,6 +52,16 @@ class YamlMap {
                const std::vector<std::string>& choices,
                std::string* out,
                bool required = false);
+  // An enum value by one of its names (util/enum_names.h).
+  template <typename E, size_t N>
+  void GetEnum(const std::string& key,
+               const EnumName<E> (&names)[N],
+               E* out,
+               bool required = false) {
+    std::string s = NameOf(names, *out);
+    GetEnum(key, NamesOf(names), &s, required);
+    ParseName(names, s, out);
+  }
   // A positive / non-negative number (after Get).
   void GetPositive(const std::string& key, double* out, bool required = false);
   void GetNonNegative(const std::string& key, double* out, bool required = false);

@@ -120,7 +120,7 @@ TEST(SmoothIntrinsics, SchurCovarianceEqualsCeresAndAnalyticEqualsAutodiff) {
   const int gb = r->layout->group_block(0);
   const int vb = r->layout->view_block(static_cast<int>(p.views.size()) - 1);
   const Eigen::MatrixXd S = r->Covariance({gb, vb});
-  auto C = ba::CeresBlockCovariance(p, o, *r, {gb, vb}, "dense_svd");
+  auto C = ba::CeresBlockCovariance(p, o, *r, {gb, vb}, ba::CovarianceAlgorithm::kDenseSvd);
   ASSERT_TRUE(C.ok()) << C.status().message();
   for (Eigen::Index i = 0; i < S.rows(); ++i) {
     for (Eigen::Index j = 0; j < S.cols(); ++j) {

@@ -46,7 +46,7 @@ const ObservationSet& Views(int n) {
 void BM_CalibCarmba(benchmark::State& state) {
   const ObservationSet& obs = Views(static_cast<int>(state.range(0)));
   CalibrationOptions opt;
-  if (state.range(1) == 1) opt.solve.backend = "ceres";
+  if (state.range(1) == 1) opt.solve.backend = ba::Backend::kCeres;
   state.SetLabel(opt.solve.backend);
   double rms = 0, fx = 0, cx = 0;
   for (auto _ : state) {
@@ -161,7 +161,7 @@ void BM_CalibEngine(benchmark::State& state) {
     p.views.push_back(view);
   }
   ba::BaOptions o;
-  if (state.range(1) == 1) o.backend = "carmba_lm";
+  if (state.range(1) == 1) o.backend = ba::Backend::kCarmbaLm;
   state.SetLabel(o.backend);
   o.function_tolerance = 1e-10;
   o.gradient_tolerance = 1e-14;

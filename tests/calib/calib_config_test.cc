@@ -30,27 +30,27 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   ASSERT_TRUE(old_spelling.ok()) << old_spelling.status().message();
   ASSERT_TRUE(new_spelling.ok()) << new_spelling.status().message();
   for (const CalibrationOptions* o : {&*old_spelling, &*new_spelling}) {
-    EXPECT_EQ(o->solve.loss, "cauchy");
+    EXPECT_EQ(o->solve.loss, ba::Loss::kCauchy);
     EXPECT_EQ(o->solve.loss_scale_px, 2.5);
     EXPECT_EQ(o->solve.outlier_sigma, 3);
-    EXPECT_EQ(o->solve.backend, "ceres");
+    EXPECT_EQ(o->solve.backend, ba::Backend::kCeres);
   }
   const ba::BaOptions a = old_spelling->ToSolverConfig().ToBaOptions();
   const ba::BaOptions b = new_spelling->ToSolverConfig().ToBaOptions();
-  EXPECT_EQ(a.loss, "cauchy");
-  EXPECT_EQ(b.loss, "cauchy");
+  EXPECT_EQ(a.loss, ba::Loss::kCauchy);
+  EXPECT_EQ(b.loss, ba::Loss::kCauchy);
   EXPECT_EQ(a.loss_scale_px, b.loss_scale_px);
   EXPECT_EQ(a.outlier_sigma, 3);
-  EXPECT_EQ(b.backend, "ceres");
+  EXPECT_EQ(b.backend, ba::Backend::kCeres);
 
   // trivial = none; carmba_lm = lm; the defaults are carmba's LM without a loss.
   auto plain = Read("loss: {type: trivial}\nbackend: carmba_lm\n");
   ASSERT_TRUE(plain.ok()) << plain.status().message();
-  EXPECT_EQ(plain->solve.loss, "trivial");
-  EXPECT_EQ(plain->solve.backend, "carmba_lm");
+  EXPECT_EQ(plain->solve.loss, ba::Loss::kTrivial);
+  EXPECT_EQ(plain->solve.backend, ba::Backend::kCarmbaLm);
   const ba::BaOptions p = plain->ToSolverConfig().ToBaOptions();
-  EXPECT_EQ(p.backend, "carmba_lm");
-  EXPECT_EQ(p.loss, "trivial");
+  EXPECT_EQ(p.backend, ba::Backend::kCarmbaLm);
+  EXPECT_EQ(p.loss, ba::Loss::kTrivial);
   // The pixel sigma estimated (no pixel_sigma_px): the engine's a-posteriori factor; given: a
   // priori.
   EXPECT_EQ(p.covariance_scale, ba::CovarianceScale::kGlobal);
@@ -61,7 +61,7 @@ TEST_F(CalibConfigVocabulary, BothSpellingsReadTheSame) {
   // squares).
   auto robust_lm = Read("loss: {type: huber}\nbackend: carmba_lm\n");
   ASSERT_TRUE(robust_lm.ok());
-  EXPECT_EQ(robust_lm->ToSolverConfig().backend, "ceres");
+  EXPECT_EQ(robust_lm->ToSolverConfig().backend, ba::Backend::kCeres);
 }
 
 // The keys a calibration config shares with a solver config are read by the solver config's
@@ -72,12 +72,12 @@ TEST_F(CalibConfigVocabulary, TheSharedKeysAreTheSolverConfigs) {
       "loss: {type: soft_l1, scale_px: 0.5}\nmax_iterations: 7\nnum_threads: 2\n"
       "fix: [k3]\n");
   ASSERT_TRUE(soft.ok()) << soft.status().message();
-  EXPECT_EQ(soft->solve.loss, "soft_l1");
+  EXPECT_EQ(soft->solve.loss, ba::Loss::kSoftL1);
   EXPECT_EQ(soft->solve.loss_scale_px, 0.5);
   EXPECT_EQ(soft->solve.max_iterations, 7);
   EXPECT_EQ(soft->solve.num_threads, 2);
   EXPECT_EQ(soft->solve.fix, std::vector<std::string>{"k3"});
-  EXPECT_EQ(soft->ToSolverConfig().ToBaOptions().loss, "soft_l1");
+  EXPECT_EQ(soft->ToSolverConfig().ToBaOptions().loss, ba::Loss::kSoftL1);
   for (const char* text :
        {"loss: {type: l2}\n", "fix: [f]\n", "outliers: {list_sigma: 1e9}\n", "backend: lm2\n"}) {
     auto calib = Read(text);

@@ -190,7 +190,7 @@ TEST(CalibrateTest, OwnLmAndCeresReachTheSameOptimum) {
   so.seed = 17;
   const ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   CalibrationOptions a, b;
-  b.solve.backend = "ceres";
+  b.solve.backend = ba::Backend::kCeres;
   auto ra = Calibrate(obs, a);
   auto rb = Calibrate(obs, b);
   ASSERT_TRUE(ra.ok() && rb.ok());
@@ -238,7 +238,7 @@ TEST(CalibrateTest, RobustLossFlagsAnOutlier) {
   ObservationSet obs = MakeSyntheticViews(kTruth, 408, 408, Plate5x5(), so);
   obs.views[4].uv_px[7] += Eigen::Vector2d(6.0, -4.0);
   CalibrationOptions opt;
-  opt.solve.loss = "cauchy";
+  opt.solve.loss = ba::Loss::kCauchy;
   opt.solve.loss_scale_px = 1.0;
   auto r = Calibrate(obs, opt);
   ASSERT_TRUE(r.ok()) << r.status().message();

@@ -46,8 +46,8 @@ DenseSystem Assemble(const ObservationSet& obs, const CalibrationResult& r, doub
   DenseSystem s{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
   std::unique_ptr<ceres::LossFunction> loss;
   const double a = r.loss_scale_px / sigma_solve;
-  if (r.loss == "huber") loss.reset(new ceres::HuberLoss(a));
-  if (r.loss == "cauchy") loss.reset(new ceres::CauchyLoss(a));
+  if (r.loss == ba::Loss::kHuber) loss.reset(new ceres::HuberLoss(a));
+  if (r.loss == ba::Loss::kCauchy) loss.reset(new ceres::CauchyLoss(a));
   for (int v = 0; v < nv; ++v) {
     for (size_t j = 0; j < obs.views[v].uv_px.size(); ++j) {
       const Eigen::Vector3d P = obs.grid.PointInPlate(obs.views[v].point_ids[j]);
@@ -102,7 +102,7 @@ std::vector<Case> Cases() {
   given_sigma.options.pixel_sigma_px = 0.3;
   cases.push_back(given_sigma);
   Case robust{"cauchy loss (Ceres path, same covariance code)", CalibrationOptions(), 16, 5};
-  robust.options.solve.loss = "cauchy";
+  robust.options.solve.loss = ba::Loss::kCauchy;
   cases.push_back(robust);
   return cases;
 }
@@ -203,7 +203,8 @@ TEST(SolverTest, SolutionIsTheMinimum) {
     const ObservationSet obs = Views(c.num_views, c.seed);
     auto r = Calibrate(obs, c.options);
     ASSERT_TRUE(r.ok()) << r.status().message();
-    if (c.options.solve.loss != "trivial") continue;  // a weighted problem: GN step differs
+    if (c.options.solve.loss != ba::Loss::kTrivial)
+      continue;  // a weighted problem: GN step differs
     EXPECT_LT(FurtherStepInSigmas(obs, *r), kMaxStepSigma);
     CalibrationOptions early = c.options;
     early.solve.max_iterations = 2;

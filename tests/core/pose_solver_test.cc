@@ -8,6 +8,7 @@
 #include "figures.h"
 #include "geometry/rotation.h"
 #include "report/pose_report.h"
+#include "scratch.h"
 #include "synthetic/synthetic_pose.h"
 #include "test_util.h"
 #include "util/stats.h"
@@ -79,11 +80,12 @@ TEST(PoseSolver, InitializersAndJacobiansAgree) {
       c.initializer = init;
       c.analytic_jacobians = analytic;
       auto s = SolvePoseProblem(p, c);
-      ASSERT_TRUE(s.ok()) << InitializerName(init) << ": " << s.status().message();
+      ASSERT_TRUE(s.ok()) << NameOf(kInitializerNames, init) << ": " << s.status().message();
       for (size_t v = 0; v < s->views.size(); ++v) {
         // Same minimum: poses to 1e-6 of the pose sigma scale.
         EXPECT_LT((s->views[v].cam_from_object - base->views[v].cam_from_object).norm(), 1e-5)
-            << InitializerName(init) << (analytic ? " analytic" : " autodiff") << " view " << v;
+            << NameOf(kInitializerNames, init) << (analytic ? " analytic" : " autodiff") << " view "
+            << v;
       }
       EXPECT_NEAR(s->ba_result->chi2, base->ba_result->chi2, 1e-8 * base->ba_result->chi2);
     }
@@ -237,23 +239,27 @@ TEST(PoseSolver, CovarianceAlgorithmsAgree) {
     spec.markers = ThesisMarkers();
     if (views == 1) spec.view_angles_deg = {30}, spec.pairs.clear();
     const Problem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
-    for (const char* loss : {"trivial", "huber", "cauchy"}) {
+    for (const ba::Loss loss : {ba::Loss::kTrivial, ba::Loss::kHuber, ba::Loss::kCauchy}) {
       for (bool analytic : {true, false}) {
         SolverConfig c = DefaultConfig();
         c.loss = loss;
         c.loss_scale_px = 0.4;  // below the 0.5 px noise: the loss is active on some residuals
         c.analytic_jacobians = analytic;
-        c.covariance_algorithm = "dense_svd";
+        c.covariance_algorithm = ba::CovarianceAlgorithm::kDenseSvd;
         auto ref = SolvePoseProblem(p, c);
         ASSERT_TRUE(ref.ok()) << ref.status().message();
         ASSERT_EQ(ref->joint_covariance.rows(), 6 * views);
-        for (const char* algo : {"schur", "sparse_qr", "eigen_sparse_qr"}) {
+        for (const ba::CovarianceAlgorithm algo : {ba::CovarianceAlgorithm::kSchur,
+                                                   ba::CovarianceAlgorithm::kSparseQr,
+                                                   ba::CovarianceAlgorithm::kEigenSparseQr}) {
           c.covariance_algorithm = algo;
+          const char* algo_name = NameOf(ba::kCovarianceAlgorithmNames, algo);
           auto s = SolvePoseProblem(p, c);
-          ASSERT_TRUE(s.ok()) << algo;
+          ASSERT_TRUE(s.ok()) << algo_name;
           const double rel = (s->joint_covariance - ref->joint_covariance).norm() /
                              ref->joint_covariance.norm();
-          EXPECT_LT(rel, kRelTol) << algo << ", " << views << " views, loss " << loss
+          EXPECT_LT(rel, kRelTol) << algo_name << ", " << views << " views, loss "
+                                  << NameOf(ba::kLossNames, loss)
                                   << (analytic ? ", analytic" : ", autodiff");
         }
       }
@@ -269,7 +275,7 @@ TEST(PoseSolver, RobustLossEntersTheSchurCovariance) {
   const Problem p = MakeSyntheticPoseProblem(spec, 0.5, 0.2, 21);
   SolverConfig c = DefaultConfig();
   auto plain = SolvePoseProblem(p, c);
-  c.loss = "cauchy";
+  c.loss = ba::Loss::kCauchy;
   c.loss_scale_px = 0.4;
   auto robust = SolvePoseProblem(p, c);
   ASSERT_TRUE(plain.ok() && robust.ok());
@@ -278,12 +284,25 @@ TEST(PoseSolver, RobustLossEntersTheSchurCovariance) {
             1e-3);
 }
 
+// A name no table holds is an error naming the file, the line, the key and the names it takes.
 TEST(PoseSolver, UnknownCovarianceAlgorithmIsRejected) {
-  SolverConfig c = DefaultConfig();
-  c.covariance_algorithm = "cholmod";
-  std::string err;
-  EXPECT_FALSE(c.Check(&err));
-  EXPECT_NE(err.find("cholmod"), std::string::npos);
+  const test::ScratchDir dir("solver_config");
+  dir.Write("c.yaml", "name: c\ncovariance: {algorithm: cholmod}\n");
+  auto c = LoadSolverConfig(dir.File("c.yaml"));
+  ASSERT_FALSE(c.ok());
+  const std::string& m = c.status().message();
+  EXPECT_NE(m.find("c.yaml:2"), std::string::npos) << m;
+  EXPECT_NE(m.find("covariance.algorithm"), std::string::npos) << m;
+  EXPECT_NE(m.find("schur|dense_svd|sparse_qr|eigen_sparse_qr, got 'cholmod'"), std::string::npos)
+      << m;
+  for (const auto& [yaml, expected] :
+       {std::pair<std::string, std::string>{"loss: {type: l2}", "soft_l1, got 'l2'"},
+        {"backend: levmar", "ceres|carmba_lm, got 'levmar'"}}) {
+    dir.Write("l.yaml", "name: l\n" + yaml + "\n");
+    auto l = LoadSolverConfig(dir.File("l.yaml"));
+    ASSERT_FALSE(l.ok()) << yaml;
+    EXPECT_NE(l.status().message().find(expected), std::string::npos) << l.status().message();
+  }
 }
 
 }  // namespace
