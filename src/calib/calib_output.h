@@ -15,7 +15,7 @@
 //                        per image: points found, used or skipped and why
 //   report.html          the same, with plots (report/plots.h)
 //   overlays/NNN_<image stem>.png   per image (when detected here, not from --observations):
-//                        detect/overlays.h DrawDetectionOverlay (found points with ids,
+//                        report/overlays.h DrawDetectionOverlay (found points with ids,
 //                        rejected blobs and why)
 //   mrcal/               the mrcal cross-check's script, input and output, and
 //                        camera_with_optimization_inputs.cameramodel: carmba's solution with

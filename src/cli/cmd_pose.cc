@@ -15,6 +15,7 @@
 #include "cli/common_flags.h"
 #include "detect/marker_views.h"
 #include "problem/pose_solver.h"
+#include "report/marker_views_report.h"
 #include "report/plots.h"
 #include "report/pose_report.h"
 #include "util/file_util.h"

@@ -8,8 +8,8 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
-#include "detect/overlays.h"
 #include "geometry/rotation.h"
+#include "report/overlays.h"
 #include "util/base64.h"
 #include "util/file_util.h"
 #include "util/format.h"

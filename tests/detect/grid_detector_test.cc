@@ -2,7 +2,6 @@
 // bright circular field with a dark surround, noise, vignetting), 8 and 16 bit, inverted polarity,
 // asymmetric grid, chessboard; not-found reasons; observations CSV round trip; speed.
 #include "detect/grid_detector.h"
-#include "detect/overlays.h"
 
 #include <gtest/gtest.h>
 
@@ -12,8 +11,9 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
-#include "util/file_util.h"
+#include "report/overlays.h"
 #include "scratch.h"
+#include "util/file_util.h"
 
 namespace carmba {
 namespace {

@@ -1,4 +1,4 @@
-#include "detect/overlays.h"
+#include "report/overlays.h"
 
 #include <algorithm>
 #include <cmath>
@@ -62,8 +62,14 @@ cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const G
                 std::to_string(grid.NumPoints()) + " points" +
                 (d.rejected.empty() ? "" : ", " + std::to_string(d.rejected.size()) + " rejected")
           : "not found: " + d.reason;
-  cv::putText(out, head, cv::Point(4, static_cast<int>(4 + 28 * scale)), cv::FONT_HERSHEY_SIMPLEX,
-              scale, d.found ? green : yellow, 1, cv::LINE_AA);
+  cv::putText(out,
+              head,
+              cv::Point(4, static_cast<int>(4 + 28 * scale)),
+              cv::FONT_HERSHEY_SIMPLEX,
+              scale,
+              d.found ? green : yellow,
+              1,
+              cv::LINE_AA);
   return out;
 }
 
