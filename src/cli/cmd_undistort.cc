@@ -36,13 +36,9 @@ StatusOr<Camera> LoadCamera(const std::string& path) {
 // Output name of a view: the file's stem (+ _frameN for a frame of a multi-frame DICOM file),
 // .png for 8 / 16 bit (lossless, depth kept), .tiff for float.
 std::string OutputName(const std::string& view, int depth) {
-  std::string file = view, frame;
-  const size_t hash = view.rfind("#frame");
-  if (hash != std::string::npos) {
-    file = view.substr(0, hash);
-    frame = "_frame" + view.substr(hash + 6);
-  }
-  return std::filesystem::path(file).stem().string() + frame +
+  const FrameName split = SplitFrameSuffix(view);
+  const std::string frame = split.suffix.empty() ? "" : "_" + split.suffix.substr(1);
+  return std::filesystem::path(split.file).stem().string() + frame +
          (depth == CV_32F ? ".tiff" : ".png");
 }
 

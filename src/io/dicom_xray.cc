@@ -196,16 +196,16 @@ bool SplitDicomFrameName(const std::string& name,
                          std::string* file,
                          int* frame_index,
                          std::string* error) {
-  const size_t pos = name.rfind("#frame");
-  if (pos == std::string::npos) return false;
-  const std::string num = name.substr(pos + 6);
+  const FrameName split = SplitFrameSuffix(name);
+  if (split.suffix.empty()) return false;
+  const std::string num = split.suffix.substr(6);  // after "#frame"
   char* end = nullptr;
   const long n = std::strtol(num.c_str(), &end, 10);
   if (num.empty() || *end != '\0' || n < 1 || n > 1000000) {
     *error = name + ": frame suffix '#frame" + num + "', expected #frameN with N = 1, 2, ...";
     return true;
   }
-  *file = name.substr(0, pos);
+  *file = split.file;
   *frame_index = static_cast<int>(n - 1);
   return true;
 }

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <set>
 
+#include "util/file_util.h"
 #include "util/image_codecs.h"
 #include "util/image_header.h"
 #include "util/quiet_stderr.h"
@@ -68,10 +69,9 @@ namespace {
 
 // `name` without its `#frameN` (returned in `frame`) and split into path components.
 std::vector<std::string> ViewPathParts(const std::string& name, std::string* frame) {
-  std::string file = name;
-  const size_t hash = name.rfind("#frame");
-  frame->clear();
-  if (hash != std::string::npos) *frame = name.substr(hash), file = name.substr(0, hash);
+  const FrameName split = SplitFrameSuffix(name);
+  const std::string& file = split.file;
+  *frame = split.suffix;
   std::vector<std::string> parts;
   for (const auto& part : std::filesystem::path(file).lexically_normal()) {
     if (!part.empty() && part != "/") parts.push_back(part.string());

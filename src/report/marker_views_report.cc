@@ -68,9 +68,7 @@ nlohmann::json ObjectViewsToJson(const std::vector<ObjectView>& views) {
 }
 
 std::string OverlayFileName(const std::string& view_id) {
-  std::string stem = view_id;
-  const size_t hash = stem.rfind("#frame");
-  if (hash != std::string::npos) stem.replace(hash, 1, "_");
+  std::string stem = view_id;  // `#frameN` becomes `_frameN` too
   for (char& c : stem) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-')) c = '_';
   }

@@ -163,9 +163,7 @@ namespace {
 // The file or directory an input names: a glob's directory before its first wildcard, a DICOM
 // frame's file.
 std::string InputRoot(const std::string& input) {
-  std::string p = input;
-  const size_t frame = p.rfind("#frame");
-  if (frame != std::string::npos) p = p.substr(0, frame);
+  std::string p = SplitFrameSuffix(input).file;
   const size_t wild = p.find_first_of("*?[");
   if (wild != std::string::npos) {
     const size_t slash = p.rfind('/', wild);
@@ -377,10 +375,15 @@ StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob) {
   return files;
 }
 
+FrameName SplitFrameSuffix(const std::string& name) {
+  const size_t hash = name.rfind("#frame");
+  if (hash == std::string::npos) return {name, ""};
+  return {name.substr(0, hash), name.substr(hash)};
+}
+
 StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob) {
-  const size_t frame = dir_or_glob.rfind("#frame");
-  if (frame != std::string::npos && !FileExists(dir_or_glob) &&
-      FileExists(dir_or_glob.substr(0, frame))) {
+  const FrameName frame = SplitFrameSuffix(dir_or_glob);
+  if (!frame.suffix.empty() && !FileExists(dir_or_glob) && FileExists(frame.file)) {
     return std::vector<std::string>{dir_or_glob};  // one frame of a multi-frame DICOM file
   }
   auto files = ListFiles(dir_or_glob);

@@ -118,4 +118,13 @@ StatusOr<std::vector<std::string>> ListFiles(const std::string& dir_or_glob);
 // exists. Error if no image is left.
 StatusOr<std::vector<std::string>> ListImageFiles(const std::string& dir_or_glob);
 
+// A view name `file#frameN` (one frame of a multi-frame DICOM file) split into the file and the
+// suffix "#frameN" (empty when there is none): the one place the suffix is recognised
+// (io/dicom_xray.h SplitDicomFrameName also checks N).
+struct FrameName {
+  std::string file;
+  std::string suffix;
+};
+FrameName SplitFrameSuffix(const std::string& name);
+
 }  // namespace carmba

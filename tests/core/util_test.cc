@@ -23,6 +23,16 @@ TEST(ParseFiniteDouble, DecimalOnly) {
   }
 }
 
+// The one parser of a view name's `#frameN`: the last one counts, the file keeps any other '#'.
+TEST(SplitFrameSuffix, FileAndSuffix) {
+  FrameName f = SplitFrameSuffix("dir/run#2.dcm#frame12");
+  EXPECT_EQ(f.file, "dir/run#2.dcm");
+  EXPECT_EQ(f.suffix, "#frame12");
+  f = SplitFrameSuffix("dir/a.dcm");
+  EXPECT_EQ(f.file, "dir/a.dcm");
+  EXPECT_EQ(f.suffix, "");
+}
+
 TEST(Csv, ByteOrderMarkIsNotPartOfTheFirstField) {
   auto t = ParseCsv("\xEF\xBB\xBF# exported\nid,x\n1,2.5\n", "bom.csv");
   ASSERT_TRUE(t.ok()) << t.status().message();
