@@ -28,7 +28,8 @@ echo
 echo "== 2. Calibration from simulated X-ray images of the 5x5 plate (thesis intrinsics)"
 "$BIN" simulate --scene=configs/scenes/thesis_calibration.yaml --out="$OUT/sim/calibration"
 "$BIN" calibrate --images="$OUT/sim/calibration/*.png" --pattern=circles --rows=5 --cols=5 \
-  --spacing-mm=20 --truth="$OUT/sim/calibration/truth.json" --out="$OUT/calibration"
+  --spacing-mm=20 --sphere-diameter-mm=3.06 --truth="$OUT/sim/calibration/truth.json" \
+  --out="$OUT/calibration"
 
 echo
 echo "== 3. CT fiducials from a simulated DICOM series of the 9-marker object"

@@ -28,12 +28,13 @@ done
 run simulate --scene=configs/scenes/thesis_calibration.yaml --out="$SIM/calibration"
 for c in calib calib_free calib_radial calib_robust calib_thesis; do
   run calibrate --images="$SIM/calibration/*.png" --pattern=circles --rows=5 --cols=5 \
-    --spacing-mm=20 --truth="$SIM/calibration/truth.json" --config="configs/$c.yaml" \
+    --spacing-mm=20 --sphere-diameter-mm=3.06 --truth="$SIM/calibration/truth.json" \
+    --config="configs/$c.yaml" \
     --out="$OUT/calibration_$c" --no-plots --no-mrcal --no-opencv
 done
 run simulate --scene=configs/scenes/calib_7x6_pincushion.yaml --out="$SIM/pincushion"
 run calibrate --images="$SIM/pincushion/*.png" --pattern=circles --rows=6 --cols=7 --spacing-mm=15 \
-  --truth="$SIM/pincushion/truth.json" --config=configs/calib_free.yaml \
+  --sphere-diameter-mm=2.5 --truth="$SIM/pincushion/truth.json" --config=configs/calib_free.yaml \
   --out="$OUT/calibration_pincushion_calib_free" --no-plots --no-mrcal --no-opencv
 run calibrate --problem=problems/calib_opencv_left.yaml --config=configs/calib_free.yaml --out="$OUT/calibration_opencv_left" --no-plots --no-mrcal --no-opencv
 

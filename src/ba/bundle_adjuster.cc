@@ -941,7 +941,8 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
   auto res = SolveWithNoiseModel(problem, options, nullptr);
   if (!res.ok() || !options.shadow_correction || !options.evaluate_solution) return res;
   const auto offsets = ShadowOffsets(problem, *res);
-  const ShadowCorrectionSummary shadow = SummariseShadowOffsets(problem, offsets);
+  const ShadowCorrectionSummary shadow =
+      SummariseShadowOffsets(problem, offsets, std::sqrt(res->covariance_scale));
   if (!shadow.applied) {
     res->shadow = shadow;
     return res;
@@ -955,6 +956,7 @@ StatusOr<BaResult> SolveBundleAdjustment(const BaProblem& problem, const BaOptio
   const double first_time_s = first.time_s;
   const int first_iterations = first.iterations;
   res->shadow = shadow;
+  res->shadow_offsets = offsets;
   res->time_s += first_time_s;
   res->iterations += first_iterations;
   return res;

@@ -132,6 +132,10 @@ struct BaResult {
   // The cone-beam shadow-centre correction (ba/shadow_correction.h): evaluated when a sphere
   // radius is known; when applied, every statistic above and below is of the corrected pixels.
   ShadowCorrectionSummary shadow;
+  // The offsets subtracted from the observed pixels (views x observations, problem order) when
+  // the correction was applied; empty otherwise. A cross-check gives another solver the pixels
+  // this solve saw: observed minus these.
+  std::vector<std::vector<Eigen::Vector2d>> shadow_offsets;
 
   std::vector<BaViewStats> views;  // problem order
   // Every observation's residual, per view (problem order) and observation (BaView order): the

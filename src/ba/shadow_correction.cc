@@ -139,7 +139,9 @@ std::vector<std::vector<Eigen::Vector2d>> ShadowOffsets(const BaProblem& problem
 }
 
 ShadowCorrectionSummary SummariseShadowOffsets(
-    const BaProblem& problem, const std::vector<std::vector<Eigen::Vector2d>>& offsets) {
+    const BaProblem& problem,
+    const std::vector<std::vector<Eigen::Vector2d>>& offsets,
+    double sigma_scale) {
   ShadowCorrectionSummary s;
   s.evaluated = problem.marker_radius_mm > 0 || problem.plate.sphere_radius_mm > 0;
   if (!s.evaluated) return s;
@@ -151,7 +153,7 @@ ShadowCorrectionSummary SummariseShadowOffsets(
       ++s.num_observations;
       sum2 += n * n;
       s.max_px = std::max(s.max_px, n);
-      s.max_sigma = std::max(s.max_sigma, n / problem.views[v].SigmaPx(i));
+      s.max_sigma = std::max(s.max_sigma, n / (sigma_scale * problem.views[v].SigmaPx(i)));
     }
   }
   if (s.num_observations > 0) s.rms_px = std::sqrt(sum2 / (2.0 * s.num_observations));

@@ -57,8 +57,13 @@ struct ShadowCorrectionSummary {
   double rms_px = 0;        // over the observations, per coordinate
   double max_sigma = 0;     // largest |offset| / the observation's sigma
 };
+// `sigma_scale` multiplies the observations' stated sigmas: the root of the a-posteriori variance
+// factor when they are nominal (covariance.scale global, e.g. a calibration that estimates its
+// pixel sigma from a nominal 1 px), 1 otherwise.
 ShadowCorrectionSummary SummariseShadowOffsets(
-    const BaProblem& problem, const std::vector<std::vector<Eigen::Vector2d>>& offsets);
+    const BaProblem& problem,
+    const std::vector<std::vector<Eigen::Vector2d>>& offsets,
+    double sigma_scale = 1.0);
 
 // `problem` with every observed pixel moved by minus its offset.
 BaProblem WithShadowOffsetsRemoved(const BaProblem& problem,

@@ -74,6 +74,9 @@ nlohmann::json CalibrationCameraJson(const CalibrationRun& run) {
                {"rows", run.observations.grid.rows},
                {"cols", run.observations.grid.cols},
                {"spacing_mm", run.observations.grid.spacing_mm}};
+  if (run.observations.grid.sphere_diameter_mm > 0) {
+    j["grid"]["sphere_diameter_mm"] = run.observations.grid.sphere_diameter_mm;
+  }
   return j;
 }
 

@@ -526,4 +526,16 @@ Status CheckPlateDistance(const CalibrationResult& result,
       (median < plausible::kPlateDistanceMm.lo ? " (a unit slip? cm for mm)" : " (a unit slip?)"));
 }
 
+ObservationSet SolvedObservations(const ObservationSet& obs, const CalibrationResult& result) {
+  ObservationSet out = obs;
+  if (!result.engine || result.engine->shadow_offsets.empty()) return out;
+  const auto& offsets = result.engine->shadow_offsets;  // the calibration's views, in obs order
+  for (size_t v = 0; v < out.views.size() && v < offsets.size(); ++v) {
+    for (size_t i = 0; i < out.views[v].uv_px.size() && i < offsets[v].size(); ++i) {
+      out.views[v].uv_px[i] -= offsets[v][i];
+    }
+  }
+  return out;
+}
+
 }  // namespace carmba

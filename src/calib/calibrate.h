@@ -166,6 +166,11 @@ struct CalibrationResult {
   double covariance_scale = 1.0;
 };
 
+// The observations the engine solved: `obs` (the calibration's input) minus the cone-beam shadow
+// offsets it subtracted (BaResult::shadow_offsets; `obs` itself when none were). What a
+// cross-check gives another solver, so that both fit the same pixels.
+ObservationSet SolvedObservations(const ObservationSet& obs, const CalibrationResult& result);
+
 // Calibrates. Errors: too few views, a view with < 4 points, initialisation failure (degenerate
 // views), solver failure, a singular covariance (parameters not determined by the views).
 StatusOr<CalibrationResult> Calibrate(const ObservationSet& observations,

@@ -18,13 +18,14 @@
 //               max_blob_area_px, refine}
 //   crosscheck: {mrcal: true, opencv: true, opencv_max_views: 60, python: /usr/bin/python3}
 #include <gflags/gflags.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <sstream>
-#include <unistd.h>
 
 #include "calib/calib_output.h"
 #include "calib/calibrate.h"
@@ -38,13 +39,18 @@
 #include "report/plots.h"
 #include "util/file_util.h"
 #include "util/plausible.h"
-#include "util/temp_paths.h"
 #include "util/python_worker.h"
+#include "util/temp_paths.h"
 #include "util/yaml_reader.h"
 
 DEFINE_string(observations, "", "Pre-detected observations.csv (instead of --images).");
 DEFINE_string(truth, "", "Ground truth (simulator truth.json or a camera.json) to compare with.");
 DEFINE_bool(opencv, true, "Cross-check with cv::calibrateCamera.");
+DEFINE_double(sphere_diameter_mm,
+              0,
+              "Diameter of the plate's metal spheres (mm; 0: not known, or flat circles): each "
+              "detected centre is corrected for its cone-beam shadow's offset (the problem "
+              "file's plate_views.sphere_diameter_mm).");
 
 namespace {
 
@@ -77,7 +83,7 @@ struct CalibrateInputs {
   std::string images = FLAGS_images, observations = FLAGS_observations, config = FLAGS_config;
   std::string truth = FLAGS_truth, pattern = FLAGS_pattern;
   int rows = FLAGS_rows, cols = FLAGS_cols;
-  double spacing = FLAGS_spacing_mm;
+  double spacing = FLAGS_spacing_mm, sphere_diameter = FLAGS_sphere_diameter_mm;
 };
 
 // Fewer than min_views images with the grid is an error naming the grid and the first skipped.
@@ -102,6 +108,9 @@ Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
     if (!obs.ok()) return obs.status();
     run->observations = *obs;
     if (in.spacing > 0) run->observations.grid.spacing_mm = in.spacing;
+    run->observations.grid.sphere_diameter_mm = in.sphere_diameter;
+    std::string err;
+    if (!run->observations.grid.Check(&err)) return Status::Error("--sphere-diameter-mm: " + err);
     return Status::Ok();
   }
   GridSpec grid;
@@ -109,6 +118,7 @@ Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
   grid.rows = in.rows;
   grid.cols = in.cols;
   grid.spacing_mm = in.spacing > 0 ? in.spacing : 20.0;
+  grid.sphere_diameter_mm = in.sphere_diameter;
   std::string err;
   if (!grid.Check(&err)) return Status::Error(err);
   auto files = ListImageFiles(in.images);
@@ -130,10 +140,13 @@ Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
 
 // The plate flags that a --problem replaces, if one was given ("" if none).
 std::string PlateFlagGiven() {
-  for (const char* f : {"images", "observations", "pattern", "rows", "cols", "spacing_mm"}) {
+  for (const char* f :
+       {"images", "observations", "pattern", "rows", "cols", "spacing_mm", "sphere_diameter_mm"}) {
     gflags::CommandLineFlagInfo info;
     if (!gflags::GetCommandLineFlagInfo(f, &info) || info.is_default) continue;
-    return std::string(f) == "spacing_mm" ? "spacing-mm" : f;
+    std::string name = f;
+    std::replace(name.begin(), name.end(), '_', '-');
+    return name;
   }
   return "";
 }
@@ -221,7 +234,8 @@ void OpenCvCrossCheck(const CrossCheckConfig& cross,
     return;
   }
   cli::Step("calibrate", "OpenCV cross-check (cv::calibrateCamera)");
-  auto ref = RunOpenCvCalibration(run->observations, options, run->result);
+  auto ref = RunOpenCvCalibration(
+      SolvedObservations(run->observations, run->result), options, run->result);
   if (ref.ok()) {
     run->opencv = *ref;
     (*others)["opencv"] = ref->intrinsics;
@@ -243,7 +257,8 @@ void MrcalCrossCheck(const CrossCheckConfig& cross, PythonWorker* warm, const st
   mo.python = cross.python;
   mo.work_dir = work;
   mo.warm = warm;
-  auto m = RunMrcalCrossCheck(run->observations, run->result, others, mo);
+  auto m = RunMrcalCrossCheck(
+      SolvedObservations(run->observations, run->result), run->result, others, mo);
   if (m.ok()) {
     run->mrcal = *m;
   } else {
@@ -267,6 +282,9 @@ std::string CalibrateCommandLine(const CalibrateInputs& in, const CalibrationRun
     cmd << " --observations " << quoted(in.observations);
   }
   if (FLAGS_problem.empty()) cmd << " --spacing-mm " << run.observations.grid.spacing_mm;
+  if (FLAGS_problem.empty() && run.observations.grid.sphere_diameter_mm > 0) {
+    cmd << " --sphere-diameter-mm " << run.observations.grid.sphere_diameter_mm;
+  }
   if (!in.config.empty()) cmd << " --config " << quoted(in.config);
   if (!in.truth.empty()) cmd << " --truth " << quoted(in.truth);
   if (!cross.mrcal) cmd << " --no-mrcal";
@@ -344,6 +362,13 @@ int RunCalibrate() {
   {
     std::string err;
     if (!cli::CheckGridFlags(&err)) return cli::FailUsage(kCmd, err);
+    if (FLAGS_sphere_diameter_mm != 0 &&
+        !InRange(FLAGS_sphere_diameter_mm, plausible::kMarkerDiameterMm)) {
+      return cli::FailUsage(kCmd,
+                            "--sphere-diameter-mm: expected 0 (not known) or " +
+                                FormatRange(plausible::kMarkerDiameterMm) + ", got " +
+                                FormatCompact(FLAGS_sphere_diameter_mm));
+    }
   }
   if (!FLAGS_problem.empty() && !PlateFlagGiven().empty()) {
     return cli::FailUsage(kCmd, "--" + PlateFlagGiven() +

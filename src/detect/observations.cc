@@ -37,6 +37,16 @@ bool GridSpec::Check(std::string* error) const {
         CheckRange("grid: spacing_mm", spacing_mm, plausible::kGridSpacingMm, error))) {
     return false;
   }
+  if (sphere_diameter_mm != 0 &&
+      !CheckRange(
+          "grid: sphere_diameter_mm", sphere_diameter_mm, plausible::kMarkerDiameterMm, error)) {
+    return false;
+  }
+  if (!(sphere_diameter_mm < spacing_mm)) {
+    *error = "grid: sphere_diameter_mm " + FormatCompact(sphere_diameter_mm) +
+             " is not below the spacing " + FormatCompact(spacing_mm) + " mm (spheres would touch)";
+    return false;
+  }
   // OpenCV's chessboard finder throws below 3 x 3 inner corners.
   if (pattern == GridPattern::kChessboard && (rows < 3 || cols < 3)) {
     *error = "grid: a chessboard needs at least 3 x 3 inner corners (rows " + std::to_string(rows) +
@@ -84,6 +94,7 @@ ba::BaProblem ToBaPlateProblem(const std::string& name,
   bp.name = name;
   bp.groups = std::move(groups);
   if (!plate.views.empty()) bp.plate.points = plate.grid.PointsInPlate();
+  bp.plate.sphere_radius_mm = plate.grid.sphere_diameter_mm / 2;
   bp.views = std::move(plate_views);
   return bp;
 }

@@ -38,9 +38,14 @@ struct GridSpec {
   int rows = 5;             // points per column
   int cols = 5;             // points per row
   double spacing_mm = 20;   // pitch between neighbouring points of a row
+  // Diameter of the plate's spheres (mm; 0 = not known, or flat printed circles): the engine then
+  // corrects each detected centre for its cone-beam shadow's offset (ba/shadow_correction.h).
+  // Not part of observations.csv's grid line.
+  double sphere_diameter_mm = 0;
 
   int NumPoints() const { return rows * cols; }
-  // rows, cols >= 2 (acircles: rows >= 3 ... OpenCV needs >= 2), spacing > 0 and finite.
+  // rows, cols >= 2 (acircles: rows >= 3 ... OpenCV needs >= 2), spacing > 0 and finite, a
+  // sphere diameter of 0 or plausible and below the spacing.
   bool Check(std::string* error) const;
   // Plate-frame coordinates of point `id` (mm).
   Eigen::Vector3d PointInPlate(int id) const;

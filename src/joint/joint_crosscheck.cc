@@ -86,7 +86,12 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const Problem& problem,
     for (size_t i = 0; i < view.point_ids.size(); ++i) {
       const int id =
           view.kind == ba::ViewKind::kPlate ? view.point_ids[i] : point_index.at(view.point_ids[i]);
-      obs.push_back({id, view.uv_px[i].x(), view.uv_px[i].y()});
+      // The pixels the solve saw: minus the cone-beam shadow offsets it subtracted (mrcal has no
+      // model of them).
+      const Eigen::Vector2d uv = r->shadow_offsets.empty()
+                                     ? view.uv_px[i]
+                                     : Eigen::Vector2d(view.uv_px[i] - r->shadow_offsets[v][i]);
+      obs.push_back({id, uv.x(), uv.y()});
     }
     const Pose6 pose = r->ViewPose(static_cast<int>(v));
     const double* sol = pose.data();

@@ -16,6 +16,8 @@
 //                                     # `carmba solve`; `carmba calibrate` may estimate it)
 //     plate: {free: false, sigma_mm: 0.01}    # optional: sphere positions free, tied to the
 //                                             # nominal grid by the manufacturing tolerance
+//     sphere_diameter_mm: 3                   # optional: the plate's spheres, for the cone-beam
+//                                             # shadow correction (ba/shadow_correction.h)
 //   object_views:
 //     observations: object/observations.csv  # long: view, marker, u_px, v_px (io/pixel_csv.h)
 //     format: long                    # or wide: a row per marker, columns u_<view>, v_<view>

@@ -97,13 +97,21 @@ Status ReadPlateViews(YamlMap& m,
   m.GetInRange("cols", &grid.cols, plausible::kGridRowsCols);
   m.GetInRange("spacing_mm", &grid.spacing_mm, plausible::kGridSpacingMm);
   DetectionOptions detection;
+  double sphere_diameter_mm = 0;
   if (!src.older) {
     m.GetInRange("sigma_px", &p->plate_sigma_px, plausible::kPixelSigmaPx);
+    m.GetInRange("sphere_diameter_mm", &sphere_diameter_mm, plausible::kMarkerDiameterMm);
     YamlMap& plate = m.Map("plate");
     plate.Get("free", &p->plate_free);
     if (plate.Has("sigma_mm")) {
       plate.GetInRange("sigma_mm", &p->plate_sigma_mm, plausible::kToleranceMm);
     }
+  }
+  if (has_grid && !(sphere_diameter_mm < grid.spacing_mm)) {
+    m.Fail("sphere_diameter_mm",
+           "expected below spacing_mm (" + FormatCompact(grid.spacing_mm) +
+               " mm: spheres wider than the pitch would touch), got " +
+               FormatCompact(sphere_diameter_mm));
   }
   if (!images.empty()) {
     CARMBA_RETURN_IF_ERROR(PlateDetectionOptions(m, src, options, &detection));
@@ -141,6 +149,11 @@ Status ReadPlateViews(YamlMap& m,
                                  &p->plate_detections);
     if (!obs.ok()) return obs.status();
     p->plate = *obs;
+  }
+  p->plate.grid.sphere_diameter_mm = sphere_diameter_mm;
+  if (!p->plate.grid.Check(&err)) {  // the spheres wider than the pitch
+    m.Fail("sphere_diameter_mm", err);
+    return m.status();
   }
   NamePlateViews(p);
   if (p->plate.views.empty() && !images.empty()) {

@@ -8,6 +8,7 @@
 #include "detect/grid_detector.h"
 #include "detect/observations.h"
 #include "python/bindings.h"
+#include "report/calibration_report.h"
 #include "util/file_util.h"
 
 namespace carmba::python {
@@ -129,7 +130,7 @@ void BindCalibrate(py::module_& m) {
       .def_readonly("skipped", &CalibrationRun::skipped)
       .def(
           "camera_json",
-          [](const CalibrationRun& r) { return CalibrationCameraJson(r).dump(2) + "\n"; },
+          [](const CalibrationRun& r) { return CalibrationResultJson(r).dump(2) + "\n"; },
           "camera.json's text as `carmba calibrate --no-mrcal --no-opencv` writes it");
   m.def("calibrate", &Calibrate, py::arg("observations") = py::none(),
         py::arg("images") = py::none(), py::arg("image_size") = py::none(),

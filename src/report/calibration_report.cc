@@ -16,6 +16,7 @@
 #include "io/image_files.h"
 #include "report/lens_report.h"
 #include "report/overlays.h"
+#include "report/variance_report.h"
 #include "util/file_util.h"
 #include "util/format.h"
 #include "util/image_codecs.h"
@@ -122,7 +123,7 @@ void CalibrationResidualsDoc(const CalibrationResult& r, ReportDoc* doc) {
           "OpenCV's figure sqrt(SSR / N) = sqrt(2) x the above: " + Fixed(r.rms_opencv_px) + " px",
           "Pixel sigma for the covariance: " + Fixed(r.sigma_px) + " px, " + PixelSigmaKind(r)});
   d.Figures({"residuals-per-view", "residual-field"});
-
+  if (r.engine) d.Append(ShadowCorrectionDoc(*r.engine));
 }
 
 // The intrinsics with their sigmas, against mrcal (m) and OpenCV (cvr) when they ran.
@@ -554,6 +555,16 @@ nlohmann::json CalibrationPlotData(const CalibrationRun& run) {
   return d;
 }
 
+nlohmann::json CalibrationResultJson(const CalibrationRun& run) {
+  nlohmann::json j = CalibrationCameraJson(run);
+  if (run.result.engine) {
+    if (nlohmann::json s = ShadowCorrectionJson(*run.result.engine); !s.is_null()) {
+      j["shadow_correction"] = s;
+    }
+  }
+  return j;
+}
+
 Status WriteCalibrationOutputs(const CalibrationRun& run,
                                const std::string& out_dir,
                                const std::string& mrcal_work_dir,
@@ -590,7 +601,7 @@ Status WriteCalibrationOutputs(const CalibrationRun& run,
     cameramodel = text->substr(0, a + key.size()) + list + text->substr(b);
   }
   const std::pair<std::string, std::string> files[] = {
-      {"camera.json", CalibrationCameraJson(run).dump(2) + "\n"},
+      {"camera.json", CalibrationResultJson(run).dump(2) + "\n"},
       {"camera.cameramodel", cameramodel},
       {"camera_opencv.yml", OpenCvCalibrationYaml(run)},
       {"corners.vnl", CornersVnl(run.observations)},

@@ -24,6 +24,10 @@ constexpr double kMrcalRmsRelTol = 0.01;         // RMS equal within 1 %
 constexpr double kMrcalProjectionDiffPx = 0.05;  // projection difference RMS over the image
 constexpr double kMrcalSigmaRelTol = 0.10;       // sigmas of fx fy cx cy within 10 %
 
+// camera.json: calib/calib_output.h's CalibrationCameraJson with the engine's shadow correction
+// (`shadow_correction`, when the plate's sphere diameter is known).
+nlohmann::json CalibrationResultJson(const CalibrationRun& run);
+
 // Writes all files to `out_dir` (see above). `mrcal_work_dir`, if not empty, is copied as
 // out_dir/mrcal/ (script, input and output of the cross-check). `plots`: report.html's plots
 // drawn beforehand from CalibrationPlotData(run) (PlotProcess); null: drawn here.

@@ -117,15 +117,17 @@ ReportDoc ShadowCorrectionDoc(const ba::BaResult& result) {
   d.Heading(3, "Cone-beam shadow centres");
   d.Paragraph(
       "A sphere's shadow in a cone beam is an ellipse centred slightly further from the principal "
-      "point than the projection of the sphere's centre (Clackdoyle & Mennessier 2011); the "
-      "detected blob centres follow the ellipse. At the solution the offsets of the " +
+      "point than the projection of the sphere's centre (Clackdoyle & Mennessier 2011), and the "
+      "lens's curvature over the shadow moves its centre too (outwards under pincushion, inwards "
+      "under barrel distortion); the detected centres follow the shadow. At the solution the "
+      "offsets of the " +
       std::to_string(s.num_observations) + " sphere observations are at most " +
       Fmt("%.4f", s.max_px) + " px (" + Fmt("%.2f", s.max_sigma) + " sigma), RMS " +
       Fmt("%.4f", s.rms_px) + " px per coordinate: " +
-      (s.applied ? "subtracted from the observed centres and the problem solved again (every "
-                   "figure of this report is of the corrected centres)."
-                 : "below " + Fmt("%g", ba::kShadowCorrectionMinSigma) +
-                       " sigma, so not applied."));
+      (s.applied
+           ? "subtracted from the observed centres and the problem solved again (every "
+             "figure of this report is of the corrected centres)."
+           : "below " + Fmt("%g", ba::kShadowCorrectionMinSigma) + " sigma, so not applied."));
   return d;
 }
 

@@ -324,6 +324,17 @@ TEST(CalibE2E, BadInputs) {
                      "--spacing-mm: expected 0 (not given) or 0.1 .. 1000 mm, got -20");
   ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --config " + empty,
                      "is a directory");
+  // A sphere diameter in centimetres or metres, or spheres wider than the pitch.
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --sphere-diameter-mm 3060",
+                     "--sphere-diameter-mm: expected 0 (not known) or 0.1 .. 100 mm, got 3060");
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --sphere-diameter-mm 30",
+                     "grid: sphere_diameter_mm 30 is not below the spacing 20 mm");
+  const std::string wide = Tmp("calib_wide_spheres.yaml");
+  WriteText(wide,
+            "name: w\nplate_views: {images: " + sim +
+                ", pattern: circles, rows: 5, cols: 5, spacing_mm: 20, "
+                "sphere_diameter_mm: 25}\n");
+  ExpectFailsCleanly("calibrate --problem " + wide, "plate_views.sphere_diameter_mm");
 
   // All fronto-parallel views (pre-detected observations): degenerate.
   carmba::SyntheticViewsOptions so;
