@@ -131,14 +131,7 @@ cv::Mat DrawMarkerOverlay(const ObjectView& v,
   } else {
     head << "skipped: " << v.skipped;
   }
-  cv::putText(out,
-              head.str(),
-              cv::Point(4, static_cast<int>(4 + 28 * scale)),
-              cv::FONT_HERSHEY_SIMPLEX,
-              scale,
-              v.labelled ? green : yellow,
-              1,
-              cv::LINE_AA);
+  DrawHeadLine(&out, head.str(), scale, v.labelled ? green : yellow);
   return out;
 }
 

@@ -62,15 +62,19 @@ cv::Mat DrawDetectionOverlay(const cv::Mat& image, const GridSpec& grid, const G
                 std::to_string(grid.NumPoints()) + " points" +
                 (d.rejected.empty() ? "" : ", " + std::to_string(d.rejected.size()) + " rejected")
           : "not found: " + d.reason;
-  cv::putText(out,
-              head,
+  DrawHeadLine(&out, head, scale, d.found ? green : yellow);
+  return out;
+}
+
+void DrawHeadLine(cv::Mat* image, const std::string& text, double scale, const cv::Scalar& colour) {
+  cv::putText(*image,
+              text,
               cv::Point(4, static_cast<int>(4 + 28 * scale)),
               cv::FONT_HERSHEY_SIMPLEX,
               scale,
-              d.found ? green : yellow,
+              colour,
               1,
               cv::LINE_AA);
-  return out;
 }
 
 std::vector<cv::Rect> LabelPlacer::LabelBoxes() const {

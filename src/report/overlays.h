@@ -14,6 +14,10 @@ namespace carmba {
 // overlays.
 cv::Mat StretchedColourImage(const cv::Mat& image);
 
+// An overlay's first line (its result, or why there is none) at the top left, in cv::putText's
+// simplex font at `scale`.
+void DrawHeadLine(cv::Mat* image, const std::string& text, double scale, const cv::Scalar& colour);
+
 // An 8-bit colour picture of a detection for checking by eye: the image stretched to its 1..99 %
 // range, found points as green circles with their ids, rejected blobs as red crosses with the
 // reason, and a first line saying found (points of the grid) or the reason it was not.
