@@ -107,11 +107,12 @@ Status ReadPlateViews(YamlMap& m,
       plate.GetInRange("sigma_mm", &p->plate_sigma_mm, plausible::kToleranceMm);
     }
   }
-  if (has_grid && !(sphere_diameter_mm < grid.spacing_mm)) {
-    m.Fail("sphere_diameter_mm",
-           "expected below spacing_mm (" + FormatCompact(grid.spacing_mm) +
-               " mm: spheres wider than the pitch would touch), got " +
-               FormatCompact(sphere_diameter_mm));
+  // Spheres wider than the pitch, said before any image is read (GridSpec::Check's rule).
+  GridSpec with_spheres = grid;
+  with_spheres.sphere_diameter_mm = sphere_diameter_mm;
+  std::string sphere_err;
+  if (has_grid && grid.Check(&sphere_err) && !with_spheres.Check(&sphere_err)) {
+    m.Fail("sphere_diameter_mm", sphere_err);
   }
   if (!images.empty()) {
     CARMBA_RETURN_IF_ERROR(PlateDetectionOptions(m, src, options, &detection));
