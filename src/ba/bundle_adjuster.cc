@@ -490,8 +490,7 @@ Status SolveWithCarmbaLm(const BaProblem& p,
     std::copy(poses[v].begin(), poses[v].end(), pose);
   }
   res->iterations += report.iterations;
-  res->termination = report.termination + " (carmba LM)";
-  res->converged = report.converged;
+  res->termination = report.termination;
   return Status::Ok();
 }
 
@@ -623,6 +622,22 @@ std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(const StateLayout& 
 // removed), where Gauss-Newton steps are good from the first iteration.
 enum class Start { kCold, kWarm };
 
+Termination TerminationOf(ceres::TerminationType t) {
+  switch (t) {
+    case ceres::CONVERGENCE:
+      return Termination::kConvergence;
+    case ceres::NO_CONVERGENCE:
+      return Termination::kNoConvergence;
+    case ceres::USER_SUCCESS:
+      return Termination::kUserSuccess;
+    case ceres::USER_FAILURE:
+      return Termination::kUserFailure;
+    case ceres::FAILURE:
+      break;
+  }
+  return Termination::kFailure;
+}
+
 // Minimises the assembled Ceres problem in place (as->buffer); iterations and termination
 // into res.
 Status SolveWithCeres(const BaOptions& o, const StateLayout& layout, Start start,
@@ -644,8 +659,7 @@ Status SolveWithCeres(const BaOptions& o, const StateLayout& layout, Start start
   ceres::Solver::Summary summary;
   ceres::Solve(so, cp, &summary);
   res->iterations += static_cast<int>(summary.iterations.size()) - 1;
-  res->termination = ceres::TerminationTypeToString(summary.termination_type);
-  res->converged = summary.termination_type == ceres::CONVERGENCE;
+  res->termination = TerminationOf(summary.termination_type);
   if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
     return Status::Error("bundle adjustment failed: " + summary.message);
   }

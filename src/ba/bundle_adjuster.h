@@ -160,8 +160,9 @@ struct BaResult {
 
   Backend backend = Backend::kCeres;  // the minimiser that ran (BaOptions::backend)
   int iterations = 0;
-  std::string termination;
-  bool converged = false;
+  Termination termination = Termination::kNoConvergence;
+  bool converged() const { return termination == Termination::kConvergence; }
+  std::string TerminationText() const { return ba::TerminationText(termination, backend); }
   // At the problem's initial values: the cost and each view's per-coordinate pixel RMS (problem
   // order), at the stated sigmas.
   double initial_cost = 0, final_cost = 0;

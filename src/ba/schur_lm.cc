@@ -170,7 +170,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
     return Status::Error("initialisation puts grid points behind the source (bad detections?)");
   }
   double lambda = 1e-4;
-  report->termination = "NO_CONVERGENCE";
+  report->termination = Termination::kNoConvergence;
   for (int it = 0; it < max_iterations; ++it) {
     report->iterations = it + 1;
     // Linearise.
@@ -236,8 +236,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
         lambda = std::max(lambda / 3.0, 1e-12);
         accepted = true;
         if (rel < function_tolerance) {
-          report->termination = "CONVERGENCE";
-          report->converged = true;
+          report->termination = Termination::kConvergence;
           return Status::Ok();
         }
       } else {
@@ -246,8 +245,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
     }
     if (!accepted) {
       // No damped step lowers the cost: at the minimum to machine precision.
-      report->termination = "CONVERGENCE";
-      report->converged = true;
+      report->termination = Termination::kConvergence;
       return Status::Ok();
     }
   }

@@ -76,8 +76,7 @@ bool ViewCost(const std::vector<Eigen::Vector3d>& plate,
 
 struct LmReport {
   int iterations = 0;
-  std::string termination;  // CONVERGENCE or NO_CONVERGENCE
-  bool converged = false;   // termination is CONVERGENCE
+  Termination termination = Termination::kNoConvergence;
 };
 
 // Minimises sum over views and points of |project(x, pose_v, plate_v[j]) - uv_v[j]|^2 over

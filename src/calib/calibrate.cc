@@ -297,9 +297,6 @@ void TakeSolution(const StagedCalibration& solve,
                   int width,
                   int height,
                   CalibrationResult* r) {
-  r->iterations = engine->iterations;
-  r->termination = engine->termination + (solve.own_lm() ? "" : " (Ceres)");
-  r->converged = engine->converged;
   const ba::BlockInfo& gi = engine->layout->block(engine->layout->group_block(0));
   r->intrinsics_from_free = gi.constant ? Eigen::MatrixXd::Zero(kNumIntrinsics, 0) : gi.basis;
   r->num_free_intrinsics = static_cast<int>(r->intrinsics_from_free.cols());

@@ -154,9 +154,8 @@ struct CalibrationResult {
   double uncertainty_distance_mm = 0;
   std::vector<ProjectionSigma> projection_sigma;  // centre and the four corners
 
-  int iterations = 0;
-  std::string termination;  // the solver's termination, with the solver named
-  bool converged = false;   // the final stage reached its convergence criterion
+  // The final stage's iterations and termination: engine->iterations, engine->converged(),
+  // engine->TerminationText().
   double solve_seconds = 0, covariance_seconds = 0;
 
   // The engine's solution (ba/bundle_adjuster.h): state, named layout, linearisation and Schur

@@ -99,9 +99,10 @@ int RunJoint(const carmba::Problem& problem,
   for (const auto& w : JointWarnings(*solution)) {
     std::cerr << "carmba solve: warning: " << w << std::endl;
   }
-  if (!solution->result.converged) {
+  if (!solution->result.converged()) {
     std::cerr << "carmba solve: warning: the bundle adjustment did not converge ("
-              << solution->result.termination << "): the results are not at a minimum" << std::endl;
+              << solution->result.TerminationText() << "): the results are not at a minimum"
+              << std::endl;
   }
   std::cout << "solved " << problem.name << " (joint) with " << config.name << ": "
             << problem.plate.views.size() << " plate views, " << problem.object_views.size()

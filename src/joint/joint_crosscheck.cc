@@ -149,7 +149,7 @@ StatusOr<nlohmann::json> JointMrcalCrossCheck(const Problem& problem,
               ", one intrinsics, seeded from carmba's initial values";
   j["carmba"] = {{"intrinsics", std::vector<double>(x.begin(), x.end())},
                  {"iterations", r->iterations},
-                 {"termination", r->termination}};
+                 {"termination", r->TerminationText()}};
   j["mrcal"] = *out;
   j["max_relative_difference_fx_fy_cx_cy"] = max_rel_core;
   j["max_difference_in_sigmas"] = max_sigmas;

@@ -108,8 +108,8 @@ std::vector<Pose6> TakePoseSolution(const Problem& problem,
                                     const SolverConfig& config,
                                     PoseSolution* sol) {
   const ba::BaResult& r = *sol->ba_result;
-  sol->termination = config.refine ? r.termination : "NOT_REFINED";
-  sol->converged = !config.refine || r.converged;
+  sol->termination = config.refine ? r.TerminationText() : "NOT_REFINED";
+  sol->converged = !config.refine || r.converged();
   sol->final_cost = config.refine ? r.final_cost : r.initial_cost;
   const size_t V = problem.object_views.size();
   std::vector<Pose6> poses(V);

@@ -70,7 +70,7 @@ struct PoseSolution {
   // The statistics (chi2, dof, sigma0, its P value, the RMS, iterations, costs) are the engine's:
   // ba_result below. What the pose front end says differently:
   std::string config_name;
-  std::string termination;  // the engine's, or NOT_REFINED
+  std::string termination;  // the engine's TerminationText(), or NOT_REFINED
   // The engine's verdict (ba::BaResult::converged); true when the config does not refine (the
   // initial poses are the answer asked for).
   bool converged = true;

@@ -53,16 +53,17 @@ void CalibrationSummaryDoc(const CalibrationRun& run, ReportDoc* doc) {
       "Robust loss: " + std::string(robust ? NameOf(ba::kLossNames, opt.solve.loss) : "none");
   if (robust) loss += " (scale " + Fmt("%g", opt.solve.loss_scale_px) + " px)";
   d.List({"Grid: " + std::string(GridPatternName(obs.grid.pattern)) + " " +
-              std::to_string(obs.grid.rows) + " x " + std::to_string(obs.grid.cols) +
-              ", spacing " + Fmt("%g", obs.grid.spacing_mm) + " mm; image " +
-              std::to_string(obs.width) + " x " + std::to_string(obs.height) + " px",
+              std::to_string(obs.grid.rows) + " x " + std::to_string(obs.grid.cols) + ", spacing " +
+              Fmt("%g", obs.grid.spacing_mm) + " mm; image " + std::to_string(obs.width) + " x " +
+              std::to_string(obs.height) + " px",
           "Views used: " + std::to_string(r.views.size()) + ", skipped: " +
               std::to_string(run.skipped.size()) + "; points: " + std::to_string(r.num_points) +
               " (" + std::to_string(2 * r.num_points) + " residuals), free intrinsics: " +
               std::to_string(r.num_free_intrinsics) + ", dof: " + std::to_string(r.dof),
           "Model: LENSMODEL_OPENCV5 [fx, fy, cx, cy, k1, k2, p1, p2, k3]; held: " + held,
-          loss + "; solver: " + r.termination + " after " + std::to_string(r.iterations) +
-              " iterations, " + Fixed(r.solve_seconds * 1e3, 1) + " ms; covariance " +
+          loss + "; solver: " + r.engine->TerminationText() + " after " +
+              std::to_string(r.engine->iterations) + " iterations, " +
+              Fixed(r.solve_seconds * 1e3, 1) + " ms; covariance " +
               Fixed(r.covariance_seconds * 1e3, 1) + " ms"});
 }
 

@@ -54,8 +54,8 @@ nlohmann::json SolverJson(const std::string& config_name, const ba::BaResult& re
   return {{"config", config_name},
           {"engine", std::string(NameOf(ba::kBackendNames, result.backend)) + " (src/ba)"},
           {"iterations", result.iterations},
-          {"termination", result.termination},
-          {"converged", result.converged},
+          {"termination", result.TerminationText()},
+          {"converged", result.converged()},
           {"initial_cost", JsonNumber(result.initial_cost)},
           {"final_cost", JsonNumber(result.final_cost)},
           {"time_s", JsonNumber(result.time_s)}};

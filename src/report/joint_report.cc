@@ -251,12 +251,12 @@ void JointStatisticsDoc(const JointSolution& s, ReportDoc* doc) {
   d.Table({"", ""},
           {{"RMS plate views (px per coordinate)", Fmt("%.4f", r.rms_plate_px)},
            {"RMS object views (px per coordinate)", Fmt("%.4f", r.rms_object_px)},
-           {"chi-square / dof", Fmt("%.2f", r.chi2) + " / " + std::to_string(r.dof) + " (P = " +
-                                    Fmt("%.3f", r.chi2_p_value) + ", sigma0 " +
-                                    Fmt("%.3f", r.sigma0) + ")"},
-           {"iterations, termination", std::to_string(r.iterations) + ", " + r.termination},
+           {"chi-square / dof",
+            Fmt("%.2f", r.chi2) + " / " + std::to_string(r.dof) +
+                " (P = " + Fmt("%.3f", r.chi2_p_value) + ", sigma0 " + Fmt("%.3f", r.sigma0) + ")"},
+           {"iterations, termination", std::to_string(r.iterations) + ", " + r.TerminationText()},
            {"time", Fmt("%.1f", r.time_s * 1e3) + " ms"}});
-  if (!r.converged) d.Warning("the solve did not converge (" + r.termination + ").");
+  if (!r.converged()) d.Warning("the solve did not converge (" + r.TerminationText() + ").");
   d.Figures({"residuals-per-view", "residual-field"});
   d.Append(VarianceComponentsDoc(r));
   d.Append(ShadowCorrectionDoc(r));

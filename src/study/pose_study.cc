@@ -491,7 +491,7 @@ StatusOr<nlohmann::json> RunFlex(PoseStudyState* state, const RunSpec& run) {
           JsonNumber(sc.held_out_d2_mean);
     }
   }
-  return RunRecordJson(r->converged, r->termination, errors, signed_errors, sigmas, values);
+  return RunRecordJson(r->converged(), r->TerminationText(), errors, signed_errors, sigmas, values);
 }
 
 std::string BudgetKey(ba::Source s) {
@@ -641,8 +641,8 @@ StatusOr<nlohmann::json> RunJoint(PoseStudyState* state, const RunSpec& run) {
   values["chi2_p_value"] = JsonNumber(r->chi2_p_value);
   values["first_view"] = first_view;
   nlohmann::json out;
-  out["converged"] = r->converged;
-  out["termination"] = r->termination;
+  out["converged"] = r->converged();
+  out["termination"] = r->TerminationText();
   out["errors"] = errors;
   out["signed_errors"] = signed_errors;
   out["sigmas"] = sigmas;
@@ -708,13 +708,17 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
     if (std::isfinite(result->sigma[i]) && result->sigma[i] > 0) sigmas[name] = result->sigma[i];
   }
   values["rms_px"] = JsonNumber(result->rms_px);
-  values["iterations"] = result->iterations;
+  values["iterations"] = result->engine->iterations;
   values["sigma_px"] = JsonNumber(result->sigma_px);
   double worst = 0;
   for (const auto& ps : result->projection_sigma) worst = std::max(worst, ps.worst_px);
   values["projection_sigma_worst_px"] = JsonNumber(worst);
-  return RunRecordJson(
-      result->converged, result->termination, errors, signed_errors, sigmas, values);
+  return RunRecordJson(result->engine->converged(),
+                       result->engine->TerminationText(),
+                       errors,
+                       signed_errors,
+                       sigmas,
+                       values);
 }
 
 // The predicted error budget of the first view from the engine (ba/quantities.h): the shares of

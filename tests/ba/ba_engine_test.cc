@@ -560,7 +560,7 @@ TEST(BaBackend, CarmbaLmReachesTheCeresOptimum) {
   auto b = SolveBundleAdjustment(sj.problem, lm_options);
   ASSERT_TRUE(a.ok()) << a.status().message();
   ASSERT_TRUE(b.ok()) << b.status().message();
-  EXPECT_TRUE(b->converged) << b->termination;
+  EXPECT_TRUE(b->converged()) << b->TerminationText();
   EXPECT_NEAR(a->chi2, b->chi2, 1e-8 * a->chi2);
   const Eigen::MatrixXd C = a->Covariance({a->layout->group_block(0)});
   for (int i = 0; i < kNumIntrinsics; ++i) {
