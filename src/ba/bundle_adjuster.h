@@ -197,8 +197,17 @@ struct BaResult {
     return Covariance({layout->group_block(g)});
   }
   Eigen::Matrix3d MarkerCovariance(int m) const { return Covariance({layout->marker_block(m)}); }
-  // The joint covariance of several views' poses, 6 rows and columns per view in the given order;
-  // the cross-covariance of views a and b is its block (0, 6) for views {a, b}.
+  // Cov(block a, block b): a's parameters in rows, b's in columns (Covariance({a}) for a == b).
+  Eigen::MatrixXd Cross(int block_a, int block_b) const {
+    if (block_a == block_b) return Covariance({block_a});
+    const int na = layout->block(block_a).size, nb = layout->block(block_b).size;
+    return Covariance({block_a, block_b}).block(0, na, na, nb);
+  }
+  // Cov(view a's pose, view b's pose).
+  Matrix6 ViewPoseCross(int a, int b) const {
+    return Cross(layout->view_block(a), layout->view_block(b));
+  }
+  // The joint covariance of several views' poses, 6 rows and columns per view in the given order.
   Eigen::MatrixXd ViewPosesCovariance(const std::vector<int>& views) const {
     return Covariance(ViewBlocks(views));
   }

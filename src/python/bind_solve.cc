@@ -127,11 +127,7 @@ std::vector<std::string> BlockParameters(const Solved& s, int b) {
 // part scaled by the covariance scale plus a considered calibration's part).
 Eigen::MatrixXd CrossCovariance(const Solved& s, const std::string& a, const std::string& b) {
   const ba::BaResult& r = s.result_with_covariance();
-  const int ba_ = FindBlock(s, a), bb = FindBlock(s, b);
-  if (ba_ == bb) return r.Covariance({ba_});
-  const Eigen::MatrixXd C = r.Covariance({ba_, bb});
-  const int na = r.layout->block(ba_).size, nb = r.layout->block(bb).size;
-  return C.block(0, na, na, nb);
+  return r.Cross(FindBlock(s, a), FindBlock(s, b));
 }
 
 // ---- views

@@ -210,6 +210,14 @@ TEST(BaResultAccess, TypedGettersReadTheBlocksTheyName) {
   ASSERT_TRUE(ref.ok()) << ref.status().message();
   ExpectCovarianceEqual(C, *ref);
   EXPECT_GT(C.topRightCorner(6, 6).norm(), 0);  // the cross-covariance is there
+  // Typed access to the same blocks: Cross(a, b) is the joint covariance's off-diagonal block,
+  // its transpose is Cross(b, a), and Cross(a, a) is the view's own.
+  EXPECT_EQ((r.ViewPoseCross(7, 5) - C.topRightCorner(6, 6)).norm(), 0);
+  EXPECT_LE((r.ViewPoseCross(5, 7) - C.topRightCorner(6, 6).transpose()).norm(), 1e-12 * C.norm());
+  EXPECT_EQ((r.ViewPoseCross(5, 5) - r.ViewPoseCovariance(5)).norm(), 0);
+  const int marker0 = r.layout->marker_block(0);
+  EXPECT_EQ(r.Cross(marker0, r.layout->view_block(5)).rows(), 3);
+  EXPECT_EQ(r.Cross(marker0, r.layout->view_block(5)).cols(), 6);
 }
 
 TEST(BaCovariance, CalibrationOnlyEliminatesPlatePoses) {
