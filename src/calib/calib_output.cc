@@ -19,23 +19,6 @@
 
 namespace carmba {
 
-Status LoadCalibrationConfig(const std::string& path,
-                             CalibrationOptions* calib,
-                             DetectionOptions* detect,
-                             const std::vector<std::string>& other_keys) {
-  std::vector<std::string> keys = {"detection"};
-  keys.insert(keys.end(), other_keys.begin(), other_keys.end());
-  CARMBA_RETURN_IF_ERROR(LoadCalibrationOptions(path, calib, keys));
-  YamlMap root = YamlMap::Load(path);
-  CARMBA_RETURN_IF_ERROR(root.status());
-  YamlMap d(root.Raw("detection"), path, "detection");
-  ReadDetectionOptions(d, detect);
-  CARMBA_RETURN_IF_ERROR(d.Finish());
-  std::string err;
-  if (!detect->Check(&err)) return Status::Error(path + ": detection." + err);
-  return Status::Ok();
-}
-
 nlohmann::json CalibrationCameraJson(const CalibrationRun& run) {
   const CalibrationResult& r = run.result;
   nlohmann::json j = CameraToJson(r.camera);

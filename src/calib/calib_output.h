@@ -52,13 +52,6 @@ struct CalibrationRun {
 };
 
 nlohmann::json CalibrationCameraJson(const CalibrationRun& run);
-// A calibration config (configs/calib_*.yaml): the calibration options at its top level and its
-// `detection:` section; `other_keys` are further sections the caller reads itself (the CLI's
-// `crosscheck`). Errors name the file and the key.
-Status LoadCalibrationConfig(const std::string& path,
-                             CalibrationOptions* calib,
-                             DetectionOptions* detect,
-                             const std::vector<std::string>& other_keys = {});
 std::string MrcalCameraModelText(const CalibrationResult& result);
 std::string OpenCvCalibrationYaml(const CalibrationRun& run);
 }  // namespace carmba

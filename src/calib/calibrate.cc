@@ -421,6 +421,19 @@ Status ReadCalibrationSolveKeys(const std::string& path, YamlMap* map, Calibrati
   return Status::Ok();
 }
 
+// What a calibration config held before it said only how to solve, and where it went.
+struct MovedKey {
+  const char* key;
+  const char* now;
+};
+constexpr MovedKey kMovedCalibrationKeys[] = {
+    {"detection",
+     "the plate's detection options belong to the data: the problem's plate_views.detection, or "
+     "calibrate --detection FILE with these keys at its top level"},
+    {"crosscheck",
+     "the cross-checks are calibrate's flags: --no-mrcal, --no-opencv, --opencv-max-views N, "
+     "--mrcal-python PATH"}};
+
 }  // namespace
 
 SolverConfig CalibrationOptions::ToSolverConfig() const {
@@ -435,17 +448,18 @@ SolverConfig CalibrationOptions::ToSolverConfig() const {
   return c;
 }
 
-Status LoadCalibrationOptions(const std::string& path,
-                              CalibrationOptions* o,
-                              const std::vector<std::string>& other_keys) {
+Status LoadCalibrationOptions(const std::string& path, CalibrationOptions* o) {
   YamlMap m = YamlMap::Load(path);
   CARMBA_RETURN_IF_ERROR(m.status());
   for (const char* k : {"initializer", "linear_solver", "covariance", "jacobians", "refine"}) {
     if (m.Has(k)) {
       return Status::Error(path + ": this is a solver config (key '" + k +
                            "'), for `carmba solve`; `carmba calibrate` needs a calibration config "
-                           "(fix, loss, pixel_sigma_px, detection; configs/calib_*.yaml)");
+                           "(fix, loss, pixel_sigma_px; configs/calib_*.yaml)");
     }
+  }
+  for (const MovedKey& k : kMovedCalibrationKeys) {
+    if (m.Has(k.key)) return Status::Error(path + ": key '" + k.key + "': " + k.now);
   }
   m.Get("fix_aspect_ratio", &o->fix_aspect_ratio);
   m.Get("aspect_ratio_fy_over_fx", &o->aspect_ratio_fy_over_fx);
@@ -458,9 +472,6 @@ Status LoadCalibrationOptions(const std::string& path,
   m.GetNonNegative("pixel_sigma_px", &o->pixel_sigma_px);
   m.Get("min_views", &o->min_views);
   m.GetNonNegative("uncertainty_distance_mm", &o->uncertainty_distance_mm);
-  for (const auto& k : other_keys) {
-    if (m.Has(k)) m.Raw(k);
-  }
   CARMBA_RETURN_IF_ERROR(m.Finish());
   std::string err;
   if (!o->Check(&err)) return Status::Error(path + ": " + err);

@@ -87,15 +87,14 @@ struct CalibrationOptions {
   static SolverConfig DefaultCalibrationSolve();
 };
 
-// Reads a calibration config (YAML, top-level keys = the field names above). Unknown keys are
-// errors. `detection` and other top-level maps are left to their readers via `other_keys`. The
+// Reads a calibration config (YAML, top-level keys = the field names above): how the calibration
+// is solved, nothing else. Unknown keys are errors; `detection` and `crosscheck` (which older
+// configs held) are errors naming where they went: the problem or --detection, and flags. The
 // loss, the outlier listing and the back end are also read in the solver config's vocabulary:
 // loss: {type: trivial | huber | cauchy, scale_px}, outliers: {list_sigma}, backend:
 // carmba_lm | ceres; the older spelling (robust_loss none | huber | cauchy, robust_loss_scale_px,
 // outlier_threshold_sigma, solver lm | ceres) is translated here, once.
-Status LoadCalibrationOptions(const std::string& path,
-                              CalibrationOptions* options,
-                              const std::vector<std::string>& other_keys = {});
+Status LoadCalibrationOptions(const std::string& path, CalibrationOptions* options);
 
 struct ViewStats {
   std::string image;

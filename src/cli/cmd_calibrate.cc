@@ -41,11 +41,14 @@
 #include "util/plausible.h"
 #include "util/python_worker.h"
 #include "util/temp_paths.h"
-#include "util/yaml_reader.h"
 
 DEFINE_string(observations, "", "Pre-detected observations.csv (instead of --images).");
 DEFINE_string(truth, "", "Ground truth (simulator truth.json or a camera.json) to compare with.");
 DEFINE_bool(opencv, true, "Cross-check with cv::calibrateCamera.");
+DEFINE_int32(opencv_max_views,
+             60,
+             "Skip the OpenCV cross-check beyond this many views (calibrateCamera takes minutes "
+             "beyond a few hundred).");
 DEFINE_double(sphere_diameter_mm,
               0,
               "Diameter of the plate's metal spheres (mm; 0: not known, or flat circles): each "
@@ -56,32 +59,18 @@ namespace {
 
 using namespace carmba;
 
+// The cross-checks, from the flags.
 struct CrossCheckConfig {
-  bool mrcal = true;
-  bool opencv = true;
-  int opencv_max_views = 60;  // calibrateCamera takes minutes beyond a few hundred views
-  std::string python = "/usr/bin/python3";
+  bool mrcal = FLAGS_mrcal;
+  bool opencv = FLAGS_opencv;
+  int opencv_max_views = FLAGS_opencv_max_views;
+  std::string python = FLAGS_mrcal_python;
 };
-
-Status LoadConfig(const std::string& path,
-                  CalibrationOptions* calib,
-                  DetectionOptions* detect,
-                  CrossCheckConfig* cross) {
-  CARMBA_RETURN_IF_ERROR(LoadCalibrationConfig(path, calib, detect, {"crosscheck"}));
-  YamlMap root = YamlMap::Load(path);
-  CARMBA_RETURN_IF_ERROR(root.status());
-  YamlMap c(root.Raw("crosscheck"), path, "crosscheck");
-  c.Get("mrcal", &cross->mrcal);
-  c.Get("opencv", &cross->opencv);
-  c.Get("opencv_max_views", &cross->opencv_max_views);
-  c.Get("python", &cross->python);
-  return c.Finish();
-}
 
 // What `carmba calibrate` reads: the flags, completed by a --problem file.
 struct CalibrateInputs {
   std::string images = FLAGS_images, observations = FLAGS_observations, config = FLAGS_config;
-  std::string truth = FLAGS_truth, pattern = FLAGS_pattern;
+  std::string truth = FLAGS_truth, pattern = FLAGS_pattern, detection = FLAGS_detection;
   int rows = FLAGS_rows, cols = FLAGS_cols;
   double spacing = FLAGS_spacing_mm, sphere_diameter = FLAGS_sphere_diameter_mm;
 };
@@ -172,7 +161,7 @@ Status CheckCalibrationProblem(const Problem& p) {
   return Status::Ok();
 }
 
-// A --problem (the one problem reader), with the --config's detection options if one was given.
+// A --problem (the one problem reader), with the --detection options where the problem gives none.
 // An older calibration file's config becomes in->config when --config was not given.
 StatusOr<Problem> ReadCalibrationProblem(const std::optional<DetectionOptions>& detect,
                                          CalibrateInputs* in,
@@ -229,8 +218,8 @@ void OpenCvCrossCheck(const CrossCheckConfig& cross,
   }
   if (static_cast<int>(run->observations.views.size()) > cross.opencv_max_views) {
     run->opencv_error = std::to_string(run->observations.views.size()) +
-                        " views > crosscheck.opencv_max_views (" +
-                        std::to_string(cross.opencv_max_views) + "): calibrateCamera too slow";
+                        " views > --opencv-max-views (" + std::to_string(cross.opencv_max_views) +
+                        "): calibrateCamera too slow";
     return;
   }
   cli::Step("calibrate", "OpenCV cross-check (cv::calibrateCamera)");
@@ -285,6 +274,7 @@ std::string CalibrateCommandLine(const CalibrateInputs& in, const CalibrationRun
   if (FLAGS_problem.empty() && run.observations.grid.sphere_diameter_mm > 0) {
     cmd << " --sphere-diameter-mm " << run.observations.grid.sphere_diameter_mm;
   }
+  if (!in.detection.empty()) cmd << " --detection " << quoted(in.detection);
   if (!in.config.empty()) cmd << " --config " << quoted(in.config);
   if (!in.truth.empty()) cmd << " --truth " << quoted(in.truth);
   if (!cross.mrcal) cmd << " --no-mrcal";
@@ -318,37 +308,45 @@ void PrintCalibrationSummary(const CalibrationRun& run) {
             << "observations.csv, corners.vnl, report.md, report.html}" << std::endl;
 }
 
-// The config (calibration options, detection, cross-checks) with the --no-mrcal / --no-opencv
-// flags applied.
-Status LoadCalibrateConfig(const std::string& path, CalibrationOptions* options,
-                           DetectionOptions* detect, CrossCheckConfig* cross) {
-  if (!path.empty()) CARMBA_RETURN_IF_ERROR(LoadConfig(path, options, detect, cross));
-  if (!FLAGS_mrcal) cross->mrcal = false;
-  if (!FLAGS_opencv) cross->opencv = false;
+// The calibration config (how it is solved), when one is given.
+Status LoadCalibrateConfig(const std::string& path, CalibrationOptions* options) {
+  return path.empty() ? Status::Ok() : LoadCalibrationOptions(path, options);
+}
+
+// --detection: the grid's detection options, for --images or a problem that gives none.
+Status LoadCalibrateDetection(const CalibrateInputs& in, std::optional<DetectionOptions>* detect) {
+  if (in.detection.empty()) return Status::Ok();
+  if (!in.observations.empty()) {
+    return Status::Error(
+        "--detection: the --observations are already detected; give it with "
+        "--images or a --problem");
+  }
+  DetectionOptions d;
+  CARMBA_RETURN_IF_ERROR(LoadDetectionOptions(in.detection, &d));
+  *detect = d;
   return Status::Ok();
 }
 
 // The plate views, from a --problem or from the flags, into run (and the problem's options into
 // options; an older problem's config read). mrcal's interpreter starts once the config is known.
 Status CalibrationPlateViews(CalibrateInputs* in,
+                             const std::optional<DetectionOptions>& detect,
+                             const CrossCheckConfig& cross,
                              CalibrationOptions* options,
-                             DetectionOptions* detect,
-                             CrossCheckConfig* cross,
                              std::unique_ptr<PythonWorker>* mrcal_python,
                              CalibrationRun* run) {
   const bool config_given = !in->config.empty();
-  if (config_given && cross->mrcal) *mrcal_python = StartMrcalPython(cross->python);
+  if (config_given && cross.mrcal) *mrcal_python = StartMrcalPython(cross.python);
   if (FLAGS_problem.empty()) {
     auto pat = ParseGridPattern(in->pattern);
     if (!pat.ok()) return pat.status().WithContext("--pattern");
-    return CalibrationObservations(*in, *pat, *detect, *options, run);
+    return CalibrationObservations(*in, *pat, detect.value_or(DetectionOptions()), *options, run);
   }
-  auto problem = ReadCalibrationProblem(
-      config_given ? std::optional<DetectionOptions>(*detect) : std::nullopt, in, run);
+  auto problem = ReadCalibrationProblem(detect, in, run);
   if (!problem.ok()) return problem.status();
   if (!config_given) {
-    CARMBA_RETURN_IF_ERROR(LoadCalibrateConfig(in->config, options, detect, cross));
-    if (cross->mrcal) *mrcal_python = StartMrcalPython(cross->python);
+    CARMBA_RETURN_IF_ERROR(LoadCalibrateConfig(in->config, options));
+    if (cross.mrcal) *mrcal_python = StartMrcalPython(cross.python);
   }
   ApplyProblemToOptions(*problem, options);
   if (!run->detections.empty()) CARMBA_RETURN_IF_ERROR(CheckEnoughViews(*run, *options));
@@ -380,10 +378,10 @@ int RunCalibrate() {
     return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
   }
   CalibrationOptions options;
-  DetectionOptions detect;
-  CrossCheckConfig cross;
-  if (const Status s = LoadCalibrateConfig(in.config, &options, &detect, &cross); !s.ok())
-    return cli::Fail(kCmd, s);
+  std::optional<DetectionOptions> detect;
+  const CrossCheckConfig cross;
+  if (const Status s = LoadCalibrateConfig(in.config, &options); !s.ok()) return cli::Fail(kCmd, s);
+  if (const Status s = LoadCalibrateDetection(in, &detect); !s.ok()) return cli::Fail(kCmd, s);
   // The plot and mrcal interpreters start now: their imports overlap the detection and the
   // solve; the plots are then drawn while the cross-checks run.
   PlotOptions plot_options;
@@ -391,7 +389,7 @@ int RunCalibrate() {
   PlotProcess plots(plot_options);
   std::unique_ptr<PythonWorker> mrcal_python;
   CalibrationRun run;
-  if (const Status s = CalibrationPlateViews(&in, &options, &detect, &cross, &mrcal_python, &run);
+  if (const Status s = CalibrationPlateViews(&in, detect, cross, &options, &mrcal_python, &run);
       !s.ok()) {
     return cli::Fail(kCmd, s);
   }
@@ -442,7 +440,8 @@ int RunCalibrate() {
 }  // namespace
 
 CARMBA_COMMAND_FLAGS(calibrate,
-                     "images,pattern,rows,cols,spacing_mm,config,problem,out,force,plots,mrcal");
+                     "images,pattern,rows,cols,spacing_mm,config,problem,out,force,plots,mrcal,"
+                     "mrcal_python,detection");
 CARMBA_REQUIRED_FLAGS(calibrate, "out");
 CARMBA_REGISTER_COMMAND(calibrate,
                         "Calibrate the C-arm's intrinsics from grid images (bundle adjustment, "

@@ -9,7 +9,6 @@
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
 #include "util/file_util.h"
-#include "util/yaml_reader.h"
 
 namespace {
 
@@ -30,14 +29,9 @@ int RunDetect() {
   grid.spacing_mm = FLAGS_spacing_mm > 0 ? FLAGS_spacing_mm : 20.0;  // recorded in the CSV
   if (!grid.Check(&err)) return cli::FailUsage(kCmd, err);
   DetectionOptions options;
-  if (!FLAGS_config.empty()) {
-    // The `detection:` map of a calibration config (its other keys are the calibration's).
-    YamlMap root = YamlMap::Load(FLAGS_config);
-    if (!root.status().ok()) return cli::Fail(kCmd, root.status());
-    YamlMap d(root.Raw("detection"), FLAGS_config, "detection");
-    ReadDetectionOptions(d, &options);
-    Status s = d.Finish();
-    if (!s.ok()) return cli::Fail(kCmd, s);
+  if (!FLAGS_detection.empty()) {
+    if (const Status s = LoadDetectionOptions(FLAGS_detection, &options); !s.ok())
+      return cli::Fail(kCmd, s);
   }
   auto files = ListImageFiles(FLAGS_images);
   if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
@@ -69,7 +63,7 @@ int RunDetect() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(detect, "images,pattern,rows,cols,spacing_mm,config,out,force");
+CARMBA_COMMAND_FLAGS(detect, "images,pattern,rows,cols,spacing_mm,detection,out,force");
 CARMBA_REQUIRED_FLAGS(detect, "images,out");
 CARMBA_REGISTER_COMMAND(detect,
                         "Detect a calibration grid in images; write observations.csv (--out, a "

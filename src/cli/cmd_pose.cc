@@ -28,10 +28,10 @@ DEFINE_string(fiducials, "", "CT marker centres with covariances (fiducials.csv 
 
 DEFINE_string(diameter_px, "", "Marker diameter range 'min,max' in px (instead of "
                                "--marker-diameter-mm).");
-DEFINE_double(source_to_object_mm, 0, "Source-to-object distance (mm) for images without a "
-                                      "Distance Source to Patient tag.");
-DEFINE_string(detection, "", "Optional YAML of marker detection / correspondence options "
-                             "(detect/marker_views.h ReadObjectViewsOptions); flags override it.");
+DEFINE_double(source_to_object_mm,
+              0,
+              "Source-to-object distance (mm) for images without a "
+              "Distance Source to Patient tag.");
 
 namespace {
 
@@ -184,7 +184,7 @@ int RunPose() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force,plots,marker_diameter_mm");
+CARMBA_COMMAND_FLAGS(pose, "images,camera,out,config,force,plots,marker_diameter_mm,detection");
 CARMBA_REGISTER_COMMAND(
     pose,
     "Object poses from X-ray images: marker blobs, automatic labelling with the "

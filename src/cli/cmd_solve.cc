@@ -54,6 +54,7 @@ int RunJoint(const carmba::Problem& problem,
              carmba::PlotProcess& plots) {
   using namespace carmba;
   MrcalCrossCheckOptions mrcal_options;
+  mrcal_options.python = FLAGS_mrcal_python;
   std::unique_ptr<PythonWorker> mrcal_python;
   if (FLAGS_mrcal) {  // its imports overlap the solve
     mrcal_python = StartMrcalPython(mrcal_options.python);
@@ -184,7 +185,7 @@ int RunSolve() {
 
 }  // namespace
 
-CARMBA_COMMAND_FLAGS(solve, "problem,config,out,force,plots,mrcal");
+CARMBA_COMMAND_FLAGS(solve, "problem,config,out,force,plots,mrcal,mrcal_python");
 CARMBA_REQUIRED_FLAGS(solve, "problem,config,out");
 CARMBA_REGISTER_COMMAND(solve,
                         "Solve a problem (problem/problem.h: object views only = a pose problem, "

@@ -51,6 +51,12 @@ DEFINE_double(
     "fx / SOD of the DICOM frame, or --source-to-object-mm; track: fx / the distance from "
     "each source to the cameras' common field).");
 DEFINE_bool(mrcal, true, "Cross-check with mrcal (python3-mrcal); --no-mrcal skips it.");
+DEFINE_string(mrcal_python, "/usr/bin/python3", "The Python with mrcal for the cross-check.");
+DEFINE_string(detection,
+              "",
+              "YAML of detection options at its top level: pose, the markers' "
+              "(detect/marker_views.h ReadObjectViewsOptions; flags override it); calibrate and "
+              "detect, the grid's (the keys of a problem's plate_views.detection).");
 
 namespace carmba::cli {
 namespace {

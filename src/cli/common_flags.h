@@ -29,6 +29,8 @@ DECLARE_bool(force);      // write over an existing result in --out
 DECLARE_bool(verbose);    // progress on stderr (every command has it)
 DECLARE_bool(plots);      // report.html's matplotlib plots (--no-plots: none, no Python)
 DECLARE_bool(mrcal);      // the mrcal cross-check (--no-mrcal: skipped)
+DECLARE_string(mrcal_python);  // the Python with mrcal (calibrate, solve)
+DECLARE_string(detection);     // detection options YAML (pose: markers; calibrate, detect: grid)
 DECLARE_double(marker_diameter_mm);  // marker / bead diameter (pose, track)
 
 namespace carmba::cli {

@@ -72,6 +72,16 @@ void ReadDetectionOptions(YamlMap& m, DetectionOptions* o) {
   m.Get("refine", &o->refine);
 }
 
+Status LoadDetectionOptions(const std::string& path, DetectionOptions* options) {
+  YamlMap m = YamlMap::Load(path);
+  CARMBA_RETURN_IF_ERROR(m.status());
+  ReadDetectionOptions(m, options);
+  CARMBA_RETURN_IF_ERROR(m.Finish());
+  std::string err;
+  if (!options->Check(&err)) return Status::Error(path + ": " + err);
+  return Status::Ok();
+}
+
 // Sub-pixel centre of a blob around `c` on the float image `f` (see the header, step 4). Only
 // pixels with `valid` != 0 (the field of view) are used. `nn_px` is the distance to the nearest
 // other grid point: the window, the centroid disc and the background ring scale with it and with

@@ -83,10 +83,13 @@ struct DetectionOptions {
   bool Check(std::string* error) const;
 };
 
-// Reads detection options from a YAML map (keys = field names), e.g. the `detection:` map of a
-// calibration config.
+// Reads detection options from a YAML map (keys = field names): a problem's
+// `plate_views.detection`, or a detection file.
 class YamlMap;
 void ReadDetectionOptions(YamlMap& map, DetectionOptions* options);
+// A detection file (`carmba calibrate --detection`, `carmba detect --detection`): the keys of
+// ReadDetectionOptions at its top level. Errors name the file and the key.
+Status LoadDetectionOptions(const std::string& path, DetectionOptions* options);
 // Only the region-of-interest / field-of-view keys (roi_px, fov_circle_px, auto_fov_mask,
 // fov_margin_px), e.g. for the marker blob detector.
 void ReadFieldOfViewOptions(YamlMap& map, DetectionOptions* options);

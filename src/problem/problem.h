@@ -11,7 +11,7 @@
 //     observations: plate/observations.csv   # as `carmba detect` writes it (grid in its header)
 //     # or images: DIR_OR_GLOB with pattern: circles, rows: 5, cols: 5, spacing_mm: 20 and
 //     # detection: {polarity: dark, ...} (detect/grid_detector.h DetectionOptions; default: the
-//     # command's, e.g. `carmba calibrate`'s config's `detection`)
+//     # command's, `carmba calibrate --detection FILE`)
 //     sigma_px: 0.05                  # detection noise, 1 sigma per coordinate (required by
 //                                     # `carmba solve`; `carmba calibrate` may estimate it)
 //     plate: {free: false, sigma_mm: 0.01}    # optional: sphere positions free, tied to the
@@ -163,8 +163,7 @@ inline const char* IntrinsicsModelName(const Problem& p) {
 }
 
 // What the command reading a problem adds: the detection options of plate images whose
-// `plate_views` has no `detection` map of its own (else an older calibration file's config's
-// `detection`, else the defaults).
+// `plate_views` has no `detection` map of its own (calibrate --detection; else the defaults).
 struct ProblemReadOptions {
   std::optional<DetectionOptions> plate_detection;
 };

@@ -58,8 +58,9 @@ struct PlateViewsSource {
   std::string older_config;  // that older file's `config`, resolved
 };
 
-// The plate images' detection options: `plate_views.detection`, else the command's, else an older
-// calibration file's config's `detection`, else the defaults.
+// The plate images' detection options: `plate_views.detection`, else the command's (calibrate
+// --detection), else the defaults. (An older calibration file's config held them; that config is
+// now refused, naming where they went.)
 Status PlateDetectionOptions(YamlMap& m,
                              const PlateViewsSource& src,
                              const ProblemReadOptions& o,
@@ -70,12 +71,6 @@ Status PlateDetectionOptions(YamlMap& m,
     CARMBA_RETURN_IF_ERROR(dm.Finish());
   } else if (o.plate_detection) {
     *d = *o.plate_detection;
-  } else if (!src.older_config.empty()) {
-    YamlMap config = YamlMap::Load(src.older_config);
-    CARMBA_RETURN_IF_ERROR(config.status());
-    YamlMap& dm = config.Map("detection");
-    ReadDetectionOptions(dm, d);
-    CARMBA_RETURN_IF_ERROR(dm.Finish());
   }
   std::string err;
   if (m.status().ok() && !d->Check(&err)) m.Fail("detection", err);

@@ -52,15 +52,20 @@ CalibrationRun Calibrate(const py::object& observations,
                          int rows,
                          int cols,
                          const py::object& spacing,
-                         const py::object& config) {
+                         const py::object& config,
+                         const py::object& detection) {
   const double spacing_mm = spacing.is_none() ? 0.0 : spacing.cast<double>();
   if (observations.is_none() == images.is_none()) {
     throw Error("give exactly one of observations (array or observations.csv) and images");
   }
   CalibrationRun run;
   DetectionOptions detect;
+  if (!detection.is_none()) {
+    if (images.is_none()) throw Error("detection: give it with images (observations are detected)");
+    ThrowIfError(LoadDetectionOptions(py::str(detection), &detect));
+  }
   if (!config.is_none()) {
-    ThrowIfError(LoadCalibrationConfig(py::str(config), &run.options, &detect, {"crosscheck"}));
+    ThrowIfError(LoadCalibrationOptions(py::str(config), &run.options));
   }
   GridSpec grid;
   grid.pattern = ValueOrThrow(ParseGridPattern(pattern));
@@ -132,15 +137,23 @@ void BindCalibrate(py::module_& m) {
           "camera_json",
           [](const CalibrationRun& r) { return CalibrationResultJson(r).dump(2) + "\n"; },
           "camera.json's text as `carmba calibrate --no-mrcal --no-opencv` writes it");
-  m.def("calibrate", &Calibrate, py::arg("observations") = py::none(),
-        py::arg("images") = py::none(), py::arg("image_size") = py::none(),
-        py::arg("pattern") = "circles", py::arg("rows") = 5, py::arg("cols") = 5,
-        py::arg("spacing_mm") = py::none(), py::arg("config") = py::none(),
+  m.def("calibrate",
+        &Calibrate,
+        py::arg("observations") = py::none(),
+        py::arg("images") = py::none(),
+        py::arg("image_size") = py::none(),
+        py::arg("pattern") = "circles",
+        py::arg("rows") = 5,
+        py::arg("cols") = 5,
+        py::arg("spacing_mm") = py::none(),
+        py::arg("config") = py::none(),
+        py::arg("detection") = py::none(),
         "Calibrates the intrinsics from observations (an array (views, rows*cols, 2) with NaN "
         "for points not seen and image_size=(w, h), or an observations.csv path) or from "
         "images (a directory or glob; the grid detected as `carmba calibrate --images`). "
         "spacing_mm: the grid pitch (default: the CSV's, else 20). config: a calibration "
-        "config YAML (configs/calib_*.yaml).");
+        "config YAML (configs/calib_*.yaml). detection: a detection options YAML for the "
+        "images (`carmba calibrate --detection`).");
 }
 
 }  // namespace carmba::python

@@ -670,7 +670,7 @@ StatusOr<nlohmann::json> RunCalibration(PoseStudyState* state, const RunSpec& ru
   if (!entry->ok()) return entry->status();
   auto options = state->calib_configs.Get(sc.file, [&]() -> StatusOr<CalibrationOptions> {
     CalibrationOptions o;
-    CARMBA_RETURN_IF_ERROR(LoadCalibrationOptions(sc.file, &o, {"detection", "crosscheck"}));
+    CARMBA_RETURN_IF_ERROR(LoadCalibrationOptions(sc.file, &o));
     return o;
   });
   if (!options->ok()) return options->status();

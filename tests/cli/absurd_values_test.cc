@@ -131,9 +131,10 @@ TEST_F(AbsurdInput, CalibrationConfig) {
   dir_.Write("c3.yaml", "num_threads: 0\n");
   ExpectFails(Calibrate(obs_csv_) + " --config " + dir_.File("c3.yaml"),
               "c3.yaml:1: key 'num_threads': expected an integer 1 .. 1024, got 0");
-  dir_.Write("c5.yaml", "detection: {fov_margin_px: 1e300}\n");
-  ExpectFails(Calibrate(obs_csv_) + " --config " + dir_.File("c5.yaml"),
-              "c5.yaml: detection.fov_margin_px: expected 0 .. 65535 px, got 1e+300");
+  dir_.Write("c5.yaml", "fov_margin_px: 1e300\n");
+  ExpectFails("detect --images " + dir_.File("none") + " --pattern circles --rows 5 --cols 5 " +
+                  "--detection " + dir_.File("c5.yaml") + " --out " + dir_.File("c5.csv"),
+              "c5.yaml: fov_margin_px: expected 0 .. 65535 px, got 1e+300");
   dir_.Write("c4.yaml", "initial_intrinsics: [1e308, 2255, 204, 205, 0, 0, 0, 0, 0]\n");
   ExpectFails(Calibrate(obs_csv_) + " --config " + dir_.File("c4.yaml"),
               "c4.yaml: initial_intrinsics: fx: expected 1 .. 1e+06 px, got 1e+308");

@@ -336,6 +336,28 @@ TEST(CalibE2E, BadInputs) {
                 "sphere_diameter_mm: 25}\n");
   ExpectFailsCleanly("calibrate --problem " + wide, "plate_views.sphere_diameter_mm");
 
+  // A config says how to solve: what older configs also held is refused, naming where it went.
+  const std::string old_detection = Tmp("calib_old_detection.yaml");
+  WriteText(old_detection, "fix: []\ndetection: {polarity: dark}\n");
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --config " + old_detection,
+                     "key 'detection': the plate's detection options belong to the data: the "
+                     "problem's plate_views.detection, or calibrate --detection FILE");
+  const std::string old_cross = Tmp("calib_old_crosscheck.yaml");
+  WriteText(old_cross, "crosscheck: {opencv: false}\n");
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --config " + old_cross,
+                     "key 'crosscheck': the cross-checks are calibrate's flags: --no-mrcal, "
+                     "--no-opencv");
+  // --detection is used (a 20 px region holds no grid), is checked, and is for images only.
+  const std::string roi = Tmp("calib_detection_roi.yaml"), bad = Tmp("calib_detection_bad.yaml");
+  WriteText(roi, "roi_px: [0, 0, 20, 20]\n");
+  WriteText(bad, "polarity: darker\n");
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --detection " + roi,
+                     "found in 0 of 20 images");
+  ExpectFailsCleanly("calibrate --images '" + sim + "/*.png' --detection " + bad,
+                     "calib_detection_bad.yaml:1: key 'polarity'");
+  ExpectFailsCleanly("calibrate --observations " + roi + " --detection " + roi,
+                     "--detection: the --observations are already detected");
+
   // All fronto-parallel views (pre-detected observations): degenerate.
   carmba::SyntheticViewsOptions so;
   so.min_tilt_deg = so.max_tilt_deg = 0;

@@ -13,6 +13,7 @@
 #include "cli/cli_test_util.h"
 #include "cli/markdown_doc.h"
 #include "ct/ct_simulate.h"
+#include "detect/grid_detector.h"
 #include "detect/marker_views.h"
 #include "joint/joint_solver.h"
 #include "problem/pose_solver.h"
@@ -50,6 +51,9 @@ bool ReadInProcess(const std::string& kind, const std::string& path, Status* sta
     *status = m.status().ok() ? ParseCtScene(m, &scene) : m.status();
   } else if (kind == "study") {
     *status = LoadStudySpec(path).status();
+  } else if (kind == "grid-detection") {
+    DetectionOptions d;
+    *status = LoadDetectionOptions(path, &d);
   } else if (kind == "marker-detection") {
     YamlMap m = YamlMap::Load(path);
     ObjectViewsOptions o;
@@ -116,8 +120,8 @@ TEST_F(DocsFormats, ExamplesReadAndKeyTablesMatchTheReaders) {
   }
   std::map<std::string, std::set<std::string>> recorded = AcceptedKeys();
   {
-    const auto r = run("calibrate --problem " + dir_.File("calib_problem_older.yaml") + " --out " +
-                       dir_.File("calib_out"));
+    const auto r = run("calibrate --problem " + dir_.File("calib_problem_older.yaml") +
+                       " --no-plots --no-mrcal --no-opencv --out " + dir_.File("calib_out"));
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(cli_kinds, (std::set<std::string>{"calib-config", "joint-scene"}))
         << "example kinds that no reader in this test reads";

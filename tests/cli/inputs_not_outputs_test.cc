@@ -63,9 +63,9 @@ struct Inputs {
 // names the first input --out collides with).
 const std::map<std::string, std::vector<std::string>>& InputFlagsByCommand() {
   static const std::map<std::string, std::vector<std::string>> k = {
-      {"calibrate", {"images", "observations", "config", "problem", "truth"}},
+      {"calibrate", {"images", "observations", "config", "problem", "truth", "detection"}},
       {"ct-fiducials", {"dicom", "model"}},
-      {"detect", {"images", "config"}},
+      {"detect", {"images", "detection"}},
       {"export-geometry", {"result"}},
       {"pose", {"images", "camera", "fiducials", "config", "detection"}},
       {"simulate", {"scene"}},

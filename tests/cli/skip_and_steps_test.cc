@@ -93,9 +93,8 @@ TEST(SkipAndSteps, CalibrateWithoutPlotsAndMrcalRunsNoPython) {
   ScratchDir dir;
   ASSERT_TRUE(WriteSyntheticGridObservations(dir.File("obs.csv")));
   // A python that does not exist: nothing may try to start it.
-  dir.Write("config.yaml", "crosscheck: {python: /nonexistent/python3}\n");
-  auto r = RunCarmba("calibrate --observations " + dir.File("obs.csv") + " --config " +
-                     dir.File("config.yaml") + " --no-plots --no-mrcal --verbose --out " +
+  auto r = RunCarmba("calibrate --observations " + dir.File("obs.csv") +
+                     " --mrcal-python /nonexistent/python3 --no-plots --no-mrcal --verbose --out " +
                      dir.File("out"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir.File("out/mrcal")));

@@ -6,6 +6,6 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = carmba::fuzz::WriteInput("configs/fuzz_calib.yaml", data, size);
   carmba::CalibrationOptions options;
-  (void)carmba::LoadCalibrationOptions(path, &options, {"detection", "crosscheck"});
+  (void)carmba::LoadCalibrationOptions(path, &options);
   return 0;
 }
