@@ -101,7 +101,8 @@ Status LoadDetectionOptions(const std::string& path, DetectionOptions* options) 
 //   weights:    dark (X-ray): the flat-field contrast 1 - I / plane, i.e. the attenuation, which
 //               does not depend on the local brightness (vignetting, heel effect, plate
 //               thickness would otherwise pull the centre towards the brighter side); bright:
-//               I - plane. Minus 5 % of the peak, clipped at zero.
+//               I - plane. Minus a floor of the peak (15 % on the plate, 5 % for markers:
+//               detect_steps.h kPlateCentroidFloor), clipped at zero.
 //   core:       the same centroid of the contrast above 25 % of the peak. Background structure
 //               inside the disc that the ring's plane does not follow (an anatomical edge across
 //               the sphere: a few % of the level) pulls the whole-blob centroid through the wide,
@@ -331,6 +332,7 @@ bool DiscCentroids(std::vector<CentroidPixel>* disc,
                    bool dark,
                    int cx,
                    int cy,
+                   double floor,
                    CentroidEstimate* e) {
   for (CentroidPixel& q : *disc) {
     const double bg = PlaneAt(plane, q);
@@ -338,7 +340,7 @@ bool DiscCentroids(std::vector<CentroidPixel>* disc,
     e->peak = std::max(e->peak, static_cast<double>(q.value));
   }
   if (!(e->peak > 0)) return false;
-  e->floor = 0.05 * e->peak, e->core_floor = kCoreFloor * e->peak;
+  e->floor = floor * e->peak, e->core_floor = kCoreFloor * e->peak;
   double sx = 0, sy = 0, hx = 0, hy = 0;
   for (const CentroidPixel& q : *disc) {
     const double w = q.value - e->floor;
@@ -409,8 +411,16 @@ RingArcs FindRingArcs(const std::vector<CentroidPixel>& ring,
 
 }  // namespace
 
-bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn_px, double disc_px,
-                    cv::Point2d* c, double* r_half_px, CentroidNoise* noise, double* shift_px) {
+bool RefineCentroid(const cv::Mat& f,
+                    const cv::Mat& valid,
+                    bool dark,
+                    double nn_px,
+                    double disc_px,
+                    double floor,
+                    cv::Point2d* c,
+                    double* r_half_px,
+                    CentroidNoise* noise,
+                    double* shift_px) {
   const int w = std::max(3, static_cast<int>(std::ceil(0.5 * nn_px)));
   CentroidWindow win;
   win.rw = w;
@@ -433,7 +443,7 @@ bool RefineCentroid(const cv::Mat& f, const cv::Mat& valid, bool dark, double nn
     if (!FitRingPlane(ring, &plane, &ring_sigma, &ring_AtA)) return false;
     if (dark && !(plane[0] > 0)) return false;
     CentroidEstimate e;
-    if (!DiscCentroids(&disc, plane, dark, cx, cy, &e)) return false;
+    if (!DiscCentroids(&disc, plane, dark, cx, cy, floor, &e)) return false;
     if (shift_px) *shift_px = e.shift;
     if (noise) {
       CentroidCovariance(disc, e, plane, ring_sigma, ring_AtA, dark, cx, cy, rw, noise);
@@ -1082,8 +1092,16 @@ void RefineCentres(const cv::Mat& f, const cv::Mat& refine_valid, const GridSpec
     }
     // The disc cap as before the large-circle fix (disc + ring within ceil(0.35 pitch)): small
     // circles keep their results (same noise), large ones go beyond it with 1 px tails.
-    if (RefineCentroid(f, refine_valid, cand.dark, nn, std::max(3.0, std::ceil(0.35 * pitch)) - 3.0,
-                       &q, &r_half, nullptr, &(*shift_px)[i]) &&
+    if (RefineCentroid(f,
+                       refine_valid,
+                       cand.dark,
+                       nn,
+                       std::max(3.0, std::ceil(0.35 * pitch)) - 3.0,
+                       kPlateCentroidFloor,
+                       &q,
+                       &r_half,
+                       nullptr,
+                       &(*shift_px)[i]) &&
         cv::norm(q - (*pts)[i]) <
             std::min(0.3 * pitch, std::max(1.5, 0.5 * (blob_r > 0 ? blob_r : r_half)))) {
       (*pts)[i] = q;

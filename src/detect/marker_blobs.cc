@@ -444,8 +444,16 @@ void RefineCandidate(const cv::Mat& f,
   cv::Point2d q = c.centre;
   double r_half = 0, shift = 0;
   CentroidNoise noise = noise_model;
-  const bool refined =
-      RefineCentroid(f, valid, /*dark=*/true, nn, 1.5 * r_nom + 2.0, &q, &r_half, &noise, &shift);
+  const bool refined = RefineCentroid(f,
+                                      valid,
+                                      /*dark=*/true,
+                                      nn,
+                                      1.5 * r_nom + 2.0,
+                                      kMarkerCentroidFloor,
+                                      &q,
+                                      &r_half,
+                                      &noise,
+                                      &shift);
   if (!refined) {
     det->rejected.push_back(
         {full,
