@@ -47,7 +47,7 @@ void BM_CalibCarmba(benchmark::State& state) {
   const ObservationSet& obs = Views(static_cast<int>(state.range(0)));
   CalibrationOptions opt;
   if (state.range(1) == 1) opt.solve.backend = ba::Backend::kCeres;
-  state.SetLabel(opt.solve.backend);
+  state.SetLabel(NameOf(ba::kBackendNames, opt.solve.backend));
   double rms = 0, fx = 0, cx = 0;
   for (auto _ : state) {
     auto r = Calibrate(obs, opt);
@@ -162,7 +162,7 @@ void BM_CalibEngine(benchmark::State& state) {
   }
   ba::BaOptions o;
   if (state.range(1) == 1) o.backend = ba::Backend::kCarmbaLm;
-  state.SetLabel(o.backend);
+  state.SetLabel(NameOf(ba::kBackendNames, o.backend));
   o.function_tolerance = 1e-10;
   o.gradient_tolerance = 1e-14;
   o.parameter_tolerance = 1e-10;

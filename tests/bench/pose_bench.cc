@@ -27,7 +27,10 @@ void BM_PoseOneView(benchmark::State& state) {
   const Problem p = OneViewProblem(static_cast<int>(state.range(0)));
   SolverConfig c;
   c.analytic_jacobians = state.range(1) == 1;
-  const char* algos[4] = {"dense_svd", "sparse_qr", "eigen_sparse_qr", "schur"};
+  const ba::CovarianceAlgorithm algos[4] = {ba::CovarianceAlgorithm::kDenseSvd,
+                                            ba::CovarianceAlgorithm::kSparseQr,
+                                            ba::CovarianceAlgorithm::kEigenSparseQr,
+                                            ba::CovarianceAlgorithm::kSchur};
   c.covariance_algorithm = algos[state.range(2)];
   const char* solvers[3] = {"dense_schur", "dense_qr", "dense_normal_cholesky"};
   c.linear_solver = solvers[state.range(3)];
@@ -40,7 +43,8 @@ void BM_PoseOneView(benchmark::State& state) {
   }
   state.counters["lm_iterations"] = iterations;
   state.SetLabel(std::string(c.analytic_jacobians ? "analytic" : "autodiff") + ", " +
-                 std::to_string(state.range(0)) + " markers, " + c.covariance_algorithm + ", " +
+                 std::to_string(state.range(0)) + " markers, " +
+                 NameOf(ba::kCovarianceAlgorithmNames, c.covariance_algorithm) + ", " +
                  c.linear_solver);
 }
 BENCHMARK(BM_PoseOneView)
