@@ -316,11 +316,6 @@ Status LoadCalibrateConfig(const std::string& path, CalibrationOptions* options)
 // --detection: the grid's detection options, for --images or a problem that gives none.
 Status LoadCalibrateDetection(const CalibrateInputs& in, std::optional<DetectionOptions>* detect) {
   if (in.detection.empty()) return Status::Ok();
-  if (!in.observations.empty()) {
-    return Status::Error(
-        "--detection: the --observations are already detected; give it with "
-        "--images or a --problem");
-  }
   DetectionOptions d;
   CARMBA_RETURN_IF_ERROR(LoadDetectionOptions(in.detection, &d));
   *detect = d;
@@ -376,6 +371,11 @@ int RunCalibrate() {
   if (const Status s = cli::CheckOutDir(); !s.ok()) return cli::Fail(kCmd, s);
   if (FLAGS_problem.empty() && in.images.empty() == in.observations.empty()) {
     return cli::Fail(kCmd, "give exactly one of --images and --observations (or a --problem)");
+  }
+  if (!in.detection.empty() && !in.observations.empty()) {
+    return cli::FailUsage(kCmd,
+                          "--detection: the --observations are already detected; give it with "
+                          "--images or a --problem");
   }
   CalibrationOptions options;
   std::optional<DetectionOptions> detect;

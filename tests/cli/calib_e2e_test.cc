@@ -357,6 +357,10 @@ TEST(CalibE2E, BadInputs) {
                      "calib_detection_bad.yaml:1: key 'polarity'");
   ExpectFailsCleanly("calibrate --observations " + roi + " --detection " + roi,
                      "--detection: the --observations are already detected");
+  EXPECT_EQ(Carmba("calibrate --observations " + roi + " --detection " + roi + " --out " +
+                   Tmp("out_usage"))
+                .code,
+            2);  // a usage error
 
   // All fronto-parallel views (pre-detected observations): degenerate.
   carmba::SyntheticViewsOptions so;
