@@ -13,10 +13,11 @@
 //   truth: truth.json            # optional: simulator truth (or a camera.json) to compare with
 // Calibration problems written before the one schema (top-level images / observations, pattern,
 // rows, cols, spacing_mm, config) are still read. --config and --truth win over the file's.
-// Config file (configs/calib_*.yaml): calib/calibrate.h CalibrationOptions keys at top level, plus
-//   detection: {polarity, roi_px, fov_circle_px, auto_fov_mask, fov_margin_px, min_blob_area_px,
-//               max_blob_area_px, refine}
-//   crosscheck: {mrcal: true, opencv: true, opencv_max_views: 60, python: /usr/bin/python3}
+// Config file (configs/calib_*.yaml): how it is solved, calib/calibrate.h CalibrationOptions keys at
+// top level. The grid's detection options: the problem's plate_views.detection, or --detection FILE
+// (polarity, roi_px, fov_circle_px, auto_fov_mask, fov_margin_px, min_blob_area_px,
+// max_blob_area_px, refine at its top level). The cross-checks: --no-mrcal, --no-opencv,
+// --opencv-max-views (60), --mrcal-python (/usr/bin/python3).
 #include <gflags/gflags.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
