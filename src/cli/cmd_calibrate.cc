@@ -20,7 +20,6 @@
 // --opencv-max-views (60), --mrcal-python (/usr/bin/python3).
 #include <gflags/gflags.h>
 #include <unistd.h>
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cmath>
