@@ -163,7 +163,7 @@ Status PoseCovariance(const Problem& problem,
   sol->has_covariance = sol->joint_covariance.allFinite();
   for (size_t v = 0; v < poses.size(); ++v) {
     ViewSolution& vs = sol->views[v];
-    vs.covariance = sol->Cross(v, v);
+    vs.covariance = sol->ViewPoseCross(v, v);
     Eigen::Matrix3d Jl;
     SO3LeftJacobian(poses[v].data(), Jl.data());  // row-major into column-major storage
     Jl.transposeInPlace();
@@ -185,7 +185,8 @@ PairSolution ValidationPairSolution(const ValidationPair& pair,
   ps.a = pair.a, ps.b = pair.b, ps.expected_deg = pair.expected_deg;
   Eigen::Matrix<double, 12, 12> C;
   if (sol.has_covariance) {
-    C << sol.Cross(ia, ia), sol.Cross(ia, ib), sol.Cross(ib, ia), sol.Cross(ib, ib);
+    C << sol.ViewPoseCross(ia, ia), sol.ViewPoseCross(ia, ib), sol.ViewPoseCross(ib, ia),
+        sol.ViewPoseCross(ib, ib);
   }
   Eigen::Matrix<double, 12, 1> g;
   const double vd = PairMetricWithGradient(

@@ -65,8 +65,11 @@ struct PoseSolution {
   std::vector<ViewSolution> views;
   std::vector<PairSolution> validation;
   Eigen::MatrixXd joint_covariance;        // 6V x 6V, views in order
-  // Cov(view a's pose, view b's pose): joint_covariance's block (view a's own for a == b).
-  Matrix6 Cross(size_t a, size_t b) const { return joint_covariance.block<6, 6>(6 * a, 6 * b); }
+  // Cov(view a's pose, view b's pose): joint_covariance's block (view a's own for a == b), as
+  // ba::BaResult::ViewPoseCross but from the covariance algorithm the config chose.
+  Matrix6 ViewPoseCross(size_t a, size_t b) const {
+    return joint_covariance.block<6, 6>(6 * a, 6 * b);
+  }
   std::map<int, Eigen::Vector3d> markers;  // refined marker positions (problem's handedness)
   bool has_covariance = false;
   // The statistics (chi2, dof, sigma0, its P value, the RMS, iterations, costs) are the engine's:
