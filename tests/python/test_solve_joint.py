@@ -58,7 +58,33 @@ def test_to_json_equals_the_commands_result_json(carmba, scene, cli, result):
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     assert after.ru_utime + after.ru_stime > before.ru_utime + before.ru_stime
     assert "error" not in cli["mrcal_crosscheck"]
-    assert without_times(json.loads(full.to_json())) == without_times(cli)
+    full = without_times(json.loads(full.to_json()))
+    cli = without_times(cli)
+    mrcal_mine, mrcal_cli = full.pop("mrcal_crosscheck"), cli.pop("mrcal_crosscheck")
+    assert full == cli
+    assert_same_within(mrcal_mine, mrcal_cli, 1e-6, "mrcal_crosscheck")
+
+
+def assert_same_within(a, b, tol, where):
+    """The same keys, strings and integers, and every float within tol * max(1, |a|, |b|).
+    mrcal's own free solve (run in a child process) stops within its tolerance of the optimum,
+    at one of two points that depend on the process (memory alignment in its linear algebra:
+    with address randomisation off every run is identical). They are 3e-11 apart relative in
+    fx, fy, cx, cy and 2.3e-8 in k2, where k2 and k3 trade off in a flat valley; so mrcal's
+    figures, and carmba's differences from them, are not bit-identical between processes."""
+    assert type(a) is type(b) or {type(a), type(b)} <= {int, float}, f"{where}: {a!r} vs {b!r}"
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), f"{where}: keys {sorted(a)} vs {sorted(b)}"
+        for k in a:
+            assert_same_within(a[k], b[k], tol, f"{where}.{k}")
+    elif isinstance(a, list):
+        assert len(a) == len(b), f"{where}: {len(a)} vs {len(b)} entries"
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert_same_within(x, y, tol, f"{where}[{i}]")
+    elif isinstance(a, float) or isinstance(b, float):
+        assert abs(a - b) <= tol * max(1.0, abs(a), abs(b)), f"{where}: {a!r} vs {b!r}"
+    else:
+        assert a == b, f"{where}: {a!r} vs {b!r}"
 
 
 def test_views(result, cli):
