@@ -87,44 +87,41 @@ Status CheckEnoughViews(const CalibrationRun& run, const CalibrationOptions& opt
                        (run.skipped.empty() ? "" : "; first skipped: " + run.skipped[0]));
 }
 
-// The grid's observations from the flags: read from the CSV, or detected in the images (skipped
-// images and detections into run).
+// The grid's observations from the flags (read from the CSV, or detected in the images) through
+// the problem's plate-view reader; skipped images and detections into run.
 Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
                                const DetectionOptions& detect, const CalibrationOptions& options,
                                CalibrationRun* run) {
-  if (!in.observations.empty()) {
-    auto obs = ReadObservationsCsv(in.observations);
-    if (!obs.ok()) return obs.status();
-    run->observations = *obs;
-    if (in.spacing > 0) run->observations.grid.spacing_mm = in.spacing;
-    run->observations.grid.sphere_diameter_mm = in.sphere_diameter;
-    std::string err;
-    if (!run->observations.grid.Check(&err)) return Status::Error("--sphere-diameter-mm: " + err);
-    return Status::Ok();
+  PlateViewsInput plate;
+  NameInputsAsFlags(&plate);
+  plate.sphere_diameter_mm = in.sphere_diameter;
+  plate.observations = in.observations;
+  plate.images = in.images;
+  plate.spacing_mm_override = in.spacing;
+  std::unique_ptr<Progress> progress;
+  if (!in.images.empty()) {
+    GridSpec grid;
+    grid.pattern = pattern;
+    grid.rows = in.rows;
+    grid.cols = in.cols;
+    grid.spacing_mm = in.spacing > 0 ? in.spacing : 20.0;
+    plate.grid = grid;
+    plate.detection = detect;
+    plate.detecting = [&progress](int num_images) {
+      cli::Step("calibrate", "detecting the grid in " + std::to_string(num_images) + " images");
+      progress = cli::MakeProgress("calibrate: detecting", num_images, "images");
+      return progress->Callback();
+    };
   }
-  GridSpec grid;
-  grid.pattern = pattern;
-  grid.rows = in.rows;
-  grid.cols = in.cols;
-  grid.spacing_mm = in.spacing > 0 ? in.spacing : 20.0;
-  grid.sphere_diameter_mm = in.sphere_diameter;
-  std::string err;
-  if (!grid.Check(&err)) return Status::Error(err);
-  auto files = ListImageFiles(in.images);
-  if (!files.ok()) return files.status().WithContext("--images");
-  cli::Step("calibrate", "detecting the grid in " + std::to_string(files->size()) + " images");
-  double per_image = 0;
-  StatusOr<ObservationSet> obs = Status::Error("not detected");
-  {
-    auto progress =
-        cli::MakeProgress("calibrate: detecting", static_cast<int>(files->size()), "images");
-    obs = DetectGridInFiles(*files, grid, detect, &run->skipped, &per_image, &run->detections,
-                            progress->Callback());
-  }
-  if (!obs.ok()) return obs.status();
-  run->observations = *obs;
+  Problem p;
+  const Status loaded = LoadPlateViews(plate, &p);
+  progress.reset();
+  CARMBA_RETURN_IF_ERROR(loaded);
+  run->observations = p.plate;
+  run->skipped = p.skipped_images;
+  run->detections = p.plate_detections;
   for (const auto& s : run->skipped) std::cerr << "carmba calibrate: skipped " << s << "\n";
-  return CheckEnoughViews(*run, options);
+  return run->detections.empty() ? Status::Ok() : CheckEnoughViews(*run, options);
 }
 
 // The plate flags that a --problem replaces, if one was given ("" if none).

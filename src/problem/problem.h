@@ -68,6 +68,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -171,6 +172,35 @@ struct ProblemReadOptions {
 // The one problem reader, for every problem kind; the result has passed Check().
 StatusOr<Problem> LoadProblem(const std::string& yaml_path,
                               const ProblemReadOptions& options = {});
+
+// Where a problem's plate views come from: an observations CSV, or images the grid is detected
+// in. A problem file's `plate_views` keys, `carmba calibrate`'s flags and the Python calibrate()
+// all fill one and read it with LoadPlateViews.
+struct PlateViewsInput {
+  std::string observations;        // an observations.csv, or
+  std::string images;              // a directory or glob of images
+  std::optional<GridSpec> grid;    // as named (pattern, rows, cols, spacing_mm); images need it,
+                                   // a CSV's own grid must then agree with it
+  double spacing_mm_override = 0;  // > 0: replaces a CSV's pitch (calibrate --spacing-mm)
+  double sphere_diameter_mm = 0;   // 0: not known
+  DetectionOptions detection;      // for images
+  // How an error names an input ("images", "observations", "pattern", "rows",
+  // "sphere_diameter_mm"): `key` within a sentence ("plate_views.rows" in a problem, "--rows"
+  // for calibrate's flags), `fail` as the error about it ("FILE:LINE: key 'plate_views.rows':
+  // WHAT", "--rows: WHAT"). NameInputsAsFlags sets both for flags.
+  std::function<std::string(const std::string& input)> key;
+  std::function<Status(const std::string& input, const std::string& what)> fail;
+  // Optional: called with the number of images before the grid is detected in them; returns the
+  // callback ticked once per image (a progress bar).
+  std::function<ProgressFn(int num_images)> detecting;
+};
+
+// PlateViewsInput::key and fail naming inputs as a command's flags: "rows" as "--rows".
+void NameInputsAsFlags(PlateViewsInput* in);
+
+// Reads or detects the plate views into p->plate, p->plate_view_ids, p->skipped_images and
+// p->plate_detections. An error is one line naming the input (PlateViewsInput::name).
+Status LoadPlateViews(const PlateViewsInput& in, Problem* p);
 
 // A fiducial's position and CT covariance in the problem's handedness (mirrored: y negated).
 Eigen::Vector3d MarkerInProblemFrame(const Problem& problem, const Marker& m);

@@ -23,21 +23,18 @@ std::string Stem(const std::string& path) { return std::filesystem::path(path).s
 // ---- Plate views ---------------------------------------------------------------------------
 
 // The grid the keys name, checked against an observations file's own.
-Status CheckGridOfFile(const YamlMap& m,
-                       const std::string& path,
-                       const GridSpec& file_grid,
-                       const GridSpec& grid,
-                       const std::string& pattern) {
+Status CheckGridOfFile(const PlateViewsInput& in, const GridSpec& file_grid) {
+  const GridSpec& grid = *in.grid;
   if (file_grid.pattern == grid.pattern && file_grid.rows == grid.rows &&
       file_grid.cols == grid.cols && std::abs(file_grid.spacing_mm - grid.spacing_mm) <= 1e-9) {
     return Status::Ok();
   }
-  return Status::Error(path + ": grid " + GridPatternName(file_grid.pattern) + " " +
+  return Status::Error(in.observations + ": grid " + GridPatternName(file_grid.pattern) + " " +
                        std::to_string(file_grid.rows) + "x" + std::to_string(file_grid.cols) +
                        " spacing " + std::to_string(file_grid.spacing_mm) + " mm, but " +
-                       m.KeyPath("rows") + "/cols/spacing_mm say " + pattern + " " +
-                       std::to_string(grid.rows) + "x" + std::to_string(grid.cols) + " spacing " +
-                       std::to_string(grid.spacing_mm) + " mm");
+                       in.key("rows") + "/cols/spacing_mm say " + GridPatternName(grid.pattern) +
+                       " " + std::to_string(grid.rows) + "x" + std::to_string(grid.cols) +
+                       " spacing " + std::to_string(grid.spacing_mm) + " mm");
 }
 
 // Plate view ids: image stems, or the view's number where a stem is missing or repeated.
@@ -77,95 +74,122 @@ Status PlateDetectionOptions(YamlMap& m,
   return m.status();
 }
 
+// The grid's observations from the CSV, or detected in the images.
+Status ReadOrDetectPlate(const PlateViewsInput& in, Problem* p) {
+  if (!in.observations.empty()) {
+    auto obs = ReadObservationsCsv(in.observations);
+    if (!obs.ok()) return obs.status();
+    if (in.grid) CARMBA_RETURN_IF_ERROR(CheckGridOfFile(in, obs->grid));
+    p->plate = *obs;
+    if (in.spacing_mm_override > 0) p->plate.grid.spacing_mm = in.spacing_mm_override;
+    return Status::Ok();
+  }
+  if (!in.grid)
+    return in.fail("rows", "plate images need the grid: pattern, rows, cols, spacing_mm");
+  auto files = ListImageFiles(in.images);
+  if (!files.ok()) return files.status().WithContext(in.key("images"));
+  const ProgressFn tick =
+      in.detecting ? in.detecting(static_cast<int>(files->size())) : ProgressFn();
+  auto obs = DetectGridInFiles(
+      *files, *in.grid, in.detection, &p->skipped_images, nullptr, &p->plate_detections, tick);
+  if (!obs.ok()) return obs.status();
+  p->plate = *obs;
+  return Status::Ok();
+}
+
+}  // namespace
+
+void NameInputsAsFlags(PlateViewsInput* in) {
+  in->key = [](const std::string& input) {
+    std::string flag = "--" + input;
+    std::replace(flag.begin(), flag.end(), '_', '-');
+    return flag;
+  };
+  in->fail = [key = in->key](const std::string& input, const std::string& what) {
+    return Status::Error(key(input) + ": " + what);
+  };
+}
+
+Status LoadPlateViews(const PlateViewsInput& in, Problem* p) {
+  if (in.observations.empty() == in.images.empty()) {
+    return in.fail("observations",
+                   "give exactly one of observations (CSV) and images (DIR or GLOB)");
+  }
+  std::string err;
+  if (in.grid) {
+    if (!in.grid->Check(&err)) return in.fail("rows", err);
+    // Spheres wider than the pitch, said before any image is read (GridSpec::Check's rule).
+    GridSpec with_spheres = *in.grid;
+    with_spheres.sphere_diameter_mm = in.sphere_diameter_mm;
+    if (!with_spheres.Check(&err)) return in.fail("sphere_diameter_mm", err);
+  }
+  CARMBA_RETURN_IF_ERROR(ReadOrDetectPlate(in, p));
+  p->plate.grid.sphere_diameter_mm = in.sphere_diameter_mm;
+  if (!p->plate.grid.Check(&err)) return in.fail("sphere_diameter_mm", err);
+  NamePlateViews(p);
+  if (p->plate.views.empty() && !in.images.empty()) {
+    // Detection found the grid nowhere: most often rows / cols / pattern do not match the plate.
+    const GridSpec& g = *in.grid;
+    return in.fail(
+        "images",
+        "the grid (" + std::string(GridPatternName(g.pattern)) + " " + std::to_string(g.rows) +
+            " x " + std::to_string(g.cols) + ": " + in.key("pattern") + ", " + in.key("rows") +
+            ", " + in.key("cols") + ") was found in 0 of " +
+            std::to_string(p->skipped_images.size()) + " images: check rows and cols" +
+            (p->skipped_images.empty() ? "" : "; first skipped: " + p->skipped_images.front()));
+  }
+  if (p->plate.views.empty())
+    return in.fail("observations", "no plate views in " + in.observations);
+  return Status::Ok();
+}
+
+namespace {
+
+// A problem file's `plate_views` keys (or an older calibration file's top level) into the plate
+// views, through LoadPlateViews.
 Status ReadPlateViews(YamlMap& m,
                       const std::string& base,
                       const PlateViewsSource& src,
                       const ProblemReadOptions& options,
                       Problem* p) {
+  PlateViewsInput in;
+  in.key = [&m](const std::string& input) { return m.KeyPath(input); };
+  in.fail = [&m](const std::string& input, const std::string& what) {
+    m.Fail(input, what);
+    return m.status();
+  };
   std::string observations, images, pattern = "circles";
   GridSpec grid;
-  bool has_grid = m.Has("rows") || m.Has("cols") || m.Has("spacing_mm") || m.Has("pattern");
+  const bool has_grid = m.Has("rows") || m.Has("cols") || m.Has("spacing_mm") || m.Has("pattern");
   m.Get("observations", &observations);
   m.Get("images", &images);
   m.GetEnum("pattern", {"circles", "acircles", "chessboard"}, &pattern);
   m.GetInRange("rows", &grid.rows, plausible::kGridRowsCols);
   m.GetInRange("cols", &grid.cols, plausible::kGridRowsCols);
   m.GetInRange("spacing_mm", &grid.spacing_mm, plausible::kGridSpacingMm);
-  DetectionOptions detection;
-  double sphere_diameter_mm = 0;
   if (!src.older) {
     m.GetInRange("sigma_px", &p->plate_sigma_px, plausible::kPixelSigmaPx);
-    m.GetInRange("sphere_diameter_mm", &sphere_diameter_mm, plausible::kMarkerDiameterMm);
+    m.GetInRange("sphere_diameter_mm", &in.sphere_diameter_mm, plausible::kMarkerDiameterMm);
     YamlMap& plate = m.Map("plate");
     plate.Get("free", &p->plate_free);
     if (plate.Has("sigma_mm")) {
       plate.GetInRange("sigma_mm", &p->plate_sigma_mm, plausible::kToleranceMm);
     }
   }
-  // Spheres wider than the pitch, said before any image is read (GridSpec::Check's rule).
-  GridSpec with_spheres = grid;
-  with_spheres.sphere_diameter_mm = sphere_diameter_mm;
-  std::string sphere_err;
-  if (has_grid && grid.Check(&sphere_err) && !with_spheres.Check(&sphere_err)) {
-    m.Fail("sphere_diameter_mm", sphere_err);
-  }
   if (!images.empty()) {
-    CARMBA_RETURN_IF_ERROR(PlateDetectionOptions(m, src, options, &detection));
+    CARMBA_RETURN_IF_ERROR(PlateDetectionOptions(m, src, options, &in.detection));
   } else if (!src.older && m.Has("detection")) {
     m.Raw("detection");
     m.Fail("detection", "detection options are for plate images; these plate views are a CSV");
   }
   if (!m.status().ok()) return m.status();
-  if (observations.empty() == images.empty()) {
-    m.Fail("observations", "give exactly one of observations (CSV) and images (DIR or GLOB)");
-    return m.status();
-  }
   auto pat = ParseGridPattern(pattern);
   if (!pat.ok()) return pat.status();
   grid.pattern = *pat;
-  std::string err;
-  if (has_grid && !grid.Check(&err)) {
-    m.Fail("rows", err);
-    return m.status();
-  }
-  if (!observations.empty()) {
-    const std::string path = JoinPath(base, observations);
-    auto obs = ReadObservationsCsv(path);
-    if (!obs.ok()) return obs.status();
-    if (has_grid) CARMBA_RETURN_IF_ERROR(CheckGridOfFile(m, path, obs->grid, grid, pattern));
-    p->plate = *obs;
-  } else {
-    if (!has_grid) {
-      m.Fail("rows", "plate images need the grid: pattern, rows, cols, spacing_mm");
-      return m.status();
-    }
-    auto files = ListImageFiles(JoinPath(base, images));
-    if (!files.ok()) return files.status().WithContext(m.KeyPath("images"));
-    auto obs = DetectGridInFiles(*files, grid, detection, &p->skipped_images, nullptr,
-                                 &p->plate_detections);
-    if (!obs.ok()) return obs.status();
-    p->plate = *obs;
-  }
-  p->plate.grid.sphere_diameter_mm = sphere_diameter_mm;
-  if (!p->plate.grid.Check(&err)) {  // the spheres wider than the pitch
-    m.Fail("sphere_diameter_mm", err);
-    return m.status();
-  }
-  NamePlateViews(p);
-  if (p->plate.views.empty() && !images.empty()) {
-    // Detection found the grid nowhere: most often rows / cols / pattern do not match the plate.
-    return Status::Error(
-        m.file() + ": " + m.KeyPath("images") + ": the grid (" + pattern + " " +
-        std::to_string(grid.rows) + " x " + std::to_string(grid.cols) + ", keys " +
-        m.KeyPath("pattern") + "/rows/cols) was found in none of the " +
-        std::to_string(p->skipped_images.size()) + " images: check rows and cols" +
-        (p->skipped_images.empty() ? "" : "; first: " + p->skipped_images.front()));
-  }
-  if (p->plate.views.empty()) {
-    return Status::Error(m.file() + ": " + m.KeyPath("observations") + ": no plate views in " +
-                         observations);
-  }
-  return Status::Ok();
+  if (has_grid) in.grid = grid;
+  if (!observations.empty()) in.observations = JoinPath(base, observations);
+  if (!images.empty()) in.images = JoinPath(base, images);
+  return LoadPlateViews(in, p);
 }
 
 // ---- Object views and fiducials: what the keys name, read before any file ---------------------

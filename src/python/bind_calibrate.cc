@@ -7,6 +7,7 @@
 #include "calib/calibrate.h"
 #include "detect/grid_detector.h"
 #include "detect/observations.h"
+#include "problem/problem.h"
 #include "python/bindings.h"
 #include "report/calibration_report.h"
 #include "util/file_util.h"
@@ -74,16 +75,31 @@ CalibrationRun Calibrate(const py::object& observations,
   grid.spacing_mm = spacing_mm > 0 ? spacing_mm : 20.0;
   std::string err;
   if (!grid.Check(&err)) throw Error(err);
-  if (py::isinstance<py::str>(observations)) {
-    run.observations = ValueOrThrow(ReadObservationsCsv(py::str(observations)));
-    if (spacing_mm > 0) run.observations.grid.spacing_mm = spacing_mm;
-  } else if (!observations.is_none()) {
+  if (!observations.is_none() && !py::isinstance<py::str>(observations)) {
     run.observations = FromArray(observations, grid, image_size);
   } else {
-    const auto files = ValueOrThrow(ListImageFiles(py::str(images)));
-    py::gil_scoped_release release;
-    run.observations = ValueOrThrow(
-        DetectGridInFiles(files, grid, detect, &run.skipped, nullptr, &run.detections));
+    // A file or images: the problem's plate-view reader, as `carmba calibrate` reads its flags.
+    PlateViewsInput plate;
+    plate.key = [](const std::string& input) { return input; };
+    plate.fail = [](const std::string& input, const std::string& what) {
+      return Status::Error(input + ": " + what);
+    };
+    if (observations.is_none()) {
+      plate.images = py::str(images);
+      plate.grid = grid;
+      plate.detection = detect;
+    } else {
+      plate.observations = py::str(observations);
+      plate.spacing_mm_override = spacing_mm;
+    }
+    Problem p;
+    {
+      py::gil_scoped_release release;
+      ThrowIfError(LoadPlateViews(plate, &p));
+    }
+    run.observations = p.plate;
+    run.skipped = p.skipped_images;
+    run.detections = p.plate_detections;
   }
   {
     py::gil_scoped_release release;

@@ -296,7 +296,7 @@ TEST(CalibE2E, ProblemKeysCalibrateDoesNotSolveAreRefused) {
                               "name: r\n" + plate + ", detection: {roi_px: [0, 0, 20, 20]}}\n");
   ExpectFailsCleanly("calibrate --problem " + free, "plate_views.plate.free");
   // The problem's detection options are used: a 20 px region of interest holds no grid.
-  ExpectFailsCleanly("calibrate --problem " + roi, "plate_views.images: the grid");
+  ExpectFailsCleanly("calibrate --problem " + roi, "key 'plate_views.images': the grid");
   ExpectFailsCleanly("calibrate --problem " + free + " --rows 6",
                      "--rows: the --problem names the plate views");
   const std::string pose = std::string(CARMBA_SOURCE_DIR) + "/problems/thesis_pose.yaml";

@@ -82,9 +82,9 @@ TEST_F(InputGuards, JointProblemWithWrongRowsSaysTheGridWasNotFound) {
                            dir.File("config.yaml") + " --out " + dir.File("out"));
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_EQ(CountLines(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find("plate_views.images: the grid (circles 7 x 5, keys plate_views.pattern/"
-                       "rows/cols) was found in none of the 20 images: check rows and cols; "
-                       "first: "),
+  EXPECT_NE(r.err.find("key 'plate_views.images': the grid (circles 7 x 5: plate_views.pattern, "
+                       "plate_views.rows, plate_views.cols) was found in 0 of 20 images: check "
+                       "rows and cols; first skipped: "),
             std::string::npos)
       << r.err;
 }
