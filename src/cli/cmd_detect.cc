@@ -3,11 +3,15 @@
 #include <gflags/gflags.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <chrono>
 #include <iostream>
+#include <memory>
 
 #include "cli/command.h"
 #include "cli/common_flags.h"
 #include "detect/grid_detector.h"
+#include "problem/problem.h"
 #include "util/file_util.h"
 
 namespace {
@@ -33,31 +37,37 @@ int RunDetect() {
     if (const Status s = LoadDetectionOptions(FLAGS_detection, &options); !s.ok())
       return cli::Fail(kCmd, s);
   }
-  auto files = ListImageFiles(FLAGS_images);
-  if (!files.ok()) return cli::Fail(kCmd, files.status().WithContext("--images"));
-  std::vector<std::string> skipped;
-  double per_image = 0;
-  StatusOr<ObservationSet> obs = Status::Error("not detected");
-  cli::Step(kCmd, "detecting the grid in " + std::to_string(files->size()) + " images");
-  {
-    auto progress = cli::MakeProgress("detect", static_cast<int>(files->size()), "images");
-    obs = DetectGridInFiles(*files, grid, options, &skipped, &per_image, nullptr,
-                            progress->Callback());
-  }
-  if (!obs.ok()) return cli::Fail(kCmd, obs.status());
+  // The problem's plate-view reader, as `carmba calibrate --images` reads its flags.
+  PlateViewsInput plate;
+  NameInputsAsFlags(&plate);
+  plate.images = FLAGS_images;
+  plate.grid = grid;
+  plate.detection = options;
+  std::unique_ptr<Progress> progress;
+  plate.detecting = [&](int n) {
+    cli::Step(kCmd, "detecting the grid in " + std::to_string(n) + " images");
+    progress = cli::MakeProgress("detect", n, "images");
+    return progress->Callback();
+  };
+  Problem found;
+  const auto start = std::chrono::steady_clock::now();
+  const Status loaded = LoadPlateViews(plate, &found);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  progress.reset();
+  if (!loaded.ok()) return cli::Fail(kCmd, loaded);
+  const ObservationSet* obs = &found.plate;
+  const std::vector<std::string>& skipped = found.skipped_images;
   for (const auto& s : skipped) std::cerr << "carmba detect: not found: " << s << "\n";
-  if (obs->views.empty()) {
-    return cli::Fail(kCmd, "the grid was found in none of the " + std::to_string(skipped.size()) +
-                               " images (first: " + skipped[0] + ")");
-  }
   cli::Step(kCmd, "writing " + FLAGS_out);
   Status s = MakeParentDirs(FLAGS_out);
   if (s.ok()) s = WriteObservationsCsv(*obs, FLAGS_out);
   if (!s.ok()) return cli::Fail(kCmd, s);
   // A multi-frame DICOM file counts one image per frame.
-  std::cout << "found the grid in " << obs->views.size() << " of "
-            << obs->views.size() + skipped.size() << " images (" << per_image * 1e3
-            << " ms per image); wrote " << FLAGS_out << std::endl;
+  const size_t images = obs->views.size() + skipped.size();
+  std::cout << "found the grid in " << obs->views.size() << " of " << images << " images ("
+            << seconds * 1e3 / std::max<size_t>(images, 1) << " ms per image); wrote " << FLAGS_out
+            << std::endl;
   return 0;
 }
 
