@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "detect/grid_detector.h"
+#include "figures.h"
 #include "sim/phantom.h"
 #include "sim/xray_scene.h"
 
@@ -107,6 +108,9 @@ TEST(SimulatedSceneDetection, SystematicErrorWellBelowTheNoise) {
     std::cout << name << " noise-free: " << sys << "\n" << name << " as rendered: " << all
               << "\n" << name << " noise-driven RMS " << noise_rms << " px = "
               << noise_rms / sys.rms_px << " x the systematic RMS\n";
+    // src/docs/results.md's detection error against the truth, per scene.
+    testing::RecordFigure("plate." + name + ".systematic_rms", "%.4f px", sys.rms_px);
+    testing::RecordFigure("plate." + name + ".noise_rms", "%.3f px", noise_rms);
     const int spheres = static_cast<int>(scene.phantom.spheres.size() * scene.views.size());
     EXPECT_GE(sys.n, spheres - 2) << name;  // at most 2 points dropped at the rim
     EXPECT_LT(sys.rms_px, kSceneSystematicRmsPx) << name;
