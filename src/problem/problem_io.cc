@@ -84,8 +84,9 @@ Status ReadOrDetectPlate(const PlateViewsInput& in, Problem* p) {
     if (in.spacing_mm_override > 0) p->plate.grid.spacing_mm = in.spacing_mm_override;
     return Status::Ok();
   }
-  if (!in.grid)
+  if (!in.grid) {
     return in.fail("rows", "plate images need the grid: pattern, rows, cols, spacing_mm");
+  }
   auto files = ListImageFiles(in.images);
   if (!files.ok()) return files.status().WithContext(in.key("images"));
   const ProgressFn tick =
@@ -138,8 +139,9 @@ Status LoadPlateViews(const PlateViewsInput& in, Problem* p) {
             std::to_string(p->skipped_images.size()) + " images: check rows and cols" +
             (p->skipped_images.empty() ? "" : "; first skipped: " + p->skipped_images.front()));
   }
-  if (p->plate.views.empty())
+  if (p->plate.views.empty()) {
     return in.fail("observations", "no plate views in " + in.observations);
+  }
   return Status::Ok();
 }
 
