@@ -84,3 +84,19 @@ def test_calibrate_errors(carmba, tmp_path):
         carmba.calibrate(observations=np.zeros((3, 25, 2)))
     with pytest.raises(carmba.Error, match="no_such"):
         carmba.calibrate(images=str(tmp_path / "no_such" / "*.png"))
+
+
+def test_images_and_files_go_through_the_problems_plate_reader(carmba, cli):
+    """Images and observations.csv are read by the problem's plate-view reader (LoadPlateViews),
+    as `carmba calibrate` reads its flags: its errors name the argument, and spacing_mm replaces
+    the file's pitch (the plate poses' translations scale with it, the intrinsics stay)."""
+    sim, out = cli
+    with pytest.raises(carmba.Error, match=r"images: the grid \(circles 4 x 9: pattern, rows, "
+                                           r"cols\) was found in 0 of 20 images: check rows and "
+                                           r"cols; first skipped: .*calib_001\.png"):
+        carmba.calibrate(images=str(sim / "*.png"), rows=4, cols=9)
+    at_20 = carmba.calibrate(observations=str(out / "observations.csv"))
+    at_25 = carmba.calibrate(observations=str(out / "observations.csv"), spacing_mm=25)
+    assert_rel(at_25.camera.intrinsics, at_20.camera.intrinsics, rel=1e-6, what="intrinsics")
+    assert_rel(at_25.cam_from_plate[:, 3:], 1.25 * at_20.cam_from_plate[:, 3:], rel=1e-6,
+               what="plate translations")
