@@ -537,6 +537,78 @@ def bench_figures(tests_dir, tmp):
 
 # ---- Measure and render ---------------------------------------------------------------------
 
+# ---- The calibration plate detector's radial bias against the simulator's truth ---------------
+
+# (scene, what the table says of it); the intensifier scene also with its anatomy cut from other
+# places of the XA frame (imaging.background.crop_center) and without it.
+PLATE_BIAS_SCENES = (("thesis_calibration", "3.06 mm, barrel"),
+                     ("calib_7x6_pincushion", "2.5 mm, pincushion"),
+                     ("calib_7x6_intensifier", "2.5 mm, pincushion, intensifier effects"))
+INTENSIFIER_CROPS = ((0.3, 0.4), (0.6, 0.6), (0.45, 0.7), (0.7, 0.35))
+PLATE_BIAS_LINE = re.compile(r"(\d+) centres: mean radial error ([-+][\d.]+) \+- ([\d.]+) px; "
+                             r"predicted shadow offset ([-+][\d.]+) .*left after subtracting it "
+                             r"([-+][\d.]+) \+- ([\d.]+) px")
+
+
+def plate_bias(binary, scene_yaml, tmp, name):
+    """scripts/plate_radial_bias.py on `carmba simulate` + `carmba detect` of a scene file."""
+    import yaml
+    with open(scene_yaml) as fh:
+        plate = yaml.safe_load(fh)["plate"]
+    sim, obs = os.path.join(tmp, "bias_" + name), os.path.join(tmp, "bias_" + name + ".csv")
+    subprocess.run([binary, "simulate", "--scene", scene_yaml, "--out", sim], check=True,
+                   stdout=subprocess.DEVNULL)
+    subprocess.run([binary, "detect", "--images", sim, "--rows", str(plate["rows"]), "--cols",
+                    str(plate["cols"]), "--spacing-mm", str(plate["pitch_mm"]), "--out", obs],
+                   check=True, stdout=subprocess.DEVNULL)
+    text = subprocess.run([sys.executable, os.path.join(ROOT, "scripts/plate_radial_bias.py"), sim,
+                           obs, str(plate["sphere_diameter_mm"] / 2)], check=True,
+                          capture_output=True, text=True).stdout
+    m = PLATE_BIAS_LINE.search(text)
+    if not m:
+        sys.exit("results.py: plate_radial_bias.py printed no figures for " + name)
+    n, err, err_se, offset, left, left_se = m.groups()
+    return {"n": n, "err": "%s +- %s px" % (err, err_se), "offset": offset + " px",
+            "left": float(left), "left_text": "%s +- %s px" % (left, left_se)}
+
+
+def plate_bias_figures(binary, tmp):
+    rows = ["  | scene (spheres) | centres | radial error | predicted offset | left |",
+            "  |---|---|---|---|---|"]
+    for scene, what in PLATE_BIAS_SCENES:
+        b = plate_bias(binary, os.path.join(ROOT, "configs/scenes", scene + ".yaml"), tmp, scene)
+        rows.append("  | `%s` (%s) | %s | %s | %s | %s |" % (scene, what, b["n"], b["err"],
+                                                              b["offset"], b["left_text"]))
+        if scene == "calib_7x6_intensifier":
+            shipped = b
+    with open(os.path.join(ROOT, "configs/scenes/calib_7x6_intensifier.yaml")) as fh:
+        scene_text = fh.read()
+    crop = "crop: 0.6}"
+    if crop not in scene_text:
+        sys.exit("results.py: calib_7x6_intensifier.yaml's background no longer says '%s'" % crop)
+    lefts = [shipped["left"]]
+    crops = []
+    for k, (u, v) in enumerate(INTENSIFIER_CROPS):
+        path = os.path.join(tmp, "intensifier_crop%d.yaml" % k)
+        with open(path, "w") as fh:
+            fh.write(scene_text.replace(crop, "crop: 0.6, crop_center: [%g, %g]}" % (u, v)))
+        b = plate_bias(binary, path, tmp, "intensifier_crop%d" % k)
+        lefts.append(b["left"])
+        crops.append("[%g, %g]: %s" % (u, v, b["left_text"]))
+    path = os.path.join(tmp, "intensifier_nobg.yaml")
+    with open(path, "w") as fh:
+        fh.write("\n".join(l for l in scene_text.split("\n")
+                           if not l.strip().startswith("background:")))
+    nobg = plate_bias(binary, path, tmp, "intensifier_nobg")
+    mean = sum(lefts) / len(lefts)
+    spread = (sum((x - mean) ** 2 for x in lefts) / (len(lefts) - 1)) ** 0.5
+    return {"platebias.table": "\n".join(rows),
+            "platebias.intensifier_crops": "; ".join(crops),
+            "platebias.intensifier_mean": "%+.4f px (spread %.4f px), %s the goal of 0.003 px" % (
+                mean, spread, "within" if abs(mean) < 0.003 else "NOT within"),
+            "platebias.intensifier_nobg": nobg["left_text"]}
+
+
 def measure(binary):
     with tempfile.TemporaryDirectory(prefix="carmba_results_") as tmp:
         out = os.path.join(tmp, "golden")
@@ -550,6 +622,7 @@ def measure(binary):
         figures.update(test_figures(tests_dir, tmp))
         figures.update(recall_figures(tests_dir, tmp))
         figures.update(bench_figures(tests_dir, tmp))
+        figures.update(plate_bias_figures(binary, tmp))
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                             capture_output=True, text=True).stdout.strip()
     doc = {"measured": {"commit": commit,
