@@ -199,7 +199,7 @@ struct PlateViewsInput {
 void NameInputsAsFlags(PlateViewsInput* in);
 
 // Reads or detects the plate views into p->plate, p->plate_view_ids, p->skipped_images and
-// p->plate_detections. An error is one line naming the input (PlateViewsInput::name).
+// p->plate_detections. An error is one line naming the input (PlateViewsInput::fail).
 Status LoadPlateViews(const PlateViewsInput& in, Problem* p);
 
 // A fiducial's position and CT covariance in the problem's handedness (mirrored: y negated).
