@@ -572,7 +572,7 @@ PLATE_BIAS_LINE = re.compile(r"(\d+) centres: mean radial error ([-+][\d.]+) \+-
 
 def plate_bias(binary, scene_yaml, tmp, name):
     """scripts/plate_radial_bias.py on `carmba simulate` + `carmba detect` of a scene file."""
-    import yaml
+    import yaml  # here, not at the top: only `measure` needs it, `render --check` does not
     with open(scene_yaml) as fh:
         plate = yaml.safe_load(fh)["plate"]
     sim, obs = os.path.join(tmp, "bias_" + name), os.path.join(tmp, "bias_" + name + ".csv")

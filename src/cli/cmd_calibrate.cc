@@ -107,11 +107,7 @@ Status CalibrationObservations(const CalibrateInputs& in, GridPattern pattern,
     grid.spacing_mm = in.spacing > 0 ? in.spacing : 20.0;
     plate.grid = grid;
     plate.detection = detect;
-    plate.detecting = [&progress](int num_images) {
-      cli::Step("calibrate", "detecting the grid in " + std::to_string(num_images) + " images");
-      progress = cli::MakeProgress("calibrate: detecting", num_images, "images");
-      return progress->Callback();
-    };
+    plate.detecting = cli::GridDetectionProgress("calibrate", "calibrate: detecting", &progress);
   }
   Problem p;
   const Status loaded = LoadPlateViews(plate, &p);

@@ -44,11 +44,7 @@ int RunDetect() {
   plate.grid = grid;
   plate.detection = options;
   std::unique_ptr<Progress> progress;
-  plate.detecting = [&](int n) {
-    cli::Step(kCmd, "detecting the grid in " + std::to_string(n) + " images");
-    progress = cli::MakeProgress("detect", n, "images");
-    return progress->Callback();
-  };
+  plate.detecting = cli::GridDetectionProgress(kCmd, "detect", &progress);
   Problem found;
   const auto start = std::chrono::steady_clock::now();
   const Status loaded = LoadPlateViews(plate, &found);

@@ -181,6 +181,16 @@ std::unique_ptr<Progress> MakeProgress(const std::string& label,
       label, total, unit, ChooseProgressStyle(::isatty(STDERR_FILENO) == 1, FLAGS_verbose));
 }
 
+std::function<ProgressFn(int)> GridDetectionProgress(const std::string& command,
+                                                     const std::string& label,
+                                                     std::unique_ptr<Progress>* progress) {
+  return [command, label, progress](int num_images) {
+    Step(command, "detecting the grid in " + std::to_string(num_images) + " images");
+    *progress = MakeProgress(label, num_images, "images");
+    return (*progress)->Callback();
+  };
+}
+
 void Step(const std::string& command, const std::string& what) {
   if (!FLAGS_verbose) return;
   const Clock::time_point now = Clock::now();

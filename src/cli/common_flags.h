@@ -7,6 +7,7 @@
 
 #include <gflags/gflags.h>
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -76,6 +77,12 @@ Status CheckOutIsNoInput(const std::vector<InputPath>& inputs);
 std::unique_ptr<Progress> MakeProgress(const std::string& label,
                                        int total,
                                        const std::string& unit);
+// For LoadPlateViews' `detecting` (problem/problem.h): given the number of images, starts the
+// step "detecting the grid in N images" and a progress bar labelled `label` (held in *progress
+// until the caller resets it), and returns its per-image callback.
+std::function<ProgressFn(int)> GridDetectionProgress(const std::string& command,
+                                                     const std::string& label,
+                                                     std::unique_ptr<Progress>* progress);
 // With --verbose, the command's steps and their wall times on stderr: "carmba <command>: <what>"
 // when a step starts, and "carmba <command>: <what>: 0.123 s" when the next one starts or the
 // command ends (EndSteps).
