@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "ba/view_intrinsics.h"
+#include "camera/carm_geometry.h"
 
 namespace carmba {
 namespace analysis {
@@ -55,12 +56,6 @@ const char* IntrinsicsModelName(IntrinsicsModel m) {
     case IntrinsicsModel::kSmooth: return "smooth";
   }
   return "?";
-}
-
-std::string OrientationName(double a, double b) {
-  char s[48];
-  std::snprintf(s, sizeof s, "p%+04.0f s%+04.0f", a, b);
-  return s;
 }
 
 std::vector<std::pair<double, double>> PlateOrientations(const ba::BaProblem& problem) {

@@ -43,8 +43,6 @@ const char* IntrinsicsModelName(IntrinsicsModel m);
 
 // The plate views' orientation groups: distinct angle pairs (deg), in order of first appearance.
 std::vector<std::pair<double, double>> PlateOrientations(const ba::BaProblem& problem);
-// "p+045 s-025"
-std::string OrientationName(double primary_deg, double secondary_deg);
 
 // Replaces problem->groups by the model's groups (template: problem->groups[0]'s initial values,
 // free mask, image size) and sets every view's group. Errors: a view without angles under

@@ -1,11 +1,18 @@
 #include "camera/carm_geometry.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "geometry/rotation.h"
 #include "util/plausible.h"
 
 namespace carmba {
+
+std::string OrientationName(double primary_deg, double secondary_deg) {
+  char s[48];
+  std::snprintf(s, sizeof s, "p%+04.0f s%+04.0f", primary_deg, secondary_deg);
+  return s;
+}
 
 nlohmann::json RigidToJson(const Rigid3& pose) {
   nlohmann::json R = nlohmann::json::array();

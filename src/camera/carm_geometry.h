@@ -54,6 +54,9 @@
 
 namespace carmba {
 
+// The name of a C-arm orientation (positioner angles in degrees, rounded): "p+045 s-025".
+std::string OrientationName(double primary_deg, double secondary_deg);
+
 // {"R": 3x3 row-major (list of 3 rows), "rvec": [rad x3], "t_mm": [x3]}.
 nlohmann::json RigidToJson(const Rigid3& pose);
 

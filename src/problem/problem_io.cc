@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <set>
 
-#include "analysis/flex_models.h"
+#include "camera/carm_geometry.h"
 #include "detect/grid_detector.h"
 #include "detect/marker_views.h"
 #include "io/dicom_xray.h"
@@ -566,7 +566,7 @@ void GroupsByOrientation(Problem* p) {
         best = k;
       }
     }
-    return analysis::OrientationName(orientations[best].first, orientations[best].second);
+    return OrientationName(orientations[best].first, orientations[best].second);
   };
   for (const auto& id : p->plate_view_ids) p->group_of_view[id] = nearest(p->angles.at(id));
   for (const auto& v : p->object_views) p->group_of_view[v.id] = nearest(p->angles.at(v.id));
