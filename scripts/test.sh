@@ -27,7 +27,7 @@ step ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(($(np
 # The fuzz harnesses (tests/fuzz/README.md): the readers of outside input built with clang,
 # ASan + UBSan and libFuzzer's coverage in their own directory (only the sources the harnesses
 # link; -O0 without debug information, which compiles fastest: reports name functions, not
-# lines), then each harness fuzzes for 5 s from the shipped files. About 2 min 30 s cold on 2 cores
+# lines), then each harness fuzzes for 5 s from the shipped files. About 2 min cold on 2 cores
 # (tests/fuzz/README.md). CARMBA_FUZZ=0 skips this step.
 if [[ "${CARMBA_FUZZ:-1}" == 1 ]]; then
   FUZZ_DIR=${CARMBA_FUZZ_BUILD_DIR:-build-fuzz}

@@ -1,8 +1,12 @@
-// libFuzzer harness: carmba::ReadCsv (util/csv.h) and the table's typed accessors on every cell.
+// Fuzz target `csv` (fuzz_main.cc): carmba::ReadCsv (util/csv.h) and the table's typed accessors on
+// every cell.
+#include "fuzz_target.h"
 #include "fuzz_util.h"
 #include "util/csv.h"
 
-extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+namespace {
+
+int FuzzCsv(const uint8_t* data, size_t size) {
   const std::string path = carmba::fuzz::WriteInput("in.csv", data, size);
   auto t = carmba::ReadCsv(path);
   if (!t.ok()) return 0;
@@ -14,3 +18,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   return 0;
 }
+
+}  // namespace
+
+CARMBA_FUZZ_TARGET(csv, FuzzCsv, nullptr)

@@ -1,10 +1,13 @@
-// libFuzzer harness: carmba::ParseCtScene (ct/ct_simulate.h), the CT scene reader, on a scene YAML
-// (no simulation).
-#include "fuzz_util.h"
+// Fuzz target `ct_scene` (fuzz_main.cc): carmba::ParseCtScene (ct/ct_simulate.h), the CT scene
+// reader, on a scene YAML (no simulation).
 #include "ct/ct_simulate.h"
+#include "fuzz_target.h"
+#include "fuzz_util.h"
 #include "util/yaml_reader.h"
 
-extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+namespace {
+
+int FuzzCtScene(const uint8_t* data, size_t size) {
   const std::string path = carmba::fuzz::WriteInput("configs/scenes/fuzz_ct.yaml", data, size);
   carmba::YamlMap scene = carmba::YamlMap::Load(path);
   if (!scene.status().ok()) return 0;
@@ -12,3 +15,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   (void)carmba::ParseCtScene(scene, &ct);
   return 0;
 }
+
+}  // namespace
+
+CARMBA_FUZZ_TARGET(ct_scene, FuzzCtScene, nullptr)

@@ -1,12 +1,16 @@
-// libFuzzer harness: carmba::ReadCtSeries (ct/ct_volume.h), the DICOM CT series reader, on a
-// directory holding only the fuzzed slice and on one holding the fuzzed slice next to a valid
-// slice (the seed CT_small.dcm), so both the one-file path and the series consistency checks run.
+// Fuzz target `ct_series` (fuzz_main.cc): carmba::ReadCtSeries (ct/ct_volume.h), the DICOM CT
+// series reader, on a directory holding only the fuzzed slice and on one holding the fuzzed slice
+// next to a valid slice (the seed CT_small.dcm), so both the one-file path and the series
+// consistency checks run.
 #include <filesystem>
 
 #include "ct/ct_volume.h"
+#include "fuzz_target.h"
 #include "fuzz_util.h"
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
+namespace {
+
+int InitCtSeries() {
   namespace fs = std::filesystem;
   const std::string root = carmba::fuzz::ScratchDir();
   fs::create_directories(root + "/ct1");
@@ -15,7 +19,7 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
   return 0;
 }
 
-extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+int FuzzCtSeries(const uint8_t* data, size_t size) {
   const std::string root = carmba::fuzz::ScratchDir();
   carmba::fuzz::WriteInput("ct1/slice.dcm", data, size);
   (void)carmba::ReadCtSeries(root + "/ct1");
@@ -23,3 +27,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   (void)carmba::ReadCtSeries(root + "/ct2");
   return 0;
 }
+
+}  // namespace
+
+CARMBA_FUZZ_TARGET(ct_series, FuzzCtSeries, InitCtSeries)
