@@ -105,8 +105,8 @@ inline std::string SimulateJointScene(const std::string& scene_yaml, const std::
       RunCarmba("simulate --scene " + src + "/configs/scenes/" + scene_yaml + " --out " + scene);
   if (r.exit_code != 0) return "simulate: " + r.err;
   r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + src +
-                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --out " + scene +
-                "/fiducials.csv");
+                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --no-plots --out " +
+                scene + "/fiducials.csv");
   if (r.exit_code != 0) return "ct-fiducials: " + r.err;
   return "";
 }
