@@ -21,7 +21,8 @@ while read -r cmd; do
   name=${name#fuzz_}
   if [[ $# -gt 0 ]] && ! printf '%s\n' "$@" | grep -qx "$name"; then continue; fi
   args=${cmd#* }
-  args=${args/-max_total_time=20/-max_total_time=$MAX_TIME -runs=$RUNS}
+  # ctest's run time (CARMBA_FUZZ_SECONDS, whatever it is) becomes the campaign's.
+  args=$(sed -E "s/-max_total_time=[0-9]+/-max_total_time=$MAX_TIME -runs=$RUNS/" <<<"$args")
   log=$OUT/$name.log
   start=$(date +%s.%N)
   # shellcheck disable=SC2086
