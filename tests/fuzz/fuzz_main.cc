@@ -4,7 +4,6 @@
 // compiles and links the harnesses once (tests/fuzz/README.md has the times).
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <string>
 #include <vector>
 
