@@ -5,10 +5,13 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 # Each finished step's wall time, printed when the script ends (also when a step fails).
 STEP_TIMES=()
+record_time() {  # SECONDS_TAKEN WHAT
+  STEP_TIMES+=("$(printf '%4d s  %s' "$1" "$2")")
+}
 step() {
   local start=$SECONDS
   "$@"
-  STEP_TIMES+=("$(printf '%4d s  %s' $((SECONDS - start)) "$*")")
+  record_time $((SECONDS - start)) "$*"
 }
 report_times() {
   if ((${#STEP_TIMES[@]})); then printf 'test.sh: %s\n' "${STEP_TIMES[@]}"; fi
@@ -44,7 +47,7 @@ if [[ "$FUZZ" == 1 ]]; then
   ) >"$FUZZ_LOG" 2>&1 &
   FUZZ_BUILD_PID=$!
   set +m
-  # A failing suite must not leave the build running.
+  # A failing step must not leave the fuzz build running.
   trap 'kill -- -"$FUZZ_BUILD_PID" 2>/dev/null || true; report_times' EXIT
 fi
 
@@ -60,8 +63,7 @@ if [[ "$FUZZ" == 1 ]]; then
     echo "test.sh: the fuzz build failed (log: $FUZZ_LOG)"
     exit 1
   fi
-  STEP_TIMES+=("$(printf '%4d s  %s' "$(cat "$FUZZ_DIR/build.seconds")" \
-    "fuzz build, beside the suite ($FUZZ_LOG)")")
+  record_time "$(cat "$FUZZ_DIR/build.seconds")" "fuzz build, beside the suite ($FUZZ_LOG)"
   trap report_times EXIT
   step ctest --test-dir "$FUZZ_DIR" -L fuzz --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}"
 else
