@@ -86,6 +86,28 @@ def test_calibrate_errors(carmba, tmp_path):
         carmba.calibrate(images=str(tmp_path / "no_such" / "*.png"))
 
 
+def test_array_errors_name_the_element(carmba, cli):
+    """Arrays are held to an observations.csv's plausible ranges: a pixel that is infinite,
+    absurd or half NaN names its element, an absurd image size names image_size, before any
+    solve (where they would fail as "not finite" or a degenerate initialisation)."""
+    _, out = cli
+    a, size = observation_array(out / "observations.csv")
+    seen = np.argwhere(~np.isnan(a[:, :, 0]))[0]
+    v, k = int(seen[0]), int(seen[1])
+    for bad in ([np.inf, 10.0], [1e12, 10.0], [np.nan, 10.0]):
+        b = a.copy()
+        b[v, k] = bad
+        with pytest.raises(carmba.Error, match=rf"observations\[{v}, {k}\]: expected a pixel "
+                                               r"\(u, v\), each -?[0-9e+.]+ \.\. [0-9e+.]+ px"):
+            carmba.calibrate(observations=b, image_size=size)
+    for bad in ((10**9, 10**9), (0, 5), (640.5, 480), (640,)):
+        with pytest.raises(carmba.Error, match=r"image_size: expected \(width, height\), each an "
+                                               r"integer 1 \.\. 65535 px"):
+            carmba.calibrate(observations=a, image_size=bad)
+    with pytest.raises(carmba.Error, match="observations: no views"):
+        carmba.calibrate(observations=a[:0], image_size=size)
+
+
 def test_images_and_files_go_through_the_problems_plate_reader(carmba, cli):
     """Images and observations.csv are read by the problem's plate-view reader (LoadPlateViews),
     as `carmba calibrate` reads its flags: its errors name the argument, and spacing_mm replaces
