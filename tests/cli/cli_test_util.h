@@ -96,11 +96,23 @@ inline std::string LinkSimulatedScene(const std::string& scene, const std::strin
   return ec ? "link " + path + " -> " + dir + ": " + ec.message() : "";
 }
 
-// `carmba simulate` of a shipped joint scene (configs/scenes/NAME) into `scene`, then its CT
-// fiducials (`carmba ct-fiducials`, thesis marker table) into scene/fiducials.csv. Returns the
-// failing command's stderr, or "" on success.
+// A shipped joint scene (configs/scenes/NAME) at `scene`, with its CT fiducials (`carmba
+// ct-fiducials`, thesis marker table) in scene/fiducials.csv, to be read only. Under ctest `scene`
+// is a link to the fixture cli_scenes's rendering (tests/cli/simulate_scenes.sh); otherwise the
+// scene is simulated and localised into `scene`. Returns the failing step's reason, or "" on
+// success.
 inline std::string SimulateJointScene(const std::string& scene_yaml, const std::string& scene) {
   const std::string src = CARMBA_SOURCE_DIR;
+  const char* fixture = std::getenv("CARMBA_TEST_SCENES");
+  if (fixture != nullptr) {
+    const std::string dir =
+        std::string(fixture) + "/" + std::filesystem::path(scene_yaml).stem().string();
+    if (std::filesystem::exists(dir + "/fiducials.csv")) {
+      std::error_code ec;
+      std::filesystem::create_directory_symlink(dir, scene, ec);
+      return ec ? "link " + scene + " -> " + dir + ": " + ec.message() : "";
+    }
+  }
   auto r =
       RunCarmba("simulate --scene " + src + "/configs/scenes/" + scene_yaml + " --out " + scene);
   if (r.exit_code != 0) return "simulate: " + r.err;

@@ -6,6 +6,7 @@ by hand from the top level they default to build/python, build/bin/carmba and th
 """
 import json
 import os
+import pathlib
 import subprocess
 import sys
 
@@ -83,15 +84,20 @@ def pose_cli(tmp_path_factory):
 
 
 def simulate_joint_scene(tmp):
-    """The demo's joint scene (scripts/demo.sh step 4) under `tmp`, and the shipped
-    problems/thesis_joint.yaml pointed at it (as tests/cli/joint_cli_test.cc does)."""
-    scene = tmp / "scene"
-    run_cli("simulate", "--scene", source("configs", "scenes", "thesis_joint.yaml"),
-            "--out", str(scene))
-    run_cli("ct-fiducials", "--dicom", str(scene / "ct"),
-            "--model", source("data", "thesis", "markers_table_5_1.csv"),
-            "--model-columns", "x_o,y_o,z_o", "--diameter-mm", "2", "--expected", "9",
-            "--no-plots", "--out", str(scene / "fiducials.csv"))
+    """The demo's joint scene (scripts/demo.sh step 4) and the shipped problems/thesis_joint.yaml
+    pointed at it (as tests/cli/joint_cli_test.cc does), under `tmp`. Under ctest the scene is
+    the fixture cli_scenes's (tests/cli/simulate_scenes.sh, read only); otherwise it is simulated
+    under `tmp`."""
+    fixture = os.environ.get("CARMBA_TEST_SCENES")
+    scene = pathlib.Path(fixture or "/nonexistent") / "thesis_joint"
+    if not (scene / "fiducials.csv").exists():
+        scene = tmp / "scene"
+        run_cli("simulate", "--scene", source("configs", "scenes", "thesis_joint.yaml"),
+                "--out", str(scene))
+        run_cli("ct-fiducials", "--dicom", str(scene / "ct"),
+                "--model", source("data", "thesis", "markers_table_5_1.csv"),
+                "--model-columns", "x_o,y_o,z_o", "--diameter-mm", "2", "--expected", "9",
+                "--no-plots", "--out", str(scene / "fiducials.csv"))
     with open(source("problems", "thesis_joint.yaml")) as f:
         text = f.read().replace("../out/sim/joint", str(scene))
     problem = tmp / "thesis_joint.yaml"
