@@ -101,7 +101,7 @@ const bool kCtFiducialsRegistered [[maybe_unused]] = carmba::cli::RegisterComman
     RunCtFiducials);
 const bool kCtFiducialsFlags [[maybe_unused]] =
     carmba::cli::RegisterCommandFlags("ct-fiducials", "out,force,plots");
-const bool kRequired [[maybe_unused]] =
+const bool kCtFiducialsRequired [[maybe_unused]] =
     carmba::cli::RegisterRequiredFlags("ct-fiducials", "dicom,out");
 
 }  // namespace
