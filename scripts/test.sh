@@ -20,17 +20,17 @@ report_times() {
 trap report_times EXIT
 # Chromium renders the study report in one test; without it that test skips.
 step env CARMBA_WITH_BROWSER="${CARMBA_WITH_BROWSER:-1}" bash scripts/setup.sh
-step bash scripts/build.sh
-BUILD_DIR=${CARMBA_BUILD_DIR:-build}
 
 # The fuzz harnesses (tests/fuzz/README.md): the readers of outside input built with clang,
 # ASan + UBSan and libFuzzer's coverage in their own directory (only the sources the harnesses
 # link; -O0 without debug information, which compiles fastest: reports name functions, not
 # lines), then each harness fuzzes for 5 s from the shipped files. CARMBA_FUZZ=0 skips this.
-# The fuzz build runs at nice 10 beside the suite below: the suite leaves about a tenth of the
-# two cores idle (tests waiting for a Slurm cluster, Chromium or a plot process), which the
-# build fills (src/docs/speed.md, "Test suite time"). Its output goes to a log, printed if it
-# fails.
+# The fuzz build runs beside the main build and the suite below, under the idle scheduling class
+# (SCHED_IDLE: it gets a core only when nothing else wants it): the main build leaves a core idle
+# while a large translation unit or a link holds up the rest, and the suite leaves about a tenth
+# of the two cores idle (tests waiting for a Slurm cluster, Chromium or a plot process), which
+# the fuzz build fills (src/docs/speed.md, "Test suite time"). Its output goes to a log, printed
+# if it fails.
 FUZZ=${CARMBA_FUZZ:-1}
 if [[ "$FUZZ" == 1 ]]; then
   FUZZ_DIR=${CARMBA_FUZZ_BUILD_DIR:-build-fuzz}
@@ -40,9 +40,9 @@ if [[ "$FUZZ" == 1 ]]; then
   set -m
   (
     start=$SECONDS
-    CC=clang CXX=clang++ cmake -S . -B "$FUZZ_DIR" -DCARMBA_FUZZ=ON -DCMAKE_BUILD_TYPE=Fuzz \
+    CC=clang CXX=clang++ chrt --idle 0 cmake -S . -B "$FUZZ_DIR" -DCARMBA_FUZZ=ON -DCMAKE_BUILD_TYPE=Fuzz \
       -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" -DCMAKE_C_FLAGS_FUZZ="-O0 -DNDEBUG"
-    nice -n 10 cmake --build "$FUZZ_DIR" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz
+    chrt --idle 0 cmake --build "$FUZZ_DIR" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz
     echo $((SECONDS - start)) >"$FUZZ_DIR/build.seconds"
   ) >"$FUZZ_LOG" 2>&1 &
   FUZZ_BUILD_PID=$!
@@ -50,6 +50,9 @@ if [[ "$FUZZ" == 1 ]]; then
   # A failing step must not leave the fuzz build running.
   trap 'kill -- -"$FUZZ_BUILD_PID" 2>/dev/null || true; report_times' EXIT
 fi
+
+step bash scripts/build.sh
+BUILD_DIR=${CARMBA_BUILD_DIR:-build}
 
 # One test more than cores: some tests spend seconds waiting (a Slurm cluster scheduling, Chromium,
 # a Python plot process), and the next test fills that core. On 2 cores: -j2 389 s, -j3 341 s,
@@ -63,7 +66,7 @@ if [[ "$FUZZ" == 1 ]]; then
     echo "test.sh: the fuzz build failed (log: $FUZZ_LOG)"
     exit 1
   fi
-  record_time "$(cat "$FUZZ_DIR/build.seconds")" "fuzz build, beside the suite ($FUZZ_LOG)"
+  record_time "$(cat "$FUZZ_DIR/build.seconds")" "fuzz build, beside the build and the suite ($FUZZ_LOG)"
   trap report_times EXIT
   step ctest --test-dir "$FUZZ_DIR" -L fuzz --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}"
 else
