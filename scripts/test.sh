@@ -40,8 +40,9 @@ if [[ "$FUZZ" == 1 ]]; then
   set -m
   (
     start=$SECONDS
-    CC=clang CXX=clang++ chrt --idle 0 cmake -S . -B "$FUZZ_DIR" -DCARMBA_FUZZ=ON -DCMAKE_BUILD_TYPE=Fuzz \
-      -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" -DCMAKE_C_FLAGS_FUZZ="-O0 -DNDEBUG"
+    CC=clang CXX=clang++ chrt --idle 0 cmake -S . -B "$FUZZ_DIR" -DCARMBA_FUZZ=ON \
+      -DCMAKE_BUILD_TYPE=Fuzz -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" \
+      -DCMAKE_C_FLAGS_FUZZ="-O0 -DNDEBUG"
     chrt --idle 0 cmake --build "$FUZZ_DIR" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz
     echo $((SECONDS - start)) >"$FUZZ_DIR/build.seconds"
   ) >"$FUZZ_LOG" 2>&1 &
@@ -66,7 +67,8 @@ if [[ "$FUZZ" == 1 ]]; then
     echo "test.sh: the fuzz build failed (log: $FUZZ_LOG)"
     exit 1
   fi
-  record_time "$(cat "$FUZZ_DIR/build.seconds")" "fuzz build, beside the build and the suite ($FUZZ_LOG)"
+  record_time "$(cat "$FUZZ_DIR/build.seconds")" \
+    "fuzz build, beside the build and the suite ($FUZZ_LOG)"
   trap report_times EXIT
   step ctest --test-dir "$FUZZ_DIR" -L fuzz --output-on-failure -j"${CARMBA_JOBS:-$(nproc)}"
 else

@@ -62,11 +62,11 @@ inline nlohmann::json ReadJsonFile(const std::string& path) {
   return nlohmann::json::parse(ReadTextFile(path), nullptr, /*allow_exceptions=*/false);
 }
 
-// The output of `carmba simulate --scene configs/scenes/<scene>.yaml`, to be read only. Under
-// ctest it is the fixture cli_scenes's (tests/cli/simulate_scenes.sh, run once before the CLI
-// tests; CARMBA_TEST_SCENES names its directory) when that has the scene; otherwise the scene is
-// rendered once per process into a scratch directory. Returns the directory, or "" with the
-// reason in *error.
+// The output of `carmba simulate --scene configs/scenes/<scene>.yaml` (a joint scene NAME_joint
+// with its CT fiducials in fiducials.csv), to be read only. Under ctest it is the fixture
+// cli_scenes's (tests/cli/simulate_scenes.sh, run once before the CLI tests; CARMBA_TEST_SCENES
+// names its directory) when that has the scene; otherwise the same script renders it once per
+// process into a scratch directory. Returns the directory, or "" with the reason in *error.
 inline std::string SimulatedScene(const std::string& scene, std::string* error) {
   const char* fixture = std::getenv("CARMBA_TEST_SCENES");
   if (fixture != nullptr) {
@@ -76,10 +76,15 @@ inline std::string SimulatedScene(const std::string& scene, std::string* error) 
   static const ScratchDir rendered("scenes");
   const std::string dir = rendered.File(scene);
   if (std::filesystem::exists(dir + "/truth.json")) return dir;
-  const CommandResult r = RunCarmba("simulate --scene " + kSource + "/configs/scenes/" + scene +
-                                    ".yaml --out " + dir);
-  if (r.exit_code != 0) {
-    *error = "simulate " + scene + ": " + r.err;
+  const ScratchDir log("simulate_scenes");
+  const std::string cmd = "bash " + kSource + "/tests/cli/simulate_scenes.sh " + CARMBA_BIN + " " +
+                          kSource + " " + rendered.path() + " " + scene + " >/dev/null 2>" +
+                          log.File("err");
+  if (std::system(cmd.c_str()) != 0) {
+    std::ifstream in(log.File("err"));
+    std::stringstream ss;
+    ss << in.rdbuf();
+    *error = "simulate " + scene + ": " + ss.str();
     return "";
   }
   return dir;
@@ -96,31 +101,11 @@ inline std::string LinkSimulatedScene(const std::string& scene, const std::strin
   return ec ? "link " + path + " -> " + dir + ": " + ec.message() : "";
 }
 
-// A shipped joint scene (configs/scenes/NAME) at `scene`, with its CT fiducials (`carmba
-// ct-fiducials`, thesis marker table) in scene/fiducials.csv, to be read only. Under ctest `scene`
-// is a link to the fixture cli_scenes's rendering (tests/cli/simulate_scenes.sh); otherwise the
-// scene is simulated and localised into `scene`. Returns the failing step's reason, or "" on
-// success.
+// A shipped joint scene (configs/scenes/NAME) with its CT fiducials in scene/fiducials.csv, seen
+// at `scene` (a link to SimulatedScene's directory), to be read only. Returns the failure's
+// reason, or "" on success.
 inline std::string SimulateJointScene(const std::string& scene_yaml, const std::string& scene) {
-  const std::string src = CARMBA_SOURCE_DIR;
-  const char* fixture = std::getenv("CARMBA_TEST_SCENES");
-  if (fixture != nullptr) {
-    const std::string dir =
-        std::string(fixture) + "/" + std::filesystem::path(scene_yaml).stem().string();
-    if (std::filesystem::exists(dir + "/fiducials.csv")) {
-      std::error_code ec;
-      std::filesystem::create_directory_symlink(dir, scene, ec);
-      return ec ? "link " + scene + " -> " + dir + ": " + ec.message() : "";
-    }
-  }
-  auto r =
-      RunCarmba("simulate --scene " + src + "/configs/scenes/" + scene_yaml + " --out " + scene);
-  if (r.exit_code != 0) return "simulate: " + r.err;
-  r = RunCarmba("ct-fiducials --dicom " + scene + "/ct --model " + src +
-                "/data/thesis/markers_table_5_1.csv --model_columns x_o,y_o,z_o --no-plots --out " +
-                scene + "/fiducials.csv");
-  if (r.exit_code != 0) return "ct-fiducials: " + r.err;
-  return "";
+  return LinkSimulatedScene(std::filesystem::path(scene_yaml).stem().string(), scene);
 }
 
 // Simulated plate images (configs/scenes/thesis_calibration.yaml) at dir/plate and a simulated

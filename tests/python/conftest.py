@@ -84,20 +84,17 @@ def pose_cli(tmp_path_factory):
 
 
 def simulate_joint_scene(tmp):
-    """The demo's joint scene (scripts/demo.sh step 4) and the shipped problems/thesis_joint.yaml
-    pointed at it (as tests/cli/joint_cli_test.cc does), under `tmp`. Under ctest the scene is
-    the fixture cli_scenes's (tests/cli/simulate_scenes.sh, read only); otherwise it is simulated
-    under `tmp`."""
+    """The demo's joint scene (scripts/demo.sh step 4) with its CT fiducials, and the shipped
+    problems/thesis_joint.yaml pointed at it (as tests/cli/joint_cli_test.cc does), under `tmp`.
+    Under ctest the scene is the fixture cli_scenes's, read only; otherwise the fixture's script
+    (tests/cli/simulate_scenes.sh) renders it under `tmp`."""
     fixture = os.environ.get("CARMBA_TEST_SCENES")
-    scene = pathlib.Path(fixture or "/nonexistent") / "thesis_joint"
-    if not (scene / "fiducials.csv").exists():
-        scene = tmp / "scene"
-        run_cli("simulate", "--scene", source("configs", "scenes", "thesis_joint.yaml"),
-                "--out", str(scene))
-        run_cli("ct-fiducials", "--dicom", str(scene / "ct"),
-                "--model", source("data", "thesis", "markers_table_5_1.csv"),
-                "--model-columns", "x_o,y_o,z_o", "--diameter-mm", "2", "--expected", "9",
-                "--no-plots", "--out", str(scene / "fiducials.csv"))
+    scene = pathlib.Path(fixture, "thesis_joint") if fixture else None
+    if scene is None or not (scene / "fiducials.csv").exists():
+        subprocess.run(["bash", source("tests", "cli", "simulate_scenes.sh"), CARMBA_BIN,
+                        SOURCE_DIR, str(tmp), "thesis_joint"], check=True,
+                       stdout=subprocess.DEVNULL)
+        scene = tmp / "thesis_joint"
     with open(source("problems", "thesis_joint.yaml")) as f:
         text = f.read().replace("../out/sim/joint", str(scene))
     problem = tmp / "thesis_joint.yaml"
