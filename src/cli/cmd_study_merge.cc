@@ -79,7 +79,7 @@ const bool kStudyMergeRegistered [[maybe_unused]] = carmba::cli::RegisterCommand
     RunStudyMerge);
 const bool kStudyMergeFlags [[maybe_unused]] =
     carmba::cli::RegisterCommandFlags("study-merge", "out,force,plots");
-const bool kStudyMergeRequired [[maybe_unused]] = carmba::cli::RegisterRequiredFlags("study-merge",
-                                                                           "shards,out");
+const bool kStudyMergeRequired [[maybe_unused]] =
+    carmba::cli::RegisterRequiredFlags("study-merge", "shards,out");
 
 }  // namespace

@@ -81,10 +81,7 @@ inline std::string SimulatedScene(const std::string& scene, std::string* error) 
                           kSource + " " + rendered.path() + " " + scene + " >/dev/null 2>" +
                           log.File("err");
   if (std::system(cmd.c_str()) != 0) {
-    std::ifstream in(log.File("err"));
-    std::stringstream ss;
-    ss << in.rdbuf();
-    *error = "simulate " + scene + ": " + ss.str();
+    *error = "simulate " + scene + ": " + ReadTextFile(log.File("err"));
     return "";
   }
   return dir;
