@@ -5,7 +5,7 @@
 set -euo pipefail
 
 PKGS=(
-  build-essential cmake pkg-config
+  build-essential cmake ninja-build pkg-config
   libceres-dev libeigen3-dev libgoogle-glog-dev libgflags-dev
   libopencv-dev
   libmrcal-dev mrcal python3-mrcal

@@ -38,10 +38,14 @@ if [[ "$FUZZ" == 1 ]]; then
   FUZZ_LOG=$FUZZ_DIR/build.log
   # In a process group of its own (job control, set -m), so that one kill stops all of it.
   set -m
+  FUZZ_GENERATOR=()  # as scripts/build.sh: Ninja for a new directory when it is installed
+  if [[ ! -f "$FUZZ_DIR/CMakeCache.txt" ]] && command -v ninja >/dev/null; then
+    FUZZ_GENERATOR=(-G Ninja)
+  fi
   (
     start=$SECONDS
-    CC=clang CXX=clang++ chrt --idle 0 cmake -S . -B "$FUZZ_DIR" -DCARMBA_FUZZ=ON \
-      -DCMAKE_BUILD_TYPE=Fuzz -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" \
+    CC=clang CXX=clang++ chrt --idle 0 cmake -S . -B "$FUZZ_DIR" "${FUZZ_GENERATOR[@]}" \
+      -DCARMBA_FUZZ=ON -DCMAKE_BUILD_TYPE=Fuzz -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" \
       -DCMAKE_C_FLAGS_FUZZ="-O0 -DNDEBUG"
     chrt --idle 0 cmake --build "$FUZZ_DIR" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz
     echo $((SECONDS - start)) >"$FUZZ_DIR/build.seconds"
