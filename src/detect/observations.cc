@@ -198,6 +198,45 @@ StatusOr<ObservationSet> ReadObservationsCsv(const std::string& path) {
   return obs;
 }
 
+StatusOr<ObservationSet> ObservationsFromArray(const double* uv,
+                                               int views,
+                                               const GridSpec& grid,
+                                               double width,
+                                               double height,
+                                               const std::string& name) {
+  if (views <= 0) return Status::Error(name + ": no views");
+  if (!InRange(width, plausible::kImageSizePx) || !InRange(height, plausible::kImageSizePx) ||
+      width != std::floor(width) || height != std::floor(height)) {
+    return Status::Error("image_size: expected (width, height), each an integer " +
+                         FormatRange(plausible::kImageSizePx));
+  }
+  ObservationSet obs;
+  obs.grid = grid;
+  obs.width = static_cast<int>(width);
+  obs.height = static_cast<int>(height);
+  const int n = grid.NumPoints();
+  for (int v = 0; v < views; ++v) {
+    ViewObservations view;
+    view.image = "view " + std::to_string(v);
+    for (int k = 0; k < n; ++k) {
+      const double u = uv[2 * (v * n + k)], w = uv[2 * (v * n + k) + 1];
+      if (std::isnan(u) && std::isnan(w)) continue;
+      if (!InRange(u, plausible::kPixelCoordinatePx) ||
+          !InRange(w, plausible::kPixelCoordinatePx)) {
+        return Status::Error(name + "[" + std::to_string(v) + ", " + std::to_string(k) +
+                             "]: expected a pixel (u, v), each " +
+                             FormatRange(plausible::kPixelCoordinatePx) +
+                             ", or (NaN, NaN) for a point not seen; got (" + FmtRoundTrip(u) +
+                             ", " + FmtRoundTrip(w) + ")");
+      }
+      view.point_ids.push_back(k);
+      view.uv_px.emplace_back(u, w);
+    }
+    obs.views.push_back(std::move(view));
+  }
+  return obs;
+}
+
 std::string CornersVnl(const ObservationSet& obs) {
   std::ostringstream o;
   o << "# filename x y level\n";

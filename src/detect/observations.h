@@ -88,6 +88,16 @@ ba::BaProblem ToBaPlateProblem(const std::string& name,
 Status WriteObservationsCsv(const ObservationSet& obs, const std::string& path);
 // Reads observations.csv. Errors name file:line and what was expected.
 StatusOr<ObservationSet> ReadObservationsCsv(const std::string& path);
+// Observations held in memory as a dense array (the Python module's): the pixel of point k of
+// view v at uv[2 * (v * grid.NumPoints() + k)] and the next element, (NaN, NaN) where not seen.
+// Checked as an observations.csv is: each pixel within plausible::kPixelCoordinatePx, the image
+// size integers within plausible::kImageSizePx. Errors name `name[v, k]` or "image_size".
+StatusOr<ObservationSet> ObservationsFromArray(const double* uv,
+                                               int views,
+                                               const GridSpec& grid,
+                                               double width,
+                                               double height,
+                                               const std::string& name);
 // mrcal's corners.vnl: "# filename x y level", rows*cols rows per view in row-major order,
 // missing points as "filename nan nan -" (level 0 = weight 1).
 std::string CornersVnl(const ObservationSet& obs);

@@ -11,18 +11,15 @@
 #include "python/bindings.h"
 #include "report/calibration_report.h"
 #include "util/file_util.h"
-#include "util/format.h"
-#include "util/plausible.h"
 
 namespace carmba::python {
 namespace {
 
 using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
-// observations (V, rows*cols, 2): point k of view v at [v, k]; NaN where not seen. The same
-// plausible ranges as an observations.csv (detect/observations.cc): each pixel within
-// plausible::kPixelCoordinatePx, the image size within plausible::kImageSizePx; an error names
-// the array element.
+// observations (V, rows*cols, 2): point k of view v at [v, k]; NaN where not seen. The array's
+// shape is checked here; its values as an observations.csv's (detect/observations.h
+// ObservationsFromArray).
 ObservationSet FromArray(const py::object& o, const GridSpec& grid, const py::object& image_size) {
   Array a = Array::ensure(o);
   if (!a || a.ndim() != 3 || a.shape(1) != grid.NumPoints() || a.shape(2) != 2) {
@@ -31,37 +28,10 @@ ObservationSet FromArray(const py::object& o, const GridSpec& grid, const py::ob
   }
   if (a.shape(0) == 0) throw Error("observations: no views (the array's first dimension is 0)");
   if (image_size.is_none()) throw Error("image_size: (width, height) is required with arrays");
-  const auto wh = image_size.cast<std::vector<double>>();
-  if (wh.size() != 2 || !InRange(wh[0], plausible::kImageSizePx) ||
-      !InRange(wh[1], plausible::kImageSizePx) || wh[0] != std::floor(wh[0]) ||
-      wh[1] != std::floor(wh[1])) {
-    throw Error("image_size: expected (width, height), each an integer " +
-                FormatRange(plausible::kImageSizePx));
-  }
-  ObservationSet obs;
-  obs.grid = grid;
-  obs.width = static_cast<int>(wh[0]);
-  obs.height = static_cast<int>(wh[1]);
-  auto r = a.unchecked<3>();
-  for (py::ssize_t v = 0; v < a.shape(0); ++v) {
-    ViewObservations view;
-    view.image = "view " + std::to_string(v);
-    for (int k = 0; k < grid.NumPoints(); ++k) {
-      const double u = r(v, k, 0), w = r(v, k, 1);
-      if (std::isnan(u) && std::isnan(w)) continue;
-      if (!InRange(u, plausible::kPixelCoordinatePx) ||
-          !InRange(w, plausible::kPixelCoordinatePx)) {
-        throw Error("observations[" + std::to_string(v) + ", " + std::to_string(k) +
-                    "]: expected a pixel (u, v), each " +
-                    FormatRange(plausible::kPixelCoordinatePx) + ", or (NaN, NaN) for a point " +
-                    "not seen; got (" + FmtRoundTrip(u) + ", " + FmtRoundTrip(w) + ")");
-      }
-      view.point_ids.push_back(k);
-      view.uv_px.emplace_back(u, w);
-    }
-    obs.views.push_back(view);
-  }
-  return obs;
+  auto wh = image_size.cast<std::vector<double>>();
+  if (wh.size() != 2) wh.assign(2, std::nan(""));  // refused as the library refuses any bad size
+  return ValueOrThrow(ObservationsFromArray(
+      a.data(), static_cast<int>(a.shape(0)), grid, wh[0], wh[1], "observations"));
 }
 
 CalibrationRun Calibrate(const py::object& observations,

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
@@ -347,6 +348,49 @@ TEST(GridDetectorTest, ObservationsCsvRoundTrip) {
   EXPECT_NE(back.status().message().find(":4: column 'point': expected 0..11, got 12"),
             std::string::npos)
       << back.status().message();
+}
+
+// A dense array of pixels (the Python module's) gives the observations an observations.csv of the
+// same pixels gives, and is refused as the CSV is: an absurd or half-NaN pixel names its element,
+// an image size out of range or not an integer names image_size.
+TEST(GridDetectorTest, ObservationsFromArrayAsFromTheCsv) {
+  GridSpec grid;
+  grid.rows = 2;
+  grid.cols = 2;
+  const double nan = std::nan("");
+  // view 0: all four points; view 1: point 2 not seen.
+  std::vector<double> uv = {10, 20, 30, 20, 10, 40, 30, 40, 11, 21, 31, 21, nan, nan, 31, 41};
+  auto obs = ObservationsFromArray(uv.data(), 2, grid, 640, 480, "observations");
+  ASSERT_TRUE(obs.ok()) << obs.status().message();
+  const test::ScratchDir dir("obs_from_array");
+  ASSERT_TRUE(WriteObservationsCsv(*obs, dir.File("obs.csv")).ok());
+  auto csv = ReadObservationsCsv(dir.File("obs.csv"));
+  ASSERT_TRUE(csv.ok()) << csv.status().message();
+  ASSERT_EQ(csv->views.size(), obs->views.size());
+  for (size_t v = 0; v < obs->views.size(); ++v) {
+    EXPECT_EQ(csv->views[v].point_ids, obs->views[v].point_ids);
+    EXPECT_EQ(csv->views[v].uv_px, obs->views[v].uv_px);
+  }
+  EXPECT_EQ(obs->views[1].point_ids, (std::vector<int>{0, 1, 3}));
+  EXPECT_EQ(csv->width, 640);
+  EXPECT_EQ(csv->height, 480);
+
+  for (const double bad : {std::numeric_limits<double>::infinity(), 1e12, nan}) {
+    std::vector<double> b = uv;
+    b[2 * (1 * 4 + 3)] = bad;  // view 1, point 3
+    auto r = ObservationsFromArray(b.data(), 2, grid, 640, 480, "observations");
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().message().rfind("observations[1, 3]: expected a pixel (u, v)", 0), 0u)
+        << r.status().message();
+  }
+  for (const auto& [w, h] : {std::pair<double, double>{0, 480}, {640.5, 480}, {1e9, 480}}) {
+    auto r = ObservationsFromArray(uv.data(), 2, grid, w, h, "observations");
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().message().rfind("image_size: expected (width, height)", 0), 0u)
+        << r.status().message();
+  }
+  EXPECT_EQ(ObservationsFromArray(uv.data(), 0, grid, 640, 480, "observations").status().message(),
+            "observations: no views");
 }
 
 // Labels of one picture do not cover one another or the marks reserved: a lone label goes right
