@@ -142,7 +142,15 @@ def joint_figures(out):
              p["sigma_relative_rotation_deg"] for p in r["validation"]]
     s = r["statistics"]
     (plate,) = [g for g in r["variance_components"]["groups"] if g["group"] == "plate_pixels"]
+    # configs/joint.yaml (`distortion: auto`) against joint_radial.yaml: what the recommended
+    # tangential terms cost in the principal point's sigma, and how far every intrinsic is off
+    auto = load_json(os.path.join(out, "joint_joint/result.json"))["intrinsics"]
+    auto_z = [abs(auto[k] - truth[k]) / auto["sigmas"][k] for k in ("fx", "fy", "cx", "cy")]
     return {
+        "auto_pp_sigmas": "from %.2f, %.2f px with p1, p2 held to %.1f, %.1f px" % (
+            intr["sigmas"]["cx"], intr["sigmas"]["cy"], auto["sigmas"]["cx"],
+            auto["sigmas"]["cy"]),
+        "auto_max_z": "%.1f" % max(auto_z),
         "plate_factor": "f = %.3f +- %.3f" % (plate["factor"], plate["factor_sigma"]),
         "plate_factor_in_band": "inside its band" if not plate["outside_band"]
                                 else "outside its band",
@@ -156,6 +164,29 @@ def joint_figures(out):
         "solve": "%d iterations, %.1f ms for solve + covariance" % (
             r["solver"]["iterations"], 1e3 * r["solver"]["time_s"]),
     }
+
+
+def mrcal_figures(out):
+    """mrcal 2.2 against carmba's engine on the joint scene, for configs/joint.yaml and
+    configs/joint_radial.yaml (result.json's mrcal_crosscheck)."""
+    figures = {}
+    for config in ("joint", "joint_radial"):
+        m = load_json(os.path.join(out, "joint_%s/result.json" % config))["mrcal_crosscheck"]
+        ours, theirs = m["carmba"]["intrinsics"], m["mrcal"]["intrinsics"]
+        # the distortion terms solved (not held at 0) on both sides
+        distortion = [abs(a - b) / abs(a) for a, b in zip(ours[4:], theirs[4:]) if a != 0]
+        rms = m["rms_px_carmba_in_mrcal"]
+        figures.update({
+            config + ".held": m["what"].split(", ")[1].split(" (")[0],
+            config + ".rel": sci(m["max_relative_difference_fx_fy_cx_cy"]),
+            config + ".sigma": sci(m["max_difference_in_sigmas"]),
+            config + ".distortion_rel": sci(max(distortion)) if distortion else "0",
+            config + ".rms_rel": sci(abs(rms - m["rms_px_mrcal"]) / rms),
+            config + ".rms_diff": sci(abs(rms - m["rms_px_mrcal"])),
+            config + ".seeded_sigma": sci(m["max_move_in_sigmas_of_mrcal_seeded_at_carmba"]),
+            config + ".seeded_rel": sci(m["max_relative_move_of_mrcal_seeded_at_carmba"]),
+        })
+    return figures
 
 
 # ---- Real radiographs: beads tracked through frames --------------------------------------------
@@ -236,6 +267,9 @@ def calib_figures(out):
         "intrinsics": "fx, fy, cx, cy within %.2f sigma of the truth on the %s and within %.2f "
                       "sigma on the %s" % (intr[0] + intr[1]),
         "projection": "the true projection within %s sigma over the image" % " / ".join(proj),
+        # configs/calib.yaml (`distortion: auto`): the pixel sigma from the full model's residuals
+        "auto_sigma_px": "%.4f" % load_json(os.path.join(out, "calibration_calib/camera.json"))
+        ["sigma_px"],
     }
 
 
@@ -328,7 +362,8 @@ def flex_figures(out):
     return figures
 
 
-SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "tre": tre_figures,
+SECTIONS = {"thesis": thesis_figures, "joint": joint_figures, "mrcal": mrcal_figures,
+            "tre": tre_figures,
             "calib": calib_figures, "track": track_figures, "simct": simct_figures,
             "realct": realct_figures, "flex": flex_figures}
 
