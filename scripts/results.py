@@ -382,6 +382,7 @@ TEST_RUNS = [("carmba_ba_test",
              ("carmba_calib_test", "SceneMonteCarlo.*"),
              ("carmba_ct_test", "RealCt.*:SaturatedMarker.*"),
              ("carmba_detect_test", "ShadowCentre*:MarkerBlobs.CovarianceAgreesWithMonteCarlo:"
+              "MarkerBlobs.TheBlurPullOnASlopingBackgroundIsRemoved:"
               "SimulatedSceneDetection.SystematicErrorWellBelowTheNoise")]
 
 
@@ -391,7 +392,10 @@ TEST_RUNS = [("carmba_ba_test",
 UNSEEN_TEST_RUNS = [("carmba_ba_test", "*VarianceComponentsMonteCarlo.*",
                      {"CARMBA_VC_SEED": "777000", "CARMBA_VC_TRIALS": "1000"}, "vc", "vc_unseen"),
                     ("carmba_analysis_test", "LensModels.RecommendedModelIsWithinThreeSigmaOverSeeds",
-                     {"CARMBA_LENS_SEED": "880000"}, "lens", "lens_unseen")]
+                     {"CARMBA_LENS_SEED": "880000"}, "lens", "lens_unseen"),
+                    ("carmba_detect_test", "ShadowCentre*",
+                     {"CARMBA_SHADOW_SEED": "123456", "CARMBA_SHADOW_SPHERES": "100"}, "shadow",
+                     "shadow_unseen")]
 
 
 def run_test_figures(tests_dir, tmp, exe, gfilter, env=None):

@@ -310,8 +310,9 @@ double MeanErrorOnASlope(bool correct, double g, double blur_sigma, int* n) {
 }
 
 // The blur's pull is measured and removed: with g = 0.01 / px and a blur of sigma 1.2 px the
-// shadows' centres lie 0.0144 px towards the darker side (measured: 0.0143, corrected -0.0006); the
-// correction takes s^2 from the noise's correlation and the slope from each blob's background ring.
+// shadows' centres lie s^2 g = 0.0144 px towards the darker side (measured and corrected: in
+// src/docs/results.md); the correction takes s^2 from the noise's correlation and the slope from
+// each blob's background ring.
 TEST(MarkerBlobs, TheBlurPullOnASlopingBackgroundIsRemoved) {
   constexpr double kSlope = 0.01, kBlur = 1.2;
   int n_raw = 0, n_corrected = 0;
@@ -320,6 +321,9 @@ TEST(MarkerBlobs, TheBlurPullOnASlopingBackgroundIsRemoved) {
   std::cout << "mean x error on the slope: " << raw << " px uncorrected, " << corrected
             << " px corrected (predicted pull +" << kBlur * kBlur * kSlope << " px; " << n_raw
             << " blobs)\n";
+  testing::RecordFigure(
+      "blur.pull", "%+.4f px measured against %+.4f predicted", raw, kBlur * kBlur * kSlope);
+  testing::RecordFigure("blur.corrected", "%+.4f", corrected);
   EXPECT_EQ(n_raw, 100);
   EXPECT_EQ(n_corrected, 100);
   // The background darkens towards +x: the pull is there, towards the darker side.
