@@ -38,14 +38,9 @@ step ctest --test-dir "$BUILD_DIR" --output-on-failure -j"${CARMBA_JOBS:-$(($(np
 # under SCHED_IDLE) or beside the suite made them slower by about as much as it took alone
 # (src/docs/speed.md, "Test suite time"). Its output goes to a log, printed if it fails.
 fuzz_build() {  # DIR LOG
-  local generator=()  # as scripts/build.sh: Ninja for a new directory when it is installed
-  if [[ ! -f "$1/CMakeCache.txt" ]] && command -v ninja >/dev/null; then
-    generator=(-G Ninja)
-  fi
-  if ! { CC=clang CXX=clang++ cmake -S . -B "$1" "${generator[@]}" -DCARMBA_FUZZ=ON \
-    -DCMAKE_BUILD_TYPE=Fuzz -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" \
-    -DCMAKE_C_FLAGS_FUZZ="-O0 -DNDEBUG" &&
-    cmake --build "$1" -j"${CARMBA_JOBS:-$(nproc)}" --target carmba_fuzz; } >"$2" 2>&1; then
+  if ! CC=clang CXX=clang++ CARMBA_BUILD_DIR="$1" bash scripts/build.sh --target carmba_fuzz -- \
+    -DCARMBA_FUZZ=ON -DCMAKE_BUILD_TYPE=Fuzz -DCMAKE_CXX_FLAGS_FUZZ="-O0 -DNDEBUG" \
+    -DCMAKE_C_FLAGS_FUZZ="-O0 -DNDEBUG" >"$2" 2>&1; then
     tail -n 40 "$2"
     echo "test.sh: the fuzz build failed (log: $2)"
     return 1
