@@ -8,6 +8,8 @@
 // CARMBA_SKULL_THRESHOLD_HU=2000 (a fixed threshold), CARMBA_SKULL_VERBOSE=1, and for other
 // beads CARMBA_SKULL_DIAMETER_MM and CARMBA_SKULL_BEAD_HU (the default test's checks then apply
 // to them too).
+#include "ct/skull_beads.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
@@ -18,11 +20,11 @@
 #include <sstream>
 
 #include "ct/ct_fiducials.h"
-#include "ct/marker_detection.h"
-#include "ct/marker_labelling.h"
 #include "ct/ct_invesalius.h"
 #include "ct/ct_test_util.h"
-#include "ct/skull_beads.h"
+#include "ct/marker_detection.h"
+#include "ct/marker_labelling.h"
+#include "figures.h"
 #include "test_env.h"
 
 namespace carmba {
@@ -250,8 +252,19 @@ std::vector<SeedOutcome> RunSeeds(const std::vector<uint64_t>& seeds, CtFiducial
 
 // >= 50 beads, all found, no false candidate, none refused; mean e^T C^-1 e within [2.4, 3.6] and
 // none beyond 5 sigma (see below).
-void ExpectEveryBeadFoundWithHonestCovariance(const std::vector<SeedOutcome>& seeds) {
+// `figure`: the results.md figure the run's summary is recorded as.
+void ExpectEveryBeadFoundWithHonestCovariance(const std::vector<SeedOutcome>& seeds,
+                                              const std::string& figure) {
   const Summary s = Summarise(seeds);
+  testing::RecordFigure(figure,
+                        "%d / %d beads found over %zu seeds, %d false candidates, mean e^T C^-1 e "
+                        "%.2f, worst %.1f sigma",
+                        s.found,
+                        s.expected,
+                        seeds.size(),
+                        s.false_candidates,
+                        s.found ? s.sum_nees / s.found : 0.0,
+                        s.worst_sigma);
   EXPECT_GE(s.expected, 50);
   EXPECT_EQ(s.refused, 0);
   EXPECT_EQ(s.found, s.expected);
@@ -271,7 +284,8 @@ TEST(SkullBeads, DefaultSettingsFindEveryBeadWithHonestCovariance) {
   SKIP_WITHOUT_SKULL();
   CtFiducialsOptions options;
   options.detect.diameter_mm = kBeadDiameterMm;
-  ExpectEveryBeadFoundWithHonestCovariance(RunSeeds(Seeds({1, 2, 3, 4, 5, 6}), options));
+  ExpectEveryBeadFoundWithHonestCovariance(RunSeeds(Seeds({1, 2, 3, 4, 5, 6}), options),
+                                           "skull.default");
 }
 
 // The same with metal artefacts (the optional part of the issue): streaks around each bead and
@@ -282,8 +296,8 @@ TEST(SkullBeads, MetalStreaksKeepEveryBeadFoundAndTheCovarianceHonest) {
   CtFiducialsOptions options;
   options.detect.diameter_mm = kBeadDiameterMm;
   const double streak_hu = testing::EnvOr("CARMBA_SKULL_STREAK_HU", 300.0);
-  ExpectEveryBeadFoundWithHonestCovariance(
-      RunSeeds(Seeds({1, 2, 3, 4, 5, 6}), options, streak_hu));
+  ExpectEveryBeadFoundWithHonestCovariance(RunSeeds(Seeds({1, 2, 3, 4, 5, 6}), options, streak_hu),
+                                           "skull.streaks");
 }
 
 // The skull alone: teeth and dense bone (up to 2986 HU here) give no marker with the default

@@ -19,6 +19,7 @@
 #include <iostream>
 
 #include "detect/recall_scenes.h"
+#include "figures.h"
 #include "test_env.h"
 
 namespace carmba {
@@ -172,6 +173,19 @@ TEST(EdgeAccuracy, CentresNextToSharpAnatomy) {
     rough.sum2 += clean.bins.t[b].sum2;
   }
   EXPECT_LT(rough.Rms(), kRoughRmsPx) << rough.n << " points";
+  testing::RecordFigure("edge.clean",
+                        "%.3f px RMS per coordinate, worst %.3f px, points with >= 4 %% "
+                        "background non-planarity %.3f px RMS",
+                        clean.all.Rms(),
+                        clean.all.worst,
+                        clean.bins.t[Bins::kNum - 1].Rms());
+  testing::RecordFigure("edge.noisy",
+                        "%.3f px RMS, worst %.3f px; %ld / %ld spheres of %d views kept",
+                        noisy.all.Rms(),
+                        noisy.all.worst,
+                        noisy.all.found,
+                        noisy.all.spheres,
+                        noisy.all.views);
   // The points dropped as unreliable stay few (recall).
   EXPECT_GE(clean.all.found, kMinFound * clean.all.spheres);
   EXPECT_GE(noisy.all.found, kMinFound * noisy.all.spheres);

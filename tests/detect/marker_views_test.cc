@@ -38,7 +38,17 @@ ObjectViewsOptions SceneOptions() {
   return o;
 }
 
-void ExpectAllCorrect(const Tally& t, const std::string& what) {
+// `figure` (when given): the results.md figure the tally is recorded as.
+void ExpectAllCorrect(const Tally& t, const std::string& what, const char* figure = nullptr) {
+  if (figure) {
+    testing::RecordFigure(figure,
+                          "%d of %d visible separated markers labelled correctly, %d wrong, %d "
+                          "spurious beads labelled",
+                          t.correct,
+                          t.expected,
+                          t.wrong,
+                          t.spurious_labelled);
+  }
   std::cout << what << ": " << t.correct << " of " << t.expected
             << " visible separated markers labelled correctly, " << t.wrong << " wrong, "
             << t.spurious_labelled << " spurious beads labelled, " << t.overlap_labelled << " of "
@@ -67,7 +77,7 @@ TEST(MarkerViews, ClutterSceneEveryVisibleMarkerLabelledNoSpuriousNoOverlap) {
       DetectAndLabelObjectViews(files, scene->camera, SceneMarkers(*scene), SceneOptions());
   ASSERT_TRUE(views.ok()) << views.status().message();
   const Tally t = Score(*scene, truth, *views);
-  ExpectAllCorrect(t, "PNG 16 bit");
+  ExpectAllCorrect(t, "PNG 16 bit", "markerviews.png");
   // The rejected candidates carry reasons; the overlap view flags a merged blob.
   bool merged = false;
   for (const ObjectView& v : *views) {
@@ -105,6 +115,7 @@ TEST(MarkerViews, MultiFrameDicomXaUsesTheNominalGeometry) {
   }
   // Every view after the first is labelled from the nominal geometry's prediction.
   std::cout << predicted << " of " << views->size() << " views labelled from the prediction\n";
+  testing::RecordFigure("markerviews.predicted", "%d of %zu frames", predicted, views->size());
   EXPECT_GE(predicted, static_cast<int>(views->size()) - 2);
   std::filesystem::remove_all(dir);
 }
@@ -438,6 +449,7 @@ TEST(MarkerCorrespondence, TwoSpuriousBlobsAndOneMissingMarkerPerView) {
   }
   std::cout << correct_views << " of " << trials
             << " views labelled correctly (8 of 9 markers + 2 spurious blobs)\n";
+  testing::RecordFigure("markerviews.synthetic", "%d of %d views", correct_views, trials);
   EXPECT_GT(trials, 30);
   EXPECT_EQ(correct_views, trials);
   EXPECT_EQ(wrong, 0);

@@ -21,6 +21,7 @@
 #include <random>
 
 #include "detect/recall_scenes.h"
+#include "figures.h"
 #include "test_env.h"
 #include "util/image_codecs.h"
 
@@ -99,6 +100,16 @@ TEST(DetectionRecall, IntensifierEffectsAndAnatomy) {
             << flat.sum.x() / std::max(flat.n, 1) << ", " << flat.sum.y() / std::max(flat.n, 1)
             << "), max " << flat.worst << " px (" << flat.found << " / " << flat.spheres
             << " found)\n";
+  testing::RecordFigure("detrecall.found",
+                        "%ld / %ld spheres of %d views, %d wrong grids",
+                        noisy.found,
+                        noisy.spheres,
+                        noisy.views,
+                        noisy.wrong_grids);
+  testing::RecordFigure("detrecall.systematic",
+                        "%.3f px RMS without the anatomy, %.3f px with it",
+                        flat.Rms(),
+                        clean.Rms());
   EXPECT_GE(recall, kMinRecall);
   EXPECT_GE(clean_recall, kMinRecall);
   EXPECT_EQ(noisy.wrong_grids, 0);

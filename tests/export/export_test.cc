@@ -5,22 +5,22 @@
 
 #include <cmath>
 #include <cstdio>
-#include <functional>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <sstream>
-
-#include <opencv2/imgproc.hpp>
 
 #include "export/plastimatch_geometry.h"
 #include "export/rtk_geometry.h"
 #include "export/undistort.h"
 #include "export/view_geometry.h"
+#include "figures.h"
 #include "geometry/random_vector.h"
 #include "geometry/rotation.h"
-#include "util/file_util.h"
 #include "scratch.h"
+#include "util/file_util.h"
 
 namespace carmba {
 namespace {
@@ -116,6 +116,11 @@ TEST(RtkGeometry, GoldenVectorFromParameters) {
   const double rel_err = RelativeMatrixDifference(m, GoldenMatrix());
   std::printf("RTK golden: max |entry difference| %.3g (largest entry 1.2e5), relative %.3g\n",
               abs_err, rel_err);
+  testing::RecordFigure("export.rtk_golden",
+                        "%s (largest entry %s; relative %s)",
+                        testing::Sci(abs_err).c_str(),
+                        testing::Sci(GoldenMatrix().cwiseAbs().maxCoeff()).c_str(),
+                        testing::Sci(rel_err).c_str());
   EXPECT_LT(rel_err, 1e-12);
   EXPECT_LT(abs_err, 1e-7);
 }
@@ -143,6 +148,17 @@ TEST(RtkGeometry, GoldenVectorParametersRecoveredFromACamera) {
               p.sid_mm, p.sdd_mm, p.gantry_deg, p.out_of_plane_deg, p.in_plane_deg,
               p.source_offset_x_mm, p.source_offset_y_mm, p.projection_offset_x_mm,
               p.projection_offset_y_mm);
+  const double recovered =
+      std::max({std::abs(p.sid_mm - g.sid_mm),
+                std::abs(p.sdd_mm - g.sdd_mm),
+                std::abs(p.gantry_deg - g.gantry_deg),
+                std::abs(std::remainder(p.out_of_plane_deg, 360.0)),
+                std::abs(std::remainder(p.in_plane_deg, 360.0)),
+                std::abs(p.source_offset_x_mm),
+                std::abs(p.source_offset_y_mm),
+                std::abs(p.projection_offset_x_mm - g.projection_offset_x_mm),
+                std::abs(p.projection_offset_y_mm - g.projection_offset_y_mm)});
+  testing::RecordFigure("export.rtk_recovered", "%s", testing::Sci(recovered).c_str());
   EXPECT_NEAR(p.sid_mm, g.sid_mm, 1e-9);
   EXPECT_NEAR(p.sdd_mm, g.sdd_mm, 1e-9);
   EXPECT_NEAR(p.gantry_deg, g.gantry_deg, 1e-9);
@@ -188,6 +204,12 @@ TEST(RtkGeometry, RoundTripThroughTheXmlFile) {
       set.views.size(),
       worst,
       worst_px);
+  testing::RecordFigure("export.rtk_round_trip",
+                        "%zu random C-arm views with the thesis's fx != fy: "
+                        "RTK relative matrix difference %s (projections %s px)",
+                        set.views.size(),
+                        testing::Sci(worst).c_str(),
+                        testing::Sci(worst_px).c_str());
   EXPECT_LT(worst, kRoundTripTol);
   EXPECT_LT(worst_px, 1e-6);
 }
@@ -272,6 +294,7 @@ TEST(PlastimatchGeometry, RoundTripThroughTheProjectionMatrixFile) {
   }
   std::printf("plastimatch round trip over %zu views: relative matrix difference %.3g\n",
               set.views.size(), worst);
+  testing::RecordFigure("export.plastimatch_round_trip", "%s", testing::Sci(worst).c_str());
   EXPECT_LT(worst, kRoundTripTol);
 }
 
@@ -307,6 +330,7 @@ TEST(PlastimatchGeometry, MatchesPlastimatchsOwnWriter) {
   }
   std::printf("plastimatch drr -G against carmba's P: relative difference %.3g (float I/O)\n",
               worst);
+  testing::RecordFigure("export.plastimatch_writer", "%s", testing::Sci(worst).c_str());
   EXPECT_LT(worst, 1e-6);  // plastimatch parses its arguments into floats (~6e-8 relative)
 }
 
@@ -419,6 +443,7 @@ TEST(Undistort, DotsMoveToThePinholeProjection) {
   }
   std::printf("undistorted dots: worst centroid offset %.4f px (before undistortion %.2f px)\n",
               worst, worst_before);
+  testing::RecordFigure("export.undistort", "%.3f px (up to %.1f px before)", worst, worst_before);
   EXPECT_GT(worst_before, 3.0);  // the distortion is there to remove
   EXPECT_LT(worst, 0.05);        // bilinear resampling of 1.5 px Gaussians
   EXPECT_FALSE(UndistortImage(cv::Mat(10, 10, CV_16UC1), cam).ok());

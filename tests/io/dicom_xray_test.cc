@@ -24,6 +24,7 @@
 #include <opencv2/core.hpp>
 #include <random>
 
+#include "figures.h"
 #include "scratch.h"
 
 namespace carmba {
@@ -741,6 +742,7 @@ TEST(DicomXray, GdcmExampleXaFourFramesJpegLossless) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_TRUE(r.ok()) << r.status().message();
   std::cout << "read 00191113.dcm (4 frames 512 x 512, JPEG lossless) in " << ms << " ms\n";
+  testing::RecordFigure("dicomread.gdcm_example", "%.1f ms", ms);
   EXPECT_EQ(r->modality, "XA");
   EXPECT_EQ(r->transfer_syntax_uid, "1.2.840.10008.1.2.4.70");
   ASSERT_EQ(r->frames.size(), 4u);
@@ -795,6 +797,7 @@ TEST(DicomXray, ReadTimeOf512x512Frame) {
     }
     std::cout << "read a 512 x 512 16-bit frame (" << ts << "): " << ms << " ms (fastest of "
               << kReps << ")\n";
+    testing::RecordFigure("dicomread." + ts, "%.2f ms", ms);
     EXPECT_LT(ms, 500);
   }
 }
