@@ -14,8 +14,8 @@ scene's settings, a test's bounds, the thesis's printed tables).
       TEST_RUNS (beside the binary: BUILD/tests/) and takes the figures they record
       (tests/figures.h); runs the marker recall test on every seed set of RECALL_RUNS (two at a
       time); runs BENCH_FILTER's benchmarks of BUILD/tests/carmba_bench on one core
-      (build it first: it is not in `all`); writes the figures file and results.md. About 10 min 20
-      s in all (about 6 min of it the recall sets, development and unseen).
+      (it builds it: it is not in `all`); writes the figures file and results.md. 800 and 948 s
+      in two runs on 2 cores (about 6 min of it the recall sets, development and unseen).
   python3 scripts/results.py render [--check]
       writes results.md from the template and the figures file; --check writes nothing and exits
       1 when results.md differs from that (a hand edit, or a template changed without a render)
