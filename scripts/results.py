@@ -499,23 +499,31 @@ def recall_run(tests_dir, tmp, kind, gfilter, seed_set):
         missed[why] = int(n)
     if key + ".nees" not in props:
         sys.exit("results.py: the recall run of %s set %d recorded no NEES" % (kind, seed_set))
-    n, m2_sum, beyond, radial_sum, radial_sum2 = map(float, props[key + ".nees"].split())
+    (n, m2_sum, beyond, radial_sum, radial_sum2, widened_n,
+     widened_sum) = map(float, props[key + ".nees"].split())
     counts.update(nees_n=int(n), nees_sum=m2_sum, nees_beyond=int(beyond),
-                  radial_sum=radial_sum, radial_sum2=radial_sum2)
+                  radial_sum=radial_sum, radial_sum2=radial_sum2, nees_widened_n=int(widened_n),
+                  nees_widened_sum=widened_sum)
     return counts, missed
 
 
 def centre_errors(rows):
-    """The labelled centres' NEES per dof, share beyond chi2(2) at 1e-3, and mean radial error
-    with its standard error, over the sets' counts."""
+    """The labelled centres' NEES per dof, share beyond chi2(2) at 1e-3, mean radial error with
+    its standard error, and the NEES of the centres widened for their core-to-whole shift against
+    the others', over the sets' counts."""
     n = sum(c["nees_n"] for _, c in rows)
     if n < 2:
-        return "-", "-", "-"
-    mean = sum(c["radial_sum"] for _, c in rows) / n
-    var = max(0.0, sum(c["radial_sum2"] for _, c in rows) / n - mean * mean)
-    return ("%.2f over %d centres" % (sum(c["nees_sum"] for _, c in rows) / (2.0 * n), n),
-            "%.2f %%" % (100.0 * sum(c["nees_beyond"] for _, c in rows) / n),
-            "%+.4f +- %.4f px" % (mean, math.sqrt(var / (n - 1))))
+        return "-", "-", "-", "-"
+    total = lambda key: sum(c[key] for _, c in rows)
+    mean = total("radial_sum") / n
+    var = max(0.0, total("radial_sum2") / n - mean * mean)
+    wn, ws = total("nees_widened_n"), total("nees_widened_sum")
+    split = "%.2f over the %d widened (%s), %.2f over the others" % (
+        ws / (2.0 * wn) if wn else 0.0, wn, pct(wn, n),
+        (total("nees_sum") - ws) / (2.0 * (n - wn)) if n > wn else 0.0)
+    return ("%.2f over %d centres" % (total("nees_sum") / (2.0 * n), n),
+            "%.2f %%" % (100.0 * total("nees_beyond") / n),
+            "%+.4f +- %.4f px" % (mean, math.sqrt(var / (n - 1))), split)
 
 
 def pct(part, whole):
@@ -552,7 +560,8 @@ def recall_figures(tests_dir, tmp):
         fig[kind + "_table"] = table
         fig[kind + "_pct"] = pct(total["correct"], total["expected"])
         fig[kind + "_at_99"] = str(sum(1 for _, c in rows if c["correct"] >= 0.99 * c["expected"]))
-        fig[kind + "_nees"], fig[kind + "_beyond"], fig[kind + "_radial"] = centre_errors(rows)
+        (fig[kind + "_nees"], fig[kind + "_beyond"], fig[kind + "_radial"],
+         fig[kind + "_nees_split"]) = centre_errors(rows)
         fig[kind + "_missed"] = "; ".join(
             "%s %d" % (w, n) for w, n in sorted(missed.items(), key=lambda wn: (-wn[1], wn[0])))
     return {"recall." + k: v for k, v in fig.items()}

@@ -155,12 +155,14 @@ void RecordRecallFigures(
     missed += (missed.empty() ? "" : ";") + why + ":" + std::to_string(n);
   testing::RecordFigureText(key + ".missed", missed);
   testing::RecordFigure(key + ".nees",
-                        "%d %.6g %d %.6g %.6g",
+                        "%d %.6g %d %.6g %.6g %d %.6g",
                         t.nees_n,
                         t.nees_sum,
                         t.nees_beyond_1e3,
                         t.radial_sum,
-                        t.radial_sum2);
+                        t.radial_sum2,
+                        t.nees_widened_n,
+                        t.nees_widened_sum);
 }
 
 // Renders `scenes` scenes of the seed set `base` with `anatomy`, detects and labels every view,

@@ -43,6 +43,10 @@ struct Tally {
   // how many, the sum of their Mahalanobis^2, and how many lie beyond chi2(2) at 1e-3 (13.8).
   int nees_n = 0, nees_beyond_1e3 = 0;
   double nees_sum = 0;
+  // The same over the centres whose covariance the detector widened for their core-to-whole
+  // shift (MarkerBlob::background_shift_px above MarkerBlobOptions::unreliable_shift_px).
+  int nees_widened_n = 0;
+  double nees_widened_sum = 0;
   // Their errors along the direction from the view's markers' mean centre (px): a blur or a
   // background that moves every centre in or out shows as a mean that is not 0.
   double radial_sum = 0, radial_sum2 = 0;
@@ -54,6 +58,7 @@ struct Tally {
     outside += o.outside, crossed_by_wire += o.crossed_by_wire;
     for (const auto& [why, n] : o.missed) missed[why] += n;
     nees_n += o.nees_n, nees_beyond_1e3 += o.nees_beyond_1e3, nees_sum += o.nees_sum;
+    nees_widened_n += o.nees_widened_n, nees_widened_sum += o.nees_widened_sum;
     radial_sum += o.radial_sum, radial_sum2 += o.radial_sum2;
   }
   // The mean radial error (px) and its standard error, over the nees_n labelled centres.
@@ -182,6 +187,11 @@ inline Tally Score(const sim::XrayScene& scene,
               : 1e9;
       ++t.nees_n;
       t.nees_sum += m2;
+      if (ov.detection.blobs[labelled_blob].background_shift_px >
+          MarkerBlobOptions().unreliable_shift_px) {
+        ++t.nees_widened_n;
+        t.nees_widened_sum += m2;
+      }
       const Eigen::Vector2d out = c[k] - mean_centre;
       const double radial = out.norm() > 1 ? e.dot(out.normalized()) : 0.0;
       t.radial_sum += radial;
