@@ -26,6 +26,7 @@ import json
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -367,7 +368,8 @@ def clutter_pose_figures(out):
         "subtracted" if s["applied"] else "evaluated, not applied")}
 
 
-SECTIONS = {"thesis": thesis_figures, "clutterpose": clutter_pose_figures, "joint": joint_figures, "mrcal": mrcal_figures,
+SECTIONS = {"thesis": thesis_figures, "clutterpose": clutter_pose_figures,
+            "joint": joint_figures, "mrcal": mrcal_figures,
             "tre": tre_figures,
             "calib": calib_figures, "track": track_figures, "simct": simct_figures,
             "realct": realct_figures, "flex": flex_figures}
@@ -745,9 +747,7 @@ def rigid_flex_figures(binary, tmp):
                "--diameter-mm", "2", "--expected", "9", "--out",
                os.path.join(sim, "fiducials.csv"))
     problem = os.path.join(root, "problems/flex_joint_smooth.yaml")
-    with open(os.path.join(ROOT, "problems/flex_joint_smooth.yaml")) as src, \
-            open(problem, "w") as dst:
-        dst.write(src.read())
+    shutil.copyfile(os.path.join(ROOT, "problems/flex_joint_smooth.yaml"), problem)
     out = os.path.join(root, "solve")
     run_carmba(binary, "solve", "--problem", problem, "--config", "configs/joint_radial.yaml",
                "--out", out, "--no-plots", "--no-mrcal")
@@ -874,11 +874,9 @@ def plate_bias(binary, scene_yaml, tmp, name):
     with open(scene_yaml) as fh:
         plate = yaml.safe_load(fh)["plate"]
     sim, obs = os.path.join(tmp, "bias_" + name), os.path.join(tmp, "bias_" + name + ".csv")
-    subprocess.run([binary, "simulate", "--scene", scene_yaml, "--out", sim], check=True,
-                   stdout=subprocess.DEVNULL)
-    subprocess.run([binary, "detect", "--images", sim, "--rows", str(plate["rows"]), "--cols",
-                    str(plate["cols"]), "--spacing-mm", str(plate["pitch_mm"]), "--out", obs],
-                   check=True, stdout=subprocess.DEVNULL)
+    run_carmba(binary, "simulate", "--scene", scene_yaml, "--out", sim)
+    run_carmba(binary, "detect", "--images", sim, "--rows", str(plate["rows"]), "--cols",
+               str(plate["cols"]), "--spacing-mm", str(plate["pitch_mm"]), "--out", obs)
     text = subprocess.run([sys.executable, os.path.join(ROOT, "scripts/plate_radial_bias.py"), sim,
                            obs, str(plate["sphere_diameter_mm"] / 2)], check=True,
                           capture_output=True, text=True).stdout
