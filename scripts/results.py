@@ -798,7 +798,8 @@ def calib_cross_check_figures(binary, tmp):
     """`carmba calibrate` with its mrcal cross-check on the demo's simulated plate (three configs),
     and with mrcal and OpenCV on OpenCV's chessboard photos (problems/calib_opencv_left.yaml)."""
     sim = os.path.join(tmp, "calibration_sim")
-    run_carmba(binary, "simulate", "--scene", "configs/scenes/thesis_calibration.yaml", "--out", sim)
+    run_carmba(binary, "simulate", "--scene", "configs/scenes/thesis_calibration.yaml", "--out",
+               sim)
     figures = {}
     for config in ("calib_radial", "calib_thesis", "calib_free"):
         out = os.path.join(tmp, "cross_" + config)
