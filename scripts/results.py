@@ -479,7 +479,7 @@ RECALL_COMMAND = ("CARMBA_MARKER_RECALL_SEED=S CARMBA_MARKER_RECALL_SCENES=%d "
                   "build/tests/carmba_detect_test --gtest_filter='MarkerRecall.XaFrame*' (or "
                   "'MarkerRecall.RealCt*')" % RECALL_SCENES)
 RECALL_FIELDS = ("scenes", "views", "views_skipped", "expected", "correct", "wrong", "beads",
-                 "overlap_labelled", "overlapping")
+                 "overlap_labelled", "overlapping", "off_centre")
 
 
 def recall_run(tests_dir, tmp, kind, gfilter, seed_set):
@@ -535,13 +535,15 @@ def pct(part, whole):
 def recall_table(rows):
     """rows: [(set, counts)] -> the markdown table with a row for all sets together, and the
     totals."""
-    lines = ["| seed set | labelled correctly | wrong centres | beads labelled | "
-             "overlapped markers labelled | views skipped |", "|---|---|---|---|---|---|"]
+    lines = ["| seed set | labelled correctly | wrong labels | centres off their covariance | "
+             "beads labelled | overlapped markers labelled | views skipped |",
+             "|---|---|---|---|---|---|---|"]
     total = {k: sum(c[k] for _, c in rows) for k in RECALL_FIELDS}
     for seed_set, c in rows + [("**all**", total)]:
-        lines.append("| %s | %d of %d (%s) | %d | %d | %d of %d | %d of %d |" % (
+        lines.append("| %s | %d of %d (%s) | %d | %d | %d | %d of %d | %d of %d |" % (
             seed_set, c["correct"], c["expected"], pct(c["correct"], c["expected"]), c["wrong"],
-            c["beads"], c["overlap_labelled"], c["overlapping"], c["views_skipped"], c["views"]))
+            c["off_centre"], c["beads"], c["overlap_labelled"], c["overlapping"],
+            c["views_skipped"], c["views"]))
     return "\n".join("  " + line for line in lines), total  # indented: inside a list item
 
 

@@ -78,7 +78,8 @@ struct MarkerBlobOptions {
   double merge_area_ratio = 1.6;  // half-peak area / expected area above which it is two
   double merge_distance = 1.25;   // pieces closer than this x D are one merged blob
   // A centre whose core and whole-blob centroids are further apart than this (px) is widened by
-  // the excess (MarkerBlob::background_shift_px): shifts below it are what pixel noise gives.
+  // a share of the excess (MarkerBlob::background_shift_px): shifts below it are what pixel noise
+  // gives.
   double unreliable_shift_px = 0.05;
   // Remove the blur's pull on each centre (MarkerBlob::blur_correction_px), with the blur's
   // variance taken from the noise's correlation (MarkerBlobDetection::blur_variance_px2).
@@ -101,8 +102,8 @@ struct MarkerBlob {
   double contrast = 0;     // peak attenuation
   // Distance between the blob's core and whole-blob centroids (RefineCentroid's shift_px): a
   // background edge or a wire across the marker. Above unreliable_shift_px its centre is not
-  // trusted to the noise covariance: the covariance is widened by (shift - unreliable_shift_px)^2
-  // per axis.
+  // trusted to the noise covariance: the covariance is widened by a share of (shift -
+  // unreliable_shift_px) per axis (marker_blobs.cc kShiftRmsShare).
   double background_shift_px = 0;
   // Added to the measured centre (included in uv_px): the detector blur's pull towards the darker
   // side of a sloping background, s^2 x the log background's gradient (MarkerBlobOptions::

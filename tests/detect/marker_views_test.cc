@@ -57,6 +57,7 @@ void ExpectAllCorrect(const Tally& t, const std::string& what, const char* figur
   EXPECT_GT(t.expected, 40);
   EXPECT_EQ(t.correct, t.expected);
   EXPECT_EQ(t.wrong, 0);
+  EXPECT_EQ(t.off_centre, 0);
   EXPECT_EQ(t.spurious_labelled, 0);
   EXPECT_EQ(t.overlap_labelled, 0);
   EXPECT_EQ(t.outside_labelled, 0);
