@@ -389,10 +389,13 @@ std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low,
                          peak,
                          PieceRejection(pieces, i, z, o, 0)};
       // A round piece too large for one marker, or beside another piece, is looked at again
-      // against its own surroundings: on a plateau it is one marker. A neighbouring piece counts
-      // there only when it stands half the peak threshold above its own surroundings (a noise
-      // crest on the plateau does not). A stretched piece keeps its verdict: a wire or an edge
-      // touching the marker, which the local level would cut off but the centroid still sees.
+      // against its own surroundings: on a plateau it is one marker. It, and a neighbouring piece,
+      // count there when they stand half the peak threshold above their own surroundings (a noise
+      // crest on the plateau does not; the component's peak has passed the whole threshold). A
+      // small marker on anatomy's plateau stood 0.33 above it against a threshold of 0.37 (seed
+      // 1006 of tests/detect/marker_recall_test.cc's real-CT set 1) and was lost as "merged". A
+      // stretched piece short enough to be called merged keeps its verdict: two markers side by
+      // side look alike (blob_pair_fit.h takes such pairs apart).
       if ((cand.why == "merged" || cand.why == "too large") && !Stretched(pieces[i], o)) {
         if (local.empty()) {
           for (const Piece& pc : pieces) local.push_back(LocalHalfPeakPiece(contrast, pc, z));
@@ -404,10 +407,27 @@ std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low,
         judged[i].area = local[i].area;
         judged[i].major = local[i].major;
         judged[i].minor = local[i].minor;
-        if (local[i].height >= t_peak && PieceRejection(judged, i, z, o, 0.5 * t_peak).empty()) {
+        if (local[i].height >= 0.5 * t_peak &&
+            PieceRejection(judged, i, z, o, 0.5 * t_peak).empty()) {
           cand.surroundings_shift_px = cv::norm(local[i].centre - cand.centre);
           cand.centre = local[i].centre;
           cand.diameter = 2 * std::sqrt(local[i].area / M_PI);
+          cand.why.clear();
+        }
+      }
+      // A piece too long for any marker pair whose darkest pixel stands on a round, marker-sized
+      // region of its own (against its own surroundings, as above) is that marker, touched by a
+      // wire or an edge at the component's half-peak level (16 of the 35 markers the real-CT
+      // development sets lost as "no blob found there"): the pull of what touches it shows in the
+      // core-to-whole shift and the ring's arcs, which widen its covariance (RefineCandidate).
+      if (cand.why == "elongated") {
+        std::vector<Piece> judged = pieces;
+        judged[i].centre = cv::Point2d(pieces[i].peak_at);
+        judged[i] = LocalHalfPeakPiece(contrast, judged[i], z);
+        if (judged[i].height >= 0.5 * t_peak &&
+            PieceRejection(judged, i, z, o, 0.5 * t_peak).empty()) {
+          cand.centre = judged[i].centre;
+          cand.diameter = 2 * std::sqrt(judged[i].area / M_PI);
           cand.why.clear();
         }
       }
