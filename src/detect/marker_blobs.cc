@@ -417,7 +417,7 @@ std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low,
       }
       // A piece too long for any marker pair whose darkest pixel stands on a round, marker-sized
       // region of its own (against its own surroundings, as above) is that marker, touched by a
-      // wire or an edge at the component's half-peak level (16 of the 35 markers the real-CT
+      // wire or an edge at the component's half-peak level (26 of the 45 markers the real-CT
       // development sets lost as "no blob found there"): the pull of what touches it shows in the
       // core-to-whole shift and the ring's arcs, which widen its covariance (RefineCandidate).
       if (cand.why == "elongated") {
