@@ -352,6 +352,25 @@ std::string PieceRejection(const std::vector<Piece>& pieces,
   return "";
 }
 
+// Whether piece i of `judged` (re-measured against its own surroundings, LocalHalfPeakPiece) is
+// one marker there: it stands half the peak threshold above its surroundings, and so does any
+// neighbour that makes it "merged" (a noise crest on a plateau does not).
+bool OneMarkerOnItsOwn(const std::vector<Piece>& judged,
+                       size_t i,
+                       double t_peak,
+                       const BlobSizes& z,
+                       const MarkerBlobOptions& o) {
+  const double min_height = 0.5 * t_peak;
+  return judged[i].height >= min_height && PieceRejection(judged, i, z, o, min_height).empty();
+}
+
+// The candidate taken as the region `own` (a piece re-measured on its own surroundings).
+void TakeOwnRegion(const Piece& own, BlobCandidate* cand) {
+  cand->centre = own.centre;
+  cand->diameter = 2 * std::sqrt(own.area / M_PI);
+  cand->why.clear();
+}
+
 // 4. The candidates: connected components above t_low; those peaking below t_peak are listed as
 // "low contrast" when blob-sized; the others split into their half-peak pieces, each judged.
 std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low, double t_peak,
@@ -407,12 +426,9 @@ std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low,
         judged[i].area = local[i].area;
         judged[i].major = local[i].major;
         judged[i].minor = local[i].minor;
-        if (local[i].height >= 0.5 * t_peak &&
-            PieceRejection(judged, i, z, o, 0.5 * t_peak).empty()) {
+        if (OneMarkerOnItsOwn(judged, i, t_peak, z, o)) {
           cand.surroundings_shift_px = cv::norm(local[i].centre - cand.centre);
-          cand.centre = local[i].centre;
-          cand.diameter = 2 * std::sqrt(local[i].area / M_PI);
-          cand.why.clear();
+          TakeOwnRegion(local[i], &cand);
         }
       }
       // A piece too long for any marker pair whose darkest pixel stands on a round, marker-sized
@@ -424,12 +440,7 @@ std::vector<BlobCandidate> BlobCandidates(const cv::Mat& contrast, double t_low,
         std::vector<Piece> judged = pieces;
         judged[i].centre = cv::Point2d(pieces[i].peak_at);
         judged[i] = LocalHalfPeakPiece(contrast, judged[i], z);
-        if (judged[i].height >= 0.5 * t_peak &&
-            PieceRejection(judged, i, z, o, 0.5 * t_peak).empty()) {
-          cand.centre = judged[i].centre;
-          cand.diameter = 2 * std::sqrt(judged[i].area / M_PI);
-          cand.why.clear();
-        }
+        if (OneMarkerOnItsOwn(judged, i, t_peak, z, o)) TakeOwnRegion(judged[i], &cand);
       }
       cands.push_back(cand);
     }
