@@ -65,6 +65,13 @@ constexpr int kMaxHypotheses = 50000;
 // "60 %" of a fraction.
 std::string Percent(double fraction) { return Fmt("%.0f", 100 * fraction) + " %"; }
 
+// Why a labelling is not accepted (Labeller::Rejection), and the requirement it failed, stated.
+struct Refusal {
+  enum class Kind { kNone, kTooFewMarkers, kRms, kWrongDepth, kPairsDisagree };
+  Kind kind = Kind::kNone;
+  std::string why;
+};
+
 class Labeller {
  public:
   Labeller(const Camera& cam,
@@ -371,28 +378,36 @@ class Labeller {
     return std::max(o_.min_markers,
                     static_cast<int>(std::ceil(o_.min_fraction * Separable(pose) - 1e-9)));
   }
-  // Why `s` is not accepted ("" when it is).
-  std::string Rejection(const Scored& s) const {
+  // Why `s` is not accepted (kind kNone when it is).
+  Refusal Rejection(const Scored& s) const {
     const int needed = Needed(s.pose);
     if (s.num_labelled < needed) {
-      return "needs " + std::to_string(needed) + " markers (at least " +
-             std::to_string(o_.min_markers) + ", and " + Percent(o_.min_fraction) + " of the " +
-             std::to_string(Separable(s.pose)) +
-             " its pose predicts visible and apart from other markers and rejected blobs)";
+      return {Refusal::Kind::kTooFewMarkers,
+              "needs " + std::to_string(needed) + " markers (at least " +
+                  std::to_string(o_.min_markers) + ", and " + Percent(o_.min_fraction) +
+                  " of the " + std::to_string(Separable(s.pose)) +
+                  " its pose predicts visible and apart from other markers and rejected blobs)"};
     }
     if (!(s.Rms() <= o_.accept_rms_px))
-      return "needs an RMS within " + Fmt("%.2f", o_.accept_rms_px) + " px";
-    if (o_.px_per_mm > 0) {
-      const double mag = Magnification(s.pose);
-      const double k = 1 + o_.scale_tolerance;
-      if (!(mag > o_.px_per_mm / k && mag < o_.px_per_mm * k)) {
-        return "its magnification " + Fmt("%.2f", mag) + " px/mm is not within " +
-               Percent(o_.scale_tolerance) + " of the nominal " + Fmt("%.2f", o_.px_per_mm);
-      }
+      return {Refusal::Kind::kRms, "needs an RMS within " + Fmt("%.2f", o_.accept_rms_px) + " px"};
+    if (!AtNominalDepth(s)) {
+      return {Refusal::Kind::kWrongDepth,
+              "its magnification " + Fmt("%.2f", Magnification(s.pose)) + " px/mm is not within " +
+                  Percent(o_.scale_tolerance) + " of the nominal " + Fmt("%.2f", o_.px_per_mm)};
     }
-    return DisagreeingPair(s);
+    const std::string disagree = DisagreeingPair(s);
+    if (!disagree.empty()) return {Refusal::Kind::kPairsDisagree, disagree};
+    return {};
   }
-  bool Accepted(const Scored& s) const { return Rejection(s).empty(); }
+  // The pose of `s` puts the markers at the nominal magnification (within scale_tolerance), or
+  // the magnification is unknown.
+  bool AtNominalDepth(const Scored& s) const {
+    if (!(o_.px_per_mm > 0)) return true;
+    const double mag = Magnification(s.pose);
+    const double k = 1 + o_.scale_tolerance;
+    return mag > o_.px_per_mm / k && mag < o_.px_per_mm * k;
+  }
+  bool Accepted(const Scored& s) const { return Rejection(s).kind == Refusal::Kind::kNone; }
 
   // fx / depth of the markers' centroid at `pose`.
   double Magnification(const Pose6& pose) const {
@@ -535,7 +550,10 @@ class TripleSearch {
   int best_accepted_markers() const { return best_markers_; }
 
   std::vector<Scored> accepted;  // distinct accepted labellings
-  Scored best_any;               // the best seen, accepted or not (for the error)
+  Scored best_any;               // the best seen, accepted or not
+  // The best seen at the nominal magnification (for the error: one at a wrong depth is a chance
+  // fit, and the reason it was refused says nothing about the view).
+  Scored best_at_depth;
   int hypotheses = 0;            // P3P solves
 
  private:
@@ -567,10 +585,8 @@ class TripleSearch {
   }
 
   void Consider(const Scored& sc) {
-    if (sc.num_labelled > best_any.num_labelled ||
-        (sc.num_labelled == best_any.num_labelled && sc.Rms() < best_any.Rms())) {
-      best_any = sc;
-    }
+    if (Better(sc, best_any)) best_any = sc;
+    if (Better(sc, best_at_depth) && lab_->AtNominalDepth(sc)) best_at_depth = sc;
     if (!lab_->Accepted(sc)) return;
     bool same = false;
     for (Scored& a : accepted) {
@@ -603,6 +619,35 @@ std::string Describe(const Scored& s) {
   os.precision(3);
   os << s.num_labelled << " markers at RMS " << s.Rms() << " px";
   return os.str();
+}
+
+// Why no labelling of the `m` markers to the `n` blobs was taken: the best one found (preferring
+// one at the nominal magnification; when `outvoted`, the one that outvoted the accepted ones),
+// with the reason it was refused (stated at its own pose) and what that reason suggests.
+std::string NoLabelling(
+    const Labeller& lab, const TripleSearch& search, int m, int n, bool outvoted) {
+  const Scored& best =
+      !outvoted && search.best_at_depth.num_labelled ? search.best_at_depth : search.best_any;
+  const std::string head = "no labelling of the " + std::to_string(m) + " fiducials explains the " +
+                           std::to_string(n) + " blobs (best: ";
+  if (!best.num_labelled) {
+    return head + "none; a labelling needs " + std::to_string(lab.options().min_markers) +
+           " markers): fiducials of another object, or a wrong camera?";
+  }
+  const Refusal refusal = lab.Rejection(best);
+  std::string hint = "fiducials of another object, or a wrong camera?";
+  if (outvoted) {
+    hint = "the accepted labellings of fewer markers contradict it";
+  } else if (refusal.kind == Refusal::Kind::kTooFewMarkers) {
+    hint =
+        "too few markers seen apart (merged, hidden by anatomy or metal), or fiducials of "
+        "another object?";
+  } else if (refusal.kind == Refusal::Kind::kPairsDisagree) {
+    hint =
+        "a marker's centre pulled by an edge or a shadow in line, with no fifth marker to "
+        "tell which";
+  }
+  return head + Describe(best) + "; refused: " + refusal.why + "): " + hint;
 }
 
 }  // namespace
@@ -690,17 +735,7 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
   const bool outvoted = !accepted.empty() &&
                         best_any.num_labelled > accepted.front().num_labelled &&
                         Contradict(best_any, accepted.front());
-  if (accepted.empty() || outvoted) {
-    // Why the best labelling found was not taken, stated at its own pose.
-    return Status::Error(
-        "no labelling of the " + std::to_string(m) + " fiducials explains the " +
-        std::to_string(n) + " blobs (best: " +
-        (best_any.num_labelled ? Describe(best_any) + ", which " + lab.Rejection(best_any)
-                               : std::string("none; a labelling needs " +
-                                             std::to_string(o.min_markers) + " markers")) +
-        (outvoted ? "; the accepted labellings of fewer markers contradict it" : "") +
-        "): fiducials of another object, or a wrong camera?");
-  }
+  if (accepted.empty() || outvoted) return Status::Error(NoLabelling(lab, search, m, n, outvoted));
   // The best and the labellings contradicting it that explain the blobs about as well. When there
   // are such, only the pairs they all share are kept (the markers they agree on are certain; the
   // others are contested), if those are still enough for min_markers and min_fraction; else the

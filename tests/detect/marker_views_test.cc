@@ -484,7 +484,7 @@ TEST(MarkerCorrespondence, MinFractionCountsOnlySeparableMarkers) {
   ASSERT_FALSE(refused.ok());
   const std::string msg = refused.status().message();
   EXPECT_NE(msg.find("best: 5 markers"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("which needs 9 markers (at least 4, and 100 % of the 9 its pose predicts "
+  EXPECT_NE(msg.find("refused: needs 9 markers (at least 4, and 100 % of the 9 its pose predicts "
                      "visible and apart"),
             std::string::npos)
       << msg;
@@ -619,6 +619,39 @@ TEST(MarkerCorrespondence, ABeadBesideAHiddenMarkerIsNotTakenForIt) {
       }
     }
   }
+}
+
+// Four markers seen, one blob pulled 1.5 px off its marker (an edge across it), the fifth marker
+// under rejected metal; and four more blobs that four of the markers fit exactly, but at twice the
+// nominal distance (a chance fit at a wrong depth). The view is refused, and the message names
+// the labelling at the nominal depth and why it was refused (its pairs disagree), not the
+// better-fitting one at the wrong depth.
+TEST(MarkerCorrespondence, RefusedViewNamesTheLabellingAtTheNominalDepth) {
+  const Camera cam = TestCamera();
+  auto P = ThesisLayout();
+  P.resize(5);
+  std::mt19937_64 rng(8);
+  const Pose6 pose = RandomPose(rng, P);
+  const auto projected = Project(cam, pose, P);
+  std::vector<Eigen::Vector2d> uv(projected.begin(), projected.begin() + 4);
+  uv[2] += Eigen::Vector2d(1.2, -0.9);
+  Pose6 far = pose;
+  far.tail<3>() *= 2.0;
+  far[3] += 60;
+  const auto at_far = Project(cam, far, P);
+  uv.insert(uv.end(), at_far.begin(), at_far.begin() + 4);
+  ViewContext context;
+  context.blob_sigma_px.assign(uv.size(), 0.1);
+  context.obstructions = {projected[4], at_far[4]};
+  CorrespondenceOptions co;
+  co.px_per_mm = 2000.0 / 700.0;
+  const auto lab = LabelMarkerBlobs(cam, P, uv, co, std::nullopt, context);
+  ASSERT_FALSE(lab.ok());
+  const std::string msg = lab.status().message();
+  EXPECT_NE(msg.find("best: 4 markers"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("refused: its 4 pairs disagree"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("no fifth marker"), std::string::npos) << msg;
+  EXPECT_EQ(msg.find("magnification"), std::string::npos) << msg;
 }
 
 TEST(MarkerCorrespondence, SymmetricLayoutIsAnAmbiguityError) {
