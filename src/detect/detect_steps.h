@@ -53,6 +53,12 @@ struct CentroidNoise {
   double floor_variance_per_grey = 0.0;
   double floor_variance_gray = 0.0;
   cv::Matx22d covariance_px2 = cv::Matx22d::zeros();
+  // Out: the covariance of the core-to-whole shift vector (core centroid - whole-blob centroid)
+  // that the same noise gives it, px^2: the shift noise alone makes (its trace is the expected
+  // squared shift of a blob on a clean background).
+  cv::Matx22d shift_covariance_px2 = cv::Matx22d::zeros();
+  // Out: the part of the core-to-whole shift that noise does not explain (ShiftBeyondNoise), px.
+  double shift_beyond_noise_px = 0;
   double sigma_gray = 0;
   double peak_contrast = 0;
   double background = 0;
@@ -83,6 +89,13 @@ struct CentroidNoise {
 // - markers on anatomy: 5 % (15 % labelled markers wrong on the recall sets).
 constexpr double kPlateCentroidFloor = 0.15;
 constexpr double kMarkerCentroidFloor = 0.05;
+
+// The part of a core-to-whole shift (px) that the pixel noise does not explain: noise alone
+// makes a shift vector of covariance `shift_covariance_px2` (CentroidNoise), whose squared length
+// exceeds kShiftNoiseQuantile x its trace in about 5 % of blobs on a clean background; what lies
+// beyond that, in quadrature, is the background's (an edge or a wire across the disc).
+constexpr double kShiftNoiseQuantile = 3.0;  // chi2(2) at 95 % over 2
+double ShiftBeyondNoise(double shift_px, const cv::Matx22d& shift_covariance_px2);
 
 // Sub-pixel centre of a blob around `c` on the float image `f` (grid_detector.cc documents the
 // window, disc, ring and weights): only pixels with `valid` != 0 are used; `nn_px` the distance to

@@ -112,6 +112,12 @@ Status LoadDetectionOptions(const std::string& path, DetectionOptions* options) 
 //               moves to the core's as they part from 0.03 to 0.06 px (`shift_px`: their
 //               distance at the end; a large one flags a centre still unreliable).
 // Iterated until the centre moves less than 1e-3 px.
+double ShiftBeyondNoise(double shift_px, const cv::Matx22d& shift_covariance_px2) {
+  const double noise2 =
+      kShiftNoiseQuantile * (shift_covariance_px2(0, 0) + shift_covariance_px2(1, 1));
+  return std::sqrt(std::max(0.0, shift_px * shift_px - noise2));
+}
+
 namespace {
 // The core centroid (RefineCentroid "core"): contrast above this fraction of the peak.
 constexpr double kCoreFloor = 0.25;
@@ -257,13 +263,98 @@ struct CentroidEstimate {
   double shift = 0, toward_core = 0;
 };
 
-// Centre covariance (detect_steps.h CentroidNoise): c = sum w_i x_i / S, dc/dw_i = (x_i - c) / S;
-// the centre used, (1 - t) c_full + t c_core (t held), has dc/dw_i = a_i = (1 - t) (x_i - c_full)
-// / S_full [w_i > floor] + t (x_i - c_core) / S_core [w_i > core floor]. w_i depends on the pixel
-// I_i and on the ring's plane p = (a, b, c): dark: w = 1 - I / bg, dw/dI = -1 / bg, dw/dp = I /
-// bg^2 [1, ex, ey], var I_i = sigma^2 I_i / bg_i (quanta); bright: dw/dI = 1, dw/dp = -[1, ex,
-// ey], var I_i = sigma^2. Cov_p = sigma^2 (A^T A)^-1 (the ring fit). Both scaled by the noise's
-// correlation factor. The pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 +
+// A linear function of the disc's pixels (a centroid, or a combination of two): per pixel its
+// derivative times the pixel's noise sigma relative to the ring's (g, on the window's grid of
+// `side` x `side`), and its derivative with respect to the ring's background plane (G).
+struct PixelSensitivity {
+  std::vector<cv::Vec2d> g;
+  int side = 0;
+  cv::Matx23d G = cv::Matx23d::zeros();
+
+  PixelSensitivity() = default;
+  explicit PixelSensitivity(int s) : g(static_cast<size_t>(s) * s, cv::Vec2d(0, 0)), side(s) {}
+  // Pixel `at` with derivative `a` with respect to its weight, dw/dI sqrt(var I) `scale` and
+  // dw/dplane `dw_dp`.
+  void Add(size_t at, const cv::Vec2d& a, double scale, const cv::Vec3d& dw_dp) {
+    g[at] = a * scale;
+    for (int j = 0; j < 3; ++j) G(0, j) += a[0] * dw_dp[j], G(1, j) += a[1] * dw_dp[j];
+  }
+  // a x this + b x other.
+  PixelSensitivity Combined(double a, const PixelSensitivity& other, double b) const {
+    PixelSensitivity out(side);
+    for (size_t i = 0; i < g.size(); ++i) out.g[i] = a * g[i] + b * other.g[i];
+    out.G = a * G + b * other.G;
+    return out;
+  }
+  // Its covariance per unit ring variance: the pixels' with the noise's correlation
+  // rho1^(dx^2 + dy^2), |d| <= 3, and the ring plane's (its normal matrix inverted, `ring_inv`),
+  // scaled by the noise's correlation factor.
+  cv::Matx22d Covariance(double rho1,
+                         double correlation_factor,
+                         const cv::Matx33d& ring_inv) const {
+    double rho[4];
+    for (int k = 0; k < 4; ++k) rho[k] = std::pow(rho1, k * k);
+    cv::Matx22d cov = cv::Matx22d::zeros();
+    for (int y = 0; y < side; ++y) {
+      for (int x = 0; x < side; ++x) {
+        const cv::Vec2d& gi = g[y * side + x];
+        if (gi[0] == 0 && gi[1] == 0) continue;
+        for (int dy = -3; dy <= 3; ++dy) {
+          if (y + dy < 0 || y + dy >= side) continue;
+          for (int dx = -3; dx <= 3; ++dx) {
+            if (x + dx < 0 || x + dx >= side) continue;
+            const cv::Vec2d& gj = g[(y + dy) * side + x + dx];
+            const double r = rho[std::abs(dx)] * rho[std::abs(dy)];
+            cov(0, 0) += r * gi[0] * gj[0], cov(0, 1) += r * gi[0] * gj[1];
+            cov(1, 1) += r * gi[1] * gj[1];
+          }
+        }
+      }
+    }
+    cov(1, 0) = cov(0, 1);
+    return cov + correlation_factor * G * ring_inv * G.t();
+  }
+};
+
+// The whole-blob and the core centroid as linear functions of the disc's pixels.
+struct DiscSensitivity {
+  PixelSensitivity full, core;
+};
+
+// c = sum w_i x_i / S, dc/dw_i = (x_i - c) / S (over w_i > floor for the whole blob, w_i > core
+// floor for the core). w_i depends on the pixel I_i and on the ring's plane p = (a, b, c): dark:
+// w = 1 - I / bg, dw/dI = -1 / bg, dw/dp = I / bg^2 [1, ex, ey], var I_i = sigma^2 I_i / bg_i
+// (quanta); bright: dw/dI = 1, dw/dp = -[1, ex, ey], var I_i = sigma^2.
+DiscSensitivity Sensitivities(const std::vector<CentroidPixel>& disc,
+                              const CentroidEstimate& e,
+                              const cv::Vec3d& plane,
+                              bool dark,
+                              int cx,
+                              int cy,
+                              int rw) {
+  const int side = 2 * rw + 1;
+  DiscSensitivity out{PixelSensitivity(side), PixelSensitivity(side)};
+  for (const CentroidPixel& q : disc) {
+    if (q.value - e.floor <= 0) continue;
+    const double x = q.ex + cx, y = q.ey + cy;
+    const double bg = PlaneAt(plane, q);
+    const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
+    const double var_I = dark ? std::max(0.0, I / bg) : 1.0;
+    const double scale = (dark ? -1.0 / bg : 1.0) * std::sqrt(var_I);
+    const double s_p = dark ? I / (bg * bg) : -1.0;
+    const cv::Vec3d dw_dp(s_p, s_p * q.ex, s_p * q.ey);
+    const size_t at = static_cast<size_t>((q.ey + rw) * side + (q.ex + rw));
+    out.full.Add(at, cv::Vec2d(x - e.full.x, y - e.full.y) / e.sw, scale, dw_dp);
+    if (q.value - e.core_floor > 0)
+      out.core.Add(at, cv::Vec2d(x - e.core.x, y - e.core.y) / e.hw, scale, dw_dp);
+  }
+  return out;
+}
+
+// The centre's covariance (detect_steps.h CentroidNoise), of the centre used, (1 - t) c_full +
+// t c_core (t held), and the core-to-whole shift's (c_core - c_full) with the part of the shift
+// beyond it (ShiftBeyondNoise). Cov_p = sigma^2 (A^T A)^-1 (the ring fit), scaled by the noise's
+// correlation factor; the pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 +
 // dy^2), |d| <= 3: sum_ij g_i g_j^T rho(i - j), g_i = a_i dw/dI sqrt(var I_i / sigma^2).
 void CentroidCovariance(const std::vector<CentroidPixel>& disc,
                         const CentroidEstimate& e,
@@ -275,52 +366,18 @@ void CentroidCovariance(const std::vector<CentroidPixel>& disc,
                         int cy,
                         int rw,
                         CentroidNoise* noise) {
-  const int side = 2 * rw + 1;
-  std::vector<cv::Vec2d> g(static_cast<size_t>(side) * side, cv::Vec2d(0, 0));
-  cv::Matx23d G = cv::Matx23d::zeros();
-  for (const CentroidPixel& q : disc) {
-    if (q.value - e.floor <= 0) continue;
-    const double x = q.ex + cx, y = q.ey + cy;
-    cv::Vec2d a = cv::Vec2d(x - e.full.x, y - e.full.y) * ((1.0 - e.toward_core) / e.sw);
-    if (q.value - e.core_floor > 0)
-      a += cv::Vec2d(x - e.core.x, y - e.core.y) * (e.toward_core / e.hw);
-    const double bg = PlaneAt(plane, q);
-    const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
-    const double var_I = dark ? std::max(0.0, I / bg) : 1.0;
-    const double dw_dI = dark ? -1.0 / bg : 1.0;
-    g[(q.ey + rw) * side + (q.ex + rw)] = a * (dw_dI * std::sqrt(var_I));
-    const double s_p = dark ? I / (bg * bg) : -1.0;
-    const cv::Vec3d dw_dp(s_p, s_p * q.ex, s_p * q.ey);
-    for (int j = 0; j < 3; ++j) G(0, j) += a[0] * dw_dp[j], G(1, j) += a[1] * dw_dp[j];
-  }
-  double rho[4];
-  for (int k = 0; k < 4; ++k) rho[k] = std::pow(noise->rho1, k * k);
-  cv::Matx22d cov_pix = cv::Matx22d::zeros();
-  for (int y = 0; y < side; ++y) {
-    for (int x = 0; x < side; ++x) {
-      const cv::Vec2d& gi = g[y * side + x];
-      if (gi[0] == 0 && gi[1] == 0) continue;
-      for (int dy = -3; dy <= 3; ++dy) {
-        if (y + dy < 0 || y + dy >= side) continue;
-        for (int dx = -3; dx <= 3; ++dx) {
-          if (x + dx < 0 || x + dx >= side) continue;
-          const cv::Vec2d& gj = g[(y + dy) * side + x + dx];
-          const double r = rho[std::abs(dx)] * rho[std::abs(dy)];
-          cov_pix(0, 0) += r * gi[0] * gj[0], cov_pix(0, 1) += r * gi[0] * gj[1];
-          cov_pix(1, 1) += r * gi[1] * gj[1];
-        }
-      }
-    }
-  }
-  cov_pix(1, 0) = cov_pix(0, 1);
+  const DiscSensitivity ds = Sensitivities(disc, e, plane, dark, cx, cy, rw);
   const double sigma_used = std::max(
       ring_sigma, std::sqrt(std::max(noise->floor_variance_per_grey * std::max(0.0, plane[0]),
                                      noise->floor_variance_gray)));
   const double sigma2 = sigma_used * sigma_used;
-  const cv::Matx22d cov =
-      (cov_pix + noise->correlation_factor * G * ring_AtA.inv(cv::DECOMP_CHOLESKY) * G.t()) *
-      sigma2;
-  noise->covariance_px2 = cov;
+  const cv::Matx33d ring_inv = ring_AtA.inv(cv::DECOMP_CHOLESKY);
+  const auto covariance = [&](const PixelSensitivity& p) {
+    return p.Covariance(noise->rho1, noise->correlation_factor, ring_inv) * sigma2;
+  };
+  noise->shift_covariance_px2 = covariance(ds.core.Combined(1.0, ds.full, -1.0));
+  noise->shift_beyond_noise_px = ShiftBeyondNoise(e.shift, noise->shift_covariance_px2);
+  noise->covariance_px2 = covariance(ds.full.Combined(1.0 - e.toward_core, ds.core, e.toward_core));
   noise->sigma_gray = sigma_used;
   noise->peak_contrast = e.peak;
   noise->background = plane[0];

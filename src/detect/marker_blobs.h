@@ -50,7 +50,8 @@
 //      at the image's maximum has none to measure: a zero covariance would be an infinitely trusted
 //      centre). Checked against a seeded Monte Carlo (tests/detect/marker_views_test.cc
 //      MarkerBlobs.CovarianceAgreesWithMonteCarlo). Widened where an edge or a line is in the ring:
-//      by the core-to-whole shift beyond unreliable_shift_px, and by a share of the pull a line
+//      by the core-to-whole shift's part beyond its own noise (the same linear propagation gives
+//      the shift's covariance) and beyond unreliable_shift_px, and by a share of the pull a line
 //      across the ring can exert.
 // Polarity: dark blobs (metal on a bright background, the X-ray convention of carmba's images).
 #pragma once
@@ -77,9 +78,9 @@ struct MarkerBlobOptions {
   double max_elongation = 1.3;    // axis ratio of a single marker's half-peak region
   double merge_area_ratio = 1.6;  // half-peak area / expected area above which it is two
   double merge_distance = 1.25;   // pieces closer than this x D are one merged blob
-  // A centre whose core and whole-blob centroids are further apart than this (px) is widened by
-  // a share of the excess (MarkerBlob::background_shift_px): shifts below it are what pixel noise
-  // gives.
+  // A centre whose core and whole-blob centroids are further apart than this (px), beyond what
+  // the pixel noise explains (MarkerBlob::shift_beyond_noise_px), is widened by a share of the
+  // excess.
   double unreliable_shift_px = 0.05;
   // Remove the blur's pull on each centre (MarkerBlob::blur_correction_px), with the blur's
   // variance taken from the noise's correlation (MarkerBlobDetection::blur_variance_px2).
@@ -101,10 +102,14 @@ struct MarkerBlob {
   double diameter_px = 0;  // half-contrast diameter
   double contrast = 0;     // peak attenuation
   // Distance between the blob's core and whole-blob centroids (RefineCentroid's shift_px): a
-  // background edge or a wire across the marker. Above unreliable_shift_px its centre is not
-  // trusted to the noise covariance: the covariance is widened by a share of (shift -
-  // unreliable_shift_px) per axis (marker_blobs.cc kShiftRmsShare).
+  // background edge or a wire across the marker, or noise. Where the part beyond the noise
+  // (shift_beyond_noise_px) exceeds unreliable_shift_px its centre is not trusted to the noise
+  // covariance: the covariance is widened by a share of (that part - unreliable_shift_px) per
+  // axis (marker_blobs.cc kShiftRmsShare).
   double background_shift_px = 0;
+  // The part of that shift the pixel noise does not explain (marker_blobs.cc ShiftBeyondNoise):
+  // what the widening uses.
+  double shift_beyond_noise_px = 0;
   // Added to the measured centre (included in uv_px): the detector blur's pull towards the darker
   // side of a sloping background, s^2 x the log background's gradient (MarkerBlobOptions::
   // correct_blur_pull).

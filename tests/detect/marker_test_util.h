@@ -49,7 +49,7 @@ struct Tally {
   int nees_n = 0, nees_beyond_1e3 = 0;
   double nees_sum = 0;
   // The same over the centres whose covariance the detector widened for their core-to-whole
-  // shift (MarkerBlob::background_shift_px above MarkerBlobOptions::unreliable_shift_px).
+  // shift (MarkerBlob::shift_beyond_noise_px above MarkerBlobOptions::unreliable_shift_px).
   int nees_widened_n = 0;
   double nees_widened_sum = 0;
   // Their errors along the direction from the view's markers' mean centre (px): a blur or a
@@ -199,7 +199,7 @@ inline Tally Score(const sim::XrayScene& scene,
               : 1e9;
       ++t.nees_n;
       t.nees_sum += m2;
-      if (ov.detection.blobs[labelled_blob].background_shift_px >
+      if (ov.detection.blobs[labelled_blob].shift_beyond_noise_px >
           MarkerBlobOptions().unreliable_shift_px) {
         ++t.nees_widened_n;
         t.nees_widened_sum += m2;
