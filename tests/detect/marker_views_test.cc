@@ -201,6 +201,46 @@ TEST(MarkerBlobs, CovarianceAgreesWithMonteCarlo) {
   }
 }
 
+// On a dark, flat background (a tenth of the light: the quanta's noise 3x larger against the
+// markers' contrast) the noise alone parts the core and whole-blob centroids by more than
+// unreliable_shift_px at many markers; only the part beyond the shift's own noise widens a
+// centre, so the noise-only blobs keep their noise covariance, and it holds (NEES per dof).
+TEST(MarkerBlobs, NoiseAloneDoesNotWidenACentre) {
+  auto loaded = sim::LoadXrayScene(kScene);
+  ASSERT_TRUE(loaded.ok());
+  sim::XrayScene scene = *loaded;
+  scene.render.background_gain =
+      cv::Mat(scene.camera.height, scene.camera.width, CV_32F, cv::Scalar(0.1));
+  scene.render.glare_fraction = 0;
+  scene.render.read_noise_gray = 0;
+  auto grid = sim::RayGrid::Build(scene.camera, scene.render);
+  ASSERT_TRUE(grid.ok());
+  MarkerBlobOptions o;
+  o.diameter_mm = 2.0;
+  o.px_per_mm = scene.camera.params[kFx] / 700.0;
+  int n = 0, raw_over = 0, widened = 0;
+  for (int trial = 0; trial < 6; ++trial) {
+    sim::ReseedXrayScene(7000 + trial, &scene);
+    auto r = sim::RenderXrayView(scene, 0, grid->get());
+    ASSERT_TRUE(r.ok());
+    for (const MarkerBlob& b : DetectMarkerBlobs(r->image, o).blobs) {
+      ++n;
+      raw_over += b.background_shift_px > o.unreliable_shift_px;
+      widened += b.shift_beyond_noise_px > o.unreliable_shift_px;
+    }
+  }
+  int n_nees = 0;
+  const double nees = BlobNees(scene, 12, &n_nees);
+  std::cout << n << " blobs: core-to-whole shift above " << o.unreliable_shift_px << " px at "
+            << raw_over << ", beyond its noise by that much at " << widened << "; NEES per dof "
+            << nees << " over " << n_nees << "\n";
+  ASSERT_GT(n, 40);
+  EXPECT_GT(raw_over, n / 4);  // the noise's shifts, which widened centres before
+  EXPECT_LT(widened, n / 10);
+  EXPECT_GT(nees, 0.8);
+  EXPECT_LT(nees, 1.25);
+}
+
 // A thin wire beside a marker (0.25 mm, its axis 1.2 mm from the 1.8 mm marker's centre) crosses
 // the marker's background ring twice: the ring's two dark arcs (CentroidNoise::ring_arcs) widen the
 // centre's covariance by a share of the shift such a line can cause, which the pixel noise and the
