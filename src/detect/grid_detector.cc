@@ -112,12 +112,6 @@ Status LoadDetectionOptions(const std::string& path, DetectionOptions* options) 
 //               moves to the core's as they part from 0.03 to 0.06 px (`shift_px`: their
 //               distance at the end; a large one flags a centre still unreliable).
 // Iterated until the centre moves less than 1e-3 px.
-double ShiftBeyondNoise(double shift_px, const cv::Matx22d& shift_covariance_px2) {
-  const double noise2 =
-      kShiftNoiseQuantile * (shift_covariance_px2(0, 0) + shift_covariance_px2(1, 1));
-  return std::sqrt(std::max(0.0, shift_px * shift_px - noise2));
-}
-
 namespace {
 // The core centroid (RefineCentroid "core"): contrast above this fraction of the peak.
 constexpr double kCoreFloor = 0.25;
@@ -271,7 +265,6 @@ struct PixelSensitivity {
   int side = 0;
   cv::Matx23d G = cv::Matx23d::zeros();
 
-  PixelSensitivity() = default;
   explicit PixelSensitivity(int s) : g(static_cast<size_t>(s) * s, cv::Vec2d(0, 0)), side(s) {}
   // Pixel `at` with derivative `a` with respect to its weight, dw/dI sqrt(var I) `scale` and
   // dw/dplane `dw_dp`.
@@ -467,6 +460,12 @@ RingArcs FindRingArcs(const std::vector<CentroidPixel>& ring,
 }
 
 }  // namespace
+
+double ShiftBeyondNoise(double shift_px, const cv::Matx22d& shift_covariance_px2) {
+  const double noise2 =
+      kShiftNoiseQuantile * (shift_covariance_px2(0, 0) + shift_covariance_px2(1, 1));
+  return std::sqrt(std::max(0.0, shift_px * shift_px - noise2));
+}
 
 bool RefineCentroid(const cv::Mat& f,
                     const cv::Mat& valid,
