@@ -637,13 +637,25 @@ TEST(MarkerCorrespondence, BlobOffThePoseIsDropped) {
 // bends to the bead (RMS 0.4-0.9 px at 2-4 px from the marker). Not taken, at a predicted pose or
 // by the search: the 4 pairs disagree (each left out, the other three put it elsewhere); and from
 // 4 px on, beyond the tight gate, the tight pairing at the prediction holds the 3 without it.
+// The first five markers of the thesis layout at a random pose (seed `seed`), projected.
+struct FiveMarkers {
+  Camera cam = TestCamera();
+  std::vector<Eigen::Vector3d> P;
+  Pose6 pose;
+  std::vector<Eigen::Vector2d> projected;
+};
+FiveMarkers FiveMarkersAt(uint64_t seed) {
+  FiveMarkers f;
+  f.P = ThesisLayout();
+  f.P.resize(5);
+  std::mt19937_64 rng(seed);
+  f.pose = RandomPose(rng, f.P);
+  f.projected = Project(f.cam, f.pose, f.P);
+  return f;
+}
+
 TEST(MarkerCorrespondence, ABeadBesideAHiddenMarkerIsNotTakenForIt) {
-  const Camera cam = TestCamera();
-  auto P = ThesisLayout();
-  P.resize(5);
-  std::mt19937_64 rng(5);
-  const Pose6 pose = RandomPose(rng, P);
-  const auto projected = Project(cam, pose, P);
+  const auto [cam, P, pose, projected] = FiveMarkersAt(5);
   for (double offset_px : {2.0, 3.0, 4.0, 6.0, 15.0}) {
     std::vector<Eigen::Vector2d> uv(projected.begin(), projected.begin() + 3);
     uv.push_back(projected[3] + Eigen::Vector2d(0.6, 0.8) * offset_px);  // the bead
@@ -667,12 +679,7 @@ TEST(MarkerCorrespondence, ABeadBesideAHiddenMarkerIsNotTakenForIt) {
 // the labelling at the nominal depth and why it was refused (its pairs disagree), not the
 // better-fitting one at the wrong depth.
 TEST(MarkerCorrespondence, RefusedViewNamesTheLabellingAtTheNominalDepth) {
-  const Camera cam = TestCamera();
-  auto P = ThesisLayout();
-  P.resize(5);
-  std::mt19937_64 rng(8);
-  const Pose6 pose = RandomPose(rng, P);
-  const auto projected = Project(cam, pose, P);
+  const auto [cam, P, pose, projected] = FiveMarkersAt(8);
   std::vector<Eigen::Vector2d> uv(projected.begin(), projected.begin() + 4);
   uv[2] += Eigen::Vector2d(1.2, -0.9);
   Pose6 far = pose;
