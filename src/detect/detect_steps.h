@@ -53,9 +53,9 @@ struct CentroidNoise {
   double floor_variance_per_grey = 0.0;
   double floor_variance_gray = 0.0;
   cv::Matx22d covariance_px2 = cv::Matx22d::zeros();
-  // Out: the covariance of the core-to-whole shift vector (core centroid - whole-blob centroid)
-  // that the same noise gives it, px^2: the shift noise alone makes (its trace is the expected
-  // squared shift of a blob on a clean background).
+  // Out: the covariance (px^2) of the core-to-whole shift vector (core centroid - whole-blob
+  // centroid) under the same pixel noise: its trace is the expected squared shift of a blob on a
+  // clean background.
   cv::Matx22d shift_covariance_px2 = cv::Matx22d::zeros();
   // Out: the part of the core-to-whole shift that noise does not explain (ShiftBeyondNoise), px.
   double shift_beyond_noise_px = 0;

@@ -23,8 +23,9 @@ constexpr double kLinePullRmsShare = 0.3;
 // tests/detect/marker_recall_test.cc's development sets (real CT 1-16, 9546 centres), the
 // widened centres' NEES per dof equals the others' (the pixel noise's own) at the whole excess:
 // 0.86 against 0.89 (on the XA frame 1-8, 1.28 against 0.96); a share of 0.55 left them at 1.24
-// and 1.74. Before the shift's own noise was taken out, dark anatomy's noise alone widened 62 %
-// of the real-CT centres and the share that matched was 0.55: their blob NEES was 0.75.
+// and 1.74. Before the shift's own noise was taken out, 62 % of the real-CT centres were widened,
+// most for the noise of dark anatomy alone, the share that matched was 0.55, and their blob NEES
+// was 0.75.
 constexpr double kShiftRmsShare = 1.0;
 }  // namespace
 

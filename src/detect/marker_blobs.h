@@ -107,7 +107,7 @@ struct MarkerBlob {
   // covariance: the covariance is widened by a share of (that part - unreliable_shift_px) per
   // axis (marker_blobs.cc kShiftRmsShare).
   double background_shift_px = 0;
-  // The part of that shift the pixel noise does not explain (marker_blobs.cc ShiftBeyondNoise):
+  // The part of that shift the pixel noise does not explain (detect_steps.h ShiftBeyondNoise):
   // what the widening uses.
   double shift_beyond_noise_px = 0;
   // Added to the measured centre (included in uv_px): the detector blur's pull towards the darker
