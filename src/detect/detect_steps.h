@@ -53,11 +53,8 @@ struct CentroidNoise {
   double floor_variance_per_grey = 0.0;
   double floor_variance_gray = 0.0;
   cv::Matx22d covariance_px2 = cv::Matx22d::zeros();
-  // Out: the covariance (px^2) of the core-to-whole shift vector (core centroid - whole-blob
-  // centroid) under the same pixel noise: its trace is the expected squared shift of a blob on a
-  // clean background.
-  cv::Matx22d shift_covariance_px2 = cv::Matx22d::zeros();
-  // Out: the part of the core-to-whole shift that noise does not explain (ShiftBeyondNoise), px.
+  // Out: the part of the core-to-whole shift that noise does not explain (ShiftBeyondNoise, from
+  // the shift vector's covariance under the same pixel noise), px.
   double shift_beyond_noise_px = 0;
   double sigma_gray = 0;
   double peak_contrast = 0;
@@ -91,7 +88,8 @@ constexpr double kPlateCentroidFloor = 0.15;
 constexpr double kMarkerCentroidFloor = 0.05;
 
 // The part of a core-to-whole shift (px) that the pixel noise does not explain: noise alone
-// makes a shift vector of covariance `shift_covariance_px2` (CentroidNoise), whose squared length
+// makes a shift vector (core centroid - whole-blob centroid) of covariance `shift_covariance_px2`
+// (propagated like the centre's: grid_detector.cc CentroidCovariance), whose squared length
 // exceeds kShiftNoiseQuantile x its trace in about 5 % of blobs on a clean background; what lies
 // beyond that, in quadrature, is the background's (an edge or a wire across the disc).
 constexpr double kShiftNoiseQuantile = 3.0;  // chi2(2) at 95 % over 2

@@ -368,8 +368,8 @@ void CentroidCovariance(const std::vector<CentroidPixel>& disc,
   const auto covariance = [&](const PixelSensitivity& p) {
     return p.Covariance(noise->rho1, noise->correlation_factor, ring_inv) * sigma2;
   };
-  noise->shift_covariance_px2 = covariance(ds.core.Combined(1.0, ds.full, -1.0));
-  noise->shift_beyond_noise_px = ShiftBeyondNoise(e.shift, noise->shift_covariance_px2);
+  noise->shift_beyond_noise_px =
+      ShiftBeyondNoise(e.shift, covariance(ds.core.Combined(1.0, ds.full, -1.0)));
   noise->covariance_px2 = covariance(ds.full.Combined(1.0 - e.toward_core, ds.core, e.toward_core));
   noise->sigma_gray = sigma_used;
   noise->peak_contrast = e.peak;
