@@ -30,18 +30,21 @@ FieldOfView FindFieldOfView(const cv::Mat& f, const DetectionOptions& o, cv::Poi
 // diameters (CV_8U; 255 outside `mask`): dark blobs keep their contrast wherever they lie.
 cv::Mat FlatFieldedSearchImage(const cv::Mat& f, const cv::Mat& mask, double blob_diameter_px);
 
-// The noise of a centroid (RefineCentroid's optional output).
+// The noise of a centroid (RefineCentroid's optional output). Given, it also moves the centre
+// towards the less noisy core centroid as far as the noise makes that the better estimate (see
+// grid_detector.cc above RefineCentroid, "centre").
 //   in:  rho1, the correlation of neighbouring pixels' noise, the correlation at lag (dx, dy)
 //        taken as rho1^(dx^2 + dy^2) (white noise blurred by a Gaussian; 0 = white), used up to
 //        |dx|, |dy| <= 3; correlation_factor F = the sum of that correlation over all lags (the
 //        plane's variance from the ring's many pixels is F times the white-noise one).
 //   out: covariance_px2, the 2x2 covariance of the centre from the pixel noise of the disc
-//        (sum_ij g_i g_j^T rho(i - j), exact for the disc's weights and their cut-off) and the
-//        noise of the background plane fitted to the ring (first order, the disc and the 5 %
-//        floor held), with the pixel variance sigma_gray^2 measured on the ring (1.4826 MAD of
-//        the plane's residuals) and, for dark blobs, scaled by I / background (quantum noise);
-//        sigma_gray; peak_contrast (dark: the largest attenuation 1 - I / background);
-//        background (the plane's level at the centre).
+//        (sum_ij g_i g_j^T rho(i - j), exact for the disc's weights and their cut-off; the
+//        core's weights are those of its interpolated sub-samples) and the noise of the
+//        background plane fitted to the ring (first order, the disc, the 5 % floor and the
+//        centre's share of the core held), with the pixel variance sigma_gray^2 measured on the
+//        ring (1.4826 MAD of the plane's residuals) and, for dark blobs, scaled by I / background
+//        (quantum noise); sigma_gray; peak_contrast (dark: the largest attenuation 1 - I /
+//        background); background (the plane's level at the centre).
 struct CentroidNoise {
   double rho1 = 0.0;
   double correlation_factor = 1.0;

@@ -103,22 +103,40 @@ Status LoadDetectionOptions(const std::string& path, DetectionOptions* options) 
 //               thickness would otherwise pull the centre towards the brighter side); bright:
 //               I - plane. Minus a floor of the peak (15 % on the plate, 5 % for markers:
 //               detect_steps.h kPlateCentroidFloor), clipped at zero.
-//   core:       the same centroid of the contrast above 25 % of the peak. Background structure
-//               inside the disc that the ring's plane does not follow (an anatomical edge across
-//               the sphere: a few % of the level) pulls the whole-blob centroid through the wide,
-//               low-contrast tails; the core, many times the background's error in contrast,
-//               hardly moves. On a smooth background both agree to ~0.01 px and the whole-blob
-//               centroid is kept (less sampling error: ~0.004 px against ~0.01 px); the centre
-//               moves to the core's as they part from 0.03 to 0.06 px (`shift_px`: their
-//               distance at the end; a large one flags a centre still unreliable).
+//   core:       the centroid of the contrast above 25 % of the peak, with the contrast interpolated
+//               bilinearly between the pixel centres and sampled 4 x 4 times per pixel (the
+//               pixels' own clipped values lock the centroid to the pixel grid: an S-curve of
+//               up to +-0.05 px over the pixel for a 4.5 px disc, noise-free, against +-0.013 px
+//               interpolated; tests/detect/grid_detector_test.cc RefineCentroidPhase).
+//               Background structure inside the disc that the ring's plane does not follow (an
+//               anatomical edge across the sphere: a few % of the level) pulls the whole-blob
+//               centroid through the wide, low-contrast tails; the core, many times the
+//               background's error in contrast, hardly moves. It is also the less noisy of the
+//               two (about half the whole-blob centroid's variance on 4.5-7 px discs).
+//   centre:     (1 - t) whole + t core. The shift rule: t goes from 0 to 1 as the two part from
+//               0.03 to 0.06 px (`shift_px`: their distance at the end; a large one flags a
+//               centre still unreliable). With a noise model (`noise` given) t is at least the
+//               share that minimises the centre's expected squared error from the pixel noise
+//               (both centroids' covariances and their correlation, propagated as for the
+//               covariance below) and the two centroids' phase errors (kPhaseErrorWholePx,
+//               kPhaseErrorCorePx): on a smooth, nearly noise-free background the whole-blob
+//               centroid is kept (its phase error is the smaller, ~0.003 px against ~0.008 px),
+//               on noisy images the centre moves most of the way to the core.
 // Iterated until the centre moves less than 1e-3 px.
 namespace {
-// The core centroid (RefineCentroid "core"): contrast above this fraction of the peak.
+// The core centroid (RefineCentroid "core"): contrast above this fraction of the peak, sampled
+// kCoreSubsamples x kCoreSubsamples times per pixel.
 constexpr double kCoreFloor = 0.25;
+constexpr int kCoreSubsamples = 4;
 // The centre moves from the whole-blob centroid to the core centroid as their distance goes from
 // kBlendFromPx to kBlendToPx (on smooth backgrounds the distance is ~0.01 px, 99 % below
 // ~0.06 px with the pixel noise of the recall scenes: tests/detect/edge_accuracy_test.cc).
 constexpr double kBlendFromPx = 0.03, kBlendToPx = 0.06;
+// The centroids' sub-pixel phase errors (RMS per axis over the blob's position on the pixel grid,
+// noise-free, discs of 4.5-8 px: tests/detect/grid_detector_test.cc
+// CentroidPhaseErrorOverThePixel): whole blob (5 % floor) 0.002-0.004 px, interpolated core
+// 0.006-0.009 px.
+constexpr double kPhaseErrorWholePx = 0.003, kPhaseErrorCorePx = 0.008;
 }  // namespace
 
 namespace {
@@ -253,6 +271,9 @@ bool FitRingPlane(const std::vector<CentroidPixel>& ring, cv::Vec3d* plane, doub
 struct CentroidEstimate {
   double peak = 0, floor = 0, core_floor = 0;
   double sw = 0, hw = 0;           // weight sums of the whole blob and of the core
+  // The core centroid's derivative with respect to each disc pixel's contrast (disc order),
+  // times hw.
+  std::vector<cv::Vec2d> core_gradient;
   cv::Point2d full, core, centre;
   double shift = 0, toward_core = 0;
 };
@@ -314,10 +335,11 @@ struct DiscSensitivity {
   PixelSensitivity full, core;
 };
 
-// c = sum w_i x_i / S, dc/dw_i = (x_i - c) / S (over w_i > floor for the whole blob, w_i > core
-// floor for the core). w_i depends on the pixel I_i and on the ring's plane p = (a, b, c): dark:
-// w = 1 - I / bg, dw/dI = -1 / bg, dw/dp = I / bg^2 [1, ex, ey], var I_i = sigma^2 I_i / bg_i
-// (quanta); bright: dw/dI = 1, dw/dp = -[1, ex, ey], var I_i = sigma^2.
+// c = sum w_i x_i / S, dc/dw_i = (x_i - c) / S (over w_i > floor for the whole blob; for the
+// core the sub-samples' weights, each a bilinear combination of four pixels: InterpolatedCore). w_i
+// depends on the pixel I_i and on the ring's plane p = (a, b, c): dark: w = 1 - I / bg, dw/dI = -1
+// / bg, dw/dp = I / bg^2 [1, ex, ey], var I_i = sigma^2 I_i / bg_i (quanta); bright: dw/dI = 1,
+// dw/dp = -[1, ex, ey], var I_i = sigma^2.
 DiscSensitivity Sensitivities(const std::vector<CentroidPixel>& disc,
                               const CentroidEstimate& e,
                               const cv::Vec3d& plane,
@@ -327,8 +349,11 @@ DiscSensitivity Sensitivities(const std::vector<CentroidPixel>& disc,
                               int rw) {
   const int side = 2 * rw + 1;
   DiscSensitivity out{PixelSensitivity(side), PixelSensitivity(side)};
-  for (const CentroidPixel& q : disc) {
-    if (q.value - e.floor <= 0) continue;
+  for (size_t i = 0; i < disc.size(); ++i) {
+    const CentroidPixel& q = disc[i];
+    const bool in_full = q.value - e.floor > 0;
+    const cv::Vec2d& core_gradient = e.core_gradient[i];
+    if (!in_full && core_gradient == cv::Vec2d(0, 0)) continue;
     const double x = q.ex + cx, y = q.ey + cy;
     const double bg = PlaneAt(plane, q);
     const double I = dark ? bg * (1.0 - q.value) : q.value + bg;
@@ -337,43 +362,130 @@ DiscSensitivity Sensitivities(const std::vector<CentroidPixel>& disc,
     const double s_p = dark ? I / (bg * bg) : -1.0;
     const cv::Vec3d dw_dp(s_p, s_p * q.ex, s_p * q.ey);
     const size_t at = static_cast<size_t>((q.ey + rw) * side + (q.ex + rw));
-    out.full.Add(at, cv::Vec2d(x - e.full.x, y - e.full.y) / e.sw, scale, dw_dp);
-    if (q.value - e.core_floor > 0)
-      out.core.Add(at, cv::Vec2d(x - e.core.x, y - e.core.y) / e.hw, scale, dw_dp);
+    if (in_full) out.full.Add(at, cv::Vec2d(x - e.full.x, y - e.full.y) / e.sw, scale, dw_dp);
+    if (core_gradient != cv::Vec2d(0, 0)) out.core.Add(at, core_gradient / e.hw, scale, dw_dp);
   }
   return out;
 }
 
+// The noise-optimal share of the core in the centre, (1 - t) c_full + t c_core: the t that
+// minimises the expected squared error from the pixel noise (covariances Vf of c_full and Vd of
+// d = c_core - c_full, per unit pixel variance, times sigma2) and the two centroids' sub-pixel
+// phase errors (kPhaseErrorWholePx, kPhaseErrorCorePx per axis, taken as independent):
+//   E|c_full + t d - c|^2 = tr Vf + 2 t tr C + t^2 tr Vd + 2 (1 - t)^2 pf^2 + 2 t^2 pc^2,
+//   t = (2 pf^2 - tr C) / (tr Vd + 2 pf^2 + 2 pc^2),  C = Cov(c_full, d).
+double NoiseOptimalCoreShare(const DiscSensitivity& ds,
+                             double rho1,
+                             double correlation_factor,
+                             const cv::Matx33d& ring_inv,
+                             double sigma2) {
+  const auto trace = [&](const PixelSensitivity& p) {
+    return cv::trace(p.Covariance(rho1, correlation_factor, ring_inv)) * sigma2;
+  };
+  const double vf = trace(ds.full), vc = trace(ds.core);
+  const double vd = trace(ds.core.Combined(1.0, ds.full, -1.0));
+  const double c = 0.5 * (vc - vf - vd);  // Var(c_full + d) = Vf + Vd + 2 C
+  const double pf2 = kPhaseErrorWholePx * kPhaseErrorWholePx;
+  const double pc2 = kPhaseErrorCorePx * kPhaseErrorCorePx;
+  return std::clamp((2 * pf2 - c) / (vd + 2 * pf2 + 2 * pc2), 0.0, 1.0);
+}
+
+// The pixel variance the covariance uses: the ring's, at least the noise model's floors.
+double PixelVariance(const CentroidNoise& noise, double ring_sigma, const cv::Vec3d& plane) {
+  const double sigma =
+      std::max(ring_sigma,
+               std::sqrt(std::max(noise.floor_variance_per_grey * std::max(0.0, plane[0]),
+                                  noise.floor_variance_gray)));
+  return sigma * sigma;
+}
+
 // The centre's covariance (detect_steps.h CentroidNoise), of the centre used, (1 - t) c_full +
-// t c_core (t held), and the core-to-whole shift's (c_core - c_full) with the part of the shift
-// beyond it (ShiftBeyondNoise). Cov_p = sigma^2 (A^T A)^-1 (the ring fit), scaled by the noise's
-// correlation factor; the pixel term with the noise's correlation rho(dx, dy) = rho1^(dx^2 +
-// dy^2), |d| <= 3: sum_ij g_i g_j^T rho(i - j), g_i = a_i dw/dI sqrt(var I_i / sigma^2).
-void CentroidCovariance(const std::vector<CentroidPixel>& disc,
+// t c_core (t held), and the core-to-whole shift's
+// (c_core - c_full) with the part of the shift beyond it (ShiftBeyondNoise). Cov_p = sigma^2
+// (A^T A)^-1 (the ring fit), scaled by the noise's correlation factor; the pixel term with the
+// noise's correlation rho(dx, dy) = rho1^(dx^2 + dy^2), |d| <= 3: sum_ij g_i g_j^T rho(i - j),
+// g_i = a_i dw/dI sqrt(var I_i / sigma^2).
+void CentroidCovariance(const DiscSensitivity& ds,
                         const CentroidEstimate& e,
                         const cv::Vec3d& plane,
-                        double ring_sigma,
-                        const cv::Matx33d& ring_AtA,
-                        bool dark,
-                        int cx,
-                        int cy,
-                        int rw,
+                        double sigma2,
+                        const cv::Matx33d& ring_inv,
                         CentroidNoise* noise) {
-  const DiscSensitivity ds = Sensitivities(disc, e, plane, dark, cx, cy, rw);
-  const double sigma_used = std::max(
-      ring_sigma, std::sqrt(std::max(noise->floor_variance_per_grey * std::max(0.0, plane[0]),
-                                     noise->floor_variance_gray)));
-  const double sigma2 = sigma_used * sigma_used;
-  const cv::Matx33d ring_inv = ring_AtA.inv(cv::DECOMP_CHOLESKY);
   const auto covariance = [&](const PixelSensitivity& p) {
     return p.Covariance(noise->rho1, noise->correlation_factor, ring_inv) * sigma2;
   };
   noise->shift_beyond_noise_px =
       ShiftBeyondNoise(e.shift, covariance(ds.core.Combined(1.0, ds.full, -1.0)));
   noise->covariance_px2 = covariance(ds.full.Combined(1.0 - e.toward_core, ds.core, e.toward_core));
-  noise->sigma_gray = sigma_used;
+  noise->sigma_gray = std::sqrt(sigma2);
   noise->peak_contrast = e.peak;
   noise->background = plane[0];
+}
+
+// The core centroid (offsets from the rounded centre) of the disc's contrast above `threshold`,
+// the contrast interpolated bilinearly between the pixel centres (0 beyond the disc) and sampled
+// kCoreSubsamples x kCoreSubsamples times per pixel; `weight` the sum of the sub-samples' weights
+// (contrast - threshold) over kCoreSubsamples^2, `gradient` per disc pixel d(core)/d(contrast) x
+// weight. False when no sub-sample is above the threshold.
+bool InterpolatedCore(const std::vector<CentroidPixel>& disc,
+                      double threshold,
+                      cv::Point2d* core,
+                      double* weight,
+                      std::vector<cv::Vec2d>* gradient) {
+  int R = 0;
+  for (const CentroidPixel& q : disc) R = std::max({R, std::abs(q.ex), std::abs(q.ey)});
+  const int side = 2 * R + 3;  // a margin of one pixel of zeros
+  std::vector<int> index(static_cast<size_t>(side) * side, -1);
+  const auto cell = [&](int ex, int ey) {
+    return static_cast<size_t>((ey + R + 1) * side + (ex + R + 1));
+  };
+  for (size_t i = 0; i < disc.size(); ++i)
+    index[cell(disc[i].ex, disc[i].ey)] = static_cast<int>(i);
+  const auto value = [&](int ex, int ey) {
+    const int i = index[cell(ex, ey)];
+    return i < 0 ? 0.0 : static_cast<double>(disc[i].value);
+  };
+  // Each sub-sample (u, v) above the threshold with its weight, visited twice: the centroid,
+  // then its gradient. The sub-samples of the pixels -R..R lie at the fractions (k + 0.5) / n of
+  // the cells between neighbouring pixel centres (x0 .. x0 + 1); a cell whose four corners are
+  // all at or below the threshold has none above it.
+  constexpr int n = kCoreSubsamples;
+  const auto for_each_sample = [&](const auto& visit) {
+    for (int y0 = -R - 1; y0 <= R; ++y0) {
+      for (int x0 = -R - 1; x0 <= R; ++x0) {
+        const double c00 = value(x0, y0), c10 = value(x0 + 1, y0);
+        const double c01 = value(x0, y0 + 1), c11 = value(x0 + 1, y0 + 1);
+        if (std::max({c00, c10, c01, c11}) <= threshold) continue;
+        for (int j = 0; j < n; ++j) {
+          const double fy = (j + 0.5) / n;
+          for (int i = 0; i < n; ++i) {
+            const double fx = (i + 0.5) / n;
+            const double beta[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+            const double c = beta[0] * c00 + beta[1] * c10 + beta[2] * c01 + beta[3] * c11;
+            if (c > threshold) visit(x0 + fx, y0 + fy, c - threshold, x0, y0, beta);
+          }
+        }
+      }
+    }
+  };
+  double w0 = 0, wx = 0, wy = 0;
+  for_each_sample([&](double u, double v, double w, int, int, const double*) {
+    w0 += w, wx += w * u, wy += w * v;
+  });
+  if (!(w0 > 0)) return false;
+  *core = cv::Point2d(wx / w0, wy / w0);
+  const double per_pixel = 1.0 / (n * n);
+  *weight = w0 * per_pixel;
+  gradient->assign(disc.size(), cv::Vec2d(0, 0));
+  for_each_sample([&](double u, double v, double, int x0, int y0, const double* beta) {
+    const cv::Vec2d d(u - core->x, v - core->y);
+    const int corner[4][2] = {{x0, y0}, {x0 + 1, y0}, {x0, y0 + 1}, {x0 + 1, y0 + 1}};
+    for (int k = 0; k < 4; ++k) {
+      const int i = index[cell(corner[k][0], corner[k][1])];
+      if (i >= 0) (*gradient)[i] += d * (beta[k] * per_pixel);
+    }
+  });
+  return true;
 }
 
 // The disc's pixels as contrast against the plane, and the centroids; false without contrast.
@@ -391,17 +503,17 @@ bool DiscCentroids(std::vector<CentroidPixel>* disc,
   }
   if (!(e->peak > 0)) return false;
   e->floor = floor * e->peak, e->core_floor = kCoreFloor * e->peak;
-  double sx = 0, sy = 0, hx = 0, hy = 0;
+  double sx = 0, sy = 0;
   for (const CentroidPixel& q : *disc) {
     const double w = q.value - e->floor;
     if (w <= 0) continue;
     e->sw += w, sx += w * (q.ex + cx), sy += w * (q.ey + cy);
-    const double wh = q.value - e->core_floor;
-    if (wh > 0) e->hw += wh, hx += wh * (q.ex + cx), hy += wh * (q.ey + cy);
   }
-  if (!(e->sw > 0) || !(e->hw > 0)) return false;
+  cv::Point2d core;
+  if (!(e->sw > 0) || !InterpolatedCore(*disc, e->core_floor, &core, &e->hw, &e->core_gradient))
+    return false;
   e->full = cv::Point2d(sx / e->sw, sy / e->sw);
-  e->core = cv::Point2d(hx / e->hw, hy / e->hw);
+  e->core = core + cv::Point2d(cx, cy);
   e->shift = cv::norm(e->core - e->full);
   e->toward_core = std::clamp((e->shift - kBlendFromPx) / (kBlendToPx - kBlendFromPx), 0.0, 1.0);
   e->centre = e->full + e->toward_core * (e->core - e->full);
@@ -502,7 +614,16 @@ bool RefineCentroid(const cv::Mat& f,
     if (!DiscCentroids(&disc, plane, dark, cx, cy, floor, &e)) return false;
     if (shift_px) *shift_px = e.shift;
     if (noise) {
-      CentroidCovariance(disc, e, plane, ring_sigma, ring_AtA, dark, cx, cy, rw, noise);
+      // With a noise model the centre moves towards the less noisy core as far as its noise
+      // and phase error make it the better estimate, or further by the shift rule.
+      const DiscSensitivity ds = Sensitivities(disc, e, plane, dark, cx, cy, rw);
+      const cv::Matx33d ring_inv = ring_AtA.inv(cv::DECOMP_CHOLESKY);
+      const double sigma2 = PixelVariance(*noise, ring_sigma, plane);
+      e.toward_core = std::max(
+          e.toward_core,
+          NoiseOptimalCoreShare(ds, noise->rho1, noise->correlation_factor, ring_inv, sigma2));
+      e.centre = e.full + e.toward_core * (e.core - e.full);
+      CentroidCovariance(ds, e, plane, sigma2, ring_inv, noise);
       const double bg = plane[0] + plane[1] * (e.centre.x - cx) + plane[2] * (e.centre.y - cy);
       noise->log_background_gradient =
           bg > 0 ? cv::Vec2d(plane[1] / bg, plane[2] / bg) : cv::Vec2d(0, 0);

@@ -36,8 +36,10 @@
 //                                  from the piece's centre (pulled by an edge in its ring).
 //   5. Sub-pixel centre: the calibration detector's centroid (RefineCentroid: flat-field contrast
 //      over a disc, background plane on a ring), with the distance to the nearest other candidate
-//      bounding its window; then moved back by the detector blur's pull towards the darker side
-//      of a sloping background (correct_blur_pull; MarkerBlob::blur_correction_px).
+//      bounding its window, given the noise model of step 6 (so that the centre moves towards the
+//      less noisy core centroid as far as the noise makes it the better estimate); then moved back
+//      by the detector blur's pull towards the darker side of a sloping background
+//      (correct_blur_pull; MarkerBlob::blur_correction_px).
 //   6. Covariance (2x2, px^2) per centre from the local image noise (detect_steps.h
 //      CentroidNoise): the ring's pixel noise, scaled for quantum noise inside the disc, with
 //      the noise's correlation measured once per image from horizontal second differences at

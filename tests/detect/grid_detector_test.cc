@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "detect/detect_steps.h"
 #include "report/overlays.h"
 #include "scratch.h"
 #include "util/file_util.h"
@@ -426,6 +427,129 @@ TEST(LabelPlacer, CrowdedLabelsDoNotCoverOneAnother) {
   for (size_t a = 0; a < written.size(); ++a) {
     for (size_t b = a + 1; b < written.size(); ++b)
       EXPECT_EQ((written[a] & written[b]).area(), 0) << a << " " << b;
+  }
+}
+
+}  // namespace
+}  // namespace carmba
+
+namespace carmba {
+namespace {
+
+// A sphere's shadow on a flat background of 10000 grey, rendered noise-free: the transmission
+// exp(-mu2R sqrt(1 - r^2 / R^2)) averaged over 15 x 15 rays per pixel, then a Gaussian blur of
+// 0.6 px; 41 x 41 pixels, the sphere's centre at (cx, cy).
+cv::Mat SphereShadow(double cx, double cy, double radius_px, double mu2R) {
+  constexpr int kSide = 41, kRays = 15;
+  cv::Mat f(kSide, kSide, CV_32F);
+  for (int y = 0; y < kSide; ++y) {
+    for (int x = 0; x < kSide; ++x) {
+      double sum = 0;
+      for (int j = 0; j < kRays; ++j) {
+        for (int i = 0; i < kRays; ++i) {
+          const double u = x - 0.5 + (i + 0.5) / kRays - cx, v = y - 0.5 + (j + 0.5) / kRays - cy;
+          const double q = 1.0 - (u * u + v * v) / (radius_px * radius_px);
+          sum += std::exp(-mu2R * std::sqrt(std::max(0.0, q)));
+        }
+      }
+      f.at<float>(y, x) = static_cast<float>(10000.0 * sum / (kRays * kRays));
+    }
+  }
+  cv::GaussianBlur(f, f, cv::Size(0, 0), 0.6, 0.6, cv::BORDER_REFLECT);
+  return f;
+}
+
+// The largest and the RMS x error of RefineCentroid's centre over 40 sub-pixel positions of a
+// sphere's shadow (x phase 0 .. 0.95, y phase 0 and 0.3), noise-free.
+void PhaseErrors(
+    double diameter_px, double mu2R, const CentroidNoise* model, double* largest, double* rms) {
+  *largest = 0;
+  double ss = 0;
+  int n = 0;
+  for (double py : {0.0, 0.3}) {
+    for (int k = 0; k < 20; ++k) {
+      const double tx = 20 + k / 20.0, ty = 20 + py;
+      const cv::Mat f = SphereShadow(tx, ty, diameter_px / 2, mu2R);
+      const cv::Mat valid(f.size(), CV_8U, cv::Scalar(255));
+      cv::Point2d c(20.3, 20.2);
+      double r_half = 0;
+      CentroidNoise noise = model ? *model : CentroidNoise();
+      ASSERT_TRUE(RefineCentroid(f,
+                                 valid,
+                                 true,
+                                 3 * diameter_px + 8,
+                                 0.75 * diameter_px + 2,
+                                 kMarkerCentroidFloor,
+                                 &c,
+                                 &r_half,
+                                 model ? &noise : nullptr));
+      *largest = std::max(*largest, std::fabs(c.x - tx));
+      ss += (c.x - tx) * (c.x - tx), ++n;
+    }
+  }
+  *rms = std::sqrt(ss / n);
+}
+
+// The centre's sub-pixel phase error (an S-curve over the pixel grid): the whole-blob centroid's,
+// and with a noise model that makes the less noisy core the better estimate, mostly the
+// interpolated core's. A core of the pixels' own clipped values had +-0.05 px on the 4.5 px disc.
+TEST(RefineCentroidPhase, CentroidPhaseErrorOverThePixel) {
+  CentroidNoise noisy;  // 300 grey of noise at least: the centre moves to the core
+  noisy.floor_variance_gray = 300.0 * 300.0;
+  for (double d : {4.5, 6.0, 8.0}) {
+    for (double mu2R : {0.6, 1.5}) {
+      double largest = 0, rms = 0, core_largest = 0, core_rms = 0;
+      ASSERT_NO_FATAL_FAILURE(PhaseErrors(d, mu2R, nullptr, &largest, &rms));
+      ASSERT_NO_FATAL_FAILURE(PhaseErrors(d, mu2R, &noisy, &core_largest, &core_rms));
+      std::cout << "disc " << d << " px, mu 2R " << mu2R << ": phase error largest " << largest
+                << " px, RMS " << rms << " px; with a noisy model largest " << core_largest
+                << " px, RMS " << core_rms << " px\n";
+      EXPECT_LT(largest, 0.012);
+      EXPECT_LT(core_largest, 0.02);
+    }
+  }
+}
+
+// The centre's covariance (RefineCentroid with a noise model) against the scatter of 600 noisy
+// renderings of one shadow about their mean: quantum-like noise (sigma proportional to the square
+// root of the grey level), white (the model's rho1 = 0).
+TEST(RefineCentroidPhase, CovarianceAgreesWithTheScatter) {
+  for (double d : {4.5, 7.0}) {
+    for (double sigma : {60.0, 200.0}) {
+      const double tx = 20.37, ty = 20.81;
+      const cv::Mat clean = SphereShadow(tx, ty, d / 2, 1.2);
+      cv::Mat scale;
+      cv::sqrt(clean / 10000.0, scale);
+      const cv::Mat valid(clean.size(), CV_8U, cv::Scalar(255));
+      cv::RNG rng(7);
+      std::vector<cv::Point2d> centres;
+      cv::Matx22d predicted = cv::Matx22d::zeros();
+      for (int t = 0; t < 600; ++t) {
+        cv::Mat noise(clean.size(), CV_32F);
+        rng.fill(noise, cv::RNG::NORMAL, 0, sigma);
+        const cv::Mat f = clean + noise.mul(scale);
+        cv::Point2d c(20.3, 20.6);
+        double r_half = 0;
+        CentroidNoise cn;
+        ASSERT_TRUE(RefineCentroid(
+            f, valid, true, 3 * d + 8, 0.75 * d + 2, kMarkerCentroidFloor, &c, &r_half, &cn));
+        centres.push_back(c);
+        predicted += cn.covariance_px2 * (1.0 / 600);
+      }
+      cv::Point2d m(0, 0);
+      for (const auto& c : centres) m += c * (1.0 / centres.size());
+      double vx = 0, vy = 0;
+      for (const auto& c : centres) {
+        vx += (c.x - m.x) * (c.x - m.x) / centres.size();
+        vy += (c.y - m.y) * (c.y - m.y) / centres.size();
+      }
+      std::cout << "disc " << d << " px, noise " << sigma << " grey: scatter / predicted variance "
+                << vx / predicted(0, 0) << " (x), " << vy / predicted(1, 1) << " (y)\n";
+      EXPECT_GT(vx / predicted(0, 0), 0.88);
+      EXPECT_LT(vx / predicted(0, 0), 1.13);
+      EXPECT_GT(vy / predicted(1, 1), 0.88);
+      EXPECT_LT(vy / predicted(1, 1), 1.13);
+    }
   }
 }
 
