@@ -237,18 +237,22 @@ class Labeller {
   // hidden marker bends a 4-pair pose to itself, and the RMS alone does not show it (randomised
   // real-CT scene 13003: RMS 0.64 px, with a correct pair at 13 sigma).
   std::string DisagreeingPair(const Scored& s) const {
-    if (s.num_labelled != 4) return "";
+    const double d = DisagreementPx(s);
+    if (d == 0) return "";
+    return "its 4 pairs disagree: one lies " + Fmt("%.2f", d) +
+           " px from where the other three put it";
+  }
+  // The distance (px) of the first pair of a 4-pair labelling that DisagreeingPair finds off, or 0.
+  double DisagreementPx(const Scored& s) const {
+    if (s.num_labelled != 4) return 0;
     const double median_sigma = MedianBlobSigma();
     for (size_t i = 0; i < q_.size(); ++i) {
       if (s.marker_of_blob[i] < 0) continue;
       double m2 = 0, d = 0;
       LeftOut(s, i, median_sigma, &m2, &d);
-      if (d > kOffPoseFloorPx && m2 > kOffPoseChi2) {
-        return "its 4 pairs disagree: one lies " + Fmt("%.2f", d) +
-               " px from where the other three put it";
-      }
+      if (d > kOffPoseFloorPx && m2 > kOffPoseChi2) return d;
     }
-    return "";
+    return 0;
   }
 
   // The pose of `s` refined on its pairs, and their sum of squares there.
@@ -554,6 +558,8 @@ class TripleSearch {
   // The best seen at the nominal magnification (for the error: one at a wrong depth is a chance
   // fit, and the reason it was refused says nothing about the view).
   Scored best_at_depth;
+  // The best refused only because its 4 pairs disagree (Labeller::DisagreeingPair).
+  Scored best_disagreeing;
   int hypotheses = 0;            // P3P solves
 
  private:
@@ -587,7 +593,10 @@ class TripleSearch {
   void Consider(const Scored& sc) {
     if (Better(sc, best_any)) best_any = sc;
     if (Better(sc, best_at_depth) && lab_->AtNominalDepth(sc)) best_at_depth = sc;
-    if (!lab_->Accepted(sc)) return;
+    const Refusal::Kind refused = lab_->Rejection(sc).kind;
+    if (refused == Refusal::Kind::kPairsDisagree && Better(sc, best_disagreeing))
+      best_disagreeing = sc;
+    if (refused != Refusal::Kind::kNone) return;
     bool same = false;
     for (Scored& a : accepted) {
       if (!Contradict(a, sc)) {
@@ -613,6 +622,24 @@ class TripleSearch {
   std::vector<cv::Point2d> img_ = std::vector<cv::Point2d>(3);
   std::vector<cv::Mat> rvecs_, tvecs_;
 };
+
+// A labelling of 4 pairs has none to spare to tell a pulled centre from a chance fit: when another
+// labelling of 4 pairs, contradicting it and within ambiguity_margin_px of its RMS, was refused
+// only because one of its pairs lies off by as much as an edge or a bead in line can pull a
+// centre (up to kPlausiblePull x separation_px, about 0.3 of a diameter; 1.5 px when the
+// separation is unknown), either could be the true one (randomised XA scene 2011, view 4: a wrong
+// labelling at RMS 0.019 px accepted, the true one at 0.051 px with a centre 0.69 px off
+// refused). That rival, or nullptr.
+const Scored* DisagreeingRival(const Labeller& lab, const TripleSearch& search) {
+  constexpr double kPlausiblePull = 0.25;
+  const CorrespondenceOptions& o = lab.options();
+  const Scored& best = search.accepted.front();
+  const Scored& rival = search.best_disagreeing;  // 4 pairs, or none
+  if (rival.num_labelled == 0 || best.num_labelled > rival.num_labelled) return nullptr;
+  if (!Contradict(best, rival) || rival.Rms() - best.Rms() >= o.ambiguity_margin_px) return nullptr;
+  const double pull = o.separation_px > 0 ? kPlausiblePull * o.separation_px : 1.5;
+  return lab.DisagreementPx(rival) <= pull ? &rival : nullptr;
+}
 
 std::string Describe(const Scored& s) {
   std::ostringstream os;
@@ -736,6 +763,14 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
                         best_any.num_labelled > accepted.front().num_labelled &&
                         Contradict(best_any, accepted.front());
   if (accepted.empty() || outvoted) return Status::Error(NoLabelling(lab, search, m, n, outvoted));
+  if (const Scored* rival = DisagreeingRival(lab, search)) {
+    return Status::Error("ambiguous marker labelling: " + Describe(accepted.front()) +
+                         " against a contradicting one of " + Describe(*rival) + " refused as " +
+                         lab.Rejection(*rival).why +
+                         ": a marker's centre pulled by an edge or a shadow in line would explain "
+                         "the worse fit of either, and 4 markers leave none to tell which; "
+                         "refusing to guess");
+  }
   // The best and the labellings contradicting it that explain the blobs about as well. When there
   // are such, only the pairs they all share are kept (the markers they agree on are certain; the
   // others are contested), if those are still enough for min_markers and min_fraction; else the
