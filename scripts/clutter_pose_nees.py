@@ -25,7 +25,7 @@ def mean(x): return sum(x) / max(1, len(x))
 B = sys.argv[1]; src = sys.argv[2]; out = sys.argv[3]; seeds = [int(s) for s in sys.argv[4].split(',')]
 random_anatomy = len(sys.argv) > 5 and sys.argv[5] == "random-anatomy"
 z_by_view = {}
-res = {'full': [], 'isotropic': []}; s0 = {'full': [], 'isotropic': []}
+res = {'full': [], 'isotropic': []}; s0 = {'full': [], 'isotropic': []}; err2 = {'full': [], 'isotropic': []}
 for seed in seeds:
     d = f"{out}/s{seed}"
     subprocess.run(f"rm -rf {d}; mkdir -p {d}", shell=True, check=True)
@@ -69,11 +69,18 @@ for seed in seeds:
             e = [x - y for x, y in zip(v["cam_from_object"]["rvec"] + v["cam_from_object"]["t_mm"], tv["rvec"] + tv["t_mm"])]
             x = solve(v["covariance_6x6"], e)
             res[kind].append(sum(p * q for p, q in zip(e, x)) / 6)
+            err2[kind].append(e)
             if kind == "full":
                 z_by_view.setdefault(v["id"], []).append(
                     [e[i] / math.sqrt(v["covariance_6x6"][i][i]) for i in range(6)])
 for k in res:
     print(f"{k}: pose NEES per dof {mean(res[k]):.3f} over {len(res[k])} views ({len(seeds)} seeds), mean sigma0 {mean(s0[k]):.3f}")
+# The errors themselves: RMS over the views of the rotation (deg, the rotation vector's error) and
+# the translation (mm).
+e_all = err2["full"]
+rot = math.degrees(math.sqrt(mean([sum(x * x for x in e[:3]) for e in e_all])))
+tr = math.sqrt(mean([sum(x * x for x in e[3:]) for e in e_all]))
+print(f"full: RMS error over the views: rotation {rot:.4f} deg, translation {tr:.4f} mm")
 # Per view, the mean error over the seeds in its sigmas (rx ry rz tx ty tz): a fixed anatomy's
 # centroid errors repeat in every seed and show here; random anatomy averages them out.
 for vid, zs in sorted(z_by_view.items()):
