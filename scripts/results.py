@@ -835,6 +835,8 @@ CLUTTER_NEES = re.compile(r"full: pose NEES per dof ([\d.]+) over (\d+) views \(
                           r"mean sigma0 ([\d.]+)")
 CLUTTER_ISOTROPIC = re.compile(r"isotropic: pose NEES per dof ([\d.]+)")
 CLUTTER_MEANS = re.compile(r"all views: (.*)")
+CLUTTER_RMS = re.compile(r"full: RMS error over the views: rotation ([\d.]+) deg, translation "
+                         r"([\d.]+) mm")
 
 
 def clutter_figures(binary, tmp):
@@ -845,7 +847,8 @@ def clutter_figures(binary, tmp):
                           check=True, capture_output=True, text=True).stdout
     m, iso, means = CLUTTER_NEES.search(text), CLUTTER_ISOTROPIC.search(text), \
         CLUTTER_MEANS.search(text)
-    if not (m and iso and means):
+    rms = CLUTTER_RMS.search(text)
+    if not (m and iso and means and rms):
         sys.exit("results.py: scripts/clutter_pose_nees.py printed no figures")
     z = dict(zip(means.group(1).split()[0::2], means.group(1).split()[1::2]))
     return {"clutter.command": "`python3 scripts/clutter_pose_nees.py build/bin/carmba . /tmp/cn "
@@ -853,7 +856,8 @@ def clutter_figures(binary, tmp):
             "clutter.nees": "%s over %s views (%s seeds)" % m.groups()[:3],
             "clutter.sigma0": m.group(4),
             "clutter.isotropic": iso.group(1),
-            "clutter.means": "tz %s and rx %s" % (z["tz"], z["rx"])}
+            "clutter.means": "tz %s and rx %s" % (z["tz"], z["rx"]),
+            "clutter.rms": "%s deg in rotation and %s mm in translation" % rms.groups()}
 
 
 # ---- Measure and render ---------------------------------------------------------------------
