@@ -47,11 +47,11 @@
 //     wrong 4-marker labelling can fit better than it (0.022 px against the true 0.101 px on
 //     a randomised scene with a bead among 4 visible markers).
 //   * rival: the best labelling of 4 pairs has none to spare to tell a pulled centre from a
-//     chance fit. When another labelling of 4 pairs, contradicting it and within
-//     ambiguity_margin_px of its RMS, was refused only because one of its pairs lies off where
-//     the other three put it, by no more than an edge or a bead in line can pull a centre (a
-//     quarter of separation_px, about 0.3 of a diameter; 1.5 px when unknown), the view is
-//     ambiguous too: the true labelling may be the refused one (randomised XA scene 2011).
+//     chance fit. When another labelling of 4 pairs, contradicting it, within
+//     ambiguity_margin_px and 6 times its RMS, was refused only because one of its pairs lies
+//     off where the other three put it, by no more than an edge or a bead in line can pull a
+//     centre (a quarter of separation_px, about 0.3 of a diameter; 1.5 px when unknown), the
+//     view is ambiguous too: the true labelling may be the refused one (randomised scene 2011).
 // Blobs left unpaired are not labelled (spurious beads, other metal).
 #pragma once
 
