@@ -278,7 +278,7 @@ struct CentroidEstimate {
   double shift = 0, toward_core = 0;
 };
 
-// A linear function of the disc's pixels (a centroid, or a combination of two): per pixel its
+// A linear function of the disc's pixels (a centroid): per pixel its
 // derivative times the pixel's noise sigma relative to the ring's (g, on the window's grid of
 // `side` x `side`), and its derivative with respect to the ring's background plane (G).
 struct PixelSensitivity {
@@ -293,47 +293,65 @@ struct PixelSensitivity {
     g[at] = a * scale;
     for (int j = 0; j < 3; ++j) G(0, j) += a[0] * dw_dp[j], G(1, j) += a[1] * dw_dp[j];
   }
-  // a x this + b x other.
-  PixelSensitivity Combined(double a, const PixelSensitivity& other, double b) const {
-    PixelSensitivity out(side);
-    for (size_t i = 0; i < g.size(); ++i) out.g[i] = a * g[i] + b * other.g[i];
-    out.G = a * G + b * other.G;
-    return out;
-  }
-  // Its covariance per unit ring variance: the pixels' with the noise's correlation
-  // rho1^(dx^2 + dy^2), |d| <= 3, and the ring plane's (its normal matrix inverted, `ring_inv`),
-  // scaled by the noise's correlation factor.
-  cv::Matx22d Covariance(double rho1,
-                         double correlation_factor,
-                         const cv::Matx33d& ring_inv) const {
-    double rho[4];
-    for (int k = 0; k < 4; ++k) rho[k] = std::pow(rho1, k * k);
-    cv::Matx22d cov = cv::Matx22d::zeros();
-    for (int y = 0; y < side; ++y) {
-      for (int x = 0; x < side; ++x) {
-        const cv::Vec2d& gi = g[y * side + x];
-        if (gi[0] == 0 && gi[1] == 0) continue;
-        for (int dy = -3; dy <= 3; ++dy) {
-          if (y + dy < 0 || y + dy >= side) continue;
-          for (int dx = -3; dx <= 3; ++dx) {
-            if (x + dx < 0 || x + dx >= side) continue;
-            const cv::Vec2d& gj = g[(y + dy) * side + x + dx];
-            const double r = rho[std::abs(dx)] * rho[std::abs(dy)];
-            cov(0, 0) += r * gi[0] * gj[0], cov(0, 1) += r * gi[0] * gj[1];
-            cov(1, 1) += r * gi[1] * gj[1];
-          }
-        }
-      }
-    }
-    cov(1, 0) = cov(0, 1);
-    return cov + correlation_factor * G * ring_inv * G.t();
-  }
 };
 
 // The whole-blob and the core centroid as linear functions of the disc's pixels.
 struct DiscSensitivity {
   PixelSensitivity full, core;
 };
+
+// The covariances of the whole-blob and the core centroid and between them (cross = Cov(full,
+// core)), per unit ring variance: the pixels', sum_ij g_i h_j^T rho(i - j) with the noise's
+// correlation rho(dx, dy) = rho1^(dx^2 + dy^2), |d| <= 3 (g, h: PixelSensitivity::g, a_i dw/dI
+// sqrt(var I_i / sigma^2)), and the ring plane's, Cov_p = (A^T A)^-1 per unit variance (the ring
+// fit; `ring_inv`) scaled by the noise's correlation factor. Any combination of the two
+// centroids follows from these three.
+struct CentroidCovariances {
+  cv::Matx22d full, core, cross;
+  // Of (1 - t) full + t core.
+  cv::Matx22d Blend(double t) const {
+    return (1 - t) * (1 - t) * full + t * t * core + t * (1 - t) * (cross + cross.t());
+  }
+  // Of core - full.
+  cv::Matx22d Difference() const { return full + core - cross - cross.t(); }
+};
+
+CentroidCovariances JointCovariances(const DiscSensitivity& ds,
+                                     double rho1,
+                                     double correlation_factor,
+                                     const cv::Matx33d& ring_inv) {
+  double rho[4];
+  for (int k = 0; k < 4; ++k) rho[k] = std::pow(rho1, k * k);
+  const int side = ds.full.side;
+  const std::vector<cv::Vec2d>&f = ds.full.g, &c = ds.core.g;
+  CentroidCovariances out{cv::Matx22d::zeros(), cv::Matx22d::zeros(), cv::Matx22d::zeros()};
+  for (int y = 0; y < side; ++y) {
+    for (int x = 0; x < side; ++x) {
+      const size_t i = static_cast<size_t>(y * side + x);
+      if (f[i] == cv::Vec2d(0, 0) && c[i] == cv::Vec2d(0, 0)) continue;
+      // The correlated sums of the pixel's neighbours' sensitivities.
+      cv::Vec2d fj_sum(0, 0), cj_sum(0, 0);
+      for (int dy = -3; dy <= 3; ++dy) {
+        if (y + dy < 0 || y + dy >= side) continue;
+        for (int dx = -3; dx <= 3; ++dx) {
+          if (x + dx < 0 || x + dx >= side) continue;
+          const size_t j = static_cast<size_t>((y + dy) * side + x + dx);
+          const double r = rho[std::abs(dx)] * rho[std::abs(dy)];
+          fj_sum += r * f[j], cj_sum += r * c[j];
+        }
+      }
+      out.full += f[i] * fj_sum.t();
+      out.core += c[i] * cj_sum.t();
+      out.cross += f[i] * cj_sum.t();
+    }
+  }
+  const double F = correlation_factor;
+  const cv::Matx23d &Gf = ds.full.G, &Gc = ds.core.G;
+  out.full += F * Gf * ring_inv * Gf.t();
+  out.core += F * Gc * ring_inv * Gc.t();
+  out.cross += F * Gf * ring_inv * Gc.t();
+  return out;
+}
 
 // c = sum w_i x_i / S, dc/dw_i = (x_i - c) / S (over w_i > floor for the whole blob; for the
 // core the sub-samples' weights, each a bilinear combination of four pixels: InterpolatedCore). w_i
@@ -370,21 +388,14 @@ DiscSensitivity Sensitivities(const std::vector<CentroidPixel>& disc,
 
 // The noise-optimal share of the core in the centre, (1 - t) c_full + t c_core: the t that
 // minimises the expected squared error from the pixel noise (covariances Vf of c_full and Vd of
-// d = c_core - c_full, per unit pixel variance, times sigma2) and the two centroids' sub-pixel
-// phase errors (kPhaseErrorWholePx, kPhaseErrorCorePx per axis, taken as independent):
+// d = c_core - c_full: JointCovariances, per unit pixel variance, times sigma2) and the two
+// centroids' sub-pixel phase errors (kPhaseErrorWholePx, kPhaseErrorCorePx per axis, taken as
+// independent):
 //   E|c_full + t d - c|^2 = tr Vf + 2 t tr C + t^2 tr Vd + 2 (1 - t)^2 pf^2 + 2 t^2 pc^2,
 //   t = (2 pf^2 - tr C) / (tr Vd + 2 pf^2 + 2 pc^2),  C = Cov(c_full, d).
-double NoiseOptimalCoreShare(const DiscSensitivity& ds,
-                             double rho1,
-                             double correlation_factor,
-                             const cv::Matx33d& ring_inv,
-                             double sigma2) {
-  const auto trace = [&](const PixelSensitivity& p) {
-    return cv::trace(p.Covariance(rho1, correlation_factor, ring_inv)) * sigma2;
-  };
-  const double vf = trace(ds.full), vc = trace(ds.core);
-  const double vd = trace(ds.core.Combined(1.0, ds.full, -1.0));
-  const double c = 0.5 * (vc - vf - vd);  // Var(c_full + d) = Vf + Vd + 2 C
+double NoiseOptimalCoreShare(const CentroidCovariances& unit, double sigma2) {
+  const double vd = cv::trace(unit.Difference()) * sigma2;
+  const double c = (cv::trace(unit.cross) - cv::trace(unit.full)) * sigma2;  // tr Cov(full, d)
   const double pf2 = kPhaseErrorWholePx * kPhaseErrorWholePx;
   const double pc2 = kPhaseErrorCorePx * kPhaseErrorCorePx;
   return std::clamp((2 * pf2 - c) / (vd + 2 * pf2 + 2 * pc2), 0.0, 1.0);
@@ -399,24 +410,17 @@ double PixelVariance(const CentroidNoise& noise, double ring_sigma, const cv::Ve
   return sigma * sigma;
 }
 
-// The centre's covariance (detect_steps.h CentroidNoise), of the centre used, (1 - t) c_full +
-// t c_core (t held), and the core-to-whole shift's
-// (c_core - c_full) with the part of the shift beyond it (ShiftBeyondNoise). Cov_p = sigma^2
-// (A^T A)^-1 (the ring fit), scaled by the noise's correlation factor; the pixel term with the
-// noise's correlation rho(dx, dy) = rho1^(dx^2 + dy^2), |d| <= 3: sum_ij g_i g_j^T rho(i - j),
-// g_i = a_i dw/dI sqrt(var I_i / sigma^2).
-void CentroidCovariance(const DiscSensitivity& ds,
+// The centre's covariance (detect_steps.h CentroidNoise) from the centroids' covariances per unit
+// pixel variance (JointCovariances) times sigma2: of the centre used, (1 - t) c_full + t c_core
+// (t held), and of the core-to-whole shift c_core - c_full, with the part of the shift beyond it
+// (ShiftBeyondNoise).
+void CentroidCovariance(const CentroidCovariances& unit,
                         const CentroidEstimate& e,
                         const cv::Vec3d& plane,
                         double sigma2,
-                        const cv::Matx33d& ring_inv,
                         CentroidNoise* noise) {
-  const auto covariance = [&](const PixelSensitivity& p) {
-    return p.Covariance(noise->rho1, noise->correlation_factor, ring_inv) * sigma2;
-  };
-  noise->shift_beyond_noise_px =
-      ShiftBeyondNoise(e.shift, covariance(ds.core.Combined(1.0, ds.full, -1.0)));
-  noise->covariance_px2 = covariance(ds.full.Combined(1.0 - e.toward_core, ds.core, e.toward_core));
+  noise->shift_beyond_noise_px = ShiftBeyondNoise(e.shift, unit.Difference() * sigma2);
+  noise->covariance_px2 = unit.Blend(e.toward_core) * sigma2;
   noise->sigma_gray = std::sqrt(sigma2);
   noise->peak_contrast = e.peak;
   noise->background = plane[0];
@@ -616,14 +620,13 @@ bool RefineCentroid(const cv::Mat& f,
     if (noise) {
       // With a noise model the centre moves towards the less noisy core as far as its noise
       // and phase error make it the better estimate, or further by the shift rule.
-      const DiscSensitivity ds = Sensitivities(disc, e, plane, dark, cx, cy, rw);
-      const cv::Matx33d ring_inv = ring_AtA.inv(cv::DECOMP_CHOLESKY);
+      const CentroidCovariances unit =
+          JointCovariances(Sensitivities(disc, e, plane, dark, cx, cy, rw), noise->rho1,
+                           noise->correlation_factor, ring_AtA.inv(cv::DECOMP_CHOLESKY));
       const double sigma2 = PixelVariance(*noise, ring_sigma, plane);
-      e.toward_core = std::max(
-          e.toward_core,
-          NoiseOptimalCoreShare(ds, noise->rho1, noise->correlation_factor, ring_inv, sigma2));
+      e.toward_core = std::max(e.toward_core, NoiseOptimalCoreShare(unit, sigma2));
       e.centre = e.full + e.toward_core * (e.core - e.full);
-      CentroidCovariance(ds, e, plane, sigma2, ring_inv, noise);
+      CentroidCovariance(unit, e, plane, sigma2, noise);
       const double bg = plane[0] + plane[1] * (e.centre.x - cx) + plane[2] * (e.centre.y - cy);
       noise->log_background_gradient =
           bg > 0 ? cv::Vec2d(plane[1] / bg, plane[2] / bg) : cv::Vec2d(0, 0);
