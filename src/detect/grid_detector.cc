@@ -276,6 +276,11 @@ struct CentroidEstimate {
   std::vector<cv::Vec2d> core_gradient;
   cv::Point2d full, core, centre;
   double shift = 0, toward_core = 0;
+  // The centre at the core's share t: (1 - t) full + t core.
+  void BlendTowardCore(double t) {
+    toward_core = t;
+    centre = full + t * (core - full);
+  }
 };
 
 // A linear function of the disc's pixels (a centroid): per pixel its
@@ -519,8 +524,7 @@ bool DiscCentroids(std::vector<CentroidPixel>* disc,
   e->full = cv::Point2d(sx / e->sw, sy / e->sw);
   e->core = core + cv::Point2d(cx, cy);
   e->shift = cv::norm(e->core - e->full);
-  e->toward_core = std::clamp((e->shift - kBlendFromPx) / (kBlendToPx - kBlendFromPx), 0.0, 1.0);
-  e->centre = e->full + e->toward_core * (e->core - e->full);
+  e->BlendTowardCore(std::clamp((e->shift - kBlendFromPx) / (kBlendToPx - kBlendFromPx), 0.0, 1.0));
   return true;
 }
 
@@ -624,8 +628,7 @@ bool RefineCentroid(const cv::Mat& f,
           JointCovariances(Sensitivities(disc, e, plane, dark, cx, cy, rw), noise->rho1,
                            noise->correlation_factor, ring_AtA.inv(cv::DECOMP_CHOLESKY));
       const double sigma2 = PixelVariance(*noise, ring_sigma, plane);
-      e.toward_core = std::max(e.toward_core, NoiseOptimalCoreShare(unit, sigma2));
-      e.centre = e.full + e.toward_core * (e.core - e.full);
+      e.BlendTowardCore(std::max(e.toward_core, NoiseOptimalCoreShare(unit, sigma2)));
       CentroidCovariance(unit, e, plane, sigma2, noise);
       const double bg = plane[0] + plane[1] * (e.centre.x - cx) + plane[2] * (e.centre.y - cy);
       noise->log_background_gradient =
