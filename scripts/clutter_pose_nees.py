@@ -1,15 +1,19 @@
 #!/usr/bin/env python3
 # Pose NEES on the clutter scene: carmba pose's observations re-solved with their full 2x2 blob
-# covariances and with the isotropic larger-eigenvalue bound (the previous whitening), over seeds.
+# covariances and with the isotropic larger-eigenvalue bound (the previous whitening), over seeds;
+# the full 2x2 also with the stated (a-priori) sigmas instead of the per-group variance factors.
 # The fiducials are the true centres with a 1 um CT prior, so the pixels are the only error.
 # Usage: python3 scripts/clutter_pose_nees.py build/bin/carmba . /tmp/clutter_nees 1,2,3,4,5,6,7,8
-#        [random-anatomy]
+#        [random-anatomy[,random-geometry]]
 # A seed changes the noise only: the anatomy (the XA frame's central crop) is the same in every
 # seed, so its centroid errors repeat and show as a pose bias over the seeds. With
 # `random-anatomy` each seed cuts its background from another part of the frame
 # (imaging.background.crop_center drawn uniformly in [0.3, 0.7]^2), and the script also prints the
-# per-view mean errors over the seeds in sigmas.
-import json, random, subprocess, sys, os, math
+# per-view mean errors over the seeds in sigmas. With `random-geometry` every view's C-arm angles
+# move by up to 2 deg and the object by up to 2 mm per seed, so that what is fixed by the markers'
+# places in the image (their sub-pixel phase, the block's edges, the beads and the wire beside them)
+# changes from seed to seed as it does between a user's acquisitions.
+import json, random, re, subprocess, sys, os, math
 def solve(A, b):
     n = len(b); M = [list(A[i]) + [b[i]] for i in range(n)]
     for c in range(n):
@@ -23,17 +27,29 @@ def lmax(a, b, c):  # larger eigenvalue of [[a, b], [b, c]]
     m = 0.5 * (a + c); d = 0.5 * (a - c); return m + math.sqrt(d * d + b * b)
 def mean(x): return sum(x) / max(1, len(x))
 B = sys.argv[1]; src = sys.argv[2]; out = sys.argv[3]; seeds = [int(s) for s in sys.argv[4].split(',')]
-random_anatomy = len(sys.argv) > 5 and sys.argv[5] == "random-anatomy"
+modes = sys.argv[5].split(",") if len(sys.argv) > 5 else []
+random_anatomy = "random-anatomy" in modes
+random_geometry = "random-geometry" in modes
 z_by_view = {}
-res = {'full': [], 'isotropic': []}; s0 = {'full': [], 'isotropic': []}; err2 = {'full': [], 'isotropic': []}
+KINDS = ("full", "isotropic", "apriori")
+res = {k: [] for k in KINDS}; s0 = {k: [] for k in KINDS}; err2 = {k: [] for k in KINDS}
 for seed in seeds:
     d = f"{out}/s{seed}"
     subprocess.run(f"rm -rf {d}; mkdir -p {d}", shell=True, check=True)
     scene = f"{src}/configs/scenes/markers_clutter.yaml"
-    if random_anatomy:
+    if random_anatomy or random_geometry:
         rng = random.Random(seed)
         text = open(scene).read().replace("../../data/", os.path.abspath(src) + "/data/")
-        text = text.replace("    crop: 0.6\n", f"    crop: 0.6\n    crop_center: [{rng.uniform(0.3, 0.7)}, {rng.uniform(0.3, 0.7)}]\n")
+        if random_anatomy:
+            text = text.replace("    crop: 0.6\n", f"    crop: 0.6\n    crop_center: [{rng.uniform(0.3, 0.7)}, {rng.uniform(0.3, 0.7)}]\n")
+        if random_geometry:
+            # Every view's C-arm angles moved by up to 2 deg and the object by up to 2 mm: the
+            # markers' sub-pixel positions, and whatever error is fixed by them, change per seed.
+            jitter = lambda m: f"{m.group(1)}{float(m.group(2)) + rng.uniform(-2, 2):.3f}"
+            text = re.sub(r"(primary_deg: )(-?[0-9.]+)", jitter, text)
+            text = re.sub(r"(secondary_deg: )(-?[0-9.]+)", jitter, text)
+            c = [rng.uniform(-2, 2) for _ in range(3)]
+            text = text.replace("center_mm: [0, 0, 0]}", f"center_mm: [{c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}]}}")
         scene = f"{d}/scene.yaml"
         open(scene, "w").write(text)
     subprocess.run([B, "simulate", "--scene", scene, "--seed", str(seed), "--out", f"{d}/sim"], check=True, capture_output=True)
@@ -48,7 +64,10 @@ for seed in seeds:
     if r.returncode: print(seed, r.stderr); continue
     lines = [l for l in open(f"{d}/pose/observations.csv") if not l.startswith("#")]
     hdr = lines[0].strip().split(","); rows = [dict(zip(hdr, l.strip().split(","))) for l in lines[1:]]
-    for kind in ("full", "isotropic"):
+    config = f"{d}/apriori_config.yaml"
+    with open(config, "w") as f:
+        f.write(open(f"{src}/configs/posit_ba_analytic.yaml").read().replace("scale: per_group", "scale: apriori"))
+    for kind in KINDS:
         with open(f"{d}/obs_{kind}.csv", "w") as f:
             f.write("view,marker,u_px,v_px,cov_uu,cov_uv,cov_vv\n")
             for w in rows:
@@ -58,7 +77,8 @@ for seed in seeds:
                 f.write(f"{w['view']},{w['marker']},{w['u_px']},{w['v_px']},{a!r},{b!r},{c!r}\n")
         with open(f"{d}/{kind}.yaml", "w") as f:
             f.write(f"name: clutter_{kind}\ncamera: camera.json\nsigma_px: 1.0\nmarkers: {{file: fiducials.csv}}\nobservations: {{file: obs_{kind}.csv}}\n")
-        r = subprocess.run([B, "solve", "--problem", f"{d}/{kind}.yaml", "--config", f"{src}/configs/posit_ba_analytic.yaml", "--out", f"{d}/solve_{kind}"], capture_output=True, text=True)
+        cfg = config if kind == "apriori" else f"{src}/configs/posit_ba_analytic.yaml"
+        r = subprocess.run([B, "solve", "--problem", f"{d}/{kind}.yaml", "--config", cfg, "--no-plots", "--out", f"{d}/solve_{kind}"], capture_output=True, text=True)
         if r.returncode: print(seed, kind, r.stderr); continue
         j = json.load(open(f"{d}/solve_{kind}/result.json"))
         s0[kind].append(j["statistics"]["sigma0"])

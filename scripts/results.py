@@ -831,33 +831,53 @@ def calib_cross_check_figures(binary, tmp):
 
 
 CLUTTER_SEEDS = "1,2,3,4,5,6,7,8"
+# The randomised variant: anatomy and geometry drawn per seed, on 32 seeds.
+CLUTTER_RANDOM_SEEDS = ",".join(str(s) for s in range(1, 33))
 CLUTTER_NEES = re.compile(r"full: pose NEES per dof ([\d.]+) over (\d+) views \((\d+) seeds\), "
                           r"mean sigma0 ([\d.]+)")
 CLUTTER_ISOTROPIC = re.compile(r"isotropic: pose NEES per dof ([\d.]+)")
+CLUTTER_APRIORI = re.compile(r"apriori: pose NEES per dof ([\d.]+)")
 CLUTTER_MEANS = re.compile(r"all views: (.*)")
 CLUTTER_RMS = re.compile(r"full: RMS error over the views: rotation ([\d.]+) deg, translation "
                          r"([\d.]+) mm")
 
 
+def run_clutter_script(binary, out, seeds, modes=None):
+    """scripts/clutter_pose_nees.py's printout over `seeds` (with its modes, if any)."""
+    args = [sys.executable, os.path.join(ROOT, "scripts/clutter_pose_nees.py"), binary, ROOT, out,
+            seeds] + ([modes] if modes else [])
+    text = subprocess.run(args, check=True, capture_output=True, text=True).stdout
+    found = [r.search(text) for r in (CLUTTER_NEES, CLUTTER_ISOTROPIC, CLUTTER_APRIORI,
+                                      CLUTTER_MEANS, CLUTTER_RMS)]
+    if not all(found):
+        sys.exit("results.py: scripts/clutter_pose_nees.py printed no figures")
+    return found
+
+
 def clutter_figures(binary, tmp):
     """scripts/clutter_pose_nees.py over the clutter scene's seeds: the pose NEES of `carmba pose`'s
-    observations solved with their full 2x2 covariances."""
-    text = subprocess.run([sys.executable, os.path.join(ROOT, "scripts/clutter_pose_nees.py"),
-                           binary, ROOT, os.path.join(tmp, "clutter_nees"), CLUTTER_SEEDS],
-                          check=True, capture_output=True, text=True).stdout
-    m, iso, means = CLUTTER_NEES.search(text), CLUTTER_ISOTROPIC.search(text), \
-        CLUTTER_MEANS.search(text)
-    rms = CLUTTER_RMS.search(text)
-    if not (m and iso and means and rms):
-        sys.exit("results.py: scripts/clutter_pose_nees.py printed no figures")
+    observations solved with their full 2x2 covariances, on the shipped scene and with its anatomy
+    and geometry drawn per seed."""
+    m, iso, apriori, means, rms = run_clutter_script(
+        binary, os.path.join(tmp, "clutter_nees"), CLUTTER_SEEDS)
     z = dict(zip(means.group(1).split()[0::2], means.group(1).split()[1::2]))
+    rm, _, rapriori, _, rrms = run_clutter_script(
+        binary, os.path.join(tmp, "clutter_random"), CLUTTER_RANDOM_SEEDS,
+        "random-anatomy,random-geometry")
     return {"clutter.command": "`python3 scripts/clutter_pose_nees.py build/bin/carmba . /tmp/cn "
                                "%s`" % CLUTTER_SEEDS,
             "clutter.nees": "%s over %s views (%s seeds)" % m.groups()[:3],
             "clutter.sigma0": m.group(4),
             "clutter.isotropic": iso.group(1),
+            "clutter.apriori": apriori.group(1),
             "clutter.means": "tz %s and rx %s" % (z["tz"], z["rx"]),
-            "clutter.rms": "%s deg in rotation and %s mm in translation" % rms.groups()}
+            "clutter.rms": "%s deg in rotation and %s mm in translation" % rms.groups(),
+            "clutter.random_command": "`python3 scripts/clutter_pose_nees.py build/bin/carmba . "
+                                      "/tmp/cnr 1,2,...,32 random-anatomy,random-geometry`",
+            "clutter.random_nees": "%s over %s views (%s seeds)" % rm.groups()[:3],
+            "clutter.random_sigma0": rm.group(4),
+            "clutter.random_apriori": rapriori.group(1),
+            "clutter.random_rms": "%s deg in rotation and %s mm in translation" % rrms.groups()}
 
 
 # ---- Measure and render ---------------------------------------------------------------------
