@@ -479,7 +479,7 @@ RECALL_COMMAND = ("CARMBA_MARKER_RECALL_SEED=S CARMBA_MARKER_RECALL_SCENES=%d "
                   "build/tests/carmba_detect_test --gtest_filter='MarkerRecall.XaFrame*' (or "
                   "'MarkerRecall.RealCt*')" % RECALL_SCENES)
 RECALL_FIELDS = ("scenes", "views", "views_skipped", "expected", "correct", "wrong", "beads",
-                 "overlap_labelled", "overlapping", "off_centre")
+                 "overlap_labelled", "overlapping", "off_centre", "views_lost")
 
 
 def recall_run(tests_dir, tmp, kind, gfilter, seed_set):
@@ -536,14 +536,15 @@ def recall_table(rows):
     """rows: [(set, counts)] -> the markdown table with a row for all sets together, and the
     totals."""
     lines = ["| seed set | labelled correctly | wrong labels | centres off their covariance | "
-             "beads labelled | overlapped markers labelled | views skipped |",
+             "beads labelled | overlapped markers labelled | views skipped (with >= 4 markers "
+             "apart) |",
              "|---|---|---|---|---|---|---|"]
     total = {k: sum(c[k] for _, c in rows) for k in RECALL_FIELDS}
     for seed_set, c in rows + [("**all**", total)]:
-        lines.append("| %s | %d of %d (%s) | %d | %d | %d | %d of %d | %d of %d |" % (
+        lines.append("| %s | %d of %d (%s) | %d | %d | %d | %d of %d | %d of %d (%d) |" % (
             seed_set, c["correct"], c["expected"], pct(c["correct"], c["expected"]), c["wrong"],
             c["off_centre"], c["beads"], c["overlap_labelled"], c["overlapping"],
-            c["views_skipped"], c["views"]))
+            c["views_skipped"], c["views"], c["views_lost"]))
     return "\n".join("  " + line for line in lines), total  # indented: inside a list item
 
 
@@ -564,6 +565,7 @@ def recall_figures(tests_dir, tmp):
         fig[kind + "_table"] = table
         fig[kind + "_pct"] = pct(total["correct"], total["expected"])
         fig[kind + "_at_99"] = str(sum(1 for _, c in rows if c["correct"] >= 0.99 * c["expected"]))
+        fig[kind + "_lost"] = "%d of %d" % (total["views_lost"], total["views_skipped"])
         (fig[kind + "_nees"], fig[kind + "_beyond"], fig[kind + "_radial"],
          fig[kind + "_nees_split"]) = centre_errors(rows)
         fig[kind + "_missed"] = "; ".join(

@@ -41,6 +41,9 @@ struct Tally {
   int expected = 0, correct = 0, wrong = 0, off_centre = 0;
   int spurious_labelled = 0, overlap_labelled = 0;
   int outside_labelled = 0, overlapping_pairs = 0, outside = 0, crossed_by_wire = 0;
+  // Views not labelled although 4 or more of their markers were expected (visible, in the field,
+  // apart from every other marker, bead and the wire): markers enough to identify the view.
+  int views_lost_identifiable = 0;
   // The expected markers not labelled, by why: the detector's rejection reason ("merged", "low
   // contrast", ...), "no blob found there", "a blob, not paired" or "view skipped".
   std::map<std::string, int> missed;
@@ -61,6 +64,7 @@ struct Tally {
     spurious_labelled += o.spurious_labelled, overlap_labelled += o.overlap_labelled;
     outside_labelled += o.outside_labelled, overlapping_pairs += o.overlapping_pairs;
     outside += o.outside, crossed_by_wire += o.crossed_by_wire;
+    views_lost_identifiable += o.views_lost_identifiable;
     for (const auto& [why, n] : o.missed) missed[why] += n;
     nees_n += o.nees_n, nees_beyond_1e3 += o.nees_beyond_1e3, nees_sum += o.nees_sum;
     nees_widened_n += o.nees_widened_n, nees_widened_sum += o.nees_widened_sum;
@@ -113,6 +117,7 @@ inline Tally Score(const sim::XrayScene& scene,
     }
     Eigen::Vector2d mean_centre = Eigen::Vector2d::Zero();
     for (const auto& ck : c) mean_centre += ck / static_cast<double>(c.size());
+    int view_expected = 0;
     for (size_t k = 0; k < c.size(); ++k) {
       const int id = scene.phantom.spheres[k].id;
       // Overlapping: another marker's or a bead's centre within 1.25 diameters (the blob finder's
@@ -158,6 +163,7 @@ inline Tally Score(const sim::XrayScene& scene,
       if (!inside) continue;            // on the rim: not counted either way
       if (close && labelled_blob < 0) continue;  // a close pair or a wire across: may be left out
       ++t.expected;
+      ++view_expected;
       if (labelled_blob < 0) {
         std::string why = "no blob found there";
         for (size_t b = 0; b < ov.detection.blobs.size(); ++b) {
@@ -220,6 +226,7 @@ inline Tally Score(const sim::XrayScene& scene,
                 << std::sqrt(std::max(mb.covariance_px2(0, 0), mb.covariance_px2(1, 1)))
                 << " px, core-to-whole shift " << mb.background_shift_px << " px)\n";
     }
+    t.views_lost_identifiable += !ov.labelled && view_expected >= 4;
     for (size_t b = 0; b < ov.detection.blobs.size() && ov.labelled; ++b) {
       if (ov.marker_id_of_blob[b] < 0) continue;
       const cv::Point2d q = ov.detection.blobs[b].uv_px;
