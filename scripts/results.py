@@ -474,7 +474,11 @@ RECALL_SCENES = 16
 RECALL_RUNS = (("xa", "MarkerRecall.XaFrame*", range(1, 9)),
                ("realct", "MarkerRecall.RealCt*", range(1, 17)),
                ("xa_unseen", "MarkerRecall.XaFrame*", range(9, 17)),
-               ("realct_unseen", "MarkerRecall.RealCt*", range(17, 33)))
+               ("realct_unseen", "MarkerRecall.RealCt*", range(17, 33)),
+               ("realct_positioner", "MarkerRecall.RealCt*", range(1, 33)))
+# The real-CT sets again with the C-arm positioner's error the DICOM angles do not record.
+RECALL_POSITIONER = {"CARMBA_MARKER_RECALL_POSITIONER_MM": "2",
+                     "CARMBA_MARKER_RECALL_POSITIONER_DEG": "0.5"}
 RECALL_COMMAND = ("CARMBA_MARKER_RECALL_SEED=S CARMBA_MARKER_RECALL_SCENES=%d "
                   "build/tests/carmba_detect_test --gtest_filter='MarkerRecall.XaFrame*' (or "
                   "'MarkerRecall.RealCt*')" % RECALL_SCENES)
@@ -486,7 +490,8 @@ def recall_run(tests_dir, tmp, kind, gfilter, seed_set):
     """The figures one set's run records (the test fails when a set misses its bar: kept)."""
     xml = os.path.join(tmp, "recall_%s_%d.xml" % (kind, seed_set))
     env = dict(os.environ, CARMBA_MARKER_RECALL_SEED=str(seed_set),
-               CARMBA_MARKER_RECALL_SCENES=str(RECALL_SCENES))
+               CARMBA_MARKER_RECALL_SCENES=str(RECALL_SCENES),
+               **(RECALL_POSITIONER if kind.endswith("_positioner") else {}))
     subprocess.run([os.path.join(tests_dir, "carmba_detect_test"), "--gtest_filter=" + gfilter,
                     "--gtest_output=xml:" + xml], env=env, stdout=subprocess.DEVNULL,
                    stderr=subprocess.DEVNULL)
@@ -566,6 +571,12 @@ def recall_figures(tests_dir, tmp):
         fig[kind + "_pct"] = pct(total["correct"], total["expected"])
         fig[kind + "_at_99"] = str(sum(1 for _, c in rows if c["correct"] >= 0.99 * c["expected"]))
         fig[kind + "_lost"] = "%d of %d" % (total["views_lost"], total["views_skipped"])
+        fig[kind + "_summary"] = (
+            "%d of %d (%s) labelled correctly, %d wrong, %d beads labelled, %d of %d views skipped "
+            "(%d of them with >= 4 markers apart)" % (
+                total["correct"], total["expected"], pct(total["correct"], total["expected"]),
+                total["wrong"], total["beads"], total["views_skipped"], total["views"],
+                total["views_lost"]))
         (fig[kind + "_nees"], fig[kind + "_beyond"], fig[kind + "_radial"],
          fig[kind + "_nees_split"]) = centre_errors(rows)
         fig[kind + "_missed"] = "; ".join(

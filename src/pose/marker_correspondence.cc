@@ -182,6 +182,49 @@ class Labeller {
     return pose;
   }
 
+  // `pose` moved across the view so that its projections shift by the image offset that most
+  // markers agree on: among the offsets from a marker's projection to a blob within `gate`, the
+  // one that puts the most markers within gate_px of a blob (then the smallest sum of squares).
+  // A nominal geometry's error moves the whole layout by several px (a C-arm's positioner, the
+  // table), which a greedy pairing within the wide gate can take for other blobs; the vote needs
+  // no pairing. The translation moves the markers' centroid by that offset at its depth.
+  Pose6 ShiftVoted(const Pose6& pose, double gate) const {
+    Project(pose);
+    const double g2 = gate * gate, G2 = o_.gate_px * o_.gate_px;
+    Eigen::Vector2d best = Eigen::Vector2d::Zero();
+    int best_count = 0;
+    double best_ss = 0;
+    for (size_t a = 0; a < P_.size(); ++a) {
+      if (!ok_[a]) continue;
+      for (const auto& qa : q_) {
+        const Eigen::Vector2d d = qa - proj_[a];
+        if (d.squaredNorm() >= g2) continue;
+        int count = 0;
+        double ss = 0;
+        for (size_t b = 0; b < P_.size(); ++b) {
+          if (!ok_[b]) continue;
+          double nearest = G2;
+          for (const auto& q : q_) nearest = std::min(nearest, (q - proj_[b] - d).squaredNorm());
+          if (nearest < G2) ++count, ss += nearest;
+        }
+        if (count > best_count || (count == best_count && ss < best_ss)) {
+          best = d, best_count = count, best_ss = ss;
+        }
+      }
+    }
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : P_) c += p / static_cast<double>(P_.size());
+    Eigen::Vector3d c_cam;
+    ceres::AngleAxisRotatePoint(pose.data(), c.data(), c_cam.data());
+    const double z = c_cam.z() + pose[5];
+    Pose6 moved = pose;
+    if (z > 0) {
+      moved[3] += best.x() * z / cam_.params[kFx];
+      moved[4] += best.y() * z / cam_.params[kFy];
+    }
+    return moved;
+  }
+
   // Pair with `gate`, refine, re-pair with gate_px (twice).
   Scored Verify(const Pose6& pose, double gate) {
     Project(pose);
@@ -730,6 +773,13 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
     const Scored* taken = confirmed && lab.Accepted(wide) ? &wide
                           : lab.Accepted(tight)           ? &tight
                                                           : nullptr;
+    // Neither accepted: the prediction moved by the offset most markers agree on, paired within
+    // gate_px (a nominal geometry off by a few mm).
+    Scored voted;
+    if (!taken) {
+      voted = lab.Verify(lab.ShiftVoted(*predicted, o.predict_gate_px), o.gate_px);
+      if (lab.Accepted(voted)) taken = &voted;
+    }
     if (taken) {
       finish(*taken, "predicted");
       return out;

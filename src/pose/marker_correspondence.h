@@ -9,7 +9,11 @@
 //     wide one is taken if it is accepted (below) and, when the tight one holds 3 or more
 //     markers (an accurate prediction), pairs the same (a pair only the wide gate made, e.g. a
 //     bead beside a hidden marker, bends a pose of few pairs to itself); else the tight one if
-//     accepted; else the full search runs.
+//     accepted; else the prediction moved across the view by the image offset most markers agree
+//     on (a vote over the offsets from each marker's projection to the blobs within
+//     predict_gate_px: a nominal geometry off by a few mm moves the whole layout, and a greedy
+//     wide pairing can take other blobs for it), paired within gate_px, if accepted; else the
+//     full search runs.
 //   * full search: marker triples (compact and well-shaped, disjoint first) x every ordered
 //     triple of blobs within the magnification bound (px_per_mm below) ->
 //     P3P (OpenCV's AP3P on undistorted rays) -> up to 4 poses -> a quick check that another

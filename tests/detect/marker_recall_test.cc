@@ -68,9 +68,25 @@ enum class Anatomy {
 
 const char* kXaFrame = "/usr/share/doc/libgdcm3.0/examples/00191113.dcm";
 
+// The C-arm positioner's error: every view's object moved by up to `mm` per axis and turned by up
+// to `deg` per rotation-vector component, which the DICOM angles do not record. By hand:
+// CARMBA_MARKER_RECALL_POSITIONER_MM and _DEG (default none).
+struct PositionerError {
+  double mm = 0, deg = 0;
+};
+PositionerError PositionerFromEnv() {
+  return {testing::EnvOr("CARMBA_MARKER_RECALL_POSITIONER_MM", 0.0),
+          testing::EnvOr("CARMBA_MARKER_RECALL_POSITIONER_DEG", 0.0)};
+}
+
 // One random scene (YAML text) with its marker CSV written into `dir`. Both anatomies draw the
 // same numbers up to the views, so that a seed gives the same markers, beads, wire and views.
-RandomScene MakeScene(uint64_t seed, Anatomy anatomy, const std::string& dir) {
+// The positioner's error is drawn from a generator of its own: the rest of the scene stays the
+// same.
+RandomScene MakeScene(uint64_t seed,
+                      Anatomy anatomy,
+                      const std::string& dir,
+                      const PositionerError& positioner = {}) {
   std::mt19937_64 rng(seed);
   auto U = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
   RandomScene s;
@@ -117,22 +133,17 @@ RandomScene MakeScene(uint64_t seed, Anatomy anatomy, const std::string& dir) {
   const double r0 = U(-180, 180), r1 = U(-60, 60), r2 = U(-180, 180);
   y << "object_pose: {rotation_deg: [" << r0 << ", " << r1 << ", " << r2
     << "], center_mm: [0, 0, 0]}\nviews:\n";
-  // The positioner's error (by hand, default none): the object moved per view by up to
-  // CARMBA_MARKER_RECALL_POSITIONER_MM per axis and turned by up to ..._DEG per rotation-vector
-  // component, which the DICOM angles do not record, drawn from a generator of its own so that
-  // everything else in the scene stays the same.
-  const double err_mm = testing::EnvOr("CARMBA_MARKER_RECALL_POSITIONER_MM", 0.0);
-  const double err_deg = testing::EnvOr("CARMBA_MARKER_RECALL_POSITIONER_DEG", 0.0);
   std::mt19937_64 positioner_rng(seed ^ 0x5eedULL);
   auto E = [&](double a) { return std::uniform_real_distribution<double>(-a, a)(positioner_rng); };
   for (int v = 0; v < 5; ++v) {
     y << "  - {name: v" << v << ", primary_deg: " << U(-45, 45)
       << ", secondary_deg: " << U(-30, 30);
-    if (err_mm > 0)
-      y << ", object_center_mm: [" << E(err_mm) << ", " << E(err_mm) << ", " << E(err_mm) << "]";
-    if (err_deg > 0) {
-      y << ", object_rotation_deg: [" << r0 + E(err_deg) << ", " << r1 + E(err_deg) << ", "
-        << r2 + E(err_deg) << "]";
+    if (positioner.mm > 0)
+      y << ", object_center_mm: [" << E(positioner.mm) << ", " << E(positioner.mm) << ", "
+        << E(positioner.mm) << "]";
+    if (positioner.deg > 0) {
+      y << ", object_rotation_deg: [" << r0 + E(positioner.deg) << ", " << r1 + E(positioner.deg)
+        << ", " << r2 + E(positioner.deg) << "]";
     }
     y << "}\n";
   }
@@ -195,7 +206,7 @@ void RunRecall(Anatomy anatomy, int scenes, uint64_t base, Tally* tally) {
   for (uint64_t seed = base * 1000; used < scenes && seed < base * 1000 + 10 * scenes; ++seed) {
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
-    const RandomScene rs = MakeScene(seed, anatomy, dir);
+    const RandomScene rs = MakeScene(seed, anatomy, dir, PositionerFromEnv());
     {
       std::ofstream(JoinPath(dir, "scene.yaml")) << rs.yaml;
     }
@@ -296,9 +307,12 @@ struct LabelledScene {
   std::vector<ObjectView> views;
   Tally tally;
 };
-void LabelScene(uint64_t seed, Anatomy anatomy, LabelledScene* out) {
+void LabelScene(uint64_t seed,
+                Anatomy anatomy,
+                LabelledScene* out,
+                const PositionerError& positioner = {}) {
   const test::ScratchDir dir("recall_scene");
-  const RandomScene rs = MakeScene(seed, anatomy, dir.path());
+  const RandomScene rs = MakeScene(seed, anatomy, dir.path(), positioner);
   std::ofstream(dir.File("scene.yaml")) << rs.yaml;
   auto scene = sim::LoadXrayScene(dir.File("scene.yaml"));
   ASSERT_TRUE(scene.ok()) << scene.status().message();
@@ -316,10 +330,13 @@ void LabelScene(uint64_t seed, Anatomy anatomy, LabelledScene* out) {
 }
 
 // View `view` of the real-CT scene of `seed` must be labelled at a predicted pose, with no wrong
-// label and no bead.
-void ExpectViewLabelledAtThePrediction(uint64_t seed, size_t view) {
+// label and no bead, and at most `max_missed` of the scene's expected markers not labelled.
+void ExpectViewLabelledAtThePrediction(uint64_t seed,
+                                       size_t view,
+                                       const PositionerError& positioner = {},
+                                       int max_missed = 1) {
   LabelledScene s;
-  ASSERT_NO_FATAL_FAILURE(LabelScene(seed, Anatomy::kRealCt, &s));
+  ASSERT_NO_FATAL_FAILURE(LabelScene(seed, Anatomy::kRealCt, &s, positioner));
   ASSERT_LT(view, s.views.size());
   const ObjectView& v = s.views[view];
   ASSERT_TRUE(v.labelled) << v.skipped;
@@ -327,7 +344,7 @@ void ExpectViewLabelledAtThePrediction(uint64_t seed, size_t view) {
   EXPECT_GE(v.labelling.num_labelled, 4);
   EXPECT_EQ(s.tally.wrong, 0);
   EXPECT_EQ(s.tally.spurious_labelled, 0);
-  EXPECT_GE(s.tally.correct, s.tally.expected - 1);
+  EXPECT_GE(s.tally.correct, s.tally.expected - max_missed);
 }
 
 // A view that cannot be labelled on its own is labelled at the pose that a later labelled view
@@ -353,6 +370,19 @@ TEST(MarkerRecall, APredictionIsPairedAgainWithinTheTightGate) {
     GTEST_SKIP() << "the skull CT " << kInvesaliusCraniumPath << " is not installed";
   }
   ExpectViewLabelledAtThePrediction(13001, 3);
+}
+
+// A prediction off by a few mm (the C-arm's positioner: the object moved by up to 2 mm and
+// 0.5 deg per view where the DICOM angles do not say) is moved by the image offset most markers
+// agree on before it is paired within gate_px (pose/marker_correspondence.h). In seed 16004 (7
+// markers of 1.6 mm) the pairing within the wide gate kept no marker in view 1 and the search
+// found two wrong 5-marker labellings at RMS 0.7 px: the view was refused as ambiguous. The
+// scene's other views lose 4 markers (3 merged, 1 without a blob), which the vote does not touch.
+TEST(MarkerRecall, AnOffPredictionIsMovedByTheOffsetTheMarkersAgreeOn) {
+  if (!std::filesystem::exists(kInvesaliusCraniumPath)) {
+    GTEST_SKIP() << "the skull CT " << kInvesaliusCraniumPath << " is not installed";
+  }
+  ExpectViewLabelledAtThePrediction(16004, 1, {2.0, 0.5}, 4);
 }
 
 // A bead beside a hidden marker is not labelled as it (pose/marker_correspondence.h): in seed
