@@ -212,11 +212,7 @@ class Labeller {
         }
       }
     }
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (const auto& p : P_) c += p / static_cast<double>(P_.size());
-    Eigen::Vector3d c_cam;
-    ceres::AngleAxisRotatePoint(pose.data(), c.data(), c_cam.data());
-    const double z = c_cam.z() + pose[5];
+    const double z = CentroidDepth(pose);
     Pose6 moved = pose;
     if (z > 0) {
       moved[3] += best.x() * z / cam_.params[kFx];
@@ -458,13 +454,17 @@ class Labeller {
 
   // fx / depth of the markers' centroid at `pose`.
   double Magnification(const Pose6& pose) const {
+    const double z = CentroidDepth(pose);
+    return z > 0 ? cam_.params[kFx] / z : 0;
+  }
+  // The depth (camera z, mm) of the markers' centroid at `pose`.
+  double CentroidDepth(const Pose6& pose) const {
     Eigen::Vector3d c = Eigen::Vector3d::Zero();
     for (const auto& p : P_) c += p;
     c /= static_cast<double>(P_.size());
     Eigen::Vector3d c_cam;
     ceres::AngleAxisRotatePoint(pose.data(), c.data(), c_cam.data());
-    const double z = c_cam.z() + pose[5];
-    return z > 0 ? cam_.params[kFx] / z : 0;
+    return c_cam.z() + pose[5];
   }
 
   const Camera& camera() const { return cam_; }
