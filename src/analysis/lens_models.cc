@@ -175,6 +175,16 @@ bool Nested(DistortionModel a, DistortionModel b) {
   return true;
 }
 
+// The fitted score with the most free parameters whose model is nested in m (null if none).
+const DistortionScore* LargestNestedFit(const std::vector<DistortionScore>& fitted,
+                                        DistortionModel m) {
+  const DistortionScore* out = nullptr;
+  for (const auto& sc : fitted) {
+    if (sc.ok && Nested(sc.model, m) && (!out || sc.num_free > out->num_free)) out = &sc;
+  }
+  return out;
+}
+
 // |pp - s.pp| in sigmas of s (Mahalanobis, s's principal-point covariance).
 double PrincipalPointSigmas(const DistortionScore& s, const Eigen::Vector2d& pp) {
   const Eigen::Vector2d d = pp - s.principal_point;
@@ -297,8 +307,15 @@ StatusOr<DistortionSelection> SelectDistortionModel(const ba::BaProblem& problem
     DistortionScore sc;
     sc.model = m;
     ba::BaProblem p = plates;
+    // Started at the optimum of the largest model already fitted that it contains (its own
+    // further terms at zero), with the first steps of a start near the optimum.
+    ba::BaOptions om = o;
+    if (const DistortionScore* from = LargestNestedFit(sel.scores, m)) {
+      StartFromFit(*from, &p);
+      om.initial_trust_region_radius = ba::kNearOptimumTrustRegionRadius;
+    }
     ApplyDistortionModel(m, &p);
-    const Status s = ScoreModel(p, o, sel.folds, &sc);
+    const Status s = ScoreModel(p, om, sel.folds, &sc);
     sc.ok = s.ok();
     if (!s.ok()) sc.error = s.message();
     sel.scores.push_back(sc);

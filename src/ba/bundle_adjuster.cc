@@ -461,9 +461,21 @@ Status CheckCarmbaLm(const BaProblem& p, const BaOptions& o) {
   return Status::Ok();
 }
 
+// Where a solve starts: at the problem's initial values (kCold), or at the optimum of a nearby
+// problem (kWarm: the same observations with other weights, or with their shadow offsets
+// removed), where Gauss-Newton steps are good from the first iteration.
+enum class Start { kCold, kWarm };
+
+// The trust region of the first step: the options' for a cold start, kNearOptimumTrustRegionRadius
+// for a warm one.
+double InitialTrustRegionRadius(const BaOptions& o, Start start) {
+  return start == Start::kWarm ? kNearOptimumTrustRegionRadius : o.initial_trust_region_radius;
+}
+
 Status SolveWithCarmbaLm(const BaProblem& p,
                          const StateLayout& layout,
                          const BaOptions& o,
+                         Start start,
                          std::vector<double>* buffer,
                          BaResult* res) {
   std::vector<std::vector<Eigen::Vector3d>> plate(p.views.size());
@@ -482,8 +494,15 @@ Status SolveWithCarmbaLm(const BaProblem& p,
   const Eigen::MatrixXd A =
       g.constant ? Eigen::MatrixXd::Zero(kNumIntrinsics, 0) : g.basis;
   LmReport report;
-  CARMBA_RETURN_IF_ERROR(SchurLevenbergMarquardt(
-      plate, uv, A, o.max_iterations, o.function_tolerance, &x, &poses, &report));
+  CARMBA_RETURN_IF_ERROR(SchurLevenbergMarquardt(plate,
+                                                 uv,
+                                                 A,
+                                                 o.max_iterations,
+                                                 o.function_tolerance,
+                                                 1.0 / InitialTrustRegionRadius(o, start),
+                                                 &x,
+                                                 &poses,
+                                                 &report));
   std::copy(x.begin(), x.end(), buffer->data() + g.offset);
   for (size_t v = 0; v < p.views.size(); ++v) {
     double* pose = buffer->data() + layout.block(layout.view_block(static_cast<int>(v))).offset;
@@ -617,11 +636,6 @@ std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(const StateLayout& 
   return ordering;
 }
 
-// Where a solve starts: at the problem's initial values (kCold), or at the optimum of a nearby
-// problem (kWarm: the same observations with other weights, or with their shadow offsets
-// removed), where Gauss-Newton steps are good from the first iteration.
-enum class Start { kCold, kWarm };
-
 Termination TerminationOf(ceres::TerminationType t) {
   switch (t) {
     case ceres::CONVERGENCE:
@@ -643,8 +657,7 @@ Termination TerminationOf(ceres::TerminationType t) {
 Status SolveWithCeres(const BaOptions& o, const StateLayout& layout, Start start,
                       ceres::Problem* cp, Assembly* as, BaResult* res) {
   ceres::Solver::Options so;
-  so.initial_trust_region_radius =
-      start == Start::kWarm ? kNearOptimumTrustRegionRadius : o.initial_trust_region_radius;
+  so.initial_trust_region_radius = InitialTrustRegionRadius(o, start);
   LinearSolverType(o.linear_solver, &so.linear_solver_type);
   so.max_num_iterations = o.max_iterations;
   so.function_tolerance = o.function_tolerance;
@@ -826,7 +839,7 @@ StatusOr<BaResult> SolveOnce(const BaProblem& problem,
     if (!initial_cost.ok()) return initial_cost.status();
     if (pass == 0) res.initial_cost = *initial_cost, res.initial_view_rms_px = view_rms_px;
     if (use_lm) {
-      CARMBA_RETURN_IF_ERROR(SolveWithCarmbaLm(problem, layout, o, &as.buffer, &res));
+      CARMBA_RETURN_IF_ERROR(SolveWithCarmbaLm(problem, layout, o, start, &as.buffer, &res));
     } else {
       CARMBA_RETURN_IF_ERROR(SolveWithCeres(o, layout, start, &cp, &as, &res));
     }

@@ -61,7 +61,8 @@ struct BaOptions {
   double function_tolerance = 1e-12;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-12;
-  // The trust region of the first step (Ceres's initial_trust_region_radius, backend ceres):
+  // The trust region of the first step (Ceres's initial_trust_region_radius; carmba_lm's first
+  // damping is its reciprocal):
   // Ceres's default 1e4 for initial values that may be far from the optimum;
   // kNearOptimumTrustRegionRadius when they are near it (a Monte Carlo trial started at the
   // truth: ~4.5 iterations instead of ~10 to the same optimum), as a warm re-solve starts.

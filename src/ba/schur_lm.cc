@@ -144,6 +144,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
                                const Eigen::MatrixXd& A,
                                int max_iterations,
                                double function_tolerance,
+                               double initial_lambda,
                                std::array<double, kNumIntrinsics>* x,
                                std::vector<Pose6>* poses,
                                LmReport* report) {
@@ -169,7 +170,7 @@ Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& 
   if (!total_cost(*x, *poses, &cost)) {
     return Status::Error("initialisation puts grid points behind the source (bad detections?)");
   }
-  double lambda = 1e-4;
+  double lambda = initial_lambda;
   report->termination = Termination::kNoConvergence;
   for (int it = 0; it < max_iterations; ++it) {
     report->iterations = it + 1;

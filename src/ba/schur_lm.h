@@ -80,13 +80,15 @@ struct LmReport {
 };
 
 // Minimises sum over views and points of |project(x, pose_v, plate_v[j]) - uv_v[j]|^2 over
-// x = x0 + A delta and the poses, from the given values. Errors: a point behind the source at the
-// start, a singular system.
+// x = x0 + A delta and the poses, from the given values. `initial_lambda`: the damping of the first
+// step (relative to the diagonal; 1 / Ceres's initial trust-region radius). Errors: a point behind
+// the source at the start, a singular system.
 Status SchurLevenbergMarquardt(const std::vector<std::vector<Eigen::Vector3d>>& plate,
                                const std::vector<std::vector<Eigen::Vector2d>>& uv,
                                const Eigen::MatrixXd& A,
                                int max_iterations,
                                double function_tolerance,
+                               double initial_lambda,
                                std::array<double, kNumIntrinsics>* x,
                                std::vector<Pose6>* poses,
                                LmReport* report);

@@ -90,6 +90,22 @@ void BM_JointSelfChecks(benchmark::State& state) {
 }
 BENCHMARK(BM_JointSelfChecks)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
+// The distortion-model comparison of BM_JointSelfChecks/2 alone (its share of that run).
+void BM_JointDistortionSelection(benchmark::State& state) {
+  const ba::SyntheticJoint sj = Perturbed(ba::SyntheticJointSpec(), 42);
+  ba::BaOptions o;
+  o.covariance_scale = ba::CovarianceScale::kPerGroup;
+  for (auto _ : state) {
+    auto sel = analysis::SelectDistortionModel(sj.problem, o);
+    if (!sel.ok()) {
+      state.SkipWithError(sel.status().message().c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(sel->recommended);
+  }
+}
+BENCHMARK(BM_JointDistortionSelection)->Unit(benchmark::kMillisecond);
+
 // One object view, 9 markers: POSIT initial pose, then the engine with the intrinsics held and the
 // markers tied to their CT centres, covariance of the pose.
 void BM_EngineOneView(benchmark::State& state) {
