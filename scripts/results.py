@@ -650,6 +650,7 @@ def bench_figures(tests_dir, tmp):
         v = t("BM_JointSelfChecks/%d" % arg)
         fig["joint_%s" % key] = ms(v)
         fig["joint_%s_ratio" % key] = "%.2fx" % (v / apriori)
+    fig["joint_distortion_selection"] = ms(t("BM_JointDistortionSelection"))
     fig["engine_one_view_us"] = "%.0f" % (t("BM_EngineOneView") * 1e6)
     fig["detect_thesis"] = ms(t("BM_DetectThesis408x408"))
     fig["detect_pincushion"] = ms(t("BM_DetectPincushion512x512x16bit"))
