@@ -696,6 +696,33 @@ std::string Describe(const Scored& s) {
   return os.str();
 }
 
+// When the most complete labellings (`best` and `rival`, contradicting each other) leave too few
+// shared pairs: the best accepted labelling of fewer markers, if it fits kFarBetterRmsRatio times
+// better than both and no labelling of as many markers contradicts it within `margin_px`; else
+// nullptr. Two labellings of the same markers that cannot both be true, each off by many times
+// the blobs' noise, are chance fits that took spurious beads; a labelling that fits at the noise
+// level without them is the view's (randomised XA-frame scene 16004, view 1: the 4 markers
+// visible apart at RMS 0.02 px; two contradicting 5-marker labellings with beads at 0.75 px). The
+// ratio is that of DisagreeingRival, whose rival is the fewer-marker labelling's mirror image.
+const Scored* FarBetterFit(const std::vector<Scored>& accepted,  // sorted by Better
+                           const Scored& best,
+                           const Scored& rival,
+                           double margin_px) {
+  constexpr double kFarBetterRmsRatio = 6;
+  const Scored* fewer = nullptr;
+  for (const Scored& s : accepted) {
+    if (s.num_labelled >= best.num_labelled) continue;
+    if (!fewer) {
+      fewer = &s;
+      if (kFarBetterRmsRatio * s.Rms() >= std::min(best.Rms(), rival.Rms())) return nullptr;
+    } else if (s.num_labelled == fewer->num_labelled && Contradict(s, *fewer) &&
+               s.Rms() - fewer->Rms() < margin_px) {
+      return nullptr;  // contested too
+    }
+  }
+  return fewer;
+}
+
 // Why no labelling of the `m` markers to the `n` blobs was taken: the best one found (preferring
 // one at the nominal magnification; when `outvoted`, the one that outvoted the accepted ones),
 // with the reason it was refused (stated at its own pose) and what that reason suggests.
@@ -851,6 +878,13 @@ StatusOr<MarkerLabelling> LabelMarkerBlobs(const Camera& camera,
     finish(agreed,
            "search, the " + std::to_string(agreed.num_labelled) + " markers of " +
                std::to_string(b.num_labelled) + " that equally good labellings share");
+    return out;
+  }
+  if (const Scored* fewer = FarBetterFit(accepted, b, *rival, o.ambiguity_margin_px)) {
+    finish(*fewer,
+           "search, " + Describe(*fewer) + ": the labellings of " + std::to_string(b.num_labelled) +
+               " markers contradict each other (" + Describe(b) + " vs " + Describe(*rival) +
+               ") and fit far worse");
     return out;
   }
   return Status::Error(

@@ -49,7 +49,10 @@
 //     view, and a guess could be wrong. The margin is in px, not relative to the blobs' noise:
 //     the true labelling's RMS includes the shadows' offsets and the calibration's error, and a
 //     wrong 4-marker labelling can fit better than it (0.022 px against the true 0.101 px on
-//     a randomised scene with a bead among 4 visible markers).
+//     a randomised scene with a bead among 4 visible markers). Before that error: when the
+//     best accepted labelling of fewer markers fits 6 times better than both contested ones and
+//     no labelling of as many markers contests it, it is taken (the contested ones are chance
+//     fits that took spurious beads: 0.75 px against 0.02 px on a randomised scene).
 //   * rival: the best labelling of 4 pairs has none to spare to tell a pulled centre from a
 //     chance fit. When another labelling of 4 pairs, contradicting it, within
 //     ambiguity_margin_px and 6 times its RMS, was refused only because one of its pairs lies
