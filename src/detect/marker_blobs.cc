@@ -99,9 +99,10 @@ constexpr double kPixelStepExtentPx = 1.5;
 // The area (in expected marker areas) above which a stretched piece can be two markers
 // (NoiseStretched): a pair 0.2 diameters apart, or one marker 12 % wider than expected.
 constexpr double kPairAreaRatio = 1.25;
-// The axis ratio below which a stretch can be a small disc's noise (NoiseStretched): a pair half
-// a diameter apart, with 1.6 of a disc's area, is 1.5.
-constexpr double kNoiseStretch = 1.5;
+// The axis ratio below which a stretch can be a small disc's noise (NoiseStretched): a 4 px
+// marker's 11-13 pixel region reaches 1.5-1.65 on its outline's steps alone; a pair 0.7
+// diameters apart, at 1.7, has 1.9 of a disc's area.
+constexpr double kNoiseStretch = 1.7;
 
 // A connected piece of a candidate's half-peak region.
 struct Piece {

@@ -20,7 +20,7 @@
 //        "merged"                two markers overlapping: one piece with an axis ratio >
 //                                  max_elongation (and axis extents more than 1.5 px apart:
 //                                  a 3 x 4 pixel region is a small disc, not two; and, below
-//                                  an axis ratio of 1.5, an area above 1.25 x the expected one:
+//                                  an axis ratio of 1.7, an area above 1.25 x the expected one:
 //                                  a stretch the area does not show is a small disc's noise) or
 //                                  an area
 //                                  above merge_area_ratio x the expected one, up to twice the
