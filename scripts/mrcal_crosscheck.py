@@ -172,12 +172,20 @@ def solve_held(inputs, start, x0, basis, sigma, max_iterations=50):
         # the state is within ~1e-8 sigma per residual of the optimum (the joint converges
         # linearly there, ~20x per iteration, to a floor near 1e-18).
         decrement = np.sum((Jr @ step) ** 2)
+        lowered = False
         for _ in range(30):
             db = np.insert(step[k:], i0, A @ step[:k])
             b_try, x_try, J_try = evaluate(b + db)
             if x_try @ x_try <= cost:
+                lowered = True
                 break
             step = step / 2
+        # No step lowers the cost: at the minimum to rounding. (Taking the last halved step there
+        # kept the decrement, itself at rounding level, above 1e-16 of the cost in some processes
+        # -- mrcal's linear algebra rounds with the memory's alignment -- for all 50 iterations,
+        # and left k2 1e-6 off the other processes'.)
+        if not lowered:
+            break
         b, x, Jr = b_try, x_try, J_try
         if decrement <= 1e-16 * max(cost, 1e-300):
             break

@@ -62,20 +62,27 @@ def test_to_json_equals_the_commands_result_json(carmba, scene, cli, result):
     cli = without_times(cli)
     mrcal_mine, mrcal_cli = full.pop("mrcal_crosscheck"), cli.pop("mrcal_crosscheck")
     assert full == cli
-    assert_same_within(mrcal_mine, mrcal_cli, 1e-6, "mrcal_crosscheck")
+    assert_same_within(mrcal_mine, mrcal_cli, 1e-5, "mrcal_crosscheck")
 
 
 def assert_same_within(a, b, tol, where):
     """The same keys, strings and integers, and every float within tol * max(1, |a|, |b|).
     mrcal's own free solve (run in a child process) stops within its tolerance of the optimum,
     at one of two points that depend on the process (memory alignment in its linear algebra:
-    with address randomisation off every run is identical). They are 3e-11 apart relative in
-    fx, fy, cx, cy and 2.3e-8 in k2, where k2 and k3 trade off in a flat valley; so mrcal's
-    figures, and carmba's differences from them, are not bit-identical between processes."""
+    with address randomisation off every run is identical). They were 3e-11 apart relative in
+    fx, fy, cx, cy and 2.3e-8 in k2, where k2 and k3 trade off in a flat valley, and are 1.2e-6
+    apart in k2 since carmba's own optimum moved by its convergence tolerance (0a67c9a); so
+    mrcal's figures, and carmba's differences from them, are compared within 1e-5 (the largest
+    difference in sigmas: 2.0e-8 in one process, 1.5e-6 in another for the same solve).
+    mrcal's iteration counts are its process's too (5 and 50 held Gauss-Newton iterations for the
+    same solve): only that they are counts is compared."""
     assert type(a) is type(b) or {type(a), type(b)} <= {int, float}, f"{where}: {a!r} vs {b!r}"
     if isinstance(a, dict):
         assert a.keys() == b.keys(), f"{where}: keys {sorted(a)} vs {sorted(b)}"
         for k in a:
+            if k.endswith("iterations") and where.startswith("mrcal_crosscheck"):
+                assert isinstance(a[k], int) and isinstance(b[k], int), f"{where}.{k}"
+                continue
             assert_same_within(a[k], b[k], tol, f"{where}.{k}")
     elif isinstance(a, list):
         assert len(a) == len(b), f"{where}: {len(a)} vs {len(b)} entries"
