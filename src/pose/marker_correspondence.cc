@@ -676,8 +676,9 @@ class TripleSearch {
 // 4.5 and 2.6). A best labelling that fits far better than such a rival stands (true labellings
 // on the XA frame's seed sets 9 and 16: 0.003-0.013 px against 0.13-0.20 px, ratios 9.8-63; the
 // gap between 4.5 and 9.8 is all the data give for kRivalRmsRatio). That rival, or nullptr.
+constexpr double kRivalRmsRatio = 6;
 const Scored* DisagreeingRival(const Labeller& lab, const TripleSearch& search) {
-  constexpr double kPlausiblePull = 0.25, kRivalRmsRatio = 6;
+  constexpr double kPlausiblePull = 0.25;
   const CorrespondenceOptions& o = lab.options();
   const Scored& best = search.accepted.front();
   const Scored& rival = search.best_disagreeing;  // 4 pairs, or none
@@ -697,24 +698,23 @@ std::string Describe(const Scored& s) {
 }
 
 // When the most complete labellings (`best` and `rival`, contradicting each other) leave too few
-// shared pairs: the best accepted labelling of fewer markers, if it fits kFarBetterRmsRatio times
+// shared pairs: the best accepted labelling of fewer markers, if it fits kRivalRmsRatio times
 // better than both and no labelling of as many markers contradicts it within `margin_px`; else
 // nullptr. Two labellings of the same markers that cannot both be true, each off by many times
 // the blobs' noise, are chance fits that took spurious beads; a labelling that fits at the noise
 // level without them is the view's (randomised XA-frame scene 16004, view 1: the 4 markers
 // visible apart at RMS 0.02 px; two contradicting 5-marker labellings with beads at 0.75 px). The
-// ratio is that of DisagreeingRival, whose rival is the fewer-marker labelling's mirror image.
+// ratio is DisagreeingRival's kRivalRmsRatio, whose rival is this case's mirror image.
 const Scored* FarBetterFit(const std::vector<Scored>& accepted,  // sorted by Better
                            const Scored& best,
                            const Scored& rival,
                            double margin_px) {
-  constexpr double kFarBetterRmsRatio = 6;
   const Scored* fewer = nullptr;
   for (const Scored& s : accepted) {
     if (s.num_labelled >= best.num_labelled) continue;
     if (!fewer) {
       fewer = &s;
-      if (kFarBetterRmsRatio * s.Rms() >= std::min(best.Rms(), rival.Rms())) return nullptr;
+      if (kRivalRmsRatio * s.Rms() >= std::min(best.Rms(), rival.Rms())) return nullptr;
     } else if (s.num_labelled == fewer->num_labelled && Contradict(s, *fewer) &&
                s.Rms() - fewer->Rms() < margin_px) {
       return nullptr;  // contested too
